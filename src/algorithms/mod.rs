@@ -1,0 +1,159 @@
+//! The algorithms, one folder each: its math once in `mod.rs`, then one file per execution.
+//!
+//! Every algorithm takes the same [`Frame`] and returns a [`FrameOutput`] (visibility buffer,
+//! counters, phases, times); the harness adds quality against the reference and writes results.
+
+pub mod reference;
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{unknown_name, Error, Result};
+use crate::frame::Frame;
+use crate::record::{Counters, Phase};
+use crate::scene::LightKind;
+use crate::visibility::VisibilityBuffer;
+
+/// Where an algorithm runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Backend {
+    /// The algorithm's kernels on the host, uninstrumented: honest host wall-clock time.
+    CpuNative,
+    /// The same kernels on the modelled many-core SIMD machine, counting and timing its work.
+    CpuModel,
+    /// Real GPU passes through wgpu.
+    Wgpu,
+}
+
+impl Backend {
+    pub const ALL: [Backend; 3] = [Backend::CpuNative, Backend::CpuModel, Backend::Wgpu];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::CpuNative => "cpu-native",
+            Backend::CpuModel => "cpu-model",
+            Backend::Wgpu => "wgpu",
+        }
+    }
+
+    pub fn parse(s: &str) -> std::result::Result<Backend, String> {
+        Backend::ALL
+            .into_iter()
+            .find(|b| b.name() == s)
+            .ok_or_else(|| unknown_name("backend", s, &Backend::ALL.map(|b| b.name())))
+    }
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A registered algorithm.
+pub struct AlgorithmInfo {
+    pub id: &'static str,
+    /// Paper and section it implements.
+    pub source: &'static str,
+    pub summary: &'static str,
+    /// Light kinds it handles; another kind is converted to the first of these (same size).
+    pub lights: &'static [LightKind],
+    pub backends: &'static [Backend],
+}
+
+impl AlgorithmInfo {
+    /// The light kind this algorithm runs with when the scene's light is `kind`.
+    pub fn light_for(&self, kind: LightKind) -> LightKind {
+        if self.lights.contains(&kind) {
+            kind
+        } else {
+            self.lights[0]
+        }
+    }
+}
+
+pub const ALGORITHMS: &[AlgorithmInfo] = &[AlgorithmInfo {
+    id: "reference",
+    source: "ground truth",
+    summary: "visible fraction of the light by stratified sampling and BVH ray casting",
+    lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+    backends: &[Backend::CpuNative],
+}];
+
+/// Algorithms of the design that are not built yet; named so that scenarios asking for them get
+/// a clear answer rather than "unknown".
+pub const NOT_YET_BUILT: &[&str] = &[
+    "accum_hard",
+    "hard_shadow_map",
+    "pcss",
+    "penumbra_map",
+    "soft_shadow_volume",
+    "dbuffer",
+    "soft_shadow_map",
+    "soft_izb",
+];
+
+pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
+    if let Some(a) = ALGORITHMS.iter().find(|a| a.id == id) {
+        return Ok(a);
+    }
+    if NOT_YET_BUILT.contains(&id) {
+        return Err(format!("algorithm '{id}' is not implemented yet"));
+    }
+    let ids: Vec<&str> = ALGORITHMS.iter().map(|a| a.id).collect();
+    Err(unknown_name("algorithm", id, &ids))
+}
+
+/// Settings that apply to a whole execution (all runs of a `render` or `run`).
+#[derive(Clone, Debug)]
+pub struct ExecContext {
+    /// Light samples per pixel of the reference (a perfect square).
+    pub reference_samples: u32,
+    pub seed: u64,
+    /// Per-algorithm options from the scenario (`options.<algorithm>`), validated by each
+    /// algorithm.
+    pub options: BTreeMap<String, serde_json::Value>,
+}
+
+impl Default for ExecContext {
+    fn default() -> Self {
+        ExecContext {
+            reference_samples: reference::DEFAULT_SAMPLES,
+            seed: 1,
+            options: BTreeMap::new(),
+        }
+    }
+}
+
+/// What one algorithm produced for one frame.
+#[derive(Clone, Debug)]
+pub struct FrameOutput {
+    pub visibility: VisibilityBuffer,
+    pub counters: Counters,
+    pub phases: Vec<Phase>,
+    pub model_ms: Option<f64>,
+    pub gpu_ms: Option<f64>,
+    pub execution: BTreeMap<String, serde_json::Value>,
+    pub warnings: Vec<String>,
+}
+
+/// Runs algorithm `id` on `backend` for `frame`.
+pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
+    let info = find(id).map_err(Error::Unsupported)?;
+    if !info.backends.contains(&backend) {
+        return Err(Error::Unsupported(format!(
+            "algorithm '{id}' has no {backend} execution (it has: {})",
+            info.backends
+                .iter()
+                .map(|b| b.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
+    match id {
+        "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
+        _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
+    }
+}

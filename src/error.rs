@@ -1,0 +1,129 @@
+//! Error types. Bad input is reported with the file, the JSON path and the offending value, and
+//! maps to exit code 2; everything else (a run that failed, a missing GPU) maps to 1.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A problem with what the user gave us: a scenario, an OBJ file, a command-line parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputError {
+    pub file: Option<PathBuf>,
+    /// JSON path (`$.sweep.light_size[2]`) or option name (`--light-size`).
+    pub field: Option<String>,
+    pub message: String,
+}
+
+impl InputError {
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> InputError {
+        InputError {
+            file: None,
+            field: Some(field.into()),
+            message: message.into(),
+        }
+    }
+
+    pub fn file(file: &Path, message: impl Into<String>) -> InputError {
+        InputError {
+            file: Some(file.to_path_buf()),
+            field: None,
+            message: message.into(),
+        }
+    }
+
+    pub fn in_file(mut self, file: &Path) -> InputError {
+        if self.file.is_none() {
+            self.file = Some(file.to_path_buf());
+        }
+        self
+    }
+}
+
+impl fmt::Display for InputError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if let Some(file) = &self.file {
+            write!(f, "{}: ", file.display())?;
+        }
+        if let Some(field) = &self.field {
+            write!(f, "{field}: ")?;
+        }
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for InputError {}
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{0}")]
+    Input(#[from] InputError),
+    /// The algorithm cannot run on this backend or light.
+    #[error("{0}")]
+    Unsupported(String),
+    /// No usable GPU, or a GPU operation failed.
+    #[error("wgpu: {0}")]
+    Gpu(String),
+    /// A run would exceed a configured resource limit.
+    #[error("resource limit: {0}")]
+    Resource(String),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Other(String),
+}
+
+impl Error {
+    pub fn io(path: &Path, source: std::io::Error) -> Error {
+        Error::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// Process exit code for this error.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::Input(_) => 2,
+            _ => 1,
+        }
+    }
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// The closest candidate by edit distance, for "did you mean" hints.
+pub fn closest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
+    candidates
+        .into_iter()
+        .map(|c| (edit_distance(word, c), c))
+        .filter(|(d, c)| *d <= (c.len() / 2).max(2))
+        .min_by_key(|(d, _)| *d)
+        .map(|(_, c)| c)
+}
+
+/// "unknown X 'y'; expected one of ...", with the closest suggestion first.
+pub fn unknown_name<'a>(what: &str, word: &str, candidates: &[&'a str]) -> String {
+    let hint = closest(word, candidates.iter().copied())
+        .map(|c| format!(" (did you mean '{c}'?)"))
+        .unwrap_or_default();
+    format!(
+        "unknown {what} '{word}'{hint}; expected one of: {}",
+        candidates.join(", ")
+    )
+}
+
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut cur = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            let sub = prev[j] + usize::from(ca != *cb);
+            cur[j + 1] = sub.min(prev[j + 1] + 1).min(cur[j] + 1);
+        }
+        prev = cur;
+    }
+    prev[b.len()]
+}

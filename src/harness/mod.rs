@@ -1,0 +1,315 @@
+//! The sweep runner: scenario → cases → frames → runs → results, written as they complete.
+
+pub mod cache;
+pub mod output;
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::algorithms::{self, Backend, ExecContext, FrameOutput};
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::metrics;
+use crate::record::RunRecord;
+use crate::scenario::Loaded;
+use crate::scene::{Light, LightKind, Scene};
+use crate::visibility::VisibilityBuffer;
+
+pub use cache::ReferenceCache;
+
+/// Converts `light` to `kind` keeping its centre and size: a sphere of radius r ↔ a disc of
+/// radius r facing `toward` ↔ a square of half-width r facing `toward`.
+pub fn light_as(light: Light, kind: LightKind, toward: glam::Vec3) -> Light {
+    if light.kind() == kind {
+        return light;
+    }
+    let (c, r) = (light.center(), light.size());
+    let normal = (toward - c).normalize_or(glam::Vec3::NEG_Y);
+    match kind {
+        LightKind::Sphere => Light::Sphere {
+            center: c,
+            radius: r,
+        },
+        LightKind::Disc => Light::Disc {
+            center: c,
+            normal,
+            radius: r,
+        },
+        LightKind::Rect => {
+            let (u, v) = normal.any_orthonormal_pair();
+            Light::Rect {
+                center: c,
+                half_u: u * r,
+                half_v: v * r,
+            }
+        }
+    }
+}
+
+/// Runs one algorithm on one frame and turns its output into a record, with quality against
+/// `reference` when given. Failures (errors, panics, invalid visibility) become a record with
+/// `failure` set, so a sweep keeps going.
+pub fn run_one(
+    frame: &Frame,
+    algorithm: &str,
+    backend: Backend,
+    ctx: &ExecContext,
+    reference: Option<&VisibilityBuffer>,
+) -> (RunRecord, Option<FrameOutput>) {
+    let start = Instant::now();
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        algorithms::run(algorithm, backend, frame, ctx)
+    }))
+    .unwrap_or_else(|panic| {
+        let msg = panic
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_else(|| "unknown panic".into());
+        Err(Error::Other(format!("internal error (panic): {msg}")))
+    })
+    .and_then(|out| {
+        out.visibility
+            .check_range()
+            .map_err(|m| Error::Other(format!("invalid result: {m}")))?;
+        Ok(out)
+    });
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let mut record = RunRecord {
+        algorithm: algorithm.to_string(),
+        backend: backend.name().to_string(),
+        scene: frame.scene.name.clone(),
+        light: frame.scene.light.kind().to_string(),
+        params: frame.params.clone(),
+        counters: Default::default(),
+        phases: vec![],
+        wall_ms,
+        model_ms: None,
+        gpu_ms: None,
+        error: None,
+        execution: host_execution(),
+        warnings: vec![],
+        failure: None,
+    };
+    match result {
+        Ok(out) => {
+            record.counters = out.counters.clone();
+            record.phases = out.phases.clone();
+            record.model_ms = out.model_ms;
+            record.gpu_ms = out.gpu_ms;
+            record.execution.extend(out.execution.clone());
+            record.warnings = out.warnings.clone();
+            if let Some(r) = reference.filter(|_| algorithm != "reference") {
+                record.error = Some(metrics::compare(&out.visibility, r, &frame.gbuffer.mask()));
+            }
+            (record, Some(out))
+        }
+        Err(e) => {
+            record.failure = Some(e.to_string());
+            (record, None)
+        }
+    }
+}
+
+fn host_execution() -> BTreeMap<String, serde_json::Value> {
+    [
+        (
+            "host_threads".to_string(),
+            serde_json::json!(rayon::current_num_threads()),
+        ),
+        (
+            "shadowbench".to_string(),
+            serde_json::json!(env!("CARGO_PKG_VERSION")),
+        ),
+    ]
+    .into()
+}
+
+/// Options of `shadowbench run`.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    pub out: PathBuf,
+    /// Restrict to these algorithms.
+    pub only: Option<Vec<String>>,
+    /// Restrict to these backends.
+    pub backends: Option<Vec<Backend>>,
+    /// Where reference images are cached (default: `OUT/reference-cache`).
+    pub cache_dir: Option<PathBuf>,
+}
+
+/// One planned run.
+struct Planned {
+    case: usize,
+    algorithm: String,
+    backend: Backend,
+}
+
+/// Runs every case of the scenario; writes `results.json`, `results.csv` and images under
+/// `opts.out` after each run, and returns the records.
+pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>> {
+    let s = &loaded.scenario;
+    let cases = loaded.cases();
+    let algorithms: Vec<String> = s
+        .algorithms
+        .iter()
+        .filter(|a| opts.only.as_ref().is_none_or(|o| o.contains(a)))
+        .cloned()
+        .collect();
+    let backends: Vec<Backend> = s
+        .backends
+        .iter()
+        .map(|b| Backend::parse(b).expect("validated"))
+        .filter(|b| opts.backends.as_ref().is_none_or(|o| o.contains(b)))
+        .collect();
+    let mut plan = Vec::new();
+    let mut skipped = Vec::new();
+    for (ci, _) in cases.iter().enumerate() {
+        for a in &algorithms {
+            let info = algorithms::find(a).expect("validated");
+            for &b in &backends {
+                if info.backends.contains(&b) {
+                    plan.push(Planned {
+                        case: ci,
+                        algorithm: a.clone(),
+                        backend: b,
+                    });
+                } else if ci == 0 {
+                    skipped.push(format!("{a} on {b}"));
+                }
+            }
+        }
+    }
+    for s in &skipped {
+        eprintln!("note: skipping {s} (no such execution)");
+    }
+    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    let cache_dir = opts
+        .cache_dir
+        .clone()
+        .unwrap_or_else(|| opts.out.join("reference-cache"));
+    if s.reference.enabled {
+        cache::describe(&cache_dir)?;
+    }
+    let mut refs = ReferenceCache::new(Some(cache_dir), s.reference.samples, s.seed);
+    let ctx = ExecContext {
+        reference_samples: s.reference.samples,
+        seed: s.seed,
+        options: s.options.clone(),
+    };
+
+    let bar = ProgressBar::new(plan.len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} [{elapsed}<{eta}] {msg}")
+            .expect("valid template"),
+    );
+    let mut writer = output::ResultsWriter::new(&opts.out, &loaded.name());
+    let mut current: Option<(usize, Scene)> = None;
+    let mut frames: BTreeMap<LightKind, Frame> = BTreeMap::new();
+    for p in &plan {
+        let case = &cases[p.case];
+        bar.set_message(format!("{} {} case {}", p.algorithm, p.backend, p.case + 1));
+        if current.as_ref().map(|c| c.0) != Some(p.case) {
+            current = Some((p.case, loaded.build_scene(case.scene, case.light_size)));
+            frames.clear();
+        }
+        let scene = &current.as_ref().expect("set above").1;
+        let kind = algorithms::find(&p.algorithm)
+            .expect("validated")
+            .light_for(scene.light.kind());
+        let frame = frames.entry(kind).or_insert_with(|| {
+            let mut sc = scene.clone();
+            sc.light = light_as(sc.light, kind, sc.bounds().center());
+            let params = case.run_params(&sc);
+            Frame::new(sc, params)
+        });
+        let reference = if s.reference.enabled {
+            Some(refs.get_or_compute(frame)?)
+        } else {
+            None
+        };
+        let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
+        if kind != scene.light.kind() {
+            record.warnings.push(format!(
+                "light converted from {} to {} (same centre and size) for this algorithm",
+                scene.light.kind(),
+                kind
+            ));
+        }
+        writer.push(
+            record,
+            out.as_ref().map(|o| &o.visibility),
+            reference.as_ref(),
+            frame,
+        )?;
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    Ok(writer.into_records())
+}
+
+/// A one-line summary table of records.
+pub fn summary_table(records: &[RunRecord]) -> String {
+    let mut s = format!(
+        "{:<18} {:<10} {:<16} {:>7} {:>6} {:>5} {:>9} {:>10} {:>10} {:>9} {:>10}\n",
+        "algorithm",
+        "backend",
+        "scene",
+        "tris",
+        "light",
+        "map",
+        "image",
+        "wall_ms",
+        "model_ms",
+        "gpu_ms",
+        "mae_shadow"
+    );
+    let opt = |v: Option<f64>| v.map(|v| format!("{v:.2}")).unwrap_or_else(|| "-".into());
+    for r in records {
+        let p = &r.params;
+        s.push_str(&format!(
+            "{:<18} {:<10} {:<16} {:>7} {:>6.3} {:>5} {:>9} {:>10.2} {:>10} {:>9} {:>10}\n",
+            r.algorithm,
+            r.backend,
+            r.scene,
+            p.triangles,
+            p.light_size,
+            p.map_resolution,
+            format!("{}x{}", p.image[0], p.image[1]),
+            r.wall_ms,
+            opt(r.model_ms),
+            opt(r.gpu_ms),
+            match (&r.failure, &r.error) {
+                (Some(_), _) => "FAILED".to_string(),
+                (None, Some(e)) => format!("{:.4}", e.mae_shadow),
+                _ => "-".into(),
+            }
+        ));
+    }
+    s
+}
+
+/// Writes the files of a single rendered frame: visibility.png, visibility.npy, run.json and,
+/// with a reference, reference.png and error.png.
+pub fn write_frame_files(
+    dir: &Path,
+    record: &RunRecord,
+    visibility: Option<&VisibilityBuffer>,
+    reference: Option<&VisibilityBuffer>,
+    frame: &Frame,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    if let Some(v) = visibility {
+        v.write_png(&dir.join("visibility.png"))?;
+        v.write_npy(&dir.join("visibility.npy"))?;
+        if let Some(r) = reference.filter(|_| record.algorithm != "reference") {
+            r.write_png(&dir.join("reference.png"))?;
+            metrics::write_error_heatmap(v, r, &frame.gbuffer.mask(), &dir.join("error.png"))?;
+        }
+    }
+    let json = serde_json::to_vec_pretty(record).expect("records serialize");
+    crate::visibility::write_atomic(&dir.join("run.json"), &json)
+}

@@ -1,0 +1,121 @@
+//! Incremental results: after every run, `results.json` and `results.csv` are rewritten
+//! atomically (temporary file + rename), so a sweep cut short keeps every finished run and never
+//! leaves a half-written file.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::Result;
+use crate::frame::Frame;
+use crate::record::RunRecord;
+use crate::visibility::{write_atomic, VisibilityBuffer};
+
+pub struct ResultsWriter {
+    out: PathBuf,
+    scenario: String,
+    records: Vec<RunRecord>,
+}
+
+/// The file `results.json` holds: the scenario name and its runs.
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct ResultsFile {
+    pub scenario: String,
+    pub runs: Vec<RunRecord>,
+}
+
+impl ResultsFile {
+    pub fn read(path: &Path) -> Result<ResultsFile> {
+        let text = std::fs::read_to_string(path).map_err(|e| crate::error::Error::io(path, e))?;
+        serde_json::from_str(&text).map_err(|e| {
+            crate::error::InputError::file(path, format!("not a results file: {e}")).into()
+        })
+    }
+}
+
+impl ResultsWriter {
+    pub fn new(out: &Path, scenario: &str) -> ResultsWriter {
+        ResultsWriter {
+            out: out.to_path_buf(),
+            scenario: scenario.to_string(),
+            records: Vec::new(),
+        }
+    }
+
+    /// Adds a finished run: writes its images under `images/<case>/` and rewrites the results.
+    pub fn push(
+        &mut self,
+        record: RunRecord,
+        visibility: Option<&VisibilityBuffer>,
+        reference: Option<&VisibilityBuffer>,
+        frame: &Frame,
+    ) -> Result<()> {
+        let dir = self.out.join("images").join(record.case_id());
+        super::write_frame_files(&dir, &record, visibility, reference, frame)?;
+        self.records.push(record);
+        self.flush()
+    }
+
+    fn flush(&self) -> Result<()> {
+        let file = ResultsFile {
+            scenario: self.scenario.clone(),
+            runs: self.records.clone(),
+        };
+        let json = serde_json::to_vec_pretty(&file).expect("records serialize");
+        write_atomic(&self.out.join("results.json"), &json)?;
+        write_atomic(&self.out.join("results.csv"), csv(&self.records).as_bytes())
+    }
+
+    pub fn into_records(self) -> Vec<RunRecord> {
+        self.records
+    }
+}
+
+const CSV_COUNTERS: [&str; 4] = ["fill", "overdraw", "mem_read_bytes", "mem_write_bytes"];
+
+/// One row per run with the headline columns; every counter stays in results.json.
+pub fn csv(records: &[RunRecord]) -> String {
+    let mut s = String::from(
+        "algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,cores,wall_ms,model_ms,gpu_ms",
+    );
+    for c in CSV_COUNTERS {
+        s.push(',');
+        s.push_str(c);
+    }
+    s.push_str(",mae,rmse,max,mae_shadow,frac_over_0_1,failure\n");
+    let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
+    for r in records {
+        let p = &r.params;
+        let mut row = vec![
+            r.algorithm.clone(),
+            r.backend.clone(),
+            r.scene.clone(),
+            r.light.clone(),
+            p.triangles.to_string(),
+            p.light_size.to_string(),
+            p.map_resolution.to_string(),
+            p.tile_size.to_string(),
+            p.image[0].to_string(),
+            p.image[1].to_string(),
+            opt(p.occluder_height.map(f64::from)),
+            opt(p.cores.map(f64::from)),
+            r.wall_ms.to_string(),
+            opt(r.model_ms),
+            opt(r.gpu_ms),
+        ];
+        row.extend(CSV_COUNTERS.iter().map(|c| opt(r.counters.get(c))));
+        let e = r.error.as_ref();
+        row.extend([
+            opt(e.map(|e| e.mae)),
+            opt(e.map(|e| e.rmse)),
+            opt(e.map(|e| e.max)),
+            opt(e.map(|e| e.mae_shadow)),
+            opt(e.map(|e| e.frac_over_0_1)),
+            r.failure
+                .as_ref()
+                .map(|f| format!("\"{}\"", f.replace('"', "'")))
+                .unwrap_or_default(),
+        ]);
+        s.push_str(&row.join(","));
+        s.push('\n');
+    }
+    s
+}

@@ -1,0 +1,13 @@
+//! shadowbench: a benchmarking harness and many-core SIMD machine model for real-time
+//! soft-shadow algorithms. See ARCHITECTURE.md for where things live.
+
+pub mod algorithms;
+pub mod error;
+pub mod frame;
+pub mod harness;
+pub mod metrics;
+pub mod record;
+pub mod scenario;
+pub mod scene;
+pub mod util;
+pub mod visibility;

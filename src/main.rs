@@ -1,0 +1,278 @@
+//! The `shadowbench` command line.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use shadowbench::algorithms::{self, Backend, ExecContext};
+use shadowbench::error::{Error, InputError, Result};
+use shadowbench::frame::Frame;
+use shadowbench::harness::{self, ReferenceCache, RunOptions};
+use shadowbench::scenario::{self, validate as check, Loaded};
+use shadowbench::scene::generators::{self, GeneratorParams};
+
+#[derive(Parser)]
+#[command(
+    name = "shadowbench",
+    version,
+    about = "Benchmark real-time soft-shadow algorithms on wgpu and on a modelled many-core SIMD machine"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// List algorithms, executions, scenes and scenarios.
+    List {
+        /// Folder of scenario files to list.
+        #[arg(long, default_value = "scenarios")]
+        scenarios: PathBuf,
+    },
+    /// Render one frame: DIR/visibility.png, DIR/visibility.npy, DIR/run.json.
+    Render(RenderArgs),
+    /// Run a scenario sweep: DIR/results.json, DIR/results.csv, per-run images.
+    Run {
+        scenario: PathBuf,
+        #[arg(long, default_value = "out/run")]
+        out: PathBuf,
+        /// Only these algorithms (comma-separated).
+        #[arg(long, value_delimiter = ',')]
+        only: Option<Vec<String>>,
+        /// Only these backends (comma-separated).
+        #[arg(long, value_delimiter = ',')]
+        backend: Option<Vec<String>>,
+        /// Where to cache reference images (default: OUT/reference-cache).
+        #[arg(long)]
+        cache_dir: Option<PathBuf>,
+    },
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// A built-in scene name, or a path to an .obj or scenario .json file.
+    #[arg(long, default_value = "sphere-on-plane")]
+    scene: String,
+    #[arg(long, default_value = "reference")]
+    algorithm: String,
+    #[arg(long, default_value = "cpu-native")]
+    backend: String,
+    #[arg(long)]
+    light_size: Option<f32>,
+    #[arg(long, default_value_t = 512)]
+    map_resolution: u32,
+    #[arg(long, default_value_t = 32)]
+    tile_size: u32,
+    /// Eye image size, WxH.
+    #[arg(long, default_value = "320x240")]
+    image: String,
+    /// Target triangle count of a generated scene.
+    #[arg(long)]
+    triangles: Option<u32>,
+    #[arg(long)]
+    occluder_height: Option<f32>,
+    /// Light samples per pixel of the reference (a perfect square).
+    #[arg(long, default_value_t = algorithms::reference::DEFAULT_SAMPLES)]
+    samples: u32,
+    /// Skip the reference (no quality metrics).
+    #[arg(long)]
+    no_reference: bool,
+    #[arg(long)]
+    seed: Option<u64>,
+    #[arg(long, default_value = "out/render")]
+    out: PathBuf,
+}
+
+fn parse_image(s: &str) -> std::result::Result<[u32; 2], InputError> {
+    let bad = || InputError::new("--image", format!("expected WxH (e.g. 320x240), got '{s}'"));
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    Ok([
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    ])
+}
+
+fn list(scenarios: &std::path::Path) {
+    println!("algorithms:");
+    for a in algorithms::ALGORITHMS {
+        let b: Vec<&str> = a.backends.iter().map(|b| b.name()).collect();
+        let l: Vec<String> = a.lights.iter().map(|l| l.to_string()).collect();
+        println!(
+            "  {:<20} [{}] lights: {}  ({}) {}",
+            a.id,
+            b.join(", "),
+            l.join("/"),
+            a.source,
+            a.summary
+        );
+    }
+    println!(
+        "  not implemented yet: {}",
+        algorithms::NOT_YET_BUILT.join(", ")
+    );
+    println!("executions:");
+    println!("  cpu-native   host kernels, uninstrumented");
+    println!("  cpu-model    modelled many-core SIMD machine: not implemented yet");
+    println!("  wgpu         GPU passes: not implemented yet");
+    println!("scenes:");
+    for g in generators::GENERATORS {
+        println!(
+            "  {:<18} ~{:>6} triangles  {}",
+            g.name, g.default_triangles, g.summary
+        );
+    }
+    println!("scenarios ({}):", scenarios.display());
+    match std::fs::read_dir(scenarios) {
+        Ok(rd) => {
+            let mut names: Vec<PathBuf> = rd
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|e| e == "json"))
+                .collect();
+            names.sort();
+            for p in names {
+                let desc = Loaded::from_file(&p)
+                    .map(|l| l.scenario.description.unwrap_or_default())
+                    .unwrap_or_else(|e| format!("INVALID: {e}"));
+                println!("  {:<28} {}", p.display(), desc);
+            }
+        }
+        Err(e) => println!("  (cannot read: {e})"),
+    }
+}
+
+fn render(a: RenderArgs) -> Result<()> {
+    let backend = check::backend("--backend", &a.backend)?;
+    check::algorithm("--algorithm", &a.algorithm)?;
+    let image = parse_image(&a.image)?;
+    check::image("--image", image)?;
+    check::map_resolution("--map-resolution", a.map_resolution)?;
+    check::tile_size("--tile-size", a.tile_size)?;
+    check::reference_samples("--samples", a.samples)?;
+    if let Some(v) = a.light_size {
+        check::light_size("--light-size", v)?;
+    }
+    if let Some(v) = a.triangles {
+        check::triangles("--triangles", v)?;
+    }
+    if let Some(v) = a.occluder_height {
+        check::occluder_height("--occluder-height", v)?;
+    }
+    let seed = a.seed.unwrap_or(1);
+    let mut scene = scenario::scene_from_arg(
+        &a.scene,
+        GeneratorParams {
+            triangles: a.triangles,
+            seed,
+            occluder_height: a.occluder_height,
+        },
+    )?;
+    if let Some(s) = a.light_size {
+        scene.light = scene.light.with_size(s);
+    }
+    let info = algorithms::find(&a.algorithm).map_err(Error::Unsupported)?;
+    let kind = info.light_for(scene.light.kind());
+    scene.light = harness::light_as(scene.light, kind, scene.bounds().center());
+    let params = shadowbench::frame::RunParams {
+        triangles: scene.triangle_count() as u32,
+        light_size: scene.light.size(),
+        map_resolution: a.map_resolution,
+        tile_size: a.tile_size,
+        image,
+        occluder_height: a.occluder_height,
+        cores: None,
+    };
+    let frame = Frame::new(scene, params);
+    let ctx = ExecContext {
+        reference_samples: a.samples,
+        seed,
+        ..Default::default()
+    };
+    let reference = if a.no_reference || a.algorithm == "reference" {
+        None
+    } else {
+        Some(ReferenceCache::new(None, a.samples, seed).get_or_compute(&frame)?)
+    };
+    let (record, out) = harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
+    harness::write_frame_files(
+        &a.out,
+        &record,
+        out.as_ref().map(|o| &o.visibility),
+        reference.as_ref(),
+        &frame,
+    )?;
+    print!("{}", harness::summary_table(std::slice::from_ref(&record)));
+    match record.failure {
+        Some(f) => Err(Error::Other(f)),
+        None => {
+            println!("wrote {}", a.out.display());
+            Ok(())
+        }
+    }
+}
+
+fn run(
+    scenario: PathBuf,
+    out: PathBuf,
+    only: Option<Vec<String>>,
+    backend: Option<Vec<String>>,
+    cache_dir: Option<PathBuf>,
+) -> Result<()> {
+    let loaded = Loaded::from_file(&scenario)?;
+    if let Some(only) = &only {
+        for a in only {
+            check::algorithm("--only", a)?;
+        }
+    }
+    let backends = backend
+        .map(|v| {
+            v.iter()
+                .map(|b| check::backend("--backend", b))
+                .collect::<std::result::Result<Vec<Backend>, _>>()
+        })
+        .transpose()?;
+    let records = harness::run_scenario(
+        &loaded,
+        &RunOptions {
+            out: out.clone(),
+            only,
+            backends,
+            cache_dir,
+        },
+    )?;
+    print!("{}", harness::summary_table(&records));
+    let failed = records.iter().filter(|r| r.failure.is_some()).count();
+    println!(
+        "{} runs ({} failed); results in {}",
+        records.len(),
+        failed,
+        out.join("results.json").display()
+    );
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::List { scenarios } => {
+            list(&scenarios);
+            Ok(())
+        }
+        Command::Render(a) => render(a),
+        Command::Run {
+            scenario,
+            out,
+            only,
+            backend,
+            cache_dir,
+        } => run(scenario, out, only, backend, cache_dir),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(e.exit_code() as u8)
+        }
+    }
+}

@@ -1,0 +1,104 @@
+//! What a run yields, in the vocabulary of the design: counters, phases, times, quality.
+//! `run.json` is one [`RunRecord`]; `results.json` is a list of them.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::frame::RunParams;
+use crate::metrics::ErrorMetrics;
+
+/// Named counters (`fill`, `overdraw`, `mem_read_bytes`, `mem.<buffer>.read_bytes`, ...).
+/// Sorted by name so files and comparisons are stable.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(transparent)]
+pub struct Counters(pub BTreeMap<String, f64>);
+
+impl Counters {
+    pub fn add(&mut self, name: &str, v: f64) {
+        *self.0.entry(name.to_string()).or_insert(0.0) += v;
+    }
+
+    pub fn set(&mut self, name: &str, v: f64) {
+        self.0.insert(name.to_string(), v);
+    }
+
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.0.get(name).copied()
+    }
+
+    /// Adds every counter of `other` into `self`.
+    pub fn merge(&mut self, other: &Counters) {
+        for (k, v) in &other.0 {
+            self.add(k, *v);
+        }
+    }
+}
+
+/// A named step of an algorithm with its own times and counters.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Phase {
+    pub name: String,
+    pub wall_ms: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model_ms: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_ms: Option<f64>,
+    #[serde(default, skip_serializing_if = "counters_empty")]
+    pub counters: Counters,
+}
+
+fn counters_empty(c: &Counters) -> bool {
+    c.0.is_empty()
+}
+
+/// One run: one algorithm on one backend at one point of a sweep.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    pub algorithm: String,
+    pub backend: String,
+    pub scene: String,
+    /// The light kind used (`sphere`, `disc`, `rect`).
+    pub light: String,
+    pub params: RunParams,
+    pub counters: Counters,
+    pub phases: Vec<Phase>,
+    pub wall_ms: f64,
+    pub model_ms: Option<f64>,
+    pub gpu_ms: Option<f64>,
+    pub error: Option<ErrorMetrics>,
+    /// Where it ran: machine preset, adapter, host, sample counts.
+    #[serde(default)]
+    pub execution: BTreeMap<String, serde_json::Value>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+    /// Why the run failed; a failed run keeps its place in the results.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+}
+
+impl RunRecord {
+    /// A stable identifier of the case (without timing), for comparisons and file names.
+    pub fn case_id(&self) -> String {
+        let p = &self.params;
+        let mut id = format!(
+            "{}_{}_{}_t{}_l{}_m{}_b{}_{}x{}",
+            self.scene,
+            self.algorithm,
+            self.backend,
+            p.triangles,
+            p.light_size,
+            p.map_resolution,
+            p.tile_size,
+            p.image[0],
+            p.image[1]
+        );
+        if let Some(h) = p.occluder_height {
+            id.push_str(&format!("_h{h}"));
+        }
+        if let Some(c) = p.cores {
+            id.push_str(&format!("_c{c}"));
+        }
+        id
+    }
+}

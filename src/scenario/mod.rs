@@ -1,0 +1,530 @@
+//! The JSON scenario format: what to render, with which algorithms and backends, over which
+//! sweep axes. Everything is validated before any work starts; errors name the file, the JSON
+//! path and the bad value.
+
+pub mod validate;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::{Mat4, Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::error::InputError;
+use crate::frame::RunParams;
+use crate::scene::generators::{self, GeneratorParams};
+use crate::scene::mesh::{Mesh, Object, Role};
+use crate::scene::{obj, Camera, Light, Scene};
+
+pub use validate::validate;
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scenario {
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default)]
+    pub description: Option<String>,
+    pub scene: SceneSpec,
+    /// Overrides the scene's default camera.
+    #[serde(default)]
+    pub camera: Option<Camera>,
+    /// Overrides the scene's default light.
+    #[serde(default)]
+    pub light: Option<Light>,
+    pub algorithms: Vec<String>,
+    #[serde(default = "default_backends")]
+    pub backends: Vec<String>,
+    /// The base point of the sweep: values used for every axis that is not being swept.
+    #[serde(default)]
+    pub params: BaseParams,
+    #[serde(default)]
+    pub sweep: Sweep,
+    #[serde(default)]
+    pub sweep_mode: SweepMode,
+    #[serde(default)]
+    pub reference: ReferenceSpec,
+    /// Per-algorithm options, keyed by algorithm id.
+    #[serde(default)]
+    pub options: BTreeMap<String, serde_json::Value>,
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+}
+
+fn default_backends() -> Vec<String> {
+    vec!["cpu-native".into(), "cpu-model".into(), "wgpu".into()]
+}
+
+fn default_seed() -> u64 {
+    1
+}
+
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSpec {
+    /// A built-in generator (`shadowbench list` shows them).
+    #[serde(default)]
+    pub generator: Option<String>,
+    /// Or user meshes.
+    #[serde(default)]
+    pub objects: Option<Vec<ObjectSpec>>,
+    /// Add a ground plane under user meshes (default true).
+    #[serde(default)]
+    pub ground: Option<bool>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectSpec {
+    /// OBJ file, relative to the scenario file.
+    pub obj: PathBuf,
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default)]
+    pub translate: Option<Vec3>,
+    /// Euler angles in degrees, applied X then Y then Z.
+    #[serde(default)]
+    pub rotate_deg: Option<Vec3>,
+    #[serde(default)]
+    pub scale: Option<f32>,
+    #[serde(default)]
+    pub occluder: Option<bool>,
+    #[serde(default)]
+    pub receiver: Option<bool>,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BaseParams {
+    /// Target triangle count for generators (default: the generator's own).
+    #[serde(default)]
+    pub triangles: Option<u32>,
+    /// Light size (default: the scene light's own).
+    #[serde(default)]
+    pub light_size: Option<f32>,
+    #[serde(default = "default_map_resolution")]
+    pub map_resolution: u32,
+    #[serde(default = "default_tile_size")]
+    pub tile_size: u32,
+    #[serde(default = "default_image")]
+    pub image: [u32; 2],
+    #[serde(default)]
+    pub occluder_height: Option<f32>,
+    #[serde(default)]
+    pub cores: Option<u32>,
+}
+
+fn default_map_resolution() -> u32 {
+    512
+}
+fn default_tile_size() -> u32 {
+    32
+}
+fn default_image() -> [u32; 2] {
+    [320, 240]
+}
+
+impl Default for BaseParams {
+    fn default() -> Self {
+        BaseParams {
+            triangles: None,
+            light_size: None,
+            map_resolution: default_map_resolution(),
+            tile_size: default_tile_size(),
+            image: default_image(),
+            occluder_height: None,
+            cores: None,
+        }
+    }
+}
+
+/// Sweep axes; each a list of values. Empty axes are not swept.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sweep {
+    #[serde(default)]
+    pub triangles: Vec<u32>,
+    #[serde(default)]
+    pub light_size: Vec<f32>,
+    #[serde(default)]
+    pub map_resolution: Vec<u32>,
+    #[serde(default)]
+    pub tile_size: Vec<u32>,
+    #[serde(default)]
+    pub image: Vec<[u32; 2]>,
+    #[serde(default)]
+    pub occluder_height: Vec<f32>,
+    #[serde(default)]
+    pub cores: Vec<u32>,
+}
+
+/// How sweep axes combine.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SweepMode {
+    /// One axis at a time, the others at the base point (as the papers' plots do).
+    #[default]
+    Each,
+    /// Every combination of every axis.
+    Grid,
+}
+
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReferenceSpec {
+    /// Compute the ground truth and quality metrics (default true).
+    #[serde(default = "default_true")]
+    pub enabled: bool,
+    /// Light samples per pixel, a perfect square (256 default, 1024 for paper runs).
+    #[serde(default = "default_samples")]
+    pub samples: u32,
+}
+
+fn default_true() -> bool {
+    true
+}
+fn default_samples() -> u32 {
+    crate::algorithms::reference::DEFAULT_SAMPLES
+}
+
+impl Default for ReferenceSpec {
+    fn default() -> Self {
+        ReferenceSpec {
+            enabled: true,
+            samples: default_samples(),
+        }
+    }
+}
+
+/// A scene point of a sweep: what changes the geometry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScenePoint {
+    pub triangles: Option<u32>,
+    pub occluder_height: Option<f32>,
+}
+
+/// One point of a sweep (before choosing algorithm and backend).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Case {
+    pub scene: ScenePoint,
+    pub light_size: Option<f32>,
+    pub map_resolution: u32,
+    pub tile_size: u32,
+    pub image: [u32; 2],
+    pub cores: Option<u32>,
+}
+
+impl Case {
+    /// Run parameters for this case in `scene` (whose light already has the case's size).
+    pub fn run_params(&self, scene: &Scene) -> RunParams {
+        RunParams {
+            triangles: scene.triangle_count() as u32,
+            light_size: scene.light.size(),
+            map_resolution: self.map_resolution,
+            tile_size: self.tile_size,
+            image: self.image,
+            occluder_height: self.scene.occluder_height,
+            cores: self.cores,
+        }
+    }
+}
+
+/// A scenario that passed validation, with its file's folder for relative paths.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    pub path: PathBuf,
+    pub scenario: Scenario,
+    /// Meshes of `scene.objects`, loaded during validation.
+    meshes: Vec<Mesh>,
+}
+
+impl Loaded {
+    /// Reads and validates a scenario file.
+    pub fn from_file(path: &Path) -> Result<Loaded, InputError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| InputError::file(path, format!("cannot read scenario: {e}")))?;
+        Loaded::from_str(&text, path)
+    }
+
+    /// Parses and validates scenario text; `path` names it in errors and anchors relative paths.
+    pub fn from_str(text: &str, path: &Path) -> Result<Loaded, InputError> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let scenario: Scenario = serde_path_to_error::deserialize(de).map_err(|e| {
+            let inner = e.inner();
+            let field = e.path().to_string();
+            let message = if inner.is_syntax() || inner.is_eof() {
+                format!("malformed JSON: {inner}")
+            } else {
+                inner.to_string()
+            };
+            InputError {
+                file: Some(path.to_path_buf()),
+                field: Some(if field == "." {
+                    "$".into()
+                } else {
+                    format!("$.{field}")
+                }),
+                message,
+            }
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        validate(&scenario).map_err(|e| e.in_file(path))?;
+        let mut meshes = Vec::new();
+        for (i, o) in scenario.scene.objects.iter().flatten().enumerate() {
+            let mesh = obj::load_obj(&base.join(&o.obj)).map_err(|e| InputError {
+                field: Some(format!("$.scene.objects[{i}].obj")),
+                ..e
+            })?;
+            meshes.push(mesh);
+        }
+        Ok(Loaded {
+            path: path.to_path_buf(),
+            scenario,
+            meshes,
+        })
+    }
+
+    pub fn name(&self) -> String {
+        self.scenario.name.clone().unwrap_or_else(|| {
+            self.path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scenario".into())
+        })
+    }
+
+    /// The points of the sweep, in a stable order.
+    pub fn cases(&self) -> Vec<Case> {
+        let s = &self.scenario;
+        let b = &s.params;
+        let base = Case {
+            scene: ScenePoint {
+                triangles: b.triangles,
+                occluder_height: b.occluder_height,
+            },
+            light_size: b.light_size,
+            map_resolution: b.map_resolution,
+            tile_size: b.tile_size,
+            image: b.image,
+            cores: b.cores,
+        };
+        type Apply = Box<dyn Fn(&mut Case)>;
+        let w = &s.sweep;
+        let axes: Vec<Vec<Apply>> = vec![
+            w.triangles
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.scene.triangles = Some(v)) as Apply)
+                .collect(),
+            w.occluder_height
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.scene.occluder_height = Some(v)) as Apply)
+                .collect(),
+            w.light_size
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.light_size = Some(v)) as Apply)
+                .collect(),
+            w.map_resolution
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.map_resolution = v) as Apply)
+                .collect(),
+            w.tile_size
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.tile_size = v) as Apply)
+                .collect(),
+            w.image
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.image = v) as Apply)
+                .collect(),
+            w.cores
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.cores = Some(v)) as Apply)
+                .collect(),
+        ];
+        let mut cases: Vec<Case> = match s.sweep_mode {
+            SweepMode::Each => {
+                let mut v = vec![base.clone()];
+                for axis in &axes {
+                    for f in axis {
+                        let mut c = base.clone();
+                        f(&mut c);
+                        v.push(c);
+                    }
+                }
+                v
+            }
+            SweepMode::Grid => {
+                let mut v = vec![base.clone()];
+                for axis in axes.iter().filter(|a| !a.is_empty()) {
+                    v = v
+                        .into_iter()
+                        .flat_map(|c| {
+                            axis.iter().map(move |f| {
+                                let mut c = c.clone();
+                                f(&mut c);
+                                c
+                            })
+                        })
+                        .collect();
+                }
+                v
+            }
+        };
+        let mut seen = Vec::new();
+        cases.retain(|c| {
+            if seen.contains(c) {
+                false
+            } else {
+                seen.push(c.clone());
+                true
+            }
+        });
+        cases
+    }
+
+    /// Builds the scene at a sweep point, with the scenario's camera and light overrides and the
+    /// light resized to `light_size`.
+    pub fn build_scene(&self, point: ScenePoint, light_size: Option<f32>) -> Scene {
+        let s = &self.scenario;
+        let mut scene = match &s.scene.generator {
+            Some(name) => {
+                generators::find(name)
+                    .expect("generator validated")
+                    .build(&GeneratorParams {
+                        triangles: point.triangles,
+                        seed: s.seed,
+                        occluder_height: point.occluder_height,
+                    })
+            }
+            None => {
+                let objects = s
+                    .scene
+                    .objects
+                    .iter()
+                    .flatten()
+                    .zip(&self.meshes)
+                    .map(|(o, m)| Object {
+                        name: o.name.clone().unwrap_or_else(|| {
+                            o.obj
+                                .file_stem()
+                                .map(|s| s.to_string_lossy().into_owned())
+                                .unwrap_or_default()
+                        }),
+                        mesh: m.clone().transformed(object_transform(o)),
+                        role: Role {
+                            occluder: o.occluder.unwrap_or(true),
+                            receiver: o.receiver.unwrap_or(true),
+                        },
+                    })
+                    .collect();
+                framed_scene(objects, s.scene.ground.unwrap_or(true))
+            }
+        };
+        scene.name = s.scene.generator.clone().unwrap_or_else(|| self.name());
+        if let Some(c) = s.camera {
+            scene.camera = c;
+        }
+        if let Some(l) = s.light {
+            scene.light = l;
+        }
+        if let Some(size) = light_size {
+            scene.light = scene.light.with_size(size);
+        }
+        scene
+    }
+}
+
+fn object_transform(o: &ObjectSpec) -> Mat4 {
+    let r = o.rotate_deg.unwrap_or(Vec3::ZERO);
+    Mat4::from_scale_rotation_translation(
+        Vec3::splat(o.scale.unwrap_or(1.0)),
+        Quat::from_euler(
+            glam::EulerRot::ZYX,
+            r.z.to_radians(),
+            r.y.to_radians(),
+            r.x.to_radians(),
+        ),
+        o.translate.unwrap_or(Vec3::ZERO),
+    )
+}
+
+/// A scene around user meshes: optional ground under them, a camera that frames them and a
+/// sphere light above them, all scaled to their bounds.
+pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> Scene {
+    let b = objects
+        .iter()
+        .fold(crate::scene::Bounds::EMPTY, |b, o| b.union(o.mesh.bounds()));
+    let (c, d) = (b.center(), b.diagonal().max(1e-3));
+    if ground {
+        let plane = generators::primitives::plane(d * 1.5, 16).transformed(Mat4::from_translation(
+            Vec3::new(c.x, b.min.y - 0.02 * d, c.z),
+        ));
+        objects.insert(
+            0,
+            Object {
+                name: "ground".into(),
+                mesh: plane,
+                role: Role::RECEIVER,
+            },
+        );
+    }
+    Scene {
+        name: String::new(),
+        objects,
+        camera: Camera {
+            eye: c + Vec3::new(0.0, 0.9, 1.3) * d,
+            target: Vec3::new(c.x, b.min.y, c.z),
+            up: Vec3::Y,
+            fov_y_deg: 45.0,
+        },
+        light: Light::Sphere {
+            center: c + Vec3::new(0.3, 1.8, 0.2) * d,
+            radius: 0.08 * d,
+        },
+    }
+}
+
+/// A scene by name (a generator) or by file (an OBJ placed over a ground, or a scenario's scene).
+pub fn scene_from_arg(arg: &str, params: GeneratorParams) -> Result<Scene, InputError> {
+    if let Some(g) = generators::find(arg) {
+        return Ok(g.build(&params));
+    }
+    let path = Path::new(arg);
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("obj") => {
+            let mesh = obj::load_obj(path)?;
+            let mut s = framed_scene(
+                vec![Object {
+                    name: path
+                        .file_stem()
+                        .unwrap_or_default()
+                        .to_string_lossy()
+                        .into_owned(),
+                    mesh,
+                    role: Role::BOTH,
+                }],
+                true,
+            );
+            s.name = path
+                .file_stem()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned();
+            Ok(s)
+        }
+        Some("json") => {
+            let l = Loaded::from_file(path)?;
+            Ok(l.build_scene(
+                ScenePoint {
+                    triangles: params.triangles.or(l.scenario.params.triangles),
+                    occluder_height: params.occluder_height.or(l.scenario.params.occluder_height),
+                },
+                l.scenario.params.light_size,
+            ))
+        }
+        _ => Err(InputError::new(
+            "--scene",
+            crate::error::unknown_name("scene", arg, &generators::names())
+                + " (or a path to an .obj or scenario .json file)",
+        )),
+    }
+}

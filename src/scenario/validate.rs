@@ -1,0 +1,290 @@
+//! Semantic checks of a parsed scenario, and the parameter checks the CLI shares with it.
+//! Each check names the JSON path (or option) and the value it rejects.
+
+use glam::Vec3;
+
+use super::Scenario;
+use crate::algorithms::{self, Backend};
+use crate::error::{unknown_name, InputError};
+use crate::scene::generators;
+use crate::scene::Light;
+
+type Check = Result<(), InputError>;
+
+fn fail(field: &str, msg: String) -> Check {
+    Err(InputError::new(field, msg))
+}
+
+fn finite_positive(field: &str, what: &str, v: f32) -> Check {
+    if !v.is_finite() || v <= 0.0 {
+        return fail(
+            field,
+            format!("{what} must be a finite number > 0, got {v}"),
+        );
+    }
+    Ok(())
+}
+
+fn finite_vec(field: &str, v: Vec3) -> Check {
+    if !v.is_finite() {
+        return fail(field, format!("must be finite, got {v}"));
+    }
+    Ok(())
+}
+
+pub fn light_size(field: &str, v: f32) -> Check {
+    finite_positive(field, "light size", v)
+}
+
+/// Largest map or image side accepted (a 16384² f32 map is 1 GiB).
+pub const MAX_RESOLUTION: u32 = 16_384;
+
+pub fn map_resolution(field: &str, v: u32) -> Check {
+    if v == 0 || v > MAX_RESOLUTION {
+        return fail(
+            field,
+            format!("map resolution must be in 1..={MAX_RESOLUTION}, got {v}"),
+        );
+    }
+    Ok(())
+}
+
+pub fn tile_size(field: &str, v: u32) -> Check {
+    if !(8..=256).contains(&v) {
+        return fail(field, format!("tile size must be in 8..=256, got {v}"));
+    }
+    Ok(())
+}
+
+pub fn image(field: &str, v: [u32; 2]) -> Check {
+    if v[0] == 0 || v[1] == 0 || v[0] > MAX_RESOLUTION || v[1] > MAX_RESOLUTION {
+        return fail(
+            field,
+            format!(
+                "image must be WxH with both sides in 1..={MAX_RESOLUTION}, got {}x{}",
+                v[0], v[1]
+            ),
+        );
+    }
+    Ok(())
+}
+
+pub fn triangles(field: &str, v: u32) -> Check {
+    if v == 0 || v > 50_000_000 {
+        return fail(
+            field,
+            format!("triangle count must be in 1..=50000000, got {v}"),
+        );
+    }
+    Ok(())
+}
+
+pub fn occluder_height(field: &str, v: f32) -> Check {
+    if !v.is_finite() || v < 0.0 {
+        return fail(
+            field,
+            format!("occluder height must be finite and >= 0, got {v}"),
+        );
+    }
+    Ok(())
+}
+
+pub fn cores(field: &str, v: u32) -> Check {
+    if !(1..=64).contains(&v) {
+        return fail(field, format!("core count must be in 1..=64, got {v}"));
+    }
+    Ok(())
+}
+
+pub fn reference_samples(field: &str, v: u32) -> Check {
+    if algorithms::reference::strata_side(v).is_none() || v > 65_536 {
+        return fail(
+            field,
+            format!("sample count must be a perfect square in 1..=65536 (e.g. 256, 1024), got {v}"),
+        );
+    }
+    Ok(())
+}
+
+pub fn light(field: &str, l: &Light) -> Check {
+    finite_vec(&format!("{field}.center"), l.center())?;
+    match *l {
+        Light::Sphere { radius, .. } => {
+            finite_positive(&format!("{field}.radius"), "radius", radius)
+        }
+        Light::Disc { normal, radius, .. } => {
+            finite_vec(&format!("{field}.normal"), normal)?;
+            if normal.length_squared() == 0.0 {
+                return fail(&format!("{field}.normal"), "normal must be non-zero".into());
+            }
+            finite_positive(&format!("{field}.radius"), "radius", radius)
+        }
+        Light::Rect { half_u, half_v, .. } => {
+            finite_vec(&format!("{field}.half_u"), half_u)?;
+            finite_vec(&format!("{field}.half_v"), half_v)?;
+            finite_positive(
+                &format!("{field}.half_u"),
+                "half-axis length",
+                half_u.length(),
+            )?;
+            finite_positive(
+                &format!("{field}.half_v"),
+                "half-axis length",
+                half_v.length(),
+            )?;
+            if half_u.normalize().dot(half_v.normalize()).abs() > 1e-3 {
+                return fail(
+                    &format!("{field}.half_v"),
+                    "half-axes must be orthogonal".into(),
+                );
+            }
+            Ok(())
+        }
+    }
+}
+
+pub fn backend(field: &str, name: &str) -> Result<Backend, InputError> {
+    Backend::parse(name).map_err(|m| InputError::new(field, m))
+}
+
+pub fn algorithm(field: &str, id: &str) -> Check {
+    algorithms::find(id)
+        .map(|_| ())
+        .map_err(|m| InputError::new(field, m))
+}
+
+/// All semantic checks of a scenario.
+pub fn validate(s: &Scenario) -> Check {
+    match (&s.scene.generator, &s.scene.objects) {
+        (Some(_), Some(_)) => {
+            return fail(
+                "$.scene",
+                "give either `generator` or `objects`, not both".into(),
+            )
+        }
+        (None, None) => return fail("$.scene", "needs `generator` or `objects`".into()),
+        (Some(g), None) => {
+            if generators::find(g).is_none() {
+                return fail(
+                    "$.scene.generator",
+                    unknown_name("scene generator", g, &generators::names()),
+                );
+            }
+        }
+        (None, Some(objs)) => {
+            if objs.is_empty() {
+                return fail("$.scene.objects", "needs at least one object".into());
+            }
+            for (i, o) in objs.iter().enumerate() {
+                let f = |k: &str| format!("$.scene.objects[{i}].{k}");
+                if let Some(t) = o.translate {
+                    finite_vec(&f("translate"), t)?;
+                }
+                if let Some(r) = o.rotate_deg {
+                    finite_vec(&f("rotate_deg"), r)?;
+                }
+                if let Some(sc) = o.scale {
+                    finite_positive(&f("scale"), "scale", sc)?;
+                }
+            }
+            if !s.sweep.triangles.is_empty() || s.params.triangles.is_some() {
+                return fail(
+                    "$.sweep.triangles",
+                    "a triangle count needs a generator scene (user meshes have a fixed count)"
+                        .into(),
+                );
+            }
+        }
+    }
+    if let Some(c) = &s.camera {
+        finite_vec("$.camera.eye", c.eye)?;
+        finite_vec("$.camera.target", c.target)?;
+        finite_vec("$.camera.up", c.up)?;
+        if (c.target - c.eye).length_squared() == 0.0 {
+            return fail("$.camera.target", "target must differ from eye".into());
+        }
+        if (c.target - c.eye).cross(c.up).length_squared() == 0.0 {
+            return fail(
+                "$.camera.up",
+                "up must not be parallel to the view direction".into(),
+            );
+        }
+        if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
+            return fail(
+                "$.camera.fov_y_deg",
+                format!(
+                    "field of view must be in (0, 180) degrees, got {}",
+                    c.fov_y_deg
+                ),
+            );
+        }
+    }
+    if let Some(l) = &s.light {
+        light("$.light", l)?;
+    }
+    if s.algorithms.is_empty() {
+        return fail("$.algorithms", "needs at least one algorithm".into());
+    }
+    for (i, a) in s.algorithms.iter().enumerate() {
+        algorithm(&format!("$.algorithms[{i}]"), a)?;
+    }
+    if s.backends.is_empty() {
+        return fail("$.backends", "needs at least one backend".into());
+    }
+    for (i, b) in s.backends.iter().enumerate() {
+        backend(&format!("$.backends[{i}]"), b)?;
+    }
+    for k in s.options.keys() {
+        algorithm(&format!("$.options.{k}"), k)?;
+    }
+    let p = &s.params;
+    if let Some(t) = p.triangles {
+        triangles("$.params.triangles", t)?;
+    }
+    if let Some(v) = p.light_size {
+        light_size("$.params.light_size", v)?;
+    }
+    map_resolution("$.params.map_resolution", p.map_resolution)?;
+    tile_size("$.params.tile_size", p.tile_size)?;
+    image("$.params.image", p.image)?;
+    if let Some(h) = p.occluder_height {
+        occluder_height("$.params.occluder_height", h)?;
+    }
+    if let Some(c) = p.cores {
+        cores("$.params.cores", c)?;
+    }
+    let w = &s.sweep;
+    fn each(name: &'static str, n: usize) -> impl Iterator<Item = String> {
+        (0..n).map(move |i| format!("$.sweep.{name}[{i}]"))
+    }
+    for (f, &v) in each("triangles", w.triangles.len()).zip(&w.triangles) {
+        triangles(&f, v)?;
+    }
+    for (f, &v) in each("light_size", w.light_size.len()).zip(&w.light_size) {
+        light_size(&f, v)?;
+    }
+    for (f, &v) in each("map_resolution", w.map_resolution.len()).zip(&w.map_resolution) {
+        map_resolution(&f, v)?;
+    }
+    for (f, &v) in each("tile_size", w.tile_size.len()).zip(&w.tile_size) {
+        tile_size(&f, v)?;
+    }
+    for (f, &v) in each("image", w.image.len()).zip(&w.image) {
+        image(&f, v)?;
+    }
+    for (f, &v) in each("occluder_height", w.occluder_height.len()).zip(&w.occluder_height) {
+        occluder_height(&f, v)?;
+    }
+    for (f, &v) in each("cores", w.cores.len()).zip(&w.cores) {
+        cores(&f, v)?;
+    }
+    if (!w.occluder_height.is_empty() || p.occluder_height.is_some()) && s.scene.generator.is_none()
+    {
+        return fail(
+            "$.sweep.occluder_height",
+            "an occluder height needs a generator scene".into(),
+        );
+    }
+    reference_samples("$.reference.samples", s.reference.samples)?;
+    Ok(())
+}

@@ -1,0 +1,95 @@
+//! Ray casting against the scene with a compressed wide BVH (obvhs).
+//!
+//! Used by the ground-truth reference (shadow rays) and by the eye pass (primary rays). The
+//! any-hit answer of a shadow ray depends only on the triangle tests, never on the tree's shape,
+//! so results are identical whatever the build's thread count.
+
+use std::time::Duration;
+
+use glam::{Vec3, Vec3A};
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle;
+use obvhs::BvhBuildParams;
+
+use super::mesh::FlatMesh;
+
+pub struct SceneBvh {
+    bvh: CwBvh,
+    /// Triangles in the BVH's leaf order, so traversal indexes them directly.
+    triangles: Vec<Triangle>,
+}
+
+/// A primary-ray hit.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    pub t: f32,
+    pub triangle: u32,
+}
+
+impl SceneBvh {
+    pub fn build(flat: &FlatMesh) -> SceneBvh {
+        let triangles: Vec<Triangle> = (0..flat.mesh.triangles.len())
+            .map(|t| {
+                let [a, b, c] = flat.mesh.triangle(t);
+                Triangle {
+                    v0: a.into(),
+                    v1: b.into(),
+                    v2: c.into(),
+                }
+            })
+            .collect();
+        let bvh = if triangles.is_empty() {
+            CwBvh::default()
+        } else {
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(
+                &triangles,
+                BvhBuildParams::medium_build(),
+                &mut Duration::default(),
+            )
+        };
+        // Leaves refer to primitives through `primitive_indices`; store the triangles in that
+        // order so the intersection callback indexes them directly.
+        let triangles = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| triangles[i as usize])
+            .collect();
+        SceneBvh { bvh, triangles }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Whether any triangle blocks the open segment from `from` to `to`.
+    pub fn occluded(&self, from: Vec3, to: Vec3) -> bool {
+        if self.triangles.is_empty() {
+            return false;
+        }
+        let d = to - from;
+        let len = d.length();
+        if len <= 0.0 {
+            return false;
+        }
+        let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
+        !self
+            .bvh
+            .ray_traverse_miss(ray, |r, id| self.triangles[id].intersect(r))
+    }
+
+    /// The closest hit along a ray, if any.
+    pub fn closest(&self, origin: Vec3, dir: Vec3) -> Option<Hit> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        let ray = Ray::new_inf(Vec3A::from(origin), Vec3A::from(dir));
+        let mut hit = RayHit::none();
+        self.bvh
+            .ray_traverse(ray, &mut hit, |r, id| self.triangles[id].intersect(r))
+            .then(|| Hit {
+                t: hit.t,
+                triangle: self.bvh.primitive_indices[hit.primitive_id as usize],
+            })
+    }
+}

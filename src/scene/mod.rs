@@ -1,0 +1,75 @@
+//! The scene model: meshes with adjacency, objects tagged occluder/receiver, camera, lights,
+//! procedural generators, OBJ loading, and the BVH used for ground truth and the eye pass.
+
+pub mod adjacency;
+pub mod bvh;
+pub mod camera;
+pub mod generators;
+pub mod light;
+pub mod mesh;
+pub mod obj;
+
+pub use camera::Camera;
+pub use light::{Light, LightKind};
+pub use mesh::{Bounds, FlatMesh, Mesh, Object, Role};
+
+use crate::util::hash::Fnv64;
+
+/// A complete scene: objects, the eye camera and one area light.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub name: String,
+    pub objects: Vec<Object>,
+    pub camera: Camera,
+    pub light: Light,
+}
+
+impl Scene {
+    pub fn triangle_count(&self) -> usize {
+        self.objects.iter().map(|o| o.mesh.triangles.len()).sum()
+    }
+
+    pub fn bounds(&self) -> Bounds {
+        self.objects
+            .iter()
+            .fold(Bounds::EMPTY, |b, o| b.union(o.mesh.bounds()))
+    }
+
+    /// All triangles in one mesh, remembering their object.
+    pub fn flatten(&self) -> FlatMesh {
+        let mut f = FlatMesh::default();
+        for (i, o) in self.objects.iter().enumerate() {
+            f.mesh.append(&o.mesh);
+            f.object_of_triangle
+                .extend(std::iter::repeat_n(i as u32, o.mesh.triangles.len()));
+            f.roles.push(o.role);
+        }
+        f
+    }
+
+    /// The mesh of all occluders (what shadow algorithms extract silhouettes from).
+    pub fn occluders(&self) -> Mesh {
+        let mut m = Mesh::default();
+        for o in self.objects.iter().filter(|o| o.role.occluder) {
+            m.append(&o.mesh);
+        }
+        m
+    }
+
+    /// A stable hash of the geometry (positions, triangles, roles), for cache keys.
+    pub fn geometry_hash(&self) -> u64 {
+        let mut h = Fnv64::default();
+        for o in &self.objects {
+            for p in &o.mesh.positions {
+                h.f32s(&p.to_array());
+            }
+            for t in &o.mesh.triangles {
+                for i in t {
+                    h.u64(*i as u64);
+                }
+            }
+            h.u64(o.role.occluder as u64 * 2 + o.role.receiver as u64);
+        }
+        h.finish()
+    }
+}

@@ -1,0 +1,68 @@
+//! Loading user meshes from Wavefront OBJ files (tobj), with errors that name the file.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::mesh::Mesh;
+use crate::error::InputError;
+
+/// Loads every model in `path` into one mesh. Polygons with more than three vertices are
+/// triangulated by tobj; lines and points are rejected, as are empty files and out-of-range indices.
+pub fn load_obj(path: &Path) -> Result<Mesh, InputError> {
+    let err = |msg: String| InputError::file(path, msg);
+    if !path.is_file() {
+        return Err(err("file not found".into()));
+    }
+    let opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: false,
+        ignore_lines: false,
+    };
+    let (models, _materials) =
+        tobj::load_obj(path, &opts).map_err(|e| err(format!("cannot parse OBJ: {e}")))?;
+    let mut mesh = Mesh::default();
+    for m in &models {
+        let p = &m.mesh.positions;
+        if p.len() % 3 != 0 {
+            return Err(err(format!("model '{}': malformed positions", m.name)));
+        }
+        if m.mesh.indices.len() % 3 != 0 {
+            return Err(err(format!(
+                "model '{}': faces are not triangles (lines or points are not supported)",
+                m.name
+            )));
+        }
+        let n = (p.len() / 3) as u32;
+        let mut part = Mesh::default();
+        for (k, v) in p.chunks_exact(3).enumerate() {
+            let q = Vec3::new(v[0], v[1], v[2]);
+            if !q.is_finite() {
+                return Err(err(format!(
+                    "model '{}': vertex {} is not finite ({q})",
+                    m.name,
+                    k + 1
+                )));
+            }
+            part.positions.push(q);
+        }
+        for (f, t) in m.mesh.indices.chunks_exact(3).enumerate() {
+            if let Some(bad) = t.iter().find(|&&i| i >= n) {
+                return Err(err(format!(
+                    "model '{}': face {} uses vertex index {} but there are {} vertices",
+                    m.name,
+                    f + 1,
+                    bad + 1,
+                    n
+                )));
+            }
+            part.triangles.push([t[0], t[1], t[2]]);
+        }
+        mesh.append(&part);
+    }
+    if mesh.triangles.is_empty() {
+        return Err(err("no triangles in file".into()));
+    }
+    Ok(mesh)
+}

@@ -1,0 +1,3 @@
+//! Small deterministic helpers shared across the crate.
+
+pub mod hash;

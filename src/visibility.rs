@@ -1,0 +1,107 @@
+//! The eye-view visibility buffer (fraction of the light visible per pixel) and its files.
+
+use std::io::Write;
+use std::path::Path;
+
+use npyz::WriterBuilder;
+
+use crate::error::{Error, Result};
+
+/// Fraction of the light visible at each eye pixel, row-major, y down, values in [0, 1].
+/// Pixels that see no surface hold 1.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VisibilityBuffer {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<f32>,
+}
+
+impl VisibilityBuffer {
+    pub fn lit(width: u32, height: u32) -> VisibilityBuffer {
+        VisibilityBuffer {
+            width,
+            height,
+            data: vec![1.0; (width * height) as usize],
+        }
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> f32 {
+        self.data[(y * self.width + x) as usize]
+    }
+
+    /// Checks the invariant every result must satisfy: finite and within [0, 1].
+    /// Returns the first offending pixel.
+    pub fn check_range(&self) -> std::result::Result<(), String> {
+        match self
+            .data
+            .iter()
+            .position(|v| !v.is_finite() || !(0.0..=1.0).contains(v))
+        {
+            None => Ok(()),
+            Some(i) => Err(format!(
+                "visibility at pixel ({}, {}) is {} (outside [0, 1])",
+                i as u32 % self.width,
+                i as u32 / self.width,
+                self.data[i]
+            )),
+        }
+    }
+
+    /// 8-bit grayscale PNG.
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        let bytes: Vec<u8> = self
+            .data
+            .iter()
+            .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
+            .collect();
+        image::GrayImage::from_raw(self.width, self.height, bytes)
+            .expect("buffer size matches image size")
+            .save(path)
+            .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+    }
+
+    /// float32 NumPy array of shape (H, W).
+    pub fn write_npy(&self, path: &Path) -> Result<()> {
+        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut w = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(&[self.height as u64, self.width as u64])
+            .writer(std::io::BufWriter::new(file))
+            .begin_nd()
+            .map_err(|e| Error::io(path, e))?;
+        w.extend(self.data.iter().copied())
+            .map_err(|e| Error::io(path, e))?;
+        w.finish().map_err(|e| Error::io(path, e))
+    }
+
+    pub fn read_npy(path: &Path) -> Result<VisibilityBuffer> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| Error::io(path, e))?;
+        let shape = npy.shape().to_vec();
+        if shape.len() != 2 {
+            return Err(Error::Other(format!(
+                "{}: expected a 2-D array, found shape {shape:?}",
+                path.display()
+            )));
+        }
+        let data: Vec<f32> = npy.into_vec().map_err(|e| Error::io(path, e))?;
+        Ok(VisibilityBuffer {
+            width: shape[1] as u32,
+            height: shape[0] as u32,
+            data,
+        })
+    }
+}
+
+/// Writes `bytes` to `path` atomically: a temporary file beside it, then a rename, so a reader
+/// (or an interrupted run) never sees a half-written file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension(format!(
+        "{}.tmp",
+        path.extension().and_then(|e| e.to_str()).unwrap_or("")
+    ));
+    let mut f = std::fs::File::create(&tmp).map_err(|e| Error::io(&tmp, e))?;
+    f.write_all(bytes).map_err(|e| Error::io(&tmp, e))?;
+    f.sync_all().map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))
+}
