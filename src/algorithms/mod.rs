@@ -4,6 +4,7 @@
 //! counters, phases, times); the harness adds quality against the reference and writes results.
 
 pub mod reference;
+pub mod shadow_map;
 
 use std::collections::BTreeMap;
 
