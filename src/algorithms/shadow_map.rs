@@ -197,3 +197,82 @@ mod tests {
         assert!(mean.length() < 0.1);
     }
 }
+
+/// Options of `hard_shadow_map` (scenario `options.hard_shadow_map`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HardShadowOptions {
+    #[serde(default)]
+    pub bias: Bias,
+}
+
+/// Options of `pcss` (scenario `options.pcss`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PcssOptions {
+    /// Shadow-map taps of the blocker search (step 1).
+    #[serde(default = "default_blocker_samples")]
+    pub blocker_samples: u32,
+    /// Shadow-map taps of the percentage-closer filter (step 3).
+    #[serde(default = "default_pcf_samples")]
+    pub pcf_samples: u32,
+    #[serde(default)]
+    pub bias: Bias,
+}
+
+fn default_blocker_samples() -> u32 {
+    16
+}
+
+fn default_pcf_samples() -> u32 {
+    32
+}
+
+impl Default for PcssOptions {
+    fn default() -> Self {
+        PcssOptions {
+            blocker_samples: default_blocker_samples(),
+            pcf_samples: default_pcf_samples(),
+            bias: Bias::default(),
+        }
+    }
+}
+
+/// Reads `options.<id>` of a scenario into `T` (defaults when absent), naming the JSON path of
+/// a bad field.
+pub fn parse_options<T: serde::de::DeserializeOwned + Default>(
+    id: &str,
+    options: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Result<T, crate::error::InputError> {
+    match options.get(id) {
+        None => Ok(T::default()),
+        Some(v) => serde_path_to_error::deserialize(v).map_err(|e| {
+            let path = e.path().to_string();
+            crate::error::InputError::new(
+                if path == "." {
+                    format!("$.options.{id}")
+                } else {
+                    format!("$.options.{id}.{path}")
+                },
+                e.into_inner().to_string(),
+            )
+        }),
+    }
+}
+
+impl PcssOptions {
+    pub fn validate(&self, id: &str) -> Result<(), crate::error::InputError> {
+        for (name, v) in [
+            ("blocker_samples", self.blocker_samples),
+            ("pcf_samples", self.pcf_samples),
+        ] {
+            if !(1..=1024).contains(&v) {
+                return Err(crate::error::InputError::new(
+                    format!("$.options.{id}.{name}"),
+                    format!("must be in 1..=1024, got {v}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
