@@ -10,7 +10,7 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::{unknown_name, Error, Result};
+use crate::error::{unknown_name, Error, InputError, Result};
 use crate::frame::Frame;
 use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
@@ -62,6 +62,9 @@ pub struct AlgorithmInfo {
     /// Light kinds it handles; another kind is converted to the first of these (same size).
     pub lights: &'static [LightKind],
     pub backends: &'static [Backend],
+    /// Checks `options.<id>` of a scenario before any work starts.
+    pub check_options:
+        fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
 }
 
 impl AlgorithmInfo {
@@ -81,7 +84,22 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[AlgorithmInfo {
     summary: "visible fraction of the light by stratified sampling and BVH ray casting",
     lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
     backends: &[Backend::CpuNative],
+    check_options: |o| no_options("reference", o),
 }];
+
+/// `check_options` of an algorithm that takes no options.
+pub fn no_options(
+    id: &str,
+    options: &BTreeMap<String, serde_json::Value>,
+) -> std::result::Result<(), InputError> {
+    match options.get(id) {
+        None => Ok(()),
+        Some(_) => Err(InputError::new(
+            format!("$.options.{id}"),
+            format!("algorithm '{id}' takes no options"),
+        )),
+    }
+}
 
 /// Algorithms of the design that are not built yet; named so that scenarios asking for them get
 /// a clear answer rather than "unknown".

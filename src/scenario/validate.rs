@@ -236,6 +236,8 @@ pub fn validate(s: &Scenario) -> Check {
     }
     for k in s.options.keys() {
         algorithm(&format!("$.options.{k}"), k)?;
+        let info = algorithms::find(k).expect("checked above");
+        (info.check_options)(&s.options)?;
     }
     let p = &s.params;
     if let Some(t) = p.triangles {
