@@ -80,12 +80,18 @@ pub struct RunRecord {
 impl RunRecord {
     /// A stable identifier of the case (without timing), for comparisons and file names.
     pub fn case_id(&self) -> String {
-        let p = &self.params;
+        case_id(&self.scene, &self.algorithm, &self.backend, &self.params)
+    }
+}
+
+/// The identifier of a run: scene, algorithm, backend and every parameter.
+pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> String {
+    {
         let mut id = format!(
             "{}_{}_{}_t{}_l{}_m{}_b{}_{}x{}",
-            self.scene,
-            self.algorithm,
-            self.backend,
+            scene,
+            algorithm,
+            backend,
             p.triangles,
             p.light_size,
             p.map_resolution,

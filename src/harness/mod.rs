@@ -14,7 +14,7 @@ use crate::algorithms::{self, Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::metrics;
-use crate::record::RunRecord;
+use crate::record::{case_id, RunRecord};
 use crate::scenario::Loaded;
 use crate::scene::{Light, LightKind, Scene};
 use crate::visibility::VisibilityBuffer;
@@ -209,6 +209,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
     let mut writer = output::ResultsWriter::new(&opts.out, &loaded.name());
     let mut current: Option<(usize, Scene)> = None;
     let mut frames: BTreeMap<LightKind, Frame> = BTreeMap::new();
+    let mut done = std::collections::HashSet::new();
     for p in &plan {
         let case = &cases[p.case];
         bar.set_message(format!("{} {} case {}", p.algorithm, p.backend, p.case + 1));
@@ -226,6 +227,17 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
             let params = case.run_params(&sc);
             Frame::new(sc, params)
         });
+        let id = case_id(
+            &frame.scene.name,
+            &p.algorithm,
+            p.backend.name(),
+            &frame.params,
+        );
+        if !done.insert(id) {
+            // Two sweep points resolved to the same run (e.g. a swept value equal to the base).
+            bar.inc(1);
+            continue;
+        }
         let reference = if s.reference.enabled {
             Some(refs.get_or_compute(frame)?)
         } else {

@@ -252,19 +252,19 @@ impl Loaded {
         let scenario: Scenario = serde_path_to_error::deserialize(de).map_err(|e| {
             let inner = e.inner();
             let field = e.path().to_string();
-            let message = if inner.is_syntax() || inner.is_eof() {
-                format!("malformed JSON: {inner}")
-            } else {
-                inner.to_string()
-            };
+            let malformed = inner.is_syntax() || inner.is_eof();
             InputError {
                 file: Some(path.to_path_buf()),
-                field: Some(if field == "." {
-                    "$".into()
+                field: match field.as_str() {
+                    _ if malformed => None,
+                    "." => Some("$".into()),
+                    f => Some(format!("$.{f}")),
+                },
+                message: if malformed {
+                    format!("malformed JSON: {inner}")
                 } else {
-                    format!("$.{field}")
-                }),
-                message,
+                    inner.to_string()
+                },
             }
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
@@ -272,8 +272,9 @@ impl Loaded {
         let mut meshes = Vec::new();
         for (i, o) in scenario.scene.objects.iter().flatten().enumerate() {
             let mesh = obj::load_obj(&base.join(&o.obj)).map_err(|e| InputError {
+                file: Some(path.to_path_buf()),
                 field: Some(format!("$.scene.objects[{i}].obj")),
-                ..e
+                message: e.to_string(),
             })?;
             meshes.push(mesh);
         }

@@ -153,8 +153,8 @@ fn sphere_on_plane(p: &GeneratorParams, target: u32) -> Scene {
             object("sphere", sphere, Role::BOTH),
         ],
         Camera {
-            eye: Vec3::new(0.0, 7.0, 9.0),
-            target: Vec3::new(0.0, 0.5, 0.0),
+            eye: Vec3::new(0.0, 4.5, 5.5),
+            target: Vec3::new(-0.3, 0.8, 0.0),
             up: Vec3::Y,
             fov_y_deg: 45.0,
         },

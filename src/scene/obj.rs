@@ -8,7 +8,8 @@ use super::mesh::Mesh;
 use crate::error::InputError;
 
 /// Loads every model in `path` into one mesh. Polygons with more than three vertices are
-/// triangulated by tobj; lines and points are rejected, as are empty files and out-of-range indices.
+/// triangulated by tobj; lines and points are skipped (they bound no surface), and a file with no
+/// triangles left, or with out-of-range indices, is an error.
 pub fn load_obj(path: &Path) -> Result<Mesh, InputError> {
     let err = |msg: String| InputError::file(path, msg);
     if !path.is_file() {
@@ -17,8 +18,8 @@ pub fn load_obj(path: &Path) -> Result<Mesh, InputError> {
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
-        ignore_points: false,
-        ignore_lines: false,
+        ignore_points: true,
+        ignore_lines: true,
     };
     let (models, _materials) =
         tobj::load_obj(path, &opts).map_err(|e| err(format!("cannot parse OBJ: {e}")))?;

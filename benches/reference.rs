@@ -1,0 +1,37 @@
+//! Throughput of the ground-truth reference: shadow rays per second on a fixed scene.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use shadowbench::algorithms::reference;
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::scene::generators::{self, GeneratorParams};
+
+fn bench_reference(c: &mut Criterion) {
+    let scene = generators::find("sphere-grid")
+        .expect("built-in scene")
+        .build(&GeneratorParams::default());
+    let params = RunParams {
+        triangles: scene.triangle_count() as u32,
+        light_size: scene.light.size(),
+        map_resolution: 512,
+        tile_size: 32,
+        image: [160, 120],
+        occluder_height: None,
+        cores: None,
+    };
+    let frame = Frame::new(scene, params);
+    let samples = 64;
+    let rays = reference::render(&frame, samples, 1)
+        .counters
+        .get("shadow_rays")
+        .expect("the reference counts its rays");
+    let mut group = c.benchmark_group("reference");
+    group.throughput(Throughput::Elements(rays as u64));
+    group.sample_size(10);
+    group.bench_function("sphere-grid 160x120 64spp", |b| {
+        b.iter(|| reference::render(&frame, samples, 1))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench_reference);
+criterion_main!(benches);

@@ -1,0 +1,213 @@
+//! Invalid scenarios: each mistake gives one clear line naming the file, the JSON path and the
+//! bad value, and the CLI exits with code 2 without panicking.
+
+use std::path::Path;
+use std::process::Command;
+
+use shadowbench::scenario::Loaded;
+
+const VALID: &str = r#"{
+  "name": "t",
+  "scene": { "generator": "sphere-on-plane" },
+  "algorithms": ["reference"],
+  "backends": ["cpu-native"],
+  "params": { "image": [32, 24], "map_resolution": 64 },
+  "sweep": { "light_size": [0.2, 0.4] }
+}"#;
+
+/// Replaces `from` with `to` in the valid scenario (which must contain `from`).
+fn mutate(from: &str, to: &str) -> String {
+    assert!(VALID.contains(from), "{from}");
+    VALID.replacen(from, to, 1)
+}
+
+fn objects(obj: &str) -> String {
+    mutate(
+        r#""generator": "sphere-on-plane""#,
+        &format!(r#""objects": [{{ "obj": "{obj}" }}]"#),
+    )
+}
+
+/// (what is wrong, scenario text, substrings the error must contain)
+fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
+    vec![
+        (
+            "malformed JSON",
+            mutate(r#""t","#, r#""t""#),
+            vec!["malformed JSON", "line 3"],
+        ),
+        (
+            "unknown field",
+            mutate(r#""name""#, r#""nmae""#),
+            vec!["unknown field `nmae`"],
+        ),
+        (
+            "unknown nested field",
+            mutate(r#""map_resolution""#, r#""map_res""#),
+            vec!["$.params", "map_res"],
+        ),
+        (
+            "wrong type",
+            mutate("[32, 24]", r#""32x24""#),
+            vec!["$.params.image"],
+        ),
+        (
+            "negative light size",
+            mutate("0.4]", "-0.4]"),
+            vec!["$.sweep.light_size[1]", "-0.4"],
+        ),
+        (
+            "zero map resolution",
+            mutate(r#""map_resolution": 64"#, r#""map_resolution": 0"#),
+            vec!["$.params.map_resolution", "got 0"],
+        ),
+        (
+            "zero tile size",
+            mutate(
+                r#""map_resolution": 64"#,
+                r#""map_resolution": 64, "tile_size": 0"#,
+            ),
+            vec!["$.params.tile_size", "got 0"],
+        ),
+        (
+            "empty image",
+            mutate("[32, 24]", "[0, 0]"),
+            vec!["$.params.image", "0x0"],
+        ),
+        (
+            "infinite light size",
+            mutate("0.4]", "1e39]"),
+            vec!["$.sweep.light_size[1]", "inf"],
+        ),
+        (
+            "unknown algorithm",
+            mutate(r#"["reference"]"#, r#"["referense"]"#),
+            vec!["$.algorithms[0]", "referense", "did you mean 'reference'"],
+        ),
+        (
+            "unknown backend",
+            mutate(r#"["cpu-native"]"#, r#"["cuda"]"#),
+            vec!["$.backends[0]", "cuda"],
+        ),
+        (
+            "unknown scene generator",
+            mutate("sphere-on-plane", "sphere-on-plain"),
+            vec!["$.scene.generator", "did you mean 'sphere-on-plane'"],
+        ),
+        (
+            "reference samples not a square",
+            mutate(r#""sweep""#, r#""reference": { "samples": 200 }, "sweep""#),
+            vec!["$.reference.samples", "200"],
+        ),
+        (
+            "camera eye equals target",
+            mutate(
+                r#""sweep""#,
+                r#""camera": { "eye": [1,2,3], "target": [1,2,3] }, "sweep""#,
+            ),
+            vec!["$.camera.target"],
+        ),
+        (
+            "zero light radius",
+            mutate(
+                r#""sweep""#,
+                r#""light": { "type": "sphere", "center": [0,5,0], "radius": 0 }, "sweep""#,
+            ),
+            vec!["$.light.radius", "got 0"],
+        ),
+        (
+            "options for an unknown algorithm",
+            mutate(r#""sweep""#, r#""options": { "pcs": {} }, "sweep""#),
+            vec!["$.options.pcs"],
+        ),
+        (
+            "missing OBJ file",
+            objects("data/nope.obj"),
+            vec!["nope.obj", "file not found", "$.scene.objects[0].obj"],
+        ),
+        (
+            "OBJ index out of range",
+            objects("data/bad_index.obj"),
+            vec!["bad_index.obj"],
+        ),
+        (
+            "OBJ without triangles",
+            objects("data/lines.obj"),
+            vec!["lines.obj"],
+        ),
+        (
+            "empty OBJ",
+            objects("data/empty.obj"),
+            vec!["empty.obj", "no triangles"],
+        ),
+        (
+            "negative object scale",
+            objects(r#"data/triangle.obj", "scale": -1, "name": "x"#),
+            vec!["$.scene.objects[0].scale", "-1"],
+        ),
+        (
+            "no algorithms",
+            mutate(r#"["reference"]"#, "[]"),
+            vec!["$.algorithms", "at least one"],
+        ),
+        (
+            "cores out of range",
+            mutate(r#""sweep": {"#, r#""sweep": { "cores": [0],"#),
+            vec!["$.sweep.cores[0]", "got 0"],
+        ),
+    ]
+}
+
+fn scenario_path() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenario.json")
+}
+
+#[test]
+fn the_valid_scenario_is_valid() {
+    let l = Loaded::from_str(VALID, &scenario_path()).expect("valid");
+    assert_eq!(l.cases().len(), 3);
+    Loaded::from_str(&objects("data/triangle.obj"), &scenario_path()).expect("valid OBJ scene");
+}
+
+#[test]
+fn each_mistake_gives_a_one_line_error_naming_the_field() {
+    let path = scenario_path();
+    for (what, text, needles) in cases() {
+        let err = Loaded::from_str(&text, &path)
+            .err()
+            .unwrap_or_else(|| panic!("{what}: accepted"));
+        let msg = err.to_string();
+        assert!(!msg.contains('\n'), "{what}: multi-line error: {msg}");
+        assert!(
+            msg.contains("scenario.json"),
+            "{what}: no file name in: {msg}"
+        );
+        for n in needles {
+            assert!(msg.contains(n), "{what}: '{n}' missing from: {msg}");
+        }
+    }
+}
+
+#[test]
+fn the_cli_exits_with_code_2_and_one_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("bad.json");
+    std::fs::write(&file, mutate("0.4]", "-0.4]")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+        .args(["run", file.to_str().unwrap(), "--out"])
+        .arg(dir.path().join("out"))
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("bad.json") && stderr.contains("$.sweep.light_size[1]"),
+        "{stderr}"
+    );
+    assert!(
+        !dir.path().join("out").exists(),
+        "nothing is written for an invalid scenario"
+    );
+}
