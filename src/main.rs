@@ -47,6 +47,10 @@ enum Command {
         /// Where to cache reference images (default: OUT/reference-cache).
         #[arg(long)]
         cache_dir: Option<PathBuf>,
+        /// Refuse runs whose estimated working set exceeds this many GiB
+        /// (default: half of physical memory).
+        #[arg(long)]
+        memory_limit: Option<f64>,
     },
 }
 
@@ -81,8 +85,24 @@ struct RenderArgs {
     no_reference: bool,
     #[arg(long)]
     seed: Option<u64>,
+    /// Refuse the run if its estimated working set exceeds this many GiB
+    /// (default: half of physical memory).
+    #[arg(long)]
+    memory_limit: Option<f64>,
     #[arg(long, default_value = "out/render")]
     out: PathBuf,
+}
+
+/// `--memory-limit` in bytes, validated.
+fn memory_limit(gib: Option<f64>) -> std::result::Result<u64, InputError> {
+    match gib {
+        None => Ok(harness::limits::default_limit()),
+        Some(g) if g.is_finite() && g > 0.0 => Ok((g * (1u64 << 30) as f64) as u64),
+        Some(g) => Err(InputError::new(
+            "--memory-limit",
+            format!("must be a number of GiB > 0, got {g}"),
+        )),
+    }
 }
 
 fn parse_image(s: &str) -> std::result::Result<[u32; 2], InputError> {
@@ -183,6 +203,7 @@ fn render(a: RenderArgs) -> Result<()> {
         occluder_height: a.occluder_height,
         cores: None,
     };
+    harness::limits::check(info, &params, memory_limit(a.memory_limit)?)?;
     let frame = Frame::new(scene, params);
     let ctx = ExecContext {
         reference_samples: a.samples,
@@ -218,8 +239,10 @@ fn run(
     only: Option<Vec<String>>,
     backend: Option<Vec<String>>,
     cache_dir: Option<PathBuf>,
+    memory_gib: Option<f64>,
 ) -> Result<()> {
     let loaded = Loaded::from_file(&scenario)?;
+    let memory_limit = memory_limit(memory_gib)?;
     if let Some(only) = &only {
         for a in only {
             check::algorithm("--only", a)?;
@@ -239,6 +262,7 @@ fn run(
             only,
             backends,
             cache_dir,
+            memory_limit,
         },
     )?;
     print!("{}", harness::summary_table(&records));
@@ -266,7 +290,8 @@ fn main() -> ExitCode {
             only,
             backend,
             cache_dir,
-        } => run(scenario, out, only, backend, cache_dir),
+            memory_limit,
+        } => run(scenario, out, only, backend, cache_dir, memory_limit),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

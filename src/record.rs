@@ -78,6 +78,41 @@ pub struct RunRecord {
 }
 
 impl RunRecord {
+    /// A record for `algorithm` on `backend` in `scene`, before it ran.
+    pub fn new(
+        algorithm: &str,
+        backend: crate::algorithms::Backend,
+        scene: &crate::scene::Scene,
+        params: RunParams,
+    ) -> RunRecord {
+        RunRecord {
+            algorithm: algorithm.to_string(),
+            backend: backend.name().to_string(),
+            scene: scene.name.clone(),
+            light: scene.light.kind().to_string(),
+            params,
+            counters: Counters::default(),
+            phases: vec![],
+            wall_ms: 0.0,
+            model_ms: None,
+            gpu_ms: None,
+            error: None,
+            execution: [
+                (
+                    "host_threads".to_string(),
+                    serde_json::json!(rayon::current_num_threads()),
+                ),
+                (
+                    "shadowbench".to_string(),
+                    serde_json::json!(env!("CARGO_PKG_VERSION")),
+                ),
+            ]
+            .into(),
+            warnings: vec![],
+            failure: None,
+        }
+    }
+
     /// A stable identifier of the case (without timing), for comparisons and file names.
     pub fn case_id(&self) -> String {
         case_id(&self.scene, &self.algorithm, &self.backend, &self.params)

@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{unknown_name, Error, InputError, Result};
-use crate::frame::Frame;
+use crate::frame::{Frame, RunParams};
 use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
 use crate::visibility::VisibilityBuffer;
@@ -62,6 +62,9 @@ pub struct AlgorithmInfo {
     /// Light kinds it handles; another kind is converted to the first of these (same size).
     pub lights: &'static [LightKind],
     pub backends: &'static [Backend],
+    /// Bytes of the algorithm's own buffers for a run (maps, grids, bins), estimated before
+    /// anything is allocated; the frame itself is counted by the harness.
+    pub memory_estimate: fn(&RunParams) -> u64,
     /// Checks `options.<id>` of a scenario before any work starts.
     pub check_options:
         fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
@@ -84,6 +87,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[AlgorithmInfo {
     summary: "visible fraction of the light by stratified sampling and BVH ray casting",
     lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
     backends: &[Backend::CpuNative],
+    memory_estimate: |_| 0,
     check_options: |o| no_options("reference", o),
 }];
 

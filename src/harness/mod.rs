@@ -1,6 +1,7 @@
 //! The sweep runner: scenario → cases → frames → runs → results, written as they complete.
 
 pub mod cache;
+pub mod limits;
 pub mod output;
 
 use std::collections::BTreeMap;
@@ -78,23 +79,8 @@ pub fn run_one(
             .map_err(|m| Error::Other(format!("invalid result: {m}")))?;
         Ok(out)
     });
-    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    let mut record = RunRecord {
-        algorithm: algorithm.to_string(),
-        backend: backend.name().to_string(),
-        scene: frame.scene.name.clone(),
-        light: frame.scene.light.kind().to_string(),
-        params: frame.params.clone(),
-        counters: Default::default(),
-        phases: vec![],
-        wall_ms,
-        model_ms: None,
-        gpu_ms: None,
-        error: None,
-        execution: host_execution(),
-        warnings: vec![],
-        failure: None,
-    };
+    let mut record = RunRecord::new(algorithm, backend, &frame.scene, frame.params.clone());
+    record.wall_ms = start.elapsed().as_secs_f64() * 1e3;
     match result {
         Ok(out) => {
             record.counters = out.counters.clone();
@@ -115,20 +101,6 @@ pub fn run_one(
     }
 }
 
-fn host_execution() -> BTreeMap<String, serde_json::Value> {
-    [
-        (
-            "host_threads".to_string(),
-            serde_json::json!(rayon::current_num_threads()),
-        ),
-        (
-            "shadowbench".to_string(),
-            serde_json::json!(env!("CARGO_PKG_VERSION")),
-        ),
-    ]
-    .into()
-}
-
 /// Options of `shadowbench run`.
 #[derive(Clone, Debug)]
 pub struct RunOptions {
@@ -139,6 +111,8 @@ pub struct RunOptions {
     pub backends: Option<Vec<Backend>>,
     /// Where reference images are cached (default: `OUT/reference-cache`).
     pub cache_dir: Option<PathBuf>,
+    /// Largest estimated working set of one run, in bytes.
+    pub memory_limit: u64,
 }
 
 /// One planned run.
@@ -218,15 +192,19 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
             frames.clear();
         }
         let scene = &current.as_ref().expect("set above").1;
-        let kind = algorithms::find(&p.algorithm)
-            .expect("validated")
-            .light_for(scene.light.kind());
-        let frame = frames.entry(kind).or_insert_with(|| {
-            let mut sc = scene.clone();
-            sc.light = light_as(sc.light, kind, sc.bounds().center());
-            let params = case.run_params(&sc);
-            Frame::new(sc, params)
-        });
+        let info = algorithms::find(&p.algorithm).expect("validated");
+        let kind = info.light_for(scene.light.kind());
+        let mut sc = scene.clone();
+        sc.light = light_as(sc.light, kind, sc.bounds().center());
+        let params = case.run_params(&sc);
+        if let Err(e) = limits::check(info, &params, opts.memory_limit) {
+            let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
+            record.failure = Some(e.to_string());
+            writer.push(record, None, None, None)?;
+            bar.inc(1);
+            continue;
+        }
+        let frame = frames.entry(kind).or_insert_with(|| Frame::new(sc, params));
         let id = case_id(
             &frame.scene.name,
             &p.algorithm,
@@ -255,7 +233,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
             record,
             out.as_ref().map(|o| &o.visibility),
             reference.as_ref(),
-            frame,
+            Some(frame),
         )?;
         bar.inc(1);
     }

@@ -46,10 +46,12 @@ impl ResultsWriter {
         record: RunRecord,
         visibility: Option<&VisibilityBuffer>,
         reference: Option<&VisibilityBuffer>,
-        frame: &Frame,
+        frame: Option<&Frame>,
     ) -> Result<()> {
-        let dir = self.out.join("images").join(record.case_id());
-        super::write_frame_files(&dir, &record, visibility, reference, frame)?;
+        if let Some(frame) = frame {
+            let dir = self.out.join("images").join(record.case_id());
+            super::write_frame_files(&dir, &record, visibility, reference, frame)?;
+        }
         self.records.push(record);
         self.flush()
     }

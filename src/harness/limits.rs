@@ -1,0 +1,46 @@
+//! Memory limits: a run's working set is estimated before anything is allocated, and a run
+//! that would exceed the limit is refused with the estimate instead of being killed.
+
+use crate::algorithms::AlgorithmInfo;
+use crate::error::{Error, Result};
+use crate::frame::RunParams;
+
+const GIB: f64 = (1u64 << 30) as f64;
+
+/// Physical memory from /proc/meminfo, when readable.
+pub fn physical_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Default limit: half of physical memory (8 GiB when it cannot be read).
+pub fn default_limit() -> u64 {
+    physical_memory().map_or(8 << 30, |m| m / 2)
+}
+
+/// Bytes every run holds whatever the algorithm: the eye pass (position, normal, triangle per
+/// pixel), the result and the reference (f32 per pixel), and the geometry with its BVH
+/// (about 112 bytes per triangle: positions, indices, BVH triangle copy and nodes).
+pub fn frame_bytes(p: &RunParams) -> u64 {
+    let pixels = p.image[0] as u64 * p.image[1] as u64;
+    pixels * (12 + 12 + 4 + 4 + 4) + p.triangles as u64 * 112
+}
+
+/// Refuses a run whose estimated working set exceeds `limit` bytes.
+pub fn check(info: &AlgorithmInfo, p: &RunParams, limit: u64) -> Result<()> {
+    let estimate = frame_bytes(p) + (info.memory_estimate)(p);
+    if estimate > limit {
+        return Err(Error::Resource(format!(
+            "{} at {}x{} with map resolution {} needs about {:.2} GiB, over the limit of {:.2} GiB (raise it with --memory-limit)",
+            info.id,
+            p.image[0],
+            p.image[1],
+            p.map_resolution,
+            estimate as f64 / GIB,
+            limit as f64 / GIB
+        )));
+    }
+    Ok(())
+}
