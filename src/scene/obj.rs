@@ -11,18 +11,28 @@ use crate::error::InputError;
 /// triangulated by tobj; lines and points are skipped (they bound no surface), and a file with no
 /// triangles left, or with out-of-range indices, is an error.
 pub fn load_obj(path: &Path) -> Result<Mesh, InputError> {
-    let err = |msg: String| InputError::file(path, msg);
     if !path.is_file() {
-        return Err(err("file not found".into()));
+        return Err(InputError::file(path, "file not found"));
     }
+    let file = std::fs::File::open(path)
+        .map_err(|e| InputError::file(path, format!("cannot open: {e}")))?;
+    parse_obj(&mut std::io::BufReader::new(file), path)
+}
+
+/// Parses OBJ text from `reader`; `path` names it in errors. Material libraries are not read
+/// (only geometry matters here).
+pub fn parse_obj(reader: &mut impl std::io::BufRead, path: &Path) -> Result<Mesh, InputError> {
+    let err = |msg: String| InputError::file(path, msg);
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _materials) =
-        tobj::load_obj(path, &opts).map_err(|e| err(format!("cannot parse OBJ: {e}")))?;
+    let (models, _materials) = tobj::load_obj_buf(reader, &opts, |_| {
+        Ok((Vec::new(), Default::default()))
+    })
+    .map_err(|e| err(format!("cannot parse OBJ: {e}")))?;
     let mut mesh = Mesh::default();
     for m in &models {
         let p = &m.mesh.positions;
