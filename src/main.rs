@@ -1,6 +1,6 @@
 //! The `shadowbench` command line.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -9,6 +9,7 @@ use shadowbench::algorithms::{self, Backend, ExecContext};
 use shadowbench::error::{Error, InputError, Result};
 use shadowbench::frame::Frame;
 use shadowbench::harness::{self, ReferenceCache, RunOptions};
+use shadowbench::model::{self, MachineConfig};
 use shadowbench::scenario::{self, validate as check, Loaded};
 use shadowbench::scene::generators::{self, GeneratorParams};
 
@@ -47,6 +48,10 @@ enum Command {
         /// Where to cache reference images (default: OUT/reference-cache).
         #[arg(long)]
         cache_dir: Option<PathBuf>,
+        /// Modelled machine of cpu-model runs: a preset or a machine .json file (overrides the
+        /// scenario's `machine`).
+        #[arg(long)]
+        machine: Option<String>,
     },
 }
 
@@ -83,6 +88,12 @@ struct RenderArgs {
     seed: Option<u64>,
     #[arg(long, default_value = "out/render")]
     out: PathBuf,
+    /// Modelled machine of cpu-model runs: a preset or a machine .json file.
+    #[arg(long, default_value = "larrabee-24")]
+    machine: String,
+    /// Core count of the modelled machine (overrides the preset's).
+    #[arg(long)]
+    cores: Option<u32>,
 }
 
 fn parse_image(s: &str) -> std::result::Result<[u32; 2], InputError> {
@@ -114,8 +125,13 @@ fn list(scenarios: &std::path::Path) {
     );
     println!("executions:");
     println!("  cpu-native   host kernels, uninstrumented");
-    println!("  cpu-model    modelled many-core SIMD machine: not implemented yet");
+    println!("  cpu-model    modelled many-core SIMD machine (see machines)");
     println!("  wgpu         GPU passes: not implemented yet");
+    println!("machines (--machine, scenario `machine`; or a machine .json file):");
+    for name in model::config::PRESETS {
+        let m = MachineConfig::preset(name).expect("listed presets exist");
+        println!("  {:<14} {}", name, m.describe());
+    }
     println!("scenes:");
     for g in generators::GENERATORS {
         println!(
@@ -159,6 +175,10 @@ fn render(a: RenderArgs) -> Result<()> {
     if let Some(v) = a.occluder_height {
         check::occluder_height("--occluder-height", v)?;
     }
+    let machine = MachineConfig::resolve("--machine", &a.machine, Path::new("."))?;
+    if let Some(c) = a.cores {
+        check::cores("--cores", c)?;
+    }
     let seed = a.seed.unwrap_or(1);
     let mut scene = scenario::scene_from_arg(
         &a.scene,
@@ -181,12 +201,13 @@ fn render(a: RenderArgs) -> Result<()> {
         tile_size: a.tile_size,
         image,
         occluder_height: a.occluder_height,
-        cores: None,
+        cores: a.cores,
     };
     let frame = Frame::new(scene, params);
     let ctx = ExecContext {
         reference_samples: a.samples,
         seed,
+        machine,
         ..Default::default()
     };
     let reference = if a.no_reference || a.algorithm == "reference" {
@@ -218,8 +239,12 @@ fn run(
     only: Option<Vec<String>>,
     backend: Option<Vec<String>>,
     cache_dir: Option<PathBuf>,
+    machine: Option<String>,
 ) -> Result<()> {
     let loaded = Loaded::from_file(&scenario)?;
+    let machine = machine
+        .map(|m| MachineConfig::resolve("--machine", &m, Path::new(".")))
+        .transpose()?;
     if let Some(only) = &only {
         for a in only {
             check::algorithm("--only", a)?;
@@ -239,6 +264,7 @@ fn run(
             only,
             backends,
             cache_dir,
+            machine,
         },
     )?;
     print!("{}", harness::summary_table(&records));
@@ -266,7 +292,8 @@ fn main() -> ExitCode {
             only,
             backend,
             cache_dir,
-        } => run(scenario, out, only, backend, cache_dir),
+            machine,
+        } => run(scenario, out, only, backend, cache_dir, machine),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -139,6 +139,8 @@ pub struct RunOptions {
     pub backends: Option<Vec<Backend>>,
     /// Where reference images are cached (default: `OUT/reference-cache`).
     pub cache_dir: Option<PathBuf>,
+    /// Overrides the scenario's machine.
+    pub machine: Option<crate::model::MachineConfig>,
 }
 
 /// One planned run.
@@ -199,6 +201,10 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
         reference_samples: s.reference.samples,
         seed: s.seed,
         options: s.options.clone(),
+        machine: opts
+            .machine
+            .clone()
+            .unwrap_or_else(|| loaded.machine.clone()),
     };
 
     let bar = ProgressBar::new(plan.len() as u64);
