@@ -331,8 +331,9 @@ impl Setup {
         for k in 0..3 {
             let (p, r) = (q[(k + 1) % 3], q[(k + 2) % 3]);
             o[k] = p;
-            a[k] = sign * (r[1] - p[1]);
-            b[k] = -sign * (r[0] - p[0]);
+            // E_k(q_k) = sign · cross(q_k − p, r − p) = |area| > 0.
+            a[k] = -sign * (r[1] - p[1]);
+            b[k] = sign * (r[0] - p[0]);
             top_left[k] = a[k] > 0.0 || (a[k] == 0.0 && b[k] > 0.0);
         }
         let grow = if coverage == Coverage::Conservative {
