@@ -6,6 +6,7 @@ pub mod error;
 pub mod frame;
 pub mod harness;
 pub mod metrics;
+pub mod model;
 pub mod record;
 pub mod scenario;
 pub mod scene;

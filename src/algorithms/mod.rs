@@ -3,6 +3,8 @@
 //! Every algorithm takes the same [`Frame`] and returns a [`FrameOutput`] (visibility buffer,
 //! counters, phases, times); the harness adds quality against the reference and writes results.
 
+pub mod hard_shadow_map;
+pub mod pcss;
 pub mod reference;
 pub mod shadow_map;
 
@@ -12,6 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{unknown_name, Error, InputError, Result};
 use crate::frame::{Frame, RunParams};
+use crate::model::MachineConfig;
 use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
 use crate::visibility::VisibilityBuffer;
@@ -81,15 +84,35 @@ impl AlgorithmInfo {
     }
 }
 
-pub const ALGORITHMS: &[AlgorithmInfo] = &[AlgorithmInfo {
-    id: "reference",
-    source: "ground truth",
-    summary: "visible fraction of the light by stratified sampling and BVH ray casting",
-    lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-    backends: &[Backend::CpuNative],
-    memory_estimate: |_| 0,
-    check_options: |o| no_options("reference", o),
-}];
+pub const ALGORITHMS: &[AlgorithmInfo] = &[
+    AlgorithmInfo {
+        id: "reference",
+        source: "ground truth",
+        summary: "visible fraction of the light by stratified sampling and BVH ray casting",
+        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::CpuNative],
+        memory_estimate: |_| 0,
+        check_options: |o| no_options("reference", o),
+    },
+    AlgorithmInfo {
+        id: hard_shadow_map::ID,
+        source: "baseline (Williams 1978)",
+        summary: "shadow map from the light centre with slope-scaled bias",
+        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::CpuNative, Backend::CpuModel],
+        memory_estimate: shadow_map::map_bytes,
+        check_options: hard_shadow_map::check_options,
+    },
+    AlgorithmInfo {
+        id: pcss::ID,
+        source: "Fernando 2005, cited in 004 Table 2",
+        summary: "blocker search + variable-width percentage-closer filter",
+        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::CpuNative, Backend::CpuModel],
+        memory_estimate: shadow_map::map_bytes,
+        check_options: pcss::check_options,
+    },
+];
 
 /// `check_options` of an algorithm that takes no options.
 pub fn no_options(
@@ -109,8 +132,6 @@ pub fn no_options(
 /// a clear answer rather than "unknown".
 pub const NOT_YET_BUILT: &[&str] = &[
     "accum_hard",
-    "hard_shadow_map",
-    "pcss",
     "penumbra_map",
     "soft_shadow_volume",
     "dbuffer",
@@ -138,6 +159,8 @@ pub struct ExecContext {
     /// Per-algorithm options from the scenario (`options.<algorithm>`), validated by each
     /// algorithm.
     pub options: BTreeMap<String, serde_json::Value>,
+    /// The modelled machine of `cpu-model` runs (a run's `cores` overrides its core count).
+    pub machine: MachineConfig,
 }
 
 impl Default for ExecContext {
@@ -146,6 +169,7 @@ impl Default for ExecContext {
             reference_samples: reference::DEFAULT_SAMPLES,
             seed: 1,
             options: BTreeMap::new(),
+            machine: MachineConfig::default(),
         }
     }
 }
@@ -177,6 +201,16 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
     }
     match id {
         "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
+        hard_shadow_map::ID => {
+            let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;
+            Ok(hard_shadow_map::cpu::render(backend, frame, ctx, o.bias))
+        }
+        pcss::ID => Ok(pcss::cpu::render(
+            backend,
+            frame,
+            ctx,
+            pcss::options(&ctx.options)?,
+        )),
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
 }

@@ -276,3 +276,9 @@ impl PcssOptions {
         Ok(())
     }
 }
+
+/// Bytes of one f32 depth map at the run's map resolution (the memory estimate of the
+/// shadow-map family before anything is allocated).
+pub fn map_bytes(p: &crate::frame::RunParams) -> u64 {
+    p.map_resolution as u64 * p.map_resolution as u64 * 4
+}
