@@ -7,6 +7,7 @@ pub mod frame;
 pub mod harness;
 pub mod metrics;
 pub mod record;
+pub mod report;
 pub mod scenario;
 pub mod scene;
 pub mod util;
