@@ -32,8 +32,11 @@ check='<script>window.addEventListener("load",function(){var n=0,b=0;'
 check+='document.querySelectorAll("img").forEach(function(i){n++;'
 check+='if(!i.complete||i.naturalWidth===0){b++;i.setAttribute("data-broken","1");}});'
 check+='document.body.setAttribute("data-images",n);document.body.setAttribute("data-broken-images",b);});</script>'
-sed -e "s|<head>|<head><base href=\"file://$out/\">|" -e "s|</body>|$check</body>|" \
-    "$index" > "$tmp/check.html"
+shopt -u patsub_replacement 2>/dev/null || true
+page=$(<"$index")
+page=${page/<head>/<head><base href=\"file://$out/\">}
+page=${page/<\/body>/$check</body>}
+printf '%s\n' "$page" > "$tmp/check.html"
 
 "$browser" "${flags[@]}" --user-data-dir="$tmp/profile-dom" --dump-dom "file://$tmp/check.html" \
     > "$tmp/dom.html" 2> "$tmp/chromium-dom.log" || {
@@ -41,7 +44,7 @@ sed -e "s|<head>|<head><base href=\"file://$out/\">|" -e "s|</body>|$check</body
     tail -n 20 "$tmp/chromium-dom.log" >&2
     exit 1
 }
-"$browser" "${flags[@]}" --user-data-dir="$tmp/profile-shot" --window-size=1280,2400 \
+"$browser" "${flags[@]}" --user-data-dir="$tmp/profile-shot" --window-size=1280,3600 \
     --screenshot="$shot" "file://$index" > /dev/null 2> "$tmp/chromium-shot.log" || {
     echo "error: chromium failed to take a screenshot of $index:" >&2
     tail -n 20 "$tmp/chromium-shot.log" >&2

@@ -16,7 +16,7 @@ pub struct ResultsWriter {
 }
 
 /// The file `results.json` holds: the scenario name and its runs.
-#[derive(serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ResultsFile {
     pub scenario: String,
     pub runs: Vec<RunRecord>,

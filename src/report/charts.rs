@@ -12,9 +12,10 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use plotters::coord::ranged1d::{AsRangedCoord, SegmentValue, ValueFormatter};
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::fmt_num;
 use crate::error::{Error, Result};
@@ -472,7 +473,7 @@ impl Spec {
     fn size(&self) -> (u32, u32) {
         match &self.kind {
             Kind::Xy(_) => (1000, 600),
-            Kind::Stacked { bars, .. } => ((400 + 170 * bars.len() as u32).max(900), 600),
+            Kind::Stacked { bars, .. } => ((400 + 180 * bars.len() as u32).max(900), 600),
         }
     }
 }
@@ -642,22 +643,15 @@ fn draw_stacked<DB: DrawingBackend>(
     let top = if top > 0.0 { top * 1.08 } else { 1.0 };
     let mut chart = ChartBuilder::on(area)
         .margin(16)
-        .x_label_area_size(56)
+        .x_label_area_size(80)
         .y_label_area_size(90)
-        .build_cartesian_2d((0..bars.len()).into_segmented(), 0.0..top)
+        .build_cartesian_2d(-0.5..bars.len() as f64 - 0.5, 0.0..top)
         .map_err(e)?;
     chart
         .configure_mesh()
         .disable_x_mesh()
-        .x_desc("algorithm / backend")
+        .x_labels(0)
         .y_desc(y_label)
-        .x_labels(bars.len())
-        .x_label_formatter(&|v| match v {
-            SegmentValue::CenterOf(i) | SegmentValue::Exact(i) => {
-                bars.get(*i).map(|b| b.name.clone()).unwrap_or_default()
-            }
-            SegmentValue::Last => String::new(),
-        })
         .y_label_formatter(&|v| fmt_num(*v))
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 16))
@@ -669,17 +663,30 @@ fn draw_stacked<DB: DrawingBackend>(
         let rects = bars.iter().enumerate().filter_map(|(bi, b)| {
             let k = b.parts.iter().position(|p| p.0 == *phase)?;
             let below: f64 = b.parts[..k].iter().map(|p| p.1).sum();
-            let mut r = Rectangle::new(
-                [
-                    (SegmentValue::Exact(bi), below),
-                    (SegmentValue::Exact(bi + 1), below + b.parts[k].1),
-                ],
+            let x = bi as f64;
+            Some(Rectangle::new(
+                [(x - 0.3, below), (x + 0.3, below + b.parts[k].1)],
                 col.filled(),
-            );
-            r.set_margin(0, 0, 24, 24);
-            Some(r)
+            ))
         });
         chart.draw_series(rects).map_err(e)?;
+    }
+    // Bar names under the axis, on two lines (algorithm, backend) so long names do not collide.
+    let (ox, oy) = area.get_base_pixel();
+    let style = TextStyle::from((FONT, 14).into_font())
+        .color(&BLACK)
+        .pos(Pos::new(HPos::Center, VPos::Top));
+    for (bi, b) in bars.iter().enumerate() {
+        let (px, py) = chart.backend_coord(&(bi as f64, 0.0));
+        let (x, y) = (px - ox, py - oy);
+        for (li, line) in b.name.splitn(2, " / ").enumerate() {
+            area.draw(&Text::new(
+                line.to_string(),
+                (x, y + 10 + 20 * li as i32),
+                style.clone(),
+            ))
+            .map_err(e)?;
+        }
     }
     Ok(())
 }
@@ -836,7 +843,10 @@ mod tests {
         let Kind::Xy(c) = &tile.kind else { panic!() };
         let xs: Vec<f64> = c.series[1].points.iter().map(|p| p.0).collect();
         assert_eq!(xs, [16.0, 32.0, 64.0]);
-        let r = &runs[3];
+        let r = runs
+            .iter()
+            .find(|r| r.algorithm == "hard_shadow_map" && r.params.tile_size == 64)
+            .unwrap();
         assert_eq!(
             c.series[1].points[2].1,
             r.counters.get("mem_read_bytes").unwrap() + r.counters.get("mem_write_bytes").unwrap()
