@@ -36,7 +36,7 @@ th{background:#f0f0f0}td.t{text-align:left}\
 tr.fail td{background:#fde8e8}td.status-fail{color:#b00;font-weight:bold;text-align:left}\
 figure{display:inline-block;margin:0 1em 1.5em 0;vertical-align:top;max-width:1000px}\
 figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:13px;color:#555}\
-.gallery td{text-align:center;vertical-align:top}.gallery img{image-rendering:pixelated;width:288px}\
+.gallery td{text-align:center;vertical-align:top}.gallery img{image-rendering:pixelated;width:288px;border:1px solid #bbb}.gallery th{text-align:center}\
 .none{color:#999}";
 
 /// The page for `results`, whose run images are under `out/images/<case_id>/`.
