@@ -8,6 +8,7 @@ pub mod harness;
 pub mod metrics;
 pub mod model;
 pub mod record;
+pub mod report;
 pub mod scenario;
 pub mod scene;
 pub mod util;

@@ -8,8 +8,9 @@ use clap::{Parser, Subcommand};
 use shadowbench::algorithms::{self, Backend, ExecContext};
 use shadowbench::error::{Error, InputError, Result};
 use shadowbench::frame::Frame;
-use shadowbench::harness::{self, ReferenceCache, RunOptions};
+use shadowbench::harness::{self, ReferenceCache, RunOptions, Shard};
 use shadowbench::model::{self, MachineConfig};
+use shadowbench::report;
 use shadowbench::scenario::{self, validate as check, Loaded};
 use shadowbench::scene::generators::{self, GeneratorParams};
 
@@ -56,6 +57,30 @@ enum Command {
         /// scenario's `machine`).
         #[arg(long)]
         machine: Option<String>,
+        /// Run only shard K of N of the planned runs (every N-th run, from the K-th).
+        #[arg(long, value_name = "K/N")]
+        shard: Option<String>,
+    },
+    /// Write charts and index.html into DIR from an existing results.json.
+    Report {
+        results: PathBuf,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Join the results of shards into DIR: results.json, results.csv, images and report.
+    Merge {
+        #[arg(required = true)]
+        results: Vec<PathBuf>,
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Compare the deterministic figures of two results files; exit 1 on a regression.
+    Compare {
+        baseline: PathBuf,
+        current: PathBuf,
+        /// Largest worsening allowed, in percent.
+        #[arg(long, default_value_t = report::compare::DEFAULT_THRESHOLD_PCT)]
+        threshold: f64,
     },
 }
 
@@ -262,12 +287,14 @@ fn run(
     cache_dir: Option<PathBuf>,
     memory_gib: Option<f64>,
     machine: Option<String>,
+    shard: Option<String>,
 ) -> Result<()> {
     let loaded = Loaded::from_file(&scenario)?;
     let memory_limit = memory_limit(memory_gib)?;
     let machine = machine
         .map(|m| MachineConfig::resolve("--machine", &m, Path::new(".")))
         .transpose()?;
+    let shard = shard.map(|s| Shard::parse("--shard", &s)).transpose()?;
     if let Some(only) = &only {
         for a in only {
             check::algorithm("--only", a)?;
@@ -289,9 +316,16 @@ fn run(
             cache_dir,
             memory_limit,
             machine,
+            shard,
         },
     )?;
     print!("{}", harness::summary_table(&records));
+    let results = harness::output::ResultsFile {
+        scenario: loaded.name(),
+        runs: records,
+    };
+    let written = report::write_report(&out, &results)?;
+    let records = results.runs;
     let failed = records.iter().filter(|r| r.failure.is_some()).count();
     println!(
         "{} runs ({} failed); results in {}",
@@ -299,7 +333,49 @@ fn run(
         failed,
         out.join("results.json").display()
     );
+    println!(
+        "report: {} ({} charts)",
+        written.index.display(),
+        written.charts.len()
+    );
     Ok(())
+}
+
+fn report_cmd(results: PathBuf, out: PathBuf) -> Result<()> {
+    let file = report::read_results(&results)?;
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    report::import_images(report::results_dir(&results), &out, &file.runs)?;
+    let written = report::write_report(&out, &file)?;
+    println!(
+        "report: {} ({} charts)",
+        written.index.display(),
+        written.charts.len()
+    );
+    Ok(())
+}
+
+fn merge(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
+    let inputs = results
+        .into_iter()
+        .map(|p| report::read_results(&p).map(|f| (p, f)))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let written = report::write_merged(&out, &inputs)?;
+    println!(
+        "merged {} files into {}; report: {}",
+        inputs.len(),
+        out.join("results.json").display(),
+        written.index.display()
+    );
+    Ok(())
+}
+
+/// Prints what moved; `Ok(true)` when the gate passes.
+fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> {
+    let old = report::read_results(&baseline)?;
+    let new = report::read_results(&current)?;
+    let c = report::compare::compare((&baseline, &old), (&current, &new), threshold)?;
+    print!("{}", c.render());
+    Ok(!c.regressed())
 }
 
 fn main() -> ExitCode {
@@ -318,6 +394,7 @@ fn main() -> ExitCode {
             cache_dir,
             memory_limit,
             machine,
+            shard,
         } => run(
             scenario,
             out,
@@ -326,7 +403,18 @@ fn main() -> ExitCode {
             cache_dir,
             memory_limit,
             machine,
+            shard,
         ),
+        Command::Report { results, out } => report_cmd(results, out),
+        Command::Merge { results, out } => merge(results, out),
+        Command::Compare {
+            baseline,
+            current,
+            threshold,
+        } => match compare(baseline, current, threshold) {
+            Ok(false) => return ExitCode::from(1),
+            other => other.map(|_| ()),
+        },
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

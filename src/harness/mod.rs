@@ -3,6 +3,7 @@
 pub mod cache;
 pub mod limits;
 pub mod output;
+pub mod shard;
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -21,6 +22,7 @@ use crate::scene::{Light, LightKind, Scene};
 use crate::visibility::VisibilityBuffer;
 
 pub use cache::ReferenceCache;
+pub use shard::Shard;
 
 /// Converts `light` to `kind` keeping its centre and size: a sphere of radius r ↔ a disc of
 /// radius r facing `toward` ↔ a square of half-width r facing `toward`.
@@ -115,6 +117,8 @@ pub struct RunOptions {
     pub memory_limit: u64,
     /// Overrides the scenario's machine.
     pub machine: Option<crate::model::MachineConfig>,
+    /// Run only this shard of the plan.
+    pub shard: Option<Shard>,
 }
 
 /// One planned run.
@@ -158,6 +162,14 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
                 }
             }
         }
+    }
+    if let Some(shard) = opts.shard {
+        plan = plan
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| shard.includes(*i))
+            .map(|(_, p)| p)
+            .collect();
     }
     for s in &skipped {
         eprintln!("note: skipping {s} (no such execution)");

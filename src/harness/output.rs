@@ -16,7 +16,7 @@ pub struct ResultsWriter {
 }
 
 /// The file `results.json` holds: the scenario name and its runs.
-#[derive(serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ResultsFile {
     pub scenario: String,
     pub runs: Vec<RunRecord>,
@@ -57,18 +57,23 @@ impl ResultsWriter {
     }
 
     fn flush(&self) -> Result<()> {
-        let file = ResultsFile {
-            scenario: self.scenario.clone(),
-            runs: self.records.clone(),
-        };
-        let json = serde_json::to_vec_pretty(&file).expect("records serialize");
-        write_atomic(&self.out.join("results.json"), &json)?;
-        write_atomic(&self.out.join("results.csv"), csv(&self.records).as_bytes())
+        write_results(&self.out, &self.scenario, &self.records)
     }
 
     pub fn into_records(self) -> Vec<RunRecord> {
         self.records
     }
+}
+
+/// Writes `out/results.json` and `out/results.csv`, each atomically.
+pub fn write_results(out: &Path, scenario: &str, records: &[RunRecord]) -> Result<()> {
+    let file = ResultsFile {
+        scenario: scenario.to_string(),
+        runs: records.to_vec(),
+    };
+    let json = serde_json::to_vec_pretty(&file).expect("records serialize");
+    write_atomic(&out.join("results.json"), &json)?;
+    write_atomic(&out.join("results.csv"), csv(records).as_bytes())
 }
 
 const CSV_COUNTERS: [&str; 4] = ["fill", "overdraw", "mem_read_bytes", "mem_write_bytes"];

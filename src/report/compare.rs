@@ -1,0 +1,540 @@
+//! The regression gate: compares the deterministic figures of two result sets run by run.
+//!
+//! Which figures are deterministic (the same input gives the same number on any host):
+//!
+//! - `cpu-model` runs: every counter, `model_ms`, each phase's `model_ms` and counters, and the
+//!   quality metrics `error.{mae,rmse,max,mae_shadow,frac_over_0_1}`.
+//! - `cpu-native` runs: every counter, each phase's counters and the quality metrics (the host
+//!   kernels are seeded and independent of the thread count).
+//! - `wgpu` runs and any other backend: no figure. Their counters (pipeline statistics) and
+//!   images depend on the adapter and driver, so only whether the run is present and succeeded
+//!   is checked.
+//!
+//! Wall-clock and GPU times are never compared.
+//!
+//! Every figure is a cost (larger is worse) except counters whose name says they are a rate of
+//! good outcomes: names containing `utilisation`, `utilization`, `hit_rate` or `efficiency`.
+//! Quality metrics are errors, so larger is worse too. A run fails the gate when a figure
+//! worsens by more than the threshold (in percent of the baseline; any increase from zero
+//! counts as infinite), when a baseline run is missing from the current results, or when a run
+//! that succeeded now fails. Figures that appear or disappear are listed but do not fail it.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::fmt_num;
+use crate::error::InputError;
+use crate::harness::output::ResultsFile;
+use crate::record::RunRecord;
+
+/// The default threshold of `shadowbench compare`, in percent.
+pub const DEFAULT_THRESHOLD_PCT: f64 = 2.0;
+
+/// Whether a larger value of the figure `name` is better.
+pub fn higher_is_better(name: &str) -> bool {
+    ["utilisation", "utilization", "hit_rate", "efficiency"]
+        .iter()
+        .any(|w| name.contains(w))
+}
+
+/// The deterministic figures of a successful run, by name (see the module docs).
+pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
+    let mut f = BTreeMap::new();
+    let model = match r.backend.as_str() {
+        "cpu-model" => true,
+        "cpu-native" => false,
+        _ => return f,
+    };
+    for (k, v) in &r.counters.0 {
+        f.insert(format!("counters.{k}"), *v);
+    }
+    if model {
+        if let Some(v) = r.model_ms {
+            f.insert("model_ms".into(), v);
+        }
+    }
+    for p in &r.phases {
+        let mut name = format!("phase.{}", p.name);
+        let mut k = 2;
+        while f.keys().any(|key| key.starts_with(&format!("{name}."))) {
+            name = format!("phase.{}#{k}", p.name);
+            k += 1;
+        }
+        if model {
+            if let Some(v) = p.model_ms {
+                f.insert(format!("{name}.model_ms"), v);
+            }
+        }
+        for (c, v) in &p.counters.0 {
+            f.insert(format!("{name}.{c}"), *v);
+        }
+    }
+    if let Some(e) = &r.error {
+        for (k, v) in [
+            ("mae", e.mae),
+            ("rmse", e.rmse),
+            ("max", e.max),
+            ("mae_shadow", e.mae_shadow),
+            ("frac_over_0_1", e.frac_over_0_1),
+        ] {
+            f.insert(format!("error.{k}"), v);
+        }
+    }
+    f
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Verdict {
+    /// Worse by more than the threshold.
+    Regression,
+    /// Worse, within the threshold.
+    Worse,
+    Better,
+}
+
+/// A figure that moved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Change {
+    pub verdict: Verdict,
+    pub case: String,
+    pub figure: String,
+    pub old: f64,
+    pub new: f64,
+}
+
+impl Change {
+    /// Change in percent of the old value; infinite when the old value is zero.
+    pub fn pct(&self) -> f64 {
+        if self.old == 0.0 {
+            f64::INFINITY.copysign(self.new)
+        } else {
+            (self.new - self.old) / self.old.abs() * 100.0
+        }
+    }
+}
+
+/// What happened to a run as a whole.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RunStatus {
+    /// In the baseline, not in the current results.
+    Missing,
+    /// Succeeded in the baseline, fails now (with the failure).
+    NewlyFailed(String),
+    /// Failed in the baseline, succeeds now.
+    Fixed,
+    /// Only in the current results.
+    Added,
+}
+
+impl RunStatus {
+    fn fails_gate(&self) -> bool {
+        matches!(self, RunStatus::Missing | RunStatus::NewlyFailed(_))
+    }
+}
+
+#[derive(Debug)]
+pub struct Comparison {
+    pub threshold_pct: f64,
+    /// Runs whose figures were compared.
+    pub runs_compared: usize,
+    pub figures_compared: usize,
+    /// Regressions first, then worse, then better.
+    pub changes: Vec<Change>,
+    pub runs: Vec<(String, RunStatus)>,
+    /// Figure names only in the baseline, with how many runs.
+    pub dropped: BTreeMap<String, usize>,
+    /// Figure names only in the current results, with how many runs.
+    pub added: BTreeMap<String, usize>,
+}
+
+impl Comparison {
+    /// Whether the gate fails.
+    pub fn regressed(&self) -> bool {
+        self.changes
+            .iter()
+            .any(|c| c.verdict == Verdict::Regression)
+            || self.runs.iter().any(|(_, s)| s.fails_gate())
+    }
+
+    /// The table of what moved, and the verdict.
+    pub fn render(&self) -> String {
+        let mut s = String::new();
+        if !self.changes.is_empty() {
+            let rows: Vec<[String; 6]> = self
+                .changes
+                .iter()
+                .map(|c| {
+                    [
+                        match c.verdict {
+                            Verdict::Regression => "REGRESSION",
+                            Verdict::Worse => "worse",
+                            Verdict::Better => "better",
+                        }
+                        .to_string(),
+                        c.case.clone(),
+                        c.figure.clone(),
+                        fmt_num(c.old),
+                        fmt_num(c.new),
+                        format!("{:+.2}%", c.pct()),
+                    ]
+                })
+                .collect();
+            let head = ["", "run", "figure", "baseline", "current", "change"];
+            let mut w = head.map(str::len);
+            for r in &rows {
+                for (i, c) in r.iter().enumerate() {
+                    w[i] = w[i].max(c.chars().count());
+                }
+            }
+            for r in std::iter::once(head.map(String::from)).chain(rows) {
+                let _ = writeln!(
+                    s,
+                    "{:<w0$}  {:<w1$}  {:<w2$}  {:>w3$}  {:>w4$}  {:>w5$}",
+                    r[0],
+                    r[1],
+                    r[2],
+                    r[3],
+                    r[4],
+                    r[5],
+                    w0 = w[0],
+                    w1 = w[1],
+                    w2 = w[2],
+                    w3 = w[3],
+                    w4 = w[4],
+                    w5 = w[5]
+                );
+            }
+        }
+        for (case, status) in &self.runs {
+            let _ = match status {
+                RunStatus::Missing => writeln!(s, "MISSING     {case}: in the baseline only"),
+                RunStatus::NewlyFailed(f) => writeln!(s, "FAILS NOW   {case}: {f}"),
+                RunStatus::Fixed => writeln!(s, "fixed       {case}: failed in the baseline"),
+                RunStatus::Added => writeln!(s, "new         {case}: not in the baseline"),
+            };
+        }
+        for (what, map) in [
+            ("baseline", &self.dropped),
+            ("current results", &self.added),
+        ] {
+            for (figure, n) in map {
+                let _ = writeln!(s, "note: {figure} only in the {what} ({n} runs)");
+            }
+        }
+        let count = |v: Verdict| self.changes.iter().filter(|c| c.verdict == v).count();
+        let _ = writeln!(
+            s,
+            "{}: {} runs, {} figures compared; {} regressions beyond {}%, {} worse within it, {} better; {} runs missing, {} newly failing",
+            if self.regressed() { "FAIL" } else { "PASS" },
+            self.runs_compared,
+            self.figures_compared,
+            count(Verdict::Regression),
+            self.threshold_pct,
+            count(Verdict::Worse),
+            count(Verdict::Better),
+            self.runs.iter().filter(|(_, s)| *s == RunStatus::Missing).count(),
+            self.runs
+                .iter()
+                .filter(|(_, s)| matches!(s, RunStatus::NewlyFailed(_)))
+                .count(),
+        );
+        s
+    }
+}
+
+/// The runs of a results file by case id; two runs of one case is an error naming the file.
+fn by_case<'a>(
+    path: &Path,
+    file: &'a ResultsFile,
+) -> Result<BTreeMap<String, &'a RunRecord>, InputError> {
+    let mut m = BTreeMap::new();
+    for (i, r) in file.runs.iter().enumerate() {
+        if m.insert(r.case_id(), r).is_some() {
+            return Err(InputError {
+                file: Some(path.to_path_buf()),
+                field: Some(format!("$.runs[{i}]")),
+                message: format!("run '{}' appears more than once", r.case_id()),
+            });
+        }
+    }
+    Ok(m)
+}
+
+/// Checks a `--threshold` value.
+pub fn check_threshold(pct: f64) -> Result<f64, InputError> {
+    if pct.is_finite() && pct >= 0.0 {
+        Ok(pct)
+    } else {
+        Err(InputError::new(
+            "--threshold",
+            format!("expected a percentage ≥ 0, got {pct}"),
+        ))
+    }
+}
+
+/// Compares `current` against `baseline` (paths name them in errors).
+pub fn compare(
+    baseline: (&Path, &ResultsFile),
+    current: (&Path, &ResultsFile),
+    threshold_pct: f64,
+) -> Result<Comparison, InputError> {
+    let threshold_pct = check_threshold(threshold_pct)?;
+    let old = by_case(baseline.0, baseline.1)?;
+    let new = by_case(current.0, current.1)?;
+    let mut cmp = Comparison {
+        threshold_pct,
+        runs_compared: 0,
+        figures_compared: 0,
+        changes: Vec::new(),
+        runs: Vec::new(),
+        dropped: BTreeMap::new(),
+        added: BTreeMap::new(),
+    };
+    for (case, o) in &old {
+        let Some(n) = new.get(case) else {
+            cmp.runs.push((case.clone(), RunStatus::Missing));
+            continue;
+        };
+        match (&o.failure, &n.failure) {
+            (None, Some(f)) => cmp
+                .runs
+                .push((case.clone(), RunStatus::NewlyFailed(f.clone()))),
+            (Some(_), None) => cmp.runs.push((case.clone(), RunStatus::Fixed)),
+            (Some(_), Some(_)) => {}
+            (None, None) => {
+                cmp.runs_compared += 1;
+                compare_run(&mut cmp, case, o, n);
+            }
+        }
+    }
+    for case in new.keys().filter(|c| !old.contains_key(*c)) {
+        cmp.runs.push((case.clone(), RunStatus::Added));
+    }
+    cmp.changes
+        .sort_by(|a, b| (a.verdict, &a.case, &a.figure).cmp(&(b.verdict, &b.case, &b.figure)));
+    Ok(cmp)
+}
+
+fn compare_run(cmp: &mut Comparison, case: &str, o: &RunRecord, n: &RunRecord) {
+    let (fo, fnew) = (deterministic_figures(o), deterministic_figures(n));
+    for (figure, &old) in &fo {
+        let Some(&new) = fnew.get(figure) else {
+            *cmp.dropped.entry(figure.clone()).or_default() += 1;
+            continue;
+        };
+        cmp.figures_compared += 1;
+        if new == old || (new.is_nan() && old.is_nan()) {
+            continue;
+        }
+        let worse = if higher_is_better(figure) {
+            new < old
+        } else {
+            new > old
+        } || new.is_nan();
+        let mut change = Change {
+            verdict: Verdict::Better,
+            case: case.to_string(),
+            figure: figure.clone(),
+            old,
+            new,
+        };
+        if worse {
+            let pct = change.pct().abs();
+            change.verdict = if pct > cmp.threshold_pct || pct.is_nan() {
+                Verdict::Regression
+            } else {
+                Verdict::Worse
+            };
+        }
+        cmp.changes.push(change);
+    }
+    for figure in fnew.keys().filter(|f| !fo.contains_key(*f)) {
+        *cmp.added.entry(figure.clone()).or_default() += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::testdata::record;
+
+    fn file(runs: Vec<RunRecord>) -> ResultsFile {
+        ResultsFile {
+            scenario: "ci".into(),
+            runs,
+        }
+    }
+
+    fn baseline() -> ResultsFile {
+        file(vec![
+            record("pcss", "cpu-model", 100, 32),
+            record("pcss", "cpu-model", 1000, 32),
+            record("reference", "cpu-native", 100, 32),
+            record("pcss", "wgpu", 100, 32),
+        ])
+    }
+
+    fn run(old: &ResultsFile, new: &ResultsFile) -> Comparison {
+        compare(
+            (Path::new("base.json"), old),
+            (Path::new("cur.json"), new),
+            DEFAULT_THRESHOLD_PCT,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn unchanged_results_pass() {
+        let b = baseline();
+        let c = run(&b, &b);
+        assert!(!c.regressed(), "{}", c.render());
+        assert!(c.changes.is_empty() && c.runs.is_empty());
+        // The wgpu run contributes no figure; the others all of theirs.
+        let expect: usize = b.runs.iter().map(|r| deterministic_figures(r).len()).sum();
+        assert_eq!(c.figures_compared, expect);
+        assert_eq!(deterministic_figures(&b.runs[3]).len(), 0);
+        assert!(c.render().starts_with("PASS"), "{}", c.render());
+    }
+
+    #[test]
+    fn a_counter_up_five_percent_fails_naming_it() {
+        let b = baseline();
+        let mut cur = baseline();
+        let fill = cur.runs[1].counters.get("fill").unwrap();
+        cur.runs[1].counters.set("fill", fill * 1.05);
+        let c = run(&b, &cur);
+        assert!(c.regressed());
+        assert_eq!(c.changes.len(), 1, "{}", c.render());
+        let ch = &c.changes[0];
+        assert_eq!(ch.verdict, Verdict::Regression);
+        assert_eq!(ch.figure, "counters.fill");
+        assert_eq!(ch.case, b.runs[1].case_id());
+        assert!((ch.pct() - 5.0).abs() < 1e-9);
+        let text = c.render();
+        assert!(
+            text.contains("REGRESSION") && text.contains("counters.fill"),
+            "{text}"
+        );
+        assert!(text.contains("+5.00%") && text.contains("FAIL"), "{text}");
+    }
+
+    #[test]
+    fn small_worsening_within_threshold_passes_but_is_listed() {
+        let b = baseline();
+        let mut cur = baseline();
+        let m = cur.runs[0].model_ms.unwrap();
+        cur.runs[0].model_ms = Some(m * 1.01);
+        let c = run(&b, &cur);
+        assert!(!c.regressed());
+        assert_eq!(c.changes[0].verdict, Verdict::Worse);
+        assert_eq!(c.changes[0].figure, "model_ms");
+    }
+
+    #[test]
+    fn a_missing_run_fails() {
+        let b = baseline();
+        let mut cur = baseline();
+        let gone = cur.runs.remove(3);
+        let c = run(&b, &cur);
+        assert!(c.regressed());
+        assert_eq!(c.runs, vec![(gone.case_id(), RunStatus::Missing)]);
+        assert!(c.render().contains("MISSING"));
+    }
+
+    #[test]
+    fn a_newly_failing_run_fails_and_a_fixed_one_passes() {
+        let b = baseline();
+        let mut cur = baseline();
+        cur.runs[3].failure = Some("device lost".into());
+        let c = run(&b, &cur);
+        assert!(c.regressed());
+        assert!(c.render().contains("device lost"));
+        // The other way round, the run is listed as fixed and the gate passes.
+        let c = run(&cur, &b);
+        assert!(!c.regressed());
+        assert_eq!(c.runs, vec![(b.runs[3].case_id(), RunStatus::Fixed)]);
+    }
+
+    #[test]
+    fn improvements_pass_and_are_listed_as_better() {
+        let b = baseline();
+        let mut cur = baseline();
+        cur.runs[0].counters.set("mem_read_bytes", 1.0);
+        cur.runs[2].error.as_mut().unwrap().mae_shadow /= 2.0;
+        cur.runs[0].phases[1].model_ms = Some(0.1);
+        let c = run(&b, &cur);
+        assert!(!c.regressed(), "{}", c.render());
+        let moved: Vec<(&str, Verdict)> = c
+            .changes
+            .iter()
+            .map(|c| (c.figure.as_str(), c.verdict))
+            .collect();
+        assert_eq!(moved.len(), 3, "{moved:?}");
+        assert!(moved.iter().all(|m| m.1 == Verdict::Better), "{moved:?}");
+        for f in [
+            "counters.mem_read_bytes",
+            "error.mae_shadow",
+            "phase.soft.model_ms",
+        ] {
+            assert!(moved.iter().any(|m| m.0 == f), "{f}: {moved:?}");
+        }
+        assert!(c.render().contains("better"));
+    }
+
+    #[test]
+    fn times_that_are_not_deterministic_are_ignored() {
+        let b = baseline();
+        let mut cur = baseline();
+        for r in &mut cur.runs {
+            r.wall_ms *= 3.0;
+            r.gpu_ms = Some(100.0);
+            r.phases[0].wall_ms *= 3.0;
+        }
+        // wgpu counters are adapter-dependent: not compared.
+        cur.runs[3].counters.set("fill", 1e9);
+        // cpu-native has no modelled time to compare.
+        cur.runs[2].model_ms = Some(1e9);
+        let c = run(&b, &cur);
+        assert!(!c.regressed(), "{}", c.render());
+        assert!(c.changes.is_empty(), "{}", c.render());
+    }
+
+    #[test]
+    fn rates_of_good_outcomes_worsen_downwards() {
+        let mut b = baseline();
+        b.runs[0].counters.set("simd_utilisation", 0.8);
+        let mut cur = b.clone();
+        cur.runs[0].counters.set("simd_utilisation", 0.7);
+        let c = run(&b, &cur);
+        assert!(c.regressed());
+        assert_eq!(c.changes[0].figure, "counters.simd_utilisation");
+    }
+
+    #[test]
+    fn an_increase_from_zero_is_a_regression() {
+        let mut b = baseline();
+        b.runs[0].counters.set("atomics", 0.0);
+        let mut cur = b.clone();
+        cur.runs[0].counters.set("atomics", 3.0);
+        let c = run(&b, &cur);
+        assert!(c.regressed());
+        assert!(c.render().contains("+inf%"), "{}", c.render());
+    }
+
+    #[test]
+    fn duplicate_runs_and_bad_thresholds_are_input_errors() {
+        let mut dup = baseline();
+        dup.runs.push(dup.runs[0].clone());
+        let e = compare(
+            (Path::new("base.json"), &baseline()),
+            (Path::new("cur.json"), &dup),
+            2.0,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("cur.json") && e.contains("$.runs[4]"), "{e}");
+        let e = check_threshold(-1.0).unwrap_err().to_string();
+        assert!(e.contains("--threshold") && e.contains("-1"), "{e}");
+    }
+}

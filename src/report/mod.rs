@@ -1,0 +1,312 @@
+//! Turning results into something to read and to gate on: comparison charts, a self-contained
+//! HTML report, the regression comparison CI runs, and joining the results of sharded runs.
+//!
+//! Everything here works from [`RunRecord`]s alone (what `results.json` holds), so it is generic
+//! over whatever algorithms, backends and counters the runs carry, and a report can be rebuilt
+//! from old results without running anything.
+
+pub mod charts;
+pub mod compare;
+pub mod html;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, InputError, Result};
+use crate::harness::output::{self, ResultsFile};
+use crate::record::RunRecord;
+
+/// Reads a `results.json`; any problem (missing, unreadable, not a results file) is an input
+/// error naming the file.
+pub fn read_results(path: &Path) -> Result<ResultsFile, InputError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| InputError::file(path, format!("cannot read results: {e}")))?;
+    serde_json::from_str(&text)
+        .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))
+}
+
+/// What [`write_report`] produced, relative to the output folder.
+#[derive(Debug)]
+pub struct Report {
+    pub index: PathBuf,
+    pub charts: Vec<charts::Written>,
+}
+
+/// Writes the charts (`charts/*.png`, `charts/*.svg`) and `index.html` into `out`. The images
+/// of each run are expected under `out/images/<case_id>/` (see [`import_images`]); the page
+/// shows only the ones that exist there.
+pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
+    let chart_dir = out.join("charts");
+    std::fs::create_dir_all(&chart_dir).map_err(|e| Error::io(&chart_dir, e))?;
+    let mut written = Vec::new();
+    for spec in charts::plan(&results.runs) {
+        written.push(charts::render(&spec, &chart_dir)?);
+    }
+    let index = out.join("index.html");
+    let page = html::page(out, results, &written);
+    crate::visibility::write_atomic(&index, page.as_bytes())?;
+    Ok(Report {
+        index,
+        charts: written,
+    })
+}
+
+/// Copies the per-run image folders (`images/<case_id>/`) of `records` from `from` into `out`,
+/// so a report written to `out` is self-contained. Runs without images are skipped; nothing is
+/// copied when both are the same folder.
+pub fn import_images(from: &Path, out: &Path, records: &[RunRecord]) -> Result<()> {
+    if same_dir(from, out) {
+        return Ok(());
+    }
+    for r in records {
+        let case = r.case_id();
+        let src = from.join("images").join(&case);
+        let Ok(entries) = std::fs::read_dir(&src) else {
+            continue;
+        };
+        let dst = out.join("images").join(&case);
+        std::fs::create_dir_all(&dst).map_err(|e| Error::io(&dst, e))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| Error::io(&src, e))?;
+            let path = entry.path();
+            if path.is_file() {
+                let target = dst.join(entry.file_name());
+                std::fs::copy(&path, &target).map_err(|e| Error::io(&target, e))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+fn same_dir(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
+/// The folder a results file lives in (where its `images/` are).
+pub fn results_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Joins the results of several runs (typically the shards of one sweep) in the order given.
+/// A case present in more than one file must be identical in each, or it is an error naming the
+/// case and both files; all files must come from the same scenario.
+pub fn merge(inputs: &[(PathBuf, ResultsFile)]) -> Result<ResultsFile, InputError> {
+    let Some((first_path, first)) = inputs.first() else {
+        return Err(InputError::new("merge", "no results files given"));
+    };
+    let mut seen: BTreeMap<String, (usize, &Path)> = BTreeMap::new();
+    let mut runs: Vec<RunRecord> = Vec::new();
+    for (path, file) in inputs {
+        if file.scenario != first.scenario {
+            return Err(InputError {
+                file: Some(path.clone()),
+                field: Some("$.scenario".into()),
+                message: format!(
+                    "scenario '{}' differs from '{}' in {}",
+                    file.scenario,
+                    first.scenario,
+                    first_path.display()
+                ),
+            });
+        }
+        for r in &file.runs {
+            let case = r.case_id();
+            match seen.get(&case) {
+                Some((i, _)) if runs[*i] == *r => {}
+                Some((_, other)) => {
+                    return Err(InputError::file(
+                        path,
+                        format!(
+                            "run '{case}' is also in {} with different results; \
+                             merge only disjoint shards of one sweep",
+                            other.display()
+                        ),
+                    ))
+                }
+                None => {
+                    seen.insert(case, (runs.len(), path));
+                    runs.push(r.clone());
+                }
+            }
+        }
+    }
+    Ok(ResultsFile {
+        scenario: first.scenario.clone(),
+        runs,
+    })
+}
+
+/// Writes merged results (`results.json`, `results.csv`), the images of every run and the
+/// report into `out`.
+pub fn write_merged(out: &Path, inputs: &[(PathBuf, ResultsFile)]) -> Result<Report> {
+    let merged = merge(inputs)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    for (path, file) in inputs {
+        import_images(results_dir(path), out, &file.runs)?;
+    }
+    output::write_results(out, &merged.scenario, &merged.runs)?;
+    write_report(out, &merged)
+}
+
+/// A number for a table or an axis label: four significant digits, scientific notation for
+/// very large or small magnitudes.
+pub fn fmt_num(v: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    if !v.is_finite() {
+        return v.to_string();
+    }
+    let a = v.abs();
+    if !(1e-3..1e6).contains(&a) {
+        return format!("{v:.2e}");
+    }
+    let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod testdata {
+    use crate::frame::RunParams;
+    use crate::metrics::ErrorMetrics;
+    use crate::record::{Counters, Phase, RunRecord};
+
+    /// A successful run with the given sweep point and figures.
+    pub fn record(algorithm: &str, backend: &str, triangles: u32, tile: u32) -> RunRecord {
+        let mut counters = Counters::default();
+        counters.set("fill", 1000.0 + triangles as f64);
+        counters.set("overdraw", 250.0);
+        counters.set("mem_read_bytes", 4096.0 * tile as f64);
+        counters.set("mem_write_bytes", 1024.0);
+        RunRecord {
+            algorithm: algorithm.into(),
+            backend: backend.into(),
+            scene: "sphere-on-plane".into(),
+            light: "sphere".into(),
+            params: RunParams {
+                triangles,
+                light_size: 0.5,
+                map_resolution: 512,
+                tile_size: tile,
+                image: [96, 72],
+                occluder_height: None,
+                cores: None,
+            },
+            counters,
+            phases: vec![
+                Phase {
+                    name: "construct".into(),
+                    wall_ms: 1.0,
+                    model_ms: Some(0.4),
+                    ..Default::default()
+                },
+                Phase {
+                    name: "soft".into(),
+                    wall_ms: 2.0,
+                    model_ms: Some(0.6),
+                    ..Default::default()
+                },
+            ],
+            wall_ms: 3.0 + triangles as f64 / 1000.0,
+            model_ms: Some(1.0 + triangles as f64 / 100.0),
+            gpu_ms: None,
+            error: Some(ErrorMetrics {
+                mae: 0.01,
+                rmse: 0.02,
+                max: 0.5,
+                mae_shadow: 0.05,
+                frac_over_0_1: 0.01,
+                pixels: 6912,
+                shadow_pixels: 800,
+            }),
+            execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
+            warnings: vec![],
+            failure: None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_keep_four_significant_digits() {
+        assert_eq!(fmt_num(0.0), "0");
+        assert_eq!(fmt_num(1234.5678), "1235");
+        assert_eq!(fmt_num(1.5), "1.5");
+        assert_eq!(fmt_num(0.012345), "0.01235");
+        assert_eq!(fmt_num(2.5e7), "2.50e7");
+        assert_eq!(fmt_num(-3.0), "-3");
+    }
+
+    fn file(runs: Vec<RunRecord>) -> ResultsFile {
+        ResultsFile {
+            scenario: "s".into(),
+            runs,
+        }
+    }
+
+    #[test]
+    fn merge_joins_disjoint_files_and_accepts_identical_duplicates() {
+        let a = testdata::record("pcss", "cpu-model", 100, 32);
+        let b = testdata::record("pcss", "cpu-model", 200, 32);
+        let merged = merge(&[
+            ("a.json".into(), file(vec![a.clone()])),
+            ("b.json".into(), file(vec![b.clone(), a.clone()])),
+        ])
+        .unwrap();
+        assert_eq!(merged.runs, vec![a, b]);
+    }
+
+    #[test]
+    fn merge_rejects_conflicting_duplicates_naming_both_files() {
+        let a = testdata::record("pcss", "cpu-model", 100, 32);
+        let mut a2 = a.clone();
+        a2.wall_ms += 1.0;
+        let e = merge(&[
+            ("a.json".into(), file(vec![a.clone()])),
+            ("b.json".into(), file(vec![a2])),
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(e.starts_with("b.json: "), "{e}");
+        assert!(e.contains(&a.case_id()) && e.contains("a.json"), "{e}");
+    }
+
+    #[test]
+    fn merge_rejects_different_scenarios() {
+        let mut other = file(vec![]);
+        other.scenario = "t".into();
+        let e = merge(&[("a.json".into(), file(vec![])), ("b.json".into(), other)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("b.json") && e.contains("'t'"), "{e}");
+    }
+
+    #[test]
+    fn unreadable_results_name_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("nope.json");
+        let e = read_results(&missing).unwrap_err().to_string();
+        assert!(e.contains("nope.json") && e.contains("cannot read"), "{e}");
+        let bad = dir.path().join("bad.json");
+        std::fs::write(&bad, "{\"runs\": 3}").unwrap();
+        let e = read_results(&bad).unwrap_err().to_string();
+        assert!(
+            e.contains("bad.json") && e.contains("not a shadowbench results"),
+            "{e}"
+        );
+    }
+}
