@@ -19,6 +19,10 @@ use shadowbench::scene::generators::{self, GeneratorParams};
     about = "Benchmark real-time soft-shadow algorithms on wgpu and on a modelled many-core SIMD machine"
 )]
 struct Cli {
+    /// GPU adapter for the wgpu execution: a substring of its name (default: the best found;
+    /// also settable with SHADOWBENCH_ADAPTER).
+    #[arg(long, global = true)]
+    adapter: Option<String>,
     #[command(subcommand)]
     command: Command,
 }
@@ -135,7 +139,10 @@ fn list(scenarios: &std::path::Path) {
     println!("executions:");
     println!("  cpu-native   host kernels, uninstrumented");
     println!("  cpu-model    modelled many-core SIMD machine: not implemented yet");
-    println!("  wgpu         GPU passes: not implemented yet");
+    println!("  wgpu         GPU passes; adapters (* = used):");
+    for line in shadowbench::gpu::adapter_report() {
+        println!("               {line}");
+    }
     println!("scenes:");
     for g in generators::GENERATORS {
         println!(
@@ -165,6 +172,10 @@ fn list(scenarios: &std::path::Path) {
 fn render(a: RenderArgs) -> Result<()> {
     let backend = check::backend("--backend", &a.backend)?;
     check::algorithm("--algorithm", &a.algorithm)?;
+    if backend == Backend::Wgpu {
+        // Fail before the (slow) reference when the execution cannot run at all.
+        shadowbench::gpu::gpu()?;
+    }
     let image = parse_image(&a.image)?;
     check::image("--image", image)?;
     check::map_resolution("--map-resolution", a.map_resolution)?;
@@ -278,6 +289,12 @@ fn run(
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(name) = &cli.adapter {
+        if let Err(e) = shadowbench::gpu::prefer_adapter(name) {
+            eprintln!("error: {e}");
+            return ExitCode::from(e.exit_code() as u8);
+        }
+    }
     let result = match cli.command {
         Command::List { scenarios } => {
             list(&scenarios);

@@ -3,8 +3,11 @@
 //! Every algorithm takes the same [`Frame`] and returns a [`FrameOutput`] (visibility buffer,
 //! counters, phases, times); the harness adds quality against the reference and writes results.
 
+pub mod hard_shadow_map;
+pub mod pcss;
 pub mod reference;
 pub mod shadow_map;
+pub mod shadow_map_wgpu;
 
 use std::collections::BTreeMap;
 
@@ -81,15 +84,40 @@ impl AlgorithmInfo {
     }
 }
 
-pub const ALGORITHMS: &[AlgorithmInfo] = &[AlgorithmInfo {
-    id: "reference",
-    source: "ground truth",
-    summary: "visible fraction of the light by stratified sampling and BVH ray casting",
-    lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-    backends: &[Backend::CpuNative],
-    memory_estimate: |_| 0,
-    check_options: |o| no_options("reference", o),
-}];
+pub const ALGORITHMS: &[AlgorithmInfo] = &[
+    AlgorithmInfo {
+        id: "reference",
+        source: "ground truth",
+        summary: "visible fraction of the light by stratified sampling and BVH ray casting",
+        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::CpuNative],
+        memory_estimate: |_| 0,
+        check_options: |o| no_options("reference", o),
+    },
+    AlgorithmInfo {
+        id: hard_shadow_map::ID,
+        source: "baseline",
+        summary: "classic shadow map from the light centre, slope-scaled bias",
+        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::Wgpu],
+        memory_estimate: shadow_map_wgpu::memory_estimate,
+        check_options: |o| {
+            shadow_map::parse_options::<shadow_map::HardShadowOptions>(hard_shadow_map::ID, o)
+                .map(|_| ())
+        },
+    },
+    AlgorithmInfo {
+        id: pcss::ID,
+        source: "Fernando 2005, cited in 004 Table 2",
+        summary: "blocker search + variable-width PCF with Vogel-disk taps",
+        lights: &[LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::Wgpu],
+        memory_estimate: shadow_map_wgpu::memory_estimate,
+        check_options: |o| {
+            shadow_map::parse_options::<shadow_map::PcssOptions>(pcss::ID, o)?.validate(pcss::ID)
+        },
+    },
+];
 
 /// `check_options` of an algorithm that takes no options.
 pub fn no_options(
@@ -109,8 +137,6 @@ pub fn no_options(
 /// a clear answer rather than "unknown".
 pub const NOT_YET_BUILT: &[&str] = &[
     "accum_hard",
-    "hard_shadow_map",
-    "pcss",
     "penumbra_map",
     "soft_shadow_volume",
     "dbuffer",
@@ -177,6 +203,8 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
     }
     match id {
         "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
+        hard_shadow_map::ID => hard_shadow_map::wgpu::render(frame, ctx),
+        pcss::ID => pcss::wgpu::render(frame, ctx),
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
 }

@@ -29,10 +29,9 @@ pub fn parse_obj(reader: &mut impl std::io::BufRead, path: &Path) -> Result<Mesh
         ignore_points: true,
         ignore_lines: true,
     };
-    let (models, _materials) = tobj::load_obj_buf(reader, &opts, |_| {
-        Ok((Vec::new(), Default::default()))
-    })
-    .map_err(|e| err(format!("cannot parse OBJ: {e}")))?;
+    let (models, _materials) =
+        tobj::load_obj_buf(reader, &opts, |_| Ok((Vec::new(), Default::default())))
+            .map_err(|e| err(format!("cannot parse OBJ: {e}")))?;
     let mut mesh = Mesh::default();
     for m in &models {
         let p = &m.mesh.positions;
