@@ -138,16 +138,6 @@ pub fn vogel_disk(i: u32, n: u32) -> Vec2 {
     Vec2::new(theta.cos(), theta.sin()) * r
 }
 
-/// The shadow-map texel holding `uv`: the nearest texel, clamped to the map's edge (a tap
-/// beyond the map reads its border texel, as a clamp-to-edge sampler would).
-pub fn map_texel(uv: Vec2, resolution: u32) -> (u32, u32) {
-    let last = resolution.saturating_sub(1) as f32;
-    let t = (uv * resolution as f32)
-        .floor()
-        .clamp(Vec2::ZERO, Vec2::splat(last));
-    (t.x as u32, t.y as u32)
-}
-
 /// PCSS step 1 (Fernando 2005): radius in uv of the blocker search at receiver depth `z_r`:
 /// the light's cone from the receiver point, cut at the near plane,
 /// `R/(2·n·tan) · (z_r − n)/z_r`.
@@ -197,13 +187,6 @@ mod tests {
         // Blocker halfway between light and receiver: the penumbra radius equals the light's.
         assert!((pcss_penumbra_radius(0.5, 10.0, 5.0) - 0.5).abs() < 1e-6);
         assert_eq!(pcss_penumbra_radius(0.5, 10.0, 10.0), 0.0);
-    }
-
-    #[test]
-    fn map_texel_is_nearest_and_clamped() {
-        assert_eq!(map_texel(Vec2::new(0.0, 0.999), 4), (0, 3));
-        assert_eq!(map_texel(Vec2::new(0.26, 0.5), 4), (1, 2));
-        assert_eq!(map_texel(Vec2::new(-0.3, 1.7), 4), (0, 3));
     }
 
     #[test]

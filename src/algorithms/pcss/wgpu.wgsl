@@ -3,8 +3,9 @@
 
 fn visibility_at(uv: vec2<f32>, z_r: f32, bias: f32) -> f32 {
     // Step 1: blocker search over `blocker_samples` Vogel-disk taps within
-    // `pcss_search_radius_uv`; the average linear depth of the taps in front of the receiver.
-    let search = pcss_search_radius_uv(z_r);
+    // `pcss_search_radius_uv` (at a depth no nearer than the near plane); the average linear
+    // depth of the taps in front of the receiver.
+    let search = pcss_search_radius_uv(max(z_r, light.near));
     let nb = light.blocker_samples;
     var sum = 0.0;
     var blockers = 0u;

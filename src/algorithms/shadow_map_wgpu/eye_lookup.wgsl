@@ -28,6 +28,9 @@ struct Counts {
     wasted_taps: atomic<u32>,
 }
 
+// Depth of a tap outside the map: beyond every receiver.
+const FAR_AWAY: f32 = 3.4e38;
+
 // True in the instrumented pipeline: count shadow-map taps and wasted work with atomics.
 override INSTRUMENT: bool = false;
 
@@ -91,18 +94,19 @@ fn pcss_filter_radius_uv(z_r: f32, z_b: f32) -> f32 {
     return world_to_uv(pcss_penumbra_radius(z_r, z_b), z_r);
 }
 
-// map_texel: the nearest texel, clamped to the map's edge.
-fn map_texel(uv: vec2<f32>) -> vec2<u32> {
-    let last = f32(light.resolution - 1u);
-    return vec2<u32>(clamp(floor(uv * f32(light.resolution)), vec2<f32>(0.0), vec2<f32>(last)));
-}
-
-// One shadow-map tap: the linear depth of the nearest occluder at `uv`.
+// One shadow-map tap: the linear depth of the nearest occluder in the texel holding `uv`
+// (`hard_shadow_map::texel`: the nearest texel). Outside the map nothing was rasterized: the
+// depth is "infinitely far", so the tap is lit and no blocker (`hard_shadow_map::lit`).
 fn occluder_depth(uv: vec2<f32>) -> f32 {
     if INSTRUMENT {
         atomicAdd(&counts.taps, 1u);
     }
-    return linear_depth(textureLoad(shadow_map, map_texel(uv), 0));
+    let r = f32(light.resolution);
+    let t = floor(uv * r);
+    if any(t < vec2<f32>(0.0)) || any(t >= vec2<f32>(r)) {
+        return FAR_AWAY;
+    }
+    return linear_depth(textureLoad(shadow_map, vec2<u32>(t), 0));
 }
 
 @compute @workgroup_size(8, 8)

@@ -1,4 +1,4 @@
-// Phase `light_raster`: the depth-only shadow map of all occluder triangles from the light
+// Phase `light_raster`: the depth-only shadow map of every triangle of the scene from the light
 // centre (`LightView` in src/algorithms/shadow_map.rs). The depth attachment (Depth32Float,
 // cleared to 1, compare Less) holds NDC depth, the same value `LightView::project` returns.
 

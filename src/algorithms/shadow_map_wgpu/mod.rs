@@ -1,6 +1,6 @@
 //! The wgpu execution of the shadow-map family (`hard_shadow_map`, `pcss`): two GPU passes.
 //!
-//! 1. `light_raster` — a render pass draws every occluder triangle from the light centre
+//! 1. `light_raster` — a render pass draws every triangle of the scene from the light centre
 //!    ([`LightView`]) into a `map_resolution`² Depth32Float map (see `light_raster.wgsl`).
 //! 2. `eye_lookup` — a compute pass over the frame's gbuffer, uploaded as storage buffers (the
 //!    eye pass is shared by all executions, so parity is about the shadow algorithm alone),
@@ -108,7 +108,7 @@ fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
         )));
     }
     let gbuffer_bytes = frame.gbuffer.len() as u64 * GBUFFER_ENTRY_BYTES as u64;
-    let max = u64::from(gpu.limits.max_storage_buffer_binding_size);
+    let max = gpu.limits.max_storage_buffer_binding_size;
     if gbuffer_bytes > max {
         return Err(Error::Resource(format!(
             "image {}x{} needs {gbuffer_bytes} bytes per gbuffer buffer, more than the adapter's \
@@ -196,8 +196,9 @@ impl<'g> Passes<'g> {
             wgpu::BufferUsages::UNIFORM,
         );
 
-        // Occluders, indexed as in the scene.
-        let occluders = frame.scene.occluders();
+        // Every triangle of the scene can cast a shadow into the map (receivers shadow each
+        // other too), indexed as in the frame's flat mesh, as the cpu executions draw it.
+        let occluders = &frame.flat.mesh;
         let positions: Vec<[f32; 3]> = occluders.positions.iter().map(|p| p.to_array()).collect();
         let index_list: Vec<u32> = occluders.triangles.iter().flatten().copied().collect();
         let vertices = init(
