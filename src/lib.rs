@@ -7,6 +7,7 @@ pub mod frame;
 pub mod gpu;
 pub mod harness;
 pub mod metrics;
+pub mod model;
 pub mod record;
 pub mod scenario;
 pub mod scene;

@@ -1,6 +1,6 @@
 //! The `shadowbench` command line.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -9,6 +9,7 @@ use shadowbench::algorithms::{self, Backend, ExecContext};
 use shadowbench::error::{Error, InputError, Result};
 use shadowbench::frame::Frame;
 use shadowbench::harness::{self, ReferenceCache, RunOptions};
+use shadowbench::model::{self, MachineConfig};
 use shadowbench::scenario::{self, validate as check, Loaded};
 use shadowbench::scene::generators::{self, GeneratorParams};
 
@@ -55,6 +56,10 @@ enum Command {
         /// (default: half of physical memory).
         #[arg(long)]
         memory_limit: Option<f64>,
+        /// Modelled machine of cpu-model runs: a preset or a machine .json file (overrides the
+        /// scenario's `machine`).
+        #[arg(long)]
+        machine: Option<String>,
     },
 }
 
@@ -95,6 +100,12 @@ struct RenderArgs {
     memory_limit: Option<f64>,
     #[arg(long, default_value = "out/render")]
     out: PathBuf,
+    /// Modelled machine of cpu-model runs: a preset or a machine .json file.
+    #[arg(long, default_value = "larrabee-24")]
+    machine: String,
+    /// Core count of the modelled machine (overrides the preset's).
+    #[arg(long)]
+    cores: Option<u32>,
 }
 
 /// `--memory-limit` in bytes, validated.
@@ -138,10 +149,15 @@ fn list(scenarios: &std::path::Path) {
     );
     println!("executions:");
     println!("  cpu-native   host kernels, uninstrumented");
-    println!("  cpu-model    modelled many-core SIMD machine: not implemented yet");
+    println!("  cpu-model    modelled many-core SIMD machine (see machines)");
     println!("  wgpu         GPU passes; adapters (* = used):");
     for line in shadowbench::gpu::adapter_report() {
         println!("               {line}");
+    }
+    println!("machines (--machine, scenario `machine`; or a machine .json file):");
+    for name in model::config::PRESETS {
+        let m = MachineConfig::preset(name).expect("listed presets exist");
+        println!("  {:<14} {}", name, m.describe());
     }
     println!("scenes:");
     for g in generators::GENERATORS {
@@ -190,6 +206,10 @@ fn render(a: RenderArgs) -> Result<()> {
     if let Some(v) = a.occluder_height {
         check::occluder_height("--occluder-height", v)?;
     }
+    let machine = MachineConfig::resolve("--machine", &a.machine, Path::new("."))?;
+    if let Some(c) = a.cores {
+        check::cores("--cores", c)?;
+    }
     let seed = a.seed.unwrap_or(1);
     let mut scene = scenario::scene_from_arg(
         &a.scene,
@@ -212,13 +232,14 @@ fn render(a: RenderArgs) -> Result<()> {
         tile_size: a.tile_size,
         image,
         occluder_height: a.occluder_height,
-        cores: None,
+        cores: a.cores,
     };
     harness::limits::check(info, &params, memory_limit(a.memory_limit)?)?;
     let frame = Frame::new(scene, params);
     let ctx = ExecContext {
         reference_samples: a.samples,
         seed,
+        machine,
         ..Default::default()
     };
     let reference = if a.no_reference || a.algorithm == "reference" {
@@ -251,9 +272,13 @@ fn run(
     backend: Option<Vec<String>>,
     cache_dir: Option<PathBuf>,
     memory_gib: Option<f64>,
+    machine: Option<String>,
 ) -> Result<()> {
     let loaded = Loaded::from_file(&scenario)?;
     let memory_limit = memory_limit(memory_gib)?;
+    let machine = machine
+        .map(|m| MachineConfig::resolve("--machine", &m, Path::new(".")))
+        .transpose()?;
     if let Some(only) = &only {
         for a in only {
             check::algorithm("--only", a)?;
@@ -274,6 +299,7 @@ fn run(
             backends,
             cache_dir,
             memory_limit,
+            machine,
         },
     )?;
     print!("{}", harness::summary_table(&records));
@@ -308,7 +334,8 @@ fn main() -> ExitCode {
             backend,
             cache_dir,
             memory_limit,
-        } => run(scenario, out, only, backend, cache_dir, memory_limit),
+            machine,
+        } => run(scenario, out, only, backend, cache_dir, memory_limit, machine),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::{unknown_name, Error, InputError, Result};
 use crate::frame::{Frame, RunParams};
+use crate::model::MachineConfig;
 use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
 use crate::visibility::VisibilityBuffer;
@@ -96,26 +97,21 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
     },
     AlgorithmInfo {
         id: hard_shadow_map::ID,
-        source: "baseline",
-        summary: "classic shadow map from the light centre, slope-scaled bias",
+        source: "baseline (Williams 1978)",
+        summary: "shadow map from the light centre with slope-scaled bias",
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::Wgpu],
-        memory_estimate: shadow_map_wgpu::memory_estimate,
-        check_options: |o| {
-            shadow_map::parse_options::<shadow_map::HardShadowOptions>(hard_shadow_map::ID, o)
-                .map(|_| ())
-        },
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
+        memory_estimate: shadow_map::memory_estimate,
+        check_options: hard_shadow_map::check_options,
     },
     AlgorithmInfo {
         id: pcss::ID,
         source: "Fernando 2005, cited in 004 Table 2",
-        summary: "blocker search + variable-width PCF with Vogel-disk taps",
-        lights: &[LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::Wgpu],
-        memory_estimate: shadow_map_wgpu::memory_estimate,
-        check_options: |o| {
-            shadow_map::parse_options::<shadow_map::PcssOptions>(pcss::ID, o)?.validate(pcss::ID)
-        },
+        summary: "blocker search + variable-width percentage-closer filter",
+        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
+        memory_estimate: shadow_map::memory_estimate,
+        check_options: pcss::check_options,
     },
 ];
 
@@ -164,6 +160,8 @@ pub struct ExecContext {
     /// Per-algorithm options from the scenario (`options.<algorithm>`), validated by each
     /// algorithm.
     pub options: BTreeMap<String, serde_json::Value>,
+    /// The modelled machine of `cpu-model` runs (a run's `cores` overrides its core count).
+    pub machine: MachineConfig,
 }
 
 impl Default for ExecContext {
@@ -172,6 +170,7 @@ impl Default for ExecContext {
             reference_samples: reference::DEFAULT_SAMPLES,
             seed: 1,
             options: BTreeMap::new(),
+            machine: MachineConfig::default(),
         }
     }
 }
@@ -203,8 +202,18 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
     }
     match id {
         "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
-        hard_shadow_map::ID => hard_shadow_map::wgpu::render(frame, ctx),
-        pcss::ID => pcss::wgpu::render(frame, ctx),
+        hard_shadow_map::ID if backend == Backend::Wgpu => hard_shadow_map::wgpu::render(frame, ctx),
+        pcss::ID if backend == Backend::Wgpu => pcss::wgpu::render(frame, ctx),
+        hard_shadow_map::ID => {
+            let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;
+            Ok(hard_shadow_map::cpu::render(backend, frame, ctx, o.bias))
+        }
+        pcss::ID => Ok(pcss::cpu::render(
+            backend,
+            frame,
+            ctx,
+            pcss::options(&ctx.options)?,
+        )),
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
 }

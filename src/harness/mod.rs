@@ -113,6 +113,8 @@ pub struct RunOptions {
     pub cache_dir: Option<PathBuf>,
     /// Largest estimated working set of one run, in bytes.
     pub memory_limit: u64,
+    /// Overrides the scenario's machine.
+    pub machine: Option<crate::model::MachineConfig>,
 }
 
 /// One planned run.
@@ -179,6 +181,10 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
         reference_samples: s.reference.samples,
         seed: s.seed,
         options: s.options.clone(),
+        machine: opts
+            .machine
+            .clone()
+            .unwrap_or_else(|| loaded.machine.clone()),
     };
 
     let bar = ProgressBar::new(plan.len() as u64);

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::error::InputError;
 use crate::frame::RunParams;
+use crate::model::MachineConfig;
 use crate::scene::generators::{self, GeneratorParams};
 use crate::scene::mesh::{Mesh, Object, Role};
 use crate::scene::{obj, Camera, Light, Scene};
@@ -49,6 +50,10 @@ pub struct Scenario {
     pub options: BTreeMap<String, serde_json::Value>,
     #[serde(default = "default_seed")]
     pub seed: u64,
+    /// The modelled machine of `cpu-model` runs: a preset name (`shadowbench list`) or a path
+    /// to a machine JSON file, relative to the scenario (default `larrabee-24`).
+    #[serde(default)]
+    pub machine: Option<String>,
 }
 
 fn default_backends() -> Vec<String> {
@@ -236,6 +241,8 @@ pub struct Loaded {
     pub scenario: Scenario,
     /// Meshes of `scene.objects`, loaded during validation.
     meshes: Vec<Mesh>,
+    /// The machine `$.machine` names, resolved during validation.
+    pub machine: MachineConfig,
 }
 
 impl Loaded {
@@ -278,10 +285,15 @@ impl Loaded {
             })?;
             meshes.push(mesh);
         }
+        let machine = match &scenario.machine {
+            Some(m) => MachineConfig::resolve("$.machine", m, base).map_err(|e| e.in_file(path))?,
+            None => MachineConfig::default(),
+        };
         Ok(Loaded {
             path: path.to_path_buf(),
             scenario,
             meshes,
+            machine,
         })
     }
 

@@ -50,8 +50,11 @@ pub fn map_resolution(field: &str, v: u32) -> Check {
 }
 
 pub fn tile_size(field: &str, v: u32) -> Check {
-    if !(8..=256).contains(&v) {
-        return fail(field, format!("tile size must be in 8..=256, got {v}"));
+    if !(8..=256).contains(&v) || v % crate::model::raster::BLOCK != 0 {
+        return fail(
+            field,
+            format!("tile size must be a multiple of 4 (whole 4×4 blocks) in 8..=256, got {v}"),
+        );
     }
     Ok(())
 }

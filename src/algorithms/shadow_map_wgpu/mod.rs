@@ -22,7 +22,7 @@ use wgpu::util::DeviceExt;
 use super::shadow_map::{Bias, LightView};
 use super::FrameOutput;
 use crate::error::{Error, Result};
-use crate::frame::{Frame, RunParams};
+use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
@@ -81,15 +81,6 @@ struct Counts {
     covered: u32,
     taps: u32,
     wasted_taps: u32,
-}
-
-/// Bytes of the buffers this execution allocates for a run (the driver may hold them in host
-/// memory, as llvmpipe does): the shadow map, the gbuffer copies, the visibility buffer and its
-/// readback copy.
-pub fn memory_estimate(p: &RunParams) -> u64 {
-    let map = u64::from(p.map_resolution).pow(2) * DEPTH_TEXEL_BYTES as u64;
-    let pixels = u64::from(p.image[0]) * u64::from(p.image[1]);
-    map + pixels * (2 * GBUFFER_ENTRY_BYTES as u64 + 2 * 4)
 }
 
 /// Renders `frame` with the family's two passes and the algorithm's lookup.

@@ -1,0 +1,275 @@
+//! The shadow map on the CPU executions (`cpu-native`, `cpu-model`): the light pass on the
+//! sort-middle rasterizer, and the eye pass in 16-lane blocks. The eye pass is generic over a
+//! [`Lookup`] so that `pcss` reuses the light pass and the receiver setup unchanged.
+
+use glam::{Vec2, Vec3};
+
+use super::{lit, texel};
+use crate::algorithms::shadow_map::{Bias, LightView};
+use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::frame::Frame;
+use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
+use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::visibility::VisibilityBuffer;
+
+/// The machine an execution runs on: the context's configuration with the run's core count.
+pub fn machine(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Machine {
+    let config = match frame.params.cores {
+        Some(c) => ctx.machine.with_cores(c),
+        None => ctx.machine.clone(),
+    };
+    Machine::new(backend, config)
+}
+
+/// A rasterized shadow map and the view it was rasterized from.
+pub struct ShadowMap {
+    pub view: LightView,
+    pub map: Surface,
+}
+
+/// Phase `light_raster`: NDC depth of every triangle from the light centre, nearest kept.
+pub fn light_raster(m: &mut Machine, frame: &Frame) -> ShadowMap {
+    m.phase("light_raster");
+    let res = frame.params.map_resolution;
+    let view = LightView::new(&frame.scene.light, frame.scene.bounds(), res);
+    let mesh = &frame.flat.mesh;
+    let positions = m.memory.buffer("vertices", mesh.positions.clone());
+    let triangles = m.memory.buffer("indices", mesh.triangles.clone());
+    let target = Target {
+        width: res,
+        height: res,
+        tile: frame.params.tile_size,
+    };
+    let geometry = Geometry {
+        positions: &positions,
+        triangles: &triangles,
+        view_proj: view.view_proj,
+    };
+    let out = raster::draw(
+        m,
+        "shadow_map",
+        target,
+        Pipeline::DEPTH_ONLY,
+        &geometry,
+        &DepthOnly,
+    );
+    ShadowMap {
+        view,
+        map: out.depth.expect("a depth-only pipeline has depth"),
+    }
+}
+
+/// Eye samples of one 16-lane block in light space.
+pub struct Receivers {
+    /// Lanes with a surface in front of the light; the others are lit.
+    pub mask: Mask,
+    pub uv: Lanes<Vec2>,
+    /// Linear depth from the light.
+    pub z: Lanes<f32>,
+    pub bias: Lanes<f32>,
+}
+
+/// Vector instructions of the receiver setup per block: the light-view transform (3 rows × 4
+/// multiply-adds, a reciprocal, 2 multiply-adds to uv), the direction to the light (3
+/// subtracts, a 3-term dot, a reciprocal square root, a 3-term dot with the normal), and the
+/// slope-scaled bias (clamp, multiply, subtract, square root, divide, min, 2 multiply-adds).
+const RECEIVER_OPS: u32 = 15 + 9 + 8;
+/// Per shadow-map tap: uv offset (2 multiply-adds), texel coordinates (2 multiplies, 2 floors,
+/// 4 range compares, 2 mask ands), block-linear index (2 shifts, 2 ands, 3 multiply-adds).
+pub const TAP_OPS: u32 = 2 + 10 + 7;
+/// The depth comparison: linear depth of the tap (subtract, multiply, divide), compare, select.
+pub const COMPARE_OPS: u32 = 5;
+
+/// What the eye pass computes from a block's receivers and the map.
+pub trait Lookup: Sync {
+    /// Visibility of the active lanes of `r` (the others are ignored).
+    fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32>;
+}
+
+/// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the map.
+pub fn tap<P: Probe>(
+    p: &mut P,
+    map: &ShadowMap,
+    uv: &Lanes<Vec2>,
+    mask: Mask,
+) -> (Lanes<f32>, Mask) {
+    p.vector(TAP_OPS, mask);
+    let mut idx = [0u32; LANES];
+    let inside = mask.and(Mask::from_fn(|l| match texel(&map.view, uv[l]) {
+        Some((x, y)) => {
+            idx[l] = map.map.index(x, y) as u32;
+            true
+        }
+        None => false,
+    }));
+    (map.map.buf.gather(p, &idx, inside), inside)
+}
+
+/// The hard shadow: one tap at the receiver's own texel.
+pub struct HardLookup;
+
+impl Lookup for HardLookup {
+    fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32> {
+        let (d, inside) = tap(p, map, &r.uv, r.mask);
+        p.vector(COMPARE_OPS, inside);
+        std::array::from_fn(|l| {
+            if !inside.get(l) || lit(&map.view, d[l], r.z[l], r.bias[l]) {
+                1.0
+            } else {
+                0.0
+            }
+        })
+    }
+}
+
+struct EyePass<'a, L> {
+    frame: &'a Frame,
+    map: &'a ShadowMap,
+    light: Vec3,
+    bias: Bias,
+    lookup: &'a L,
+    tiles: Target,
+    position: Buffer<Vec3>,
+    normal: Buffer<Vec3>,
+    visibility: Buffer<f32>,
+}
+
+impl<L: Lookup> EyePass<'_, L> {
+    /// The receivers of the 4×4 block at pixel (x0, y0).
+    fn receivers<P: Probe>(&self, p: &mut P, x0: u32, y0: u32) -> Receivers {
+        let g = &self.frame.gbuffer;
+        let (w, h) = (g.width, g.height);
+        let mut r = Receivers {
+            mask: Mask::NONE,
+            uv: [Vec2::ZERO; LANES],
+            z: [0.0; LANES],
+            bias: [0.0; LANES],
+        };
+        for row in 0..BLOCK {
+            let y = y0 + row;
+            if y >= h {
+                break;
+            }
+            let n = (w - x0).min(BLOCK) as usize;
+            let i = (y * w + x0) as usize;
+            let pos = self.position.load_run(p, i, n);
+            let nrm = self.normal.load_run(p, i, n);
+            for c in 0..n {
+                let lane = (row * BLOCK) as usize + c;
+                if !g.is_hit(i + c) {
+                    continue;
+                }
+                let Some((uv, _, z)) = self.map.view.project(pos[c]) else {
+                    continue;
+                };
+                let n_dot_l = nrm[c].dot((self.light - pos[c]).normalize_or_zero());
+                r.mask.0 |= 1 << lane;
+                r.uv[lane] = uv;
+                r.z[lane] = z;
+                r.bias[lane] = self.bias.at(&self.map.view, z, n_dot_l);
+            }
+        }
+        p.vector(RECEIVER_OPS, r.mask);
+        r
+    }
+}
+
+impl<L: Lookup> TaskKernel for EyePass<'_, L> {
+    /// (pixel index, visibility) of the tile's pixels that see a surface.
+    type Out = Vec<(u32, f32)>;
+
+    fn run<P: Probe>(&self, p: &mut P, tile: usize) -> Self::Out {
+        let t = self.tiles.tile_rect(tile);
+        let w = self.tiles.width;
+        let mut out = Vec::new();
+        for y0 in (t.y0..t.y1).step_by(BLOCK as usize) {
+            for x0 in (t.x0..t.x1).step_by(BLOCK as usize) {
+                p.scalar(2);
+                let r = self.receivers(p, x0, y0);
+                let v = if r.mask.any() {
+                    self.lookup.visibility(p, self.map, &r)
+                } else {
+                    [1.0; LANES]
+                };
+                for row in 0..BLOCK.min(t.y1 - y0) {
+                    let n = BLOCK.min(t.x1 - x0);
+                    let i = ((y0 + row) * w + x0) as usize;
+                    self.visibility.record_store(p, i, n as usize);
+                    for c in 0..n {
+                        let lane = (row * BLOCK + c) as usize;
+                        if r.mask.get(lane) {
+                            out.push((i as u32 + c, v[lane].clamp(0.0, 1.0)));
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Phase `eye_lookup`: visibility of every eye pixel from the map, one eye tile per task.
+/// Pixels that see no surface, or whose surface the light view does not contain, are lit.
+pub fn eye_lookup<L: Lookup>(
+    m: &mut Machine,
+    frame: &Frame,
+    map: &ShadowMap,
+    bias: Bias,
+    lookup: &L,
+) -> VisibilityBuffer {
+    m.phase("eye_lookup");
+    let g = &frame.gbuffer;
+    let tiles = Target {
+        width: g.width,
+        height: g.height,
+        tile: frame.params.tile_size,
+    };
+    let pass = EyePass {
+        frame,
+        map,
+        light: frame.scene.light.center(),
+        bias,
+        lookup,
+        tiles,
+        position: m.memory.buffer("gbuffer.position", g.position.clone()),
+        normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
+        visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
+    };
+    let weights: Vec<u64> = (0..tiles.tiles())
+        .map(|t| {
+            let r = tiles.tile_rect(t);
+            (r.y0..r.y1)
+                .flat_map(|y| (r.x0..r.x1).map(move |x| (y * g.width + x) as usize))
+                .filter(|&i| g.is_hit(i))
+                .count() as u64
+        })
+        .collect();
+    let outs = m.run_step("lookup", &pass, &weights);
+    let mut vis = VisibilityBuffer::lit(g.width, g.height);
+    for (i, v) in outs.into_iter().flatten() {
+        vis.data[i as usize] = v;
+    }
+    vis
+}
+
+/// Wraps a finished machine and the visibility into a frame output.
+pub fn output(m: Machine, visibility: VisibilityBuffer) -> FrameOutput {
+    let f = m.finish();
+    FrameOutput {
+        visibility,
+        counters: f.counters,
+        phases: f.phases,
+        model_ms: f.model_ms,
+        gpu_ms: None,
+        execution: f.execution,
+        warnings: vec![],
+    }
+}
+
+/// `hard_shadow_map` on a CPU execution.
+pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext, bias: Bias) -> FrameOutput {
+    let mut m = machine(backend, frame, ctx);
+    let map = light_raster(&mut m, frame);
+    let vis = eye_lookup(&mut m, frame, &map, bias, &HardLookup);
+    output(m, vis)
+}

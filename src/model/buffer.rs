@@ -1,0 +1,111 @@
+//! Instrumented buffers: every buffer an algorithm uses has a name and a modelled address range,
+//! and every access goes through a [`Probe`], which counts reads and writes per buffer and (in
+//! the model) runs them through the core's caches.
+
+use super::simd::{BufferId, Lanes, Mask, Probe, LANES};
+
+/// The modelled address space: hands out page-aligned, non-overlapping ranges and remembers the
+/// name of each buffer.
+#[derive(Clone, Debug)]
+pub struct Memory {
+    names: Vec<String>,
+    next: u64,
+}
+
+/// Alignment of buffer base addresses (a 4 KiB page).
+const PAGE: u64 = 4096;
+
+impl Default for Memory {
+    fn default() -> Self {
+        Memory {
+            names: Vec::new(),
+            next: PAGE,
+        }
+    }
+}
+
+impl Memory {
+    /// Reserves `bytes` of modelled memory named `name`; returns its id and base address.
+    pub fn reserve(&mut self, name: &str, bytes: u64) -> (BufferId, u64) {
+        let id = BufferId(u16::try_from(self.names.len()).expect("fewer than 65536 buffers"));
+        self.names.push(name.to_string());
+        let base = self.next;
+        self.next = (base + bytes.max(1)).div_ceil(PAGE) * PAGE;
+        (id, base)
+    }
+
+    /// A buffer named `name` holding `data`.
+    pub fn buffer<T: Copy>(&mut self, name: &str, data: Vec<T>) -> Buffer<T> {
+        let (id, base) = self.reserve(name, (data.len() * size_of::<T>()) as u64);
+        Buffer { id, base, data }
+    }
+
+    pub fn name(&self, id: BufferId) -> &str {
+        &self.names[id.0 as usize]
+    }
+
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+}
+
+/// An array in modelled memory: host data plus the id and base address the probe sees.
+#[derive(Clone, Debug)]
+pub struct Buffer<T> {
+    pub id: BufferId,
+    pub base: u64,
+    pub data: Vec<T>,
+}
+
+impl<T: Copy + Default> Buffer<T> {
+    pub const ELEMENT: u32 = size_of::<T>() as u32;
+
+    pub fn addr(&self, i: usize) -> u64 {
+        self.base + (i * size_of::<T>()) as u64
+    }
+
+    /// A scalar load of element `i`.
+    #[inline]
+    pub fn load<P: Probe>(&self, p: &mut P, i: usize) -> T {
+        p.read(self.id, self.addr(i), Self::ELEMENT);
+        self.data[i]
+    }
+
+    /// A contiguous load of `n` elements from `i` (counted as one access).
+    #[inline]
+    pub fn load_run<P: Probe>(&self, p: &mut P, i: usize, n: usize) -> &[T] {
+        p.read(self.id, self.addr(i), Self::ELEMENT * n as u32);
+        &self.data[i..i + n]
+    }
+
+    /// A gather of elements `idx` on the active lanes; inactive lanes read as `T::default()`.
+    #[inline]
+    pub fn gather<P: Probe>(&self, p: &mut P, idx: &Lanes<u32>, mask: Mask) -> Lanes<T> {
+        if P::ENABLED {
+            let addrs: Lanes<u64> = std::array::from_fn(|l| self.addr(idx[l] as usize));
+            p.gather(self.id, &addrs, Self::ELEMENT, mask);
+        }
+        let mut out = [T::default(); LANES];
+        for l in mask.lanes() {
+            out[l] = self.data[idx[l] as usize];
+        }
+        out
+    }
+
+    /// Records a contiguous store of `n` elements at `i` without changing host data (for
+    /// results a task returns and the executor places, see [`super::Machine::run_phase`]).
+    #[inline]
+    pub fn record_store<P: Probe>(&self, p: &mut P, i: usize, n: usize) {
+        p.write(self.id, self.addr(i), Self::ELEMENT * n as u32);
+    }
+
+    /// Records a contiguous load of `n` elements at `i` whose data the task holds locally.
+    #[inline]
+    pub fn record_load<P: Probe>(&self, p: &mut P, i: usize, n: usize) {
+        p.read(self.id, self.addr(i), Self::ELEMENT * n as u32);
+    }
+}

@@ -1,0 +1,362 @@
+//! Machine configurations: the presets of the Larrabee-style machine of paper 004 §3.1 and §4.1,
+//! the host, and configurations loaded from JSON.
+//!
+//! Every number the timing model uses lives here, with where it comes from. Published figures
+//! (Seiler et al. 2008, "Larrabee: a many-core x86 architecture for visual computing", cited by
+//! 004 §3) are used where they exist; the rest are stated assumptions typical of an in-order
+//! x86 core of that generation, so that a user can change them in a JSON file and see the effect.
+
+use std::path::Path;
+use std::sync::OnceLock;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{unknown_name, InputError};
+
+/// One cache level of a core.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CacheConfig {
+    /// Capacity in bytes (per core; for L2, the core's partition of the shared L2).
+    pub size_bytes: u32,
+    pub ways: u32,
+    /// Cycles from a miss in the level above to data from this level.
+    pub latency_cycles: f64,
+}
+
+/// Cycle costs of the operations the kernels count.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OpCosts {
+    /// Issue cycles of one 16-wide vector instruction (the VPU issues one per cycle).
+    pub vector: f64,
+    /// Issue cycles of one scalar instruction (the in-order x86 pipe, one per cycle; the dual
+    /// issue of the Pentium pipe is not modelled).
+    pub scalar: f64,
+    /// Issue cycles of a contiguous vector load or store of up to one cache line.
+    pub vector_memory: f64,
+    /// Issue cycles per distinct cache line of a gather or scatter: Larrabee's gather/scatter
+    /// unit accesses one line per cycle (Seiler et al. 2008 §4.1), so a gather whose 16 lanes
+    /// fall into one line costs one cycle and into 16 lines sixteen.
+    pub gather_line: f64,
+    /// Cycles of an atomic read-modify-write in L2 (an assumption: an L2 round trip).
+    pub atomic: f64,
+}
+
+/// A modelled many-core SIMD machine (004 §3.1, Figure 5).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineConfig {
+    pub name: String,
+    pub cores: u32,
+    pub clock_ghz: f64,
+    /// Hardware threads per core; they hide each other's memory stalls.
+    pub threads_per_core: u32,
+    /// SIMD lanes (16 for Larrabee's 512-bit VPU).
+    pub lanes: u32,
+    pub line_bytes: u32,
+    pub l1: CacheConfig,
+    pub l2: CacheConfig,
+    /// Cycles to DRAM after an L2 miss.
+    pub dram_latency_cycles: f64,
+    /// Sustained DRAM bandwidth of the whole chip, GB/s.
+    pub dram_gb_per_s: f64,
+    /// Cycles of a global barrier between phases (the sort-middle pipeline's synchronisation).
+    pub barrier_cycles: f64,
+    pub costs: OpCosts,
+}
+
+/// The presets, by name.
+pub const PRESETS: &[&str] = &["larrabee-24", "larrabee-32", "larrabee-48", "host"];
+
+impl MachineConfig {
+    /// The Larrabee-style machine with `cores` cores at 1 GHz.
+    ///
+    /// - 4 threads/core, 16 lanes, 32 KiB L1D, 256 KiB L2 subset per core, 64-byte lines:
+    ///   Seiler et al. 2008 §3; 24 cores × 1 GHz is the configuration 004 §4.1 simulated.
+    /// - L1 8-way and L2 8-way: Seiler et al. give the L1 as 8-way; L2 associativity is an
+    ///   assumption.
+    /// - L1 miss to L2 hit ≈ 10 cycles, L2 miss to DRAM ≈ 200 cycles at 1 GHz (200 ns): an
+    ///   assumption typical of GDDR-attached chips of the time.
+    /// - DRAM 128 GB/s: Seiler et al. discuss GDDR5-class bandwidth; a round figure within that.
+    /// - A global barrier costs ≈ 2000 cycles: an assumption (a ring round trip per core plus
+    ///   the software fence of the rasterizer's pipeline).
+    pub fn larrabee(cores: u32) -> MachineConfig {
+        MachineConfig {
+            name: format!("larrabee-{cores}"),
+            cores,
+            clock_ghz: 1.0,
+            threads_per_core: 4,
+            lanes: 16,
+            line_bytes: 64,
+            l1: CacheConfig {
+                size_bytes: 32 * 1024,
+                ways: 8,
+                latency_cycles: 1.0,
+            },
+            l2: CacheConfig {
+                size_bytes: 256 * 1024,
+                ways: 8,
+                latency_cycles: 10.0,
+            },
+            dram_latency_cycles: 200.0,
+            dram_gb_per_s: 128.0,
+            barrier_cycles: 2000.0,
+            costs: OpCosts {
+                vector: 1.0,
+                scalar: 1.0,
+                vector_memory: 1.0,
+                gather_line: 1.0,
+                atomic: 20.0,
+            },
+        }
+    }
+
+    /// This machine modelled as if it were the Larrabee-style design: its core count and a
+    /// measured clock ([`measured_clock_ghz`]), with the Larrabee caches and costs.
+    pub fn host() -> MachineConfig {
+        let cores = std::thread::available_parallelism()
+            .map(|n| n.get() as u32)
+            .unwrap_or(1);
+        MachineConfig {
+            name: "host".into(),
+            clock_ghz: measured_clock_ghz(),
+            ..MachineConfig::larrabee(cores)
+        }
+    }
+
+    pub fn preset(name: &str) -> Option<MachineConfig> {
+        match name {
+            "larrabee-24" => Some(MachineConfig::larrabee(24)),
+            "larrabee-32" => Some(MachineConfig::larrabee(32)),
+            "larrabee-48" => Some(MachineConfig::larrabee(48)),
+            "host" => Some(MachineConfig::host()),
+            _ => None,
+        }
+    }
+
+    /// A preset name or a path to a JSON configuration; `field` names the setting in errors.
+    pub fn resolve(field: &str, arg: &str, base: &Path) -> Result<MachineConfig, InputError> {
+        if let Some(m) = MachineConfig::preset(arg) {
+            return Ok(m);
+        }
+        if arg.ends_with(".json") {
+            let path = base.join(arg);
+            return MachineConfig::from_file(&path).map_err(|e| InputError {
+                field: e.field.or_else(|| Some(field.to_string())),
+                ..e
+            });
+        }
+        Err(InputError::new(
+            field,
+            unknown_name("machine", arg, PRESETS) + " (or a path to a machine .json file)",
+        ))
+    }
+
+    /// Reads and validates a JSON configuration.
+    pub fn from_file(path: &Path) -> Result<MachineConfig, InputError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| InputError::file(path, format!("cannot read machine config: {e}")))?;
+        let de = &mut serde_json::Deserializer::from_str(&text);
+        let m: MachineConfig = serde_path_to_error::deserialize(de).map_err(|e| {
+            let field = e.path().to_string();
+            InputError {
+                file: Some(path.to_path_buf()),
+                field: Some(if field == "." {
+                    "$".into()
+                } else {
+                    format!("$.{field}")
+                }),
+                message: e.into_inner().to_string(),
+            }
+        })?;
+        m.validate().map_err(|e| e.in_file(path))?;
+        Ok(m)
+    }
+
+    /// The same machine with `cores` cores (the `cores` sweep axis).
+    pub fn with_cores(&self, cores: u32) -> MachineConfig {
+        MachineConfig {
+            cores,
+            ..self.clone()
+        }
+    }
+
+    pub fn sets(&self, c: &CacheConfig) -> u32 {
+        c.size_bytes / (self.line_bytes * c.ways)
+    }
+
+    /// DRAM bytes the chip moves per cycle.
+    pub fn dram_bytes_per_cycle(&self) -> f64 {
+        self.dram_gb_per_s / self.clock_ghz
+    }
+
+    pub fn validate(&self) -> Result<(), InputError> {
+        let positive = |field: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(InputError::new(
+                    format!("$.{field}"),
+                    format!("must be a finite number > 0, got {v}"),
+                ))
+            }
+        };
+        let non_negative = |field: &str, v: f64| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(InputError::new(
+                    format!("$.{field}"),
+                    format!("must be a finite number >= 0, got {v}"),
+                ))
+            }
+        };
+        if !(1..=1024).contains(&self.cores) {
+            return Err(InputError::new(
+                "$.cores",
+                format!("must be in 1..=1024, got {}", self.cores),
+            ));
+        }
+        if !(1..=16).contains(&self.threads_per_core) {
+            return Err(InputError::new(
+                "$.threads_per_core",
+                format!("must be in 1..=16, got {}", self.threads_per_core),
+            ));
+        }
+        if self.lanes != 16 {
+            return Err(InputError::new(
+                "$.lanes",
+                format!(
+                    "the kernels are written for 16 lanes (004 §3.1), got {}",
+                    self.lanes
+                ),
+            ));
+        }
+        if !self.line_bytes.is_power_of_two() || !(16..=1024).contains(&self.line_bytes) {
+            return Err(InputError::new(
+                "$.line_bytes",
+                format!(
+                    "must be a power of two in 16..=1024, got {}",
+                    self.line_bytes
+                ),
+            ));
+        }
+        for (name, c) in [("l1", &self.l1), ("l2", &self.l2)] {
+            let sets = c.size_bytes / (self.line_bytes * c.ways.max(1));
+            if c.ways == 0 || c.ways > 64 || sets == 0 || !sets.is_power_of_two() {
+                return Err(InputError::new(
+                    format!("$.{name}"),
+                    format!(
+                        "size_bytes / (line_bytes × ways) must be a power-of-two set count with \
+                         ways in 1..=64, got {} bytes, {} ways",
+                        c.size_bytes, c.ways
+                    ),
+                ));
+            }
+            non_negative(&format!("{name}.latency_cycles"), c.latency_cycles)?;
+        }
+        positive("clock_ghz", self.clock_ghz)?;
+        positive("dram_gb_per_s", self.dram_gb_per_s)?;
+        non_negative("dram_latency_cycles", self.dram_latency_cycles)?;
+        non_negative("barrier_cycles", self.barrier_cycles)?;
+        let k = &self.costs;
+        for (name, v) in [
+            ("costs.vector", k.vector),
+            ("costs.scalar", k.scalar),
+            ("costs.vector_memory", k.vector_memory),
+            ("costs.gather_line", k.gather_line),
+            ("costs.atomic", k.atomic),
+        ] {
+            non_negative(name, v)?;
+        }
+        Ok(())
+    }
+
+    /// A one-line description for `shadowbench list`.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} cores × {} threads @ {:.2} GHz, {} lanes, L1 {} KiB {}-way, L2 {} KiB/core, \
+             {}-byte lines, DRAM {} GB/s",
+            self.cores,
+            self.threads_per_core,
+            self.clock_ghz,
+            self.lanes,
+            self.l1.size_bytes / 1024,
+            self.l1.ways,
+            self.l2.size_bytes / 1024,
+            self.line_bytes,
+            self.dram_gb_per_s
+        )
+    }
+}
+
+impl Default for MachineConfig {
+    /// The configuration 004 §4.1 simulated: 24 cores at 1 GHz.
+    fn default() -> Self {
+        MachineConfig::larrabee(24)
+    }
+}
+
+/// The host clock in GHz, measured once per process by timing a dependent chain of integer
+/// operations (shift, add, xor: three single-cycle operations per step on current x86 and Arm
+/// cores, which the compiler cannot shorten).
+pub fn measured_clock_ghz() -> f64 {
+    static CLOCK: OnceLock<f64> = OnceLock::new();
+    *CLOCK.get_or_init(|| {
+        const STEPS: u64 = 20_000_000;
+        let mut best = f64::INFINITY;
+        for _ in 0..3 {
+            let start = std::time::Instant::now();
+            let mut x = std::hint::black_box(0x1234_5678_9abc_def0u64);
+            for _ in 0..STEPS {
+                x = x.wrapping_add(x >> 7) ^ 0x9e37;
+            }
+            std::hint::black_box(x);
+            best = best.min(start.elapsed().as_secs_f64());
+        }
+        let ghz = 3.0 * STEPS as f64 / best / 1e9;
+        // Round to 0.01 GHz, so that small jitter does not change every modelled time.
+        (ghz * 100.0).round() / 100.0
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_round_trip_through_json() {
+        for name in PRESETS.iter().filter(|n| **n != "host") {
+            let m = MachineConfig::preset(name).unwrap();
+            m.validate().unwrap();
+            assert_eq!(&m.name, name);
+            let json = serde_json::to_string(&m).unwrap();
+            let back: MachineConfig = serde_json::from_str(&json).unwrap();
+            assert_eq!(back, m);
+        }
+    }
+
+    #[test]
+    fn unknown_machine_names_the_field_and_the_closest_preset() {
+        let e = MachineConfig::resolve("$.machine", "larabee-24", Path::new(".")).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("$.machine"));
+        assert!(e.message.contains("did you mean 'larrabee-24'"), "{e}");
+    }
+
+    #[test]
+    fn bad_json_config_names_the_field() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.json");
+        let mut m = serde_json::to_value(MachineConfig::larrabee(24)).unwrap();
+        m["l1"]["ways"] = serde_json::json!(3);
+        std::fs::write(&path, m.to_string()).unwrap();
+        let e = MachineConfig::resolve("$.machine", "m.json", dir.path()).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("$.l1"), "{e}");
+        m["l1"]["ways"] = serde_json::json!(8);
+        m["clock_ghz"] = serde_json::json!(-1.0);
+        std::fs::write(&path, m.to_string()).unwrap();
+        let e = MachineConfig::resolve("$.machine", "m.json", dir.path()).unwrap_err();
+        assert_eq!(e.field.as_deref(), Some("$.clock_ghz"), "{e}");
+    }
+}

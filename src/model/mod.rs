@@ -1,0 +1,507 @@
+//! The many-core SIMD machine of paper 004 §3 (Larrabee): in-order cores with hardware threads,
+//! 16-wide masked SIMD with gather/scatter, per-core L1 and L2 partitions, and the sort-middle
+//! software rasterizer. Algorithms run for real on the host while the model counts what the
+//! modelled machine would execute and turns the counts into modelled time.
+//!
+//! An algorithm is a sequence of *phases* (`light_raster`, `eye_lookup`, ...); a phase is a
+//! sequence of *steps* separated by global barriers; a step is a list of independent *tasks*
+//! (tiles, triangle chunks). [`Machine::run_step`] runs a step:
+//!
+//! - `cpu-native`: tasks in parallel on the host with [`NoProbe`], nothing counted;
+//! - `cpu-model`: tasks assigned to modelled cores by a deterministic list scheduler
+//!   ([`timing::schedule`]); each modelled core runs its tasks sequentially in a fixed order
+//!   through its own caches, cores run in parallel on the host, and results are combined in core
+//!   order. Counters and modelled times therefore do not depend on the host's thread count.
+
+pub mod buffer;
+pub mod cache;
+pub mod config;
+pub mod raster;
+pub mod simd;
+pub mod timing;
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+pub use buffer::{Buffer, Memory};
+pub use config::MachineConfig;
+pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
+
+use crate::algorithms::Backend;
+use crate::record::{Counters, Phase};
+use cache::{CacheStats, CoreCaches};
+use timing::{CoreWork, StepTime};
+
+/// A step's work: task `t` of a step, generic over the probe so that the same code is the
+/// native and the modelled execution.
+pub trait TaskKernel: Sync {
+    type Out: Send;
+    fn run<P: Probe>(&self, p: &mut P, task: usize) -> Self::Out;
+}
+
+/// Accesses to one buffer.
+#[derive(Clone, Copy, Debug, Default)]
+struct BufferStats {
+    reads: u64,
+    writes: u64,
+    read_bytes: u64,
+    write_bytes: u64,
+}
+
+/// The probe of one modelled core: counts its work and runs its accesses through its caches.
+pub struct ModelProbe<'a> {
+    caches: &'a mut CoreCaches,
+    line_shift: u32,
+    work: CoreWork,
+    buffers: Vec<BufferStats>,
+}
+
+impl<'a> ModelProbe<'a> {
+    pub fn new(config: &MachineConfig, caches: &'a mut CoreCaches) -> ModelProbe<'a> {
+        ModelProbe {
+            caches,
+            line_shift: config.line_bytes.trailing_zeros(),
+            work: CoreWork::default(),
+            buffers: Vec::new(),
+        }
+    }
+
+    /// What the core executed so far (cache statistics are those of the whole core).
+    pub fn work(&self) -> CoreWork {
+        CoreWork {
+            cache: self.caches.stats,
+            ..self.work.clone()
+        }
+    }
+
+    fn buffer(&mut self, id: BufferId) -> &mut BufferStats {
+        let i = id.0 as usize;
+        if self.buffers.len() <= i {
+            self.buffers.resize(i + 1, BufferStats::default());
+        }
+        &mut self.buffers[i]
+    }
+
+    /// Runs a contiguous access through the caches; returns the lines touched.
+    fn touch(&mut self, addr: u64, bytes: u32, write: bool) -> u64 {
+        let first = addr >> self.line_shift;
+        let last = (addr + u64::from(bytes.max(1)) - 1) >> self.line_shift;
+        for line in first..=last {
+            self.caches.access(line, write);
+        }
+        last - first + 1
+    }
+
+    fn lanes_access(
+        &mut self,
+        addrs: &Lanes<u64>,
+        bytes: u32,
+        mask: Mask,
+        write: bool,
+    ) -> (u64, u64) {
+        let lines = simd::distinct_lines(addrs, bytes, mask, 1 << self.line_shift);
+        for &line in &lines {
+            self.caches.access(line, write);
+        }
+        (
+            lines.len() as u64,
+            u64::from(mask.count()) * u64::from(bytes),
+        )
+    }
+}
+
+impl Probe for ModelProbe<'_> {
+    const ENABLED: bool = true;
+
+    fn vector(&mut self, n: u32, mask: Mask) {
+        self.work.vector_ops += u64::from(n);
+        self.work.active_lanes += u64::from(n) * u64::from(mask.count());
+    }
+
+    fn scalar(&mut self, n: u32) {
+        self.work.scalar_ops += u64::from(n);
+    }
+
+    fn read(&mut self, buf: BufferId, addr: u64, bytes: u32) {
+        let lines = self.touch(addr, bytes, false);
+        self.work.loads += 1;
+        self.work.access_lines += lines;
+        let b = self.buffer(buf);
+        b.reads += 1;
+        b.read_bytes += u64::from(bytes);
+    }
+
+    fn write(&mut self, buf: BufferId, addr: u64, bytes: u32) {
+        let lines = self.touch(addr, bytes, true);
+        self.work.stores += 1;
+        self.work.access_lines += lines;
+        let b = self.buffer(buf);
+        b.writes += 1;
+        b.write_bytes += u64::from(bytes);
+    }
+
+    fn gather(&mut self, buf: BufferId, addrs: &Lanes<u64>, bytes: u32, mask: Mask) {
+        let (lines, total) = self.lanes_access(addrs, bytes, mask, false);
+        self.work.gathers += 1;
+        self.work.gather_lines += lines;
+        let b = self.buffer(buf);
+        b.reads += 1;
+        b.read_bytes += total;
+    }
+
+    fn scatter(&mut self, buf: BufferId, addrs: &Lanes<u64>, bytes: u32, mask: Mask) {
+        let (lines, total) = self.lanes_access(addrs, bytes, mask, true);
+        self.work.scatters += 1;
+        self.work.scatter_lines += lines;
+        let b = self.buffer(buf);
+        b.writes += 1;
+        b.write_bytes += total;
+    }
+
+    fn atomic(&mut self, buf: BufferId, addr: u64, bytes: u32) {
+        self.touch(addr, bytes, true);
+        self.work.atomics += 1;
+        let b = self.buffer(buf);
+        b.reads += 1;
+        b.writes += 1;
+        b.read_bytes += u64::from(bytes);
+        b.write_bytes += u64::from(bytes);
+    }
+}
+
+fn cache_delta(after: CacheStats, before: CacheStats) -> CacheStats {
+    CacheStats {
+        l1_hits: after.l1_hits - before.l1_hits,
+        l1_misses: after.l1_misses - before.l1_misses,
+        l2_hits: after.l2_hits - before.l2_hits,
+        l2_misses: after.l2_misses - before.l2_misses,
+        dram_read_lines: after.dram_read_lines - before.dram_read_lines,
+        dram_write_lines: after.dram_write_lines - before.dram_write_lines,
+    }
+}
+
+/// One phase while it is being recorded.
+struct PhaseRecord {
+    name: String,
+    start: Instant,
+    wall_ms: f64,
+    model_ms: f64,
+    counters: Counters,
+}
+
+/// One frame of an algorithm on the host (`cpu-native`) or on the modelled machine
+/// (`cpu-model`): the modelled memory, the cores' caches, and the phases recorded so far.
+pub struct Machine {
+    pub config: MachineConfig,
+    pub memory: Memory,
+    /// The modelled cores' caches; `None` for `cpu-native`.
+    cores: Option<Vec<CoreCaches>>,
+    phases: Vec<PhaseRecord>,
+}
+
+impl Machine {
+    /// A machine for `backend` (`cpu-native` or `cpu-model`).
+    pub fn new(backend: Backend, config: MachineConfig) -> Machine {
+        let cores = (backend == Backend::CpuModel).then(|| {
+            (0..config.cores)
+                .map(|_| CoreCaches::new(&config))
+                .collect()
+        });
+        Machine {
+            config,
+            memory: Memory::default(),
+            cores,
+            phases: Vec::new(),
+        }
+    }
+
+    pub fn is_model(&self) -> bool {
+        self.cores.is_some()
+    }
+
+    /// Starts phase `name`; what follows is recorded under it.
+    pub fn phase(&mut self, name: &str) {
+        self.close_phase();
+        self.phases.push(PhaseRecord {
+            name: name.to_string(),
+            start: Instant::now(),
+            wall_ms: 0.0,
+            model_ms: 0.0,
+            counters: Counters::default(),
+        });
+    }
+
+    fn close_phase(&mut self) {
+        if let Some(p) = self.phases.last_mut() {
+            p.wall_ms = p.start.elapsed().as_secs_f64() * 1e3;
+        }
+    }
+
+    fn current(&mut self) -> &mut PhaseRecord {
+        if self.phases.is_empty() {
+            self.phase("main");
+        }
+        self.phases.last_mut().expect("a phase exists")
+    }
+
+    /// Adds `v` to the algorithm counter `name` of the current phase (counted in both
+    /// executions: fill, bin entries, depth tests, ...).
+    pub fn count(&mut self, name: &str, v: f64) {
+        self.current().counters.add(name, v);
+    }
+
+    /// Runs step `name` of the current phase: `weights.len()` tasks of `kernel`, each with its
+    /// estimated cost for the scheduler. Returns the tasks' outputs in task order.
+    pub fn run_step<K: TaskKernel>(
+        &mut self,
+        name: &str,
+        kernel: &K,
+        weights: &[u64],
+    ) -> Vec<K::Out> {
+        let Some(cores) = self.cores.as_mut() else {
+            return (0..weights.len())
+                .into_par_iter()
+                .map(|t| kernel.run(&mut NoProbe, t))
+                .collect();
+        };
+        let config = &self.config;
+        let lists = timing::schedule(weights, cores.len());
+        type CoreResult<O> = (CoreWork, Vec<BufferStats>, Vec<(usize, O)>);
+        let per_core: Vec<CoreResult<K::Out>> = cores
+            .par_iter_mut()
+            .zip(lists.into_par_iter())
+            .map(|(caches, list)| {
+                let before = caches.stats;
+                let mut probe = ModelProbe::new(config, caches);
+                let outs: Vec<(usize, K::Out)> = list
+                    .into_iter()
+                    .map(|t| {
+                        probe.work.tasks += 1;
+                        (t, kernel.run(&mut probe, t))
+                    })
+                    .collect();
+                let mut work = probe.work();
+                work.cache = cache_delta(work.cache, before);
+                (work, probe.buffers, outs)
+            })
+            .collect();
+        let mut outs: Vec<Option<K::Out>> = (0..weights.len()).map(|_| None).collect();
+        let mut works = Vec::with_capacity(per_core.len());
+        let mut buffers: Vec<BufferStats> = Vec::new();
+        for (work, bufs, core_outs) in per_core {
+            works.push(work);
+            if buffers.len() < bufs.len() {
+                buffers.resize(bufs.len(), BufferStats::default());
+            }
+            for (b, s) in buffers.iter_mut().zip(&bufs) {
+                b.reads += s.reads;
+                b.writes += s.writes;
+                b.read_bytes += s.read_bytes;
+                b.write_bytes += s.write_bytes;
+            }
+            for (t, o) in core_outs {
+                outs[t] = Some(o);
+            }
+        }
+        let time = StepTime::new(&self.config, &works);
+        let counters = self.step_counters(name, &works, &buffers, &time);
+        let ms = time.ms(&self.config);
+        let phase = self.current();
+        phase.model_ms += ms;
+        phase.counters.merge(&counters);
+        outs.into_iter()
+            .map(|o| o.expect("every task ran once"))
+            .collect()
+    }
+
+    fn step_counters(
+        &self,
+        name: &str,
+        works: &[CoreWork],
+        buffers: &[BufferStats],
+        time: &StepTime,
+    ) -> Counters {
+        let mut total = CoreWork::default();
+        for w in works {
+            total.add(w);
+        }
+        let mut c = Counters::default();
+        let line = f64::from(self.config.line_bytes);
+        for (k, v) in [
+            ("vector_ops", total.vector_ops),
+            ("active_lanes", total.active_lanes),
+            ("scalar_ops", total.scalar_ops),
+            ("loads", total.loads),
+            ("stores", total.stores),
+            ("gathers", total.gathers),
+            ("gather_lines", total.gather_lines),
+            ("scatters", total.scatters),
+            ("scatter_lines", total.scatter_lines),
+            ("atomics", total.atomics),
+            ("cache.l1_hits", total.cache.l1_hits),
+            ("cache.l1_misses", total.cache.l1_misses),
+            ("cache.l2_hits", total.cache.l2_hits),
+            ("cache.l2_misses", total.cache.l2_misses),
+        ] {
+            c.add(k, v as f64);
+        }
+        c.add("dram_read_bytes", total.cache.dram_read_lines as f64 * line);
+        c.add(
+            "dram_write_bytes",
+            total.cache.dram_write_lines as f64 * line,
+        );
+        for (i, b) in buffers.iter().enumerate() {
+            if b.reads + b.writes == 0 {
+                continue;
+            }
+            let n = self.memory.name(BufferId(i as u16));
+            c.add(&format!("mem.{n}.reads"), b.reads as f64);
+            c.add(&format!("mem.{n}.writes"), b.writes as f64);
+            c.add(&format!("mem.{n}.read_bytes"), b.read_bytes as f64);
+            c.add(&format!("mem.{n}.write_bytes"), b.write_bytes as f64);
+            c.add("mem_read_bytes", b.read_bytes as f64);
+            c.add("mem_write_bytes", b.write_bytes as f64);
+        }
+        c.set(&format!("step.{name}.model_ms"), time.ms(&self.config));
+        c.set(
+            &format!("step.{name}.load_imbalance"),
+            time.load_imbalance(),
+        );
+        c.set(
+            &format!("step.{name}.bandwidth_bound"),
+            f64::from(u8::from(
+                time.bandwidth_cycles >= time.core_cycles.iter().copied().fold(0.0, f64::max),
+            )),
+        );
+        c
+    }
+
+    /// Ends the frame: writes back dirty lines (counted as DRAM writes of the last phase, not
+    /// timed: they overlap the next frame), and returns the phases, the frame's counters, the
+    /// modelled time and what to record under `execution`.
+    pub fn finish(mut self) -> Finished {
+        self.close_phase();
+        let line = f64::from(self.config.line_bytes);
+        if let Some(cores) = self.cores.as_mut() {
+            let before: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
+            cores.iter_mut().for_each(CoreCaches::flush);
+            let after: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
+            if let Some(p) = self.phases.last_mut() {
+                p.counters
+                    .add("dram_write_bytes", (after - before) as f64 * line);
+            }
+        }
+        let model = self.is_model();
+        let mut total = Counters::default();
+        let mut phases = Vec::new();
+        for mut p in self.phases {
+            for (k, v) in &p.counters.0 {
+                if !k.starts_with("step.") {
+                    total.add(k, *v);
+                }
+            }
+            if model {
+                set_utilization(&mut p.counters);
+            }
+            phases.push(Phase {
+                name: p.name,
+                wall_ms: p.wall_ms,
+                model_ms: model.then_some(p.model_ms),
+                gpu_ms: None,
+                counters: p.counters,
+            });
+        }
+        let model_ms = model.then(|| phases.iter().filter_map(|p| p.model_ms).sum());
+        let mut execution = BTreeMap::new();
+        if model {
+            set_utilization(&mut total);
+            let m = &self.config;
+            execution.insert("machine".into(), serde_json::json!(m.name));
+            execution.insert("machine_cores".into(), serde_json::json!(m.cores));
+            execution.insert("clock_ghz".into(), serde_json::json!(m.clock_ghz));
+            execution.insert(
+                "threads_per_core".into(),
+                serde_json::json!(m.threads_per_core),
+            );
+        }
+        Finished {
+            phases,
+            counters: total,
+            model_ms,
+            execution,
+        }
+    }
+}
+
+/// `simd_utilization`: active lanes over lane slots of the vector instructions.
+fn set_utilization(c: &mut Counters) {
+    let ops = c.get("vector_ops").unwrap_or(0.0);
+    if ops > 0.0 {
+        let lanes = c.get("active_lanes").unwrap_or(0.0);
+        c.set("simd_utilization", lanes / (ops * LANES as f64));
+    }
+}
+
+/// What a finished frame recorded.
+pub struct Finished {
+    pub phases: Vec<Phase>,
+    pub counters: Counters,
+    pub model_ms: Option<f64>,
+    pub execution: BTreeMap<String, serde_json::Value>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gather_lines(idx: Lanes<u32>) -> u64 {
+        let config = MachineConfig::default();
+        let mut caches = CoreCaches::new(&config);
+        let mut memory = Memory::default();
+        let buf = memory.buffer("data", vec![0f32; 4096]);
+        let mut p = ModelProbe::new(&config, &mut caches);
+        buf.gather(&mut p, &idx, Mask::ALL);
+        assert_eq!(p.work().gathers, 1);
+        p.work().gather_lines
+    }
+
+    #[test]
+    fn a_gather_costs_the_distinct_cache_lines_it_touches() {
+        // 16 f32 lanes in one 64-byte line, in any order.
+        assert_eq!(gather_lines(std::array::from_fn(|l| (15 - l) as u32)), 1);
+        // One lane per line.
+        assert_eq!(gather_lines(std::array::from_fn(|l| l as u32 * 16)), 16);
+        // Two lanes per line.
+        assert_eq!(gather_lines(std::array::from_fn(|l| l as u32 * 8)), 8);
+    }
+
+    #[test]
+    fn model_steps_return_outputs_in_task_order_and_count_every_task() {
+        struct Square;
+        impl TaskKernel for Square {
+            type Out = usize;
+            fn run<P: Probe>(&self, p: &mut P, t: usize) -> usize {
+                p.vector(1, Mask::first(t % 17));
+                t * t
+            }
+        }
+        let weights: Vec<u64> = (0..50).map(|t| (t * 7 % 13) as u64).collect();
+        for backend in [Backend::CpuNative, Backend::CpuModel] {
+            let mut m = Machine::new(backend, MachineConfig::larrabee(4));
+            m.phase("p");
+            let out = m.run_step("square", &Square, &weights);
+            assert_eq!(out, (0..50).map(|t| t * t).collect::<Vec<_>>());
+            let f = m.finish();
+            if backend == Backend::CpuModel {
+                assert_eq!(f.counters.get("vector_ops"), Some(50.0));
+                let lanes: usize = (0..50).map(|t| (t % 17).min(16)).sum();
+                assert_eq!(f.counters.get("active_lanes"), Some(lanes as f64));
+                assert!(f.model_ms.unwrap() > 0.0);
+            } else {
+                assert!(f.model_ms.is_none());
+            }
+        }
+    }
+}

@@ -1,0 +1,927 @@
+//! The sort-middle binned software rasterizer of the Larrabee pipeline (004 §4.1, after Seiler
+//! et al. 2008): a *front end* transforms, clips and sets up triangles and bins each into the
+//! screen tiles its bounding box overlaps; after a barrier, a *back end* rasterizes bin by bin,
+//! one tile per task, so each tile's depth and colour stay in one core's cache.
+//!
+//! Within a tile, a triangle is first tested against the whole tile, then against each 4×4 block
+//! (hierarchical rejection: a rect is rejected when one edge function is negative at its most
+//! inside corner); surviving blocks are covered lane by lane, 16 pixels to a 16-lane vector.
+//! A per-block maximum depth rejects whole blocks before the per-pixel depth test (early
+//! rejection); the per-pixel depth test runs before the fragment kernel (early depth).
+//!
+//! The fragment kernel is the hook soft-shadow algorithms plug into ([`FragmentKernel`]): it
+//! receives the surviving lanes of a block with depth and barycentric weights, may keep private
+//! per-tile state (sample lists, accumulators) and returns a value per lane and the lanes to
+//! write. The rasterizer writes the lanes to the colour target with the pipeline's [`Blend`]
+//! (replace, add for coverage accumulation and counters, min or max) and to the depth buffer.
+//!
+//! Render targets are stored block-linear (each 4×4 block of 32-bit values is one 64-byte cache
+//! line), as a tiled renderer stores them; [`Surface::index`] is the one place that layout lives.
+
+use glam::{Mat4, Vec3, Vec4};
+
+use super::buffer::{Buffer, Memory};
+use super::simd::{Lanes, Mask, Probe, LANES};
+use super::{Machine, TaskKernel};
+
+/// Side of a block in pixels: a 4×4 block is one 16-lane vector.
+pub const BLOCK: u32 = 4;
+
+/// Triangles per front-end task.
+pub const CHUNK: usize = 256;
+
+/// A 2D array of 32-bit values in modelled memory, block-linear.
+#[derive(Clone, Debug)]
+pub struct Surface {
+    pub width: u32,
+    pub height: u32,
+    pub blocks_x: u32,
+    pub buf: Buffer<f32>,
+}
+
+impl Surface {
+    pub fn new(memory: &mut Memory, name: &str, width: u32, height: u32, clear: f32) -> Surface {
+        let blocks_x = width.div_ceil(BLOCK);
+        let blocks_y = height.div_ceil(BLOCK);
+        let n = (blocks_x * blocks_y) as usize * LANES;
+        Surface {
+            width,
+            height,
+            blocks_x,
+            buf: memory.buffer(name, vec![clear; n]),
+        }
+    }
+
+    /// Element index of pixel (x, y).
+    #[inline]
+    pub fn index(&self, x: u32, y: u32) -> usize {
+        let block = (y / BLOCK) * self.blocks_x + x / BLOCK;
+        (block * BLOCK * BLOCK + (y % BLOCK) * BLOCK + x % BLOCK) as usize
+    }
+
+    /// Element index of the first pixel of block (bx, by).
+    pub fn block_index(&self, bx: u32, by: u32) -> usize {
+        ((by * self.blocks_x + bx) * BLOCK * BLOCK) as usize
+    }
+
+    pub fn get(&self, x: u32, y: u32) -> f32 {
+        self.buf.data[self.index(x, y)]
+    }
+}
+
+/// Which triangles are dropped by orientation (counter-clockwise in NDC is front).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cull {
+    None,
+    Back,
+    Front,
+}
+
+/// Which pixels a triangle covers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Coverage {
+    /// Pixel centres inside the triangle, with the top-left rule on edges.
+    Center,
+    /// Every pixel the triangle touches at all (wedges, penumbra quads, irregular rasterization
+    /// against per-pixel sample lists).
+    Conservative,
+}
+
+/// How kernel values combine with the colour target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Blend {
+    Replace,
+    /// Coverage accumulation, stencil-like counters (add ±1).
+    Add,
+    /// Penumbra maps keep the darkest value.
+    Min,
+    Max,
+}
+
+/// Fixed-function state of a draw.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pipeline {
+    pub cull: Cull,
+    pub coverage: Coverage,
+    /// Depth test (less) with the depth buffer cleared to this; `None` disables depth.
+    pub depth_clear: Option<f32>,
+    pub depth_write: bool,
+    /// Colour target with its clear value and blend; `None` for depth-only draws.
+    pub color: Option<(f32, Blend)>,
+}
+
+impl Pipeline {
+    /// A depth-only pass, as a shadow map is drawn.
+    pub const DEPTH_ONLY: Pipeline = Pipeline {
+        cull: Cull::None,
+        coverage: Coverage::Center,
+        depth_clear: Some(1.0),
+        depth_write: true,
+        color: None,
+    };
+}
+
+/// Where a draw renders and how it is tiled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Target {
+    pub width: u32,
+    pub height: u32,
+    /// Tile side in pixels, a multiple of [`BLOCK`].
+    pub tile: u32,
+}
+
+impl Target {
+    pub fn tiles_x(&self) -> u32 {
+        self.width.div_ceil(self.tile)
+    }
+
+    pub fn tiles_y(&self) -> u32 {
+        self.height.div_ceil(self.tile)
+    }
+
+    pub fn tiles(&self) -> usize {
+        (self.tiles_x() * self.tiles_y()) as usize
+    }
+
+    /// Pixel rectangle of tile `t`, clipped to the target.
+    pub fn tile_rect(&self, t: usize) -> TileRect {
+        let (tx, ty) = (t as u32 % self.tiles_x(), t as u32 / self.tiles_x());
+        TileRect {
+            index: t,
+            x0: tx * self.tile,
+            y0: ty * self.tile,
+            x1: ((tx + 1) * self.tile).min(self.width),
+            y1: ((ty + 1) * self.tile).min(self.height),
+        }
+    }
+}
+
+/// Pixels [x0, x1) × [y0, y1) of tile `index`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TileRect {
+    pub index: usize,
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+/// Triangles to draw: world positions, index triples (a triangle's index is its primitive id)
+/// and the world-to-clip transform (depth 0..1).
+pub struct Geometry<'a> {
+    pub positions: &'a Buffer<Vec3>,
+    pub triangles: &'a Buffer<[u32; 3]>,
+    pub view_proj: Mat4,
+}
+
+/// The surviving lanes of one 4×4 block of one primitive, handed to a [`FragmentKernel`].
+pub struct Fragments<'a> {
+    /// Primitive id (index into the draw's triangles).
+    pub prim: u32,
+    /// Pixel of lane 0; lane `l` is at (x + l % 4, y + l / 4).
+    pub x: u32,
+    pub y: u32,
+    /// Covered lanes that passed the depth test.
+    pub mask: Mask,
+    /// Interpolated depth.
+    pub z: &'a Lanes<f32>,
+    /// Screen-space barycentric weights of the triangle's three vertices.
+    pub bary: &'a [Lanes<f32>; 3],
+}
+
+impl Fragments<'_> {
+    pub fn pixel(&self, lane: usize) -> (u32, u32) {
+        (self.x + lane as u32 % BLOCK, self.y + lane as u32 / BLOCK)
+    }
+}
+
+/// What a kernel returns for a block: a value per lane and the lanes to write (a subset of the
+/// fragments' mask; dropped lanes are counted as discarded).
+pub struct Shade {
+    pub value: Lanes<f32>,
+    pub mask: Mask,
+}
+
+/// The per-fragment hook of the back end.
+pub trait FragmentKernel: Sync {
+    /// Private state of one tile (one task), returned with the draw's output in tile order.
+    type TileState: Send;
+    fn begin_tile(&self, tile: TileRect) -> Self::TileState;
+    /// Shades one block's fragments, telling `p` what it executes.
+    fn shade<P: Probe>(
+        &self,
+        p: &mut P,
+        state: &mut Self::TileState,
+        frags: &Fragments<'_>,
+    ) -> Shade;
+}
+
+/// The kernel of a depth-only pass: writes every fragment, costs nothing beyond the depth test.
+pub struct DepthOnly;
+
+impl FragmentKernel for DepthOnly {
+    type TileState = ();
+    fn begin_tile(&self, _: TileRect) {}
+    fn shade<P: Probe>(&self, _: &mut P, _: &mut (), frags: &Fragments<'_>) -> Shade {
+        Shade {
+            value: [0.0; LANES],
+            mask: frags.mask,
+        }
+    }
+}
+
+/// A draw's results.
+pub struct RasterOutput<S> {
+    pub depth: Option<Surface>,
+    pub color: Option<Surface>,
+    /// Each tile's kernel state, in tile order.
+    pub tiles: Vec<S>,
+}
+
+/// Vector instructions of the front end per 16 triangles (one triangle per lane).
+mod cost {
+    /// Three vertices × a 4×4 matrix–vector product as 4 multiply-adds per row, 3 rows needed
+    /// for x, y, w plus one for z: 3 × 16.
+    pub const TRANSFORM: u32 = 48;
+    /// Near-plane classification: 3 compares, 2 mask ors.
+    pub const CLIP_TEST: u32 = 5;
+    /// Perspective divide and viewport: per vertex a reciprocal, 3 multiplies, 2 multiply-adds.
+    pub const PROJECT: u32 = 18;
+    /// Edge setup: 6 differences, area (2 multiplies, 1 subtract), orientation select and cull
+    /// compare, reciprocal area, bounding box (8 min/max), depth range (4 min/max), tile range
+    /// (4 multiplies, 4 conversions).
+    pub const SETUP: u32 = 33;
+    /// Scalar work of clipping one triangle against the near plane (Sutherland–Hodgman over
+    /// three edges: intersection lerps and bookkeeping).
+    pub const CLIP_SCALAR: u32 = 60;
+    /// Scalar work per bin entry: tile index arithmetic, append, loop control.
+    pub const BIN_SCALAR: u32 = 4;
+    /// Scalar work per (triangle, tile) in the back end: fetch, loop control, block range.
+    pub const TRI_TILE_SCALAR: u32 = 8;
+    /// Edge functions of up to 16 blocks at their most-inside corners: one per edge, plus
+    /// the mask and.
+    pub const BLOCK_REJECT: u32 = 4;
+    /// Coverage of a block: three edge values (one add of a precomputed step each), three
+    /// compares (with the top-left tie), two mask ands.
+    pub const COVERAGE: u32 = 8;
+    /// Depth: two multiplies for the weights, two multiply-adds for z, one compare.
+    pub const DEPTH_TEST: u32 = 5;
+    /// Depth write: a select, and the block's new maximum by a 4-step reduction.
+    pub const DEPTH_WRITE: u32 = 5;
+    /// Colour blend: one add/min/max/select.
+    pub const BLEND: u32 = 1;
+}
+
+/// A triangle after setup: screen-space edge functions and depth plane inputs.
+#[derive(Clone, Copy, Debug, Default)]
+struct Setup {
+    prim: u32,
+    /// Edge k is opposite vertex k: `E_k(p) = (p − o_k) · (a_k, b_k)`, positive inside.
+    /// Vertices are snapped to [`SUBPIXELS`] and edges evaluated in f64, where those products
+    /// are exact: triangles sharing an edge get exactly opposite values, so no pixel is covered
+    /// twice or missed.
+    o: [[f64; 2]; 3],
+    a: [f64; 3],
+    b: [f64; 3],
+    top_left: [bool; 3],
+    z: [f32; 3],
+    inv_area: f64,
+    zmin: f32,
+    /// Pixels [x0, x1) × [y0, y1) that may be covered.
+    bbox: [u32; 4],
+}
+
+/// Bytes of a setup record on the modelled machine: three edge equations (a, b, c), three
+/// depths, the reciprocal area and the minimum depth as f32, the bounding box as four u16 and the
+/// primitive id: 76 bytes, padded to 80.
+const SETUP_BYTES: u32 = 80;
+
+/// Sub-pixel precision of snapped vertex positions (8 bits, as GPUs use).
+pub const SUBPIXELS: f64 = 256.0;
+
+fn snap(v: f32) -> f64 {
+    (f64::from(v) * SUBPIXELS).round() / SUBPIXELS
+}
+
+impl Setup {
+    fn new(prim: u32, s: [Vec3; 3], cull: Cull, coverage: Coverage, t: &Target) -> Option<Setup> {
+        if !s
+            .iter()
+            .all(|v| v.is_finite() && v.x.abs() < 1e6 && v.y.abs() < 1e6)
+        {
+            return None;
+        }
+        let q = s.map(|v| [snap(v.x), snap(v.y)]);
+        let e1 = [q[1][0] - q[0][0], q[1][1] - q[0][1]];
+        let e2 = [q[2][0] - q[0][0], q[2][1] - q[0][1]];
+        // Screen y points down: a counter-clockwise triangle in NDC has negative screen area.
+        let screen_area = e1[0] * e2[1] - e1[1] * e2[0];
+        let front = screen_area < 0.0;
+        if screen_area == 0.0
+            || !screen_area.is_finite()
+            || (cull == Cull::Back && !front)
+            || (cull == Cull::Front && front)
+        {
+            return None;
+        }
+        let sign = screen_area.signum();
+        let mut o = [[0.0; 2]; 3];
+        let (mut a, mut b) = ([0.0; 3], [0.0; 3]);
+        let mut top_left = [false; 3];
+        for k in 0..3 {
+            let (p, r) = (q[(k + 1) % 3], q[(k + 2) % 3]);
+            o[k] = p;
+            // E_k(q_k) = sign · cross(q_k − p, r − p) = |area| > 0.
+            a[k] = -sign * (r[1] - p[1]);
+            b[k] = sign * (r[0] - p[0]);
+            top_left[k] = a[k] > 0.0 || (a[k] == 0.0 && b[k] > 0.0);
+        }
+        let grow = if coverage == Coverage::Conservative {
+            1.0
+        } else {
+            0.0
+        };
+        let (lo, hi) = (
+            s[0].min(s[1]).min(s[2]) - grow,
+            s[0].max(s[1]).max(s[2]) + grow,
+        );
+        let bbox = [
+            lo.x.floor().clamp(0.0, t.width as f32) as u32,
+            lo.y.floor().clamp(0.0, t.height as f32) as u32,
+            hi.x.ceil().clamp(0.0, t.width as f32) as u32,
+            hi.y.ceil().clamp(0.0, t.height as f32) as u32,
+        ];
+        if bbox[0] >= bbox[2] || bbox[1] >= bbox[3] {
+            return None;
+        }
+        Some(Setup {
+            prim,
+            o,
+            a,
+            b,
+            top_left,
+            z: [s[0].z, s[1].z, s[2].z],
+            inv_area: 1.0 / screen_area.abs(),
+            zmin: s[0].z.min(s[1].z).min(s[2].z),
+            bbox,
+        })
+    }
+
+    #[inline]
+    fn edge(&self, k: usize, x: f64, y: f64) -> f64 {
+        (x - self.o[k][0]) * self.a[k] + (y - self.o[k][1]) * self.b[k]
+    }
+
+    /// Slack added to edge values: half a pixel's extent along the edge normal when
+    /// conservative.
+    #[inline]
+    fn slack(&self, k: usize, coverage: Coverage) -> f64 {
+        match coverage {
+            Coverage::Center => 0.0,
+            Coverage::Conservative => 0.5 * (self.a[k].abs() + self.b[k].abs()),
+        }
+    }
+
+    /// Whether pixels [x0, x1) × [y0, y1) lie wholly outside one edge.
+    fn rejects(&self, x0: u32, y0: u32, x1: u32, y1: u32, coverage: Coverage) -> bool {
+        (0..3).any(|k| {
+            let x = if self.a[k] > 0.0 {
+                f64::from(x1) - 0.5
+            } else {
+                f64::from(x0) + 0.5
+            };
+            let y = if self.b[k] > 0.0 {
+                f64::from(y1) - 0.5
+            } else {
+                f64::from(y0) + 0.5
+            };
+            self.edge(k, x, y) + self.slack(k, coverage) < 0.0
+        })
+    }
+}
+
+/// Sutherland–Hodgman clip of a clip-space triangle against the near plane z ≥ 0; returns the
+/// resulting polygon (0, 3 or 4 vertices).
+fn clip_near(v: [Vec4; 3]) -> Vec<Vec4> {
+    let mut out = Vec::with_capacity(4);
+    for i in 0..3 {
+        let (p, q) = (v[i], v[(i + 1) % 3]);
+        if p.z >= 0.0 {
+            out.push(p);
+        }
+        if (p.z >= 0.0) != (q.z >= 0.0) {
+            let t = p.z / (p.z - q.z);
+            out.push(p + (q - p) * t);
+        }
+    }
+    out
+}
+
+fn to_screen(c: Vec4, t: &Target) -> Vec3 {
+    let n = c.truncate() / c.w;
+    Vec3::new(
+        (n.x * 0.5 + 0.5) * t.width as f32,
+        (0.5 - n.y * 0.5) * t.height as f32,
+        n.z,
+    )
+}
+
+/// Front-end output of one chunk of triangles.
+struct Binned {
+    setups: Vec<Setup>,
+    /// (tile, index into `setups`), in triangle order.
+    entries: Vec<(u32, u32)>,
+    culled: u64,
+    clipped: u64,
+}
+
+struct FrontEnd<'a> {
+    geometry: &'a Geometry<'a>,
+    pipeline: Pipeline,
+    target: Target,
+    setup_buf: (super::BufferId, u64),
+    bins_buf: (super::BufferId, u64),
+}
+
+impl FrontEnd<'_> {
+    /// Modelled address of the setup record `i` of chunk `c` (room for two per triangle after
+    /// clipping).
+    fn setup_addr(&self, c: usize, i: usize) -> u64 {
+        self.setup_buf.1 + ((c * CHUNK * 2 + i) as u64) * u64::from(SETUP_BYTES)
+    }
+
+    /// Modelled address of entry `k` of chunk `c`'s bin for `tile`: each chunk (front-end
+    /// thread) appends to its own bins, so binning needs no locks.
+    fn bin_addr(&self, c: usize, tile: u32, k: usize) -> u64 {
+        let bin = (c * self.target.tiles() + tile as usize) as u64;
+        self.bins_buf.1 + (bin * (CHUNK as u64 * 2) + k as u64) * 4
+    }
+}
+
+impl TaskKernel for FrontEnd<'_> {
+    type Out = Binned;
+
+    fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Binned {
+        let g = self.geometry;
+        let n_tris = g.triangles.data.len();
+        let (start, end) = (chunk * CHUNK, ((chunk + 1) * CHUNK).min(n_tris));
+        let t = &self.target;
+        let mut out = Binned {
+            setups: Vec::new(),
+            entries: Vec::new(),
+            culled: 0,
+            clipped: 0,
+        };
+        let mut bin_fill = if P::ENABLED {
+            vec![0usize; t.tiles()]
+        } else {
+            Vec::new()
+        };
+        for group in (start..end).step_by(LANES) {
+            let n = (end - group).min(LANES);
+            let mask = Mask::first(n);
+            let tris = g.triangles.load_run(p, group, n);
+            let mut idx = [[0u32; LANES]; 3];
+            for (l, tri) in tris.iter().enumerate() {
+                for k in 0..3 {
+                    idx[k][l] = tri[k];
+                }
+            }
+            let verts = idx.map(|i| g.positions.gather(p, &i, mask));
+            p.vector(cost::TRANSFORM + cost::CLIP_TEST, mask);
+            let mut setup_mask = Mask::NONE;
+            for l in 0..n {
+                let prim = (group + l) as u32;
+                let clip = [0, 1, 2].map(|k| g.view_proj * verts[k][l].extend(1.0));
+                let polygon = if clip.iter().all(|c| c.z >= 0.0) {
+                    setup_mask.0 |= 1 << l;
+                    clip.to_vec()
+                } else {
+                    out.clipped += 1;
+                    p.scalar(cost::CLIP_SCALAR);
+                    clip_near(clip)
+                };
+                let mut any = false;
+                for i in 1..polygon.len().saturating_sub(1) {
+                    let s = [polygon[0], polygon[i], polygon[i + 1]].map(|c| to_screen(c, t));
+                    let Some(setup) =
+                        Setup::new(prim, s, self.pipeline.cull, self.pipeline.coverage, t)
+                    else {
+                        continue;
+                    };
+                    any = true;
+                    let si = out.setups.len();
+                    p.write(self.setup_buf.0, self.setup_addr(chunk, si), SETUP_BYTES);
+                    let [x0, y0, x1, y1] = setup.bbox;
+                    for ty in y0 / t.tile..=(y1 - 1) / t.tile {
+                        for tx in x0 / t.tile..=(x1 - 1) / t.tile {
+                            let tile = ty * t.tiles_x() + tx;
+                            if P::ENABLED {
+                                let k = &mut bin_fill[tile as usize];
+                                p.write(self.bins_buf.0, self.bin_addr(chunk, tile, *k), 4);
+                                *k += 1;
+                                p.scalar(cost::BIN_SCALAR);
+                            }
+                            out.entries.push((tile, si as u32));
+                        }
+                    }
+                    out.setups.push(setup);
+                }
+                out.culled += u64::from(!any);
+            }
+            p.vector(cost::PROJECT + cost::SETUP, setup_mask);
+        }
+        out
+    }
+}
+
+/// One tile's work in the back end: (chunk, entry within the chunk's bin, global setup index).
+type BinEntry = (u32, u32, u32);
+
+struct BackEnd<'a, K> {
+    kernel: &'a K,
+    pipeline: Pipeline,
+    target: Target,
+    setups: &'a [Setup],
+    bins: &'a [Vec<BinEntry>],
+    front: &'a FrontEnd<'a>,
+    /// Global setup index → (chunk, index within chunk), for modelled addresses.
+    setup_home: &'a [(u32, u32)],
+    depth: Option<&'a Surface>,
+    color: Option<&'a Surface>,
+}
+
+/// Counts of one tile.
+#[derive(Clone, Copy, Debug, Default)]
+struct TileStats {
+    triangles: u64,
+    tiles_rejected: u64,
+    blocks_rejected: u64,
+    fill: u64,
+    early_rejected: u64,
+    depth_pass: u64,
+    depth_fail: u64,
+    discarded: u64,
+    written: u64,
+}
+
+struct TileOut<S> {
+    depth: Vec<Lanes<f32>>,
+    color: Vec<Lanes<f32>>,
+    state: S,
+    stats: TileStats,
+}
+
+impl<K: FragmentKernel> TaskKernel for BackEnd<'_, K> {
+    type Out = TileOut<K::TileState>;
+
+    fn run<P: Probe>(&self, p: &mut P, tile: usize) -> Self::Out {
+        let r = self.target.tile_rect(tile);
+        let (bx0, by0) = (r.x0 / BLOCK, r.y0 / BLOCK);
+        let (bw, bh) = (r.x1.div_ceil(BLOCK) - bx0, r.y1.div_ceil(BLOCK) - by0);
+        let nblocks = (bw * bh) as usize;
+        let pl = &self.pipeline;
+        let mut stats = TileStats {
+            triangles: self.bins[tile].len() as u64,
+            ..Default::default()
+        };
+        let depth_clear = pl.depth_clear.unwrap_or(1.0);
+        let mut depth = vec![[depth_clear; LANES]; if self.depth.is_some() { nblocks } else { 0 }];
+        let mut zmax = vec![depth_clear; depth.len()];
+        let (color_clear, blend) = pl.color.unwrap_or((0.0, Blend::Replace));
+        let mut color = vec![[color_clear; LANES]; if self.color.is_some() { nblocks } else { 0 }];
+        // Clear: one vector store per block of each target.
+        for s in [self.depth, self.color].into_iter().flatten() {
+            for by in 0..bh {
+                for bx in 0..bw {
+                    s.buf
+                        .record_store(p, s.block_index(bx0 + bx, by0 + by), LANES);
+                }
+            }
+            p.vector(nblocks as u32, Mask::ALL);
+        }
+        let mut state = self.kernel.begin_tile(r);
+        for &(chunk, k, si) in &self.bins[tile] {
+            let s = &self.setups[si as usize];
+            p.read(
+                self.front.bins_buf.0,
+                self.front.bin_addr(chunk as usize, tile as u32, k as usize),
+                4,
+            );
+            let (hc, hi) = self.setup_home[si as usize];
+            p.read(
+                self.front.setup_buf.0,
+                self.front.setup_addr(hc as usize, hi as usize),
+                SETUP_BYTES,
+            );
+            p.scalar(cost::TRI_TILE_SCALAR);
+            p.vector(1, Mask::first(3));
+            if s.rejects(r.x0, r.y0, r.x1, r.y1, pl.coverage) {
+                stats.tiles_rejected += 1;
+                continue;
+            }
+            let x0 = s.bbox[0].max(r.x0) / BLOCK;
+            let y0 = s.bbox[1].max(r.y0) / BLOCK;
+            let x1 = s.bbox[2].min(r.x1).div_ceil(BLOCK);
+            let y1 = s.bbox[3].min(r.y1).div_ceil(BLOCK);
+            let range = ((x1 - x0) * (y1 - y0)) as usize;
+            for v in 0..range.div_ceil(LANES) {
+                p.vector(cost::BLOCK_REJECT, Mask::first(range - v * LANES));
+            }
+            for by in y0..y1 {
+                for bx in x0..x1 {
+                    let (px, py) = (bx * BLOCK, by * BLOCK);
+                    if s.rejects(px, py, px + BLOCK, py + BLOCK, pl.coverage) {
+                        stats.blocks_rejected += 1;
+                        continue;
+                    }
+                    let local = ((by - by0) * bw + (bx - bx0)) as usize;
+                    self.block(
+                        p,
+                        s,
+                        (px, py),
+                        local,
+                        (&mut depth, &mut zmax, &mut color, blend),
+                        &mut state,
+                        &mut stats,
+                    );
+                }
+            }
+        }
+        TileOut {
+            depth,
+            color,
+            state,
+            stats,
+        }
+    }
+}
+
+type TileTargets<'t> = (
+    &'t mut Vec<Lanes<f32>>,
+    &'t mut Vec<f32>,
+    &'t mut Vec<Lanes<f32>>,
+    Blend,
+);
+
+impl<K: FragmentKernel> BackEnd<'_, K> {
+    /// Rasterizes triangle `s` in the 4×4 block at pixel (px, py) (block `local` of the tile).
+    #[allow(clippy::too_many_arguments)]
+    fn block<P: Probe>(
+        &self,
+        p: &mut P,
+        s: &Setup,
+        (px, py): (u32, u32),
+        local: usize,
+        (depth, zmax, color, blend): TileTargets<'_>,
+        state: &mut K::TileState,
+        stats: &mut TileStats,
+    ) {
+        let pl = &self.pipeline;
+        let t = &self.target;
+        let mut e = [[0f64; LANES]; 3];
+        let in_target =
+            Mask::from_fn(|l| px + l as u32 % BLOCK < t.width && py + l as u32 / BLOCK < t.height);
+        let mut covered = in_target;
+        for k in 0..3 {
+            let slack = s.slack(k, pl.coverage);
+            let m = Mask::from_fn(|l| {
+                let x = f64::from(px + l as u32 % BLOCK) + 0.5;
+                let y = f64::from(py + l as u32 / BLOCK) + 0.5;
+                e[k][l] = s.edge(k, x, y);
+                let v = e[k][l] + slack;
+                v > 0.0 || (v == 0.0 && (s.top_left[k] || pl.coverage == Coverage::Conservative))
+            });
+            covered = covered.and(m);
+        }
+        p.vector(cost::COVERAGE, Mask::ALL);
+        stats.fill += u64::from(covered.count());
+        if !covered.any() {
+            return;
+        }
+        let bary: [Lanes<f32>; 3] = e.map(|ek| ek.map(|v| (v * s.inv_area) as f32));
+        let (lo, hi) = (s.zmin, s.z[0].max(s.z[1]).max(s.z[2]));
+        let z: Lanes<f32> = std::array::from_fn(|l| {
+            (bary[0][l] * s.z[0] + bary[1][l] * s.z[1] + bary[2][l] * s.z[2]).clamp(lo, hi)
+        });
+        let mut mask = covered;
+        if let Some(d) = self.depth {
+            p.scalar(2);
+            if s.zmin >= zmax[local] {
+                stats.early_rejected += u64::from(covered.count());
+                return;
+            }
+            d.buf
+                .record_load(p, d.block_index(px / BLOCK, py / BLOCK), LANES);
+            p.vector(cost::DEPTH_TEST, covered);
+            mask = covered.and(Mask::from_fn(|l| z[l] < depth[local][l]));
+            stats.depth_pass += u64::from(mask.count());
+            stats.depth_fail += u64::from(covered.and_not(mask).count());
+            if !mask.any() {
+                return;
+            }
+        }
+        let frags = Fragments {
+            prim: s.prim,
+            x: px,
+            y: py,
+            mask,
+            z: &z,
+            bary: &bary,
+        };
+        let shade = self.kernel.shade(p, state, &frags);
+        let write = shade.mask.and(mask);
+        stats.discarded += u64::from(mask.and_not(write).count());
+        stats.written += u64::from(write.count());
+        if !write.any() {
+            return;
+        }
+        if let (Some(d), true) = (self.depth, pl.depth_write) {
+            p.vector(cost::DEPTH_WRITE, write);
+            for l in write.lanes() {
+                depth[local][l] = z[l];
+            }
+            zmax[local] = depth[local].iter().copied().fold(f32::MIN, f32::max);
+            d.buf
+                .record_store(p, d.block_index(px / BLOCK, py / BLOCK), LANES);
+        }
+        if let Some(c) = self.color {
+            let i = c.block_index(px / BLOCK, py / BLOCK);
+            c.buf.record_load(p, i, LANES);
+            p.vector(cost::BLEND, write);
+            for l in write.lanes() {
+                let (old, new) = (color[local][l], shade.value[l]);
+                color[local][l] = match blend {
+                    Blend::Replace => new,
+                    Blend::Add => old + new,
+                    Blend::Min => old.min(new),
+                    Blend::Max => old.max(new),
+                };
+            }
+            c.buf.record_store(p, i, LANES);
+        }
+    }
+}
+
+/// Power-of-two bucket name of a triangles-per-tile count: `0`, `1`, `2-3`, `4-7`, ...
+fn bucket(n: u64) -> String {
+    match n {
+        0 => "0".into(),
+        1 => "1".into(),
+        _ => {
+            let lo = 1u64 << (63 - n.leading_zeros());
+            format!("{lo}-{}", 2 * lo - 1)
+        }
+    }
+}
+
+/// Draws `geometry` into `target` with `pipeline` and `kernel` as two steps of the current
+/// phase, `binning` (front end) and `raster` (back end). Surfaces are named `<name>.depth` and
+/// `<name>.color`. Records the rasterizer counters in the current phase:
+/// `raster.triangles`, `raster.culled`, `raster.clipped`, `bin_entries`, `bin_bytes`,
+/// `raster.tiles_rejected`, `raster.blocks_rejected`, `fill`, `fragments_rejected_early`,
+/// `depth_pass`, `depth_fail`, `raster.discarded`, `raster.written`,
+/// `raster.tris_per_tile.<bucket>`.
+pub fn draw<K: FragmentKernel>(
+    m: &mut Machine,
+    name: &str,
+    target: Target,
+    pipeline: Pipeline,
+    geometry: &Geometry<'_>,
+    kernel: &K,
+) -> RasterOutput<K::TileState> {
+    debug_assert!(target.tile % BLOCK == 0 && target.tile > 0);
+    let n_tris = geometry.triangles.data.len();
+    let chunks = n_tris.div_ceil(CHUNK);
+    let setup_buf = m.memory.reserve(
+        "raster.setup",
+        (chunks * CHUNK * 2) as u64 * u64::from(SETUP_BYTES),
+    );
+    let bins_buf = m
+        .memory
+        .reserve("bins", (chunks * target.tiles() * CHUNK * 2 * 4) as u64);
+    let front = FrontEnd {
+        geometry,
+        pipeline,
+        target,
+        setup_buf,
+        bins_buf,
+    };
+    let weights: Vec<u64> = (0..chunks)
+        .map(|c| ((c + 1) * CHUNK).min(n_tris) as u64 - (c * CHUNK) as u64)
+        .collect();
+    let binned = m.run_step("binning", &front, &weights);
+
+    let mut setups = Vec::new();
+    let mut setup_home = Vec::new();
+    let mut bins: Vec<Vec<BinEntry>> = vec![Vec::new(); target.tiles()];
+    let (mut culled, mut clipped) = (0, 0);
+    for (c, b) in binned.iter().enumerate() {
+        let base = setups.len() as u32;
+        let mut fill = vec![
+            0u32;
+            if b.entries.is_empty() {
+                0
+            } else {
+                target.tiles()
+            }
+        ];
+        for &(tile, si) in &b.entries {
+            let k = &mut fill[tile as usize];
+            bins[tile as usize].push((c as u32, *k, base + si));
+            *k += 1;
+        }
+        setup_home.extend((0..b.setups.len() as u32).map(|i| (c as u32, i)));
+        setups.extend_from_slice(&b.setups);
+        culled += b.culled;
+        clipped += b.clipped;
+    }
+    let bin_entries: usize = bins.iter().map(Vec::len).sum();
+    m.count("raster.triangles", n_tris as f64);
+    m.count("raster.culled", culled as f64);
+    m.count("raster.clipped", clipped as f64);
+    m.count("bin_entries", bin_entries as f64);
+    m.count("bin_bytes", (bin_entries * 4) as f64);
+
+    let depth = pipeline.depth_clear.map(|clear| {
+        Surface::new(
+            &mut m.memory,
+            &format!("{name}.depth"),
+            target.width,
+            target.height,
+            clear,
+        )
+    });
+    let color = pipeline.color.map(|(clear, _)| {
+        Surface::new(
+            &mut m.memory,
+            &format!("{name}.color"),
+            target.width,
+            target.height,
+            clear,
+        )
+    });
+    let back = BackEnd {
+        kernel,
+        pipeline,
+        target,
+        setups: &setups,
+        bins: &bins,
+        front: &front,
+        setup_home: &setup_home,
+        depth: depth.as_ref(),
+        color: color.as_ref(),
+    };
+    let weights: Vec<u64> = bins.iter().map(|b| b.len() as u64 + 1).collect();
+    let tiles = m.run_step("raster", &back, &weights);
+
+    let mut depth = depth;
+    let mut color = color;
+    let mut total = TileStats::default();
+    let mut states = Vec::with_capacity(tiles.len());
+    for (t, out) in tiles.into_iter().enumerate() {
+        let r = target.tile_rect(t);
+        let (bx0, by0) = (r.x0 / BLOCK, r.y0 / BLOCK);
+        let bw = r.x1.div_ceil(BLOCK) - bx0;
+        for (surface, blocks) in [(&mut depth, &out.depth), (&mut color, &out.color)] {
+            if let Some(s) = surface.as_mut() {
+                for (i, block) in blocks.iter().enumerate() {
+                    let (bx, by) = (bx0 + i as u32 % bw, by0 + i as u32 / bw);
+                    let at = s.block_index(bx, by);
+                    s.buf.data[at..at + LANES].copy_from_slice(block);
+                }
+            }
+        }
+        let s = out.stats;
+        m.count(
+            &format!("raster.tris_per_tile.{}", bucket(s.triangles)),
+            1.0,
+        );
+        total.tiles_rejected += s.tiles_rejected;
+        total.blocks_rejected += s.blocks_rejected;
+        total.fill += s.fill;
+        total.early_rejected += s.early_rejected;
+        total.depth_pass += s.depth_pass;
+        total.depth_fail += s.depth_fail;
+        total.discarded += s.discarded;
+        total.written += s.written;
+        states.push(out.state);
+    }
+    for (k, v) in [
+        ("raster.tiles_rejected", total.tiles_rejected),
+        ("raster.blocks_rejected", total.blocks_rejected),
+        ("fill", total.fill),
+        ("fragments_rejected_early", total.early_rejected),
+        ("depth_pass", total.depth_pass),
+        ("depth_fail", total.depth_fail),
+        ("raster.discarded", total.discarded),
+        ("raster.written", total.written),
+    ] {
+        m.count(k, v as f64);
+    }
+    RasterOutput {
+        depth,
+        color,
+        tiles: states,
+    }
+}

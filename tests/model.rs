@@ -1,0 +1,272 @@
+//! The cpu-model execution and the shadow-map family on it, checked against the ray-traced
+//! reference, against each other, against the native execution, and for determinism.
+
+use std::collections::BTreeMap;
+
+use glam::Vec3;
+use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::harness::{run_one, ReferenceCache};
+use shadowbench::metrics;
+use shadowbench::model::raster::{self, Coverage, DepthOnly, Geometry, Pipeline, Target};
+use shadowbench::model::{Machine, MachineConfig};
+use shadowbench::scenario::Loaded;
+use shadowbench::scene::generators::{self, GeneratorParams};
+
+fn frame(light_size: f32, tile: u32) -> Frame {
+    let mut scene = generators::find("sphere-on-plane")
+        .unwrap()
+        .build(&GeneratorParams {
+            triangles: Some(600),
+            seed: 1,
+            occluder_height: None,
+        });
+    scene.light = scene.light.with_size(light_size);
+    let params = RunParams {
+        triangles: scene.triangle_count() as u32,
+        light_size,
+        map_resolution: 512,
+        tile_size: tile,
+        image: [64, 48],
+        occluder_height: None,
+        cores: None,
+    };
+    Frame::new(scene, params)
+}
+
+fn render(id: &str, backend: Backend, frame: &Frame) -> FrameOutput {
+    algorithms::run(id, backend, frame, &ExecContext::default()).unwrap()
+}
+
+fn mae(a: &FrameOutput, b: &FrameOutput, frame: &Frame) -> f64 {
+    metrics::compare(&a.visibility, &b.visibility, &frame.gbuffer.mask()).mae
+}
+
+#[test]
+fn hard_shadow_map_matches_the_reference_at_a_small_light() {
+    let f = frame(0.05, 32);
+    let reference = ReferenceCache::new(None, 64, 1).get_or_compute(&f).unwrap();
+    let ctx = ExecContext::default();
+    let (record, out) = run_one(
+        &f,
+        "hard_shadow_map",
+        Backend::CpuModel,
+        &ctx,
+        Some(&reference),
+    );
+    let out = out.expect("the run succeeds");
+    let e = record.error.expect("error against the reference");
+    assert!(e.mae < 0.02, "mae {}", e.mae);
+    // The sphere casts a shadow at all: some receivers are dark in both images.
+    let dark = out.visibility.data.iter().filter(|&&v| v == 0.0).count();
+    assert!(dark > 20, "{dark} shadowed pixels");
+    assert!(record.model_ms.unwrap() > 0.0);
+    assert_eq!(record.execution["machine"], "larrabee-24");
+    let phases: Vec<&str> = record.phases.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(phases, ["light_raster", "eye_lookup"]);
+}
+
+#[test]
+fn pcss_is_closer_to_the_reference_than_the_hard_shadow_at_a_large_light() {
+    let f = frame(0.8, 32);
+    let reference = ReferenceCache::new(None, 64, 1).get_or_compute(&f).unwrap();
+    let ctx = ExecContext::default();
+    let err = |id| {
+        run_one(&f, id, Backend::CpuModel, &ctx, Some(&reference))
+            .0
+            .error
+            .unwrap()
+            .mae_shadow
+    };
+    let (pcss, hard) = (err("pcss"), err("hard_shadow_map"));
+    assert!(pcss < hard, "pcss {pcss} vs hard {hard}");
+}
+
+#[test]
+fn pcss_converges_to_the_hard_shadow_map_as_the_light_shrinks() {
+    let diff = |size| {
+        let f = frame(size, 32);
+        mae(
+            &render("pcss", Backend::CpuModel, &f),
+            &render("hard_shadow_map", Backend::CpuModel, &f),
+            &f,
+        )
+    };
+    let (tiny, big) = (diff(1e-4), diff(0.8));
+    assert!(tiny < 2e-3, "tiny light: {tiny}");
+    assert!(
+        big > 10.0 * tiny.max(1e-4),
+        "big light: {big}, tiny: {tiny}"
+    );
+}
+
+#[test]
+fn native_and_model_executions_compute_the_same_image() {
+    let f = frame(0.5, 16);
+    for id in ["hard_shadow_map", "pcss"] {
+        let (n, m) = (
+            render(id, Backend::CpuNative, &f),
+            render(id, Backend::CpuModel, &f),
+        );
+        assert_eq!(n.visibility, m.visibility, "{id}");
+        assert_eq!(n.counters.get("fill"), m.counters.get("fill"), "{id}");
+        assert!(n.model_ms.is_none() && m.model_ms.is_some());
+    }
+}
+
+#[test]
+fn counters_and_model_times_do_not_depend_on_host_threads() {
+    let f = frame(0.5, 16);
+    let in_pool = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render("pcss", Backend::CpuModel, &f))
+    };
+    let (a, b) = (in_pool(1), in_pool(2));
+    assert_eq!(a.counters, b.counters);
+    assert_eq!(a.model_ms, b.model_ms);
+    let model = |o: &FrameOutput| {
+        o.phases
+            .iter()
+            .map(|p| (p.name.clone(), p.model_ms, p.counters.clone()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(model(&a), model(&b));
+    assert_eq!(a.visibility, b.visibility);
+    assert!(a.counters.get("cache.l1_hits").unwrap() > 0.0);
+}
+
+#[test]
+fn more_modelled_cores_take_less_modelled_time() {
+    let f = |cores| {
+        let mut f = frame(0.5, 16);
+        f.params.cores = Some(cores);
+        render("hard_shadow_map", Backend::CpuModel, &f)
+    };
+    let (one, many) = (f(1), f(24));
+    assert!(many.model_ms.unwrap() < one.model_ms.unwrap() / 4.0);
+    // The same work is done, only spread differently.
+    assert_eq!(
+        one.counters.get("vector_ops"),
+        many.counters.get("vector_ops")
+    );
+    assert_eq!(one.execution["machine_cores"], 1);
+}
+
+/// `n`×`n` large overlapping triangles spread over the target, in a fixed pattern.
+fn big_triangles(n: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let mut pos = Vec::new();
+    let mut tris = Vec::new();
+    for i in 0..n * n {
+        let (x, y) = ((i % n) as f32 / n as f32, (i / n) as f32 / n as f32);
+        let (cx, cy) = (x * 1.6 - 0.8, y * 1.6 - 0.8);
+        let base = pos.len() as u32;
+        let z = 0.2 + 0.6 * ((i * 7) % 11) as f32 / 11.0;
+        pos.push(Vec3::new(cx - 0.5, cy - 0.4, z));
+        pos.push(Vec3::new(cx + 0.6, cy - 0.3, z));
+        pos.push(Vec3::new(cx, cy + 0.5, z));
+        tris.push([base, base + 1, base + 2]);
+    }
+    (pos, tris)
+}
+
+fn raster_counters(
+    tile: u32,
+    pipeline: Pipeline,
+    geometry: (&[Vec3], &[[u32; 3]]),
+) -> BTreeMap<String, f64> {
+    let mut m = Machine::new(Backend::CpuModel, MachineConfig::default());
+    m.phase("draw");
+    let positions = m.memory.buffer("vertices", geometry.0.to_vec());
+    let triangles = m.memory.buffer("indices", geometry.1.to_vec());
+    let g = Geometry {
+        positions: &positions,
+        triangles: &triangles,
+        view_proj: glam::Mat4::IDENTITY,
+    };
+    let target = Target {
+        width: 200,
+        height: 136,
+        tile,
+    };
+    raster::draw(&mut m, "target", target, pipeline, &g, &DepthOnly);
+    m.finish().counters.0
+}
+
+#[test]
+fn doubling_the_tile_size_reduces_bin_entries_and_keeps_fill() {
+    let (pos, tris) = big_triangles(6);
+    let small = raster_counters(16, Pipeline::DEPTH_ONLY, (&pos, &tris));
+    let large = raster_counters(32, Pipeline::DEPTH_ONLY, (&pos, &tris));
+    assert!(
+        large["bin_entries"] < small["bin_entries"],
+        "{} vs {}",
+        large["bin_entries"],
+        small["bin_entries"]
+    );
+    assert_eq!(large["fill"], small["fill"]);
+    assert!(small["fill"] > 0.0);
+    for c in [&small, &large] {
+        assert_eq!(
+            c["fill"],
+            c["fragments_rejected_early"] + c["depth_pass"] + c["depth_fail"]
+        );
+    }
+}
+
+#[test]
+fn two_triangles_sharing_an_edge_cover_each_pixel_once() {
+    // A full-screen quad split along its diagonal: the top-left rule gives every pixel centre
+    // to exactly one of the two triangles.
+    let pos = [
+        Vec3::new(-1.0, -1.0, 0.5),
+        Vec3::new(1.0, -1.0, 0.5),
+        Vec3::new(1.0, 1.0, 0.5),
+        Vec3::new(-1.0, 1.0, 0.5),
+    ];
+    let tris = [[0, 1, 2], [0, 2, 3]];
+    let p = Pipeline {
+        depth_clear: None,
+        ..Pipeline::DEPTH_ONLY
+    };
+    let c = raster_counters(32, p, (&pos, &tris));
+    assert_eq!(c["fill"], 200.0 * 136.0);
+    let cons = raster_counters(
+        32,
+        Pipeline {
+            coverage: Coverage::Conservative,
+            ..p
+        },
+        (&pos, &tris),
+    );
+    assert!(cons["fill"] >= c["fill"]);
+}
+
+#[test]
+fn an_unknown_machine_in_a_scenario_names_the_field_and_suggests_a_preset() {
+    let text = r#"{"scene": {"generator": "sphere-on-plane"}, "algorithms": ["pcss"],
+                   "machine": "larrabee-42"}"#;
+    let e = Loaded::from_str(text, std::path::Path::new("s.json")).unwrap_err();
+    assert_eq!(e.field.as_deref(), Some("$.machine"));
+    assert!(
+        e.message.contains("did you mean 'larrabee-24'") || e.message.contains("larrabee-"),
+        "{e}"
+    );
+    let ok = text.replace("larrabee-42", "larrabee-48");
+    let l = Loaded::from_str(&ok, std::path::Path::new("s.json")).unwrap();
+    assert_eq!(l.machine.cores, 48);
+}
+
+#[test]
+fn bad_pcss_options_name_the_field() {
+    let text = r#"{"scene": {"generator": "sphere-on-plane"}, "algorithms": ["pcss"],
+                   "options": {"pcss": {"pcf_samples": 0}}}"#;
+    let e = Loaded::from_str(text, std::path::Path::new("s.json")).unwrap_err();
+    assert_eq!(
+        e.field.as_deref(),
+        Some("$.options.pcss.pcf_samples"),
+        "{e}"
+    );
+}
