@@ -335,7 +335,15 @@ fn main() -> ExitCode {
             cache_dir,
             memory_limit,
             machine,
-        } => run(scenario, out, only, backend, cache_dir, memory_limit, machine),
+        } => run(
+            scenario,
+            out,
+            only,
+            backend,
+            cache_dir,
+            memory_limit,
+            machine,
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

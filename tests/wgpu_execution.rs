@@ -1,5 +1,6 @@
-//! The wgpu execution against independent results: the ray-cast reference (a tiny light makes
-//! it a hard shadow), closed-form tap counts, and the behaviour without any adapter.
+//! The wgpu execution against independent results: the cpu-model execution of the same
+//! algorithm, the ray-cast reference (a tiny light makes it a hard shadow), closed-form tap
+//! counts, and the behaviour without any adapter.
 //!
 //! Without an adapter these tests print why and pass, unless `SHADOWBENCH_REQUIRE_GPU=1` (as
 //! in CI), which makes a missing adapter a failure.
@@ -59,7 +60,40 @@ fn facing_light(frame: &Frame) -> Vec<bool> {
 }
 
 fn run(id: &str, frame: &Frame) -> FrameOutput {
-    algorithms::run(id, Backend::Wgpu, frame, &ExecContext::default()).unwrap()
+    run_on(id, Backend::Wgpu, frame)
+}
+
+fn run_on(id: &str, backend: Backend, frame: &Frame) -> FrameOutput {
+    algorithms::run(id, backend, frame, &ExecContext::default()).unwrap()
+}
+
+#[test]
+fn wgpu_agrees_with_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    for name in ["sphere-on-plane", "box-on-plane", "torus-on-plane"] {
+        let f = frame(name, |l| l.with_size(0.5), 256);
+        for id in ["hard_shadow_map", "pcss"] {
+            let gpu = run_on(id, Backend::Wgpu, &f);
+            let model = run_on(id, Backend::CpuModel, &f);
+            let e = metrics::compare(&gpu.visibility, &model.visibility, &f.gbuffer.mask());
+            // The same formulas in f32 on both; only depth values rounded differently by the
+            // two rasterizers can flip a tap.
+            assert!(e.mae < 0.01, "{name} {id}: {e:?}");
+            // Fill: fragments of the light raster. Both sample triangles at texel centres with
+            // top-left rules; allow 1% for edges that pass exactly through a texel centre.
+            let (fg, fm) = (
+                gpu.counters.get("fill").unwrap(),
+                model.counters.get("fill").unwrap(),
+            );
+            assert!(fm > 0.0, "{name} {id}: the model rasterized nothing");
+            assert!(
+                (fg - fm).abs() <= 0.01 * fm,
+                "{name} {id}: fill {fg} on wgpu, {fm} on cpu-model"
+            );
+        }
+    }
 }
 
 #[test]
@@ -103,7 +137,7 @@ fn eye_lookup_taps_follow_from_the_sample_counts() {
     }
     let f = frame("sphere-on-plane", |l| l.with_size(0.5), 256);
     let hits = f.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
-    let taps = |out: &FrameOutput| out.phases[1].counters.get("fill").unwrap();
+    let taps = |out: &FrameOutput| out.phases[1].counters.get("shadow_map.taps").unwrap();
 
     // The hard test reads one texel per hit pixel.
     assert_eq!(taps(&run("hard_shadow_map", &f)), hits);
@@ -125,7 +159,10 @@ fn eye_lookup_taps_follow_from_the_sample_counts() {
         .filter(|&&v| v > 0.0 && v < 1.0)
         .count() as f64;
     // Filters of pixels that end up strictly between 0 and 1 are not wasted.
-    let wasted = out.phases[1].counters.get("overdraw").unwrap();
+    let wasted = out.phases[1]
+        .counters
+        .get("shadow_map.taps_wasted")
+        .unwrap();
     assert_eq!(
         wasted,
         (filters - penumbra) * f64::from(o.pcf_samples),

@@ -202,7 +202,9 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
     }
     match id {
         "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
-        hard_shadow_map::ID if backend == Backend::Wgpu => hard_shadow_map::wgpu::render(frame, ctx),
+        hard_shadow_map::ID if backend == Backend::Wgpu => {
+            hard_shadow_map::wgpu::render(frame, ctx)
+        }
         pcss::ID if backend == Backend::Wgpu => pcss::wgpu::render(frame, ctx),
         hard_shadow_map::ID => {
             let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;

@@ -9,9 +9,9 @@
 //!
 //! The timed submission runs the passes as an engine would, with timestamp queries and
 //! pipeline statistics around each. A second, instrumented submission runs the same passes
-//! with WGSL atomics that count the fragments of the light raster, the texels they cover, the
-//! shadow-map taps of the lookup and the taps that contributed nothing, which gives `fill` and
-//! `overdraw` in the same terms as the cpu-model. Memory traffic is estimated from formats and
+//! with WGSL atomics that count the fragments of the light raster and the texels they cover,
+//! which gives `fill` and `overdraw` in the same terms as the cpu-model (every rasterized
+//! fragment; those that did not end up in the map), and the shadow-map taps of the lookup. Memory traffic is estimated from formats and
 //! those counts (`mem_est.<buffer>.*`): a GPU does not report it.
 
 use std::time::Instant;
@@ -630,15 +630,15 @@ impl<'g> Passes<'g> {
         k
     }
 
-    /// `eye_lookup`: fill is every shadow-map tap, overdraw the PCF taps of pixels left fully
-    /// lit or fully shadowed.
+    /// `eye_lookup`: no fill (nothing is rasterized); the shadow-map taps, and the PCF taps of
+    /// pixels left fully lit or fully shadowed, whose filtering changed nothing.
     fn lookup_counters(&self, frame: &Frame, c: &Counts) -> Counters {
         let pixels = f64::from(self.width) * f64::from(self.height);
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
         let taps = f64::from(c.taps);
         let mut k = Counters::default();
-        k.set("fill", taps);
-        k.set("overdraw", f64::from(c.wasted_taps));
+        k.set("shadow_map.taps", taps);
+        k.set("shadow_map.taps_wasted", f64::from(c.wasted_taps));
         // Every pixel reads its position (and hit flag); hit pixels also read their normal.
         let gbuffer = (pixels + hits) * GBUFFER_ENTRY_BYTES;
         let map_read = taps * DEPTH_TEXEL_BYTES;
