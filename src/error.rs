@@ -104,7 +104,7 @@ pub fn closest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a str>) ->
 }
 
 /// "unknown X 'y'; expected one of ...", with the closest suggestion first.
-pub fn unknown_name<'a>(what: &str, word: &str, candidates: &[&'a str]) -> String {
+pub fn unknown_name(what: &str, word: &str, candidates: &[&str]) -> String {
     let hint = closest(word, candidates.iter().copied())
         .map(|c| format!(" (did you mean '{c}'?)"))
         .unwrap_or_default();
