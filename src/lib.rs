@@ -4,6 +4,7 @@
 pub mod algorithms;
 pub mod error;
 pub mod frame;
+pub mod gpu;
 pub mod harness;
 pub mod metrics;
 pub mod model;

@@ -21,6 +21,10 @@ use shadowbench::scene::generators::{self, GeneratorParams};
     about = "Benchmark real-time soft-shadow algorithms on wgpu and on a modelled many-core SIMD machine"
 )]
 struct Cli {
+    /// GPU adapter for the wgpu execution: a substring of its name (default: the best found;
+    /// also settable with SHADOWBENCH_ADAPTER).
+    #[arg(long, global = true)]
+    adapter: Option<String>,
     #[command(subcommand)]
     command: Command,
 }
@@ -36,31 +40,7 @@ enum Command {
     /// Render one frame: DIR/visibility.png, DIR/visibility.npy, DIR/run.json.
     Render(RenderArgs),
     /// Run a scenario sweep: DIR/results.json, DIR/results.csv, per-run images.
-    Run {
-        scenario: PathBuf,
-        #[arg(long, default_value = "out/run")]
-        out: PathBuf,
-        /// Only these algorithms (comma-separated).
-        #[arg(long, value_delimiter = ',')]
-        only: Option<Vec<String>>,
-        /// Only these backends (comma-separated).
-        #[arg(long, value_delimiter = ',')]
-        backend: Option<Vec<String>>,
-        /// Where to cache reference images (default: OUT/reference-cache).
-        #[arg(long)]
-        cache_dir: Option<PathBuf>,
-        /// Refuse runs whose estimated working set exceeds this many GiB
-        /// (default: half of physical memory).
-        #[arg(long)]
-        memory_limit: Option<f64>,
-        /// Modelled machine of cpu-model runs: a preset or a machine .json file (overrides the
-        /// scenario's `machine`).
-        #[arg(long)]
-        machine: Option<String>,
-        /// Run only shard K of N of the planned runs (every N-th run, from the K-th).
-        #[arg(long, value_name = "K/N")]
-        shard: Option<String>,
-    },
+    Run(RunArgs),
     /// Write charts and index.html into DIR from an existing results.json.
     Report {
         results: PathBuf,
@@ -82,6 +62,33 @@ enum Command {
         #[arg(long, default_value_t = report::compare::DEFAULT_THRESHOLD_PCT)]
         threshold: f64,
     },
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    scenario: PathBuf,
+    #[arg(long, default_value = "out/run")]
+    out: PathBuf,
+    /// Only these algorithms (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    only: Option<Vec<String>>,
+    /// Only these backends (comma-separated).
+    #[arg(long, value_delimiter = ',')]
+    backend: Option<Vec<String>>,
+    /// Where to cache reference images (default: OUT/reference-cache).
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Refuse runs whose estimated working set exceeds this many GiB
+    /// (default: half of physical memory).
+    #[arg(long)]
+    memory_limit: Option<f64>,
+    /// Modelled machine of cpu-model runs: a preset or a machine .json file (overrides the
+    /// scenario's `machine`).
+    #[arg(long)]
+    machine: Option<String>,
+    /// Run only shard K of N of the planned runs (every N-th run, from the K-th).
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -171,7 +178,10 @@ fn list(scenarios: &std::path::Path) {
     println!("executions:");
     println!("  cpu-native   host kernels, uninstrumented");
     println!("  cpu-model    modelled many-core SIMD machine (see machines)");
-    println!("  wgpu         GPU passes: not implemented yet");
+    println!("  wgpu         GPU passes; adapters (* = used):");
+    for line in shadowbench::gpu::adapter_report() {
+        println!("               {line}");
+    }
     println!("machines (--machine, scenario `machine`; or a machine .json file):");
     for name in model::config::PRESETS {
         let m = MachineConfig::preset(name).expect("listed presets exist");
@@ -206,6 +216,10 @@ fn list(scenarios: &std::path::Path) {
 fn render(a: RenderArgs) -> Result<()> {
     let backend = check::backend("--backend", &a.backend)?;
     check::algorithm("--algorithm", &a.algorithm)?;
+    if backend == Backend::Wgpu {
+        // Fail before the (slow) reference when the execution cannot run at all.
+        shadowbench::gpu::gpu()?;
+    }
     let image = parse_image(&a.image)?;
     check::image("--image", image)?;
     check::map_resolution("--map-resolution", a.map_resolution)?;
@@ -279,16 +293,17 @@ fn render(a: RenderArgs) -> Result<()> {
     }
 }
 
-fn run(
-    scenario: PathBuf,
-    out: PathBuf,
-    only: Option<Vec<String>>,
-    backend: Option<Vec<String>>,
-    cache_dir: Option<PathBuf>,
-    memory_gib: Option<f64>,
-    machine: Option<String>,
-    shard: Option<String>,
-) -> Result<()> {
+fn run(a: RunArgs) -> Result<()> {
+    let RunArgs {
+        scenario,
+        out,
+        only,
+        backend,
+        cache_dir,
+        memory_limit: memory_gib,
+        machine,
+        shard,
+    } = a;
     let loaded = Loaded::from_file(&scenario)?;
     let memory_limit = memory_limit(memory_gib)?;
     let machine = machine
@@ -380,31 +395,19 @@ fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> 
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    if let Some(name) = &cli.adapter {
+        if let Err(e) = shadowbench::gpu::prefer_adapter(name) {
+            eprintln!("error: {e}");
+            return ExitCode::from(e.exit_code() as u8);
+        }
+    }
     let result = match cli.command {
         Command::List { scenarios } => {
             list(&scenarios);
             Ok(())
         }
         Command::Render(a) => render(a),
-        Command::Run {
-            scenario,
-            out,
-            only,
-            backend,
-            cache_dir,
-            memory_limit,
-            machine,
-            shard,
-        } => run(
-            scenario,
-            out,
-            only,
-            backend,
-            cache_dir,
-            memory_limit,
-            machine,
-            shard,
-        ),
+        Command::Run(a) => run(a),
         Command::Report { results, out } => report_cmd(results, out),
         Command::Merge { results, out } => merge(results, out),
         Command::Compare {

@@ -17,6 +17,8 @@ fn run(loaded: &Loaded, out: &Path, cache: &Path, shard: Option<Shard>) -> Vec<R
             only: None,
             backends: None,
             cache_dir: Some(cache.to_path_buf()),
+            memory_limit: harness::limits::default_limit(),
+            machine: None,
             shard,
         },
     )

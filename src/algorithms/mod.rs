@@ -7,6 +7,7 @@ pub mod hard_shadow_map;
 pub mod pcss;
 pub mod reference;
 pub mod shadow_map;
+pub mod shadow_map_wgpu;
 
 use std::collections::BTreeMap;
 
@@ -99,8 +100,8 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "baseline (Williams 1978)",
         summary: "shadow map from the light centre with slope-scaled bias",
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
-        memory_estimate: shadow_map::map_bytes,
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
+        memory_estimate: shadow_map::memory_estimate,
         check_options: hard_shadow_map::check_options,
     },
     AlgorithmInfo {
@@ -108,8 +109,8 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "Fernando 2005, cited in 004 Table 2",
         summary: "blocker search + variable-width percentage-closer filter",
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
-        memory_estimate: shadow_map::map_bytes,
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
+        memory_estimate: shadow_map::memory_estimate,
         check_options: pcss::check_options,
     },
 ];
@@ -201,6 +202,10 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
     }
     match id {
         "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
+        hard_shadow_map::ID if backend == Backend::Wgpu => {
+            hard_shadow_map::wgpu::render(frame, ctx)
+        }
+        pcss::ID if backend == Backend::Wgpu => pcss::wgpu::render(frame, ctx),
         hard_shadow_map::ID => {
             let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;
             Ok(hard_shadow_map::cpu::render(backend, frame, ctx, o.bias))

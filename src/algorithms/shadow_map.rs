@@ -102,6 +102,16 @@ impl LightView {
     }
 }
 
+/// Bytes a shadow-map run allocates beyond the frame, on any execution: the
+/// `map_resolution`² map of f32 depth, and per pixel the execution's own copies of the gbuffer
+/// (position and normal, padded to 16 bytes each on the GPU), the visibility buffer and its
+/// readback copy.
+pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+    let map = map_bytes(p);
+    let pixels = u64::from(p.image[0]) * u64::from(p.image[1]);
+    map + pixels * (2 * 16 + 2 * 4)
+}
+
 /// Slope-scaled depth bias, in linear depth units: `constant` texels plus `slope` texels per
 /// unit of tan(θ), θ the angle between the surface normal and the direction to the light
 /// (clamped at 10 so grazing surfaces stay finite).

@@ -139,12 +139,18 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
         .filter(|a| opts.only.as_ref().is_none_or(|o| o.contains(a)))
         .cloned()
         .collect();
-    let backends: Vec<Backend> = s
+    let mut backends: Vec<Backend> = s
         .backends
         .iter()
         .map(|b| Backend::parse(b).expect("validated"))
         .filter(|b| opts.backends.as_ref().is_none_or(|o| o.contains(b)))
         .collect();
+    if backends.contains(&Backend::Wgpu) {
+        if let Err(e) = crate::gpu::gpu() {
+            eprintln!("note: skipping the wgpu execution: {e}");
+            backends.retain(|&b| b != Backend::Wgpu);
+        }
+    }
     let mut plan = Vec::new();
     let mut skipped = Vec::new();
     for (ci, _) in cases.iter().enumerate() {

@@ -492,7 +492,7 @@ impl TaskKernel for FrontEnd<'_> {
             let mut setup_mask = Mask::NONE;
             for l in 0..n {
                 let prim = (group + l) as u32;
-                let clip = [0, 1, 2].map(|k| g.view_proj * verts[k][l].extend(1.0));
+                let clip = verts.map(|v| g.view_proj * v[l].extend(1.0));
                 let polygon = if clip.iter().all(|c| c.z >= 0.0) {
                     setup_mask.0 |= 1 << l;
                     clip.to_vec()
@@ -683,13 +683,13 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
         let in_target =
             Mask::from_fn(|l| px + l as u32 % BLOCK < t.width && py + l as u32 / BLOCK < t.height);
         let mut covered = in_target;
-        for k in 0..3 {
+        for (k, ek) in e.iter_mut().enumerate() {
             let slack = s.slack(k, pl.coverage);
             let m = Mask::from_fn(|l| {
                 let x = f64::from(px + l as u32 % BLOCK) + 0.5;
                 let y = f64::from(py + l as u32 / BLOCK) + 0.5;
-                e[k][l] = s.edge(k, x, y);
-                let v = e[k][l] + slack;
+                ek[l] = s.edge(k, x, y);
+                let v = ek[l] + slack;
                 v > 0.0 || (v == 0.0 && (s.top_left[k] || pl.coverage == Coverage::Conservative))
             });
             covered = covered.and(m);
@@ -790,7 +790,7 @@ pub fn draw<K: FragmentKernel>(
     geometry: &Geometry<'_>,
     kernel: &K,
 ) -> RasterOutput<K::TileState> {
-    debug_assert!(target.tile % BLOCK == 0 && target.tile > 0);
+    debug_assert!(target.tile.is_multiple_of(BLOCK) && target.tile > 0);
     let n_tris = geometry.triangles.data.len();
     let chunks = n_tris.div_ceil(CHUNK);
     let setup_buf = m.memory.reserve(

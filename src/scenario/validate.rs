@@ -50,7 +50,7 @@ pub fn map_resolution(field: &str, v: u32) -> Check {
 }
 
 pub fn tile_size(field: &str, v: u32) -> Check {
-    if !(8..=256).contains(&v) || v % crate::model::raster::BLOCK != 0 {
+    if !(8..=256).contains(&v) || !v.is_multiple_of(crate::model::raster::BLOCK) {
         return fail(
             field,
             format!("tile size must be a multiple of 4 (whole 4×4 blocks) in 8..=256, got {v}"),

@@ -6,6 +6,7 @@
 //! The light's size is ignored: the shadow is the one a point light at its centre casts.
 
 pub mod cpu;
+pub mod wgpu;
 
 use std::collections::BTreeMap;
 

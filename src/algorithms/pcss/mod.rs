@@ -7,6 +7,7 @@
 //! Any light kind is accepted; its size ([`crate::scene::Light::size`]) is the light radius.
 
 pub mod cpu;
+pub mod wgpu;
 
 use std::collections::BTreeMap;
 

@@ -1,0 +1,22 @@
+//! `hard_shadow_map` as GPU passes: the family's light raster, then the hard test of
+//! `wgpu.wgsl` in the eye lookup.
+
+use super::ID;
+use crate::algorithms::shadow_map::{parse_options, HardShadowOptions};
+use crate::algorithms::shadow_map_wgpu::{self, Lookup};
+use crate::algorithms::{ExecContext, FrameOutput};
+use crate::error::Result;
+use crate::frame::Frame;
+
+pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
+    let options: HardShadowOptions = parse_options(ID, &ctx.options)?;
+    shadow_map_wgpu::render(
+        frame,
+        &Lookup {
+            wgsl: include_str!("wgpu.wgsl"),
+            bias: options.bias,
+            blocker_samples: 0,
+            pcf_samples: 0,
+        },
+    )
+}

@@ -1,0 +1,653 @@
+//! The wgpu execution of the shadow-map family (`hard_shadow_map`, `pcss`): two GPU passes.
+//!
+//! 1. `light_raster` — a render pass draws every triangle of the scene from the light centre
+//!    ([`LightView`]) into a `map_resolution`² Depth32Float map (see `light_raster.wgsl`).
+//! 2. `eye_lookup` — a compute pass over the frame's gbuffer, uploaded as storage buffers (the
+//!    eye pass is shared by all executions, so parity is about the shadow algorithm alone),
+//!    writes the visibility buffer with the algorithm's `visibility_at` (see `eye_lookup.wgsl`
+//!    and each algorithm's `wgpu.wgsl`).
+//!
+//! The timed submission runs the passes as an engine would, with timestamp queries and
+//! pipeline statistics around each. A second, instrumented submission runs the same passes
+//! with WGSL atomics that count the fragments of the light raster and the texels they cover,
+//! which gives `fill` and `overdraw` in the same terms as the cpu-model (every rasterized
+//! fragment; those that did not end up in the map), and the shadow-map taps of the lookup. Memory traffic is estimated from formats and
+//! those counts (`mem_est.<buffer>.*`): a GPU does not report it.
+
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::shadow_map::{Bias, LightView};
+use super::FrameOutput;
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::gpu::readback::{words, Staging};
+use crate::gpu::stats::PassStats;
+use crate::gpu::timing::PassTimer;
+use crate::gpu::{self, Gpu};
+use crate::record::{Counters, Phase};
+use crate::visibility::VisibilityBuffer;
+
+const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
+const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
+
+/// Side of the square compute workgroups (`@workgroup_size(8, 8)` in eye_lookup.wgsl).
+const WORKGROUP: u32 = 8;
+/// Bytes of one texel of the Depth32Float shadow map.
+const DEPTH_TEXEL_BYTES: f64 = 4.0;
+/// Bytes of one gbuffer entry (a `vec4<f32>`, position or normal).
+const GBUFFER_ENTRY_BYTES: f64 = 16.0;
+/// Bytes of one occluder vertex (`vec3<f32>`) and one index (`u32`).
+const VERTEX_BYTES: f64 = 12.0;
+const INDEX_BYTES: f64 = 4.0;
+
+/// What an algorithm of the family adds to the shared passes.
+pub struct Lookup<'a> {
+    /// The algorithm's WGSL defining `visibility_at(uv, z_r, bias) -> f32`.
+    pub wgsl: &'a str,
+    pub bias: Bias,
+    /// PCSS tap counts (unused by the hard test).
+    pub blocker_samples: u32,
+    pub pcf_samples: u32,
+}
+
+/// The `Light` uniform of both WGSL files.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct LightUniform {
+    view_proj: [f32; 16],
+    eye: [f32; 3],
+    radius: f32,
+    near: f32,
+    far: f32,
+    tan_half_fov: f32,
+    resolution: u32,
+    bias_constant: f32,
+    bias_slope: f32,
+    blocker_samples: u32,
+    pcf_samples: u32,
+    width: u32,
+    height: u32,
+    pad: [u32; 2],
+}
+
+/// The `Counts` storage buffer of the instrumented mode.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct Counts {
+    fragments: u32,
+    covered: u32,
+    taps: u32,
+    wasted_taps: u32,
+}
+
+/// Renders `frame` with the family's two passes and the algorithm's lookup.
+pub fn render(frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
+    let gpu = gpu::gpu()?;
+    check_limits(gpu, frame)?;
+    gpu::scoped(gpu, || Passes::new(gpu, frame, lookup).run(frame))
+}
+
+fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
+    let res = frame.params.map_resolution;
+    if res > gpu.limits.max_texture_dimension_2d {
+        return Err(Error::Resource(format!(
+            "map_resolution {res} exceeds the adapter's largest texture ({})",
+            gpu.limits.max_texture_dimension_2d
+        )));
+    }
+    let gbuffer_bytes = frame.gbuffer.len() as u64 * GBUFFER_ENTRY_BYTES as u64;
+    let max = gpu.limits.max_storage_buffer_binding_size;
+    if gbuffer_bytes > max {
+        return Err(Error::Resource(format!(
+            "image {}x{} needs {gbuffer_bytes} bytes per gbuffer buffer, more than the adapter's \
+             storage binding limit ({max})",
+            frame.width(),
+            frame.height()
+        )));
+    }
+    Ok(())
+}
+
+/// The resources and pipelines of one frame.
+struct Passes<'g> {
+    gpu: &'g Gpu,
+    width: u32,
+    height: u32,
+    resolution: u32,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    vertex_count: usize,
+    depth_view: wgpu::TextureView,
+    visibility: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    shared_group: wgpu::BindGroup,
+    lookup_group: wgpu::BindGroup,
+    raster_timed: wgpu::RenderPipeline,
+    raster_counting: wgpu::RenderPipeline,
+    lookup_timed: wgpu::ComputePipeline,
+    lookup_counting: wgpu::ComputePipeline,
+    count_covered: wgpu::ComputePipeline,
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl<'g> Passes<'g> {
+    fn new(gpu: &'g Gpu, frame: &Frame, lookup: &Lookup) -> Passes<'g> {
+        let device = &gpu.device;
+        let (width, height) = (frame.width(), frame.height());
+        let resolution = frame.params.map_resolution;
+        let view = LightView::new(&frame.scene.light, frame.scene.bounds(), resolution);
+        let uniform = LightUniform {
+            view_proj: view.view_proj.to_cols_array(),
+            eye: view.eye.to_array(),
+            radius: frame.scene.light.size(),
+            near: view.near,
+            far: view.far,
+            tan_half_fov: view.tan_half_fov,
+            resolution,
+            bias_constant: lookup.bias.constant,
+            bias_slope: lookup.bias.slope,
+            blocker_samples: lookup.blocker_samples,
+            pcf_samples: lookup.pcf_samples,
+            width,
+            height,
+            pad: [0; 2],
+        };
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            // Zero-sized buffers are not bindable; pad empty contents to one word.
+            let padded = [0u8; 4];
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: if contents.is_empty() {
+                    &padded
+                } else {
+                    contents
+                },
+                usage,
+            })
+        };
+        let uniform_buf = init(
+            "light uniform",
+            bytemuck::bytes_of(&uniform),
+            wgpu::BufferUsages::UNIFORM,
+        );
+
+        // Every triangle of the scene can cast a shadow into the map (receivers shadow each
+        // other too), indexed as in the frame's flat mesh, as the cpu executions draw it.
+        let occluders = &frame.flat.mesh;
+        let positions: Vec<[f32; 3]> = occluders.positions.iter().map(|p| p.to_array()).collect();
+        let index_list: Vec<u32> = occluders.triangles.iter().flatten().copied().collect();
+        let vertices = init(
+            "occluder vertices",
+            bytemuck::cast_slice(&positions),
+            wgpu::BufferUsages::VERTEX,
+        );
+        let indices = init(
+            "occluder indices",
+            bytemuck::cast_slice(&index_list),
+            wgpu::BufferUsages::INDEX,
+        );
+
+        // The gbuffer: position with the hit flag in w, and the eye-facing normal.
+        let g = &frame.gbuffer;
+        let gpos: Vec<[f32; 4]> = (0..g.len())
+            .map(|i| {
+                g.position[i]
+                    .extend(f32::from(u8::from(g.is_hit(i))))
+                    .to_array()
+            })
+            .collect();
+        let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
+        let positions_buf = init(
+            "gbuffer positions",
+            bytemuck::cast_slice(&gpos),
+            wgpu::BufferUsages::STORAGE,
+        );
+        let normals_buf = init(
+            "gbuffer normals",
+            bytemuck::cast_slice(&gnrm),
+            wgpu::BufferUsages::STORAGE,
+        );
+        let visibility = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("visibility"),
+            size: 4 * u64::from(width) * u64::from(height),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let counts = init(
+            "instrumentation counts",
+            bytemuck::bytes_of(&Counts::default()),
+            wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+        );
+
+        let depth = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("shadow map"),
+            size: wgpu::Extent3d {
+                width: resolution,
+                height: resolution,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Depth32Float,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let depth_view = depth.create_view(&Default::default());
+
+        // Group 0 (both shaders): the light uniform and the counters.
+        let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shadow map shared"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage_entry(1, false),
+            ],
+        });
+        // Group 1 (eye lookup): shadow map, gbuffer, visibility.
+        let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("eye lookup"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, false),
+            ],
+        });
+        let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shadow map shared"),
+            layout: &shared_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: counts.as_entire_binding(),
+                },
+            ],
+        });
+        let lookup_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("eye lookup"),
+            layout: &lookup_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&depth_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: positions_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: normals_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: visibility.as_entire_binding(),
+                },
+            ],
+        });
+
+        let raster_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("light raster"),
+            bind_group_layouts: &[Some(&shared_layout)],
+            immediate_size: 0,
+        });
+        let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("eye lookup"),
+            bind_group_layouts: &[Some(&shared_layout), Some(&lookup_layout)],
+            immediate_size: 0,
+        });
+        let raster_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("light_raster.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(LIGHT_RASTER_WGSL.into()),
+        });
+        let lookup_source = format!("{EYE_LOOKUP_WGSL}\n{}", lookup.wgsl);
+        let lookup_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("eye_lookup.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(lookup_source.into()),
+        });
+
+        let raster = |fragment: &str| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(fragment),
+                layout: Some(&raster_layout),
+                vertex: wgpu::VertexState {
+                    module: &raster_module,
+                    entry_point: Some("vs"),
+                    compilation_options: Default::default(),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: VERTEX_BYTES as u64,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+                    })],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &raster_module,
+                    entry_point: Some(fragment),
+                    compilation_options: Default::default(),
+                    targets: &[],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let compute = |entry: &str, instrument: bool| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&compute_layout),
+                module: &lookup_module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
+                    ..Default::default()
+                },
+                cache: None,
+            })
+        };
+        Passes {
+            gpu,
+            width,
+            height,
+            resolution,
+            vertices,
+            indices,
+            index_count: index_list.len() as u32,
+            vertex_count: positions.len(),
+            depth_view,
+            visibility,
+            counts,
+            shared_group,
+            lookup_group,
+            raster_timed: raster("fs_depth"),
+            raster_counting: raster("fs_count"),
+            lookup_timed: compute("eye_lookup", false),
+            lookup_counting: compute("eye_lookup", true),
+            count_covered: compute("count_covered", true),
+        }
+    }
+
+    fn raster_pass(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        pipeline: &wgpu::RenderPipeline,
+        timer: Option<&PassTimer>,
+        stats: Option<&PassStats>,
+    ) {
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("light_raster"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: timer.map(|t| t.render(0)),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        if let Some(s) = stats {
+            s.begin_render(&mut pass, 0);
+        }
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.shared_group, &[]);
+        pass.set_vertex_buffer(0, self.vertices.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..self.index_count, 0, 0..1);
+        if stats.is_some() {
+            pass.end_pipeline_statistics_query();
+        }
+    }
+
+    fn compute_pass(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        size: (u32, u32),
+        timer: Option<&PassTimer>,
+        stats: Option<&PassStats>,
+    ) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes: timer.map(|t| t.compute(1)),
+        });
+        if let Some(s) = stats {
+            s.begin_compute(&mut pass, 1);
+        }
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &self.shared_group, &[]);
+        pass.set_bind_group(1, &self.lookup_group, &[]);
+        pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
+        if stats.is_some() {
+            pass.end_pipeline_statistics_query();
+        }
+    }
+
+    /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
+    fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
+        let start = Instant::now();
+        let mut encoder = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        f(&mut encoder);
+        self.gpu.queue.submit([encoder.finish()]);
+        self.gpu
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+
+    fn run(&self, frame: &Frame) -> Result<FrameOutput> {
+        let gpu = self.gpu;
+        let image = (self.width, self.height);
+        let mut warnings = Vec::new();
+
+        // The timed submission: each phase submitted and waited for on its own, so its wall
+        // time includes submission.
+        let timer = PassTimer::new(gpu, 2);
+        let stats = PassStats::new(gpu, 2);
+        let raster_wall = self
+            .submit(|e| self.raster_pass(e, &self.raster_timed, timer.as_ref(), stats.as_ref()))?;
+        let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
+        let lookup_wall = self.submit(|e| {
+            self.compute_pass(
+                e,
+                "eye_lookup",
+                &self.lookup_timed,
+                image,
+                timer.as_ref(),
+                stats.as_ref(),
+            );
+            vis_staging.copy(e, &self.visibility);
+            if let Some(t) = &timer {
+                t.resolve(e);
+            }
+            if let Some(s) = &stats {
+                s.resolve(e);
+            }
+        })?;
+        let readback_start = Instant::now();
+        let data: Vec<f32> = words(&vis_staging.read(gpu)?);
+        let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
+        let gpu_ms = match &timer {
+            Some(t) => Some(t.read_ms(gpu)?),
+            None => {
+                warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
+                None
+            }
+        };
+        let pipeline = match &stats {
+            Some(s) => Some(s.read(gpu)?),
+            None => {
+                warnings.push(
+                    "adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into(),
+                );
+                None
+            }
+        };
+
+        // The instrumented submission: same passes, counting with atomics.
+        let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());
+        self.submit(|e| {
+            e.clear_buffer(&self.counts, 0, None);
+            self.raster_pass(e, &self.raster_counting, None, None);
+            let res = (self.resolution, self.resolution);
+            self.compute_pass(e, "count_covered", &self.count_covered, res, None, None);
+            self.compute_pass(e, "eye_lookup", &self.lookup_counting, image, None, None);
+            counts_staging.copy(e, &self.counts);
+        })?;
+        let counts: Counts = words::<Counts>(&counts_staging.read(gpu)?)[0];
+
+        let mut raster = self.raster_counters(&counts);
+        let mut eye = self.lookup_counters(frame, &counts);
+        if let Some(p) = &pipeline {
+            raster.merge(&p[0]);
+            eye.merge(&p[1]);
+        }
+        let phase = |name: &str, wall_ms: f64, i: usize, counters: Counters| Phase {
+            name: name.into(),
+            wall_ms,
+            model_ms: None,
+            gpu_ms: gpu_ms.as_ref().map(|t| t[i]),
+            counters,
+        };
+        let phases = vec![
+            phase("light_raster", raster_wall, 0, raster),
+            phase("eye_lookup", lookup_wall, 1, eye),
+        ];
+        let mut counters = Counters::default();
+        for p in &phases {
+            counters.merge(&p.counters);
+        }
+        let fill = counters.get("fill").unwrap_or(0.0);
+        if fill > 0.0 {
+            counters.set(
+                "overdraw_ratio",
+                counters.get("overdraw").unwrap_or(0.0) / fill,
+            );
+        }
+        let mut execution = gpu.execution();
+        execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
+        execution.insert(
+            "gpu_counters".into(),
+            serde_json::json!(
+                "fill/overdraw from an instrumented replay (WGSL atomics); mem_est.* estimated \
+                 from formats and counts"
+            ),
+        );
+        Ok(FrameOutput {
+            visibility: VisibilityBuffer {
+                width: self.width,
+                height: self.height,
+                data,
+            },
+            counters,
+            phases,
+            model_ms: None,
+            gpu_ms: gpu_ms.map(|t| t.iter().sum()),
+            execution,
+            warnings,
+        })
+    }
+
+    /// `light_raster`: fill is every rasterised fragment, overdraw those that did not end up in
+    /// the map (fragments minus covered texels).
+    fn raster_counters(&self, c: &Counts) -> Counters {
+        let fragments = f64::from(c.fragments);
+        let mut k = Counters::default();
+        k.set("fill", fragments);
+        k.set("overdraw", fragments - f64::from(c.covered));
+        k.set("shadow_map.covered_texels", f64::from(c.covered));
+        let vertex_bytes = self.vertex_count as f64 * VERTEX_BYTES;
+        let index_bytes = f64::from(self.index_count) * INDEX_BYTES;
+        let clear = f64::from(self.resolution).powi(2) * DEPTH_TEXEL_BYTES;
+        // Every fragment reads the depth it is tested against; writes are bounded by the clear
+        // plus one per fragment.
+        let map_read = fragments * DEPTH_TEXEL_BYTES;
+        let map_write = clear + fragments * DEPTH_TEXEL_BYTES;
+        k.set("mem_est.occluder_vertices.read_bytes", vertex_bytes);
+        k.set("mem_est.occluder_indices.read_bytes", index_bytes);
+        k.set("mem_est.shadow_map.read_bytes", map_read);
+        k.set("mem_est.shadow_map.write_bytes", map_write);
+        k.set("mem_read_bytes", vertex_bytes + index_bytes + map_read);
+        k.set("mem_write_bytes", map_write);
+        k
+    }
+
+    /// `eye_lookup`: no fill (nothing is rasterized); the shadow-map taps, and the PCF taps of
+    /// pixels left fully lit or fully shadowed, whose filtering changed nothing.
+    fn lookup_counters(&self, frame: &Frame, c: &Counts) -> Counters {
+        let pixels = f64::from(self.width) * f64::from(self.height);
+        let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
+        let taps = f64::from(c.taps);
+        let mut k = Counters::default();
+        k.set("shadow_map.taps", taps);
+        k.set("shadow_map.taps_wasted", f64::from(c.wasted_taps));
+        // Every pixel reads its position (and hit flag); hit pixels also read their normal.
+        let gbuffer = (pixels + hits) * GBUFFER_ENTRY_BYTES;
+        let map_read = taps * DEPTH_TEXEL_BYTES;
+        let vis_write = pixels * 4.0;
+        k.set("mem_est.gbuffer.read_bytes", gbuffer);
+        k.set("mem_est.shadow_map.read_bytes", map_read);
+        k.set("mem_est.visibility.write_bytes", vis_write);
+        k.set("mem_read_bytes", gbuffer + map_read);
+        k.set("mem_write_bytes", vis_write);
+        k
+    }
+}

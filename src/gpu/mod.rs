@@ -1,0 +1,294 @@
+//! The wgpu execution's device: one headless adapter and device per process, shared by every
+//! run, plus the pieces every GPU algorithm needs (timestamps, pipeline statistics, readback).
+//!
+//! The adapter is the best one found (discrete > integrated > virtual > other > CPU, then
+//! native APIs before GL), unless `SHADOWBENCH_ADAPTER` or `--adapter` names one (a
+//! case-insensitive substring of its name). On a machine with no GPU this is Mesa's software
+//! Vulkan driver (llvmpipe). With no adapter at all, [`gpu`] returns an error that says why, so
+//! the harness can skip the wgpu execution and go on with the others.
+
+pub mod readback;
+pub mod stats;
+pub mod timing;
+
+use std::collections::BTreeMap;
+use std::sync::OnceLock;
+
+use crate::error::{Error, Result};
+
+/// Environment variable naming the adapter to use (substring of its name).
+pub const ADAPTER_ENV: &str = "SHADOWBENCH_ADAPTER";
+
+/// The query features this crate asks for, and whether the adapter offered them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct QueryFeatures {
+    pub timestamp: bool,
+    pub timestamp_inside_passes: bool,
+    pub pipeline_statistics: bool,
+}
+
+impl QueryFeatures {
+    fn of(f: wgpu::Features) -> QueryFeatures {
+        QueryFeatures {
+            timestamp: f.contains(wgpu::Features::TIMESTAMP_QUERY),
+            timestamp_inside_passes: f.contains(
+                wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES,
+            ),
+            pipeline_statistics: f.contains(wgpu::Features::PIPELINE_STATISTICS_QUERY),
+        }
+    }
+
+    fn features(self) -> wgpu::Features {
+        let mut f = wgpu::Features::empty();
+        if self.timestamp {
+            f |= wgpu::Features::TIMESTAMP_QUERY;
+        }
+        if self.timestamp_inside_passes {
+            f |= wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES;
+        }
+        if self.pipeline_statistics {
+            f |= wgpu::Features::PIPELINE_STATISTICS_QUERY;
+        }
+        f
+    }
+
+    /// Names of the available query features, for `list` and the records.
+    pub fn names(self) -> Vec<&'static str> {
+        [
+            (self.timestamp, "TIMESTAMP_QUERY"),
+            (
+                self.timestamp_inside_passes,
+                "TIMESTAMP_QUERY_INSIDE_PASSES",
+            ),
+            (self.pipeline_statistics, "PIPELINE_STATISTICS_QUERY"),
+        ]
+        .into_iter()
+        .filter_map(|(on, name)| on.then_some(name))
+        .collect()
+    }
+}
+
+/// The shared device.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    /// Query features enabled on `device` (all the adapter offered of the three).
+    pub queries: QueryFeatures,
+    pub limits: wgpu::Limits,
+}
+
+impl Gpu {
+    /// What every wgpu record carries in its `execution` map.
+    pub fn execution(&self) -> BTreeMap<String, serde_json::Value> {
+        let i = &self.info;
+        [
+            ("adapter", serde_json::json!(i.name)),
+            (
+                "adapter_type",
+                serde_json::json!(format!("{:?}", i.device_type)),
+            ),
+            ("driver", serde_json::json!(i.driver)),
+            ("driver_info", serde_json::json!(i.driver_info)),
+            ("gpu_backend", serde_json::json!(i.backend.to_str())),
+            ("gpu_queries", serde_json::json!(self.queries.names())),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+    }
+}
+
+static PREFERENCE: OnceLock<String> = OnceLock::new();
+static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
+
+/// Asks for the adapter whose name contains `name` (from `--adapter`); must come before the
+/// first [`gpu`] call, and overrides `SHADOWBENCH_ADAPTER`.
+pub fn prefer_adapter(name: &str) -> Result<()> {
+    PREFERENCE
+        .set(name.to_string())
+        .map_err(|_| Error::Gpu("the adapter was already chosen".into()))?;
+    if GPU.get().is_some() {
+        return Err(Error::Gpu(
+            "--adapter given after the device was acquired".into(),
+        ));
+    }
+    Ok(())
+}
+
+fn preference() -> Option<String> {
+    PREFERENCE
+        .get()
+        .cloned()
+        .or_else(|| std::env::var(ADAPTER_ENV).ok())
+        .filter(|s| !s.trim().is_empty())
+}
+
+/// The shared device, acquired on first use. The error says why there is none (no adapter,
+/// no adapter matching the requested name, or the device request failed).
+pub fn gpu() -> Result<&'static Gpu> {
+    GPU.get_or_init(acquire)
+        .as_ref()
+        .map_err(|e| Error::Gpu(e.clone()))
+}
+
+fn instance(backends: wgpu::Backends) -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+    desc.backends = backends;
+    wgpu::Instance::new(desc)
+}
+
+/// Rank of an adapter: lower is better.
+fn rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
+    let kind = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    };
+    let api = match info.backend {
+        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
+        _ => 1,
+    };
+    (kind, api)
+}
+
+fn describe(info: &wgpu::AdapterInfo) -> String {
+    format!(
+        "{} ({:?}, {}, driver {} {})",
+        info.name,
+        info.device_type,
+        info.backend.to_str(),
+        info.driver,
+        info.driver_info
+    )
+}
+
+/// All adapters, best first: of the backends `WGPU_BACKEND` names, else of the primary APIs
+/// (Vulkan, Metal, DX12), else of GL. GL is probed only when no primary adapter answers, since
+/// probing it on a headless machine makes EGL print noise and it rarely wins.
+fn adapters() -> Vec<wgpu::Adapter> {
+    let tiers = match wgpu::Backends::from_env() {
+        Some(b) => vec![b],
+        None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::GL],
+    };
+    for backends in tiers {
+        let mut found = pollster::block_on(instance(backends).enumerate_adapters(backends));
+        if !found.is_empty() {
+            found.sort_by_key(|a| rank(&a.get_info()));
+            return found;
+        }
+    }
+    Vec::new()
+}
+
+fn no_adapter_reason() -> String {
+    let mut why = String::from(
+        "no GPU adapter found (no Vulkan, Metal, DX12 or GL driver answered; on Linux without a \
+         GPU install Mesa's software Vulkan driver, e.g. the Debian package mesa-vulkan-drivers)",
+    );
+    for var in ["VK_ICD_FILENAMES", "VK_DRIVER_FILES", "WGPU_BACKEND"] {
+        if let Ok(v) = std::env::var(var) {
+            why.push_str(&format!("; {var}={v}"));
+        }
+    }
+    why
+}
+
+fn acquire() -> std::result::Result<Gpu, String> {
+    let found = adapters();
+    if found.is_empty() {
+        return Err(no_adapter_reason());
+    }
+    let adapter = match preference() {
+        None => found.into_iter().next().expect("not empty"),
+        Some(want) => {
+            let names: Vec<String> = found.iter().map(|a| a.get_info().name).collect();
+            found
+                .into_iter()
+                .find(|a| {
+                    a.get_info()
+                        .name
+                        .to_lowercase()
+                        .contains(&want.to_lowercase())
+                })
+                .ok_or_else(|| {
+                    format!(
+                        "no adapter name contains '{want}' (from --adapter or {ADAPTER_ENV}); \
+                         found: {}",
+                        names.join(", ")
+                    )
+                })?
+        }
+    };
+    let info = adapter.get_info();
+    let queries = QueryFeatures::of(adapter.features());
+    let limits = adapter.limits();
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("shadowbench"),
+        required_features: queries.features(),
+        required_limits: limits.clone(),
+        ..Default::default()
+    }))
+    .map_err(|e| format!("{}: device request failed: {e}", describe(&info)))?;
+    // Errors inside a run are caught by error scopes (see `scoped`); anything else is reported
+    // rather than aborting the process.
+    device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| {
+        eprintln!("wgpu: uncaptured error: {e}");
+    }));
+    Ok(Gpu {
+        device,
+        queue,
+        info,
+        queries,
+        limits,
+    })
+}
+
+/// Runs `f` with validation and out-of-memory errors captured, turning them into an error
+/// instead of a panic.
+pub fn scoped<T>(gpu: &Gpu, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let out = f();
+    let v = pollster::block_on(validation.pop());
+    let o = pollster::block_on(oom.pop());
+    match (v, o) {
+        (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(e.to_string())),
+        (None, None) => out,
+    }
+}
+
+/// A description of the adapters for `shadowbench list`: every adapter found with its query
+/// features, which one runs the wgpu execution, or why there is none.
+pub fn adapter_report() -> Vec<String> {
+    let found = adapters();
+    let mut lines = Vec::new();
+    if found.is_empty() {
+        lines.push(format!("none: {}", no_adapter_reason()));
+        return lines;
+    }
+    let chosen = gpu();
+    for a in &found {
+        let info = a.get_info();
+        let q = QueryFeatures::of(a.features()).names();
+        let mark = match &chosen {
+            Ok(g) if g.info == info => "*",
+            _ => " ",
+        };
+        lines.push(format!(
+            "{mark} {}  queries: {}",
+            describe(&info),
+            if q.is_empty() {
+                "none".to_string()
+            } else {
+                q.join(", ")
+            }
+        ));
+    }
+    if let Err(e) = chosen {
+        lines.push(format!("no device: {e}"));
+    }
+    lines
+}

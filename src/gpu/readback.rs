@@ -1,0 +1,56 @@
+//! Copying GPU buffers back to the host.
+
+use crate::error::{Error, Result};
+
+use super::Gpu;
+
+/// A host-readable copy of a GPU buffer, filled by [`Staging::copy`] in a command encoder and
+/// read after submission by [`Staging::read`].
+pub struct Staging {
+    buffer: wgpu::Buffer,
+    size: u64,
+}
+
+impl Staging {
+    pub fn new(gpu: &Gpu, label: &str, size: u64) -> Staging {
+        let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Staging { buffer, size }
+    }
+
+    /// Records a copy of the first `size` bytes of `src` into this staging buffer.
+    pub fn copy(&self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer) {
+        encoder.copy_buffer_to_buffer(src, 0, &self.buffer, 0, self.size);
+    }
+
+    /// Waits for the GPU and returns the bytes (call after the copy was submitted).
+    pub fn read(&self, gpu: &Gpu) -> Result<Vec<u8>> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        self.buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+            // The receiver waits below; a send can only fail if it is gone.
+            let _ = tx.send(r);
+        });
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for readback: {e}")))?;
+        rx.recv()
+            .map_err(|_| Error::Gpu("readback callback never ran".into()))?
+            .map_err(|e| Error::Gpu(format!("mapping readback buffer: {e}")))?;
+        let bytes = self
+            .buffer
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("reading readback buffer: {e}")))?
+            .to_vec();
+        self.buffer.unmap();
+        Ok(bytes)
+    }
+}
+
+/// Reads a buffer of `u32`/`f32`-sized words.
+pub fn words<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
+    bytemuck::pod_collect_to_vec(bytes)
+}

@@ -1,0 +1,97 @@
+//! Pipeline statistics per pass (vertex, clipper, fragment and compute invocations), where the
+//! adapter offers PIPELINE_STATISTICS_QUERY.
+
+use crate::error::Result;
+use crate::record::Counters;
+
+use super::readback::{words, Staging};
+use super::Gpu;
+
+/// The statistics gathered, in the order the query writes them (bit order of
+/// [`wgpu::PipelineStatisticsTypes`]), with the counter names they get.
+const STATISTICS: [(wgpu::PipelineStatisticsTypes, &str); 5] = [
+    (
+        wgpu::PipelineStatisticsTypes::VERTEX_SHADER_INVOCATIONS,
+        "pipeline.vertex_shader_invocations",
+    ),
+    (
+        wgpu::PipelineStatisticsTypes::CLIPPER_INVOCATIONS,
+        "pipeline.clipper_invocations",
+    ),
+    (
+        wgpu::PipelineStatisticsTypes::CLIPPER_PRIMITIVES_OUT,
+        "pipeline.clipper_primitives_out",
+    ),
+    (
+        wgpu::PipelineStatisticsTypes::FRAGMENT_SHADER_INVOCATIONS,
+        "pipeline.fragment_shader_invocations",
+    ),
+    (
+        wgpu::PipelineStatisticsTypes::COMPUTE_SHADER_INVOCATIONS,
+        "pipeline.compute_shader_invocations",
+    ),
+];
+
+/// One pipeline-statistics query per pass; absent without PIPELINE_STATISTICS_QUERY.
+pub struct PassStats {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    staging: Staging,
+    passes: u32,
+}
+
+impl PassStats {
+    pub fn new(gpu: &Gpu, passes: u32) -> Option<PassStats> {
+        if !gpu.queries.pipeline_statistics {
+            return None;
+        }
+        let types = STATISTICS
+            .iter()
+            .fold(wgpu::PipelineStatisticsTypes::empty(), |a, (t, _)| a | *t);
+        let size = 8 * (STATISTICS.len() as u32 * passes) as u64;
+        Some(PassStats {
+            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("pipeline statistics"),
+                ty: wgpu::QueryType::PipelineStatistics(types),
+                count: passes,
+            }),
+            resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("pipeline statistics resolve"),
+                size,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            staging: Staging::new(gpu, "pipeline statistics readback", size),
+            passes,
+        })
+    }
+
+    pub fn begin_render(&self, pass: &mut wgpu::RenderPass<'_>, i: u32) {
+        pass.begin_pipeline_statistics_query(&self.set, i);
+    }
+
+    pub fn begin_compute(&self, pass: &mut wgpu::ComputePass<'_>, i: u32) {
+        pass.begin_pipeline_statistics_query(&self.set, i);
+    }
+
+    /// Records the resolve and the copy to the host (after all passes).
+    pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.resolve_query_set(&self.set, 0..self.passes, &self.resolve, 0);
+        self.staging.copy(encoder, &self.resolve);
+    }
+
+    /// The statistics of each pass as counters (after submission).
+    pub fn read(&self, gpu: &Gpu) -> Result<Vec<Counters>> {
+        let values: Vec<u64> = words(&self.staging.read(gpu)?);
+        Ok(values
+            .chunks_exact(STATISTICS.len())
+            .map(|v| {
+                let mut c = Counters::default();
+                for ((_, name), x) in STATISTICS.iter().zip(v) {
+                    c.set(name, *x as f64);
+                }
+                c
+            })
+            .collect())
+    }
+}

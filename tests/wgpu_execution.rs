@@ -1,0 +1,284 @@
+//! The wgpu execution against independent results: the cpu-model execution of the same
+//! algorithm, the ray-cast reference (a tiny light makes it a hard shadow), closed-form tap
+//! counts, and the behaviour without any adapter.
+//!
+//! Without an adapter these tests print why and pass, unless `SHADOWBENCH_REQUIRE_GPU=1` (as
+//! in CI), which makes a missing adapter a failure.
+
+use std::process::Command;
+
+use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::harness::light_as;
+use shadowbench::metrics;
+use shadowbench::scene::generators::{self, GeneratorParams};
+use shadowbench::scene::{Light, LightKind};
+
+/// Whether the tests can run on a GPU; panics when one is required and missing.
+fn have_gpu() -> bool {
+    match shadowbench::gpu::gpu() {
+        Ok(_) => true,
+        Err(e) if std::env::var("SHADOWBENCH_REQUIRE_GPU").as_deref() == Ok("1") => {
+            panic!("SHADOWBENCH_REQUIRE_GPU=1 but {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            false
+        }
+    }
+}
+
+/// A 64×48 frame of generated scene `name`, its light changed by `light` and made a disc
+/// facing the scene (a light both algorithms take).
+fn frame(name: &str, light: impl Fn(Light) -> Light, map_resolution: u32) -> Frame {
+    let mut scene = generators::find(name)
+        .unwrap()
+        .build(&GeneratorParams::default());
+    scene.light = light_as(light(scene.light), LightKind::Disc, scene.bounds().center());
+    let params = RunParams {
+        triangles: scene.triangle_count() as u32,
+        light_size: scene.light.size(),
+        map_resolution,
+        tile_size: 32,
+        image: [64, 48],
+        occluder_height: None,
+        cores: None,
+    };
+    Frame::new(scene, params)
+}
+
+/// Pixels whose surface faces the light centre (cosine above 0.2). On surfaces facing away,
+/// the slope-scaled bias (`Bias::at`, clamped at tan θ = 10) reaches past the occluder's own
+/// thickness, so the shadow-map family itself (on any execution) leaves them lit where the
+/// reference has them dark; comparing there would test the algorithm, not the execution.
+fn facing_light(frame: &Frame) -> Vec<bool> {
+    let g = &frame.gbuffer;
+    let c = frame.scene.light.center();
+    (0..g.len())
+        .map(|i| g.is_hit(i) && g.normal[i].dot((c - g.position[i]).normalize()) > 0.2)
+        .collect()
+}
+
+fn run(id: &str, frame: &Frame) -> FrameOutput {
+    run_on(id, Backend::Wgpu, frame)
+}
+
+fn run_on(id: &str, backend: Backend, frame: &Frame) -> FrameOutput {
+    algorithms::run(id, backend, frame, &ExecContext::default()).unwrap()
+}
+
+#[test]
+fn wgpu_agrees_with_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    for name in ["sphere-on-plane", "box-on-plane", "torus-on-plane"] {
+        let f = frame(name, |l| l.with_size(0.5), 256);
+        for id in ["hard_shadow_map", "pcss"] {
+            let gpu = run_on(id, Backend::Wgpu, &f);
+            let model = run_on(id, Backend::CpuModel, &f);
+            let e = metrics::compare(&gpu.visibility, &model.visibility, &f.gbuffer.mask());
+            // The same formulas in f32 on both; only depth values rounded differently by the
+            // two rasterizers can flip a tap.
+            assert!(e.mae < 0.01, "{name} {id}: {e:?}");
+            // Fill: fragments of the light raster. Both sample triangles at texel centres with
+            // top-left rules; allow 1% for edges that pass exactly through a texel centre.
+            let (fg, fm) = (
+                gpu.counters.get("fill").unwrap(),
+                model.counters.get("fill").unwrap(),
+            );
+            assert!(fm > 0.0, "{name} {id}: the model rasterized nothing");
+            assert!(
+                (fg - fm).abs() <= 0.01 * fm,
+                "{name} {id}: fill {fg} on wgpu, {fm} on cpu-model"
+            );
+        }
+    }
+}
+
+#[test]
+fn hard_shadow_map_matches_the_reference_of_a_tiny_light() {
+    if !have_gpu() {
+        return;
+    }
+    for name in ["sphere-on-plane", "box-on-plane", "torus-on-plane"] {
+        let f = frame(name, |l| l.with_size(1e-3), 512);
+        let out = run("hard_shadow_map", &f);
+        let reference = algorithms::reference::render(&f, 4, 1).visibility;
+        let e = metrics::compare(&out.visibility, &reference, &facing_light(&f));
+        // A point-like light makes the reference a hard shadow too; they can differ only where
+        // a shadow edge crosses a map texel, a thin band of pixels.
+        assert!(e.mae < 0.01, "{name}: {e:?}");
+        assert!(e.frac_over_0_1 < 0.02, "{name}: {e:?}");
+        assert!(
+            e.shadow_pixels > 50,
+            "{name}: the scene must show a shadow: {e:?}"
+        );
+    }
+}
+
+#[test]
+fn pcss_approaches_the_reference_of_a_small_light() {
+    if !have_gpu() {
+        return;
+    }
+    let f = frame("sphere-on-plane", |l| l.with_size(0.05), 512);
+    let out = run("pcss", &f);
+    let reference = algorithms::reference::render(&f, 64, 1).visibility;
+    let e = metrics::compare(&out.visibility, &reference, &facing_light(&f));
+    assert!(e.mae < 0.01, "{e:?}");
+    assert!(e.mae_shadow < 0.1, "{e:?}");
+}
+
+#[test]
+fn eye_lookup_taps_follow_from_the_sample_counts() {
+    if !have_gpu() {
+        return;
+    }
+    let f = frame("sphere-on-plane", |l| l.with_size(0.5), 256);
+    let hits = f.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
+    let taps = |out: &FrameOutput| out.phases[1].counters.get("shadow_map.taps").unwrap();
+
+    // The hard test reads one texel per hit pixel.
+    assert_eq!(taps(&run("hard_shadow_map", &f)), hits);
+
+    // PCSS: every hit pixel searches for blockers; those that find one filter as well, so the
+    // taps beyond the search are a whole number of filters, and penumbra pixels exist.
+    let out = run("pcss", &f);
+    let o = shadowbench::algorithms::shadow_map::PcssOptions::default();
+    let extra = taps(&out) - hits * f64::from(o.blocker_samples);
+    let filters = extra / f64::from(o.pcf_samples);
+    assert!(
+        filters.fract() == 0.0 && filters > 0.0 && filters <= hits,
+        "{filters}"
+    );
+    let penumbra = out
+        .visibility
+        .data
+        .iter()
+        .filter(|&&v| v > 0.0 && v < 1.0)
+        .count() as f64;
+    // Filters of pixels that end up strictly between 0 and 1 are not wasted.
+    let wasted = out.phases[1]
+        .counters
+        .get("shadow_map.taps_wasted")
+        .unwrap();
+    assert_eq!(
+        wasted,
+        (filters - penumbra) * f64::from(o.pcf_samples),
+        "wasted filter taps are those of pixels left at 0 or 1"
+    );
+}
+
+#[test]
+fn records_carry_gpu_times_statistics_and_the_adapter() {
+    if !have_gpu() {
+        return;
+    }
+    let gpu = shadowbench::gpu::gpu().unwrap();
+    let f = frame("box-on-plane", |l| l, 256);
+    let out = run("pcss", &f);
+    assert_eq!(
+        out.execution["adapter"],
+        serde_json::json!(gpu.info.name),
+        "{:?}",
+        out.execution
+    );
+    let names: Vec<&str> = out.phases.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(names, ["light_raster", "eye_lookup"]);
+    if gpu.queries.timestamp {
+        let total: f64 = out.phases.iter().map(|p| p.gpu_ms.unwrap()).sum();
+        assert!(total > 0.0);
+        assert!((out.gpu_ms.unwrap() - total).abs() < 1e-9);
+    }
+    let raster = &out.phases[0].counters;
+    let fill = raster.get("fill").unwrap();
+    let covered = raster.get("shadow_map.covered_texels").unwrap();
+    assert!(covered > 0.0 && fill >= covered, "{raster:?}");
+    if gpu.queries.pipeline_statistics {
+        // The scene is drawn once: one clipper invocation per triangle.
+        let occluder_triangles = f.flat.mesh.triangles.len() as f64;
+        assert_eq!(
+            raster.get("pipeline.clipper_invocations"),
+            Some(occluder_triangles)
+        );
+        assert!(raster.get("pipeline.fragment_shader_invocations").unwrap() > 0.0);
+    }
+}
+
+/// The process-level behaviour with no adapter: simulated by pointing the Vulkan loader at no
+/// driver and allowing only the Vulkan backend.
+fn without_adapter(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+        .args(args)
+        .env("VK_ICD_FILENAMES", "/nonexistent")
+        .env("VK_DRIVER_FILES", "/nonexistent")
+        .env("WGPU_BACKEND", "vulkan")
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn without_an_adapter_run_skips_wgpu_and_render_fails_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("s.json");
+    std::fs::write(
+        &scenario,
+        r#"{
+  "scene": { "generator": "box-on-plane" },
+  "algorithms": ["reference", "pcss"],
+  "backends": ["cpu-native", "wgpu"],
+  "params": { "image": [32, 24], "map_resolution": 64 },
+  "reference": { "samples": 4 }
+}"#,
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = without_adapter(&[
+        "run",
+        scenario.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let skips: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains("skipping the wgpu execution"))
+        .collect();
+    assert_eq!(skips.len(), 1, "{stderr}");
+    assert!(skips[0].contains("no GPU adapter found"), "{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("results.json")).unwrap())
+            .unwrap();
+    let runs = json["runs"].as_array().unwrap();
+    assert!(!runs.is_empty());
+    assert!(runs
+        .iter()
+        .all(|r| r["backend"] == "cpu-native" && r["failure"].is_null()));
+
+    let out = without_adapter(&[
+        "render",
+        "--algorithm",
+        "pcss",
+        "--backend",
+        "wgpu",
+        "--image",
+        "32x24",
+        "--out",
+        dir.path().join("render").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("error: wgpu: no GPU adapter found"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
+
+    let out = without_adapter(&["list"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    assert!(stdout.contains("none: no GPU adapter found"), "{stdout}");
+}
