@@ -5,6 +5,7 @@
 
 pub mod reference;
 pub mod shadow_map;
+pub mod soft_izb;
 
 use std::collections::BTreeMap;
 
@@ -85,6 +86,15 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[AlgorithmInfo {
     lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
     backends: &[Backend::CpuNative],
     check_options: |o| no_options("reference", o),
+}, AlgorithmInfo {
+    id: soft_izb::ID,
+    source: "paper 004 (soft irregular shadow mapping), §2",
+    summary: "eye samples in a light-space grid; umbra by irregular rasterization (depth \
+              complexity), penumbra quads per silhouette edge with analytic circular-segment \
+              occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)",
+    lights: &[LightKind::Sphere],
+    backends: &[Backend::CpuNative],
+    check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
 }];
 
 /// `check_options` of an algorithm that takes no options.
@@ -111,7 +121,6 @@ pub const NOT_YET_BUILT: &[&str] = &[
     "soft_shadow_volume",
     "dbuffer",
     "soft_shadow_map",
-    "soft_izb",
 ];
 
 pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
@@ -173,6 +182,13 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
     }
     match id {
         "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
+        soft_izb::ID => {
+            let opts = soft_izb::SoftIzbOptions::parse(&ctx.options)?;
+            match backend {
+                Backend::CpuNative => soft_izb::cpu::render(frame, &opts),
+                _ => unreachable!("checked against the registered backends"),
+            }
+        }
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
 }
