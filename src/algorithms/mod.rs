@@ -79,23 +79,26 @@ impl AlgorithmInfo {
     }
 }
 
-pub const ALGORITHMS: &[AlgorithmInfo] = &[AlgorithmInfo {
-    id: "reference",
-    source: "ground truth",
-    summary: "visible fraction of the light by stratified sampling and BVH ray casting",
-    lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-    backends: &[Backend::CpuNative],
-    check_options: |o| no_options("reference", o),
-}, AlgorithmInfo {
-    id: soft_izb::ID,
-    source: "paper 004 (soft irregular shadow mapping), §2",
-    summary: "eye samples in a light-space grid; umbra by irregular rasterization (depth \
+pub const ALGORITHMS: &[AlgorithmInfo] = &[
+    AlgorithmInfo {
+        id: "reference",
+        source: "ground truth",
+        summary: "visible fraction of the light by stratified sampling and BVH ray casting",
+        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
+        backends: &[Backend::CpuNative],
+        check_options: |o| no_options("reference", o),
+    },
+    AlgorithmInfo {
+        id: soft_izb::ID,
+        source: "paper 004 (soft irregular shadow mapping), §2",
+        summary: "eye samples in a light-space grid; umbra by irregular rasterization (depth \
               complexity), penumbra quads per silhouette edge with analytic circular-segment \
               occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)",
-    lights: &[LightKind::Sphere],
-    backends: &[Backend::CpuNative],
-    check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
-}];
+        lights: &[LightKind::Sphere],
+        backends: &[Backend::CpuNative],
+        check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
+    },
+];
 
 /// `check_options` of an algorithm that takes no options.
 pub fn no_options(

@@ -492,7 +492,7 @@ fn room(p: &GeneratorParams, target: u32) -> Scene {
 }
 
 /// Share of the street's triangle budget in window ledges.
-const LEDGE_SHARE_PERCENT: u32 = 45;
+const LEDGE_SHARE_PERCENT: u32 = 26;
 
 fn street(p: &GeneratorParams, target: u32) -> Scene {
     let ground_tris = (target / 20).clamp(2, 4_000);
@@ -545,10 +545,22 @@ fn street(p: &GeneratorParams, target: u32) -> Scene {
                 let s = -2.2 + 4.4 * (c as f32 + 0.5) / cols as f32;
                 let y = 0.8 + (height - 1.0) * (f as f32 + 0.5) / floors as f32;
                 let (lo, hi) = match face {
-                    0 => (Vec3::new(x + s - 0.25, y, z + 2.5), Vec3::new(x + s + 0.25, y + 0.08, z + 2.75)),
-                    1 => (Vec3::new(x + s - 0.25, y, z - 2.75), Vec3::new(x + s + 0.25, y + 0.08, z - 2.5)),
-                    2 => (Vec3::new(x + 2.5, y, z + s - 0.25), Vec3::new(x + 2.75, y + 0.08, z + s + 0.25)),
-                    _ => (Vec3::new(x - 2.75, y, z + s - 0.25), Vec3::new(x - 2.5, y + 0.08, z + s + 0.25)),
+                    0 => (
+                        Vec3::new(x + s - 0.25, y, z + 2.5),
+                        Vec3::new(x + s + 0.25, y + 0.08, z + 2.75),
+                    ),
+                    1 => (
+                        Vec3::new(x + s - 0.25, y, z - 2.75),
+                        Vec3::new(x + s + 0.25, y + 0.08, z - 2.5),
+                    ),
+                    2 => (
+                        Vec3::new(x + 2.5, y, z + s - 0.25),
+                        Vec3::new(x + 2.75, y + 0.08, z + s + 0.25),
+                    ),
+                    _ => (
+                        Vec3::new(x - 2.75, y, z + s - 0.25),
+                        Vec3::new(x - 2.5, y + 0.08, z + s + 0.25),
+                    ),
                 };
                 ledges.append(&primitives::cuboid(lo, hi));
                 k += 1;
@@ -592,7 +604,7 @@ fn street(p: &GeneratorParams, target: u32) -> Scene {
 /// Share of the fern's triangle budget in leaflets (the ground receiver takes the rest), and a
 /// leaflet's quads along and across: open strips whose boundary edges are all silhouettes,
 /// giving about 13K silhouette edges for 212K triangles as the fern of paper 004 (Table 2).
-const LEAFLET_SHARE_PERCENT: u32 = 13;
+const LEAFLET_SHARE_PERCENT: u32 = 23;
 const LEAFLET_QUADS: (u32, u32) = (6, 4);
 
 fn fern(p: &GeneratorParams, target: u32) -> Scene {

@@ -210,14 +210,17 @@ struct Occluders {
 /// triangle (§2.1), each oriented with its surface inside.
 fn occluders(frame: &Frame, view: &LightView, opts: &SoftIzbOptions, t: &mut Tally) -> Occluders {
     let centre = frame.scene.light.center();
-    let per_object: Vec<(Vec<(u32, LightTriangle)>, Vec<ProjectedEdge>)> = frame
+    let per_object: Vec<Occluders> = frame
         .scene
         .objects
         .par_iter()
         .enumerate()
         .map(|(o, object)| {
             if !object.role.occluder {
-                return (vec![], vec![]);
+                return Occluders {
+                    triangles: vec![],
+                    edges: vec![],
+                };
             }
             let base = frame
                 .flat
@@ -267,20 +270,26 @@ fn occluders(frame: &Frame, view: &LightView, opts: &SoftIzbOptions, t: &mut Tal
                 .filter_map(|(a, b)| clip_segment(view, clip(a), clip(b)))
                 .map(|(a, b)| ProjectedEdge { a, b })
                 .collect();
-            (tris, projected)
+            Occluders {
+                triangles: tris,
+                edges: projected,
+            }
         })
         .collect();
     let mut occ = Occluders {
         triangles: vec![],
         edges: vec![],
     };
-    for (tris, edges) in per_object {
-        occ.triangles.extend(tris);
-        occ.edges.extend(edges);
+    for o in per_object {
+        occ.triangles.extend(o.triangles);
+        occ.edges.extend(o.edges);
     }
     t.0.set("occluder_triangles", occ.triangles.len() as f64);
     t.0.set("silhouette_edges", occ.edges.len() as f64);
-    t.write("light_triangles", TRIANGLE_BYTES * occ.triangles.len() as f64);
+    t.write(
+        "light_triangles",
+        TRIANGLE_BYTES * occ.triangles.len() as f64,
+    );
     t.write("penumbra_edges", EDGE_BYTES * occ.edges.len() as f64);
     occ
 }
@@ -296,8 +305,12 @@ fn columns_in_bin(grid: &Grid, b: usize, lo: Vec2, hi: Vec2) -> Option<((u32, u3
 /// Bins overlapped by uv bounds, in bin order.
 fn bins_of(grid: &Grid, lo: Vec2, hi: Vec2) -> impl Iterator<Item = usize> + '_ {
     let ((x0, y0), (x1, y1)) = grid.column_range(lo, hi);
-    let (b0, b1) = ((x0 / grid.bin, y0 / grid.bin), (x1 / grid.bin, y1 / grid.bin));
-    (b0.1..=b1.1).flat_map(move |by| (b0.0..=b1.0).map(move |bx| (by * grid.bins_x() + bx) as usize))
+    let (b0, b1) = (
+        (x0 / grid.bin, y0 / grid.bin),
+        (x1 / grid.bin, y1 / grid.bin),
+    );
+    (b0.1..=b1.1)
+        .flat_map(move |by| (b0.0..=b1.0).map(move |bx| (by * grid.bins_x() + bx) as usize))
 }
 
 /// Step (b) of Figure 2, hard irregular shadow mapping from the light centre (§2.4): each
@@ -504,7 +517,10 @@ fn penumbra(
     }
     let overdraw = total.fill - total.contributing;
     t.0.set("quad_fragments", total.fragments as f64);
-    t.0.set("wedge_culled_fragments", total.wedge_culled_fragments as f64);
+    t.0.set(
+        "wedge_culled_fragments",
+        total.wedge_culled_fragments as f64,
+    );
     t.0.set("fill", total.fill as f64);
     t.0.set("overdraw", overdraw as f64);
     t.0.set(
@@ -601,7 +617,10 @@ pub fn render(frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOutput> {
         gpu_ms: None,
         execution: [
             ("grid".to_string(), serde_json::json!(izb.grid.res)),
-            ("depth_slices".to_string(), serde_json::json!(izb.grid.slices)),
+            (
+                "depth_slices".to_string(),
+                serde_json::json!(izb.grid.slices),
+            ),
             ("bin".to_string(), serde_json::json!(izb.grid.bin)),
             (
                 "per_bin_width".to_string(),

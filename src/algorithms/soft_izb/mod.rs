@@ -353,8 +353,7 @@ impl LightTriangle {
         let w0 = (c.uv - b.uv).perp_dot(p - b.uv) / self.area2;
         let w1 = (a.uv - c.uv).perp_dot(p - c.uv) / self.area2;
         let w2 = 1.0 - w0 - w1;
-        (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0)
-            .then(|| w0 * a.inv_z + w1 * b.inv_z + w2 * c.inv_z)
+        (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0).then_some(w0 * a.inv_z + w1 * b.inv_z + w2 * c.inv_z)
     }
 }
 
@@ -406,7 +405,11 @@ impl Grid {
     pub fn column_rect(&self, x: u32, y: u32) -> (Vec2, Vec2) {
         let s = 1.0 / self.res as f32;
         let edge = |i: u32| {
-            let lo = if i == 0 { f32::NEG_INFINITY } else { i as f32 * s };
+            let lo = if i == 0 {
+                f32::NEG_INFINITY
+            } else {
+                i as f32 * s
+            };
             let hi = if i + 1 == self.res {
                 f32::INFINITY
             } else {
