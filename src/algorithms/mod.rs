@@ -8,6 +8,7 @@ pub mod pcss;
 pub mod reference;
 pub mod shadow_map;
 pub mod shadow_map_wgpu;
+pub mod soft_izb;
 
 use std::collections::BTreeMap;
 
@@ -113,6 +114,17 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         memory_estimate: shadow_map::memory_estimate,
         check_options: pcss::check_options,
     },
+    AlgorithmInfo {
+        id: soft_izb::ID,
+        source: "paper 004 (soft irregular shadow mapping), §2",
+        summary: "eye samples in a light-space grid; umbra by irregular rasterization (depth \
+              complexity), penumbra quads per silhouette edge with analytic circular-segment \
+              occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)",
+        lights: &[LightKind::Sphere],
+        backends: &[Backend::CpuNative],
+        memory_estimate: soft_izb::cpu::memory_estimate,
+        check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
+    },
 ];
 
 /// `check_options` of an algorithm that takes no options.
@@ -137,7 +149,6 @@ pub const NOT_YET_BUILT: &[&str] = &[
     "soft_shadow_volume",
     "dbuffer",
     "soft_shadow_map",
-    "soft_izb",
 ];
 
 pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
@@ -216,6 +227,13 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             ctx,
             pcss::options(&ctx.options)?,
         )),
+        soft_izb::ID => {
+            let opts = soft_izb::SoftIzbOptions::parse(&ctx.options)?;
+            match backend {
+                Backend::CpuNative => soft_izb::cpu::render(frame, &opts),
+                _ => unreachable!("checked against the registered backends"),
+            }
+        }
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
 }

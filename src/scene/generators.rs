@@ -110,6 +110,12 @@ pub const GENERATORS: &[Generator] = &[
         default_triangles: 30_000,
         build: street,
     },
+    Generator {
+        name: "fern",
+        summary: "fern: fronds of open leaflets over tessellated ground (paper 004 fern)",
+        default_triangles: 20_000,
+        build: fern,
+    },
 ];
 
 pub fn find(name: &str) -> Option<&'static Generator> {
@@ -360,6 +366,10 @@ fn terrain(p: &GeneratorParams, target: u32) -> Scene {
     )
 }
 
+/// Slices of a bottle in the room, and the share of the room's free triangle budget they take.
+const BOTTLE_SLICES: u32 = 16;
+const BOTTLE_SHARE_PERCENT: u32 = 40;
+
 fn room(p: &GeneratorParams, target: u32) -> Scene {
     let (w, hgt, d) = (10.0, 4.0, 8.0);
     let table_h = p.occluder_height.unwrap_or(0.9);
@@ -416,9 +426,42 @@ fn room(p: &GeneratorParams, target: u32) -> Scene {
     ));
     boxes += 1;
     objects.push(object("furniture", furniture, Role::BOTH));
-    // Bottles and lamps on the tables use the remaining budget.
+    // The remaining budget: bottles on the bar and the tables (one-ring cylinders, many
+    // silhouette edges per triangle) and lamps (spheres, few). The split gives about one
+    // silhouette edge from the light per 7.5 triangles, as the saloon of paper 004 (Table 2:
+    // 60K triangles, 8K silhouette edges).
     let rest = target.saturating_sub(shell_tris + boxes * 12);
-    let per_item = (rest / 16).max(8);
+    let bottle_tris = 4 * BOTTLE_SLICES;
+    let bottles = (rest * BOTTLE_SHARE_PERCENT / 100 / bottle_tris).max(4);
+    let mut shelf = Mesh::default();
+    let surfaces: Vec<(f32, f32, f32, f32, f32)> = std::iter::once((-4.0, 1.0, -3.6, -3.0, 1.1))
+        .chain(
+            tables
+                .iter()
+                .map(|&(x, z)| (x - 0.8, x + 0.8, z - 0.5, z + 0.5, table_h + 0.06)),
+        )
+        .collect();
+    let per_surface = bottles.div_ceil(surfaces.len() as u32);
+    let cols = ((per_surface as f32 * 3.0).sqrt().ceil() as u32).max(1);
+    let rows = per_surface.div_ceil(cols);
+    for k in 0..bottles {
+        let (x0, x1, z0, z1, y) = surfaces[(k % surfaces.len() as u32) as usize];
+        let i = k / surfaces.len() as u32;
+        let (cx, cz) = ((i % cols) as f32 + 0.5, (i / cols) as f32 + 0.5);
+        let at = Vec3::new(
+            x0 + (x1 - x0) * cx / cols as f32,
+            y,
+            z0 + (z1 - z0) * cz / rows as f32,
+        );
+        let r = 0.02 + 0.015 * unit_f32(mix64(p.seed ^ (1000 + k as u64)));
+        shelf.append(
+            &primitives::cylinder(r, 0.12 + 8.0 * r, BOTTLE_SLICES, 1)
+                .transformed(Mat4::from_translation(at)),
+        );
+    }
+    let shelf_tris = shelf.triangles.len() as u32;
+    objects.push(object("bottles", shelf, Role::BOTH));
+    let per_item = (rest.saturating_sub(shelf_tris) / 16).max(8);
     for (k, &(x, z)) in tables.iter().enumerate() {
         for q in 0..4u32 {
             let r = unit_f32(mix64(p.seed ^ (k as u64 * 16 + q as u64)));
@@ -448,6 +491,9 @@ fn room(p: &GeneratorParams, target: u32) -> Scene {
     )
 }
 
+/// Share of the street's triangle budget in window ledges.
+const LEDGE_SHARE_PERCENT: u32 = 26;
+
 fn street(p: &GeneratorParams, target: u32) -> Scene {
     let ground_tris = (target / 20).clamp(2, 4_000);
     let mut objects = vec![ground(30.0, ground_tris)];
@@ -475,6 +521,54 @@ fn street(p: &GeneratorParams, target: u32) -> Scene {
         }
     }
     objects.push(object("buildings", buildings, Role::BOTH));
+    // Window ledges on the facades: small boxes, about half of whose edges are silhouettes
+    // from the high light; with the posts they give the street of paper 004 (Table 2: 155K
+    // triangles, 29K silhouette edges).
+    let ledges_wanted = target * LEDGE_SHARE_PERCENT / 100 / 12;
+    let per_building = ledges_wanted / count.max(1) * 2;
+    let mut ledges = Mesh::default();
+    let mut k = 0u32;
+    for i in 0..blocks {
+        for j in 0..blocks {
+            if i == blocks / 2 || j == blocks / 2 {
+                continue;
+            }
+            let (x, z) = (i as f32 * 8.0 - 20.0, j as f32 * 8.0 - 20.0);
+            let height = 4.0 + 14.0 * unit_f32(mix64(p.seed ^ (i * 31 + j) as u64));
+            // Four facades, columns across, floors up.
+            let cols = 6u32;
+            let floors = (per_building / 4).div_ceil(cols).max(1);
+            for n in 0..per_building {
+                let face = n % 4;
+                let m = n / 4;
+                let (c, f) = (m % cols, m / cols);
+                let s = -2.2 + 4.4 * (c as f32 + 0.5) / cols as f32;
+                let y = 0.8 + (height - 1.0) * (f as f32 + 0.5) / floors as f32;
+                let (lo, hi) = match face {
+                    0 => (
+                        Vec3::new(x + s - 0.25, y, z + 2.5),
+                        Vec3::new(x + s + 0.25, y + 0.08, z + 2.75),
+                    ),
+                    1 => (
+                        Vec3::new(x + s - 0.25, y, z - 2.75),
+                        Vec3::new(x + s + 0.25, y + 0.08, z - 2.5),
+                    ),
+                    2 => (
+                        Vec3::new(x + 2.5, y, z + s - 0.25),
+                        Vec3::new(x + 2.75, y + 0.08, z + s + 0.25),
+                    ),
+                    _ => (
+                        Vec3::new(x - 2.75, y, z + s - 0.25),
+                        Vec3::new(x - 2.5, y + 0.08, z + s + 0.25),
+                    ),
+                };
+                ledges.append(&primitives::cuboid(lo, hi));
+                k += 1;
+            }
+        }
+    }
+    objects.push(object("ledges", ledges, Role::BOTH));
+    count += k;
     // Posts (street lights, bollards) along both streets take the remaining budget.
     let rest = target.saturating_sub(ground_tris + count * 12);
     let posts = 48u32;
@@ -503,6 +597,63 @@ fn street(p: &GeneratorParams, target: u32) -> Scene {
         Light::Sphere {
             center: Vec3::new(40.0, 80.0, 20.0),
             radius: 3.0,
+        },
+    )
+}
+
+/// Share of the fern's triangle budget in leaflets (the ground receiver takes the rest), and a
+/// leaflet's quads along and across: open strips whose boundary edges are all silhouettes,
+/// giving about 13K silhouette edges for 212K triangles as the fern of paper 004 (Table 2).
+const LEAFLET_SHARE_PERCENT: u32 = 23;
+const LEAFLET_QUADS: (u32, u32) = (6, 4);
+
+fn fern(p: &GeneratorParams, target: u32) -> Scene {
+    let (nu, nv) = LEAFLET_QUADS;
+    let leaflet_tris = 2 * nu * nv;
+    let leaflets = (target * LEAFLET_SHARE_PERCENT / 100 / leaflet_tris).max(2);
+    let fronds = 10u32;
+    let per_frond = leaflets.div_ceil(fronds);
+    let mut plant = Mesh::default();
+    let mut made = 0u32;
+    for f in 0..fronds {
+        let yaw = std::f32::consts::TAU * (f as f32 + 0.3 * unit_f32(mix64(p.seed ^ f as u64)))
+            / fronds as f32;
+        let dir = Vec3::new(yaw.cos(), 0.0, yaw.sin());
+        let side = Vec3::new(-dir.z, 0.0, dir.x);
+        for k in 0..per_frond {
+            if made == leaflets {
+                break;
+            }
+            made += 1;
+            // Along the frond (an arch rising then falling), leaflets alternate sides and
+            // shrink towards the tip.
+            let t = (k / 2) as f32 / (per_frond / 2).max(1) as f32;
+            let base = dir * (0.3 + 2.2 * t) + Vec3::Y * (0.4 + 1.6 * t * (1.0 - t) * 2.0);
+            let s = if k % 2 == 0 { 1.0 } else { -1.0 };
+            let len = 0.45 * (1.0 - 0.7 * t);
+            let leaf = primitives::grid(nu, nv, |u, v| {
+                let across = (v - 0.5) * 0.25 * len * (1.0 - u);
+                base + side * (s * u * len) + dir * across - Vec3::Y * (0.15 * u * u * len)
+            });
+            plant.append(&leaf);
+        }
+    }
+    let plant_tris = plant.triangles.len() as u32;
+    let objects = vec![
+        ground(4.0, target.saturating_sub(plant_tris).max(2)),
+        object("fern", plant, Role::BOTH),
+    ];
+    scene(
+        objects,
+        Camera {
+            eye: Vec3::new(0.0, 3.5, 5.5),
+            target: Vec3::new(0.0, 0.3, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 50.0,
+        },
+        Light::Sphere {
+            center: Vec3::new(1.5, 6.0, 1.0),
+            radius: 0.4,
         },
     )
 }

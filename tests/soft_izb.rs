@@ -1,0 +1,198 @@
+//! Soft irregular shadow mapping (paper 004) against analytic visibility, the reference, and its
+//! own stated properties (conservative optimisations, §2.1 correctness without adjacency).
+
+use glam::Vec3;
+use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::scene::generators::{self, primitives, GeneratorParams};
+use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
+
+fn params(scene: &Scene, image: [u32; 2]) -> RunParams {
+    RunParams {
+        triangles: scene.triangle_count() as u32,
+        light_size: scene.light.size(),
+        map_resolution: 256,
+        tile_size: 16,
+        image,
+        occluder_height: None,
+        cores: None,
+    }
+}
+
+fn run(frame: &Frame, options: serde_json::Value) -> FrameOutput {
+    let mut ctx = ExecContext::default();
+    ctx.options.insert("soft_izb".into(), options);
+    algorithms::run("soft_izb", Backend::CpuNative, frame, &ctx).unwrap()
+}
+
+/// Fraction of a disc of radius `r` beyond a chord at signed distance `d` from its centre.
+fn segment_fraction(d: f32, r: f32) -> f32 {
+    let x = (d / r).clamp(-1.0, 1.0);
+    (x.acos() - x * (1.0 - x * x).sqrt()) / std::f32::consts::PI
+}
+
+#[test]
+fn straight_edge_under_a_sphere_light_matches_the_analytic_visible_fraction() {
+    // A half-plane occluder y = h, x < 0 above a ground plane; the eye looks under it at the
+    // penumbra its straight edge x = 0 casts.
+    let (h, r, l) = (1.0f32, 0.5f32, 6.0f32);
+    let c = Vec3::new(0.3, 4.0, 0.2);
+    let occluder = Mesh {
+        positions: vec![
+            Vec3::new(-l, h, -l),
+            Vec3::new(0.0, h, -l),
+            Vec3::new(0.0, h, l),
+            Vec3::new(-l, h, l),
+        ],
+        triangles: vec![[0, 2, 1], [0, 3, 2]],
+    };
+    let scene = Scene {
+        name: "straight-edge".into(),
+        objects: vec![
+            Object {
+                name: "ground".into(),
+                mesh: primitives::plane(l, 8),
+                role: Role::RECEIVER,
+            },
+            Object {
+                name: "edge".into(),
+                mesh: occluder,
+                role: Role::BOTH,
+            },
+        ],
+        camera: Camera {
+            eye: Vec3::new(1.6, 0.6, 0.0),
+            target: Vec3::new(-0.1, 0.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 50.0,
+        },
+        light: Light::Sphere {
+            center: c,
+            radius: r,
+        },
+    };
+    let frame = Frame::new(scene.clone(), params(&scene, [64, 48]));
+    let out = run(&frame, serde_json::json!({}));
+    let g = &frame.gbuffer;
+    let (mut checked, mut penumbra, mut worst) = (0, 0, 0.0f32);
+    for i in 0..g.len() {
+        let p = g.position[i];
+        if !g.is_hit(i) || p.y.abs() > 1e-3 || p.z.abs() > 2.0 {
+            continue;
+        }
+        // Blocked rays p→l satisfy f(l) = p.x·l.y + h·l.x < p.x·h, a half-space: on the emitter
+        // disc facing p its blocked part is a circular segment.
+        let w = (c - p).normalize();
+        let grad = Vec3::new(h, p.x, 0.0);
+        let grad_perp = grad - grad.dot(w) * w;
+        let s = (p.x * h - (p.x * c.y + h * c.x)) / grad_perp.length();
+        let expected = segment_fraction(s, r);
+        let got = out.visibility.data[i];
+        worst = worst.max((got - expected).abs());
+        checked += 1;
+        if expected > 0.05 && expected < 0.95 {
+            penumbra += 1;
+        }
+    }
+    assert!(checked > 200 && penumbra >= 20, "{checked} / {penumbra}");
+    assert!(worst <= 0.02, "largest error {worst}");
+}
+
+fn small(name: &str, triangles: u32) -> Frame {
+    let scene = generators::find(name).unwrap().build(&GeneratorParams {
+        triangles: Some(triangles),
+        ..Default::default()
+    });
+    Frame::new(scene.clone(), params(&scene, [64, 48]))
+}
+
+#[test]
+fn overdraw_optimisations_are_conservative_and_reduce_fill() {
+    let frame = small("room", 3000);
+    let off = run(
+        &frame,
+        serde_json::json!({"per_bin_width": false, "wedge_column_cull": false}),
+    );
+    let on = run(&frame, serde_json::json!({}));
+    let bits = |o: &FrameOutput| {
+        o.visibility
+            .data
+            .iter()
+            .map(|v| v.to_bits())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&off), bits(&on), "culling must not change the image");
+    let c = |o: &FrameOutput, k: &str| o.counters.get(k).unwrap();
+    assert!(c(&on, "fill") > 0.0);
+    assert!(c(&on, "fill") < c(&off, "fill"));
+    assert!(c(&on, "overdraw") < c(&off, "overdraw"));
+    for o in [&off, &on] {
+        o.visibility.check_range().unwrap();
+    }
+}
+
+#[test]
+fn without_adjacency_every_edge_gives_the_same_shadow() {
+    // §2.1: interior edges of occluding surfaces cancel pairwise in eq. 4.
+    let frame = small("sphere-on-plane", 600);
+    let adj = run(&frame, serde_json::json!({}));
+    let all = run(&frame, serde_json::json!({"silhouettes": "all_edges"}));
+    let n = adj.visibility.data.len() as f32;
+    let mean: f32 = adj
+        .visibility
+        .data
+        .iter()
+        .zip(&all.visibility.data)
+        .map(|(a, b)| (a - b).abs())
+        .sum::<f32>()
+        / n;
+    assert!(adj.visibility.data.iter().any(|&v| v > 0.05 && v < 0.95));
+    assert!(mean < 1e-3, "mean difference {mean}");
+    assert!(all.counters.get("fill").unwrap() > adj.counters.get("fill").unwrap());
+}
+
+#[test]
+fn close_to_the_reference_and_identical_across_thread_counts() {
+    let render = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let frame = small("torus-on-plane", 2000);
+            let out = run(&frame, serde_json::json!({}));
+            let reference = shadowbench::algorithms::reference::render(&frame, 256, 3);
+            (out, reference, frame.gbuffer.mask())
+        })
+    };
+    let (a, reference, mask) = render(1);
+    let (b, _, _) = render(2);
+    assert_eq!(a.visibility, b.visibility);
+    assert_eq!(a.counters, b.counters);
+    a.visibility.check_range().unwrap();
+    // Pixels without a surface are lit.
+    for (i, hit) in mask.iter().enumerate() {
+        if !hit {
+            assert_eq!(a.visibility.data[i], 1.0);
+        }
+    }
+    let shadowed: Vec<usize> = (0..mask.len())
+        .filter(|&i| reference.visibility.data[i] < 0.99)
+        .collect();
+    assert!(shadowed.len() > 50);
+    let mae: f32 = shadowed
+        .iter()
+        .map(|&i| (a.visibility.data[i] - reference.visibility.data[i]).abs())
+        .sum::<f32>()
+        / shadowed.len() as f32;
+    // A hard shadow from the light centre, for scale: the error soft_izb must beat.
+    let hard: f32 = shadowed
+        .iter()
+        .map(|&i| {
+            let v = reference.visibility.data[i];
+            (if v < 0.5 { v } else { 1.0 - v }).abs()
+        })
+        .sum::<f32>()
+        / shadowed.len() as f32;
+    assert!(mae < 0.5 * hard, "soft_izb {mae}, best hard shadow {hard}");
+}
