@@ -54,6 +54,13 @@ impl EmitterShape {
     pub fn clip(self, q0: Vec2, q1: Vec2) -> Option<(Vec2, Vec2)> {
         let d = q1 - q0;
         let (mut t0, mut t1) = (0.0f32, 1.0f32);
+        // Clipped points are measured from the end nearer the centre: a projected end can be
+        // very far away, and the clipped points must not drown in its magnitude.
+        let (base, t_base) = if q0.length_squared() <= q1.length_squared() {
+            (q0, 0.0)
+        } else {
+            (q1, 1.0)
+        };
         match self {
             EmitterShape::Square => {
                 // Liang–Barsky against |x| ≤ 1, |y| ≤ 1.
@@ -75,23 +82,23 @@ impl EmitterShape {
                 }
             }
             EmitterShape::Disc => {
-                // |q0 + t·d|² = 1.
-                let a = d.length_squared();
-                let b = q0.dot(d);
-                let c = q0.length_squared() - 1.0;
-                if a < 1e-20 {
-                    return (c <= 0.0).then_some((q0, q1));
+                let len = d.length();
+                if len < 1e-20 {
+                    return (q0.length_squared() <= 1.0).then_some((q0, q1));
                 }
-                let disc = b * b - a * c;
-                if disc < 0.0 {
+                let u = d / len;
+                let along = -base.dot(u);
+                let closest = base + u * along;
+                let h2 = 1.0 - closest.length_squared();
+                if h2 < 0.0 {
                     return None;
                 }
-                let s = disc.sqrt();
-                t0 = t0.max((-b - s) / a);
-                t1 = t1.min((-b + s) / a);
+                let h = h2.sqrt();
+                t0 = t0.max(t_base + (along - h) / len);
+                t1 = t1.min(t_base + (along + h) / len);
             }
         }
-        (t0 < t1).then(|| (q0 + d * t0, q0 + d * t1))
+        (t0 < t1).then(|| (base + d * (t0 - t_base), base + d * (t1 - t_base)))
     }
 }
 
