@@ -126,8 +126,10 @@ fn segment_hits_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
 /// Renders `quads` z-pass into a count buffer cleared to `eye_count` (tiles of `tile` pixels).
 pub fn render_quads(rays: &EyeRays, quads: &[ShadowQuad], eye_count: i32, tile: u32) -> HardPass {
     let reach = 2.0 * rays.bounds.diagonal();
-    let footprints: Vec<Option<ScreenRect>> =
-        quads.iter().map(|q| rays.footprint(&q.hull(reach))).collect();
+    let footprints: Vec<Option<ScreenRect>> = quads
+        .iter()
+        .map(|q| rays.footprint(&q.hull(reach)))
+        .collect();
     let eye_sides: Vec<i32> = quads.iter().map(|q| q.side(rays.eye) as i32).collect();
     struct State {
         rect: ScreenRect,

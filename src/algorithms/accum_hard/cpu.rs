@@ -5,9 +5,7 @@ use std::time::Instant;
 use super::{AccumHardOptions, ID};
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_map::parse_options;
-use crate::algorithms::shadow_volume::{
-    eye_count, mem_read, mem_write, render_quads, ShadowQuad,
-};
+use crate::algorithms::shadow_volume::{eye_count, mem_read, mem_write, render_quads, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;

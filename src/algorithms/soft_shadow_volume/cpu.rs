@@ -13,9 +13,7 @@ use super::{
 };
 use crate::algorithms::eye_raster::{raster_pass, ConvexVolume, EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_map::parse_options;
-use crate::algorithms::shadow_volume::{
-    eye_count, mem_read, mem_write, render_quads, ShadowQuad,
-};
+use crate::algorithms::shadow_volume::{eye_count, mem_read, mem_write, render_quads, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -201,7 +199,10 @@ pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let mut execution = std::collections::BTreeMap::new();
     execution.insert("options".to_string(), serde_json::json!(opts));
     if let Some(t) = &setup.texture {
-        execution.insert("coverage_texture_bytes".into(), serde_json::json!(t.bytes()));
+        execution.insert(
+            "coverage_texture_bytes".into(),
+            serde_json::json!(t.bytes()),
+        );
     }
     Ok(FrameOutput {
         visibility: VisibilityBuffer {

@@ -349,7 +349,11 @@ impl Wedge {
             planes.push((side, side.dot(x)));
             for fb in [front, back] {
                 let dir = fb.cross(side).normalize_or_zero();
-                let dir = if dir.dot(x - centre) >= 0.0 { dir } else { -dir };
+                let dir = if dir.dot(x - centre) >= 0.0 {
+                    dir
+                } else {
+                    -dir
+                };
                 hull.push(x + dir * reach);
             }
         }
@@ -605,7 +609,10 @@ impl SoftShadowVolumeOptions {
         if !(1..=3).contains(&self.light_split) {
             return Err(InputError::new(
                 format!("$.options.{ID}.light_split"),
-                format!("must be 1, 2 or 3 (k×k sub-lights), got {}", self.light_split),
+                format!(
+                    "must be 1, 2 or 3 (k×k sub-lights), got {}",
+                    self.light_split
+                ),
             ));
         }
         Ok(())

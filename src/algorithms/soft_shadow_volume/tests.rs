@@ -28,7 +28,10 @@ fn chord_across_the_disc_covers_the_circular_segment() {
             .unwrap();
         let expected = (d.acos() - d * (1.0 - d * d).sqrt()) / std::f32::consts::PI;
         let got = exact_coverage(EmitterShape::Disc, c0, c1);
-        assert!((got - expected).abs() < 1e-5, "d = {d}: {got} vs {expected}");
+        assert!(
+            (got - expected).abs() < 1e-5,
+            "d = {d}: {got} vs {expected}"
+        );
     }
 }
 
@@ -67,7 +70,10 @@ fn greens_theorem_sum_over_a_loop_is_the_covered_area() {
             }
         }
         let expected = covered_fraction_by_clipping(&tri);
-        assert!((sum - expected).abs() < 1e-4, "seed {seed}: {sum} vs {expected}");
+        assert!(
+            (sum - expected).abs() < 1e-4,
+            "seed {seed}: {sum} vs {expected}"
+        );
     }
 }
 
@@ -92,10 +98,18 @@ fn projection_onto_the_light_follows_similar_triangles() {
     // An edge entirely below the point projects nowhere; one crossing its plane is clipped and
     // its far end runs off the light.
     assert!(e
-        .project_edge(Vec3::ZERO, Vec3::new(0.0, -1.0, 0.0), Vec3::new(1.0, -2.0, 0.0))
+        .project_edge(
+            Vec3::ZERO,
+            Vec3::new(0.0, -1.0, 0.0),
+            Vec3::new(1.0, -2.0, 0.0)
+        )
         .is_none());
     let (q0, q1) = e
-        .project_edge(Vec3::ZERO, Vec3::new(0.1, 5.0, 0.0), Vec3::new(0.1, -5.0, 3.0))
+        .project_edge(
+            Vec3::ZERO,
+            Vec3::new(0.1, 5.0, 0.0),
+            Vec3::new(0.1, -5.0, 3.0),
+        )
         .unwrap();
     assert!((q0 - Vec2::new(0.2, 0.0)).length() < 1e-5);
     assert!(q1.length() > 100.0);
@@ -107,7 +121,8 @@ fn penumbra_points(light: &Light, a: Vec3, b: Vec3, seed: u64) -> Vec<Vec3> {
         .filter_map(|i| {
             let r = rng(seed, 3 * i);
             let s = rng(seed, 3 * i + 1);
-            let p = a.lerp(b, (s.y + 1.0) * 0.5) + Vec3::new(r.x * 1.5, (s.x - 1.0) * 1.5, r.y * 1.5);
+            let p =
+                a.lerp(b, (s.y + 1.0) * 0.5) + Vec3::new(r.x * 1.5, (s.x - 1.0) * 1.5, r.y * 1.5);
             let e = Emitter::seen_from(light, p);
             let (q0, q1) = e.project_edge(p, a, b)?;
             e.shape.clip(q0, q1).map(|_| p)
@@ -150,8 +165,14 @@ fn wedges_enclose_the_penumbra_volume_and_tighter_wedges_are_smaller() {
         let penumbra = penumbra_points(&rect, a, b, seed);
         assert!(penumbra.len() > 50);
         for p in &penumbra {
-            assert!(tight.volume.contains(*p), "seed {seed}: {p} outside tight wedge");
-            assert!(robust.volume.contains(*p), "seed {seed}: {p} outside robust wedge");
+            assert!(
+                tight.volume.contains(*p),
+                "seed {seed}: {p} outside tight wedge"
+            );
+            assert!(
+                robust.volume.contains(*p),
+                "seed {seed}: {p} outside robust wedge"
+            );
         }
         let sphere_wedge = Wedge::robust(a, b, center, 0.8, reach).unwrap();
         for p in penumbra_points(&sphere, a, b, seed) {
@@ -210,7 +231,10 @@ fn silhouettes_of_separate_objects_form_separate_loops() {
     use crate::scene::adjacency::EdgeAdjacency;
     use crate::scene::generators::primitives;
     let mut m = primitives::cuboid(Vec3::ZERO, Vec3::ONE);
-    m.append(&primitives::cuboid(Vec3::new(3.0, 0.0, 0.0), Vec3::new(4.0, 1.0, 1.0)));
+    m.append(&primitives::cuboid(
+        Vec3::new(3.0, 0.0, 0.0),
+        Vec3::new(4.0, 1.0, 1.0),
+    ));
     let s = EdgeAdjacency::build(&m).silhouette_from(Vec3::new(2.0, 10.0, 0.5));
     let loops = silhouette_loops(&s.edges);
     assert_eq!(loops.len(), 2);
@@ -252,7 +276,11 @@ fn coverage_texture_agrees_with_exact_clipping() {
             count += 1;
         }
         assert!(count > 500);
-        assert!(sum / (count as f32) < 0.01, "{shape:?}: {}", sum / count as f32);
+        assert!(
+            sum / (count as f32) < 0.01,
+            "{shape:?}: {}",
+            sum / count as f32
+        );
     }
 }
 
@@ -261,11 +289,17 @@ fn options_name_the_bad_field_and_value() {
     let mut o = std::collections::BTreeMap::new();
     o.insert(ID.to_string(), serde_json::json!({ "light_split": 5 }));
     let e = check_options(&o).unwrap_err();
-    assert_eq!(e.field.as_deref(), Some("$.options.soft_shadow_volume.light_split"));
+    assert_eq!(
+        e.field.as_deref(),
+        Some("$.options.soft_shadow_volume.light_split")
+    );
     assert!(e.message.contains('5'));
     o.insert(ID.to_string(), serde_json::json!({ "coverage": "magic" }));
     let e = check_options(&o).unwrap_err();
-    assert_eq!(e.field.as_deref(), Some("$.options.soft_shadow_volume.coverage"));
+    assert_eq!(
+        e.field.as_deref(),
+        Some("$.options.soft_shadow_volume.coverage")
+    );
     o.insert(ID.to_string(), serde_json::json!({ "culling": true }));
     assert!(check_options(&o).is_err());
 }
