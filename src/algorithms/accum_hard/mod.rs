@@ -1,0 +1,68 @@
+//! `accum_hard`: the average of N hard shadows from N point samples on the light (paper 001
+//! §1.3 and III §5.1, the "1024-sample shadow"), each rendered with hard shadow volumes in an
+//! 8-bit stencil buffer as the paper does, then accumulated per pixel.
+//!
+//! The samples are the k×k stratified, jittered positions of [`Light::stratified_sample`] seen
+//! from the centre of the scene (for a sphere light: its disc facing the scene); every pixel
+//! uses the same samples, as an accumulation buffer does.
+//!
+//! [`Light::stratified_sample`]: crate::scene::Light::stratified_sample
+
+pub mod cpu;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::InputError;
+
+pub const ID: &str = "accum_hard";
+
+/// Options of `accum_hard` (scenario `options.accum_hard`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AccumHardOptions {
+    /// N, the number of light samples: a perfect square in 16..=1024.
+    #[serde(default = "default_samples")]
+    pub samples: u32,
+}
+
+fn default_samples() -> u32 {
+    256
+}
+
+impl Default for AccumHardOptions {
+    fn default() -> Self {
+        AccumHardOptions {
+            samples: default_samples(),
+        }
+    }
+}
+
+impl AccumHardOptions {
+    /// The side k of the k×k sample grid.
+    pub fn strata_side(&self) -> Result<u32, InputError> {
+        match super::reference::strata_side(self.samples) {
+            Some(k) if (16..=1024).contains(&self.samples) => Ok(k),
+            _ => Err(InputError::new(
+                format!("$.options.{ID}.samples"),
+                format!(
+                    "must be a perfect square in 16..=1024 (16, 25, ..., 256, ..., 1024), got {}",
+                    self.samples
+                ),
+            )),
+        }
+    }
+}
+
+pub fn check_options(
+    options: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Result<(), InputError> {
+    super::shadow_map::parse_options::<AccumHardOptions>(ID, options)?
+        .strata_side()
+        .map(|_| ())
+}
+
+/// Bytes of the eye-sized buffers (stencil and the f32 accumulation buffer), estimated before
+/// anything is allocated, for the harness's memory limit.
+pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+    u64::from(p.image[0]) * u64::from(p.image[1]) * (1 + 4)
+}

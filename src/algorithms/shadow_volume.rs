@@ -1,0 +1,197 @@
+//! Hard shadow volumes (Crow 1977, as used by paper 001 pass 1 and by its "1024-sample"
+//! reference): one semi-infinite quad per silhouette edge, extruded away from a point on the
+//! light, counted per pixel in a stencil or V-buffer.
+//!
+//! Counting is z-pass: a quad fragment in front of the visible surface adds +1 when the quad
+//! faces the eye (the eye is on its outer side) and −1 otherwise, so a pixel's count is the
+//! number of shadow volumes its point lies in. A camera inside a shadow volume makes z-pass miss
+//! the volumes around the eye; the count is therefore started at the eye's own count (the
+//! light-facing occluder triangles the segment light→eye crosses, i.e. the front caps), which
+//! gives every pixel the same count depth-fail (z-fail) counting would give.
+
+use glam::Vec3;
+
+use super::eye_raster::{raster_pass, EyeRays, ScreenRect};
+use crate::record::Counters;
+use crate::scene::adjacency::SilhouetteEdge;
+use crate::scene::Mesh;
+
+/// The hard shadow quad of silhouette edge `a→b` from light point `light` (paper 001 III §3.2.1):
+/// the part of the plane through `a`, `b`, `light` beyond the edge and between the rays from the
+/// light through `a` and `b`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowQuad {
+    pub a: Vec3,
+    pub b: Vec3,
+    pub light: Vec3,
+    /// `(a − l) × (b − l)`: points on its positive side are outside the volume (the paper's
+    /// positive half-space of Q), points on its negative side are towards the umbra.
+    pub normal: Vec3,
+}
+
+impl ShadowQuad {
+    pub fn new(edge: &SilhouetteEdge, light: Vec3) -> ShadowQuad {
+        ShadowQuad {
+            a: edge.a,
+            b: edge.b,
+            light,
+            normal: (edge.a - light).cross(edge.b - light),
+        }
+    }
+
+    /// +1 on the outer (positive) side of the quad's plane, −1 on the inner side.
+    pub fn side(&self, p: Vec3) -> f32 {
+        if self.normal.dot(p - self.light) >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        }
+    }
+
+    /// Distance along `o + t·d` to the quad, if the ray meets it.
+    pub fn ray_hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
+        let n = self.normal;
+        let nd = n.dot(d);
+        if nd.abs() < 1e-12 * n.length() {
+            return None;
+        }
+        let t = n.dot(self.light - o) / nd;
+        let y = o + d * t;
+        let l = self.light;
+        let inside = (self.a - l).cross(y - l).dot(n) >= 0.0
+            && (y - l).cross(self.b - l).dot(n) >= 0.0
+            && (self.b - self.a).cross(y - self.a).dot(n) <= 0.0;
+        (t > 0.0 && inside).then_some(t)
+    }
+
+    /// Corners of the quad cut at distance `reach` (the scene size) beyond its edge.
+    pub fn hull(&self, reach: f32) -> [Vec3; 4] {
+        let ab = self.b - self.a;
+        let s = ((self.light - self.a).dot(ab) / ab.length_squared().max(1e-20)).clamp(0.0, 1.0);
+        let nearest = (self.a + ab * s - self.light).length().max(1e-6);
+        let k = reach / nearest;
+        [
+            self.a,
+            self.b,
+            self.b + (self.b - self.light) * k,
+            self.a + (self.a - self.light) * k,
+        ]
+    }
+}
+
+/// What the stencil (or V-buffer) pass of a set of shadow quads did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HardPass {
+    /// Per pixel: the number of shadow volumes its point is in (eye count included).
+    pub count: Vec<i32>,
+    /// Quad fragments rasterized (within the scene bounds).
+    pub fill: u64,
+    /// Fragments that passed the depth test and changed the count.
+    pub passed: u64,
+    /// The eye's own count, the value the buffer is cleared to.
+    pub eye_count: i32,
+}
+
+/// The eye's shadow-volume count for light point `light`: the light-facing triangles of
+/// `occluders` crossed by the segment from the light to `eye` (each the front cap of its
+/// volume).
+pub fn eye_count(occluders: &Mesh, light: Vec3, eye: Vec3) -> i32 {
+    let d = eye - light;
+    (0..occluders.triangles.len())
+        .filter(|&t| {
+            let [a, b, c] = occluders.triangle(t);
+            let n = (b - a).cross(c - a);
+            n.dot(light - a) > 0.0 && segment_hits_triangle(light, d, a, b, c)
+        })
+        .count() as i32
+}
+
+/// Möller–Trumbore for the segment `o + t·d`, `t ∈ (0, 1)`.
+fn segment_hits_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-12 {
+        return false;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(p) * inv;
+    let q = s.cross(e1);
+    let v = d.dot(q) * inv;
+    let t = e2.dot(q) * inv;
+    u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < 1.0
+}
+
+/// Renders `quads` z-pass into a count buffer cleared to `eye_count` (tiles of `tile` pixels).
+pub fn render_quads(rays: &EyeRays, quads: &[ShadowQuad], eye_count: i32, tile: u32) -> HardPass {
+    let reach = 2.0 * rays.bounds.diagonal();
+    let footprints: Vec<Option<ScreenRect>> = quads
+        .iter()
+        .map(|q| rays.footprint(&q.hull(reach)))
+        .collect();
+    let eye_sides: Vec<i32> = quads.iter().map(|q| q.side(rays.eye) as i32).collect();
+    struct State {
+        rect: ScreenRect,
+        width: u32,
+        count: Vec<i32>,
+        fill: u64,
+        passed: u64,
+    }
+    let tiles = raster_pass(
+        rays,
+        &footprints,
+        tile,
+        |rect| State {
+            rect,
+            width: rect.x1 - rect.x0,
+            count: vec![eye_count; ((rect.x1 - rect.x0) * (rect.y1 - rect.y0)) as usize],
+            fill: 0,
+            passed: 0,
+        },
+        |s, k, i| {
+            let (t0, t1) = rays.bounds_interval(i);
+            let Some(t) = quads[k].ray_hit(rays.eye, rays.dir[i]) else {
+                return;
+            };
+            if t < t0 || t > t1 {
+                return;
+            }
+            s.fill += 1;
+            if t < rays.depth[i] {
+                s.passed += 1;
+                let (x, y) = (i as u32 % rays.width, i as u32 / rays.width);
+                s.count[((y - s.rect.y0) * s.width + x - s.rect.x0) as usize] += eye_sides[k];
+            }
+        },
+    );
+    let mut out = HardPass {
+        count: vec![eye_count; rays.len()],
+        eye_count,
+        ..Default::default()
+    };
+    for t in tiles {
+        let s = t.state;
+        out.fill += s.fill;
+        out.passed += s.passed;
+        for y in s.rect.y0..s.rect.y1 {
+            for x in s.rect.x0..s.rect.x1 {
+                out.count[(y * rays.width + x) as usize] =
+                    s.count[((y - s.rect.y0) * s.width + x - s.rect.x0) as usize];
+            }
+        }
+    }
+    out
+}
+
+/// Counts `bytes` read from named buffer `buffer` (`mem.<buffer>.read_bytes` and the total).
+pub fn mem_read(c: &mut Counters, buffer: &str, bytes: u64) {
+    c.add(&format!("mem.{buffer}.read_bytes"), bytes as f64);
+    c.add("mem_read_bytes", bytes as f64);
+}
+
+/// Counts `bytes` written to named buffer `buffer` (`mem.<buffer>.write_bytes` and the total).
+pub fn mem_write(c: &mut Counters, buffer: &str, bytes: u64) {
+    c.add(&format!("mem.{buffer}.write_bytes"), bytes as f64);
+    c.add("mem_write_bytes", bytes as f64);
+}

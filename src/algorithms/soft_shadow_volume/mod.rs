@@ -1,0 +1,638 @@
+//! Soft shadow volumes with penumbra wedges (paper 001, Papers III and IV), the math once.
+//!
+//! Pass 1 renders the hard shadow quads of the silhouette seen from the light centre into the
+//! V-buffer exactly as hard shadow volumes do ([`super::shadow_volume`]). Pass 2 rasterizes one
+//! penumbra wedge per silhouette edge ([`Wedge`]); for each point p inside a wedge it projects
+//! the edge's hard shadow quad onto the light as seen from p, takes the fraction of the light the
+//! projection covers ([`exact_coverage`] or the 4D [`CoverageTexture`]) and adds it on the inner
+//! side of the quad, subtracts it on the outer side (III §3.2.2). Summed over a silhouette loop
+//! this is Green's theorem: the visible fraction of the light.
+//!
+//! Light coordinates: the emitter seen from p is spanned by two half-axes from its centre
+//! ([`crate::scene::Light::emitter_frame`]); a point of its plane is written in units of those
+//! half-axes, so a rectangle is `[−1, 1]²` and a sphere's disc is the unit disc.
+
+pub mod cpu;
+
+use std::collections::HashMap;
+
+use glam::{Vec2, Vec3};
+use serde::{Deserialize, Serialize};
+
+use super::eye_raster::ConvexVolume;
+use crate::error::InputError;
+use crate::scene::adjacency::SilhouetteEdge;
+use crate::scene::Light;
+
+/// The shape of the emitter in light coordinates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EmitterShape {
+    /// `[−1, 1]²`.
+    Square,
+    /// The unit disc.
+    Disc,
+}
+
+impl EmitterShape {
+    pub fn of(light: &Light) -> EmitterShape {
+        match light {
+            Light::Rect { .. } => EmitterShape::Square,
+            Light::Sphere { .. } | Light::Disc { .. } => EmitterShape::Disc,
+        }
+    }
+
+    /// Area in light coordinates.
+    pub fn area(self) -> f32 {
+        match self {
+            EmitterShape::Square => 4.0,
+            EmitterShape::Disc => std::f32::consts::PI,
+        }
+    }
+
+    /// The part `[t0, t1]` of the segment `q0 + t·(q1 − q0)`, `t ∈ [0, 1]`, inside the emitter
+    /// (III §3.3: the projected edge clipped against the light's border).
+    pub fn clip(self, q0: Vec2, q1: Vec2) -> Option<(Vec2, Vec2)> {
+        let d = q1 - q0;
+        let (mut t0, mut t1) = (0.0f32, 1.0f32);
+        // Clipped points are measured from the end nearer the centre: a projected end can be
+        // very far away, and the clipped points must not drown in its magnitude.
+        let (base, t_base) = if q0.length_squared() <= q1.length_squared() {
+            (q0, 0.0)
+        } else {
+            (q1, 1.0)
+        };
+        match self {
+            EmitterShape::Square => {
+                // Liang–Barsky against |x| ≤ 1, |y| ≤ 1.
+                for (p, q) in [
+                    (-d.x, q0.x + 1.0),
+                    (d.x, 1.0 - q0.x),
+                    (-d.y, q0.y + 1.0),
+                    (d.y, 1.0 - q0.y),
+                ] {
+                    if p == 0.0 {
+                        if q < 0.0 {
+                            return None;
+                        }
+                    } else if p < 0.0 {
+                        t0 = t0.max(q / p);
+                    } else {
+                        t1 = t1.min(q / p);
+                    }
+                }
+            }
+            EmitterShape::Disc => {
+                let len = d.length();
+                if len < 1e-20 {
+                    return (q0.length_squared() <= 1.0).then_some((q0, q1));
+                }
+                let u = d / len;
+                let along = -base.dot(u);
+                let closest = base + u * along;
+                let h2 = 1.0 - closest.length_squared();
+                if h2 < 0.0 {
+                    return None;
+                }
+                let h = h2.sqrt();
+                t0 = t0.max(t_base + (along - h) / len);
+                t1 = t1.min(t_base + (along + h) / len);
+            }
+        }
+        (t0 < t1).then(|| (base + d * (t0 - t_base), base + d * (t1 - t_base)))
+    }
+}
+
+/// The emitter plane as seen from a point: centre, half-axes and unit normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Emitter {
+    pub center: Vec3,
+    pub half_u: Vec3,
+    pub half_v: Vec3,
+    pub normal: Vec3,
+    pub shape: EmitterShape,
+}
+
+impl Emitter {
+    pub fn seen_from(light: &Light, p: Vec3) -> Emitter {
+        let (center, half_u, half_v) = light.emitter_frame(p);
+        Emitter {
+            center,
+            half_u,
+            half_v,
+            normal: half_u.cross(half_v).normalize_or(Vec3::Y),
+            shape: EmitterShape::of(light),
+        }
+    }
+
+    /// Projects silhouette edge `a→b` from `p` onto the emitter plane, in light coordinates.
+    /// The edge is first clipped to the half-space in front of p towards the light, then
+    /// projected (IV §4.2.2: "clip the edge first and then project it; otherwise points behind
+    /// the origin of the projection will be inverted"). `None` when nothing is in front of p.
+    pub fn project_edge(&self, p: Vec3, a: Vec3, b: Vec3) -> Option<(Vec2, Vec2)> {
+        let towards = self.normal * self.normal.dot(self.center - p).signum();
+        let dist = towards.dot(self.center - p);
+        if dist <= 0.0 {
+            return None;
+        }
+        // Homogeneous w: the fraction of the way from p to the light plane.
+        let (wa, wb) = (towards.dot(a - p) / dist, towards.dot(b - p) / dist);
+        const W_MIN: f32 = 1e-4;
+        if wa < W_MIN && wb < W_MIN {
+            return None;
+        }
+        let clip = |w_in: f32, w_out: f32, x_in: Vec3, x_out: Vec3| {
+            let t = (w_in - W_MIN) / (w_in - w_out);
+            (x_in + (x_out - x_in) * t, W_MIN)
+        };
+        let ((a, wa), (b, wb)) = match (wa >= W_MIN, wb >= W_MIN) {
+            (true, true) => ((a, wa), (b, wb)),
+            (true, false) => ((a, wa), clip(wa, wb, a, b)),
+            _ => (clip(wb, wa, b, a), (b, wb)),
+        };
+        let to_light = |x: Vec3, w: f32| {
+            let r = p + (x - p) / w - self.center;
+            Vec2::new(
+                r.dot(self.half_u) / self.half_u.length_squared(),
+                r.dot(self.half_v) / self.half_v.length_squared(),
+            )
+        };
+        Some((to_light(a, wa), to_light(b, wb)))
+    }
+}
+
+/// Coverage of the emitter by the projected hard shadow quad of an edge whose projection,
+/// clipped to the emitter, is `q0q1` (both inside): the area between the rays from the light
+/// centre through `q0` and `q1` beyond the segment, over the emitter's area. This is the area
+/// inside the infinite sector minus the triangle (centre, q0, q1) (IV §4.2.2, Figure 6a),
+/// computed by exact clipping (III §3.2.2) for a square and by the sector formula for a disc.
+pub fn exact_coverage(shape: EmitterShape, q0: Vec2, q1: Vec2) -> f32 {
+    let cross = q0.perp_dot(q1);
+    let (q0, q1) = if cross >= 0.0 { (q0, q1) } else { (q1, q0) };
+    let cross = cross.abs();
+    if cross <= 0.0 {
+        return 0.0;
+    }
+    let area = match shape {
+        EmitterShape::Square => {
+            // The square clipped by the sector's two rays and the segment's line.
+            let mut poly = vec![
+                Vec2::new(-1.0, -1.0),
+                Vec2::new(1.0, -1.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(-1.0, 1.0),
+            ];
+            poly = clip_half_plane(&poly, |x| q0.perp_dot(x));
+            poly = clip_half_plane(&poly, |x| x.perp_dot(q1));
+            poly = clip_half_plane(&poly, |x| -(q1 - q0).perp_dot(x - q0));
+            polygon_area(&poly)
+        }
+        EmitterShape::Disc => {
+            let angle = cross.atan2(q0.dot(q1));
+            0.5 * angle - 0.5 * cross
+        }
+    };
+    (area / shape.area()).clamp(0.0, 1.0)
+}
+
+/// Sutherland–Hodgman: the part of `poly` where `f ≥ 0` (`f` affine).
+fn clip_half_plane(poly: &[Vec2], f: impl Fn(Vec2) -> f32) -> Vec<Vec2> {
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for (i, &p) in poly.iter().enumerate() {
+        let q = poly[(i + 1) % poly.len()];
+        let (fp, fq) = (f(p), f(q));
+        if fp >= 0.0 {
+            out.push(p);
+        }
+        if (fp >= 0.0) != (fq >= 0.0) {
+            out.push(p + (q - p) * (fp / (fp - fq)));
+        }
+    }
+    out
+}
+
+/// Shoelace area of a convex polygon.
+fn polygon_area(poly: &[Vec2]) -> f32 {
+    let n = poly.len();
+    (0..n)
+        .map(|i| poly[i].perp_dot(poly[(i + 1) % n]))
+        .sum::<f32>()
+        .abs()
+        * 0.5
+}
+
+/// The 4D coverage texture of III §3.3: `n×n` sub-textures of `n×n` texels, sub-texture
+/// `(a, b)` holding the coverage for a first clipped end point at texel centre `(a, b)` and a
+/// second end point at each texel centre, precomputed by exact clipping and stored in 8 bits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CoverageTexture {
+    pub n: u32,
+    pub shape: EmitterShape,
+    /// `n²×n²` texels, row-major: texel `(a·n + i, b·n + j)` at index `(b·n + j)·n² + a·n + i`.
+    pub texels: Vec<u8>,
+}
+
+impl CoverageTexture {
+    pub fn build(shape: EmitterShape, n: u32) -> CoverageTexture {
+        let side = (n * n) as usize;
+        let texels = (0..side * side)
+            .map(|k| {
+                let (tx, ty) = ((k % side) as u32, (k / side) as u32);
+                let q0 = Self::centre(n, tx / n, ty / n);
+                let q1 = Self::centre(n, tx % n, ty % n);
+                let c = shape
+                    .clip(q0, q1)
+                    .map_or(0.0, |(c0, c1)| exact_coverage(shape, c0, c1));
+                (c * 255.0).round() as u8
+            })
+            .collect();
+        CoverageTexture { n, shape, texels }
+    }
+
+    /// Light coordinate of texel centre `(i, j)`.
+    fn centre(n: u32, i: u32, j: u32) -> Vec2 {
+        Vec2::new(
+            -1.0 + (2 * i + 1) as f32 / n as f32,
+            -1.0 + (2 * j + 1) as f32 / n as f32,
+        )
+    }
+
+    /// Texel position (continuous) of a light coordinate.
+    fn texel_pos(&self, q: Vec2) -> Vec2 {
+        ((q + Vec2::ONE) * 0.5 * self.n as f32 - Vec2::splat(0.5))
+            .clamp(Vec2::ZERO, Vec2::splat((self.n - 1) as f32))
+    }
+
+    fn texel(&self, a: u32, b: u32, i: u32, j: u32) -> f32 {
+        let side = self.n * self.n;
+        self.texels[((b * self.n + j) * side + a * self.n + i) as usize] as f32 / 255.0
+    }
+
+    /// Coverage of the clipped projected edge `q0q1`: the sub-texture of the texel centre
+    /// nearest `q0`, read bilinearly at `q1` (III §3.3). Four texel reads of one byte.
+    pub fn lookup(&self, q0: Vec2, q1: Vec2) -> f32 {
+        let s = self.texel_pos(q0).round();
+        let (a, b) = (s.x as u32, s.y as u32);
+        let t = self.texel_pos(q1);
+        let (i0, j0) = (t.x.floor() as u32, t.y.floor() as u32);
+        let (i1, j1) = ((i0 + 1).min(self.n - 1), (j0 + 1).min(self.n - 1));
+        let f = t - Vec2::new(i0 as f32, j0 as f32);
+        let top = self.texel(a, b, i0, j0) * (1.0 - f.x) + self.texel(a, b, i1, j0) * f.x;
+        let bottom = self.texel(a, b, i0, j1) * (1.0 - f.x) + self.texel(a, b, i1, j1) * f.x;
+        top * (1.0 - f.y) + bottom * f.y
+    }
+
+    /// Texture reads per lookup (bilinear).
+    pub const READS: u64 = 4;
+
+    pub fn bytes(&self) -> u64 {
+        self.texels.len() as u64
+    }
+}
+
+/// A penumbra wedge: a convex volume that encloses the penumbra volume of one silhouette edge
+/// (III §3.1, IV §4.1), with the points whose hull bounds it on screen.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Wedge {
+    pub volume: ConvexVolume,
+    /// The wedge's top edge and its far corners at distance `reach`.
+    pub hull: Vec<Vec3>,
+}
+
+/// The edge with its vertex farther from the light centre moved towards the centre to the
+/// distance of the other (III §3.1, Figure 5a): the top edge of the wedge.
+pub fn wedge_top_edge(a: Vec3, b: Vec3, light_centre: Vec3) -> (Vec3, Vec3) {
+    let (da, db) = ((a - light_centre).length(), (b - light_centre).length());
+    if da > db {
+        (light_centre + (a - light_centre) * (db / da), b)
+    } else {
+        (a, light_centre + (b - light_centre) * (da / db))
+    }
+}
+
+/// A plane through `x` containing direction `dir`, tangent to the sphere (`centre`, `radius`),
+/// with the sphere on its positive side; of the two, the one whose normal has a positive
+/// component along `lean` (orthogonal to `dir`). Its negative side contains the light reflected
+/// through `x`. `None` when `x` lies inside the sphere's tangent cone.
+fn tangent_plane(x: Vec3, dir: Vec3, centre: Vec3, radius: f32, lean: Vec3) -> Option<Vec3> {
+    let d = dir.normalize_or_zero();
+    let m = centre - x;
+    let m_perp = m - d * m.dot(d);
+    let h = m_perp.length();
+    if h <= radius || d == Vec3::ZERO {
+        return None;
+    }
+    let u = m_perp / h;
+    let v = d.cross(u);
+    let alpha = radius / h;
+    let beta = (1.0 - alpha * alpha).sqrt();
+    let sign = if v.dot(lean) >= 0.0 { 1.0 } else { -1.0 };
+    Some(u * alpha + v * (beta * sign))
+}
+
+impl Wedge {
+    /// The robust wedge of III §3.1 around a spherical light (or the bounding sphere of a
+    /// rectangle): front and back planes through the top edge tangent to the sphere on either
+    /// side, and left and right planes through each top-edge vertex containing the direction
+    /// perpendicular to the edge and to the light centre, tangent to the sphere on the far side.
+    pub fn robust(a: Vec3, b: Vec3, centre: Vec3, radius: f32, reach: f32) -> Option<Wedge> {
+        let (x0, x1) = wedge_top_edge(a, b, centre);
+        let d = x1 - x0;
+        let m = centre - x0;
+        let across = d.cross(m);
+        let front = tangent_plane(x0, d, centre, radius, across)?;
+        let back = tangent_plane(x0, d, centre, radius, -across)?;
+        let mut planes = vec![(front, front.dot(x0)), (back, back.dot(x0))];
+        let mut hull = vec![x0, x1];
+        for (x, other) in [(x0, x1), (x1, x0)] {
+            let w = d.cross(centre - x);
+            let side = tangent_plane(x, w, centre, radius, x - other)?;
+            planes.push((side, side.dot(x)));
+            for fb in [front, back] {
+                let dir = fb.cross(side).normalize_or_zero();
+                let dir = if dir.dot(x - centre) >= 0.0 {
+                    dir
+                } else {
+                    -dir
+                };
+                hull.push(x + dir * reach);
+            }
+        }
+        Some(Wedge {
+            volume: ConvexVolume { planes },
+            hull,
+        })
+    }
+
+    /// The tighter wedge of IV §4.1 for a rectangular light: the convex hull of the two
+    /// pyramids formed by reflecting the rectangle through the top-edge vertices (their outer
+    /// triangles close the sides), between front and back planes through the top edge that
+    /// touch the rectangle.
+    pub fn tight_rect(a: Vec3, b: Vec3, corners: [Vec3; 4], reach: f32) -> Option<Wedge> {
+        let centre = corners.iter().sum::<Vec3>() / 4.0;
+        let (x0, x1) = wedge_top_edge(a, b, centre);
+        let d = x1 - x0;
+        let rays: Vec<Vec3> = [x0, x1]
+            .iter()
+            .flat_map(|&x| corners.map(|c| (x - c).normalize_or_zero()))
+            .collect();
+        // Facets of segment + cone(rays) are spanned by the edge and one ray, or by two rays.
+        let mut candidates: Vec<Vec3> = rays.iter().map(|r| d.cross(*r)).collect();
+        for i in 0..rays.len() {
+            for j in i + 1..rays.len() {
+                candidates.push(rays[i].cross(rays[j]));
+            }
+        }
+        let mut planes: Vec<(Vec3, f32)> = Vec::new();
+        for c in candidates {
+            let len = c.length();
+            if len < 1e-6 {
+                continue;
+            }
+            for n in [c / len, -c / len] {
+                if rays.iter().all(|r| n.dot(*r) <= 1e-6) {
+                    let dist = n.dot(x0).max(n.dot(x1));
+                    if !planes
+                        .iter()
+                        .any(|(m, e)| m.dot(n) > 1.0 - 1e-6 && (e - dist).abs() < 1e-6)
+                    {
+                        planes.push((n, dist));
+                    }
+                }
+            }
+        }
+        if planes.len() < 4 {
+            // The edge meets the light's plane: the wedge would be a half-space (IV §4.1).
+            return None;
+        }
+        let mut hull = vec![x0, x1];
+        hull.extend(
+            rays.iter()
+                .enumerate()
+                .map(|(k, r)| if k < 4 { x0 } else { x1 } + *r * reach),
+        );
+        Some(Wedge {
+            volume: ConvexVolume { planes },
+            hull,
+        })
+    }
+}
+
+/// The 12-bit V-buffer split across the four 8-bit channels of an rgba buffer (IV §4.3): each
+/// channel holds 3 bits of the value in its low bits and keeps its upper 5 bits for carries, so
+/// up to 32 overlapping contributions add without overflow under ordinary 8-bit additive
+/// blending.
+pub mod split12 {
+    /// Bits of the coverage value.
+    pub const BITS: u32 = 12;
+    /// Value bits per channel.
+    pub const DIGIT_BITS: u32 = 3;
+    pub const MAX: u32 = (1 << BITS) - 1;
+
+    /// Quantizes a coverage in [0, 1] to 12 bits and splits it into four 3-bit digits,
+    /// least significant first (the per-channel values a shader outputs).
+    pub fn split(coverage: f32) -> [u8; 4] {
+        let q = (coverage.clamp(0.0, 1.0) * MAX as f32).round() as u32;
+        std::array::from_fn(|k| ((q >> (DIGIT_BITS * k as u32)) & 0b111) as u8)
+    }
+
+    /// Additive blending into an 8-bit-per-channel buffer: saturates at 255 per channel.
+    pub fn blend(rgba: [u8; 4], digits: [u8; 4]) -> [u8; 4] {
+        std::array::from_fn(|k| rgba[k].saturating_add(digits[k]))
+    }
+
+    /// The accumulated value: each channel weighted by its digit position, carries included.
+    pub fn value(rgba: [u8; 4]) -> f32 {
+        let sum: u32 = (0..4)
+            .map(|k| (rgba[k] as u32) << (DIGIT_BITS * k as u32))
+            .sum();
+        sum as f32 / MAX as f32
+    }
+}
+
+/// Combines the shadow coverage of two silhouette loops whose overlap on the light is unknown
+/// (IV §5.1, eq. 1): `max(cA, cB) + ½·min(cA, cB)`, clamped to full coverage.
+pub fn overlap_coverage(ca: f32, cb: f32) -> f32 {
+    (ca.max(cb) + 0.5 * ca.min(cb)).min(1.0)
+}
+
+/// Splits silhouette edges into loops: groups of edges connected through shared vertices
+/// (IV §5.1; every silhouette vertex joins an even number of silhouette edges).
+pub fn silhouette_loops(edges: &[SilhouetteEdge]) -> Vec<Vec<SilhouetteEdge>> {
+    let mut parent: Vec<usize> = (0..edges.len()).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut first_at: HashMap<u32, usize> = HashMap::new();
+    for (k, e) in edges.iter().enumerate() {
+        for v in e.v {
+            match first_at.get(&v) {
+                Some(&j) => {
+                    let (ra, rb) = (root(&mut parent, k), root(&mut parent, j));
+                    parent[ra.max(rb)] = ra.min(rb);
+                }
+                None => {
+                    first_at.insert(v, k);
+                }
+            }
+        }
+    }
+    let mut loops: Vec<Vec<SilhouetteEdge>> = Vec::new();
+    let mut index: HashMap<usize, usize> = HashMap::new();
+    for (k, e) in edges.iter().enumerate() {
+        let r = root(&mut parent, k);
+        let l = *index.entry(r).or_insert_with(|| {
+            loops.push(Vec::new());
+            loops.len() - 1
+        });
+        loops[l].push(*e);
+    }
+    loops
+}
+
+/// The sub-lights of light splitting (IV §5.2): a rectangle cut into `k×k` equal rectangles.
+pub fn split_light(light: &Light, k: u32) -> Option<Vec<Light>> {
+    match *light {
+        Light::Rect {
+            center,
+            half_u,
+            half_v,
+        } => {
+            let (hu, hv) = (half_u / k as f32, half_v / k as f32);
+            Some(
+                (0..k * k)
+                    .map(|i| {
+                        let (a, b) = ((i % k) as f32, (i / k) as f32);
+                        let off = (2.0 * a + 1.0 - k as f32) * hu + (2.0 * b + 1.0 - k as f32) * hv;
+                        Light::Rect {
+                            center: center + off,
+                            half_u: hu,
+                            half_v: hv,
+                        }
+                    })
+                    .collect(),
+            )
+        }
+        _ if k == 1 => Some(vec![*light]),
+        _ => None,
+    }
+}
+
+/// How pass 2 computes coverage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CoverageMethod {
+    /// Exact clipping of the projected quad against the light (III §3.2.2).
+    #[default]
+    ExactClipping,
+    /// The precomputed 4D coverage texture (III §3.3).
+    Texture,
+}
+
+/// Number format of the V-buffer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VBufferPrecision {
+    /// One 32-bit float per pixel (III §4.1).
+    #[default]
+    F32,
+    /// Hard pass in an 8-bit stencil; soft pass into an additive and a subtractive rgba8
+    /// buffer with the 12-bit split and carry bits (IV §4.3).
+    Split12,
+}
+
+/// Options of `soft_shadow_volume` (scenario `options.soft_shadow_volume`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SoftShadowVolumeOptions {
+    #[serde(default)]
+    pub coverage: CoverageMethod,
+    /// n of the n×n sub-textures of n×n texels (III §3.3).
+    #[serde(default = "default_texture_n")]
+    pub texture_n: u32,
+    /// Tighter wedges for rectangular lights (IV §4.1); off: wedges around the light's
+    /// bounding sphere (III §3.1).
+    #[serde(default = "yes")]
+    pub tighter_wedges: bool,
+    /// Wedge-half culling with depth and stencil tests (IV §4.4).
+    #[serde(default = "yes")]
+    pub wedge_culling: bool,
+    #[serde(default)]
+    pub vbuffer: VBufferPrecision,
+    /// Per silhouette loop V-buffers merged by eq. 1 (IV §5.1).
+    #[serde(default)]
+    pub overlap_approximation: bool,
+    /// Split a rectangular light into k×k sub-lights (IV §5.2); 1 = no splitting.
+    #[serde(default = "one")]
+    pub light_split: u32,
+}
+
+fn default_texture_n() -> u32 {
+    32
+}
+
+fn yes() -> bool {
+    true
+}
+
+fn one() -> u32 {
+    1
+}
+
+impl Default for SoftShadowVolumeOptions {
+    fn default() -> Self {
+        SoftShadowVolumeOptions {
+            coverage: CoverageMethod::default(),
+            texture_n: default_texture_n(),
+            tighter_wedges: true,
+            wedge_culling: true,
+            vbuffer: VBufferPrecision::default(),
+            overlap_approximation: false,
+            light_split: 1,
+        }
+    }
+}
+
+pub const ID: &str = "soft_shadow_volume";
+
+impl SoftShadowVolumeOptions {
+    pub fn validate(&self) -> Result<(), InputError> {
+        if !(2..=64).contains(&self.texture_n) {
+            return Err(InputError::new(
+                format!("$.options.{ID}.texture_n"),
+                format!("must be in 2..=64, got {}", self.texture_n),
+            ));
+        }
+        if !(1..=3).contains(&self.light_split) {
+            return Err(InputError::new(
+                format!("$.options.{ID}.light_split"),
+                format!(
+                    "must be 1, 2 or 3 (k×k sub-lights), got {}",
+                    self.light_split
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+pub fn check_options(
+    options: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Result<(), InputError> {
+    super::shadow_map::parse_options::<SoftShadowVolumeOptions>(ID, options)?.validate()
+}
+
+#[cfg(test)]
+mod tests;
+
+/// Bytes of the eye-sized buffers (V-buffer, stencil, per-loop buffers of the overlap
+/// approximation counted once) and the default 4D coverage texture (n⁴ 8-bit texels), estimated
+/// before anything is allocated, for the harness's memory limit.
+pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+    let pixels = u64::from(p.image[0]) * u64::from(p.image[1]);
+    let n = u64::from(default_texture_n());
+    pixels * (4 + 1 + 4) + n.pow(4)
+}

@@ -1,0 +1,271 @@
+//! `soft_shadow_volume` and `accum_hard` against the ground-truth reference and against the
+//! paper's stated properties.
+
+use std::collections::BTreeMap;
+
+use glam::Vec3;
+use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::metrics::{compare, ErrorMetrics};
+use shadowbench::scene::generators::{self, GeneratorParams};
+use shadowbench::scene::{Light, Mesh, Object, Role, Scene};
+
+const SSV: &str = "soft_shadow_volume";
+
+fn params(scene: &Scene) -> RunParams {
+    RunParams {
+        triangles: scene.triangle_count() as u32,
+        light_size: scene.light.size(),
+        map_resolution: 256,
+        tile_size: 16,
+        image: [64, 48],
+        occluder_height: None,
+        cores: None,
+    }
+}
+
+/// A single planar pentagon (an open surface: its outline is its silhouette from every point of
+/// the light) above the ground: no single-silhouette and no overlap error (III §5.3).
+fn planar_polygon_scene(light: Light) -> Scene {
+    let ground = generators::find("plate-on-plane")
+        .unwrap()
+        .build(&GeneratorParams::default());
+    let mut objects: Vec<Object> = ground
+        .objects
+        .into_iter()
+        .filter(|o| o.name != "plate")
+        .collect();
+    let ring: Vec<Vec3> = (0..5)
+        .map(|k| {
+            let a = k as f32 * std::f32::consts::TAU / 5.0 + 0.3;
+            Vec3::new(1.3 * a.cos(), 1.6 + 0.15 * a.sin(), 1.1 * a.sin())
+        })
+        .collect();
+    let mut positions = vec![Vec3::new(0.0, 1.6, 0.0)];
+    positions.extend(ring);
+    objects.push(Object {
+        name: "pentagon".into(),
+        mesh: Mesh {
+            positions,
+            triangles: (0..5u32).map(|k| [0, 1 + (k + 1) % 5, 1 + k]).collect(),
+        },
+        role: Role::BOTH,
+    });
+    Scene {
+        name: "pentagon".into(),
+        objects,
+        camera: ground.camera,
+        light,
+    }
+}
+
+fn rect_light() -> Light {
+    Light::Rect {
+        center: Vec3::new(0.4, 6.0, 0.2),
+        half_u: Vec3::new(0.9, 0.0, 0.0),
+        half_v: Vec3::new(0.0, 0.0, 0.7),
+    }
+}
+
+fn run(frame: &Frame, id: &str, options: serde_json::Value) -> FrameOutput {
+    let mut ctx = ExecContext::default();
+    if !options.is_null() {
+        ctx.options = BTreeMap::from([(id.to_string(), options)]);
+    }
+    let out = algorithms::run(id, Backend::CpuNative, frame, &ctx).unwrap();
+    out.visibility.check_range().unwrap();
+    out
+}
+
+fn error(frame: &Frame, out: &FrameOutput, reference: &FrameOutput) -> ErrorMetrics {
+    compare(
+        &out.visibility,
+        &reference.visibility,
+        &frame.gbuffer.mask(),
+    )
+}
+
+fn counter(out: &FrameOutput, name: &str) -> f64 {
+    out.counters.get(name).unwrap_or(0.0)
+}
+
+#[test]
+fn planar_polygon_matches_the_reference_with_exact_clipping_and_the_4d_texture() {
+    let sphere = Light::Sphere {
+        center: Vec3::new(0.4, 6.0, 0.2),
+        radius: 0.9,
+    };
+    for light in [rect_light(), sphere] {
+        let scene = planar_polygon_scene(light);
+        let frame = Frame::new(scene.clone(), params(&scene));
+        let reference = run(&frame, "reference", serde_json::Value::Null);
+        let exact = error(
+            &frame,
+            &run(&frame, SSV, serde_json::Value::Null),
+            &reference,
+        );
+        let texture = error(
+            &frame,
+            &run(&frame, SSV, serde_json::json!({ "coverage": "texture" })),
+            &reference,
+        );
+        eprintln!("{:?}: exact {exact:?}\ntexture {texture:?}", light.kind());
+        assert!(exact.shadow_pixels > 200, "the shadow must be on screen");
+        // Over all surface pixels, and (stricter) over the pixels in shadow in either image.
+        assert!(exact.mae <= 0.02, "{:?} exact: {exact:?}", light.kind());
+        assert!(
+            exact.mae_shadow <= 0.02,
+            "{:?} exact: {exact:?}",
+            light.kind()
+        );
+        assert!(
+            texture.mae <= 0.03,
+            "{:?} texture: {texture:?}",
+            light.kind()
+        );
+        assert!(
+            texture.mae_shadow <= 0.03,
+            "{:?} texture: {texture:?}",
+            light.kind()
+        );
+    }
+}
+
+#[test]
+fn accumulated_hard_shadows_converge_to_the_reference() {
+    let scene = planar_polygon_scene(rect_light());
+    let frame = Frame::new(scene.clone(), params(&scene));
+    let reference = run(&frame, "reference", serde_json::Value::Null);
+    let e16 = error(
+        &frame,
+        &run(&frame, "accum_hard", serde_json::json!({ "samples": 16 })),
+        &reference,
+    );
+    let e256 = error(
+        &frame,
+        &run(&frame, "accum_hard", serde_json::Value::Null),
+        &reference,
+    );
+    assert!(e256.mae < 0.01, "{e256:?}");
+    assert!(e256.mae_shadow < e16.mae_shadow, "{e256:?} vs {e16:?}");
+}
+
+#[test]
+fn culling_tighter_wedges_and_split_precision_change_cost_not_the_image() {
+    let scene = generators::find("cylinder-on-plane")
+        .unwrap()
+        .build(&GeneratorParams {
+            triangles: Some(300),
+            ..Default::default()
+        });
+    let scene = Scene {
+        light: rect_light(),
+        ..scene
+    };
+    let frame = Frame::new(scene.clone(), params(&scene));
+    let base = run(&frame, SSV, serde_json::Value::Null);
+    let no_cull = run(&frame, SSV, serde_json::json!({ "wedge_culling": false }));
+    let loose = run(&frame, SSV, serde_json::json!({ "tighter_wedges": false }));
+    let split = run(&frame, SSV, serde_json::json!({ "vbuffer": "split12" }));
+    let mask = frame.gbuffer.mask();
+    for (name, other, tol) in [
+        ("no culling", &no_cull, 1e-4),
+        ("bounding-sphere wedges", &loose, 1e-4),
+        ("split12", &split, 2e-3),
+    ] {
+        let e = compare(&other.visibility, &base.visibility, &mask);
+        assert!(e.max <= tol, "{name}: {e:?}");
+    }
+    // IV §4.4: culling runs the shader only inside the wedge halves.
+    assert!(counter(&base, "shader_invocations") < counter(&no_cull, "shader_invocations"));
+    assert!(counter(&base, "culled_fragments") > 0.0);
+    // IV §4.1: wedges from the rectangle rasterize fewer fragments than bounding-sphere ones.
+    let soft_fill = |o: &FrameOutput| {
+        o.phases
+            .iter()
+            .find(|p| p.name == "soft")
+            .unwrap()
+            .counters
+            .get("fill")
+            .unwrap()
+    };
+    assert!(soft_fill(&base) < soft_fill(&loose));
+    // The split V-buffer moves its hard pass to an 8-bit stencil.
+    assert!(counter(&split, "mem.stencil.write_bytes") > counter(&base, "mem.stencil.write_bytes"));
+}
+
+#[test]
+fn accumulation_bandwidth_grows_with_the_sample_count() {
+    let scene = planar_polygon_scene(rect_light());
+    let frame = Frame::new(scene.clone(), params(&scene));
+    let bytes = |o: &FrameOutput| {
+        ["depth", "stencil", "vbuffer"]
+            .iter()
+            .map(|b| {
+                counter(o, &format!("mem.{b}.read_bytes"))
+                    + counter(o, &format!("mem.{b}.write_bytes"))
+            })
+            .sum::<f64>()
+    };
+    let a16 = bytes(&run(
+        &frame,
+        "accum_hard",
+        serde_json::json!({ "samples": 16 }),
+    ));
+    let a64 = bytes(&run(
+        &frame,
+        "accum_hard",
+        serde_json::json!({ "samples": 64 }),
+    ));
+    let ssv = bytes(&run(&frame, SSV, serde_json::Value::Null));
+    // Every sample clears and rewrites the stencil: cost linear in N (III §5.2).
+    assert!((a64 / a16 - 4.0).abs() < 0.4, "{a16} {a64}");
+    assert!(ssv < a16, "{ssv} vs {a16}");
+}
+
+#[test]
+fn counters_and_images_do_not_depend_on_the_host_thread_count() {
+    let scene = generators::find("sphere-grid")
+        .unwrap()
+        .build(&GeneratorParams {
+            triangles: Some(800),
+            ..Default::default()
+        });
+    let frame = Frame::new(scene.clone(), params(&scene));
+    let opts = serde_json::json!({ "overlap_approximation": true, "vbuffer": "split12" });
+    let in_pool = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run(&frame, SSV, opts.clone()))
+    };
+    let (a, b) = (in_pool(1), in_pool(2));
+    assert_eq!(a.visibility, b.visibility);
+    assert_eq!(a.counters, b.counters);
+}
+
+#[test]
+fn bad_options_are_errors_that_name_the_field() {
+    let scene = planar_polygon_scene(Light::Sphere {
+        center: Vec3::new(0.0, 6.0, 0.0),
+        radius: 0.5,
+    });
+    let frame = Frame::new(scene.clone(), params(&scene));
+    let mut ctx = ExecContext::default();
+    ctx.options.insert(
+        "accum_hard".into(),
+        serde_json::json!({ "samples": 100000 }),
+    );
+    let e = algorithms::run("accum_hard", Backend::CpuNative, &frame, &ctx).unwrap_err();
+    assert!(
+        e.to_string().contains("$.options.accum_hard.samples"),
+        "{e}"
+    );
+    assert!(e.to_string().contains("100000"), "{e}");
+    // Light splitting needs a rectangle: a clear error, not a panic.
+    ctx.options
+        .insert(SSV.into(), serde_json::json!({ "light_split": 2 }));
+    let e = algorithms::run(SSV, Backend::CpuNative, &frame, &ctx).unwrap_err();
+    assert!(e.to_string().contains("rectangular"), "{e}");
+}
