@@ -71,6 +71,11 @@ fn hard_shadow_map_matches_the_reference_at_a_small_light() {
     assert!(dark > 20, "{dark} shadowed pixels");
     assert!(record.model_ms.unwrap() > 0.0);
     assert_eq!(record.execution["machine"], "larrabee-24");
+    // Every fragment that failed the depth test is overdraw; the map keeps at most one per texel.
+    let c = &record.counters;
+    let (fill, overdraw) = (c.get("fill").unwrap(), c.get("overdraw").unwrap());
+    assert!(overdraw >= c.get("depth_fail").unwrap() + c.get("fragments_rejected_early").unwrap());
+    assert!(fill - overdraw <= 512.0 * 512.0 && fill - overdraw > 0.0);
     let phases: Vec<&str> = record.phases.iter().map(|p| p.name.as_str()).collect();
     assert_eq!(phases, ["light_raster", "eye_lookup"]);
 }

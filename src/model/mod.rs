@@ -252,6 +252,14 @@ impl Machine {
         self.current().counters.add(name, v);
     }
 
+    /// The value of counter `name` in the current phase so far (0 when absent).
+    pub fn counter(&self, name: &str) -> f64 {
+        self.phases
+            .last()
+            .and_then(|p| p.counters.get(name))
+            .unwrap_or(0.0)
+    }
+
     /// Runs step `name` of the current phase: `weights.len()` tasks of `kernel`, each with its
     /// estimated cost for the scheduler. Returns the tasks' outputs in task order.
     pub fn run_step<K: TaskKernel>(
@@ -402,9 +410,7 @@ impl Machine {
                     total.add(k, *v);
                 }
             }
-            if model {
-                set_utilization(&mut p.counters);
-            }
+            set_ratios(&mut p.counters);
             phases.push(Phase {
                 name: p.name,
                 wall_ms: p.wall_ms,
@@ -415,8 +421,8 @@ impl Machine {
         }
         let model_ms = model.then(|| phases.iter().filter_map(|p| p.model_ms).sum());
         let mut execution = BTreeMap::new();
+        set_ratios(&mut total);
         if model {
-            set_utilization(&mut total);
             let m = &self.config;
             execution.insert("machine".into(), serde_json::json!(m.name));
             execution.insert("machine_cores".into(), serde_json::json!(m.cores));
@@ -435,12 +441,18 @@ impl Machine {
     }
 }
 
-/// `simd_utilization`: active lanes over lane slots of the vector instructions.
-fn set_utilization(c: &mut Counters) {
+/// Ratios derived from summed counters: `simd_utilization` (active lanes over lane slots of the
+/// vector instructions) and `overdraw_ratio` (overdraw over fill).
+fn set_ratios(c: &mut Counters) {
     let ops = c.get("vector_ops").unwrap_or(0.0);
     if ops > 0.0 {
         let lanes = c.get("active_lanes").unwrap_or(0.0);
         c.set("simd_utilization", lanes / (ops * LANES as f64));
+    }
+    if let (Some(o), Some(f)) = (c.get("overdraw"), c.get("fill")) {
+        if f > 0.0 {
+            c.set("overdraw_ratio", o / f);
+        }
     }
 }
 

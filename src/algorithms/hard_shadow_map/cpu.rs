@@ -53,10 +53,13 @@ pub fn light_raster(m: &mut Machine, frame: &Frame) -> ShadowMap {
         &geometry,
         &DepthOnly,
     );
-    ShadowMap {
-        view,
-        map: out.depth.expect("a depth-only pipeline has depth"),
-    }
+    let map = out.depth.expect("a depth-only pipeline has depth");
+    // Overdraw: fragments that did not end up in the map (failed the depth test or were
+    // overwritten by a nearer one).
+    let kept = map.buf.data.iter().filter(|&&d| d < 1.0).count() as f64;
+    let overdraw = m.counter("fill") - kept;
+    m.count("overdraw", overdraw);
+    ShadowMap { view, map }
 }
 
 /// Eye samples of one 16-lane block in light space.
