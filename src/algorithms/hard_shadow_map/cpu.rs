@@ -64,8 +64,13 @@ pub fn light_raster(m: &mut Machine, frame: &Frame) -> ShadowMap {
 
 /// Eye samples of one 16-lane block in light space.
 pub struct Receivers {
-    /// Lanes with a surface in front of the light; the others are lit.
+    /// Lanes with a surface in front of the light that faces it; the others are lit, or
+    /// averted.
     pub mask: Mask,
+    /// Lanes whose surface faces away from the light centre (n·l ≤ 0): the surface itself hides
+    /// the light from a point light, so they are in shadow whatever the map holds (a bias large
+    /// enough for grazing angles would otherwise light them).
+    pub averted: Mask,
     pub uv: Lanes<Vec2>,
     /// Linear depth from the light.
     pub z: Lanes<f32>,
@@ -144,6 +149,7 @@ impl<L: Lookup> EyePass<'_, L> {
         let (w, h) = (g.width, g.height);
         let mut r = Receivers {
             mask: Mask::NONE,
+            averted: Mask::NONE,
             uv: [Vec2::ZERO; LANES],
             z: [0.0; LANES],
             bias: [0.0; LANES],
@@ -166,6 +172,10 @@ impl<L: Lookup> EyePass<'_, L> {
                     continue;
                 };
                 let n_dot_l = nrm[c].dot((self.light - pos[c]).normalize_or_zero());
+                if n_dot_l <= 0.0 {
+                    r.averted.0 |= 1 << lane;
+                    continue;
+                }
                 r.mask.0 |= 1 << lane;
                 r.uv[lane] = uv;
                 r.z[lane] = z;
@@ -202,6 +212,8 @@ impl<L: Lookup> TaskKernel for EyePass<'_, L> {
                         let lane = (row * BLOCK + c) as usize;
                         if r.mask.get(lane) {
                             out.push((i as u32 + c, v[lane].clamp(0.0, 1.0)));
+                        } else if r.averted.get(lane) {
+                            out.push((i as u32 + c, 0.0));
                         }
                     }
                 }

@@ -121,7 +121,12 @@ fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
         let m = project(pos.xyz);
         if m.w > 0.0 {
             let n_dot_l = dot(normals[i].xyz, normalize(light.eye - pos.xyz));
-            v = visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l));
+            // Receivers::averted: a surface facing away from the light centre is in shadow.
+            if n_dot_l <= 0.0 {
+                v = 0.0;
+            } else {
+                v = visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l));
+            }
         }
     }
     visibility[i] = v;
