@@ -1,154 +1,15 @@
 //! Degenerate geometry never crashes the scene pipeline and never puts NaN or a value outside
 //! [0, 1] into a visibility buffer. Property tests throw random triangle soups at it.
 
+mod common;
+
+use common::{camera, degenerate_scenes, frame_of, object};
 use glam::Vec3;
 use proptest::prelude::*;
 use shadowbench::algorithms::reference;
-use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scene::adjacency::EdgeAdjacency;
 use shadowbench::scene::generators::primitives;
-use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
-
-fn frame_of(objects: Vec<Object>, light: Light, camera: Camera) -> Frame {
-    let scene = Scene {
-        name: "degenerate".into(),
-        objects,
-        camera,
-        light,
-    };
-    let params = RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: light.size(),
-        map_resolution: 64,
-        tile_size: 16,
-        image: [24, 18],
-        occluder_height: None,
-        cores: None,
-    };
-    Frame::new(scene, params)
-}
-
-fn object(mesh: Mesh) -> Object {
-    Object {
-        name: "o".into(),
-        mesh,
-        role: Role::BOTH,
-    }
-}
-
-fn camera() -> Camera {
-    Camera {
-        eye: Vec3::new(0.0, 4.0, 6.0),
-        target: Vec3::ZERO,
-        up: Vec3::Y,
-        fov_y_deg: 50.0,
-    }
-}
-
-fn sphere_light(center: Vec3, radius: f32) -> Light {
-    Light::Sphere { center, radius }
-}
-
-/// The named degenerate scenes of the robustness list.
-fn degenerate_scenes() -> Vec<(&'static str, Frame)> {
-    let ground = || object(primitives::plane(4.0, 4));
-    let cube = |c: Vec3, s: f32| object(primitives::cuboid(c - Vec3::splat(s), c + Vec3::splat(s)));
-    let light = sphere_light(Vec3::new(0.5, 5.0, 0.2), 0.5);
-    let zero_area = Mesh {
-        positions: vec![
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(2.0, 1.0, 0.0),
-        ],
-        triangles: vec![[0, 1, 2], [0, 0, 1]],
-    };
-    let mut duplicated = primitives::cuboid(Vec3::splat(-0.5), Vec3::splat(0.5));
-    duplicated.append(&primitives::cuboid(Vec3::splat(-0.5), Vec3::splat(0.5)));
-    let non_manifold = Mesh {
-        positions: vec![
-            Vec3::new(-1.0, 1.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(0.0, 2.0, 0.5),
-            Vec3::new(0.0, 1.5, -1.0),
-            Vec3::new(0.0, 0.5, 0.5),
-        ],
-        triangles: vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
-    };
-    let open = {
-        let mut m = primitives::uv_sphere(12, 6);
-        m.triangles.truncate(m.triangles.len() / 2);
-        m.transformed(glam::Mat4::from_translation(Vec3::Y * 1.5))
-    };
-    vec![
-        (
-            "zero-area triangles",
-            frame_of(vec![ground(), object(zero_area)], light, camera()),
-        ),
-        (
-            "duplicate vertices and faces",
-            frame_of(vec![ground(), object(duplicated)], light, camera()),
-        ),
-        (
-            "non-manifold edge",
-            frame_of(vec![ground(), object(non_manifold)], light, camera()),
-        ),
-        (
-            "open mesh",
-            frame_of(vec![ground(), object(open)], light, camera()),
-        ),
-        (
-            "light inside a closed mesh",
-            frame_of(
-                vec![ground(), cube(Vec3::new(0.5, 5.0, 0.2), 1.0)],
-                light,
-                camera(),
-            ),
-        ),
-        (
-            "geometry touching the light",
-            frame_of(
-                vec![ground(), cube(Vec3::new(0.5, 4.0, 0.2), 0.5)],
-                light,
-                camera(),
-            ),
-        ),
-        (
-            "occluder behind the light",
-            frame_of(
-                vec![ground(), cube(Vec3::new(0.5, 8.0, 0.2), 1.0)],
-                light,
-                camera(),
-            ),
-        ),
-        (
-            "eye inside a shadow volume",
-            frame_of(
-                vec![ground(), cube(Vec3::new(0.0, 3.0, 3.0), 0.8)],
-                sphere_light(Vec3::new(0.0, 6.0, 6.0), 0.3),
-                camera(),
-            ),
-        ),
-        (
-            "edge pointing at the light centre",
-            frame_of(
-                vec![
-                    ground(),
-                    object(Mesh {
-                        positions: vec![
-                            Vec3::new(0.5, 2.0, 0.2),
-                            Vec3::new(0.5, 3.0, 0.2),
-                            Vec3::new(1.5, 2.0, 0.2),
-                        ],
-                        triangles: vec![[0, 1, 2]],
-                    }),
-                ],
-                light,
-                camera(),
-            ),
-        ),
-        ("empty scene", frame_of(vec![], light, camera())),
-    ]
-}
+use shadowbench::scene::{Light, Mesh};
 
 #[test]
 fn reference_stays_in_range_on_degenerate_scenes() {

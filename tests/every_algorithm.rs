@@ -1,0 +1,106 @@
+//! Properties every registered algorithm must have on every CPU execution: degenerate scenes
+//! give a result in [0, 1] or a clear failure (never a panic), and counters, modelled times
+//! and images do not depend on the host thread count.
+
+mod common;
+
+use common::degenerate_scenes;
+use shadowbench::algorithms::{Backend, ExecContext, ALGORITHMS};
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::harness::{light_as, run_one};
+use shadowbench::scene::generators::{self, GeneratorParams};
+
+/// The frame with its light converted to one `algorithm` handles, as the harness does.
+fn for_algorithm(frame: &Frame, algorithm: &str) -> Frame {
+    let info = shadowbench::algorithms::find(algorithm).unwrap();
+    let mut scene = frame.scene.clone();
+    let kind = info.light_for(scene.light.kind());
+    scene.light = light_as(scene.light, kind, scene.bounds().center());
+    Frame::new(scene, frame.params.clone())
+}
+
+fn cpu_backends(backends: &[Backend]) -> impl Iterator<Item = Backend> + '_ {
+    backends.iter().copied().filter(|b| *b != Backend::Wgpu)
+}
+
+#[test]
+fn degenerate_scenes_never_panic_nor_leave_the_unit_range() {
+    let ctx = ExecContext {
+        reference_samples: 4,
+        ..Default::default()
+    };
+    for (scene, frame) in degenerate_scenes() {
+        for info in ALGORITHMS {
+            let frame = for_algorithm(&frame, info.id);
+            for backend in cpu_backends(info.backends) {
+                let (record, out) = run_one(&frame, info.id, backend, &ctx, None);
+                // run_one turns panics and out-of-range values into failures; neither may happen.
+                if let Some(f) = &record.failure {
+                    assert!(
+                        !f.contains("panic") && !f.contains("invalid result"),
+                        "{} on {backend} with {scene}: {f}",
+                        info.id
+                    );
+                } else {
+                    let v = &out.expect("a run without failure has output").visibility;
+                    assert!(v.check_range().is_ok(), "{} {backend} {scene}", info.id);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn every_algorithm_is_deterministic_across_host_threads() {
+    let scene = generators::find("torus-on-plane")
+        .unwrap()
+        .build(&GeneratorParams::default());
+    let params = RunParams {
+        triangles: scene.triangle_count() as u32,
+        light_size: scene.light.size(),
+        map_resolution: 128,
+        tile_size: 16,
+        image: [48, 36],
+        occluder_height: None,
+        cores: None,
+    };
+    let base = Frame::new(scene, params);
+    let ctx = ExecContext {
+        reference_samples: 16,
+        ..Default::default()
+    };
+    for info in ALGORITHMS {
+        let frame = for_algorithm(&base, info.id);
+        for backend in cpu_backends(info.backends) {
+            let run = |threads: usize| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| run_one(&frame, info.id, backend, &ctx, None))
+            };
+            let ((a, va), (b, vb)) = (run(1), run(2));
+            assert!(
+                a.failure.is_none(),
+                "{} {backend}: {:?}",
+                info.id,
+                a.failure
+            );
+            assert_eq!(a.counters, b.counters, "{} {backend}", info.id);
+            assert_eq!(a.model_ms, b.model_ms, "{} {backend}", info.id);
+            let phase_models = |r: &shadowbench::record::RunRecord| {
+                r.phases.iter().map(|p| p.model_ms).collect::<Vec<_>>()
+            };
+            assert_eq!(phase_models(&a), phase_models(&b), "{} {backend}", info.id);
+            let bits = |v: Option<shadowbench::algorithms::FrameOutput>| {
+                v.unwrap()
+                    .visibility
+                    .data
+                    .iter()
+                    .map(|x| x.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(va), bits(vb), "{} {backend}", info.id);
+        }
+    }
+}
