@@ -5,6 +5,7 @@
 
 pub mod hard_shadow_map;
 pub mod pcss;
+pub mod penumbra_map;
 pub mod reference;
 pub mod shadow_map;
 
@@ -112,6 +113,15 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         memory_estimate: shadow_map::map_bytes,
         check_options: pcss::check_options,
     },
+    AlgorithmInfo {
+        id: penumbra_map::ID,
+        source: "000 §3-§4 (Wyman and Hansen 2003)",
+        summary: "shadow map + penumbra map of cones and sheets on the light-centre silhouette",
+        lights: &[LightKind::Sphere],
+        backends: &[Backend::CpuNative, Backend::CpuModel],
+        memory_estimate: penumbra_map::memory_estimate,
+        check_options: penumbra_map::check_options,
+    },
 ];
 
 /// `check_options` of an algorithm that takes no options.
@@ -132,7 +142,6 @@ pub fn no_options(
 /// a clear answer rather than "unknown".
 pub const NOT_YET_BUILT: &[&str] = &[
     "accum_hard",
-    "penumbra_map",
     "soft_shadow_volume",
     "dbuffer",
     "soft_shadow_map",
@@ -210,6 +219,12 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             frame,
             ctx,
             pcss::options(&ctx.options)?,
+        )),
+        penumbra_map::ID => Ok(penumbra_map::cpu::render(
+            backend,
+            frame,
+            ctx,
+            penumbra_map::options(&ctx.options)?,
         )),
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
