@@ -299,9 +299,9 @@ impl GeometryStep<'_> {
 
     /// §3: a cone with its tip at the vertex and its base on the far plane, as `segments`
     /// triangles with one vertex at the tip and two on the base.
-    fn cone(&self, g: &mut PenumbraGeometry, base: u32, v: Vec3) {
+    fn cone(&self, g: &mut PenumbraGeometry, v: Vec3) {
         let c = Cone::new(self.view, self.light_radius, v);
-        let tip = base + self.vertex(g, c.tip, c.z_v);
+        let tip = self.vertex(g, c.tip, c.z_v);
         for k in 0..self.segments {
             self.vertex(g, c.base_point(k, self.segments), c.z_v);
         }
@@ -312,8 +312,8 @@ impl GeometryStep<'_> {
     }
 
     /// §3: the sheet of an edge joining its two cones, in `strips` strips along the edge.
-    fn sheet(&self, g: &mut PenumbraGeometry, base: u32, sheet: &Sheet, strips: u32) {
-        let first = base;
+    fn sheet(&self, g: &mut PenumbraGeometry, sheet: &Sheet, strips: u32) {
+        let first = g.positions.len() as u32;
         for i in 0..=strips {
             let (near, far, z_v) = sheet.at(self.view, self.light_radius, i as f32 / strips as f32);
             self.vertex(g, near, z_v);
@@ -347,12 +347,12 @@ impl TaskKernel for GeometryStep<'_> {
         let base = self.layout.offsets[start];
         for i in start..end {
             let (v0, t0) = (g.positions.len(), g.triangles.len());
-            let (bv, _) = self.layout.offsets[i];
             if i < cones {
-                self.cone(&mut g, bv - base.0, self.s.vertices[i].1);
+                self.cone(&mut g, self.s.vertices[i].1);
             } else if let Some((sheet, strips)) = &self.s.sheets[i - cones] {
-                self.sheet(&mut g, bv - base.0, sheet, *strips);
+                self.sheet(&mut g, sheet, *strips);
             }
+            debug_assert_eq!(self.layout.offsets[i].0 - base.0, v0 as u32);
             let (nv, nt) = (g.positions.len() - v0, g.triangles.len() - t0);
             p.scalar(PRIM_SETUP_SCALAR);
             for k in (0..nv).step_by(LANES) {
