@@ -88,7 +88,7 @@ impl TaskKernel for SilhouetteTest<'_> {
                 let faces: Lanes<u32> = std::array::from_fn(|l| recs.get(l).map_or(0, |r| r[f]));
                 let has = mask.and(Mask::from_fn(|l| faces[l] != u32::MAX));
                 let tris = self.triangles.gather(p, &faces, has);
-                for c in 0..3 {
+                for c in [0, 1, 2] {
                     let idx: Lanes<u32> = std::array::from_fn(|l| tris[l][c]);
                     self.vertices.gather(p, &idx, has);
                 }
