@@ -7,6 +7,7 @@ pub mod accum_hard;
 pub mod eye_raster;
 pub mod hard_shadow_map;
 pub mod pcss;
+pub mod penumbra_map;
 pub mod reference;
 pub mod shadow_map;
 pub mod shadow_map_wgpu;
@@ -147,6 +148,15 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         memory_estimate: soft_shadow_volume::memory_estimate,
         check_options: soft_shadow_volume::check_options,
     },
+    AlgorithmInfo {
+        id: penumbra_map::ID,
+        source: "000 §3-§4 (Wyman and Hansen 2003)",
+        summary: "shadow map + penumbra map of cones and sheets on the light-centre silhouette",
+        lights: &[LightKind::Sphere],
+        backends: &[Backend::CpuNative, Backend::CpuModel],
+        memory_estimate: penumbra_map::memory_estimate,
+        check_options: penumbra_map::check_options,
+    },
 ];
 
 /// `check_options` of an algorithm that takes no options.
@@ -165,7 +175,7 @@ pub fn no_options(
 
 /// Algorithms of the design that are not built yet; named so that scenarios asking for them get
 /// a clear answer rather than "unknown".
-pub const NOT_YET_BUILT: &[&str] = &["penumbra_map", "dbuffer", "soft_shadow_map"];
+pub const NOT_YET_BUILT: &[&str] = &["dbuffer", "soft_shadow_map"];
 
 pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
     if let Some(a) = ALGORITHMS.iter().find(|a| a.id == id) {
@@ -252,6 +262,12 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         }
         accum_hard::ID => accum_hard::cpu::render(frame, ctx),
         soft_shadow_volume::ID => soft_shadow_volume::cpu::render(frame, ctx),
+        penumbra_map::ID => Ok(penumbra_map::cpu::render(
+            backend,
+            frame,
+            ctx,
+            penumbra_map::options(&ctx.options)?,
+        )),
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
 }

@@ -142,40 +142,50 @@ impl EdgeAdjacency {
     /// Silhouette edges seen from `p`: edges between a face that faces `p` and one that does not.
     pub fn silhouette_from(&self, p: Vec3) -> Silhouette {
         let mut s = Silhouette::default();
-        for e in &self.edges {
-            let kind = e.kind();
-            let facing: Vec<(u32, bool)> = e
-                .faces
-                .iter()
-                .filter_map(|&f| self.faces_point(f, p).map(|fr| (f, fr)))
-                .collect();
-            let front = facing.iter().find(|(_, fr)| *fr);
-            let is_silhouette = match kind {
-                EdgeKind::Boundary => !facing.is_empty(),
-                _ => front.is_some() && facing.iter().any(|(_, fr)| !*fr),
-            };
-            if !is_silhouette {
+        for e in 0..self.edges.len() {
+            let Some(edge) = self.silhouette_edge(e, p) else {
                 continue;
-            }
-            match kind {
+            };
+            match edge.kind {
                 EdgeKind::Boundary => s.boundary_edges += 1,
                 EdgeKind::NonManifold => s.non_manifold_edges += 1,
                 EdgeKind::Manifold => {}
             }
-            let [a, b] = e.v;
-            let forward = match front {
-                Some(&(f, _)) => self.winds(f, a, b),
-                None => !self.winds(facing[0].0, a, b),
-            };
-            let v = if forward { [a, b] } else { [b, a] };
-            s.edges.push(SilhouetteEdge {
-                a: self.vertices[v[0] as usize],
-                b: self.vertices[v[1] as usize],
-                v,
-                kind,
-            });
+            s.edges.push(edge);
         }
         s
+    }
+
+    /// Edge `e` as a silhouette edge seen from `p`, oriented as [`SilhouetteEdge`] says, or
+    /// `None` when it is not one (the per-edge test of [`Self::silhouette_from`]).
+    pub fn silhouette_edge(&self, e: usize, p: Vec3) -> Option<SilhouetteEdge> {
+        let e = &self.edges[e];
+        let kind = e.kind();
+        let facing: Vec<(u32, bool)> = e
+            .faces
+            .iter()
+            .filter_map(|&f| self.faces_point(f, p).map(|fr| (f, fr)))
+            .collect();
+        let front = facing.iter().find(|(_, fr)| *fr);
+        let is_silhouette = match kind {
+            EdgeKind::Boundary => !facing.is_empty(),
+            _ => front.is_some() && facing.iter().any(|(_, fr)| !*fr),
+        };
+        if !is_silhouette {
+            return None;
+        }
+        let [a, b] = e.v;
+        let forward = match front {
+            Some(&(f, _)) => self.winds(f, a, b),
+            None => !self.winds(facing[0].0, a, b),
+        };
+        let v = if forward { [a, b] } else { [b, a] };
+        Some(SilhouetteEdge {
+            a: self.vertices[v[0] as usize],
+            b: self.vertices[v[1] as usize],
+            v,
+            kind,
+        })
     }
 
     pub fn count(&self, kind: EdgeKind) -> usize {

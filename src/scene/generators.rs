@@ -56,6 +56,12 @@ pub const GENERATORS: &[Generator] = &[
         build: sphere_on_plane,
     },
     Generator {
+        name: "blob-on-plane",
+        summary: "lumpy closed blob (a bunny stand-in) above the ground, sphere light (paper 000)",
+        default_triangles: 10_000,
+        build: blob_on_plane,
+    },
+    Generator {
         name: "plate-on-plane",
         summary: "thin square plate parallel to the ground, square light (paper 002)",
         default_triangles: 200,
@@ -167,6 +173,44 @@ fn sphere_on_plane(p: &GeneratorParams, target: u32) -> Scene {
         Light::Sphere {
             center: Vec3::new(1.0, 8.0, 0.5),
             radius: 0.6,
+        },
+    )
+}
+
+/// A bunny-sized lumpy blob: a UV sphere displaced along its radius by a few smooth lobes
+/// (phases from the seed), so its silhouette has concavities and vertices where more than two
+/// silhouette edges meet, as the models of paper 000 do. Its lowest point is at the occluder
+/// height.
+fn blob_on_plane(p: &GeneratorParams, target: u32) -> Scene {
+    let h = p.occluder_height.unwrap_or(0.4);
+    let ground_tris = (target / 10).clamp(2, 2_000);
+    let phase = |k: u64| unit_f32(mix64(p.seed ^ mix64(k))) * std::f32::consts::TAU;
+    let (p1, p2, p3) = (phase(1), phase(2), phase(3));
+    let mut blob = primitives::uv_sphere_with_triangles(target.saturating_sub(ground_tris).max(8));
+    for v in &mut blob.positions {
+        let d = *v;
+        let lumps = 0.18 * (3.0 * d.x + p1).sin() * (2.0 * d.y + p2).cos()
+            + 0.12 * (4.0 * d.z + p3).sin() * (3.0 * d.x - p1).cos()
+            + 0.08 * (6.0 * d.y + p2 + p3).sin();
+        *v = d * Vec3::new(1.0, 0.8, 0.9) * (1.0 + lumps);
+    }
+    let lowest = blob
+        .positions
+        .iter()
+        .map(|v| v.y)
+        .fold(f32::INFINITY, f32::min);
+    let blob = blob.transformed(Mat4::from_translation(Vec3::new(0.0, h - lowest, 0.0)));
+    scene(
+        vec![ground(6.0, ground_tris), object("blob", blob, Role::BOTH)],
+        Camera {
+            eye: Vec3::new(0.0, 4.5, 6.0),
+            target: Vec3::new(-0.8, 0.6, -0.5),
+            up: Vec3::Y,
+            fov_y_deg: 45.0,
+        },
+        Light::Sphere {
+            center: Vec3::new(1.5, 7.0, 1.5),
+            radius: 0.5,
         },
     )
 }
@@ -888,6 +932,20 @@ mod tests {
                 .sum();
             assert!(vol > 0.0, "volume {vol}");
         }
+    }
+
+    #[test]
+    fn the_blob_is_closed_and_rests_at_the_occluder_height() {
+        let s = find("blob-on-plane").unwrap().build(&GeneratorParams {
+            triangles: Some(3_000),
+            occluder_height: Some(0.7),
+            ..Default::default()
+        });
+        let blob = &s.objects[1].mesh;
+        let adj = EdgeAdjacency::build(blob);
+        assert_eq!(adj.count(EdgeKind::Boundary), 0);
+        assert_eq!(adj.count(EdgeKind::NonManifold), 0);
+        assert!((blob.bounds().min.y - 0.7).abs() < 1e-5);
     }
 
     #[test]

@@ -30,6 +30,12 @@ pub struct ShadowMap {
 /// Phase `light_raster`: NDC depth of every triangle from the light centre, nearest kept.
 pub fn light_raster(m: &mut Machine, frame: &Frame) -> ShadowMap {
     m.phase("light_raster");
+    raster_shadow_map(m, frame)
+}
+
+/// The light pass in the current phase: the scene rasterized from the light centre, nearest
+/// NDC depth kept (the first pass of the penumbra map too).
+pub fn raster_shadow_map(m: &mut Machine, frame: &Frame) -> ShadowMap {
     let res = frame.params.map_resolution;
     let view = LightView::new(&frame.scene.light, frame.scene.bounds(), res);
     let mesh = &frame.flat.mesh;
@@ -94,13 +100,14 @@ pub trait Lookup: Sync {
     fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32>;
 }
 
-/// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the map.
-pub fn tap<P: Probe>(
+/// Element indices of the map texels holding `uv` on `mask`'s lanes, and the lanes inside the
+/// map (the address part of a tap; any map of the same size and layout shares them).
+pub fn texel_indices<P: Probe>(
     p: &mut P,
     map: &ShadowMap,
     uv: &Lanes<Vec2>,
     mask: Mask,
-) -> (Lanes<f32>, Mask) {
+) -> (Lanes<u32>, Mask) {
     p.vector(TAP_OPS, mask);
     let mut idx = [0u32; LANES];
     let inside = mask.and(Mask::from_fn(|l| match texel(&map.view, uv[l]) {
@@ -110,6 +117,17 @@ pub fn tap<P: Probe>(
         }
         None => false,
     }));
+    (idx, inside)
+}
+
+/// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the map.
+pub fn tap<P: Probe>(
+    p: &mut P,
+    map: &ShadowMap,
+    uv: &Lanes<Vec2>,
+    mask: Mask,
+) -> (Lanes<f32>, Mask) {
+    let (idx, inside) = texel_indices(p, map, uv, mask);
     (map.map.buf.gather(p, &idx, inside), inside)
 }
 

@@ -1,0 +1,551 @@
+//! Penumbra maps on the CPU executions (`cpu-native`, `cpu-model`), in the paper's passes:
+//!
+//! 1. `shadow_map`: the hard shadow map's light pass, unchanged;
+//! 2. `silhouettes`: brute-force silhouette extraction from the light centre over every edge of
+//!    the occluders (§4: "our application detects silhouettes using a brute force algorithm"),
+//!    then the silhouette vertices and how many silhouette edges meet at each;
+//! 3. `penumbra_map`: cones and sheets built per vertex and edge, drawn with the binned
+//!    rasterizer into a map cleared to white with min-blending, shaded by the fragment program
+//!    of §3 ([`PenumbraFragments`]);
+//! 4. `eye_lookup`: the umbra test in the shadow map, else the penumbra map's intensity.
+
+use glam::{Vec2, Vec3};
+
+use super::{intensity, Cone, PenumbraMapOptions, Sheet};
+use crate::algorithms::hard_shadow_map::cpu::{
+    eye_lookup, machine, output, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
+    COMPARE_OPS,
+};
+use crate::algorithms::hard_shadow_map::lit;
+use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::frame::Frame;
+use crate::model::raster::{
+    self, Blend, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface,
+    Target, TileRect,
+};
+use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
+
+/// Edges per task of the silhouette test.
+const EDGE_CHUNK: usize = 1024;
+/// Cones and sheets per task of the geometry step.
+const PRIM_CHUNK: usize = 64;
+
+/// Vector instructions of the facing test of 16 edges: per adjacent face, two edge vectors
+/// (6 subtracts), their cross product (3 multiplies, 3 multiply-adds), the vector to the light
+/// (3 subtracts) and a 3-term dot (3); then the compare of both faces and the mask xor (4).
+const FACING_OPS: u32 = 2 * 18 + 4;
+/// Scalar work per silhouette edge found: orientation from the front face's winding and the
+/// append to the edge list.
+const SILHOUETTE_EDGE_SCALAR: u32 = 8;
+/// Scalar work per silhouette edge in the vertex step: two counter updates with their
+/// first-seen tests, and the sheet's planarity test (two cones' far points, a cross product,
+/// a normalization, a dot, a divide).
+const VERTEX_STEP_EDGE_SCALAR: u32 = 6 + 40;
+/// Scalar work per cone or sheet: view-space projection of its points, cone radius, outward
+/// direction, loop control.
+const PRIM_SETUP_SCALAR: u32 = 24;
+/// Vector instructions per 16 cone base points or sheet points: angle or edge parameter,
+/// position (2 multiply-adds and a lerp of 3), radius, rim offset (2 multiply-adds), depth and
+/// its reciprocal.
+const POINT_OPS: u32 = 12;
+/// The fragment program of §3 per 16 fragments: perspective-correct `Z_v` (3 multiplies,
+/// 2 adds, a reciprocal, 3 multiply-adds), the discard compare, two NDC-to-linear depth
+/// conversions (a multiply-add, a reciprocal, a multiply each), eq. 1 (2 subtracts, a divide,
+/// a clamp) and `3t² − 2t³` (3). The paper's ARB program has 24 instructions.
+const FRAGMENT_OPS: u32 = 9 + 1 + 6 + 4 + 3 + 1;
+
+/// Edge records of the brute-force test: the two welded vertices and the first two faces
+/// (closed meshes have exactly two).
+fn edge_record(adj: &EdgeAdjacency, e: usize) -> [u32; 4] {
+    let edge = &adj.edges[e];
+    let face = |k: usize| edge.faces.get(k).copied().unwrap_or(u32::MAX);
+    [edge.v[0], edge.v[1], face(0), face(1)]
+}
+
+struct SilhouetteTest<'a> {
+    adj: &'a EdgeAdjacency,
+    light: Vec3,
+    edges: Buffer<[u32; 4]>,
+    triangles: Buffer<[u32; 3]>,
+    vertices: Buffer<Vec3>,
+    out: (crate::model::BufferId, u64),
+}
+
+impl TaskKernel for SilhouetteTest<'_> {
+    type Out = Vec<SilhouetteEdge>;
+
+    fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
+        let n = self.adj.edges.len();
+        let (start, end) = (chunk * EDGE_CHUNK, ((chunk + 1) * EDGE_CHUNK).min(n));
+        let mut found = Vec::new();
+        for group in (start..end).step_by(LANES) {
+            let k = (end - group).min(LANES);
+            let mask = Mask::first(k);
+            let recs = self.edges.load_run(p, group, k);
+            for f in 2..4 {
+                let faces: Lanes<u32> = std::array::from_fn(|l| recs.get(l).map_or(0, |r| r[f]));
+                let has = mask.and(Mask::from_fn(|l| faces[l] != u32::MAX));
+                let tris = self.triangles.gather(p, &faces, has);
+                for c in [0, 1, 2] {
+                    let idx: Lanes<u32> = std::array::from_fn(|l| tris[l][c]);
+                    self.vertices.gather(p, &idx, has);
+                }
+            }
+            p.vector(FACING_OPS, mask);
+            for e in group..group + k {
+                if let Some(s) = self.adj.silhouette_edge(e, self.light) {
+                    let at = (chunk * EDGE_CHUNK + found.len()) as u64 * 32;
+                    p.scalar(SILHOUETTE_EDGE_SCALAR);
+                    p.write(self.out.0, self.out.1 + at, 32);
+                    found.push(s);
+                }
+            }
+        }
+        found
+    }
+}
+
+/// The silhouette from the light centre, in light-view space, with what the cones and sheets
+/// of the penumbra map are built from.
+pub struct Silhouettes {
+    pub edges: Vec<SilhouetteEdge>,
+    /// Silhouette vertices (welded index, light-view position) in first-seen order.
+    pub vertices: Vec<(u32, Vec3)>,
+    /// Silhouette edges meeting at each of `vertices`.
+    pub edges_per_vertex: Vec<u32>,
+    /// Sheets of the edges (`None` for an edge seen end-on) and their strip counts.
+    pub sheets: Vec<Option<(Sheet, u32)>>,
+}
+
+impl Silhouettes {
+    /// Vertices with more than two silhouette edges (§2: "vertices with three or four adjacent
+    /// silhouette edges are not uncommon ... some pathological vertices can have up to eight").
+    pub fn vertices_over_two_edges(&self) -> usize {
+        self.edges_per_vertex.iter().filter(|&&n| n > 2).count()
+    }
+
+    pub fn max_edges_per_vertex(&self) -> u32 {
+        self.edges_per_vertex.iter().copied().max().unwrap_or(0)
+    }
+}
+
+/// The vertex step: silhouette vertices with their edge counts, and each edge's sheet.
+struct VertexStep<'a> {
+    edges: &'a [SilhouetteEdge],
+    view: &'a LightView,
+    light_radius: f32,
+    max_strips: u32,
+    vertex_count: usize,
+    counts: (crate::model::BufferId, u64),
+}
+
+impl TaskKernel for VertexStep<'_> {
+    type Out = Silhouettes;
+
+    fn run<P: Probe>(&self, p: &mut P, _: usize) -> Silhouettes {
+        let mut slot = vec![u32::MAX; self.vertex_count];
+        let mut s = Silhouettes {
+            edges: Vec::with_capacity(self.edges.len()),
+            vertices: Vec::new(),
+            edges_per_vertex: Vec::new(),
+            sheets: Vec::with_capacity(self.edges.len()),
+        };
+        let to_view = |v: Vec3| self.view.view.transform_point3(v);
+        for e in self.edges {
+            for (&w, pos) in e.v.iter().zip([e.a, e.b]) {
+                let addr = self.counts.1 + u64::from(w) * 4;
+                p.read(self.counts.0, addr, 4);
+                p.write(self.counts.0, addr, 4);
+                let i = &mut slot[w as usize];
+                if *i == u32::MAX {
+                    *i = s.vertices.len() as u32;
+                    s.vertices.push((w, to_view(pos)));
+                    s.edges_per_vertex.push(0);
+                }
+                s.edges_per_vertex[*i as usize] += 1;
+            }
+            p.scalar(VERTEX_STEP_EDGE_SCALAR);
+            let sheet = Sheet::new(self.view, to_view(e.a), to_view(e.b)).map(|sh| {
+                let n = sh.strips(self.view, self.light_radius, self.max_strips);
+                (sh, n)
+            });
+            s.sheets.push(sheet);
+            s.edges.push(*e);
+        }
+        s
+    }
+}
+
+/// Phase `silhouettes`: the brute-force test of every occluder edge against the light centre,
+/// then the vertex step.
+fn silhouettes(
+    m: &mut Machine,
+    adj: &EdgeAdjacency,
+    view: &LightView,
+    light: Vec3,
+    light_radius: f32,
+    o: &PenumbraMapOptions,
+) -> Silhouettes {
+    m.phase("silhouettes");
+    let n = adj.edges.len();
+    let test = SilhouetteTest {
+        adj,
+        light,
+        edges: m.memory.buffer(
+            "adjacency.edges",
+            (0..n).map(|e| edge_record(adj, e)).collect(),
+        ),
+        triangles: m
+            .memory
+            .buffer("adjacency.triangles", adj.triangles.clone()),
+        vertices: m.memory.buffer("adjacency.vertices", adj.vertices.clone()),
+        out: m.memory.reserve("silhouette.edges", n as u64 * 32),
+    };
+    let chunks = n.div_ceil(EDGE_CHUNK);
+    let weights: Vec<u64> = (0..chunks)
+        .map(|c| (((c + 1) * EDGE_CHUNK).min(n) - c * EDGE_CHUNK) as u64)
+        .collect();
+    let edges: Vec<SilhouetteEdge> = m
+        .run_step("edges", &test, &weights)
+        .into_iter()
+        .flatten()
+        .collect();
+    let step = VertexStep {
+        edges: &edges,
+        view,
+        light_radius,
+        max_strips: o.max_sheet_strips,
+        vertex_count: adj.vertices.len(),
+        counts: m
+            .memory
+            .reserve("silhouette.vertex_edges", adj.vertices.len() as u64 * 4),
+    };
+    let s = m
+        .run_step("vertices", &step, &[edges.len() as u64 + 1])
+        .pop()
+        .expect("one task");
+    m.count("silhouette.edges", s.edges.len() as f64);
+    m.count("silhouette.vertices", s.vertices.len() as f64);
+    m.count(
+        "silhouette.vertices_over_two_edges",
+        s.vertices_over_two_edges() as f64,
+    );
+    m.count(
+        "silhouette.max_edges_per_vertex",
+        f64::from(s.max_edges_per_vertex()),
+    );
+    s
+}
+
+/// Cones and sheets as triangles in light-view space; each vertex carries its `Z_v` and the
+/// reciprocal of its depth for perspective-correct interpolation.
+struct PenumbraGeometry {
+    positions: Vec<Vec3>,
+    /// (`Z_v`, 1/depth) per vertex.
+    attributes: Vec<Vec2>,
+    triangles: Vec<[u32; 3]>,
+}
+
+/// Where each cone and sheet puts its vertices and triangles (exclusive prefix sums, so that
+/// the geometry step's tasks write disjoint ranges).
+struct Layout {
+    /// (first vertex, first triangle) of primitive `i`: cones first, then sheets.
+    offsets: Vec<(u32, u32)>,
+    vertices: u32,
+    triangles: u32,
+}
+
+fn layout(s: &Silhouettes, segments: u32) -> Layout {
+    let sizes = s.vertices.iter().map(|_| (segments + 1, segments)).chain(
+        s.sheets
+            .iter()
+            .map(|sh| sh.map_or((0, 0), |(_, n)| (2 * (n + 1), 2 * n))),
+    );
+    let (mut v, mut t) = (0u32, 0u32);
+    let offsets = sizes
+        .map(|(nv, nt)| {
+            let o = (v, t);
+            v += nv;
+            t += nt;
+            o
+        })
+        .collect();
+    Layout {
+        offsets,
+        vertices: v,
+        triangles: t,
+    }
+}
+
+struct GeometryStep<'a> {
+    s: &'a Silhouettes,
+    view: &'a LightView,
+    light_radius: f32,
+    segments: u32,
+    layout: &'a Layout,
+    positions: &'a Buffer<Vec3>,
+    attributes: &'a Buffer<Vec2>,
+    triangles: &'a Buffer<[u32; 3]>,
+}
+
+impl GeometryStep<'_> {
+    fn vertex(&self, g: &mut PenumbraGeometry, p: Vec3, z_v: f32) -> u32 {
+        g.positions.push(p);
+        g.attributes.push(Vec2::new(z_v, 1.0 / super::depth(p)));
+        (g.positions.len() - 1) as u32
+    }
+
+    /// §3: a cone with its tip at the vertex and its base on the far plane, as `segments`
+    /// triangles with one vertex at the tip and two on the base.
+    fn cone(&self, g: &mut PenumbraGeometry, v: Vec3) {
+        let c = Cone::new(self.view, self.light_radius, v);
+        let tip = self.vertex(g, c.tip, c.z_v);
+        for k in 0..self.segments {
+            self.vertex(g, c.base_point(k, self.segments), c.z_v);
+        }
+        for k in 0..self.segments {
+            let next = (k + 1) % self.segments;
+            g.triangles.push([tip, tip + 1 + k, tip + 1 + next]);
+        }
+    }
+
+    /// §3: the sheet of an edge joining its two cones, in `strips` strips along the edge.
+    fn sheet(&self, g: &mut PenumbraGeometry, sheet: &Sheet, strips: u32) {
+        let first = g.positions.len() as u32;
+        for i in 0..=strips {
+            let (near, far, z_v) = sheet.at(self.view, self.light_radius, i as f32 / strips as f32);
+            self.vertex(g, near, z_v);
+            self.vertex(g, far, z_v);
+        }
+        for i in 0..strips {
+            let (n0, f0, n1, f1) = (
+                first + 2 * i,
+                first + 2 * i + 1,
+                first + 2 * i + 2,
+                first + 2 * i + 3,
+            );
+            g.triangles.push([n0, n1, f1]);
+            g.triangles.push([n0, f1, f0]);
+        }
+    }
+}
+
+impl TaskKernel for GeometryStep<'_> {
+    type Out = PenumbraGeometry;
+
+    fn run<P: Probe>(&self, p: &mut P, task: usize) -> PenumbraGeometry {
+        let cones = self.s.vertices.len();
+        let total = self.layout.offsets.len();
+        let (start, end) = (task * PRIM_CHUNK, ((task + 1) * PRIM_CHUNK).min(total));
+        let mut g = PenumbraGeometry {
+            positions: Vec::new(),
+            attributes: Vec::new(),
+            triangles: Vec::new(),
+        };
+        let base = self.layout.offsets[start];
+        for i in start..end {
+            let (v0, t0) = (g.positions.len(), g.triangles.len());
+            if i < cones {
+                self.cone(&mut g, self.s.vertices[i].1);
+            } else if let Some((sheet, strips)) = &self.s.sheets[i - cones] {
+                self.sheet(&mut g, sheet, *strips);
+            }
+            debug_assert_eq!(self.layout.offsets[i].0 - base.0, v0 as u32);
+            let (nv, nt) = (g.positions.len() - v0, g.triangles.len() - t0);
+            p.scalar(PRIM_SETUP_SCALAR);
+            for k in (0..nv).step_by(LANES) {
+                p.vector(POINT_OPS, Mask::first(nv - k));
+            }
+            let at = (base.0 as usize + v0, base.1 as usize + t0);
+            self.positions.record_store(p, at.0, nv);
+            self.attributes.record_store(p, at.0, nv);
+            self.triangles.record_store(p, at.1, nt);
+        }
+        // Task-local vertex indices become global.
+        for t in &mut g.triangles {
+            *t = t.map(|i| i + base.0);
+        }
+        g
+    }
+}
+
+/// The fragment program of §3 over the penumbra map's fragments, with the shadow map of the
+/// same view. Tile state: the fragments discarded (behind the shadow-map surface).
+struct PenumbraFragments<'a> {
+    shadow: &'a ShadowMap,
+    triangles: &'a Buffer<[u32; 3]>,
+    attributes: &'a Buffer<Vec2>,
+}
+
+impl FragmentKernel for PenumbraFragments<'_> {
+    type TileState = u64;
+
+    fn begin_tile(&self, _: TileRect) -> u64 {
+        0
+    }
+
+    fn shade<P: Probe>(&self, p: &mut P, discarded: &mut u64, f: &Fragments<'_>) -> Shade {
+        let view = &self.shadow.view;
+        let tri = self.triangles.load(p, f.prim as usize);
+        let attr = tri.map(|v| self.attributes.load(p, v as usize));
+        // Same view and resolution: the fragment's window coordinates address the shadow map.
+        let map = &self.shadow.map;
+        let block = map.block_index(f.x / raster::BLOCK, f.y / raster::BLOCK);
+        map.buf.record_load(p, block, LANES);
+        p.vector(FRAGMENT_OPS, f.mask);
+        let mut value = [1.0; LANES];
+        let mut keep = Mask::NONE;
+        for l in f.mask.lanes() {
+            let (z_f, z_p) = (f.z[l], map.buf.data[block + l]);
+            if z_f > z_p {
+                continue;
+            }
+            // Perspective-correct Z_v from the screen-space weights.
+            let w: [f32; 3] = std::array::from_fn(|k| f.bary[k][l] * attr[k].y);
+            let sum = w[0] + w[1] + w[2];
+            let z_v = if sum > 0.0 {
+                (w[0] * attr[0].x + w[1] * attr[1].x + w[2] * attr[2].x) / sum
+            } else {
+                attr[0].x
+            };
+            value[l] = intensity(view.linear_depth(z_f), view.linear_depth(z_p), z_v);
+            keep.0 |= 1 << l;
+        }
+        *discarded += u64::from(f.mask.and_not(keep).count());
+        Shade { value, mask: keep }
+    }
+}
+
+/// Phase `penumbra_map`: cones and sheets built (step `geometry`), then drawn into a map
+/// cleared to white, darkest kept (steps `binning` and `raster`).
+fn penumbra_map(
+    m: &mut Machine,
+    frame: &Frame,
+    shadow: &ShadowMap,
+    s: &Silhouettes,
+    light_radius: f32,
+    o: &PenumbraMapOptions,
+) -> Surface {
+    m.phase("penumbra_map");
+    let view = &shadow.view;
+    let layout = layout(s, o.cone_segments);
+    let mut positions = m.memory.buffer(
+        "penumbra.vertices",
+        vec![Vec3::ZERO; layout.vertices as usize],
+    );
+    let mut attributes = m.memory.buffer(
+        "penumbra.attributes",
+        vec![Vec2::ZERO; layout.vertices as usize],
+    );
+    let mut triangles = m.memory.buffer(
+        "penumbra.triangles",
+        vec![[0u32; 3]; layout.triangles as usize],
+    );
+    let step = GeometryStep {
+        s,
+        view,
+        light_radius,
+        segments: o.cone_segments,
+        layout: &layout,
+        positions: &positions,
+        attributes: &attributes,
+        triangles: &triangles,
+    };
+    let n = layout.offsets.len();
+    let weights: Vec<u64> = (0..n.div_ceil(PRIM_CHUNK))
+        .map(|t| (((t + 1) * PRIM_CHUNK).min(n) - t * PRIM_CHUNK) as u64)
+        .collect();
+    let parts = m.run_step("geometry", &step, &weights);
+    let (mut pv, mut pa, mut pt) = (Vec::new(), Vec::new(), Vec::new());
+    for g in parts {
+        pv.extend(g.positions);
+        pa.extend(g.attributes);
+        pt.extend(g.triangles);
+    }
+    positions.data = pv;
+    attributes.data = pa;
+    triangles.data = pt;
+    let cone_tris = s.vertices.len() as u32 * o.cone_segments;
+    m.count("penumbra.cone_triangles", f64::from(cone_tris));
+    m.count(
+        "penumbra.sheet_triangles",
+        f64::from(layout.triangles - cone_tris),
+    );
+
+    let res = frame.params.map_resolution;
+    let target = Target {
+        width: res,
+        height: res,
+        tile: frame.params.tile_size,
+    };
+    let pipeline = Pipeline {
+        cull: Cull::None,
+        coverage: Coverage::Center,
+        depth_clear: None,
+        depth_write: false,
+        // §4: the darkest contribution wins (the paper's GL_LESS on intensity as depth).
+        color: Some((1.0, Blend::Min)),
+    };
+    let geometry = Geometry {
+        positions: &positions,
+        triangles: &triangles,
+        view_proj: view.proj,
+    };
+    let kernel = PenumbraFragments {
+        shadow,
+        triangles: &triangles,
+        attributes: &attributes,
+    };
+    let out = raster::draw(m, "penumbra_map", target, pipeline, &geometry, &kernel);
+    m.count("overdraw", out.tiles.iter().sum::<u64>() as f64);
+    out.color.expect("the pipeline has a colour target")
+}
+
+/// The final pass (§3): umbra where the shadow map shadows the receiver, else the penumbra map.
+struct PenumbraLookup<'a> {
+    penumbra: &'a Surface,
+}
+
+impl Lookup for PenumbraLookup<'_> {
+    fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32> {
+        let (idx, inside) = texel_indices(p, map, &r.uv, r.mask);
+        let d = map.map.buf.gather(p, &idx, inside);
+        p.vector(COMPARE_OPS, inside);
+        let lit_lanes = inside.and(Mask::from_fn(|l| lit(&map.view, d[l], r.z[l], r.bias[l])));
+        let penumbra = self.penumbra.buf.gather(p, &idx, lit_lanes);
+        p.vector(1, inside);
+        std::array::from_fn(|l| {
+            if !inside.get(l) {
+                1.0
+            } else if lit_lanes.get(l) {
+                penumbra[l]
+            } else {
+                0.0
+            }
+        })
+    }
+}
+
+/// `penumbra_map` on a CPU execution.
+pub fn render(
+    backend: Backend,
+    frame: &Frame,
+    ctx: &ExecContext,
+    o: PenumbraMapOptions,
+) -> FrameOutput {
+    let mut m = machine(backend, frame, ctx);
+    m.phase("shadow_map");
+    let shadow = raster_shadow_map(&mut m, frame);
+    let light = frame.scene.light.center();
+    let light_radius = frame.scene.light.size();
+    let adj = EdgeAdjacency::build(&frame.scene.occluders());
+    let s = silhouettes(&mut m, &adj, &shadow.view, light, light_radius, &o);
+    let penumbra = penumbra_map(&mut m, frame, &shadow, &s, light_radius, &o);
+    let lookup = PenumbraLookup {
+        penumbra: &penumbra,
+    };
+    let vis = eye_lookup(&mut m, frame, &shadow, o.bias, &lookup);
+    output(m, vis)
+}
