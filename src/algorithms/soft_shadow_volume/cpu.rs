@@ -520,11 +520,13 @@ impl TilePass for SoftPass<'_> {
         match &s.texture {
             Some(tex) => {
                 p.vector(TEXTURE_OPS, covered);
-                for r in 0..4 {
-                    if P::ENABLED {
-                        let addrs: Lanes<u64> =
-                            std::array::from_fn(|l| tex.base + u64::from(texels[l][r]));
-                        p.gather(tex.id, &addrs, 1, covered);
+                if P::ENABLED {
+                    // One gather per bilinear tap, each lane reading its own texel.
+                    let taps: [Lanes<u64>; 4] = std::array::from_fn(|r| {
+                        std::array::from_fn(|l| tex.base + u64::from(texels[l][r]))
+                    });
+                    for addrs in &taps {
+                        p.gather(tex.id, addrs, 1, covered);
                     }
                 }
                 t.texture_reads += CoverageTexture::READS * u64::from(covered.count());
