@@ -68,11 +68,15 @@ fn rect_light() -> Light {
 }
 
 fn run(frame: &Frame, id: &str, options: serde_json::Value) -> FrameOutput {
+    run_on(Backend::CpuNative, frame, id, options)
+}
+
+fn run_on(backend: Backend, frame: &Frame, id: &str, options: serde_json::Value) -> FrameOutput {
     let mut ctx = ExecContext::default();
     if !options.is_null() {
         ctx.options = BTreeMap::from([(id.to_string(), options)]);
     }
-    let out = algorithms::run(id, Backend::CpuNative, frame, &ctx).unwrap();
+    let out = algorithms::run(id, backend, frame, &ctx).unwrap();
     out.visibility.check_range().unwrap();
     out
 }
@@ -268,4 +272,101 @@ fn bad_options_are_errors_that_name_the_field() {
         .insert(SSV.into(), serde_json::json!({ "light_split": 2 }));
     let e = algorithms::run(SSV, Backend::CpuNative, &frame, &ctx).unwrap_err();
     assert!(e.to_string().contains("rectangular"), "{e}");
+}
+
+/// The counters both executions keep: tallied per fragment on `cpu-native`, counted by the
+/// model's probe per access on `cpu-model`.
+const SHARED_COUNTERS: [&str; 14] = [
+    "fill",
+    "overdraw",
+    "shader_invocations",
+    "culled_fragments",
+    "mem_read_bytes",
+    "mem_write_bytes",
+    "mem.depth.read_bytes",
+    "mem.vbuffer.read_bytes",
+    "mem.vbuffer.write_bytes",
+    "mem.stencil.read_bytes",
+    "mem.stencil.write_bytes",
+    "mem.coverage_texture.read_bytes",
+    "mem.accumulation.read_bytes",
+    "mem.accumulation.write_bytes",
+];
+
+#[test]
+fn cpu_model_draws_the_native_image_and_its_probe_counts_the_native_tallies() {
+    let scene = generators::find("cylinder-on-plane")
+        .unwrap()
+        .build(&GeneratorParams {
+            triangles: Some(300),
+            ..Default::default()
+        });
+    let scene = Scene {
+        light: rect_light(),
+        ..scene
+    };
+    let frame = Frame::new(scene.clone(), params(&scene));
+    for (id, opts) in [
+        (SSV, serde_json::Value::Null),
+        (
+            SSV,
+            serde_json::json!({ "wedge_culling": false, "coverage": "texture" }),
+        ),
+        (
+            SSV,
+            serde_json::json!({ "vbuffer": "split12", "overlap_approximation": true }),
+        ),
+        ("accum_hard", serde_json::json!({ "samples": 16 })),
+    ] {
+        let native = run_on(Backend::CpuNative, &frame, id, opts.clone());
+        let model = run_on(Backend::CpuModel, &frame, id, opts.clone());
+        assert_eq!(native.visibility, model.visibility, "{id} {opts}");
+        assert!(native.model_ms.is_none());
+        assert!(model.model_ms.unwrap() > 0.0, "{id} {opts}");
+        for c in SHARED_COUNTERS {
+            assert_eq!(counter(&native, c), counter(&model, c), "{id} {opts}: {c}");
+        }
+        assert!(counter(&model, "vector_ops") > 0.0);
+        let names: Vec<&str> = model.phases.iter().map(|p| p.name.as_str()).collect();
+        let expected: &[&str] = if id == SSV {
+            &["hard", "wedges", "soft"]
+        } else {
+            &["hard", "accumulate"]
+        };
+        assert_eq!(names, expected);
+        for p in &model.phases {
+            assert!(p.model_ms.unwrap() > 0.0, "{id} {opts}: {}", p.name);
+        }
+    }
+}
+
+#[test]
+fn cpu_model_counters_and_times_do_not_depend_on_the_host_thread_count() {
+    let scene = generators::find("sphere-grid")
+        .unwrap()
+        .build(&GeneratorParams {
+            triangles: Some(800),
+            ..Default::default()
+        });
+    let frame = Frame::new(scene.clone(), params(&scene));
+    for (id, opts) in [
+        (SSV, serde_json::json!({ "coverage": "texture" })),
+        ("accum_hard", serde_json::json!({ "samples": 16 })),
+    ] {
+        let in_pool = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| run_on(Backend::CpuModel, &frame, id, opts.clone()))
+        };
+        let (a, b) = (in_pool(1), in_pool(2));
+        assert_eq!(a.visibility, b.visibility);
+        assert_eq!(a.counters, b.counters);
+        assert_eq!(a.model_ms, b.model_ms);
+        for (pa, pb) in a.phases.iter().zip(&b.phases) {
+            assert_eq!(pa.counters, pb.counters);
+            assert_eq!(pa.model_ms, pb.model_ms);
+        }
+    }
 }

@@ -5,14 +5,16 @@
 //! meets the primitive with where it meets the visible surface (the frame's eye pass). Coverage
 //! is decided exactly per pixel centre by intersecting the eye ray with the primitive, which is
 //! what a rasterizer decides with edge functions; the depth comparison is the one a depth buffer
-//! would make. Primitives are binned to screen tiles by a conservative footprint (sort-middle),
-//! and each tile processes its primitives in submission order, so results and counters do not
-//! depend on the host thread count.
+//! would make. Primitives are binned to screen tiles by a conservative footprint (sort-middle);
+//! each tile is one task of a [`Machine`] step and processes its primitives in submission order,
+//! in 16-lane blocks of 4×4 pixels, so results and counters do not depend on the host thread
+//! count, and the same [`TilePass`] code is the `cpu-native` and the `cpu-model` execution.
 
 use glam::Vec3;
-use rayon::prelude::*;
 
 use crate::frame::Frame;
+use crate::model::raster::{self, Target, TileRect};
+use crate::model::{BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::scene::Bounds;
 
 /// Bytes of one depth-buffer value read by a depth test.
@@ -163,56 +165,205 @@ impl EyeRays {
     }
 }
 
+/// Side of the pixel blocks a tile is processed in: 4×4 pixels are the 16 lanes of one vector.
+pub const BLOCK: u32 = raster::BLOCK;
+
+/// Scalar instructions per (primitive, tile): loading the bin entry and the footprint, and
+/// clipping the footprint to the tile.
+const PRIM_SETUP_OPS: u32 = 6;
+/// Vector instructions per (primitive, block): pixel coordinates of the lanes and the four
+/// footprint compares that form the block's mask.
+const BLOCK_MASK_OPS: u32 = 2 + 4;
+
+/// An eye-sized buffer in modelled memory, block-linear like the rasterizer's render targets: the
+/// 16 pixels of a 4×4 block are consecutive, so a block of values up to 4 bytes is one line.
+#[derive(Clone, Copy, Debug)]
+pub struct EyeBuffer {
+    pub id: BufferId,
+    base: u64,
+    /// Bytes per pixel.
+    bytes: u32,
+    blocks_x: u32,
+}
+
+impl EyeBuffer {
+    /// Reserves buffer `name` of `bytes` per pixel for the frame's eye pixels.
+    pub fn new(m: &mut Machine, rays: &EyeRays, name: &str, bytes: u32) -> EyeBuffer {
+        let blocks_x = rays.width.div_ceil(BLOCK);
+        let blocks = u64::from(blocks_x) * u64::from(rays.height.div_ceil(BLOCK));
+        let (id, base) = m
+            .memory
+            .reserve(name, blocks * (LANES as u64) * u64::from(bytes));
+        EyeBuffer {
+            id,
+            base,
+            bytes,
+            blocks_x,
+        }
+    }
+
+    fn block_addr(&self, b: &Block) -> u64 {
+        let index = u64::from(b.y / BLOCK * self.blocks_x + b.x / BLOCK);
+        self.base + index * LANES as u64 * u64::from(self.bytes)
+    }
+
+    /// A masked vector load of the active lanes of block `b`.
+    pub fn read<P: Probe>(&self, p: &mut P, b: &Block, mask: Mask) {
+        if mask.any() {
+            p.read(self.id, self.block_addr(b), mask.count() * self.bytes);
+        }
+    }
+
+    /// A masked vector store to the active lanes of block `b`.
+    pub fn write<P: Probe>(&self, p: &mut P, b: &Block, mask: Mask) {
+        if mask.any() {
+            p.write(self.id, self.block_addr(b), mask.count() * self.bytes);
+        }
+    }
+}
+
+/// One 4×4 block of pixels of a tile: lane `l` is pixel (x + l % 4, y + l / 4).
+#[derive(Clone, Copy, Debug)]
+pub struct Block {
+    pub x: u32,
+    pub y: u32,
+    /// Pixel index (`y · width + x`) of each lane; meaningful on the lanes of `mask`.
+    pub pixel: Lanes<u32>,
+    pub mask: Mask,
+}
+
+impl Block {
+    /// The lanes of the block at (x, y) whose pixels lie in `rect`.
+    fn new(rays: &EyeRays, x: u32, y: u32, rect: &ScreenRect) -> Block {
+        let mut pixel = [0u32; LANES];
+        let mask = Mask::from_fn(|l| {
+            let (px, py) = (x + l as u32 % BLOCK, y + l as u32 / BLOCK);
+            pixel[l] = py * rays.width + px;
+            px >= rect.x0 && px < rect.x1 && py >= rect.y0 && py < rect.y1
+        });
+        Block { x, y, pixel, mask }
+    }
+
+    /// The blocks covering `rect` (aligned to the 4×4 grid), lanes restricted to `rect`.
+    pub fn cover<'a>(rays: &'a EyeRays, rect: ScreenRect) -> impl Iterator<Item = Block> + 'a {
+        let (bx0, by0) = (rect.x0 / BLOCK * BLOCK, rect.y0 / BLOCK * BLOCK);
+        (by0..rect.y1).step_by(BLOCK as usize).flat_map(move |y| {
+            (bx0..rect.x1)
+                .step_by(BLOCK as usize)
+                .map(move |x| Block::new(rays, x, y, &rect))
+        })
+    }
+}
+
+/// The work of a pass over eye tiles, written once for both CPU executions.
+pub trait TilePass: Sync {
+    type State: Send;
+    /// The tile's state before any primitive (the probe sees the tile's setup, e.g. a clear).
+    fn begin<P: Probe>(&self, p: &mut P, rect: ScreenRect) -> Self::State;
+    /// Primitive `prim` on the lanes of `block` inside its footprint and the tile.
+    fn block<P: Probe>(&self, p: &mut P, state: &mut Self::State, prim: usize, block: &Block);
+}
+
 /// The pixels of one screen tile and the state a pass keeps for them.
 pub struct Tile<S> {
     pub rect: ScreenRect,
     pub state: S,
 }
 
-/// Runs a pass: bins `footprints` to `tile`×`tile` screen tiles, then for each tile (in parallel)
-/// creates its state with `init` and calls `fragment(state, primitive, pixel)` for every pixel of
-/// every primitive binned there, primitives in submission order, pixels in scan order.
-/// Returns the tiles in scan order.
-pub fn raster_pass<S: Send>(
+/// The `tile`×`tile` screen tiles of the eye view.
+pub fn tiles(rays: &EyeRays, tile: u32) -> Target {
+    Target {
+        width: rays.width,
+        height: rays.height,
+        tile: tile.max(1),
+    }
+}
+
+fn screen_rect(r: TileRect) -> ScreenRect {
+    ScreenRect {
+        x0: r.x0,
+        y0: r.y0,
+        x1: r.x1,
+        y1: r.y1,
+    }
+}
+
+fn intersect(a: &ScreenRect, b: &ScreenRect) -> Option<ScreenRect> {
+    let r = ScreenRect {
+        x0: a.x0.max(b.x0),
+        y0: a.y0.max(b.y0),
+        x1: a.x1.min(b.x1),
+        y1: a.y1.min(b.y1),
+    };
+    (r.x0 < r.x1 && r.y0 < r.y1).then_some(r)
+}
+
+struct TileTask<'a, T> {
+    rays: &'a EyeRays,
+    footprints: &'a [Option<ScreenRect>],
+    bins: &'a [Vec<u32>],
+    tiles: Target,
+    pass: &'a T,
+}
+
+impl<T: TilePass> TaskKernel for TileTask<'_, T> {
+    type Out = Tile<T::State>;
+
+    fn run<P: Probe>(&self, p: &mut P, t: usize) -> Self::Out {
+        let rect = screen_rect(self.tiles.tile_rect(t));
+        let mut state = self.pass.begin(p, rect);
+        for &k in &self.bins[t] {
+            p.scalar(PRIM_SETUP_OPS);
+            let f = self.footprints[k as usize].expect("binned primitives have a footprint");
+            let Some(r) = intersect(&rect, &f) else {
+                continue;
+            };
+            for b in Block::cover(self.rays, r) {
+                p.vector(BLOCK_MASK_OPS, Mask::ALL);
+                self.pass.block(p, &mut state, k as usize, &b);
+            }
+        }
+        Tile { rect, state }
+    }
+}
+
+/// Runs a pass as step `step` of the machine's current phase: bins `footprints` to the screen
+/// tiles (sort-middle), then runs one task per tile, which creates its state with
+/// [`TilePass::begin`] and hands every 4×4 block of every primitive binned there to
+/// [`TilePass::block`], primitives in submission order. Returns the tiles in scan order.
+pub fn raster_pass<T: TilePass>(
+    m: &mut Machine,
+    step: &str,
     rays: &EyeRays,
     footprints: &[Option<ScreenRect>],
     tile: u32,
-    init: impl Fn(ScreenRect) -> S + Sync,
-    fragment: impl Fn(&mut S, usize, usize) + Sync,
-) -> Vec<Tile<S>> {
-    let tile = tile.max(1);
-    let (tx, ty) = (rays.width.div_ceil(tile), rays.height.div_ceil(tile));
-    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+    pass: &T,
+) -> Vec<Tile<T::State>> {
+    let tiles = tiles(rays, tile);
+    let (tile, tx) = (tiles.tile, tiles.tiles_x());
+    let mut bins: Vec<Vec<u32>> = vec![Vec::new(); tiles.tiles()];
+    // The scheduler's estimate: the fragments binned to the tile.
+    let mut weights = vec![0u64; tiles.tiles()];
     for (k, f) in footprints.iter().enumerate() {
         let Some(f) = f else { continue };
         for by in f.y0 / tile..f.y1.div_ceil(tile) {
             for bx in f.x0 / tile..f.x1.div_ceil(tile) {
-                bins[(by * tx + bx) as usize].push(k as u32);
+                let t = (by * tx + bx) as usize;
+                bins[t].push(k as u32);
+                if let Some(r) = intersect(&screen_rect(tiles.tile_rect(t)), f) {
+                    weights[t] += u64::from((r.x1 - r.x0) * (r.y1 - r.y0));
+                }
             }
         }
     }
-    bins.into_par_iter()
-        .enumerate()
-        .map(|(b, prims)| {
-            let (bx, by) = (b as u32 % tx, b as u32 / tx);
-            let rect = ScreenRect {
-                x0: bx * tile,
-                y0: by * tile,
-                x1: ((bx + 1) * tile).min(rays.width),
-                y1: ((by + 1) * tile).min(rays.height),
-            };
-            let mut state = init(rect);
-            for &k in &prims {
-                let f = footprints[k as usize].expect("binned primitives have a footprint");
-                for y in rect.y0.max(f.y0)..rect.y1.min(f.y1) {
-                    for x in rect.x0.max(f.x0)..rect.x1.min(f.x1) {
-                        fragment(&mut state, k as usize, (y * rays.width + x) as usize);
-                    }
-                }
-            }
-            Tile { rect, state }
-        })
-        .collect()
+    let task = TileTask {
+        rays,
+        footprints,
+        bins: &bins,
+        tiles,
+        pass,
+    };
+    m.run_step(step, &task, &weights)
 }
 
 /// A convex polyhedron as an intersection of half-spaces `n·y ≤ d`.

@@ -135,7 +135,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "001 §1.3, Paper III §5",
         summary: "average of N hard shadow-volume shadows from N light samples",
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative],
+        backends: &[Backend::CpuNative, Backend::CpuModel],
         memory_estimate: accum_hard::memory_estimate,
         check_options: accum_hard::check_options,
     },
@@ -144,7 +144,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "001 Papers III and IV",
         summary: "hard shadow quads plus penumbra wedges adding or subtracting light coverage",
         lights: &[LightKind::Rect, LightKind::Sphere],
-        backends: &[Backend::CpuNative],
+        backends: &[Backend::CpuNative, Backend::CpuModel],
         memory_estimate: soft_shadow_volume::memory_estimate,
         check_options: soft_shadow_volume::check_options,
     },
@@ -260,8 +260,8 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
                 _ => unreachable!("checked against the registered backends"),
             }
         }
-        accum_hard::ID => accum_hard::cpu::render(frame, ctx),
-        soft_shadow_volume::ID => soft_shadow_volume::cpu::render(frame, ctx),
+        accum_hard::ID => accum_hard::cpu::render(backend, frame, ctx),
+        soft_shadow_volume::ID => soft_shadow_volume::cpu::render(backend, frame, ctx),
         penumbra_map::ID => Ok(penumbra_map::cpu::render(
             backend,
             frame,

@@ -11,8 +11,8 @@
 
 use glam::Vec3;
 
-use super::eye_raster::{raster_pass, EyeRays, ScreenRect};
-use crate::record::Counters;
+use super::eye_raster::{raster_pass, Block, EyeBuffer, EyeRays, ScreenRect, TilePass};
+use crate::model::{Machine, Mask, Probe, LANES};
 use crate::scene::adjacency::SilhouetteEdge;
 use crate::scene::Mesh;
 
@@ -123,48 +123,117 @@ fn segment_hits_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
     u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < 1.0
 }
 
-/// Renders `quads` z-pass into a count buffer cleared to `eye_count` (tiles of `tile` pixels).
-pub fn render_quads(rays: &EyeRays, quads: &[ShadowQuad], eye_count: i32, tile: u32) -> HardPass {
+/// Vector instructions per block of a shadow quad: the ray–plane intersection (two 3-term dots,
+/// a divide, a multiply-add per coordinate), the three edge tests (a cross product and a dot
+/// each, with a compare), and the scene-bounds slab test (per axis a reciprocal, two
+/// multiply-adds, a min, a max; then the interval compares).
+pub const QUAD_HIT_OPS: u32 = 2 * 5 + 1 + 3 + 3 * (9 + 5 + 1) + 3 * 5 + 4;
+/// The depth test: compare with the visible surface's depth, mask and.
+pub const DEPTH_TEST_OPS: u32 = 2;
+/// The count update: select the quad's ±1, add.
+pub const COUNT_OPS: u32 = 2;
+
+/// Where a hard shadow-volume pass counts: the count buffer (a V-buffer or a stencil) and the
+/// eye depth it tests against, and whether it clears the count buffer first (counted as writes).
+pub struct CountTarget {
+    pub depth: EyeBuffer,
+    pub count: EyeBuffer,
+    pub clear: bool,
+}
+
+struct QuadPass<'a> {
+    rays: &'a EyeRays,
+    quads: &'a [ShadowQuad],
+    eye_sides: Vec<i32>,
+    eye_count: i32,
+    target: &'a CountTarget,
+}
+
+struct QuadTile {
+    rect: ScreenRect,
+    count: Vec<i32>,
+    fill: u64,
+    passed: u64,
+}
+
+impl TilePass for QuadPass<'_> {
+    type State = QuadTile;
+
+    fn begin<P: Probe>(&self, p: &mut P, rect: ScreenRect) -> QuadTile {
+        if self.target.clear {
+            for b in Block::cover(self.rays, rect) {
+                self.target.count.write(p, &b, b.mask);
+            }
+        }
+        QuadTile {
+            rect,
+            count: vec![self.eye_count; ((rect.x1 - rect.x0) * (rect.y1 - rect.y0)) as usize],
+            fill: 0,
+            passed: 0,
+        }
+    }
+
+    fn block<P: Probe>(&self, p: &mut P, s: &mut QuadTile, k: usize, b: &Block) {
+        let rays = self.rays;
+        p.vector(QUAD_HIT_OPS, b.mask);
+        let mut hit = [f32::INFINITY; LANES];
+        let fill = b.mask.and(Mask::from_fn(|l| {
+            let i = b.pixel[l] as usize;
+            let (t0, t1) = rays.bounds_interval(i);
+            match self.quads[k].ray_hit(rays.eye, rays.dir[i]) {
+                Some(t) if t >= t0 && t <= t1 => {
+                    hit[l] = t;
+                    true
+                }
+                _ => false,
+            }
+        }));
+        if !fill.any() {
+            return;
+        }
+        self.target.depth.read(p, b, fill);
+        p.vector(DEPTH_TEST_OPS, fill);
+        let passed = fill.and(Mask::from_fn(|l| hit[l] < rays.depth[b.pixel[l] as usize]));
+        s.fill += u64::from(fill.count());
+        s.passed += u64::from(passed.count());
+        if !passed.any() {
+            return;
+        }
+        self.target.count.read(p, b, passed);
+        p.vector(COUNT_OPS, passed);
+        let w = s.rect.x1 - s.rect.x0;
+        for l in passed.lanes() {
+            let (x, y) = (b.pixel[l] % rays.width, b.pixel[l] / rays.width);
+            s.count[((y - s.rect.y0) * w + x - s.rect.x0) as usize] += self.eye_sides[k];
+        }
+        self.target.count.write(p, b, passed);
+    }
+}
+
+/// Renders `quads` z-pass into a count buffer cleared to `eye_count` (tiles of `tile` pixels), as
+/// step `step` of the machine's current phase.
+pub fn render_quads(
+    m: &mut Machine,
+    step: &str,
+    rays: &EyeRays,
+    quads: &[ShadowQuad],
+    eye_count: i32,
+    tile: u32,
+    target: &CountTarget,
+) -> HardPass {
     let reach = 2.0 * rays.bounds.diagonal();
     let footprints: Vec<Option<ScreenRect>> = quads
         .iter()
         .map(|q| rays.footprint(&q.hull(reach)))
         .collect();
-    let eye_sides: Vec<i32> = quads.iter().map(|q| q.side(rays.eye) as i32).collect();
-    struct State {
-        rect: ScreenRect,
-        width: u32,
-        count: Vec<i32>,
-        fill: u64,
-        passed: u64,
-    }
-    let tiles = raster_pass(
+    let pass = QuadPass {
         rays,
-        &footprints,
-        tile,
-        |rect| State {
-            rect,
-            width: rect.x1 - rect.x0,
-            count: vec![eye_count; ((rect.x1 - rect.x0) * (rect.y1 - rect.y0)) as usize],
-            fill: 0,
-            passed: 0,
-        },
-        |s, k, i| {
-            let (t0, t1) = rays.bounds_interval(i);
-            let Some(t) = quads[k].ray_hit(rays.eye, rays.dir[i]) else {
-                return;
-            };
-            if t < t0 || t > t1 {
-                return;
-            }
-            s.fill += 1;
-            if t < rays.depth[i] {
-                s.passed += 1;
-                let (x, y) = (i as u32 % rays.width, i as u32 / rays.width);
-                s.count[((y - s.rect.y0) * s.width + x - s.rect.x0) as usize] += eye_sides[k];
-            }
-        },
-    );
+        quads,
+        eye_sides: quads.iter().map(|q| q.side(rays.eye) as i32).collect(),
+        eye_count,
+        target,
+    };
+    let tiles = raster_pass(m, step, rays, &footprints, tile, &pass);
     let mut out = HardPass {
         count: vec![eye_count; rays.len()],
         eye_count,
@@ -174,24 +243,31 @@ pub fn render_quads(rays: &EyeRays, quads: &[ShadowQuad], eye_count: i32, tile: 
         let s = t.state;
         out.fill += s.fill;
         out.passed += s.passed;
+        let w = s.rect.x1 - s.rect.x0;
         for y in s.rect.y0..s.rect.y1 {
             for x in s.rect.x0..s.rect.x1 {
                 out.count[(y * rays.width + x) as usize] =
-                    s.count[((y - s.rect.y0) * s.width + x - s.rect.x0) as usize];
+                    s.count[((y - s.rect.y0) * w + x - s.rect.x0) as usize];
             }
         }
     }
     out
 }
 
-/// Counts `bytes` read from named buffer `buffer` (`mem.<buffer>.read_bytes` and the total).
-pub fn mem_read(c: &mut Counters, buffer: &str, bytes: u64) {
-    c.add(&format!("mem.{buffer}.read_bytes"), bytes as f64);
-    c.add("mem_read_bytes", bytes as f64);
+/// Counts `bytes` read from named buffer `buffer` (`mem.<buffer>.read_bytes` and the total) on
+/// `cpu-native`, where no probe counts them; on `cpu-model` the probe counts every access.
+pub fn mem_read(m: &mut Machine, buffer: &str, bytes: u64) {
+    if !m.is_model() {
+        m.count(&format!("mem.{buffer}.read_bytes"), bytes as f64);
+        m.count("mem_read_bytes", bytes as f64);
+    }
 }
 
-/// Counts `bytes` written to named buffer `buffer` (`mem.<buffer>.write_bytes` and the total).
-pub fn mem_write(c: &mut Counters, buffer: &str, bytes: u64) {
-    c.add(&format!("mem.{buffer}.write_bytes"), bytes as f64);
-    c.add("mem_write_bytes", bytes as f64);
+/// Counts `bytes` written to named buffer `buffer` (`mem.<buffer>.write_bytes` and the total) on
+/// `cpu-native`, as [`mem_read`].
+pub fn mem_write(m: &mut Machine, buffer: &str, bytes: u64) {
+    if !m.is_model() {
+        m.count(&format!("mem.{buffer}.write_bytes"), bytes as f64);
+        m.count("mem_write_bytes", bytes as f64);
+    }
 }

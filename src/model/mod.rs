@@ -199,6 +199,8 @@ pub struct Machine {
     /// The modelled cores' caches; `None` for `cpu-native`.
     cores: Option<Vec<CoreCaches>>,
     phases: Vec<PhaseRecord>,
+    /// Index of the phase being recorded.
+    current: usize,
 }
 
 impl Machine {
@@ -214,6 +216,7 @@ impl Machine {
             memory: Memory::default(),
             cores,
             phases: Vec::new(),
+            current: 0,
         }
     }
 
@@ -221,21 +224,32 @@ impl Machine {
         self.cores.is_some()
     }
 
-    /// Starts phase `name`; what follows is recorded under it.
+    /// Starts phase `name`, or resumes it when the frame already has a phase of that name (an
+    /// algorithm that alternates phases per light sample or per silhouette loop); what follows
+    /// is recorded under it.
     pub fn phase(&mut self, name: &str) {
         self.close_phase();
-        self.phases.push(PhaseRecord {
-            name: name.to_string(),
-            start: Instant::now(),
-            wall_ms: 0.0,
-            model_ms: 0.0,
-            counters: Counters::default(),
-        });
+        match self.phases.iter().position(|p| p.name == name) {
+            Some(i) => {
+                self.phases[i].start = Instant::now();
+                self.current = i;
+            }
+            None => {
+                self.phases.push(PhaseRecord {
+                    name: name.to_string(),
+                    start: Instant::now(),
+                    wall_ms: 0.0,
+                    model_ms: 0.0,
+                    counters: Counters::default(),
+                });
+                self.current = self.phases.len() - 1;
+            }
+        }
     }
 
     fn close_phase(&mut self) {
-        if let Some(p) = self.phases.last_mut() {
-            p.wall_ms = p.start.elapsed().as_secs_f64() * 1e3;
+        if let Some(p) = self.phases.get_mut(self.current) {
+            p.wall_ms += p.start.elapsed().as_secs_f64() * 1e3;
         }
     }
 
@@ -243,7 +257,7 @@ impl Machine {
         if self.phases.is_empty() {
             self.phase("main");
         }
-        self.phases.last_mut().expect("a phase exists")
+        &mut self.phases[self.current]
     }
 
     /// Adds `v` to the algorithm counter `name` of the current phase (counted in both
@@ -255,7 +269,7 @@ impl Machine {
     /// The value of counter `name` in the current phase so far (0 when absent).
     pub fn counter(&self, name: &str) -> f64 {
         self.phases
-            .last()
+            .get(self.current)
             .and_then(|p| p.counters.get(name))
             .unwrap_or(0.0)
     }
@@ -318,7 +332,16 @@ impl Machine {
         let ms = time.ms(&self.config);
         let phase = self.current();
         phase.model_ms += ms;
-        phase.counters.merge(&counters);
+        for (k, v) in &counters.0 {
+            // A step run several times in a phase: times add up, imbalance and boundedness
+            // keep their worst run.
+            if k.ends_with(".load_imbalance") || k.ends_with(".bandwidth_bound") {
+                let worst = phase.counters.get(k).map_or(*v, |old| old.max(*v));
+                phase.counters.set(k, worst);
+            } else {
+                phase.counters.add(k, *v);
+            }
+        }
         outs.into_iter()
             .map(|o| o.expect("every task ran once"))
             .collect()

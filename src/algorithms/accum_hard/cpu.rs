@@ -1,37 +1,95 @@
-//! `accum_hard` on the host (`cpu-native`).
-
-use std::time::Instant;
+//! `accum_hard` on the CPU executions (`cpu-native`, `cpu-model`): per light sample a hard
+//! shadow-volume pass into the stencil (phase `hard`) and the accumulation of its lit pixels
+//! (phase `accumulate`), both as tile tasks of the machine.
 
 use super::{AccumHardOptions, ID};
-use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
+use crate::algorithms::eye_raster::{tiles, Block, EyeBuffer, EyeRays, ScreenRect};
+use crate::algorithms::hard_shadow_map::cpu::{machine, output};
 use crate::algorithms::shadow_map::parse_options;
-use crate::algorithms::shadow_volume::{eye_count, mem_read, mem_write, render_quads, ShadowQuad};
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::shadow_volume::{
+    eye_count, mem_read, mem_write, render_quads, CountTarget, HardPass, ShadowQuad,
+};
+use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::record::{Counters, Phase};
+use crate::model::raster::Target;
+use crate::model::{Probe, TaskKernel};
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::visibility::VisibilityBuffer;
 
 /// Bytes of a stencil value and of an accumulation-buffer value (16-bit per channel).
-const STENCIL_BYTES: u64 = 1;
-const ACCUMULATION_BYTES: u64 = 2;
+const STENCIL_BYTES: u32 = 1;
+const ACCUMULATION_BYTES: u32 = 2;
+/// Vector instructions per block of the accumulation: compare the stencil with zero, select
+/// 1 or 0, add.
+const ACCUMULATE_OPS: u32 = 3;
 
-pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
+/// Adds one sample's lit pixels (stencil zero) to the accumulation buffer, one tile per task.
+/// The buffer is kept per tile (row-major inside its tile); a task returns its tile's new sums.
+struct Accumulate<'a> {
+    rays: &'a EyeRays,
+    tiles: Target,
+    pass: &'a HardPass,
+    sums: &'a [Vec<u32>],
+    stencil: EyeBuffer,
+    accumulation: EyeBuffer,
+}
+
+impl TaskKernel for Accumulate<'_> {
+    type Out = Vec<u32>;
+
+    fn run<P: Probe>(&self, p: &mut P, t: usize) -> Vec<u32> {
+        let r = self.tiles.tile_rect(t);
+        let rect = ScreenRect {
+            x0: r.x0,
+            y0: r.y0,
+            x1: r.x1,
+            y1: r.y1,
+        };
+        let w = rect.x1 - rect.x0;
+        let mut sums = self.sums[t].clone();
+        for b in Block::cover(self.rays, rect) {
+            self.stencil.read(p, &b, b.mask);
+            self.accumulation.read(p, &b, b.mask);
+            p.vector(ACCUMULATE_OPS, b.mask);
+            for l in b.mask.lanes() {
+                let i = b.pixel[l];
+                let (x, y) = (i % self.rays.width, i / self.rays.width);
+                sums[((y - rect.y0) * w + x - rect.x0) as usize] +=
+                    u32::from(self.pass.count[i as usize] == 0);
+            }
+            self.accumulation.write(p, &b, b.mask);
+        }
+        sums
+    }
+}
+
+pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let opts: AccumHardOptions = parse_options(ID, &ctx.options)?;
     let k = opts.strata_side()?;
+    let mut m = machine(backend, frame, ctx);
     let rays = EyeRays::new(frame);
     let occluders = frame.scene.occluders();
     let adjacency = EdgeAdjacency::build(&occluders);
     let light = frame.scene.light;
     let target = frame.scene.bounds().center();
     let n = rays.len() as u64;
-    let mut lit = vec![0u32; rays.len()];
-    let (mut hard, mut accumulate) = (Phase::default(), Phase::default());
-    hard.name = "hard".into();
-    accumulate.name = "accumulate".into();
+    let hard = CountTarget {
+        depth: EyeBuffer::new(&mut m, &rays, "depth", 4),
+        count: EyeBuffer::new(&mut m, &rays, "stencil", STENCIL_BYTES),
+        clear: true,
+    };
+    let tiles = tiles(&rays, frame.params.tile_size);
+    let mut sums: Vec<Vec<u32>> = (0..tiles.tiles())
+        .map(|t| {
+            let r = tiles.tile_rect(t);
+            vec![0; ((r.x1 - r.x0) * (r.y1 - r.y0)) as usize]
+        })
+        .collect();
+    let accumulation = EyeBuffer::new(&mut m, &rays, "accumulation", ACCUMULATION_BYTES);
+    let weights: Vec<u64> = sums.iter().map(|s| s.len() as u64).collect();
     for s in 0..k * k {
-        let start = Instant::now();
+        m.phase("hard");
         let sample = light.stratified_sample(target, s, k, ctx.seed);
         let silhouette = adjacency.silhouette_from(sample);
         let quads: Vec<ShadowQuad> = silhouette
@@ -40,64 +98,56 @@ pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
             .map(|e| ShadowQuad::new(e, sample))
             .collect();
         let pass = render_quads(
+            &mut m,
+            "stencil",
             &rays,
             &quads,
             eye_count(&occluders, sample, rays.eye),
             frame.params.tile_size,
+            &hard,
         );
-        let c = &mut hard.counters;
-        c.add("silhouette_edges", quads.len() as f64);
-        c.add("fill", pass.fill as f64);
-        c.add("overdraw", (pass.fill - pass.passed) as f64);
-        mem_write(c, "stencil", n * STENCIL_BYTES);
-        mem_read(c, "depth", pass.fill * DEPTH_BYTES);
-        mem_read(c, "stencil", pass.passed * STENCIL_BYTES);
-        mem_write(c, "stencil", pass.passed * STENCIL_BYTES);
-        hard.wall_ms += start.elapsed().as_secs_f64() * 1e3;
+        m.count("silhouette_edges", quads.len() as f64);
+        m.count("fill", pass.fill as f64);
+        m.count("overdraw", (pass.fill - pass.passed) as f64);
+        mem_write(&mut m, "stencil", n * u64::from(STENCIL_BYTES));
+        mem_read(&mut m, "depth", pass.fill * 4);
+        mem_read(&mut m, "stencil", pass.passed * u64::from(STENCIL_BYTES));
+        mem_write(&mut m, "stencil", pass.passed * u64::from(STENCIL_BYTES));
 
-        // Add this sample's lit pixels (stencil zero) into the accumulation buffer.
-        let start = Instant::now();
-        for (l, &count) in lit.iter_mut().zip(&pass.count) {
-            *l += (count == 0) as u32;
-        }
-        let c = &mut accumulate.counters;
-        mem_read(c, "stencil", n * STENCIL_BYTES);
-        mem_read(c, "accumulation", n * ACCUMULATION_BYTES);
-        mem_write(c, "accumulation", n * ACCUMULATION_BYTES);
-        accumulate.wall_ms += start.elapsed().as_secs_f64() * 1e3;
+        m.phase("accumulate");
+        let step = Accumulate {
+            rays: &rays,
+            tiles,
+            pass: &pass,
+            sums: &sums,
+            stencil: hard.count,
+            accumulation,
+        };
+        sums = m.run_step("accumulate", &step, &weights);
+        mem_read(&mut m, "stencil", n * u64::from(STENCIL_BYTES));
+        mem_read(&mut m, "accumulation", n * u64::from(ACCUMULATION_BYTES));
+        mem_write(&mut m, "accumulation", n * u64::from(ACCUMULATION_BYTES));
     }
-    let data = (0..rays.len())
-        .map(|i| {
-            if rays.is_hit(i) {
-                lit[i] as f32 / (k * k) as f32
-            } else {
-                1.0
+    let mut data = vec![1.0f32; rays.len()];
+    for (t, s) in sums.iter().enumerate() {
+        let r = tiles.tile_rect(t);
+        let w = r.x1 - r.x0;
+        for y in r.y0..r.y1 {
+            for x in r.x0..r.x1 {
+                let i = (y * rays.width + x) as usize;
+                if rays.is_hit(i) {
+                    data[i] = s[((y - r.y0) * w + x - r.x0) as usize] as f32 / (k * k) as f32;
+                }
             }
-        })
-        .collect();
-    let mut counters = Counters::default();
-    counters.merge(&hard.counters);
-    counters.merge(&accumulate.counters);
-    let fill = counters.get("fill").unwrap_or(0.0);
-    counters.set(
-        "overdraw_ratio",
-        if fill > 0.0 {
-            counters.get("overdraw").unwrap_or(0.0) / fill
-        } else {
-            0.0
-        },
-    );
-    Ok(FrameOutput {
-        visibility: VisibilityBuffer {
-            width: frame.width(),
-            height: frame.height(),
-            data,
-        },
-        counters,
-        phases: vec![hard, accumulate],
-        model_ms: None,
-        gpu_ms: None,
-        execution: [("samples".to_string(), serde_json::json!(k * k))].into(),
-        warnings: vec![],
-    })
+        }
+    }
+    let visibility = VisibilityBuffer {
+        width: frame.width(),
+        height: frame.height(),
+        data,
+    };
+    let mut out = output(m, visibility);
+    out.execution
+        .insert("samples".to_string(), serde_json::json!(k * k));
+    Ok(out)
 }

@@ -1,9 +1,10 @@
-//! `soft_shadow_volume` on the host (`cpu-native`): pass 1 (hard shadow quads), wedge
-//! construction, pass 2 (wedges adding or subtracting coverage), per silhouette loop and per
-//! sub-light when the overlap approximation or light splitting are on.
+//! `soft_shadow_volume` on the CPU executions (`cpu-native`, `cpu-model`): pass 1 (hard shadow
+//! quads, phase `hard`), wedge construction (phase `wedges`), pass 2 (wedges adding or
+//! subtracting coverage, phase `soft`), per silhouette loop and per sub-light when the overlap
+//! approximation or light splitting are on. Both passes are tile tasks of the machine, in 16-lane
+//! blocks, written once for both executions.
 
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
 
 use glam::Vec3;
 
@@ -11,22 +12,60 @@ use super::{
     exact_coverage, overlap_coverage, silhouette_loops, split12, split_light, CoverageMethod,
     CoverageTexture, Emitter, EmitterShape, SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
 };
-use crate::algorithms::eye_raster::{raster_pass, ConvexVolume, EyeRays, ScreenRect, DEPTH_BYTES};
+use crate::algorithms::eye_raster::{
+    raster_pass, Block, ConvexVolume, EyeBuffer, EyeRays, ScreenRect, TilePass, DEPTH_BYTES,
+};
+use crate::algorithms::hard_shadow_map::cpu::{machine, output};
 use crate::algorithms::shadow_map::parse_options;
-use crate::algorithms::shadow_volume::{eye_count, mem_read, mem_write, render_quads, ShadowQuad};
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::shadow_volume::{
+    eye_count, mem_read, mem_write, render_quads, CountTarget, ShadowQuad,
+};
+use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::record::{Counters, Phase};
+use crate::model::{BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::Light;
 use crate::visibility::VisibilityBuffer;
 
 /// Bytes per pixel of the f32 V-buffer, of one rgba8 buffer of the split V-buffer, and of the
 /// stencil buffer.
-const VBUFFER_F32_BYTES: u64 = 4;
-const VBUFFER_RGBA8_BYTES: u64 = 4;
-const STENCIL_BYTES: u64 = 1;
+const VBUFFER_F32_BYTES: u32 = 4;
+const VBUFFER_RGBA8_BYTES: u32 = 4;
+const STENCIL_BYTES: u32 = 1;
+
+/// Vector instructions per wedge plane of the ray–wedge interval: a dot of the normal with the
+/// direction and with the origin, a subtract, a divide, a compare and a min or max.
+const WEDGE_PLANE_OPS: u32 = 3 + 3 + 1 + 1 + 2;
+/// The scene-bounds slab test that starts the interval (per axis a reciprocal, two multiply-adds,
+/// a min, a max; then two compares).
+const SLAB_OPS: u32 = 3 * 5 + 2;
+/// The wedge's depth tests against the visible surface (entry and exit), with the mask updates.
+const WEDGE_DEPTH_OPS: u32 = 4;
+/// Per shaded fragment: the emitter frame seen from p (a subtract, a normalize, two cross
+/// products), clipping the edge to the half-space in front of p (two 3-term dots, divides,
+/// compares, selects and a lerp), the projection of both ends (per end a subtract, a divide and
+/// two 3-term dots) and the clip against the emitter's border (Liang–Barsky or the disc
+/// intersection).
+const PROJECT_OPS: u32 = (3 + 4 + 6 + 6) + (6 + 2 + 4 + 4 + 6) + 2 * (3 + 3 + 6) + 16;
+/// Exact clipping of the projected quad against the emitter: three half-plane clips of a square
+/// (per vertex an affine test, a compare and an interpolation) and the shoelace area, or the
+/// sector formula for a disc.
+const EXACT_OPS: u32 = 3 * 4 * 6 + 10;
+/// The texture lookup's addressing and bilinear filter: two texel positions (multiply-add, clamp
+/// per coordinate), a round, two floors, the four indices and the two lerps in each direction.
+const TEXTURE_OPS: u32 = 8 + 2 + 2 + 4 * 3 + 6;
+/// Adding or subtracting the coverage into the V-buffer (select by side, add; the split format's
+/// digit split and carry blend in the 12-bit case).
+const VBUFFER_OPS_F32: u32 = 2;
+const VBUFFER_OPS_SPLIT12: u32 = 2 + 12;
+/// Wedge construction per edge (16 edges per vector): the top edge (two distances, a compare, a
+/// scaled vertex), the front and back planes tangent to the light and the two side planes (per
+/// plane about 20 instructions), and the hull's far corners (per corner a cross product, a
+/// normalize, a sign select and a multiply-add).
+const WEDGE_BUILD_OPS: u32 = 12 + 4 * 20 + 4 * 14;
+/// Silhouette edges built into wedges by one task.
+const WEDGES_PER_TASK: usize = 4 * LANES;
 
 /// Coverage textures are precomputed once per (shape, n), as the paper does offline.
 fn coverage_texture(shape: EmitterShape, n: u32) -> Arc<CoverageTexture> {
@@ -103,15 +142,26 @@ impl SoftTally {
     }
 }
 
+/// The coverage texture in modelled memory.
+struct TextureBuffer {
+    texture: Arc<CoverageTexture>,
+    id: BufferId,
+    base: u64,
+}
+
 /// Everything fixed for a frame.
 struct Setup {
     rays: EyeRays,
     opts: SoftShadowVolumeOptions,
-    texture: Option<Arc<CoverageTexture>>,
+    texture: Option<TextureBuffer>,
     tile: u32,
+    /// Pass 1's target: the V-buffer (f32) or the stencil (split12), tested against `depth`.
+    hard: CountTarget,
+    vbuffer: EyeBuffer,
+    stencil: EyeBuffer,
 }
 
-pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
+pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
     opts.validate()?;
     let light = frame.scene.light;
@@ -122,30 +172,49 @@ pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
             light.kind()
         ))
     })?;
+    let mut m = machine(backend, frame, ctx);
+    for phase in ["hard", "wedges", "soft"] {
+        m.phase(phase);
+    }
+    let rays = EyeRays::new(frame);
+    let depth = EyeBuffer::new(&mut m, &rays, "depth", DEPTH_BYTES as u32);
+    let vbuffer_bytes = match opts.vbuffer {
+        VBufferPrecision::F32 => VBUFFER_F32_BYTES,
+        VBufferPrecision::Split12 => VBUFFER_RGBA8_BYTES,
+    };
+    let vbuffer = EyeBuffer::new(&mut m, &rays, "vbuffer", vbuffer_bytes);
+    let stencil = EyeBuffer::new(&mut m, &rays, "stencil", STENCIL_BYTES);
+    let texture = (opts.coverage == CoverageMethod::Texture).then(|| {
+        let texture = coverage_texture(EmitterShape::of(&light), opts.texture_n);
+        let (id, base) = m.memory.reserve("coverage_texture", texture.bytes());
+        TextureBuffer { texture, id, base }
+    });
     let setup = Setup {
-        rays: EyeRays::new(frame),
-        texture: (opts.coverage == CoverageMethod::Texture)
-            .then(|| coverage_texture(EmitterShape::of(&light), opts.texture_n)),
+        hard: CountTarget {
+            depth,
+            count: match opts.vbuffer {
+                VBufferPrecision::F32 => vbuffer,
+                VBufferPrecision::Split12 => stencil,
+            },
+            clear: false,
+        },
+        rays,
+        texture,
         opts,
         tile: frame.params.tile_size.max(1),
+        vbuffer,
+        stencil,
     };
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
     let n = setup.rays.len();
-    let mut phases: Vec<Phase> = ["hard", "wedges", "soft"]
-        .iter()
-        .map(|name| Phase {
-            name: name.to_string(),
-            ..Default::default()
-        })
-        .collect();
     let mut warnings = Vec::new();
     let mut visibility = vec![0.0f32; n];
-    let mut silhouette_edges = 0u64;
     for sub in &sub_lights {
         let centre = sub.center();
         let silhouette = adjacency.silhouette_from(centre);
-        silhouette_edges += silhouette.edges.len() as u64;
+        m.phase("hard");
+        m.count("silhouette_edges", silhouette.edges.len() as f64);
         let loops = if opts.overlap_approximation {
             silhouette_loops(&silhouette.edges)
         } else {
@@ -161,7 +230,7 @@ pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
         let mut covered = vec![0.0f32; n];
         for (k, edges) in loops.iter().enumerate() {
             let eye = if loops.len() > 1 { 0 } else { eye };
-            let v = render_loop(&setup, sub, edges, eye, &mut phases);
+            let v = render_loop(&mut m, &setup, sub, edges, eye);
             for i in 0..n {
                 let c = (1.0 - v[i]).clamp(0.0, 1.0);
                 covered[i] = if k == 0 {
@@ -182,121 +251,130 @@ pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
             1.0
         };
     }
-    let mut counters = Counters::default();
-    for p in &phases {
-        counters.merge(&p.counters);
-    }
-    counters.set("silhouette_edges", silhouette_edges as f64);
-    let fill = counters.get("fill").unwrap_or(0.0);
-    counters.set(
-        "overdraw_ratio",
-        if fill > 0.0 {
-            counters.get("overdraw").unwrap_or(0.0) / fill
-        } else {
-            0.0
-        },
-    );
-    let mut execution = std::collections::BTreeMap::new();
-    execution.insert("options".to_string(), serde_json::json!(opts));
+    let visibility = VisibilityBuffer {
+        width: frame.width(),
+        height: frame.height(),
+        data: visibility,
+    };
+    let mut out = output(m, visibility);
+    out.warnings = warnings;
+    out.execution
+        .insert("options".to_string(), serde_json::json!(opts));
     if let Some(t) = &setup.texture {
-        execution.insert(
+        out.execution.insert(
             "coverage_texture_bytes".into(),
-            serde_json::json!(t.bytes()),
+            serde_json::json!(t.texture.bytes()),
         );
     }
-    Ok(FrameOutput {
-        visibility: VisibilityBuffer {
-            width: frame.width(),
-            height: frame.height(),
-            data: visibility,
-        },
-        counters,
-        phases,
-        model_ms: None,
-        gpu_ms: None,
-        execution,
-        warnings,
-    })
+    Ok(out)
+}
+
+/// Wedge construction, `WEDGES_PER_TASK` silhouette edges per task.
+struct BuildWedges<'a> {
+    edges: &'a [SilhouetteEdge],
+    light: &'a Light,
+    tighter: bool,
+    reach: f32,
+}
+
+impl TaskKernel for BuildWedges<'_> {
+    type Out = Vec<Option<Wedge>>;
+
+    fn run<P: Probe>(&self, p: &mut P, t: usize) -> Self::Out {
+        let edges =
+            &self.edges[t * WEDGES_PER_TASK..((t + 1) * WEDGES_PER_TASK).min(self.edges.len())];
+        for chunk in edges.chunks(LANES) {
+            p.vector(WEDGE_BUILD_OPS, Mask::first(chunk.len()));
+        }
+        let centre = self.light.center();
+        edges
+            .iter()
+            .map(|e| match (self.light, self.tighter) {
+                (Light::Rect { half_u, half_v, .. }, true) => Wedge::tight_rect(
+                    e.a,
+                    e.b,
+                    [
+                        centre - *half_u - *half_v,
+                        centre + *half_u - *half_v,
+                        centre + *half_u + *half_v,
+                        centre - *half_u + *half_v,
+                    ],
+                    self.reach,
+                ),
+                _ => Wedge::robust(e.a, e.b, centre, bounding_radius(self.light), self.reach),
+            })
+            .collect()
+    }
 }
 
 /// Renders one silhouette loop (or the whole silhouette) for one (sub-)light: returns its
-/// V-buffer, 1 − (hard count) ± wedge coverage, and adds to the phases' times and counters.
+/// V-buffer, 1 − (hard count) ± wedge coverage, and adds to the phases' counters.
 fn render_loop(
+    m: &mut Machine,
     s: &Setup,
     light: &Light,
     edges: &[SilhouetteEdge],
     eye: i32,
-    phases: &mut [Phase],
 ) -> Vec<f32> {
     let centre = light.center();
     let rays = &s.rays;
 
     // Pass 1: hard shadow quads (III §3.2.1).
-    let start = Instant::now();
+    m.phase("hard");
     let quads: Vec<ShadowQuad> = edges.iter().map(|e| ShadowQuad::new(e, centre)).collect();
-    let hard = render_quads(rays, &quads, eye, s.tile);
-    let c = &mut phases[0].counters;
-    c.add("fill", hard.fill as f64);
-    c.add("overdraw", (hard.fill - hard.passed) as f64);
-    mem_read(c, "depth", hard.fill * DEPTH_BYTES);
+    let hard = render_quads(m, "quads", rays, &quads, eye, s.tile, &s.hard);
+    m.count("fill", hard.fill as f64);
+    m.count("overdraw", (hard.fill - hard.passed) as f64);
+    mem_read(m, "depth", hard.fill * DEPTH_BYTES);
     let (buffer, bytes) = match s.opts.vbuffer {
         VBufferPrecision::F32 => ("vbuffer", VBUFFER_F32_BYTES),
         VBufferPrecision::Split12 => ("stencil", STENCIL_BYTES),
     };
-    mem_read(c, buffer, hard.passed * bytes);
-    mem_write(c, buffer, hard.passed * bytes);
-    phases[0].wall_ms += start.elapsed().as_secs_f64() * 1e3;
+    mem_read(m, buffer, hard.passed * u64::from(bytes));
+    mem_write(m, buffer, hard.passed * u64::from(bytes));
 
     // Wedge construction (III §3.1, IV §4.1).
-    let start = Instant::now();
-    let reach = 4.0 * rays.bounds.diagonal();
-    let wedges: Vec<Option<Wedge>> = edges
-        .iter()
-        .map(|e| match (light, s.opts.tighter_wedges) {
-            (Light::Rect { half_u, half_v, .. }, true) => Wedge::tight_rect(
-                e.a,
-                e.b,
-                [
-                    centre - *half_u - *half_v,
-                    centre + *half_u - *half_v,
-                    centre + *half_u + *half_v,
-                    centre - *half_u + *half_v,
-                ],
-                reach,
-            ),
-            _ => Wedge::robust(e.a, e.b, centre, bounding_radius(light), reach),
-        })
+    m.phase("wedges");
+    let build = BuildWedges {
+        edges,
+        light,
+        tighter: s.opts.tighter_wedges,
+        reach: 4.0 * rays.bounds.diagonal(),
+    };
+    let weights: Vec<u64> = edges
+        .chunks(WEDGES_PER_TASK)
+        .map(|c| c.len() as u64)
         .collect();
+    let wedges: Vec<Option<Wedge>> = m.run_step("build", &build, &weights).concat();
     let degenerate = wedges.iter().filter(|w| w.is_none()).count();
-    let c = &mut phases[1].counters;
-    c.add("wedges", (wedges.len() - degenerate) as f64);
-    c.add("wedges_degenerate", degenerate as f64);
-    phases[1].wall_ms += start.elapsed().as_secs_f64() * 1e3;
+    m.count("wedges", (wedges.len() - degenerate) as f64);
+    m.count("wedges_degenerate", degenerate as f64);
 
     // Pass 2: penumbra wedges (III §3.2.2), by wedge halves when culling (IV §4.4).
-    let start = Instant::now();
-    let (accum, tally) = soft_pass(s, light, &quads, &wedges);
-    let c = &mut phases[2].counters;
-    c.add("fill", tally.fill as f64);
-    c.add("overdraw", (tally.fill - tally.contributing) as f64);
-    c.add("shader_invocations", tally.shaded as f64);
-    c.add("culled_fragments", tally.culled as f64);
-    c.add("fragments_inside_wedges", tally.inside as f64);
-    mem_read(c, "depth", tally.depth_reads * DEPTH_BYTES);
-    mem_read(c, "stencil", tally.stencil_reads * STENCIL_BYTES);
-    mem_write(c, "stencil", tally.stencil_writes * STENCIL_BYTES);
+    m.phase("soft");
+    let (accum, tally) = soft_pass(m, s, light, &quads, &wedges);
+    m.count("fill", tally.fill as f64);
+    m.count("overdraw", (tally.fill - tally.contributing) as f64);
+    m.count("shader_invocations", tally.shaded as f64);
+    m.count("culled_fragments", tally.culled as f64);
+    m.count("fragments_inside_wedges", tally.inside as f64);
+    mem_read(m, "depth", tally.depth_reads * DEPTH_BYTES);
+    mem_read(m, "stencil", tally.stencil_reads * u64::from(STENCIL_BYTES));
+    mem_write(
+        m,
+        "stencil",
+        tally.stencil_writes * u64::from(STENCIL_BYTES),
+    );
     let vbytes = match s.opts.vbuffer {
         VBufferPrecision::F32 => VBUFFER_F32_BYTES,
         VBufferPrecision::Split12 => VBUFFER_RGBA8_BYTES,
     };
-    mem_read(c, "vbuffer", tally.inside * vbytes);
-    mem_write(c, "vbuffer", tally.inside * vbytes);
-    mem_read(c, "coverage_texture", tally.texture_reads);
-    let v = (0..rays.len())
+    mem_read(m, "vbuffer", tally.inside * u64::from(vbytes));
+    mem_write(m, "vbuffer", tally.inside * u64::from(vbytes));
+    mem_read(m, "coverage_texture", tally.texture_reads);
+    (0..rays.len())
         .map(|i| 1.0 - hard.count[i] as f32 + accum.value(i))
-        .collect();
-    phases[2].wall_ms += start.elapsed().as_secs_f64() * 1e3;
-    v
+        .collect()
 }
 
 /// Radius of the sphere around the light that the robust wedges are built from.
@@ -315,28 +393,168 @@ struct WedgePrimitive {
     half: Option<f32>,
 }
 
-/// Coverage of the light seen from `p` by the hard shadow quad of `quad`'s edge, and the side
-/// of the quad `p` is on; `None` when the projected edge misses the light.
-fn pixel_coverage(
-    s: &Setup,
-    light: &Light,
-    quad: &ShadowQuad,
-    p: Vec3,
-    tally: &mut SoftTally,
-) -> Option<f32> {
-    let emitter = Emitter::seen_from(light, p);
-    let (q0, q1) = emitter.project_edge(p, quad.a, quad.b)?;
-    let (c0, c1) = emitter.shape.clip(q0, q1)?;
-    Some(match &s.texture {
-        Some(t) => {
-            tally.texture_reads += CoverageTexture::READS;
-            t.lookup(c0, c1)
+/// Pass 2 over the eye tiles.
+struct SoftPass<'a> {
+    s: &'a Setup,
+    light: &'a Light,
+    quads: &'a [ShadowQuad],
+    prims: Vec<WedgePrimitive>,
+}
+
+struct SoftTile {
+    rect: ScreenRect,
+    accum: Accum,
+    tally: SoftTally,
+}
+
+impl SoftPass<'_> {
+    /// Coverage of the light seen from `p` by the hard shadow quad of `quad`'s edge, and the
+    /// four coverage-texture texels read for it (when the texture is used); `None` when the
+    /// projected edge misses the light.
+    fn coverage(&self, quad: &ShadowQuad, p: Vec3) -> Option<(f32, [u32; 4])> {
+        let emitter = Emitter::seen_from(self.light, p);
+        let (q0, q1) = emitter.project_edge(p, quad.a, quad.b)?;
+        let (c0, c1) = emitter.shape.clip(q0, q1)?;
+        Some(match &self.s.texture {
+            Some(t) => t.texture.lookup_texels(c0, c1),
+            None => (exact_coverage(emitter.shape, c0, c1), [0; 4]),
+        })
+    }
+}
+
+impl TilePass for SoftPass<'_> {
+    type State = SoftTile;
+
+    fn begin<P: Probe>(&self, _: &mut P, rect: ScreenRect) -> SoftTile {
+        SoftTile {
+            rect,
+            accum: Accum::new(
+                self.s.opts.vbuffer,
+                ((rect.x1 - rect.x0) * (rect.y1 - rect.y0)) as usize,
+            ),
+            tally: SoftTally::default(),
         }
-        None => exact_coverage(emitter.shape, c0, c1),
-    })
+    }
+
+    fn block<P: Probe>(&self, p: &mut P, st: &mut SoftTile, k: usize, b: &Block) {
+        let s = self.s;
+        let rays = &s.rays;
+        let prim = &self.prims[k];
+        let quad = &self.quads[prim.edge];
+        p.vector(
+            SLAB_OPS + WEDGE_PLANE_OPS * prim.volume.planes.len() as u32,
+            b.mask,
+        );
+        let mut t_in = [0.0f32; LANES];
+        let mut t_out = [0.0f32; LANES];
+        let fill = b.mask.and(Mask::from_fn(|l| {
+            let i = b.pixel[l] as usize;
+            let (b0, b1) = rays.bounds_interval(i);
+            match prim.volume.ray_interval(rays.eye, rays.dir[i], b0, b1) {
+                Some((a, z)) => {
+                    (t_in[l], t_out[l]) = (a, z);
+                    true
+                }
+                None => false,
+            }
+        }));
+        if !fill.any() {
+            return;
+        }
+        p.vector(WEDGE_DEPTH_OPS, fill);
+        let t_p = |l: usize| rays.depth[b.pixel[l] as usize];
+        // Lanes whose visible point is behind the wedge's entry, and those also in front of its
+        // exit (inside the wedge).
+        let front = fill.and(Mask::from_fn(|l| t_in[l] < t_p(l)));
+        let inside = front.and(Mask::from_fn(|l| t_p(l) < t_out[l]));
+        let t = &mut st.tally;
+        let mut side: Lanes<f32> = [0.0; LANES];
+        match prim.half {
+            // IV §4.4: front faces with GL_GREATER set the stencil, back faces with GL_LESS
+            // and the stencil test run the shader (and reset the stencil they consumed); both
+            // passes rasterize the half.
+            Some(half) => {
+                let n = u64::from(fill.count());
+                t.fill += 2 * n;
+                t.depth_reads += 2 * n;
+                t.stencil_reads += n;
+                t.stencil_writes += 2 * u64::from(front.count());
+                t.culled += n - u64::from(inside.count());
+                t.shaded += u64::from(inside.count());
+                s.hard.depth.read(p, b, fill);
+                s.hard.depth.read(p, b, fill);
+                s.stencil.read(p, b, fill);
+                s.stencil.write(p, b, front);
+                s.stencil.write(p, b, front);
+                side = [half; LANES];
+            }
+            // III §3.2.2: the front faces run the shader, which tests "p inside the wedge".
+            None => {
+                t.fill += u64::from(fill.count());
+                t.depth_reads += u64::from(fill.count());
+                t.shaded += u64::from(front.count());
+                s.hard.depth.read(p, b, fill);
+                for l in inside.lanes() {
+                    side[l] = quad.side(rays.point[b.pixel[l] as usize]);
+                }
+            }
+        }
+        if !inside.any() {
+            return;
+        }
+        p.vector(PROJECT_OPS, inside);
+        let mut coverage = [0.0f32; LANES];
+        let mut texels = [[0u32; 4]; LANES];
+        let covered = inside.and(Mask::from_fn(|l| {
+            match self.coverage(quad, rays.point[b.pixel[l] as usize]) {
+                Some((c, idx)) => {
+                    (coverage[l], texels[l]) = (c, idx);
+                    true
+                }
+                None => false,
+            }
+        }));
+        if !covered.any() {
+            return;
+        }
+        match &s.texture {
+            Some(tex) => {
+                p.vector(TEXTURE_OPS, covered);
+                if P::ENABLED {
+                    // One gather per bilinear tap, each lane reading its own texel.
+                    let taps: [Lanes<u64>; 4] = std::array::from_fn(|r| {
+                        std::array::from_fn(|l| tex.base + u64::from(texels[l][r]))
+                    });
+                    for addrs in &taps {
+                        p.gather(tex.id, addrs, 1, covered);
+                    }
+                }
+                t.texture_reads += CoverageTexture::READS * u64::from(covered.count());
+            }
+            None => p.vector(EXACT_OPS, covered),
+        }
+        t.inside += u64::from(covered.count());
+        t.contributing += u64::from(Mask::from_fn(|l| coverage[l] > 0.0).and(covered).count());
+        s.vbuffer.read(p, b, covered);
+        p.vector(
+            match s.opts.vbuffer {
+                VBufferPrecision::F32 => VBUFFER_OPS_F32,
+                VBufferPrecision::Split12 => VBUFFER_OPS_SPLIT12,
+            },
+            covered,
+        );
+        let w = st.rect.x1 - st.rect.x0;
+        for l in covered.lanes() {
+            let (x, y) = (b.pixel[l] % rays.width, b.pixel[l] / rays.width);
+            let j = ((y - st.rect.y0) * w + x - st.rect.x0) as usize;
+            st.accum.add(j, side[l], coverage[l]);
+        }
+        s.vbuffer.write(p, b, covered);
+    }
 }
 
 fn soft_pass(
+    m: &mut Machine,
     s: &Setup,
     light: &Light,
     quads: &[ShadowQuad],
@@ -370,82 +588,13 @@ fn soft_pass(
             footprints.push(fp);
         }
     }
-    struct State {
-        rect: ScreenRect,
-        accum: Accum,
-        tally: SoftTally,
-    }
-    let tiles = raster_pass(
-        rays,
-        &footprints,
-        s.tile,
-        |rect| State {
-            rect,
-            accum: Accum::new(
-                s.opts.vbuffer,
-                ((rect.x1 - rect.x0) * (rect.y1 - rect.y0)) as usize,
-            ),
-            tally: SoftTally::default(),
-        },
-        |st, k, i| {
-            let prim = &prims[k];
-            let (b0, b1) = rays.bounds_interval(i);
-            let Some((t_in, t_out)) = prim.volume.ray_interval(rays.eye, rays.dir[i], b0, b1)
-            else {
-                return;
-            };
-            let t_p = rays.depth[i];
-            let t = &mut st.tally;
-            let quad = &quads[prim.edge];
-            let side = match prim.half {
-                // IV §4.4: front faces with GL_GREATER set the stencil, back faces with GL_LESS
-                // and the stencil test run the shader; both passes rasterize the half.
-                Some(half) => {
-                    t.fill += 2;
-                    t.depth_reads += 2;
-                    t.stencil_reads += 1;
-                    if t_in >= t_p {
-                        t.culled += 1;
-                        return;
-                    }
-                    t.stencil_writes += 1;
-                    if t_p >= t_out {
-                        t.stencil_writes += 1;
-                        t.culled += 1;
-                        return;
-                    }
-                    // The back pass resets the stencil it consumed.
-                    t.stencil_writes += 1;
-                    t.shaded += 1;
-                    half
-                }
-                // III §3.2.2: the front faces run the shader, which tests "p inside the wedge".
-                None => {
-                    t.fill += 1;
-                    t.depth_reads += 1;
-                    if t_in >= t_p {
-                        return;
-                    }
-                    t.shaded += 1;
-                    if t_p >= t_out {
-                        return;
-                    }
-                    quad.side(rays.point[i])
-                }
-            };
-            let p = rays.point[i];
-            let Some(coverage) = pixel_coverage(s, light, quad, p, t) else {
-                return;
-            };
-            t.inside += 1;
-            if coverage > 0.0 {
-                t.contributing += 1;
-            }
-            let (x, y) = (i as u32 % rays.width, i as u32 / rays.width);
-            let j = ((y - st.rect.y0) * (st.rect.x1 - st.rect.x0) + x - st.rect.x0) as usize;
-            st.accum.add(j, side, coverage);
-        },
-    );
+    let pass = SoftPass {
+        s,
+        light,
+        quads,
+        prims,
+    };
+    let tiles = raster_pass(m, "wedges", rays, &footprints, s.tile, &pass);
     let mut accum = Accum::new(s.opts.vbuffer, rays.len());
     let mut tally = SoftTally::default();
     for tile in tiles {

@@ -262,23 +262,30 @@ impl CoverageTexture {
             .clamp(Vec2::ZERO, Vec2::splat((self.n - 1) as f32))
     }
 
-    fn texel(&self, a: u32, b: u32, i: u32, j: u32) -> f32 {
+    fn index(&self, a: u32, b: u32, i: u32, j: u32) -> u32 {
         let side = self.n * self.n;
-        self.texels[((b * self.n + j) * side + a * self.n + i) as usize] as f32 / 255.0
+        (b * self.n + j) * side + a * self.n + i
     }
 
     /// Coverage of the clipped projected edge `q0q1`: the sub-texture of the texel centre
     /// nearest `q0`, read bilinearly at `q1` (III §3.3). Four texel reads of one byte.
     pub fn lookup(&self, q0: Vec2, q1: Vec2) -> f32 {
+        self.lookup_texels(q0, q1).0
+    }
+
+    /// [`Self::lookup`] and the indices into `texels` of the four texels it reads.
+    pub fn lookup_texels(&self, q0: Vec2, q1: Vec2) -> (f32, [u32; 4]) {
         let s = self.texel_pos(q0).round();
         let (a, b) = (s.x as u32, s.y as u32);
         let t = self.texel_pos(q1);
         let (i0, j0) = (t.x.floor() as u32, t.y.floor() as u32);
         let (i1, j1) = ((i0 + 1).min(self.n - 1), (j0 + 1).min(self.n - 1));
         let f = t - Vec2::new(i0 as f32, j0 as f32);
-        let top = self.texel(a, b, i0, j0) * (1.0 - f.x) + self.texel(a, b, i1, j0) * f.x;
-        let bottom = self.texel(a, b, i0, j1) * (1.0 - f.x) + self.texel(a, b, i1, j1) * f.x;
-        top * (1.0 - f.y) + bottom * f.y
+        let index = [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].map(|(i, j)| self.index(a, b, i, j));
+        let [t00, t10, t01, t11] = index.map(|k| self.texels[k as usize] as f32 / 255.0);
+        let top = t00 * (1.0 - f.x) + t10 * f.x;
+        let bottom = t01 * (1.0 - f.x) + t11 * f.x;
+        (top * (1.0 - f.y) + bottom * f.y, index)
     }
 
     /// Texture reads per lookup (bilinear).
