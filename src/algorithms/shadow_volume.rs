@@ -177,7 +177,11 @@ impl TilePass for QuadPass<'_> {
         let rays = self.rays;
         p.vector(QUAD_HIT_OPS, b.mask);
         let mut hit = [f32::INFINITY; LANES];
-        let fill = b.mask.and(Mask::from_fn(|l| {
+        // Lanes outside the mask may lie past the image edge: never index with them.
+        let fill = Mask::from_fn(|l| {
+            if !b.mask.get(l) {
+                return false;
+            }
             let i = b.pixel[l] as usize;
             let (t0, t1) = rays.bounds_interval(i);
             match self.quads[k].ray_hit(rays.eye, rays.dir[i]) {
@@ -187,13 +191,13 @@ impl TilePass for QuadPass<'_> {
                 }
                 _ => false,
             }
-        }));
+        });
         if !fill.any() {
             return;
         }
         self.target.depth.read(p, b, fill);
         p.vector(DEPTH_TEST_OPS, fill);
-        let passed = fill.and(Mask::from_fn(|l| hit[l] < rays.depth[b.pixel[l] as usize]));
+        let passed = Mask::from_fn(|l| fill.get(l) && hit[l] < rays.depth[b.pixel[l] as usize]);
         s.fill += u64::from(fill.count());
         s.passed += u64::from(passed.count());
         if !passed.any() {

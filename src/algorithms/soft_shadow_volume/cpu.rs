@@ -447,7 +447,11 @@ impl TilePass for SoftPass<'_> {
         );
         let mut t_in = [0.0f32; LANES];
         let mut t_out = [0.0f32; LANES];
-        let fill = b.mask.and(Mask::from_fn(|l| {
+        // Lanes outside the mask may lie past the image edge: never index with them.
+        let fill = Mask::from_fn(|l| {
+            if !b.mask.get(l) {
+                return false;
+            }
             let i = b.pixel[l] as usize;
             let (b0, b1) = rays.bounds_interval(i);
             match prim.volume.ray_interval(rays.eye, rays.dir[i], b0, b1) {
@@ -457,7 +461,7 @@ impl TilePass for SoftPass<'_> {
                 }
                 None => false,
             }
-        }));
+        });
         if !fill.any() {
             return;
         }
@@ -465,8 +469,8 @@ impl TilePass for SoftPass<'_> {
         let t_p = |l: usize| rays.depth[b.pixel[l] as usize];
         // Lanes whose visible point is behind the wedge's entry, and those also in front of its
         // exit (inside the wedge).
-        let front = fill.and(Mask::from_fn(|l| t_in[l] < t_p(l)));
-        let inside = front.and(Mask::from_fn(|l| t_p(l) < t_out[l]));
+        let front = Mask::from_fn(|l| fill.get(l) && t_in[l] < t_p(l));
+        let inside = Mask::from_fn(|l| front.get(l) && t_p(l) < t_out[l]);
         let t = &mut st.tally;
         let mut side: Lanes<f32> = [0.0; LANES];
         match prim.half {
@@ -505,7 +509,10 @@ impl TilePass for SoftPass<'_> {
         p.vector(PROJECT_OPS, inside);
         let mut coverage = [0.0f32; LANES];
         let mut texels = [[0u32; 4]; LANES];
-        let covered = inside.and(Mask::from_fn(|l| {
+        let covered = Mask::from_fn(|l| {
+            if !inside.get(l) {
+                return false;
+            }
             match self.coverage(quad, rays.point[b.pixel[l] as usize]) {
                 Some((c, idx)) => {
                     (coverage[l], texels[l]) = (c, idx);
@@ -513,7 +520,7 @@ impl TilePass for SoftPass<'_> {
                 }
                 None => false,
             }
-        }));
+        });
         if !covered.any() {
             return;
         }
