@@ -198,8 +198,10 @@ fn close_to_the_reference_and_identical_across_thread_counts() {
 }
 
 fn run_on(backend: Backend, frame: &Frame) -> FrameOutput {
-    let mut ctx = ExecContext::default();
-    ctx.machine = shadowbench::model::MachineConfig::larrabee(8);
+    let ctx = ExecContext {
+        machine: shadowbench::model::MachineConfig::larrabee(8),
+        ..Default::default()
+    };
     algorithms::run("soft_izb", backend, frame, &ctx).unwrap()
 }
 
