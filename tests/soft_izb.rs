@@ -196,3 +196,92 @@ fn close_to_the_reference_and_identical_across_thread_counts() {
         / shadowed.len() as f32;
     assert!(mae < 0.5 * hard, "soft_izb {mae}, best hard shadow {hard}");
 }
+
+fn run_on(backend: Backend, frame: &Frame) -> FrameOutput {
+    let ctx = ExecContext {
+        machine: shadowbench::model::MachineConfig::larrabee(8),
+        ..Default::default()
+    };
+    algorithms::run("soft_izb", backend, frame, &ctx).unwrap()
+}
+
+#[test]
+fn the_model_execution_renders_the_native_image() {
+    for (name, triangles) in [("room", 3000), ("torus-on-plane", 2000)] {
+        let frame = small(name, triangles);
+        let native = run_on(Backend::CpuNative, &frame);
+        let model = run_on(Backend::CpuModel, &frame);
+        assert_eq!(native.visibility, model.visibility, "{name}");
+        assert!(native.model_ms.is_none());
+        assert!(model.model_ms.unwrap() > 0.0);
+        // Algorithm counters agree; the model adds what the machine executed.
+        for k in ["fill", "overdraw", "samples", "hard_tests", "bin_entries"] {
+            assert_eq!(native.counters.get(k), model.counters.get(k), "{name}: {k}");
+        }
+        let c = |k: &str| model.counters.get(k).unwrap_or(0.0);
+        assert!(c("mem_read_bytes") > 0.0 && c("mem_write_bytes") > 0.0);
+        // Every stored sample is scattered once and takes an atomic cursor in `construct`.
+        let construct = model.phases.iter().find(|p| p.name == "construct").unwrap();
+        let samples = construct.counters.get("samples").unwrap();
+        assert!(samples > 0.0);
+        assert_eq!(construct.counters.get("atomics"), Some(3.0 * samples));
+        assert_eq!(
+            construct.counters.get("mem.izb_samples.write_bytes"),
+            Some(20.0 * samples)
+        );
+        // The umbra and penumbra tests gather one 20-byte record per sample they test.
+        let hard = model.phases.iter().find(|p| p.name == "hard").unwrap();
+        assert!(
+            hard.counters.get("mem.izb_samples.read_bytes").unwrap()
+                >= 20.0 * hard.counters.get("hard_tests").unwrap()
+        );
+        let soft = model.phases.iter().find(|p| p.name == "soft").unwrap();
+        assert!(
+            soft.counters.get("mem.izb_samples.read_bytes").unwrap()
+                >= 20.0 * soft.counters.get("fill").unwrap()
+        );
+    }
+}
+
+#[test]
+fn model_counters_and_time_do_not_depend_on_host_threads() {
+    let render = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run_on(Backend::CpuModel, &small("room", 3000)))
+    };
+    let (a, b) = (render(1), render(2));
+    assert_eq!(a.visibility, b.visibility);
+    assert_eq!(a.counters, b.counters);
+    assert_eq!(a.model_ms, b.model_ms);
+    for (p, q) in a.phases.iter().zip(&b.phases) {
+        assert_eq!(
+            (&p.name, p.model_ms, &p.counters),
+            (&q.name, q.model_ms, &q.counters)
+        );
+    }
+}
+
+#[test]
+fn more_modelled_cores_take_less_modelled_time() {
+    let scene = generators::find("room").unwrap().build(&GeneratorParams {
+        triangles: Some(3000),
+        ..Default::default()
+    });
+    let ms = |cores: u32| {
+        let mut p = params(&scene, [128, 96]);
+        p.cores = Some(cores);
+        let frame = Frame::new(scene.clone(), p);
+        let out = algorithms::run(
+            "soft_izb",
+            Backend::CpuModel,
+            &frame,
+            &ExecContext::default(),
+        );
+        out.unwrap().model_ms.unwrap()
+    };
+    let (one, four, sixteen) = (ms(1), ms(4), ms(16));
+    assert!(four < one && sixteen < four, "{one} {four} {sixteen}");
+}

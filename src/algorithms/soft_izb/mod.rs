@@ -91,7 +91,7 @@ impl SoftIzbOptions {
 const NEAR_CLIP: f32 = 1e-4;
 
 /// A point in the light-view image plane with its inverse linear depth.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LightPoint {
     pub uv: Vec2,
     pub inv_z: f32,
