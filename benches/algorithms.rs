@@ -22,15 +22,7 @@ fn small_frame(algorithm: &str) -> Frame {
         .expect("registered")
         .light_for(scene.light.kind());
     scene.light = light_as(scene.light, kind, scene.bounds().center());
-    let params = RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: scene.light.size(),
-        map_resolution: 256,
-        tile_size: 32,
-        image: [160, 120],
-        occluder_height: None,
-        cores: None,
-    };
+    let params = RunParams::of_scene(&scene, [160, 120], 256, 32);
     Frame::new(scene, params)
 }
 

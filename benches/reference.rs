@@ -9,15 +9,7 @@ fn bench_reference(c: &mut Criterion) {
     let scene = generators::find("sphere-grid")
         .expect("built-in scene")
         .build(&GeneratorParams::default());
-    let params = RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: scene.light.size(),
-        map_resolution: 512,
-        tile_size: 32,
-        image: [160, 120],
-        occluder_height: None,
-        cores: None,
-    };
+    let params = RunParams::of_scene(&scene, [160, 120], 512, 32);
     let frame = Frame::new(scene, params);
     let samples = 64;
     let rays = reference::render(&frame, samples, 1)

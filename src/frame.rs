@@ -32,6 +32,27 @@ pub struct RunParams {
     pub cores: Option<u32>,
 }
 
+impl RunParams {
+    /// Parameters of a run in `scene`: its triangle count and light size, the given image and
+    /// map resolution and tile size, no occluder height or core count.
+    pub fn of_scene(
+        scene: &Scene,
+        image: [u32; 2],
+        map_resolution: u32,
+        tile_size: u32,
+    ) -> RunParams {
+        RunParams {
+            triangles: scene.triangle_count() as u32,
+            light_size: scene.light.size(),
+            map_resolution,
+            tile_size,
+            image,
+            occluder_height: None,
+            cores: None,
+        }
+    }
+}
+
 /// What the eye sees at each pixel.
 #[derive(Clone, Debug)]
 pub struct GBuffer {

@@ -254,13 +254,9 @@ fn render(a: RenderArgs) -> Result<()> {
     let kind = info.light_for(scene.light.kind());
     scene.light = harness::light_as(scene.light, kind, scene.bounds().center());
     let params = shadowbench::frame::RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: scene.light.size(),
-        map_resolution: a.map_resolution,
-        tile_size: a.tile_size,
-        image,
         occluder_height: a.occluder_height,
         cores: a.cores,
+        ..shadowbench::frame::RunParams::of_scene(&scene, image, a.map_resolution, a.tile_size)
     };
     harness::limits::check(info, &params, memory_limit(a.memory_limit)?)?;
     let frame = Frame::new(scene, params);

@@ -55,15 +55,7 @@ fn every_algorithm_is_deterministic_across_host_threads() {
     let scene = generators::find("torus-on-plane")
         .unwrap()
         .build(&GeneratorParams::default());
-    let params = RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: scene.light.size(),
-        map_resolution: 128,
-        tile_size: 16,
-        image: [48, 36],
-        occluder_height: None,
-        cores: None,
-    };
+    let params = RunParams::of_scene(&scene, [48, 36], 128, 16);
     let base = Frame::new(scene, params);
     let ctx = ExecContext {
         reference_samples: 16,

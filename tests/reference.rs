@@ -87,15 +87,7 @@ fn reference_is_bit_identical_across_thread_counts() {
             let scene = generators::find("torus-on-plane")
                 .unwrap()
                 .build(&GeneratorParams::default());
-            let params = RunParams {
-                triangles: scene.triangle_count() as u32,
-                light_size: scene.light.size(),
-                map_resolution: 256,
-                tile_size: 32,
-                image: [64, 48],
-                occluder_height: None,
-                cores: None,
-            };
+            let params = RunParams::of_scene(&scene, [64, 48], 256, 32);
             let frame = Frame::new(scene, params);
             reference::render(&frame, 64, 5).visibility
         })

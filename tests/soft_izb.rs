@@ -8,15 +8,7 @@ use shadowbench::scene::generators::{self, primitives, GeneratorParams};
 use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
 
 fn params(scene: &Scene, image: [u32; 2]) -> RunParams {
-    RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: scene.light.size(),
-        map_resolution: 256,
-        tile_size: 16,
-        image,
-        occluder_height: None,
-        cores: None,
-    }
+    RunParams::of_scene(scene, image, 256, 16)
 }
 
 fn run(frame: &Frame, options: serde_json::Value) -> FrameOutput {

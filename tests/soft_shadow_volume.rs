@@ -13,15 +13,7 @@ use shadowbench::scene::{Light, Mesh, Object, Role, Scene};
 const SSV: &str = "soft_shadow_volume";
 
 fn params(scene: &Scene) -> RunParams {
-    RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: scene.light.size(),
-        map_resolution: 256,
-        tile_size: 16,
-        image: [64, 48],
-        occluder_height: None,
-        cores: None,
-    }
+    RunParams::of_scene(scene, [64, 48], 256, 16)
 }
 
 /// A single planar pentagon (an open surface: its outline is its silhouette from every point of

@@ -35,15 +35,7 @@ fn frame(name: &str, light: impl Fn(Light) -> Light, map_resolution: u32) -> Fra
         .unwrap()
         .build(&GeneratorParams::default());
     scene.light = light_as(light(scene.light), LightKind::Disc, scene.bounds().center());
-    let params = RunParams {
-        triangles: scene.triangle_count() as u32,
-        light_size: scene.light.size(),
-        map_resolution,
-        tile_size: 32,
-        image: [64, 48],
-        occluder_height: None,
-        cores: None,
-    };
+    let params = RunParams::of_scene(&scene, [64, 48], map_resolution, 32);
     Frame::new(scene, params)
 }
 

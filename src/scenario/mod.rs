@@ -223,13 +223,9 @@ impl Case {
     /// Run parameters for this case in `scene` (whose light already has the case's size).
     pub fn run_params(&self, scene: &Scene) -> RunParams {
         RunParams {
-            triangles: scene.triangle_count() as u32,
-            light_size: scene.light.size(),
-            map_resolution: self.map_resolution,
-            tile_size: self.tile_size,
-            image: self.image,
             occluder_height: self.scene.occluder_height,
             cores: self.cores,
+            ..RunParams::of_scene(scene, self.image, self.map_resolution, self.tile_size)
         }
     }
 }
