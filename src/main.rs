@@ -397,6 +397,13 @@ fn main() -> ExitCode {
             return ExitCode::from(e.exit_code() as u8);
         }
     }
+    if let Ok(spec) = std::env::var(shadowbench::gpu::fault::FAULT_ENV) {
+        if let Err(e) = shadowbench::gpu::fault::parse(&spec) {
+            let e = Error::from(InputError::new(shadowbench::gpu::fault::FAULT_ENV, e));
+            eprintln!("error: {e}");
+            return ExitCode::from(e.exit_code() as u8);
+        }
+    }
     let result = match cli.command {
         Command::List { scenarios } => {
             list(&scenarios);

@@ -268,3 +268,64 @@ fn without_an_adapter_run_skips_wgpu_and_render_fails_clearly() {
     assert!(out.status.success());
     assert!(stdout.contains("none: no GPU adapter found"), "{stdout}");
 }
+
+/// Runs a sweep of light sizes (the base case and 3 more) × hard_shadow_map, pcss on cpu-native
+/// and wgpu (8 wgpu runs) with `SHADOWBENCH_INJECT_FAULT=fault`, and returns the records and stderr.
+fn sweep_with_fault(fault: &str) -> (Vec<serde_json::Value>, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("s.json");
+    std::fs::write(
+        &scenario,
+        r#"{
+  "scene": { "generator": "sphere-on-plane" },
+  "algorithms": ["hard_shadow_map", "pcss"],
+  "backends": ["cpu-native", "wgpu"],
+  "params": { "image": [32, 24], "map_resolution": 64, "triangles": 300 },
+  "sweep": { "light_size": [0.2, 0.5, 1.0] },
+  "reference": { "samples": 4 }
+}"#,
+    )
+    .unwrap();
+    let out_dir = dir.path().join("out");
+    let out = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+        .args(["run", scenario.to_str().unwrap(), "--out"])
+        .arg(&out_dir)
+        .env("SHADOWBENCH_INJECT_FAULT", fault)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("results.json")).unwrap())
+            .unwrap();
+    (json["runs"].as_array().unwrap().clone(), stderr)
+}
+
+#[test]
+fn a_gpu_fault_fails_only_its_own_run_and_the_sweep_goes_on() {
+    if !have_gpu() {
+        return;
+    }
+    for (fault, says) in [
+        ("device-lost@2", "device lost during the run"),
+        ("shader-error@2", "injected fault"),
+        ("buffer-limit@2", "injected fault"),
+    ] {
+        let (runs, stderr) = sweep_with_fault(fault);
+        let wgpu: Vec<&serde_json::Value> =
+            runs.iter().filter(|r| r["backend"] == "wgpu").collect();
+        let failed: Vec<&serde_json::Value> =
+            runs.iter().filter(|r| !r["failure"].is_null()).collect();
+        // The second wgpu run (and only it) failed, naming the fault; the runs after it (on a
+        // new device after a loss) and every CPU run have images and quality.
+        assert_eq!(wgpu.len(), 8, "{fault}: {stderr}");
+        assert_eq!(failed.len(), 1, "{fault}: {failed:?}");
+        assert!(std::ptr::eq(failed[0], wgpu[1]), "{fault}: {failed:?}");
+        let why = failed[0]["failure"].as_str().unwrap();
+        assert!(why.contains(says), "{fault}: {why}");
+        for r in runs.iter().filter(|r| r["failure"].is_null()) {
+            assert!(r["error"]["mae"].is_number(), "{fault}: {r}");
+        }
+    }
+}

@@ -237,12 +237,15 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
                 .join(", ")
         )));
     }
+    if backend == Backend::Wgpu {
+        return crate::gpu::guarded_run(|gpu| match id {
+            hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),
+            pcss::ID => pcss::wgpu::render(gpu, frame, ctx),
+            _ => unreachable!("registered wgpu execution without a dispatch arm: {id}"),
+        });
+    }
     match id {
         "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
-        hard_shadow_map::ID if backend == Backend::Wgpu => {
-            hard_shadow_map::wgpu::render(frame, ctx)
-        }
-        pcss::ID if backend == Backend::Wgpu => pcss::wgpu::render(frame, ctx),
         hard_shadow_map::ID => {
             let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;
             Ok(hard_shadow_map::cpu::render(backend, frame, ctx, o.bias))

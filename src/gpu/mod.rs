@@ -6,13 +6,20 @@
 //! case-insensitive substring of its name). On a machine with no GPU this is Mesa's software
 //! Vulkan driver (llvmpipe). With no adapter at all, [`gpu`] returns an error that says why, so
 //! the harness can skip the wgpu execution and go on with the others.
+//!
+//! A device lost in the middle of a sweep fails the run it happened in (with the driver's
+//! reason); the next wgpu run acquires a new device, and the other executions never notice.
+//! [`fault`] injects such faults on purpose, for the robustness tests.
+
+pub mod fault;
 
 pub mod readback;
 pub mod stats;
 pub mod timing;
 
 use std::collections::BTreeMap;
-use std::sync::OnceLock;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::error::{Error, Result};
 
@@ -76,9 +83,16 @@ pub struct Gpu {
     /// Query features enabled on `device` (all the adapter offered of the three).
     pub queries: QueryFeatures,
     pub limits: wgpu::Limits,
+    /// Why the device was lost, once the driver says it was.
+    lost: Arc<Mutex<Option<String>>>,
 }
 
 impl Gpu {
+    /// Why the device was lost, or `None` while it is usable.
+    pub fn lost(&self) -> Option<String> {
+        self.lost.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+
     /// What every wgpu record carries in its `execution` map.
     pub fn execution(&self) -> BTreeMap<String, serde_json::Value> {
         let i = &self.info;
@@ -100,7 +114,9 @@ impl Gpu {
 }
 
 static PREFERENCE: OnceLock<String> = OnceLock::new();
-static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
+/// The device in use: acquired on first use, replaced when it is lost. A lost device is leaked
+/// rather than dropped (it is rare, and runs may still hold references to it).
+static GPU: Mutex<Option<std::result::Result<&'static Gpu, String>>> = Mutex::new(None);
 
 /// Asks for the adapter whose name contains `name` (from `--adapter`); must come before the
 /// first [`gpu`] call, and overrides `SHADOWBENCH_ADAPTER`.
@@ -108,7 +124,7 @@ pub fn prefer_adapter(name: &str) -> Result<()> {
     PREFERENCE
         .set(name.to_string())
         .map_err(|_| Error::Gpu("the adapter was already chosen".into()))?;
-    if GPU.get().is_some() {
+    if GPU.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
         return Err(Error::Gpu(
             "--adapter given after the device was acquired".into(),
         ));
@@ -124,12 +140,21 @@ fn preference() -> Option<String> {
         .filter(|s| !s.trim().is_empty())
 }
 
-/// The shared device, acquired on first use. The error says why there is none (no adapter,
-/// no adapter matching the requested name, or the device request failed).
+/// The shared device, acquired on first use, and acquired again after a device loss. The error
+/// says why there is none (no adapter, no adapter matching the requested name, or the device
+/// request failed).
 pub fn gpu() -> Result<&'static Gpu> {
-    GPU.get_or_init(acquire)
-        .as_ref()
-        .map_err(|e| Error::Gpu(e.clone()))
+    let mut current = GPU.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(Ok(g)) = current.as_ref() {
+        if let Some(why) = g.lost() {
+            eprintln!("wgpu: the device was lost ({why}); acquiring a new one");
+            *current = None;
+        }
+    }
+    current
+        .get_or_insert_with(|| acquire().map(|g| &*Box::leak(Box::new(g))))
+        .clone()
+        .map_err(Error::Gpu)
 }
 
 fn instance(backends: wgpu::Backends) -> wgpu::Instance {
@@ -234,26 +259,50 @@ fn acquire() -> std::result::Result<Gpu, String> {
     .map_err(|e| format!("{}: device request failed: {e}", describe(&info)))?;
     // Errors inside a run are caught by error scopes (see `scoped`); anything else is reported
     // rather than aborting the process.
-    device.on_uncaptured_error(std::sync::Arc::new(|e: wgpu::Error| {
+    device.on_uncaptured_error(Arc::new(|e: wgpu::Error| {
         eprintln!("wgpu: uncaptured error: {e}");
     }));
+    let lost = Arc::new(Mutex::new(None));
+    let lost_reason = Arc::clone(&lost);
+    device.set_device_lost_callback(move |reason, message| {
+        *lost_reason.lock().unwrap_or_else(|e| e.into_inner()) =
+            Some(format!("{reason:?}: {message}"));
+    });
     Ok(Gpu {
         device,
         queue,
         info,
         queries,
         limits,
+        lost,
     })
 }
 
-/// Runs `f` with validation and out-of-memory errors captured, turning them into an error
-/// instead of a panic.
-pub fn scoped<T>(gpu: &Gpu, f: impl FnOnce() -> Result<T>) -> Result<T> {
+/// Runs one wgpu run `f` on the shared device with validation and out-of-memory errors
+/// captured, turning them into an error instead of a panic. A device lost during the run fails
+/// it with the driver's reason, whatever `f` returned, since its buffers cannot be trusted; the
+/// next call acquires a new device. [`fault`] injections happen here.
+pub fn guarded_run<T>(f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
+    let gpu = gpu()?;
     let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let out = f();
+    fault::inject(gpu);
+    // wgpu's helpers panic on some calls to a lost device (e.g. initialised buffers); the
+    // panic is caught here so that the error scopes are popped and the loss is reported.
+    let out = catch_unwind(AssertUnwindSafe(|| f(gpu)));
     let v = pollster::block_on(validation.pop());
     let o = pollster::block_on(oom.pop());
+    // Polling delivers a pending device-lost notice before it is checked.
+    let _ = gpu.device.poll(wgpu::PollType::Poll);
+    if let Some(why) = gpu.lost() {
+        return Err(Error::Gpu(format!("device lost during the run: {why}")));
+    }
+    let out = out.map_err(|panic| {
+        Error::Gpu(format!(
+            "wgpu panicked: {}",
+            crate::error::panic_message(panic.as_ref())
+        ))
+    })?;
     match (v, o) {
         (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(e.to_string())),
         (None, None) => out,

@@ -68,12 +68,10 @@ pub fn run_one(
         algorithms::run(algorithm, backend, frame, ctx)
     }))
     .unwrap_or_else(|panic| {
-        let msg = panic
-            .downcast_ref::<String>()
-            .cloned()
-            .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-            .unwrap_or_else(|| "unknown panic".into());
-        Err(Error::Other(format!("internal error (panic): {msg}")))
+        Err(Error::Other(format!(
+            "internal error (panic): {}",
+            crate::error::panic_message(panic.as_ref())
+        )))
     })
     .and_then(|out| {
         out.visibility

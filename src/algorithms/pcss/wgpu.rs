@@ -5,10 +5,12 @@ use crate::algorithms::shadow_map_wgpu::{self, Lookup};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
+use crate::gpu::Gpu;
 
-pub fn render(frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
+pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let options = super::options(&ctx.options)?;
     shadow_map_wgpu::render(
+        gpu,
         frame,
         &Lookup {
             wgsl: include_str!("wgpu.wgsl"),

@@ -26,7 +26,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
-use crate::gpu::{self, Gpu};
+use crate::gpu::Gpu;
 use crate::record::{Counters, Phase};
 use crate::visibility::VisibilityBuffer;
 
@@ -84,10 +84,9 @@ struct Counts {
 }
 
 /// Renders `frame` with the family's two passes and the algorithm's lookup.
-pub fn render(frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
-    let gpu = gpu::gpu()?;
+pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
     check_limits(gpu, frame)?;
-    gpu::scoped(gpu, || Passes::new(gpu, frame, lookup).run(frame))
+    Passes::new(gpu, frame, lookup).run(frame)
 }
 
 fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
