@@ -66,7 +66,10 @@ enum Command {
 
 #[derive(clap::Args)]
 struct RunArgs {
-    scenario: PathBuf,
+    /// Scenario files. With several, each runs into OUT/<scenario name>/ and OUT/index.html
+    /// links their reports and evaluates every paper claim over all of their runs.
+    #[arg(required = true)]
+    scenario: Vec<PathBuf>,
     #[arg(long, default_value = "out/run")]
     out: PathBuf,
     /// Only these algorithms (comma-separated).
@@ -300,7 +303,11 @@ fn run(a: RunArgs) -> Result<()> {
         machine,
         shard,
     } = a;
-    let loaded = Loaded::from_file(&scenario)?;
+    // Every scenario is checked before anything runs.
+    let loaded = scenario
+        .iter()
+        .map(|p| Loaded::from_file(p))
+        .collect::<std::result::Result<Vec<Loaded>, InputError>>()?;
     let memory_limit = memory_limit(memory_gib)?;
     let machine = machine
         .map(|m| MachineConfig::resolve("--machine", &m, Path::new(".")))
@@ -318,37 +325,61 @@ fn run(a: RunArgs) -> Result<()> {
                 .collect::<std::result::Result<Vec<Backend>, _>>()
         })
         .transpose()?;
-    let records = harness::run_scenario(
-        &loaded,
-        &RunOptions {
-            out: out.clone(),
-            only,
-            backends,
-            cache_dir,
-            memory_limit,
-            machine,
-            shard,
-        },
-    )?;
-    print!("{}", harness::summary_table(&records));
-    let results = harness::output::ResultsFile {
-        scenario: loaded.name(),
-        runs: records,
-    };
-    let written = report::write_report(&out, &results)?;
-    let records = results.runs;
-    let failed = records.iter().filter(|r| r.failure.is_some()).count();
-    println!(
-        "{} runs ({} failed); results in {}",
-        records.len(),
-        failed,
-        out.join("results.json").display()
-    );
-    println!(
-        "report: {} ({} charts)",
-        written.index.display(),
-        written.charts.len()
-    );
+    let several = loaded.len() > 1;
+    let mut dirs: Vec<String> = Vec::new();
+    for (l, path) in loaded.iter().zip(&scenario) {
+        let name = l.name();
+        if dirs.contains(&name) {
+            return Err(InputError::file(
+                path,
+                format!("scenario name '{name}' is given twice; each needs its own folder"),
+            )
+            .into());
+        }
+        dirs.push(name);
+    }
+    let mut reports = Vec::new();
+    for (l, dir) in loaded.iter().zip(&dirs) {
+        let out_dir = if several { out.join(dir) } else { out.clone() };
+        if several {
+            println!("== {dir}");
+        }
+        let results = harness::run_scenario(
+            l,
+            &RunOptions {
+                out: out_dir.clone(),
+                only: only.clone(),
+                backends: backends.clone(),
+                // Several scenarios share one reference cache.
+                cache_dir: cache_dir
+                    .clone()
+                    .or_else(|| several.then(|| out.join("reference-cache"))),
+                memory_limit,
+                machine: machine.clone(),
+                shard,
+            },
+        )?;
+        print!("{}", harness::summary_table(&results.runs));
+        let written = report::write_report(&out_dir, &results)?;
+        let failed = results.runs.iter().filter(|r| r.failure.is_some()).count();
+        println!(
+            "{} runs ({} failed); results in {}",
+            results.runs.len(),
+            failed,
+            out_dir.join("results.json").display()
+        );
+        println!(
+            "report: {} ({} charts)",
+            written.index.display(),
+            written.charts.len()
+        );
+        reports.push((dir.clone(), results));
+    }
+    let claims = report::write_claims(&out, &reports, several)?;
+    print!("{claims}");
+    if several {
+        println!("index: {}", out.join("index.html").display());
+    }
     Ok(())
 }
 

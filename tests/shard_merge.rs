@@ -23,6 +23,7 @@ fn run(loaded: &Loaded, out: &Path, cache: &Path, shard: Option<Shard>) -> Vec<R
         },
     )
     .unwrap()
+    .runs
 }
 
 fn ids(runs: &[RunRecord]) -> BTreeSet<String> {

@@ -127,8 +127,8 @@ struct Planned {
 }
 
 /// Runs every case of the scenario; writes `results.json`, `results.csv` and images under
-/// `opts.out` after each run, and returns the records.
-pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>> {
+/// `opts.out` after each run, and returns what `results.json` holds.
+pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::ResultsFile> {
     let s = &loaded.scenario;
     let cases = loaded.cases();
     let algorithms: Vec<String> = s
@@ -202,7 +202,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
         ProgressStyle::with_template("{bar:30} {pos}/{len} [{elapsed}<{eta}] {msg}")
             .expect("valid template"),
     );
-    let mut writer = output::ResultsWriter::new(&opts.out, &loaded.name());
+    let mut writer = output::ResultsWriter::new(&opts.out, &loaded.name(), &s.claims);
     let mut current: Option<(usize, Scene)> = None;
     let mut frames: BTreeMap<LightKind, Frame> = BTreeMap::new();
     let mut done = std::collections::HashSet::new();
@@ -260,7 +260,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<Vec<RunRecord>
         bar.inc(1);
     }
     bar.finish_and_clear();
-    Ok(writer.into_records())
+    Ok(writer.into_results())
 }
 
 /// A one-line summary table of records.

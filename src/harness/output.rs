@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::record::RunRecord;
+use crate::scenario::claims::Claim;
 use crate::visibility::{write_atomic, VisibilityBuffer};
 
 pub struct ResultsWriter {
     out: PathBuf,
-    scenario: String,
-    records: Vec<RunRecord>,
+    file: ResultsFile,
 }
 
 /// The file `results.json` holds: the scenario name and its runs.
@@ -20,6 +20,9 @@ pub struct ResultsWriter {
 pub struct ResultsFile {
     pub scenario: String,
     pub runs: Vec<RunRecord>,
+    /// The paper claims the scenario states, evaluated by the report.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub claims: Vec<Claim>,
 }
 
 impl ResultsFile {
@@ -32,11 +35,14 @@ impl ResultsFile {
 }
 
 impl ResultsWriter {
-    pub fn new(out: &Path, scenario: &str) -> ResultsWriter {
+    pub fn new(out: &Path, scenario: &str, claims: &[Claim]) -> ResultsWriter {
         ResultsWriter {
             out: out.to_path_buf(),
-            scenario: scenario.to_string(),
-            records: Vec::new(),
+            file: ResultsFile {
+                scenario: scenario.to_string(),
+                runs: Vec::new(),
+                claims: claims.to_vec(),
+            },
         }
     }
 
@@ -52,28 +58,20 @@ impl ResultsWriter {
             let dir = self.out.join("images").join(record.case_id());
             super::write_frame_files(&dir, &record, visibility, reference, frame)?;
         }
-        self.records.push(record);
-        self.flush()
+        self.file.runs.push(record);
+        write_results(&self.out, &self.file)
     }
 
-    fn flush(&self) -> Result<()> {
-        write_results(&self.out, &self.scenario, &self.records)
-    }
-
-    pub fn into_records(self) -> Vec<RunRecord> {
-        self.records
+    pub fn into_results(self) -> ResultsFile {
+        self.file
     }
 }
 
 /// Writes `out/results.json` and `out/results.csv`, each atomically.
-pub fn write_results(out: &Path, scenario: &str, records: &[RunRecord]) -> Result<()> {
-    let file = ResultsFile {
-        scenario: scenario.to_string(),
-        runs: records.to_vec(),
-    };
-    let json = serde_json::to_vec_pretty(&file).expect("records serialize");
+pub fn write_results(out: &Path, file: &ResultsFile) -> Result<()> {
+    let json = serde_json::to_vec_pretty(file).expect("records serialize");
     write_atomic(&out.join("results.json"), &json)?;
-    write_atomic(&out.join("results.csv"), csv(records).as_bytes())
+    write_atomic(&out.join("results.csv"), csv(&file.runs).as_bytes())
 }
 
 const CSV_COUNTERS: [&str; 4] = ["fill", "overdraw", "mem_read_bytes", "mem_write_bytes"];

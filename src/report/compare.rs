@@ -363,6 +363,7 @@ mod tests {
         ResultsFile {
             scenario: "ci".into(),
             runs,
+            claims: vec![],
         }
     }
 

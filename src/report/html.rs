@@ -10,6 +10,7 @@ use html_escape::{encode_double_quoted_attribute as attr, encode_text as text};
 use percent_encoding::{utf8_percent_encode, AsciiSet, CONTROLS};
 
 use super::charts::{self, Written};
+use super::claims::{self, ScenarioRuns};
 use super::fmt_num;
 use crate::harness::output::ResultsFile;
 use crate::record::RunRecord;
@@ -56,6 +57,15 @@ pub fn page(out: &Path, results: &ResultsFile, charts: &[Written]) -> String {
         failed
     );
     h.push_str(&execution_table(runs));
+    if !results.claims.is_empty() {
+        let all = [ScenarioRuns {
+            scenario: &results.scenario,
+            runs,
+        }];
+        let outcomes = claims::evaluate(&results.scenario, &results.claims, &all);
+        h.push_str("<h2>Paper claims</h2>\n");
+        h.push_str(&claims_table(&outcomes, false));
+    }
     h.push_str(&summary_table(runs));
     h.push_str("<h2>Charts</h2>\n");
     if charts.is_empty() {
@@ -74,6 +84,78 @@ pub fn page(out: &Path, results: &ResultsFile, charts: &[Written]) -> String {
     }
     h.push_str(&gallery(out, runs));
     h.push_str("</body></html>\n");
+    h
+}
+
+/// The index of an execution of several scenarios: each scenario's report (`DIR/index.html`,
+/// `DIR` relative to the index) with its run counts, and the `outcomes` of every paper claim
+/// evaluated over the runs of all of them.
+pub fn index_page(
+    title: &str,
+    reports: &[(String, &ResultsFile)],
+    outcomes: &[claims::Outcome],
+) -> String {
+    let mut h = String::new();
+    let _ = write!(
+        h,
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <title>{t}</title><style>{STYLE}</style></head><body>\n<h1>{t}</h1>\n\
+         <h2>Scenarios</h2>\n<table><tr><th>scenario</th><th>runs</th><th>failed</th>\
+         <th>claims</th></tr>\n",
+        t = text(title)
+    );
+    for (dir, r) in reports {
+        let failed = r.runs.iter().filter(|x| x.failure.is_some()).count();
+        let _ = writeln!(
+            h,
+            "<tr><td class=\"t\"><a href=\"{}\">{}</a></td><td>{}</td><td>{}</td><td>{}</td></tr>",
+            attr(&url(&format!("{dir}/index.html"))),
+            text(&r.scenario),
+            r.runs.len(),
+            failed,
+            r.claims.len()
+        );
+    }
+    h.push_str("</table>\n<h2>Paper claims</h2>\n");
+    if outcomes.is_empty() {
+        h.push_str("<p class=\"none\">No scenario states a claim.</p>\n");
+    } else {
+        h.push_str(&claims_table(outcomes, true));
+    }
+    h.push_str("</body></html>\n");
+    h
+}
+
+/// Paper, claim, the paper's figure, ours, and whether the stated expectation holds.
+fn claims_table(outcomes: &[claims::Outcome], with_scenario: bool) -> String {
+    let mut h = String::from("<table><tr>");
+    if with_scenario {
+        h.push_str("<th>scenario</th>");
+    }
+    h.push_str(
+        "<th>paper</th><th>claim</th><th>paper's figure</th><th>ours</th><th>verdict</th></tr>\n",
+    );
+    for o in outcomes {
+        let class = match o.holds {
+            Some(false) => " class=\"fail\"",
+            _ => "",
+        };
+        let _ = write!(h, "<tr{class}>");
+        if with_scenario {
+            let _ = write!(h, "<td class=\"t\">{}</td>", text(&o.scenario));
+        }
+        let _ = writeln!(
+            h,
+            "<td class=\"t\">{}</td><td class=\"t\">{}</td><td class=\"t\">{}</td>\
+             <td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
+            text(&o.claim.paper),
+            text(&o.claim.claim),
+            text(o.claim.paper_value.as_deref().unwrap_or("–")),
+            text(&claims::ours(o)),
+            text(&claims::verdict(o)),
+        );
+    }
+    h.push_str("</table>\n");
     h
 }
 
@@ -267,6 +349,7 @@ mod tests {
         let results = ResultsFile {
             scenario: "ci & more".into(),
             runs: vec![ok.clone(), bad.clone()],
+            claims: vec![],
         };
         let charts = [Written {
             png: "charts/a b.png".into(),

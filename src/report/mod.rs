@@ -6,6 +6,7 @@
 //! from old results without running anything.
 
 pub mod charts;
+pub mod claims;
 pub mod compare;
 pub mod html;
 
@@ -49,6 +50,30 @@ pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
         index,
         charts: written,
     })
+}
+
+/// Evaluates the paper claims of every scenario of an execution over the runs of all of them,
+/// and returns them as text. With `index`, also writes `out/index.html` linking each scenario's
+/// report (in `out/<dir>/`) and showing every claim.
+pub fn write_claims(out: &Path, reports: &[(String, ResultsFile)], index: bool) -> Result<String> {
+    let all: Vec<claims::ScenarioRuns> = reports
+        .iter()
+        .map(|(_, r)| claims::ScenarioRuns {
+            scenario: &r.scenario,
+            runs: &r.runs,
+        })
+        .collect();
+    let outcomes: Vec<claims::Outcome> = reports
+        .iter()
+        .flat_map(|(_, r)| claims::evaluate(&r.scenario, &r.claims, &all))
+        .collect();
+    if index {
+        let refs: Vec<(String, &ResultsFile)> =
+            reports.iter().map(|(d, r)| (d.clone(), r)).collect();
+        let page = html::index_page("shadowbench: several scenarios", &refs, &outcomes);
+        crate::visibility::write_atomic(&out.join("index.html"), page.as_bytes())?;
+    }
+    Ok(claims::render_text(&outcomes))
 }
 
 /// Copies the per-run image folders (`images/<case_id>/`) of `records` from `from` into `out`,
@@ -139,6 +164,7 @@ pub fn merge(inputs: &[(PathBuf, ResultsFile)]) -> Result<ResultsFile, InputErro
     Ok(ResultsFile {
         scenario: first.scenario.clone(),
         runs,
+        claims: first.claims.clone(),
     })
 }
 
@@ -150,7 +176,7 @@ pub fn write_merged(out: &Path, inputs: &[(PathBuf, ResultsFile)]) -> Result<Rep
     for (path, file) in inputs {
         import_images(results_dir(path), out, &file.runs)?;
     }
-    output::write_results(out, &merged.scenario, &merged.runs)?;
+    output::write_results(out, &merged)?;
     write_report(out, &merged)
 }
 
@@ -255,6 +281,7 @@ mod tests {
         ResultsFile {
             scenario: "s".into(),
             runs,
+            claims: vec![],
         }
     }
 

@@ -2,6 +2,7 @@
 //! sweep axes. Everything is validated before any work starts; errors name the file, the JSON
 //! path and the bad value.
 
+pub mod claims;
 pub mod validate;
 
 use std::collections::BTreeMap;
@@ -54,6 +55,9 @@ pub struct Scenario {
     /// to a machine JSON file, relative to the scenario (default `larrabee-24`).
     #[serde(default)]
     pub machine: Option<String>,
+    /// Paper claims these runs reproduce, shown in the report next to our figures.
+    #[serde(default)]
+    pub claims: Vec<claims::Claim>,
 }
 
 fn default_backends() -> Vec<String> {

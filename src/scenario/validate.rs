@@ -225,6 +225,7 @@ pub fn validate(s: &Scenario) -> Check {
     if let Some(l) = &s.light {
         light("$.light", l)?;
     }
+    super::claims::validate(&s.claims)?;
     if s.algorithms.is_empty() {
         return fail("$.algorithms", "needs at least one algorithm".into());
     }
