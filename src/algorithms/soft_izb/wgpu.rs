@@ -78,6 +78,9 @@ const GBUFFER_BYTES: u64 = 16;
 const POINT_BYTES: u64 = 16;
 const WORD: u64 = 4;
 
+/// The pipeline statistic that means something for compute passes.
+const COMPUTE_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
+
 /// The phases with GPU passes, in order.
 const PHASES: [&str; 3] = ["construct", "hard", "soft"];
 
@@ -251,8 +254,10 @@ fn groups(gpu: &Gpu, n: u32) -> (u32, u32) {
     if n == 0 {
         return (0, 0);
     }
-    let x = n.min(gpu.limits.max_compute_workgroups_per_dimension);
-    (x, n.div_ceil(x))
+    // As few rows as the limit allows, then as few columns as cover n: under one row of
+    // workgroups beyond n.
+    let y = n.div_ceil(gpu.limits.max_compute_workgroups_per_dimension);
+    (n.div_ceil(y), y)
 }
 
 /// The resources and pipelines of one frame.
@@ -591,9 +596,12 @@ impl<'g> Passes<'g> {
             self.hard_counters(&stat),
             self.soft_counters(&stat, samples),
         ];
+        // Compute passes only: the graphics statistics are all zero.
         if let Some(p) = &pipeline {
             for (c, s) in per_phase.iter_mut().zip(p) {
-                c.merge(s);
+                if let Some(v) = s.get(COMPUTE_INVOCATIONS) {
+                    c.set(COMPUTE_INVOCATIONS, v);
+                }
             }
         }
         let mut counters = Counters::default();

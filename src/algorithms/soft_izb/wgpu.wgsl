@@ -80,6 +80,9 @@ const MIN_POSITIVE: f32 = 1.1754944e-38;
 // Cells of one block of the prefix sum: 256 invocations × 4 cells.
 const SCAN_BLOCK: u32 = 1024u;
 
+// Invocations of a workgroup of the one-workgroup-per-primitive kernels (umbra, penumbra).
+const PRIM_WG: u32 = 64u;
+
 // True in the instrumented pipelines: count columns, tests, fragments and fill with atomics.
 override INSTRUMENT: bool = false;
 
@@ -555,7 +558,7 @@ fn column_from(x: u32, y: u32, k0: u32) -> vec2<u32> {
 // triangle's bounds. Each stored sample there, from the slice of the triangle's nearest point
 // backwards, is tested exactly (LightTriangle::covers); one unit of depth complexity is added
 // atomically at every sample the triangle covers in front of.
-@compute @workgroup_size(64)
+@compute @workgroup_size(PRIM_WG)
 fn umbra(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
          @builtin(local_invocation_index) lid: u32) {
     let t = prim_index(wid, nwg);
@@ -579,7 +582,7 @@ fn umbra(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
     var columns = 0u;
     var tests = 0u;
     var hits = 0u;
-    for (var j = lid; j < n; j += 64u) {
+    for (var j = lid; j < n; j += PRIM_WG) {
         let x = lo.x + j % w;
         let y = lo.y + j / w;
         if (!bin_has_samples(bin_of_column(x, y))) {
@@ -634,7 +637,7 @@ fn bin_half_width(e: Edge, b: u32) -> f32 {
 // width (with the per-bin option), the quad/column overlap (a fragment), the wedge entry slice
 // (with the wedge/column option), then eq. 3 with the sign rule at every sample of the column
 // from that slice back, accumulated in fixed point with atomics.
-@compute @workgroup_size(64)
+@compute @workgroup_size(PRIM_WG)
 fn penumbra(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
             @builtin(local_invocation_index) lid: u32) {
     let ei = prim_index(wid, nwg);
@@ -667,7 +670,7 @@ fn penumbra(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg:
         let nb = bw * (b1.y - b0.y + 1u);
         var kept = 0u;
         var culled = 0u;
-        for (var j = lid; j < nb; j += 64u) {
+        for (var j = lid; j < nb; j += PRIM_WG) {
             let b = (b0.y + j / bw) * P.bins_x + b0.x + j % bw;
             if (!per_bin || bin_half_width(e, b) > 0.0) {
                 kept += 1u;
@@ -686,7 +689,7 @@ fn penumbra(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg:
     var wedge_culled = 0u;
     var fill = 0u;
     var contributing = 0u;
-    for (var j = lid; j < n; j += 64u) {
+    for (var j = lid; j < n; j += PRIM_WG) {
         let x = lo.x + j % w;
         let y = lo.y + j / w;
         let b = bin_of_column(x, y);
