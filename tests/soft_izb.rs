@@ -1,6 +1,8 @@
 //! Soft irregular shadow mapping (paper 004) against analytic visibility, the reference, and its
 //! own stated properties (conservative optimisations, §2.1 correctness without adjacency).
 
+mod common;
+
 use glam::Vec3;
 use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
 use shadowbench::frame::{Frame, RunParams};
@@ -412,4 +414,30 @@ fn wgpu_optimisations_are_conservative_and_reduce_fill() {
     let c = |o: &FrameOutput, k: &str| o.counters.get(k).unwrap();
     assert!(c(&on, "fill") > 0.0 && c(&on, "fill") < c(&off, "fill"));
     assert!(c(&on, "overdraw") < c(&off, "overdraw"));
+}
+
+#[test]
+fn wgpu_handles_degenerate_scenes_as_the_cpu_model_does() {
+    if !have_gpu() {
+        return;
+    }
+    for (name, frame) in common::degenerate_scenes() {
+        let o = serde_json::json!({});
+        let gpu = run_with(Backend::Wgpu, &frame, &o);
+        let model = run_with(Backend::CpuModel, &frame, &o);
+        gpu.visibility
+            .check_range()
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let e = shadowbench::metrics::compare(
+            &gpu.visibility,
+            &model.visibility,
+            &frame.gbuffer.mask(),
+        );
+        assert!(e.mae < 1e-3 && e.frac_over_0_1 == 0.0, "{name}: {e:?}");
+        assert_eq!(
+            gpu.counters.get("samples"),
+            model.counters.get("samples"),
+            "{name}"
+        );
+    }
 }
