@@ -126,7 +126,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
               complexity), penumbra quads per silhouette edge with analytic circular-segment \
               occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)",
         lights: &[LightKind::Sphere],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_izb::cpu::memory_estimate,
         check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
     },
@@ -258,7 +258,11 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         )),
         soft_izb::ID => {
             let opts = soft_izb::SoftIzbOptions::parse(&ctx.options)?;
-            soft_izb::cpu::render(backend, frame, ctx, &opts)
+            if backend == Backend::Wgpu {
+                soft_izb::wgpu::render(frame, &opts)
+            } else {
+                soft_izb::cpu::render(backend, frame, ctx, &opts)
+            }
         }
         accum_hard::ID => accum_hard::cpu::render(backend, frame, ctx),
         soft_shadow_volume::ID => soft_shadow_volume::cpu::render(backend, frame, ctx),

@@ -24,7 +24,12 @@ impl Staging {
 
     /// Records a copy of the first `size` bytes of `src` into this staging buffer.
     pub fn copy(&self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer) {
-        encoder.copy_buffer_to_buffer(src, 0, &self.buffer, 0, self.size);
+        self.copy_from(encoder, src, 0);
+    }
+
+    /// Records a copy of `size` bytes of `src` from byte `offset` into this staging buffer.
+    pub fn copy_from(&self, encoder: &mut wgpu::CommandEncoder, src: &wgpu::Buffer, offset: u64) {
+        encoder.copy_buffer_to_buffer(src, offset, &self.buffer, 0, self.size);
     }
 
     /// Waits for the GPU and returns the bytes (call after the copy was submitted).

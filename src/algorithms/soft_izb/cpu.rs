@@ -9,20 +9,19 @@
 //! walks its triangles and quads in input order, so the image and the counters do not depend
 //! on the host's thread count.
 
-use glam::{Vec2, Vec4};
+use glam::Vec2;
 
 use super::{
-    clip_and_project, clip_coords, clip_segment, combined_visibility, in_front, light_point,
-    light_radius_uv, quad_half_width, wedge_entry_inv_z, Grid, LightPoint, LightTriangle,
-    PenumbraQuad, ProjectedEdge, SilhouetteSource, SoftIzbOptions,
+    clip_coords, combined_visibility, in_front, light_point, light_radius_uv, object_occluders,
+    quad_half_width, wedge_entry_inv_z, Grid, LightPoint, LightTriangle, Occluders, PenumbraQuad,
+    ProjectedEdge, SoftIzbOptions,
 };
 use crate::algorithms::hard_shadow_map::cpu::{machine, output};
 use crate::algorithms::shadow_map::LightView;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Buffer, BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
-use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
 use crate::visibility::VisibilityBuffer;
 
 /// Pixels per task of the construction steps (a multiple of the 16 lanes).
@@ -482,77 +481,6 @@ fn construct(
         },
         hits - n,
     )
-}
-
-/// The occluding geometry seen from the light centre: triangles for the umbra (with their flat
-/// index, to skip a receiver's own triangle) and penumbra edges.
-struct Occluders {
-    triangles: Vec<(u32, LightTriangle)>,
-    edges: Vec<ProjectedEdge>,
-}
-
-/// The occluders of object `o`: its triangles facing the light centre (all of them in an open
-/// mesh) and its penumbra edges.
-fn object_occluders(frame: &Frame, view: &LightView, opts: &SoftIzbOptions, o: usize) -> Occluders {
-    let centre = frame.scene.light.center();
-    let object = &frame.scene.objects[o];
-    if !object.role.occluder {
-        return Occluders {
-            triangles: vec![],
-            edges: vec![],
-        };
-    }
-    let base = frame
-        .flat
-        .object_of_triangle
-        .partition_point(|&x| (x as usize) < o) as u32;
-    let adj = EdgeAdjacency::build(&object.mesh);
-    let closed = adj.count(EdgeKind::Boundary) == 0 && adj.count(EdgeKind::NonManifold) == 0;
-    let mut tris = Vec::new();
-    let mut edges = Vec::new();
-    let clip = |i: u32| clip_coords(view, adj.vertices[i as usize]);
-    for (f, tri) in adj.triangles.iter().enumerate() {
-        let Some(front) = adj.faces_point(f as u32, centre) else {
-            continue;
-        };
-        if !front && closed {
-            continue;
-        }
-        let poly: Vec<Vec4> = tri.iter().map(|&i| clip(i)).collect();
-        let pts = clip_and_project(view, &poly);
-        for k in 1..pts.len().saturating_sub(1) {
-            if let Some(lt) = LightTriangle::new([pts[0], pts[k], pts[k + 1]]) {
-                tris.push((base + f as u32, lt));
-            }
-        }
-        if opts.silhouettes == SilhouetteSource::AllEdges {
-            let v = if front {
-                *tri
-            } else {
-                [tri[0], tri[2], tri[1]]
-            };
-            for k in 0..3 {
-                edges.push((v[k], v[(k + 1) % 3]));
-            }
-        }
-    }
-    if opts.silhouettes == SilhouetteSource::Adjacency {
-        edges = adj
-            .silhouette_from(centre)
-            .edges
-            .iter()
-            .map(|e| (e.v[0], e.v[1]))
-            .collect();
-    }
-    let projected = edges
-        .into_iter()
-        .filter_map(|(a, b)| clip_segment(view, clip(a), clip(b)))
-        .map(|(a, b)| ProjectedEdge { a, b })
-        .collect();
-    Occluders {
-        triangles: tris,
-        edges: projected,
-    }
 }
 
 /// Step "setup" of `geometry`: one task per scene object.
@@ -1129,9 +1057,6 @@ fn penumbra(
     data
 }
 
-/// Most grid cells one run may allocate (4 bytes each).
-const MAX_CELLS: u64 = 1 << 28;
-
 /// `soft_izb` on a CPU execution.
 pub fn render(
     backend: Backend,
@@ -1140,13 +1065,7 @@ pub fn render(
     opts: &SoftIzbOptions,
 ) -> Result<FrameOutput> {
     let light = frame.scene.light;
-    let res = frame.params.map_resolution as u64;
-    if res * res * opts.depth_slices as u64 > MAX_CELLS {
-        return Err(Error::Resource(format!(
-            "soft_izb grid of {res}² columns × {} depth slices exceeds {MAX_CELLS} cells;              lower map_resolution or options.soft_izb.depth_slices",
-            opts.depth_slices
-        )));
-    }
+    super::check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
     let view = LightView::new(&light, frame.scene.bounds(), frame.params.map_resolution);
     let r_uv = light_radius_uv(&view, light.size());
 

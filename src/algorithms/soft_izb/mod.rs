@@ -13,12 +13,15 @@
 //! and the perspective grid's slices are all linear in `1/z`.
 
 pub mod cpu;
+pub mod wgpu;
 
 use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 use serde::{Deserialize, Serialize};
 
 use super::shadow_map::LightView;
 use crate::error::InputError;
+use crate::frame::Frame;
+use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
 
 pub const ID: &str = "soft_izb";
 
@@ -89,6 +92,29 @@ impl SoftIzbOptions {
 /// Smallest light-view depth, as a fraction of the far plane, that geometry is clipped to:
 /// points at or behind the light's view plane have no image-plane position.
 const NEAR_CLIP: f32 = 1e-4;
+
+/// Fixed-point scale of the penumbral occlusion the wgpu execution accumulates per sample with
+/// integer atomics (2^20). Each eq. 3 term (|Ṽ''| ≤ 1/2) is rounded to the nearest multiple of
+/// 2^-20, so a sample's sum is off by at most 2^-21 per contributing edge: ~8000 edges before
+/// the error reaches one step of an 8-bit image (2^-8). The integer sum is exact and
+/// independent of the order the atomics are served in; i32 addition wraps, so partial sums
+/// beyond ±2048 still give the right total as long as the total lies within that range.
+pub const OCCLUSION_SCALE: f32 = 1_048_576.0;
+
+/// Most grid cells one run may allocate (4 bytes each).
+pub const MAX_CELLS: u64 = 1 << 28;
+
+/// Refuses a grid of `res²` columns × `slices` over [`MAX_CELLS`] before anything is allocated.
+pub fn check_grid_size(res: u32, slices: u32) -> crate::error::Result<()> {
+    let res = u64::from(res);
+    if res * res * u64::from(slices) > MAX_CELLS {
+        return Err(crate::error::Error::Resource(format!(
+            "soft_izb grid of {res}² columns × {slices} depth slices exceeds {MAX_CELLS} cells; \
+             lower map_resolution or options.soft_izb.depth_slices"
+        )));
+    }
+    Ok(())
+}
 
 /// A point in the light-view image plane with its inverse linear depth.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -319,6 +345,83 @@ impl PenumbraQuad {
 pub fn wedge_entry_inv_z(r_uv: f32, inv_z_edge_near: f32, distance: f32) -> Option<f32> {
     let inv_z = inv_z_edge_near - distance / r_uv;
     (inv_z > 0.0).then_some(inv_z)
+}
+
+/// The occluding geometry seen from the light centre (the geometry stage of §2.1, shared by
+/// every execution): triangles for the umbra (with their flat
+/// index, to skip a receiver's own triangle) and penumbra edges.
+pub struct Occluders {
+    pub triangles: Vec<(u32, LightTriangle)>,
+    pub edges: Vec<ProjectedEdge>,
+}
+
+/// The occluders of object `o`: its triangles facing the light centre (all of them in an open
+/// mesh) and its penumbra edges.
+pub fn object_occluders(
+    frame: &Frame,
+    view: &LightView,
+    opts: &SoftIzbOptions,
+    o: usize,
+) -> Occluders {
+    let centre = frame.scene.light.center();
+    let object = &frame.scene.objects[o];
+    if !object.role.occluder {
+        return Occluders {
+            triangles: vec![],
+            edges: vec![],
+        };
+    }
+    let base = frame
+        .flat
+        .object_of_triangle
+        .partition_point(|&x| (x as usize) < o) as u32;
+    let adj = EdgeAdjacency::build(&object.mesh);
+    let closed = adj.count(EdgeKind::Boundary) == 0 && adj.count(EdgeKind::NonManifold) == 0;
+    let mut tris = Vec::new();
+    let mut edges = Vec::new();
+    let clip = |i: u32| clip_coords(view, adj.vertices[i as usize]);
+    for (f, tri) in adj.triangles.iter().enumerate() {
+        let Some(front) = adj.faces_point(f as u32, centre) else {
+            continue;
+        };
+        if !front && closed {
+            continue;
+        }
+        let poly: Vec<Vec4> = tri.iter().map(|&i| clip(i)).collect();
+        let pts = clip_and_project(view, &poly);
+        for k in 1..pts.len().saturating_sub(1) {
+            if let Some(lt) = LightTriangle::new([pts[0], pts[k], pts[k + 1]]) {
+                tris.push((base + f as u32, lt));
+            }
+        }
+        if opts.silhouettes == SilhouetteSource::AllEdges {
+            let v = if front {
+                *tri
+            } else {
+                [tri[0], tri[2], tri[1]]
+            };
+            for k in 0..3 {
+                edges.push((v[k], v[(k + 1) % 3]));
+            }
+        }
+    }
+    if opts.silhouettes == SilhouetteSource::Adjacency {
+        edges = adj
+            .silhouette_from(centre)
+            .edges
+            .iter()
+            .map(|e| (e.v[0], e.v[1]))
+            .collect();
+    }
+    let projected = edges
+        .into_iter()
+        .filter_map(|(a, b)| clip_segment(view, clip(a), clip(b)))
+        .map(|(a, b)| ProjectedEdge { a, b })
+        .collect();
+    Occluders {
+        triangles: tris,
+        edges: projected,
+    }
 }
 
 /// A scene triangle projected into the light-view image plane for the umbra pass (§2.4).

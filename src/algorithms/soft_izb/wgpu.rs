@@ -1,0 +1,754 @@
+//! The wgpu execution of soft irregular shadow mapping: the steps of Figure 2 as compute passes
+//! (`wgpu.wgsl`), one pass per phase.
+//!
+//! - `geometry` (host, as on the CPU executions; §4.2 leaves it out of Table 2): occluding
+//!   triangles facing the light centre, near-clipped and projected, and the silhouette edges
+//!   from adjacency (or every edge, §2.1), by [`object_occluders`], shared with `cpu.rs`, then
+//!   uploaded.
+//! - `construct` (Figure 2a, Figure 3): the frame's gbuffer projected into light view; the
+//!   nearest and farthest receiver found with atomic max/min; each receiver's cell counted with
+//!   an atomic increment and its bin's maximum receiver depth recorded with an atomic minimum
+//!   of the bits of `1/z` (positive floats order as their bits); a three-step prefix sum over
+//!   the cells (blocks of 1024, block offsets, add); then each receiver scattered to the next
+//!   slot of its cell (an atomic cursor). Cells are stored in [`Grid::cell`] order, as on the
+//!   CPU; within a cell, samples land in whatever order the atomics are served, and nothing
+//!   downstream depends on that order.
+//! - `hard` (Figure 2b, §2.4): one workgroup per occluding triangle, its 64 invocations
+//!   striding over the grid columns under the triangle's bounds and testing every stored sample
+//!   from the slice of the triangle's nearest point backwards; depth complexity is counted per
+//!   sample with an atomic increment. We chose this scatter form (triangle × covered columns)
+//!   over a per-cell gather of binned triangles: it needs no binning or sorting on the GPU, and
+//!   since the per-sample results are integer sums, the order the atomics run in cannot change
+//!   them.
+//! - `soft` (Figure 2c-d, §2.2, §2.3, §2.5): one workgroup per silhouette edge in the same
+//!   scatter form over the columns under its penumbra quad. Per column the per-bin quad width
+//!   (§2.5, first option) and the quad/column overlap decide whether it is a fragment; the
+//!   wedge/column intersection (§2.5, second option) picks the first slice; eq. 3 with the sign
+//!   rule runs at every sample from there back. Signed occlusion is accumulated per sample with
+//!   integer atomics in fixed point ([`OCCLUSION_SCALE`]: exact, order-independent sums, each
+//!   term rounded by at most 2^-21). A last step applies eq. 4 per sample and writes the
+//!   sample's eye pixel; pixels with no sample stay lit.
+//!
+//! The timed submission runs the passes as an engine would, with timestamps and pipeline
+//! statistics per phase. A second, instrumented submission runs the same passes with WGSL
+//! atomics counting what the cpu-model counts: grid columns and sample tests of the umbra,
+//! quads, bin entries and per-bin culls, quad fragments, wedge-culled fragments, fill (eq. 3
+//! evaluations) and overdraw (those that returned 0). Memory traffic is estimated from these
+//! counts and the record sizes (`mem_est.*`).
+//!
+//! Not built: binning on the GPU (the per-bin width is applied per column of each quad instead
+//! of by dropping the quad from a bin's list; the counts of bin entries and culls are the
+//! same) and silhouette detection on the GPU (the paper's geometry shaders).
+
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+use super::{
+    check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, NEAR_CLIP,
+    OCCLUSION_SCALE,
+};
+use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::FrameOutput;
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::gpu::readback::{words, Staging};
+use crate::gpu::stats::PassStats;
+use crate::gpu::timing::PassTimer;
+use crate::gpu::{self, Gpu};
+use crate::record::{Counters, Phase};
+use crate::visibility::VisibilityBuffer;
+
+const WGSL: &str = include_str!("wgpu.wgsl");
+
+/// Invocations of the per-item kernels (`@workgroup_size(64)`) and of the scan kernels (256).
+const ITEM_WORKGROUP: u32 = 64;
+const SCAN_WORKGROUP: u32 = 256;
+/// Cells per block of the prefix sum (`SCAN_BLOCK` in the WGSL).
+const SCAN_BLOCK: u32 = 1024;
+/// Storage buffers bound by the kernels (bindings 1-12).
+const STORAGE_BUFFERS: u32 = 12;
+/// Record sizes: a sample (uv, 1/z, pixel, triangle), a projected triangle with its flat index,
+/// a projected edge, a gbuffer entry, a light-view point, a grid word.
+const SAMPLE_BYTES: u64 = 20;
+const TRIANGLE_BYTES: u64 = 44;
+const EDGE_BYTES: u64 = 24;
+const GBUFFER_BYTES: u64 = 16;
+const POINT_BYTES: u64 = 16;
+const WORD: u64 = 4;
+
+/// The pipeline statistic that means something for compute passes.
+const COMPUTE_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
+
+/// The phases with GPU passes, in order.
+const PHASES: [&str; 3] = ["construct", "hard", "soft"];
+
+/// The statistics slots of the instrumented pipelines (`STAT_*` in the WGSL), in slot order.
+#[derive(Clone, Copy)]
+enum Stat {
+    HardColumns,
+    HardTests,
+    HardHits,
+    HardBinEntries,
+    Quads,
+    BinCulled,
+    SoftBinEntries,
+    Fragments,
+    WedgeCulled,
+    Fill,
+    Contributing,
+}
+
+const STATS: usize = 11;
+
+/// The `Params` uniform of the WGSL.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Params {
+    view_proj: [f32; 16],
+    epsilon: f32,
+    w_min: f32,
+    r_uv: f32,
+    pixels: u32,
+    res: u32,
+    slices: u32,
+    bin: u32,
+    bins_x: u32,
+    cells_per_bin: u32,
+    cells: u32,
+    triangles: u32,
+    edges: u32,
+    per_bin_width: u32,
+    wedge_column_cull: u32,
+    scan_blocks: u32,
+    occlusion_scale: f32,
+}
+
+/// `soft_izb` on the GPU.
+pub fn render(frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOutput> {
+    let gpu = gpu::gpu()?;
+    check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
+    let start = Instant::now();
+    let light = frame.scene.light;
+    let view = LightView::new(&light, frame.scene.bounds(), frame.params.map_resolution);
+    let mut occ = Occluders {
+        triangles: vec![],
+        edges: vec![],
+    };
+    for o in 0..frame.scene.objects.len() {
+        let part = object_occluders(frame, &view, opts, o);
+        occ.triangles.extend(part.triangles);
+        occ.edges.extend(part.edges);
+    }
+    let geometry_ms = start.elapsed().as_secs_f64() * 1e3;
+    let res = view.resolution.max(1);
+    let grid = Grid {
+        res,
+        slices: opts.depth_slices,
+        bin: frame.params.tile_size.clamp(1, res),
+        inv_z_front: 1.0,
+        inv_z_back: 1.0,
+    };
+    let params = Params {
+        view_proj: view.view_proj.to_cols_array(),
+        epsilon: frame.epsilon,
+        w_min: NEAR_CLIP * view.far,
+        r_uv: light_radius_uv(&view, light.size()),
+        pixels: frame.gbuffer.len() as u32,
+        res: grid.res,
+        slices: grid.slices,
+        bin: grid.bin,
+        bins_x: grid.bins_x(),
+        cells_per_bin: grid.cells_per_bin() as u32,
+        cells: grid.cells() as u32,
+        triangles: occ.triangles.len() as u32,
+        edges: occ.edges.len() as u32,
+        per_bin_width: u32::from(opts.per_bin_width),
+        wedge_column_cull: u32::from(opts.wedge_column_cull),
+        scan_blocks: (grid.cells() as u32).div_ceil(SCAN_BLOCK),
+        occlusion_scale: OCCLUSION_SCALE,
+    };
+    check_limits(gpu, &params, &grid)?;
+    let mut out = gpu::scoped(gpu, || {
+        Passes::new(gpu, frame, &occ, &grid, params).run(frame)
+    })?;
+    let mut geometry = Counters::default();
+    geometry.set("occluder_triangles", occ.triangles.len() as f64);
+    geometry.set("silhouette_edges", occ.edges.len() as f64);
+    out.counters.merge(&geometry);
+    out.phases.insert(
+        0,
+        Phase {
+            name: "geometry".into(),
+            wall_ms: geometry_ms,
+            model_ms: None,
+            gpu_ms: None,
+            counters: geometry,
+        },
+    );
+    for (k, v) in [
+        ("grid", serde_json::json!(grid.res)),
+        ("depth_slices", serde_json::json!(grid.slices)),
+        ("bin", serde_json::json!(grid.bin)),
+        ("per_bin_width", serde_json::json!(opts.per_bin_width)),
+        (
+            "wedge_column_cull",
+            serde_json::json!(opts.wedge_column_cull),
+        ),
+        (
+            "silhouettes",
+            serde_json::to_value(opts.silhouettes).unwrap_or_default(),
+        ),
+        (
+            "occlusion_fixed_point_scale",
+            serde_json::json!(OCCLUSION_SCALE),
+        ),
+    ] {
+        out.execution.insert(k.to_string(), v);
+    }
+    Ok(out)
+}
+
+/// Bytes of each buffer, checked against the adapter's limits before anything is created.
+fn check_limits(gpu: &Gpu, p: &Params, grid: &Grid) -> Result<()> {
+    let l = &gpu.limits;
+    if l.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+        return Err(Error::Resource(format!(
+            "soft_izb binds {STORAGE_BUFFERS} storage buffers; the adapter allows {}",
+            l.max_storage_buffers_per_shader_stage
+        )));
+    }
+    if l.max_compute_invocations_per_workgroup < SCAN_WORKGROUP
+        || l.max_compute_workgroup_size_x < SCAN_WORKGROUP
+    {
+        return Err(Error::Resource(format!(
+            "soft_izb needs compute workgroups of {SCAN_WORKGROUP} invocations"
+        )));
+    }
+    let pixels = u64::from(p.pixels);
+    let largest = [
+        (
+            "izb_grid",
+            WORD * (u64::from(p.cells) + 1 + u64::from(p.scan_blocks)),
+        ),
+        ("izb_samples", SAMPLE_BYTES * pixels),
+        ("gbuffer", GBUFFER_BYTES * pixels),
+        ("light_triangles", TRIANGLE_BYTES * u64::from(p.triangles)),
+        ("bins", WORD * (grid.bins() as u64 + 2)),
+    ];
+    for (name, bytes) in largest {
+        if bytes > l.max_storage_buffer_binding_size {
+            return Err(Error::Resource(format!(
+                "soft_izb buffer {name} needs {bytes} bytes, more than the adapter's storage \
+                 binding limit ({})",
+                l.max_storage_buffer_binding_size
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Workgroups for `n` (a 2D grid, each side within the adapter's limit).
+fn groups(gpu: &Gpu, n: u32) -> (u32, u32) {
+    if n == 0 {
+        return (0, 0);
+    }
+    // As few rows as the limit allows, then as few columns as cover n: under one row of
+    // workgroups beyond n.
+    let y = n.div_ceil(gpu.limits.max_compute_workgroups_per_dimension);
+    (n.div_ceil(y), y)
+}
+
+/// The resources and pipelines of one frame.
+struct Passes<'g> {
+    gpu: &'g Gpu,
+    params: Params,
+    width: u32,
+    height: u32,
+    grid: Grid,
+    cell_start: wgpu::Buffer,
+    visibility: wgpu::Buffer,
+    stats: wgpu::Buffer,
+    group: wgpu::BindGroup,
+    construct: [wgpu::ComputePipeline; 7],
+    umbra: [wgpu::ComputePipeline; 2],
+    penumbra: [wgpu::ComputePipeline; 2],
+    resolve: wgpu::ComputePipeline,
+}
+
+fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl<'g> Passes<'g> {
+    fn new(gpu: &'g Gpu, frame: &Frame, occ: &Occluders, grid: &Grid, params: Params) -> Self {
+        let device = &gpu.device;
+        let g = &frame.gbuffer;
+        let pixels = g.len() as u64;
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            // Zero-sized buffers are not bindable; pad empty contents to one word.
+            let padded = [0u8; 4];
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: if contents.is_empty() {
+                    &padded
+                } else {
+                    contents
+                },
+                usage,
+            })
+        };
+        let empty = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(WORD),
+                usage: wgpu::BufferUsages::STORAGE | usage,
+                mapped_at_creation: false,
+            })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let uniform = init(
+            "soft_izb params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        // The gbuffer: position bits with the receiver's flat triangle (u32::MAX for none) in w.
+        let positions: Vec<[u32; 4]> = (0..g.len())
+            .map(|i| {
+                let p = g.position[i];
+                [p.x.to_bits(), p.y.to_bits(), p.z.to_bits(), g.triangle[i]]
+            })
+            .collect();
+        let normals: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
+        let triangles: Vec<[u32; 11]> = occ
+            .triangles
+            .iter()
+            .map(|(flat, t)| {
+                let mut w = [0u32; 11];
+                for (k, v) in t.v.iter().enumerate() {
+                    w[3 * k] = v.uv.x.to_bits();
+                    w[3 * k + 1] = v.uv.y.to_bits();
+                    w[3 * k + 2] = v.inv_z.to_bits();
+                }
+                w[9] = t.area2.to_bits();
+                w[10] = *flat;
+                w
+            })
+            .collect();
+        let edges: Vec<[f32; 6]> = occ
+            .edges
+            .iter()
+            .map(|e| [e.a.uv.x, e.a.uv.y, e.a.inv_z, e.b.uv.x, e.b.uv.y, e.b.inv_z])
+            .collect();
+        let cells = u64::from(params.cells);
+        let copy_src = wgpu::BufferUsages::COPY_SRC;
+        let buffers = [
+            init(
+                "gbuffer positions",
+                bytemuck::cast_slice(&positions),
+                storage,
+            ),
+            init("gbuffer normals", bytemuck::cast_slice(&normals), storage),
+            empty("light-view points", POINT_BYTES * pixels, storage),
+            empty("bins", WORD * (grid.bins() as u64 + 2), storage),
+            empty("cell counts", WORD * cells, storage),
+            empty(
+                "izb_grid",
+                WORD * (cells + 1 + u64::from(params.scan_blocks)),
+                copy_src,
+            ),
+            empty("izb_samples", SAMPLE_BYTES * pixels, storage),
+            empty("occlusion", 2 * WORD * pixels, storage),
+            empty("visibility", WORD * pixels, copy_src),
+            init("light triangles", bytemuck::cast_slice(&triangles), storage),
+            init("penumbra edges", bytemuck::cast_slice(&edges), storage),
+            empty(
+                "statistics",
+                2 * WORD * STATS as u64,
+                copy_src | wgpu::BufferUsages::COPY_DST,
+            ),
+        ];
+        // Bindings 1-12 in order; the gbuffer and the primitives are only read.
+        let read_only = |i: usize| matches!(i, 0 | 1 | 9 | 10);
+        let mut layout_entries = vec![entry(0, wgpu::BufferBindingType::Uniform)];
+        for i in 0..buffers.len() {
+            layout_entries.push(entry(
+                i as u32 + 1,
+                wgpu::BufferBindingType::Storage {
+                    read_only: read_only(i),
+                },
+            ));
+        }
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("soft_izb"),
+            entries: &layout_entries,
+        });
+        let mut group_entries = vec![wgpu::BindGroupEntry {
+            binding: 0,
+            resource: uniform.as_entire_binding(),
+        }];
+        for (i, b) in buffers.iter().enumerate() {
+            group_entries.push(wgpu::BindGroupEntry {
+                binding: i as u32 + 1,
+                resource: b.as_entire_binding(),
+            });
+        }
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("soft_izb"),
+            layout: &layout,
+            entries: &group_entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("soft_izb"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("soft_izb/wgpu.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(WGSL.into()),
+        });
+        let pipeline = |entry: &str, instrument: bool| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
+                    ..Default::default()
+                },
+                cache: None,
+            })
+        };
+        let construct = [
+            "clear",
+            "project",
+            "count",
+            "scan_local",
+            "scan_blocks",
+            "scan_add",
+            "insert",
+        ]
+        .map(|e| pipeline(e, false));
+        let [_, _, _, _, _, cell_start, _, _, visibility, _, _, stats] = buffers;
+        Passes {
+            gpu,
+            params,
+            width: g.width,
+            height: g.height,
+            grid: *grid,
+            cell_start,
+            visibility,
+            stats,
+            group,
+            construct,
+            umbra: [pipeline("umbra", false), pipeline("umbra", true)],
+            penumbra: [pipeline("penumbra", false), pipeline("penumbra", true)],
+            resolve: pipeline("resolve", false),
+        }
+    }
+
+    /// Records phase `i` (0 construct, 1 hard, 2 soft) as one compute pass; `instrument`
+    /// picks the counting pipelines.
+    fn pass(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        i: usize,
+        instrument: bool,
+        timer: Option<&PassTimer>,
+        stats: Option<&PassStats>,
+    ) {
+        let gpu = self.gpu;
+        let p = &self.params;
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(PHASES[i]),
+            timestamp_writes: timer.map(|t| t.compute(i as u32)),
+        });
+        if let Some(s) = stats {
+            s.begin_compute(&mut pass, i as u32);
+        }
+        pass.set_bind_group(0, &self.group, &[]);
+        let mut dispatch = |pipeline: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
+            if x > 0 {
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+        };
+        let items = |n: u32| groups(gpu, n.div_ceil(ITEM_WORKGROUP));
+        let k = usize::from(instrument);
+        match i {
+            0 => {
+                let clear = p.cells.max(self.grid.bins() as u32 + 2);
+                let c = &self.construct;
+                dispatch(&c[0], items(clear));
+                dispatch(&c[1], items(p.pixels));
+                dispatch(&c[2], items(p.pixels));
+                dispatch(&c[3], groups(gpu, p.scan_blocks));
+                dispatch(&c[4], (1, 1));
+                dispatch(&c[5], items(p.cells));
+                dispatch(&c[6], items(p.pixels));
+            }
+            1 => dispatch(&self.umbra[k], groups(gpu, p.triangles)),
+            _ => {
+                dispatch(&self.penumbra[k], groups(gpu, p.edges));
+                dispatch(&self.resolve, items(p.pixels));
+            }
+        }
+        if stats.is_some() {
+            pass.end_pipeline_statistics_query();
+        }
+    }
+
+    /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
+    fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
+        let start = Instant::now();
+        let mut encoder = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        f(&mut encoder);
+        self.gpu.queue.submit([encoder.finish()]);
+        self.gpu
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+
+    fn run(&self, frame: &Frame) -> Result<FrameOutput> {
+        let gpu = self.gpu;
+        let mut warnings = Vec::new();
+
+        // The timed submission: each phase submitted and waited for on its own.
+        let timer = PassTimer::new(gpu, PHASES.len() as u32);
+        let stats = PassStats::new(gpu, PHASES.len() as u32);
+        let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
+        let samples_staging = Staging::new(gpu, "sample count readback", WORD);
+        let mut wall = Vec::with_capacity(PHASES.len());
+        for i in 0..PHASES.len() {
+            wall.push(self.submit(|e| {
+                self.pass(e, i, false, timer.as_ref(), stats.as_ref());
+                if i + 1 == PHASES.len() {
+                    vis_staging.copy(e, &self.visibility);
+                    samples_staging.copy_from(
+                        e,
+                        &self.cell_start,
+                        WORD * u64::from(self.params.cells),
+                    );
+                    if let Some(t) = &timer {
+                        t.resolve(e);
+                    }
+                    if let Some(s) = &stats {
+                        s.resolve(e);
+                    }
+                }
+            })?);
+        }
+        let readback_start = Instant::now();
+        let data: Vec<f32> = words(&vis_staging.read(gpu)?);
+        let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
+        let samples = f64::from(words::<u32>(&samples_staging.read(gpu)?)[0]);
+        let gpu_ms = match &timer {
+            Some(t) => Some(t.read_ms(gpu)?),
+            None => {
+                warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
+                None
+            }
+        };
+        let pipeline = match &stats {
+            Some(s) => Some(s.read(gpu)?),
+            None => {
+                warnings.push(
+                    "adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into(),
+                );
+                None
+            }
+        };
+
+        // The instrumented submission: same passes, counting with atomics.
+        let stats_staging = Staging::new(gpu, "statistics readback", self.stats.size());
+        self.submit(|e| {
+            e.clear_buffer(&self.stats, 0, None);
+            for i in 0..PHASES.len() {
+                self.pass(e, i, true, None, None);
+            }
+            stats_staging.copy(e, &self.stats);
+        })?;
+        let raw: Vec<u32> = words(&stats_staging.read(gpu)?);
+        let stat = |s: Stat| {
+            let i = s as usize;
+            (u64::from(raw[2 * i + 1]) << 32 | u64::from(raw[2 * i])) as f64
+        };
+
+        let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
+        let mut per_phase = [
+            self.construct_counters(hits, samples),
+            self.hard_counters(&stat),
+            self.soft_counters(&stat, samples),
+        ];
+        // Compute passes only: the graphics statistics are all zero.
+        if let Some(p) = &pipeline {
+            for (c, s) in per_phase.iter_mut().zip(p) {
+                if let Some(v) = s.get(COMPUTE_INVOCATIONS) {
+                    c.set(COMPUTE_INVOCATIONS, v);
+                }
+            }
+        }
+        let mut counters = Counters::default();
+        let mut phases = Vec::with_capacity(PHASES.len());
+        for (i, c) in per_phase.into_iter().enumerate() {
+            counters.merge(&c);
+            phases.push(Phase {
+                name: PHASES[i].into(),
+                wall_ms: wall[i],
+                model_ms: None,
+                gpu_ms: gpu_ms.as_ref().map(|t| t[i]),
+                counters: c,
+            });
+        }
+        let fill = counters.get("fill").unwrap_or(0.0);
+        if fill > 0.0 {
+            counters.set(
+                "overdraw_ratio",
+                counters.get("overdraw").unwrap_or(0.0) / fill,
+            );
+        }
+        let outside = hits - samples;
+        if outside > 0.0 {
+            warnings.push(format!(
+                "{outside} receiver points lie at or behind the light's view plane and are taken \
+                 as lit"
+            ));
+        }
+        let mut execution = gpu.execution();
+        execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
+        execution.insert(
+            "gpu_counters".into(),
+            serde_json::json!(
+                "columns, tests, fragments, fill and overdraw from an instrumented replay (WGSL \
+                 atomics); mem_est.* estimated from counts and record sizes"
+            ),
+        );
+        Ok(FrameOutput {
+            visibility: VisibilityBuffer {
+                width: self.width,
+                height: self.height,
+                data,
+            },
+            counters,
+            phases,
+            model_ms: None,
+            gpu_ms: gpu_ms.map(|t| t.iter().sum()),
+            execution,
+            warnings,
+        })
+    }
+
+    /// `construct`: the samples stored, the bytes of the grid and sample array (as on the
+    /// CPU), the global atomics (two for the scene's depth range, one count, one bin depth and
+    /// one cursor per sample), and estimated traffic.
+    fn construct_counters(&self, hits: f64, n: f64) -> Counters {
+        let pixels = f64::from(self.params.pixels);
+        let cells = f64::from(self.params.cells);
+        let w = WORD as f64;
+        let mut k = Counters::default();
+        k.set("samples", n);
+        k.set("mem.izb_grid.bytes", w * (cells + 1.0));
+        k.set("mem.izb_samples.bytes", SAMPLE_BYTES as f64 * n);
+        k.set("atomics", 5.0 * n);
+        // project: gbuffer read (normals of hit pixels), points written; count and insert read
+        // the points, count writes the cell; the scan reads the counts twice and writes starts
+        // and cursors; insert scatters the records and clears their accumulators.
+        let gbuffer = GBUFFER_BYTES as f64 * (pixels + hits);
+        let points_read = 2.0 * POINT_BYTES as f64 * pixels;
+        let points_write = POINT_BYTES as f64 * pixels + w * n;
+        let grid_read = 2.0 * w * cells;
+        let grid_write = 3.0 * w * cells + 2.0 * w * n;
+        let samples_write = SAMPLE_BYTES as f64 * n + 2.0 * w * n;
+        let vis_write = w * pixels;
+        k.set("mem_est.gbuffer.read_bytes", gbuffer);
+        k.set("mem_est.points.read_bytes", points_read);
+        k.set("mem_est.points.write_bytes", points_write);
+        k.set("mem_est.izb_grid.read_bytes", grid_read);
+        k.set("mem_est.izb_grid.write_bytes", grid_write);
+        k.set("mem_est.izb_samples.write_bytes", samples_write);
+        k.set("mem_est.visibility.write_bytes", vis_write);
+        k.set("mem_read_bytes", gbuffer + points_read + grid_read);
+        k.set(
+            "mem_write_bytes",
+            points_write + grid_write + samples_write + vis_write,
+        );
+        k
+    }
+
+    /// `hard`: columns visited, samples tested and covered, bin entries, estimated traffic.
+    fn hard_counters(&self, stat: &impl Fn(Stat) -> f64) -> Counters {
+        let (columns, tests, hits) = (
+            stat(Stat::HardColumns),
+            stat(Stat::HardTests),
+            stat(Stat::HardHits),
+        );
+        let w = WORD as f64;
+        let mut k = Counters::default();
+        k.set("hard_columns", columns);
+        k.set("hard_tests", tests);
+        k.set("hard_hits", hits);
+        k.set("bin_entries", stat(Stat::HardBinEntries));
+        k.set("atomics", hits);
+        let triangles = TRIANGLE_BYTES as f64 * f64::from(self.params.triangles);
+        let grid = 2.0 * w * columns;
+        let samples = SAMPLE_BYTES as f64 * tests;
+        k.set("mem_est.light_triangles.read_bytes", triangles);
+        k.set("mem_est.izb_grid.read_bytes", grid);
+        k.set("mem_est.izb_samples.read_bytes", samples);
+        k.set("mem_est.occlusion.write_bytes", w * hits);
+        k.set("mem_read_bytes", triangles + grid + samples + w * hits);
+        k.set("mem_write_bytes", w * hits);
+        k
+    }
+
+    /// `soft`: quads, bin entries and culls, fragments, wedge culls, fill and overdraw in the
+    /// cpu-model's terms, and estimated traffic (resolve included).
+    fn soft_counters(&self, stat: &impl Fn(Stat) -> f64, n: f64) -> Counters {
+        let (fragments, fill, contributing) = (
+            stat(Stat::Fragments),
+            stat(Stat::Fill),
+            stat(Stat::Contributing),
+        );
+        let w = WORD as f64;
+        let mut k = Counters::default();
+        k.set("penumbra_quads", stat(Stat::Quads));
+        k.set("bin_entries", stat(Stat::SoftBinEntries));
+        k.set("bin_culled_quads", stat(Stat::BinCulled));
+        k.set("quad_fragments", fragments);
+        k.set("wedge_culled_fragments", stat(Stat::WedgeCulled));
+        k.set("fill", fill);
+        k.set("overdraw", fill - contributing);
+        k.set("atomics", contributing);
+        let edges = EDGE_BYTES as f64 * f64::from(self.params.edges);
+        let grid = 2.0 * w * fragments;
+        let samples = SAMPLE_BYTES as f64 * (fill + n);
+        let occlusion_read = w * contributing + 2.0 * w * n;
+        let occlusion_write = w * contributing;
+        let vis_write = w * n;
+        k.set("mem_est.penumbra_edges.read_bytes", edges);
+        k.set("mem_est.izb_grid.read_bytes", grid);
+        k.set("mem_est.izb_samples.read_bytes", samples);
+        k.set("mem_est.occlusion.read_bytes", occlusion_read);
+        k.set("mem_est.occlusion.write_bytes", occlusion_write);
+        k.set("mem_est.visibility.write_bytes", vis_write);
+        k.set("mem_read_bytes", edges + grid + samples + occlusion_read);
+        k.set("mem_write_bytes", occlusion_write + vis_write);
+        k
+    }
+}
