@@ -241,6 +241,9 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         return crate::gpu::guarded_run(|gpu| match id {
             hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),
             pcss::ID => pcss::wgpu::render(gpu, frame, ctx),
+            soft_izb::ID => {
+                soft_izb::wgpu::render(gpu, frame, &soft_izb::SoftIzbOptions::parse(&ctx.options)?)
+            }
             _ => unreachable!("registered wgpu execution without a dispatch arm: {id}"),
         });
     }
@@ -258,11 +261,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         )),
         soft_izb::ID => {
             let opts = soft_izb::SoftIzbOptions::parse(&ctx.options)?;
-            if backend == Backend::Wgpu {
-                soft_izb::wgpu::render(frame, &opts)
-            } else {
-                soft_izb::cpu::render(backend, frame, ctx, &opts)
-            }
+            soft_izb::cpu::render(backend, frame, ctx, &opts)
         }
         accum_hard::ID => accum_hard::cpu::render(backend, frame, ctx),
         soft_shadow_volume::ID => soft_shadow_volume::cpu::render(backend, frame, ctx),

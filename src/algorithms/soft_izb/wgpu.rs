@@ -56,7 +56,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
-use crate::gpu::{self, Gpu};
+use crate::gpu::Gpu;
 use crate::record::{Counters, Phase};
 use crate::visibility::VisibilityBuffer;
 
@@ -126,8 +126,7 @@ struct Params {
 }
 
 /// `soft_izb` on the GPU.
-pub fn render(frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOutput> {
-    let gpu = gpu::gpu()?;
+pub fn render(gpu: &Gpu, frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOutput> {
     check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
     let start = Instant::now();
     let light = frame.scene.light;
@@ -170,9 +169,7 @@ pub fn render(frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOutput> {
         occlusion_scale: OCCLUSION_SCALE,
     };
     check_limits(gpu, &params, &grid)?;
-    let mut out = gpu::scoped(gpu, || {
-        Passes::new(gpu, frame, &occ, &grid, params).run(frame)
-    })?;
+    let mut out = Passes::new(gpu, frame, &occ, &grid, params).run(frame)?;
     let mut geometry = Counters::default();
     geometry.set("occluder_triangles", occ.triangles.len() as f64);
     geometry.set("silhouette_edges", occ.edges.len() as f64);
