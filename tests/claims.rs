@@ -128,7 +128,10 @@ fn a_bad_claim_is_an_input_error_naming_its_path() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("$.claims[0].measure.where.algoritm"), "{stderr}");
+    assert!(
+        stderr.contains("$.claims[0].measure.where.algoritm"),
+        "{stderr}"
+    );
     assert!(stderr.contains("algorithm"), "{stderr}");
     assert!(!dir.path().join("out").exists());
 }
