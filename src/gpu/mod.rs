@@ -265,8 +265,11 @@ fn acquire() -> std::result::Result<Gpu, String> {
     let lost = Arc::new(Mutex::new(None));
     let lost_reason = Arc::clone(&lost);
     device.set_device_lost_callback(move |reason, message| {
-        *lost_reason.lock().unwrap_or_else(|e| e.into_inner()) =
-            Some(format!("{reason:?}: {message}"));
+        *lost_reason.lock().unwrap_or_else(|e| e.into_inner()) = Some(if message.is_empty() {
+            format!("{reason:?}")
+        } else {
+            format!("{reason:?}: {message}")
+        });
     });
     Ok(Gpu {
         device,

@@ -33,14 +33,40 @@ pub fn check(info: &AlgorithmInfo, p: &RunParams, limit: u64) -> Result<()> {
     let estimate = frame_bytes(p) + (info.memory_estimate)(p);
     if estimate > limit {
         return Err(Error::Resource(format!(
-            "{} at {}x{} with map resolution {} needs about {:.2} GiB, over the limit of {:.2} GiB (raise it with --memory-limit)",
+            "{} at {}x{} with map resolution {} needs about {}, over the limit of {} (raise it with --memory-limit, in GiB)",
             info.id,
             p.image[0],
             p.image[1],
             p.map_resolution,
-            estimate as f64 / GIB,
-            limit as f64 / GIB
+            bytes(estimate),
+            bytes(limit)
         )));
     }
     Ok(())
+}
+
+/// A byte count in the largest binary unit that keeps it at least 1 (`1.50 GiB`, `12.00 KiB`).
+fn bytes(n: u64) -> String {
+    let units = ["bytes", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = n as f64;
+    let mut unit = 0;
+    while v >= 1024.0 && unit + 1 < units.len() {
+        v /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{n} bytes")
+    } else {
+        format!("{v:.2} {}", units[unit])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn byte_counts_read_in_a_fitting_unit() {
+        assert_eq!(super::bytes(512), "512 bytes");
+        assert_eq!(super::bytes(1536), "1.50 KiB");
+        assert_eq!(super::bytes(3 << 30), "3.00 GiB");
+    }
 }
