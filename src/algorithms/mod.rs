@@ -153,7 +153,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "000 §3-§4 (Wyman and Hansen 2003)",
         summary: "shadow map + penumbra map of cones and sheets on the light-centre silhouette",
         lights: &[LightKind::Sphere],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: penumbra_map::memory_estimate,
         check_options: penumbra_map::check_options,
     },
@@ -243,6 +243,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             hard_shadow_map::wgpu::render(frame, ctx)
         }
         pcss::ID if backend == Backend::Wgpu => pcss::wgpu::render(frame, ctx),
+        penumbra_map::ID if backend == Backend::Wgpu => penumbra_map::wgpu::render(frame, ctx),
         hard_shadow_map::ID => {
             let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;
             Ok(hard_shadow_map::cpu::render(backend, frame, ctx, o.bias))
