@@ -25,7 +25,7 @@ use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
 
-use super::shadow_map::{map_bytes, parse_options, Bias, LightView};
+use super::shadow_map::{self, map_bytes, parse_options, Bias, LightView};
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
@@ -127,9 +127,11 @@ pub fn check_options(o: &BTreeMap<String, serde_json::Value>) -> Result<(), Inpu
     options(o).map(|_| ())
 }
 
-/// The algorithm's own buffers: the shadow map and the penumbra map, one f32 each per texel.
+/// The algorithm's own buffers: the shadow-map family's (the shadow map, the gbuffer copies
+/// and the visibility buffers) and the penumbra map, one f32 per texel. The cones and sheets
+/// are not counted: their size is known only once the silhouette is.
 pub fn memory_estimate(p: &RunParams) -> u64 {
-    2 * map_bytes(p)
+    shadow_map::memory_estimate(p) + map_bytes(p)
 }
 
 /// §3, Figure 4: the radius of the cone of a silhouette vertex at depth `z_v` where it meets the
