@@ -153,7 +153,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "000 §3-§4 (Wyman and Hansen 2003)",
         summary: "shadow map + penumbra map of cones and sheets on the light-centre silhouette",
         lights: &[LightKind::Sphere],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: penumbra_map::memory_estimate,
         check_options: penumbra_map::check_options,
     },
@@ -241,6 +241,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         return crate::gpu::guarded_run(|gpu| match id {
             hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),
             pcss::ID => pcss::wgpu::render(gpu, frame, ctx),
+            penumbra_map::ID => penumbra_map::wgpu::render(gpu, frame, ctx),
             soft_izb::ID => {
                 soft_izb::wgpu::render(gpu, frame, &soft_izb::SoftIzbOptions::parse(&ctx.options)?)
             }

@@ -5,8 +5,6 @@ use crate::algorithms::AlgorithmInfo;
 use crate::error::{Error, Result};
 use crate::frame::RunParams;
 
-const GIB: f64 = (1u64 << 30) as f64;
-
 /// Physical memory from /proc/meminfo, when readable.
 pub fn physical_memory() -> Option<u64> {
     let text = std::fs::read_to_string("/proc/meminfo").ok()?;

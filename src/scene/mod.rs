@@ -8,6 +8,7 @@ pub mod generators;
 pub mod light;
 pub mod mesh;
 pub mod obj;
+pub mod simplify;
 
 pub use camera::Camera;
 pub use light::{Light, LightKind};

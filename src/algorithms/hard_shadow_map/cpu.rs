@@ -10,6 +10,7 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
 use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::scene::Mesh;
 use crate::visibility::VisibilityBuffer;
 
 /// The machine an execution runs on: the context's configuration with the run's core count.
@@ -30,15 +31,15 @@ pub struct ShadowMap {
 /// Phase `light_raster`: NDC depth of every triangle from the light centre, nearest kept.
 pub fn light_raster(m: &mut Machine, frame: &Frame) -> ShadowMap {
     m.phase("light_raster");
-    raster_shadow_map(m, frame)
+    raster_shadow_map(m, frame, &frame.flat.mesh)
 }
 
-/// The light pass in the current phase: the scene rasterized from the light centre, nearest
-/// NDC depth kept (the first pass of the penumbra map too).
-pub fn raster_shadow_map(m: &mut Machine, frame: &Frame) -> ShadowMap {
+/// The light pass in the current phase: `mesh` (the scene's triangles, or a stand-in for them)
+/// rasterized from the light centre of `frame`'s view, nearest NDC depth kept (the first pass
+/// of the penumbra map too).
+pub fn raster_shadow_map(m: &mut Machine, frame: &Frame, mesh: &Mesh) -> ShadowMap {
     let res = frame.params.map_resolution;
     let view = LightView::new(&frame.scene.light, frame.scene.bounds(), res);
-    let mesh = &frame.flat.mesh;
     let positions = m.memory.buffer("vertices", mesh.positions.clone());
     let triangles = m.memory.buffer("indices", mesh.triangles.clone());
     let target = Target {

@@ -11,7 +11,10 @@
 
 use glam::{Vec2, Vec3};
 
-use super::{intensity, Cone, PenumbraMapOptions, Sheet};
+use super::{
+    cone_size, intensity, shadow_geometry, sheet_size, PenumbraGeometry, PenumbraMapOptions,
+    Silhouettes,
+};
 use crate::algorithms::hard_shadow_map::cpu::{
     eye_lookup, machine, output, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
     COMPARE_OPS,
@@ -107,30 +110,6 @@ impl TaskKernel for SilhouetteTest<'_> {
     }
 }
 
-/// The silhouette from the light centre, in light-view space, with what the cones and sheets
-/// of the penumbra map are built from.
-pub struct Silhouettes {
-    pub edges: Vec<SilhouetteEdge>,
-    /// Silhouette vertices (welded index, light-view position) in first-seen order.
-    pub vertices: Vec<(u32, Vec3)>,
-    /// Silhouette edges meeting at each of `vertices`.
-    pub edges_per_vertex: Vec<u32>,
-    /// Sheets of the edges (`None` for an edge seen end-on) and their strip counts.
-    pub sheets: Vec<Option<(Sheet, u32)>>,
-}
-
-impl Silhouettes {
-    /// Vertices with more than two silhouette edges (§2: "vertices with three or four adjacent
-    /// silhouette edges are not uncommon ... some pathological vertices can have up to eight").
-    pub fn vertices_over_two_edges(&self) -> usize {
-        self.edges_per_vertex.iter().filter(|&&n| n > 2).count()
-    }
-
-    pub fn max_edges_per_vertex(&self) -> u32 {
-        self.edges_per_vertex.iter().copied().max().unwrap_or(0)
-    }
-}
-
 /// The vertex step: silhouette vertices with their edge counts, and each edge's sheet.
 struct VertexStep<'a> {
     edges: &'a [SilhouetteEdge],
@@ -148,31 +127,17 @@ impl TaskKernel for VertexStep<'_> {
         let mut slot = vec![u32::MAX; self.vertex_count];
         let mut s = Silhouettes {
             edges: Vec::with_capacity(self.edges.len()),
-            vertices: Vec::new(),
-            edges_per_vertex: Vec::new(),
             sheets: Vec::with_capacity(self.edges.len()),
+            ..Default::default()
         };
-        let to_view = |v: Vec3| self.view.view.transform_point3(v);
         for e in self.edges {
-            for (&w, pos) in e.v.iter().zip([e.a, e.b]) {
+            for &w in &e.v {
                 let addr = self.counts.1 + u64::from(w) * 4;
                 p.read(self.counts.0, addr, 4);
                 p.write(self.counts.0, addr, 4);
-                let i = &mut slot[w as usize];
-                if *i == u32::MAX {
-                    *i = s.vertices.len() as u32;
-                    s.vertices.push((w, to_view(pos)));
-                    s.edges_per_vertex.push(0);
-                }
-                s.edges_per_vertex[*i as usize] += 1;
             }
             p.scalar(VERTEX_STEP_EDGE_SCALAR);
-            let sheet = Sheet::new(self.view, to_view(e.a), to_view(e.b)).map(|sh| {
-                let n = sh.strips(self.view, self.light_radius, self.max_strips);
-                (sh, n)
-            });
-            s.sheets.push(sheet);
-            s.edges.push(*e);
+            s.add(&mut slot, e, self.view, self.light_radius, self.max_strips);
         }
         s
     }
@@ -239,15 +204,6 @@ fn silhouettes(
     s
 }
 
-/// Cones and sheets as triangles in light-view space; each vertex carries its `Z_v` and the
-/// reciprocal of its depth for perspective-correct interpolation.
-struct PenumbraGeometry {
-    positions: Vec<Vec3>,
-    /// (`Z_v`, 1/depth) per vertex.
-    attributes: Vec<Vec2>,
-    triangles: Vec<[u32; 3]>,
-}
-
 /// Where each cone and sheet puts its vertices and triangles (exclusive prefix sums, so that
 /// the geometry step's tasks write disjoint ranges).
 struct Layout {
@@ -258,10 +214,10 @@ struct Layout {
 }
 
 fn layout(s: &Silhouettes, segments: u32) -> Layout {
-    let sizes = s.vertices.iter().map(|_| (segments + 1, segments)).chain(
+    let sizes = s.vertices.iter().map(|_| cone_size(segments)).chain(
         s.sheets
             .iter()
-            .map(|sh| sh.map_or((0, 0), |(_, n)| (2 * (n + 1), 2 * n))),
+            .map(|sh| sh.map_or((0, 0), |(_, n)| sheet_size(n))),
     );
     let (mut v, mut t) = (0u32, 0u32);
     let offsets = sizes
@@ -290,48 +246,6 @@ struct GeometryStep<'a> {
     triangles: &'a Buffer<[u32; 3]>,
 }
 
-impl GeometryStep<'_> {
-    fn vertex(&self, g: &mut PenumbraGeometry, p: Vec3, z_v: f32) -> u32 {
-        g.positions.push(p);
-        g.attributes.push(Vec2::new(z_v, 1.0 / super::depth(p)));
-        (g.positions.len() - 1) as u32
-    }
-
-    /// §3: a cone with its tip at the vertex and its base on the far plane, as `segments`
-    /// triangles with one vertex at the tip and two on the base.
-    fn cone(&self, g: &mut PenumbraGeometry, v: Vec3) {
-        let c = Cone::new(self.view, self.light_radius, v);
-        let tip = self.vertex(g, c.tip, c.z_v);
-        for k in 0..self.segments {
-            self.vertex(g, c.base_point(k, self.segments), c.z_v);
-        }
-        for k in 0..self.segments {
-            let next = (k + 1) % self.segments;
-            g.triangles.push([tip, tip + 1 + k, tip + 1 + next]);
-        }
-    }
-
-    /// §3: the sheet of an edge joining its two cones, in `strips` strips along the edge.
-    fn sheet(&self, g: &mut PenumbraGeometry, sheet: &Sheet, strips: u32) {
-        let first = g.positions.len() as u32;
-        for i in 0..=strips {
-            let (near, far, z_v) = sheet.at(self.view, self.light_radius, i as f32 / strips as f32);
-            self.vertex(g, near, z_v);
-            self.vertex(g, far, z_v);
-        }
-        for i in 0..strips {
-            let (n0, f0, n1, f1) = (
-                first + 2 * i,
-                first + 2 * i + 1,
-                first + 2 * i + 2,
-                first + 2 * i + 3,
-            );
-            g.triangles.push([n0, n1, f1]);
-            g.triangles.push([n0, f1, f0]);
-        }
-    }
-}
-
 impl TaskKernel for GeometryStep<'_> {
     type Out = PenumbraGeometry;
 
@@ -339,18 +253,19 @@ impl TaskKernel for GeometryStep<'_> {
         let cones = self.s.vertices.len();
         let total = self.layout.offsets.len();
         let (start, end) = (task * PRIM_CHUNK, ((task + 1) * PRIM_CHUNK).min(total));
-        let mut g = PenumbraGeometry {
-            positions: Vec::new(),
-            attributes: Vec::new(),
-            triangles: Vec::new(),
-        };
+        let mut g = PenumbraGeometry::default();
         let base = self.layout.offsets[start];
         for i in start..end {
             let (v0, t0) = (g.positions.len(), g.triangles.len());
             if i < cones {
-                self.cone(&mut g, self.s.vertices[i].1);
+                g.cone(
+                    self.view,
+                    self.light_radius,
+                    self.s.vertices[i].1,
+                    self.segments,
+                );
             } else if let Some((sheet, strips)) = &self.s.sheets[i - cones] {
-                self.sheet(&mut g, sheet, *strips);
+                g.sheet(self.view, self.light_radius, sheet, *strips);
             }
             debug_assert_eq!(self.layout.offsets[i].0 - base.0, v0 as u32);
             let (nv, nt) = (g.positions.len() - v0, g.triangles.len() - t0);
@@ -536,11 +451,12 @@ pub fn render(
     o: PenumbraMapOptions,
 ) -> FrameOutput {
     let mut m = machine(backend, frame, ctx);
+    let geometry = shadow_geometry(frame, &o);
     m.phase("shadow_map");
-    let shadow = raster_shadow_map(&mut m, frame);
+    let shadow = raster_shadow_map(&mut m, frame, &geometry.shadow_map);
     let light = frame.scene.light.center();
     let light_radius = frame.scene.light.size();
-    let adj = EdgeAdjacency::build(&frame.scene.occluders());
+    let adj = EdgeAdjacency::build(&geometry.occluders);
     let s = silhouettes(&mut m, &adj, &shadow.view, light, light_radius, &o);
     let penumbra = penumbra_map(&mut m, frame, &shadow, &s, light_radius, &o);
     let lookup = PenumbraLookup {

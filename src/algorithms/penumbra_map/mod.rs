@@ -11,17 +11,26 @@
 //!
 //! The geometry is built in light-view space (looking down −z from the light centre, depth
 //! `−z`), so that the far plane is `z = −far` and a cone's base is a circle in it.
-//! This file holds the math, once; [`cpu`] runs it on the CPU executions.
+//! This file holds the math and the geometry, once: the silhouette from the light centre
+//! ([`silhouettes`]), the cones and sheets built on it ([`PenumbraGeometry`]), and the
+//! occluders shadows are generated from ([`shadow_geometry`], optionally simplified as in §5).
+//! [`cpu`] runs it on the CPU executions, [`wgpu`] as GPU passes (its WGSL mirrors
+//! [`intensity`] and the lookup).
 
 pub mod cpu;
+pub mod wgpu;
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
 
-use super::shadow_map::{map_bytes, parse_options, Bias, LightView};
+use super::shadow_map::{self, map_bytes, parse_options, Bias, LightView};
 use crate::error::InputError;
-use crate::frame::RunParams;
+use crate::frame::{Frame, RunParams};
+use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
+use crate::scene::simplify::simplify;
+use crate::scene::Mesh;
 
 pub const ID: &str = "penumbra_map";
 
@@ -43,6 +52,12 @@ pub struct PenumbraMapOptions {
     /// Bias of the umbra test in the final lookup (§5: "we reduce them by adding a larger bias").
     #[serde(default)]
     pub bias: Bias,
+    /// Target triangle count of the occluders the shadows are generated from (§5: "we used
+    /// 10,000 polygons to generate shadows for the bunny"): each occluder object is simplified
+    /// to its share of this count for the shadow map, the silhouettes and the penumbra map;
+    /// the eye still sees the full meshes. Absent: the full meshes.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shadow_mesh_triangles: Option<u32>,
 }
 
 fn default_cone_segments() -> u32 {
@@ -59,6 +74,7 @@ impl Default for PenumbraMapOptions {
             cone_segments: default_cone_segments(),
             max_sheet_strips: default_max_sheet_strips(),
             bias: Bias::default(),
+            shadow_mesh_triangles: None,
         }
     }
 }
@@ -76,6 +92,12 @@ impl PenumbraMapOptions {
             return Err(InputError::new(
                 field("max_sheet_strips"),
                 format!("must be in 1..=64, got {}", self.max_sheet_strips),
+            ));
+        }
+        if self.shadow_mesh_triangles == Some(0) {
+            return Err(InputError::new(
+                field("shadow_mesh_triangles"),
+                "must be a positive integer (a target triangle count), got 0",
             ));
         }
         for (name, v) in [
@@ -105,9 +127,11 @@ pub fn check_options(o: &BTreeMap<String, serde_json::Value>) -> Result<(), Inpu
     options(o).map(|_| ())
 }
 
-/// The algorithm's own buffers: the shadow map and the penumbra map, one f32 each per texel.
+/// The algorithm's own buffers: the shadow-map family's (the shadow map, the gbuffer copies
+/// and the visibility buffers) and the penumbra map, one f32 per texel. The cones and sheets
+/// are not counted: their size is known only once the silhouette is.
 pub fn memory_estimate(p: &RunParams) -> u64 {
-    2 * map_bytes(p)
+    shadow_map::memory_estimate(p) + map_bytes(p)
 }
 
 /// §3, Figure 4: the radius of the cone of a silhouette vertex at depth `z_v` where it meets the
@@ -215,6 +239,200 @@ impl Sheet {
         }
         let off = (fb - a).dot(n).abs() / len;
         ((off / SHEET_PLANARITY).ceil() as u32).clamp(1, max)
+    }
+}
+
+/// What the shadows are generated from: the triangles rasterized into the shadow map (every
+/// triangle of the scene, receivers too, as the hard shadow map draws them) and the occluders
+/// whose silhouette makes the penumbra map.
+pub struct ShadowGeometry<'f> {
+    pub shadow_map: Cow<'f, Mesh>,
+    pub occluders: Mesh,
+}
+
+/// The shadow geometry of `frame`: its own meshes, or with `shadow_mesh_triangles` each
+/// occluder object simplified to its share of the target (in proportion to its triangles), as
+/// the paper draws shadows from simplified models (§5). Receiver-only objects are kept whole.
+/// Simplification is preprocessing (the paper's models were simplified beforehand): no phase
+/// counts it.
+pub fn shadow_geometry<'f>(frame: &'f Frame, o: &PenumbraMapOptions) -> ShadowGeometry<'f> {
+    let Some(target) = o.shadow_mesh_triangles else {
+        return ShadowGeometry {
+            shadow_map: Cow::Borrowed(&frame.flat.mesh),
+            occluders: frame.scene.occluders(),
+        };
+    };
+    let objects = &frame.scene.objects;
+    let total: usize = objects
+        .iter()
+        .filter(|o| o.role.occluder)
+        .map(|o| o.mesh.triangles.len())
+        .sum();
+    let (mut shadow_map, mut occluders) = (Mesh::default(), Mesh::default());
+    for obj in objects {
+        if obj.role.occluder {
+            let share = f64::from(target) * obj.mesh.triangles.len() as f64 / total as f64;
+            let s = simplify(&obj.mesh, (share.round() as u32).max(1));
+            shadow_map.append(&s);
+            occluders.append(&s);
+        } else {
+            shadow_map.append(&obj.mesh);
+        }
+    }
+    ShadowGeometry {
+        shadow_map: Cow::Owned(shadow_map),
+        occluders,
+    }
+}
+
+/// The silhouette from the light centre, in light-view space, with what the cones and sheets
+/// of the penumbra map are built from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Silhouettes {
+    pub edges: Vec<SilhouetteEdge>,
+    /// Silhouette vertices (welded index, light-view position) in first-seen order.
+    pub vertices: Vec<(u32, Vec3)>,
+    /// Silhouette edges meeting at each of `vertices`.
+    pub edges_per_vertex: Vec<u32>,
+    /// Sheets of the edges (`None` for an edge seen end-on) and their strip counts.
+    pub sheets: Vec<Option<(Sheet, u32)>>,
+}
+
+impl Silhouettes {
+    /// The vertex step for silhouette edge `e`: its vertices are added when first seen (`slot`
+    /// maps welded vertex indices to positions in `vertices`, `u32::MAX` when unseen), their
+    /// edge counts grow, and the edge's sheet is set up with its strip count.
+    pub fn add(
+        &mut self,
+        slot: &mut [u32],
+        e: &SilhouetteEdge,
+        view: &LightView,
+        light_radius: f32,
+        max_strips: u32,
+    ) {
+        let to_view = |v: Vec3| view.view.transform_point3(v);
+        for (&w, pos) in e.v.iter().zip([e.a, e.b]) {
+            let i = &mut slot[w as usize];
+            if *i == u32::MAX {
+                *i = self.vertices.len() as u32;
+                self.vertices.push((w, to_view(pos)));
+                self.edges_per_vertex.push(0);
+            }
+            self.edges_per_vertex[*i as usize] += 1;
+        }
+        let sheet = Sheet::new(view, to_view(e.a), to_view(e.b))
+            .map(|sh| (sh, sh.strips(view, light_radius, max_strips)));
+        self.sheets.push(sheet);
+        self.edges.push(*e);
+    }
+
+    /// Vertices with more than two silhouette edges (§2: "vertices with three or four adjacent
+    /// silhouette edges are not uncommon ... some pathological vertices can have up to eight").
+    pub fn vertices_over_two_edges(&self) -> usize {
+        self.edges_per_vertex.iter().filter(|&&n| n > 2).count()
+    }
+
+    pub fn max_edges_per_vertex(&self) -> u32 {
+        self.edges_per_vertex.iter().copied().max().unwrap_or(0)
+    }
+}
+
+/// §4: brute-force silhouette extraction from the light centre `light` over every edge of
+/// `adj`, in edge order, then the vertex step ([`Silhouettes::add`]). The CPU executions run
+/// the same two steps as instrumented tasks, in the same order.
+pub fn silhouettes(
+    adj: &EdgeAdjacency,
+    view: &LightView,
+    light: Vec3,
+    light_radius: f32,
+    max_strips: u32,
+) -> Silhouettes {
+    let mut slot = vec![u32::MAX; adj.vertices.len()];
+    let mut s = Silhouettes::default();
+    for e in 0..adj.edges.len() {
+        if let Some(edge) = adj.silhouette_edge(e, light) {
+            s.add(&mut slot, &edge, view, light_radius, max_strips);
+        }
+    }
+    s
+}
+
+/// (vertices, triangles) of a cone of `segments` triangles: the tip and `segments` base points.
+pub fn cone_size(segments: u32) -> (u32, u32) {
+    (segments + 1, segments)
+}
+
+/// (vertices, triangles) of a sheet of `strips` strips: a near and a far point at each of the
+/// `strips + 1` stations along the edge, two triangles per strip.
+pub fn sheet_size(strips: u32) -> (u32, u32) {
+    (2 * (strips + 1), 2 * strips)
+}
+
+/// Cones and sheets as triangles in light-view space (the penumbra map is drawn with the light
+/// view's projection alone); each vertex carries its `Z_v`, constant on a cone and interpolated
+/// along a sheet's edge (§3: "for sheets we use the rasterizer to interpolate between the
+/// `Z_vi` values of the two adjacent cones"), and the reciprocal of its depth for
+/// perspective-correct interpolation of `Z_v` where the rasterizer does not provide it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PenumbraGeometry {
+    pub positions: Vec<Vec3>,
+    /// (`Z_v`, 1/depth) per vertex.
+    pub attributes: Vec<Vec2>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl PenumbraGeometry {
+    /// All cones (one per silhouette vertex, in order), then all sheets (one per edge): what
+    /// both executions draw.
+    pub fn build(s: &Silhouettes, view: &LightView, light_radius: f32, segments: u32) -> Self {
+        let mut g = PenumbraGeometry::default();
+        for &(_, v) in &s.vertices {
+            g.cone(view, light_radius, v, segments);
+        }
+        for (sheet, strips) in s.sheets.iter().flatten() {
+            g.sheet(view, light_radius, sheet, *strips);
+        }
+        g
+    }
+
+    fn vertex(&mut self, p: Vec3, z_v: f32) -> u32 {
+        self.positions.push(p);
+        self.attributes.push(Vec2::new(z_v, 1.0 / depth(p)));
+        (self.positions.len() - 1) as u32
+    }
+
+    /// §3: a cone with its tip at the silhouette vertex `v` and its base on the far plane, as
+    /// `segments` triangles with one vertex at the tip and two on the base.
+    pub fn cone(&mut self, view: &LightView, light_radius: f32, v: Vec3, segments: u32) {
+        let c = Cone::new(view, light_radius, v);
+        let tip = self.vertex(c.tip, c.z_v);
+        for k in 0..segments {
+            self.vertex(c.base_point(k, segments), c.z_v);
+        }
+        for k in 0..segments {
+            let next = (k + 1) % segments;
+            self.triangles.push([tip, tip + 1 + k, tip + 1 + next]);
+        }
+    }
+
+    /// §3: the sheet of an edge joining its two cones, in `strips` strips along the edge.
+    pub fn sheet(&mut self, view: &LightView, light_radius: f32, sheet: &Sheet, strips: u32) {
+        let first = self.positions.len() as u32;
+        for i in 0..=strips {
+            let (near, far, z_v) = sheet.at(view, light_radius, i as f32 / strips as f32);
+            self.vertex(near, z_v);
+            self.vertex(far, z_v);
+        }
+        for i in 0..strips {
+            let (n0, f0, n1, f1) = (
+                first + 2 * i,
+                first + 2 * i + 1,
+                first + 2 * i + 2,
+                first + 2 * i + 3,
+            );
+            self.triangles.push([n0, n1, f1]);
+            self.triangles.push([n0, f1, f0]);
+        }
     }
 }
 

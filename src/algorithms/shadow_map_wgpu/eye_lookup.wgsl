@@ -26,6 +26,8 @@ struct Counts {
     covered: atomic<u32>,
     taps: atomic<u32>,
     wasted_taps: atomic<u32>,
+    discarded: atomic<u32>,
+    extra_taps: atomic<u32>,
 }
 
 // Depth of a tap outside the map: beyond every receiver.

@@ -27,6 +27,8 @@ struct Counts {
     covered: atomic<u32>,
     taps: atomic<u32>,
     wasted_taps: atomic<u32>,
+    discarded: atomic<u32>,
+    extra_taps: atomic<u32>,
 }
 
 @group(0) @binding(0) var<uniform> light: Light;

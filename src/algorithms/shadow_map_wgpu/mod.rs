@@ -1,4 +1,5 @@
 //! The wgpu execution of the shadow-map family (`hard_shadow_map`, `pcss`): two GPU passes.
+//! `penumbra_map` builds on the same passes ([`Passes`]), with its penumbra map between them.
 //!
 //! 1. `light_raster` — a render pass draws every triangle of the scene from the light centre
 //!    ([`LightView`]) into a `map_resolution`² Depth32Float map (see `light_raster.wgsl`).
@@ -28,6 +29,7 @@ use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
 use crate::gpu::Gpu;
 use crate::record::{Counters, Phase};
+use crate::scene::Mesh;
 use crate::visibility::VisibilityBuffer;
 
 const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
@@ -36,7 +38,7 @@ const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
 /// Side of the square compute workgroups (`@workgroup_size(8, 8)` in eye_lookup.wgsl).
 const WORKGROUP: u32 = 8;
 /// Bytes of one texel of the Depth32Float shadow map.
-const DEPTH_TEXEL_BYTES: f64 = 4.0;
+pub(crate) const DEPTH_TEXEL_BYTES: f64 = 4.0;
 /// Bytes of one gbuffer entry (a `vec4<f32>`, position or normal).
 const GBUFFER_ENTRY_BYTES: f64 = 16.0;
 /// Bytes of one occluder vertex (`vec3<f32>`) and one index (`u32`).
@@ -76,20 +78,45 @@ struct LightUniform {
 /// The `Counts` storage buffer of the instrumented mode.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct Counts {
-    fragments: u32,
-    covered: u32,
-    taps: u32,
-    wasted_taps: u32,
+pub(crate) struct Counts {
+    /// Fragments rasterized.
+    pub fragments: u32,
+    /// Shadow-map texels covered.
+    pub covered: u32,
+    /// Shadow-map taps of the lookup.
+    pub taps: u32,
+    pub wasted_taps: u32,
+    /// Fragments a fragment program discarded (penumbra map).
+    pub discarded: u32,
+    /// Taps of a second map in the lookup (penumbra map).
+    pub extra_taps: u32,
+}
+
+/// The timestamp and statistics queries of one pass: the query sets (absent when the adapter
+/// lacks the feature, or in the instrumented replay) and the pass's index in them.
+#[derive(Clone, Copy)]
+pub(crate) struct Queries<'a> {
+    pub timer: Option<&'a PassTimer>,
+    pub stats: Option<&'a PassStats>,
+    pub index: u32,
+}
+
+impl Queries<'_> {
+    pub const NONE: Queries<'static> = Queries {
+        timer: None,
+        stats: None,
+        index: 0,
+    };
 }
 
 /// Renders `frame` with the family's two passes and the algorithm's lookup.
 pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
     check_limits(gpu, frame)?;
-    Passes::new(gpu, frame, lookup).run(frame)
+    Passes::new(gpu, frame, lookup, &frame.flat.mesh, None).run(frame)
 }
 
-fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
+/// Checks the frame against the adapter's limits before anything is allocated.
+pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
     let res = frame.params.map_resolution;
     if res > gpu.limits.max_texture_dimension_2d {
         return Err(Error::Resource(format!(
@@ -111,25 +138,28 @@ fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
 }
 
 /// The resources and pipelines of one frame.
-struct Passes<'g> {
-    gpu: &'g Gpu,
-    width: u32,
-    height: u32,
-    resolution: u32,
+pub(crate) struct Passes<'g> {
+    pub gpu: &'g Gpu,
+    pub width: u32,
+    pub height: u32,
+    pub resolution: u32,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     index_count: u32,
     vertex_count: usize,
-    depth_view: wgpu::TextureView,
-    visibility: wgpu::Buffer,
-    counts: wgpu::Buffer,
-    shared_group: wgpu::BindGroup,
+    /// The shadow map (Depth32Float, NDC depth).
+    pub depth_view: wgpu::TextureView,
+    pub visibility: wgpu::Buffer,
+    pub counts: wgpu::Buffer,
+    /// Group 0 of every pass: the light uniform and the counters.
+    pub shared_layout: wgpu::BindGroupLayout,
+    pub shared_group: wgpu::BindGroup,
     lookup_group: wgpu::BindGroup,
     raster_timed: wgpu::RenderPipeline,
     raster_counting: wgpu::RenderPipeline,
-    lookup_timed: wgpu::ComputePipeline,
-    lookup_counting: wgpu::ComputePipeline,
-    count_covered: wgpu::ComputePipeline,
+    pub lookup_timed: wgpu::ComputePipeline,
+    pub lookup_counting: wgpu::ComputePipeline,
+    pub count_covered: wgpu::ComputePipeline,
 }
 
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -146,7 +176,16 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 }
 
 impl<'g> Passes<'g> {
-    fn new(gpu: &'g Gpu, frame: &Frame, lookup: &Lookup) -> Passes<'g> {
+    /// The passes of `frame` with the shadow map of `occluders` (the scene's flat mesh, or a
+    /// stand-in for it) and `lookup`'s `visibility_at`; `extra` is the layout of a group 2
+    /// that the lookup's WGSL declares (bound by [`Self::compute_pass`]).
+    pub fn new(
+        gpu: &'g Gpu,
+        frame: &Frame,
+        lookup: &Lookup,
+        occluders: &Mesh,
+        extra: Option<&wgpu::BindGroupLayout>,
+    ) -> Passes<'g> {
         let device = &gpu.device;
         let (width, height) = (frame.width(), frame.height());
         let resolution = frame.params.map_resolution;
@@ -187,8 +226,7 @@ impl<'g> Passes<'g> {
         );
 
         // Every triangle of the scene can cast a shadow into the map (receivers shadow each
-        // other too), indexed as in the frame's flat mesh, as the cpu executions draw it.
-        let occluders = &frame.flat.mesh;
+        // other too), indexed as in `occluders`, as the cpu executions draw it.
         let positions: Vec<[f32; 3]> = occluders.positions.iter().map(|p| p.to_array()).collect();
         let index_list: Vec<u32> = occluders.triangles.iter().flatten().copied().collect();
         let vertices = init(
@@ -258,7 +296,9 @@ impl<'g> Passes<'g> {
             entries: &[
                 wgpu::BindGroupLayoutEntry {
                     binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::COMPUTE,
+                    visibility: wgpu::ShaderStages::VERTEX
+                        | wgpu::ShaderStages::FRAGMENT
+                        | wgpu::ShaderStages::COMPUTE,
                     ty: wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Uniform,
                         has_dynamic_offset: false,
@@ -332,7 +372,7 @@ impl<'g> Passes<'g> {
         });
         let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("eye lookup"),
-            bind_group_layouts: &[Some(&shared_layout), Some(&lookup_layout)],
+            bind_group_layouts: &[Some(&shared_layout), Some(&lookup_layout), extra],
             immediate_size: 0,
         });
         let raster_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -406,6 +446,7 @@ impl<'g> Passes<'g> {
             depth_view,
             visibility,
             counts,
+            shared_layout,
             shared_group,
             lookup_group,
             raster_timed: raster("fs_depth"),
@@ -416,13 +457,13 @@ impl<'g> Passes<'g> {
         }
     }
 
-    fn raster_pass(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        pipeline: &wgpu::RenderPipeline,
-        timer: Option<&PassTimer>,
-        stats: Option<&PassStats>,
-    ) {
+    /// The light raster: the timed pipeline, or the counting one of the instrumented replay.
+    pub fn raster_pass(&self, encoder: &mut wgpu::CommandEncoder, counting: bool, q: Queries) {
+        let pipeline = if counting {
+            &self.raster_counting
+        } else {
+            &self.raster_timed
+        };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("light_raster"),
             color_attachments: &[],
@@ -434,50 +475,55 @@ impl<'g> Passes<'g> {
                 }),
                 stencil_ops: None,
             }),
-            timestamp_writes: timer.map(|t| t.render(0)),
+            timestamp_writes: q.timer.map(|t| t.render(q.index)),
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        if let Some(s) = stats {
-            s.begin_render(&mut pass, 0);
+        if let Some(s) = q.stats {
+            s.begin_render(&mut pass, q.index);
         }
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.shared_group, &[]);
         pass.set_vertex_buffer(0, self.vertices.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..self.index_count, 0, 0..1);
-        if stats.is_some() {
+        if q.stats.is_some() {
             pass.end_pipeline_statistics_query();
         }
     }
 
-    fn compute_pass(
+    /// A compute pass over `size` (8×8 workgroups) with the eye lookup's bind groups, and
+    /// `extra` as group 2 where the pipeline has one.
+    pub fn compute_pass(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         label: &str,
         pipeline: &wgpu::ComputePipeline,
         size: (u32, u32),
-        timer: Option<&PassTimer>,
-        stats: Option<&PassStats>,
+        q: Queries,
+        extra: Option<&wgpu::BindGroup>,
     ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),
-            timestamp_writes: timer.map(|t| t.compute(1)),
+            timestamp_writes: q.timer.map(|t| t.compute(q.index)),
         });
-        if let Some(s) = stats {
-            s.begin_compute(&mut pass, 1);
+        if let Some(s) = q.stats {
+            s.begin_compute(&mut pass, q.index);
         }
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &self.shared_group, &[]);
         pass.set_bind_group(1, &self.lookup_group, &[]);
+        if let Some(g) = extra {
+            pass.set_bind_group(2, g, &[]);
+        }
         pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
-        if stats.is_some() {
+        if q.stats.is_some() {
             pass.end_pipeline_statistics_query();
         }
     }
 
     /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
-    fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
+    pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
         let start = Instant::now();
         let mut encoder = self
             .gpu
@@ -495,60 +541,51 @@ impl<'g> Passes<'g> {
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let gpu = self.gpu;
         let image = (self.width, self.height);
-        let mut warnings = Vec::new();
 
         // The timed submission: each phase submitted and waited for on its own, so its wall
         // time includes submission.
         let timer = PassTimer::new(gpu, 2);
         let stats = PassStats::new(gpu, 2);
-        let raster_wall = self
-            .submit(|e| self.raster_pass(e, &self.raster_timed, timer.as_ref(), stats.as_ref()))?;
+        let q = |index| Queries {
+            timer: timer.as_ref(),
+            stats: stats.as_ref(),
+            index,
+        };
+        let raster_wall = self.submit(|e| self.raster_pass(e, false, q(0)))?;
         let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
         let lookup_wall = self.submit(|e| {
-            self.compute_pass(
-                e,
-                "eye_lookup",
-                &self.lookup_timed,
-                image,
-                timer.as_ref(),
-                stats.as_ref(),
-            );
+            self.compute_pass(e, "eye_lookup", &self.lookup_timed, image, q(1), None);
             vis_staging.copy(e, &self.visibility);
-            if let Some(t) = &timer {
-                t.resolve(e);
-            }
-            if let Some(s) = &stats {
-                s.resolve(e);
-            }
+            resolve(e, timer.as_ref(), stats.as_ref());
         })?;
         let readback_start = Instant::now();
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let gpu_ms = match &timer {
-            Some(t) => Some(t.read_ms(gpu)?),
-            None => {
-                warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
-                None
-            }
-        };
-        let pipeline = match &stats {
-            Some(s) => Some(s.read(gpu)?),
-            None => {
-                warnings.push(
-                    "adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into(),
-                );
-                None
-            }
-        };
+        let mut warnings = Vec::new();
+        let (gpu_ms, pipeline) = read_queries(gpu, &timer, &stats, &mut warnings)?;
 
         // The instrumented submission: same passes, counting with atomics.
         let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());
         self.submit(|e| {
             e.clear_buffer(&self.counts, 0, None);
-            self.raster_pass(e, &self.raster_counting, None, None);
+            self.raster_pass(e, true, Queries::NONE);
             let res = (self.resolution, self.resolution);
-            self.compute_pass(e, "count_covered", &self.count_covered, res, None, None);
-            self.compute_pass(e, "eye_lookup", &self.lookup_counting, image, None, None);
+            self.compute_pass(
+                e,
+                "count_covered",
+                &self.count_covered,
+                res,
+                Queries::NONE,
+                None,
+            );
+            self.compute_pass(
+                e,
+                "eye_lookup",
+                &self.lookup_counting,
+                image,
+                Queries::NONE,
+                None,
+            );
             counts_staging.copy(e, &self.counts);
         })?;
         let counts: Counts = words::<Counts>(&counts_staging.read(gpu)?)[0];
@@ -559,17 +596,32 @@ impl<'g> Passes<'g> {
             raster.merge(&p[0]);
             eye.merge(&p[1]);
         }
-        let phase = |name: &str, wall_ms: f64, i: usize, counters: Counters| Phase {
-            name: name.into(),
-            wall_ms,
-            model_ms: None,
-            gpu_ms: gpu_ms.as_ref().map(|t| t[i]),
-            counters,
-        };
         let phases = vec![
-            phase("light_raster", raster_wall, 0, raster),
-            phase("eye_lookup", lookup_wall, 1, eye),
+            gpu_phase(
+                "light_raster",
+                raster_wall,
+                gpu_ms.as_ref().map(|t| t[0]),
+                raster,
+            ),
+            gpu_phase(
+                "eye_lookup",
+                lookup_wall,
+                gpu_ms.as_ref().map(|t| t[1]),
+                eye,
+            ),
         ];
+        Ok(self.output(data, phases, readback_ms, warnings))
+    }
+
+    /// The frame output of a run: the visibility read back, the phases and their counters
+    /// summed (with `overdraw_ratio`), the GPU time of all phases, the adapter.
+    pub fn output(
+        &self,
+        data: Vec<f32>,
+        phases: Vec<Phase>,
+        readback_ms: f64,
+        warnings: Vec<String>,
+    ) -> FrameOutput {
         let mut counters = Counters::default();
         for p in &phases {
             counters.merge(&p.counters);
@@ -581,7 +633,8 @@ impl<'g> Passes<'g> {
                 counters.get("overdraw").unwrap_or(0.0) / fill,
             );
         }
-        let mut execution = gpu.execution();
+        let gpu_ms = phases.iter().filter_map(|p| p.gpu_ms).reduce(|a, b| a + b);
+        let mut execution = self.gpu.execution();
         execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
         execution.insert(
             "gpu_counters".into(),
@@ -590,7 +643,7 @@ impl<'g> Passes<'g> {
                  from formats and counts"
             ),
         );
-        Ok(FrameOutput {
+        FrameOutput {
             visibility: VisibilityBuffer {
                 width: self.width,
                 height: self.height,
@@ -599,15 +652,15 @@ impl<'g> Passes<'g> {
             counters,
             phases,
             model_ms: None,
-            gpu_ms: gpu_ms.map(|t| t.iter().sum()),
+            gpu_ms,
             execution,
             warnings,
-        })
+        }
     }
 
     /// `light_raster`: fill is every rasterised fragment, overdraw those that did not end up in
     /// the map (fragments minus covered texels).
-    fn raster_counters(&self, c: &Counts) -> Counters {
+    pub fn raster_counters(&self, c: &Counts) -> Counters {
         let fragments = f64::from(c.fragments);
         let mut k = Counters::default();
         k.set("fill", fragments);
@@ -631,7 +684,7 @@ impl<'g> Passes<'g> {
 
     /// `eye_lookup`: no fill (nothing is rasterized); the shadow-map taps, and the PCF taps of
     /// pixels left fully lit or fully shadowed, whose filtering changed nothing.
-    fn lookup_counters(&self, frame: &Frame, c: &Counts) -> Counters {
+    pub fn lookup_counters(&self, frame: &Frame, c: &Counts) -> Counters {
         let pixels = f64::from(self.width) * f64::from(self.height);
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
         let taps = f64::from(c.taps);
@@ -649,4 +702,61 @@ impl<'g> Passes<'g> {
         k.set("mem_write_bytes", vis_write);
         k
     }
+}
+
+/// A phase of a GPU execution (no modelled time).
+pub(crate) fn gpu_phase(
+    name: &str,
+    wall_ms: f64,
+    gpu_ms: Option<f64>,
+    counters: Counters,
+) -> Phase {
+    Phase {
+        name: name.into(),
+        wall_ms,
+        model_ms: None,
+        gpu_ms,
+        counters,
+    }
+}
+
+/// Records the resolve of the timed submission's queries (after its last pass).
+pub(crate) fn resolve(
+    e: &mut wgpu::CommandEncoder,
+    timer: Option<&PassTimer>,
+    stats: Option<&PassStats>,
+) {
+    if let Some(t) = timer {
+        t.resolve(e);
+    }
+    if let Some(s) = stats {
+        s.resolve(e);
+    }
+}
+
+/// GPU milliseconds and pipeline statistics per pass, where the adapter offers them; a warning
+/// for each that it does not.
+#[allow(clippy::type_complexity)]
+pub(crate) fn read_queries(
+    gpu: &Gpu,
+    timer: &Option<PassTimer>,
+    stats: &Option<PassStats>,
+    warnings: &mut Vec<String>,
+) -> Result<(Option<Vec<f64>>, Option<Vec<Counters>>)> {
+    let gpu_ms = match timer {
+        Some(t) => Some(t.read_ms(gpu)?),
+        None => {
+            warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
+            None
+        }
+    };
+    let pipeline = match stats {
+        Some(s) => Some(s.read(gpu)?),
+        None => {
+            warnings
+                .push("adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into());
+            None
+        }
+    };
+    Ok((gpu_ms, pipeline))
 }
