@@ -93,9 +93,25 @@ pub enum Blend {
     Replace,
     /// Coverage accumulation, stencil-like counters (add ±1).
     Add,
+    /// Add into a half-float target: each sum rounded to IEEE half precision (paper 002,
+    /// Appendix A), as blending into R16Float does.
+    AddHalf,
     /// Penumbra maps keep the darkest value.
     Min,
     Max,
+}
+
+impl Blend {
+    /// The target's new value from its `old` value and the kernel's `new` one.
+    pub fn apply(self, old: f32, new: f32) -> f32 {
+        match self {
+            Blend::Replace => new,
+            Blend::Add => old + new,
+            Blend::AddHalf => half::f16::from_f32(old + new).to_f32(),
+            Blend::Min => old.min(new),
+            Blend::Max => old.max(new),
+        }
+    }
 }
 
 /// Fixed-function state of a draw.
@@ -750,13 +766,7 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
             c.buf.record_load(p, i, LANES);
             p.vector(cost::BLEND, write);
             for l in write.lanes() {
-                let (old, new) = (color[local][l], shade.value[l]);
-                color[local][l] = match blend {
-                    Blend::Replace => new,
-                    Blend::Add => old + new,
-                    Blend::Min => old.min(new),
-                    Blend::Max => old.max(new),
-                };
+                color[local][l] = blend.apply(color[local][l], shade.value[l]);
             }
             c.buf.record_store(p, i, LANES);
         }
