@@ -165,7 +165,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
               fraction of the light (interval product) into a soft shadow map; one or two \
               passes, FP32 or FP16 accumulation",
         lights: &[LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_shadow_map::memory_estimate,
         check_options: soft_shadow_map::check_options,
     },
@@ -279,7 +279,11 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         )),
         soft_shadow_map::ID => {
             let o = soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options)?;
-            Ok(soft_shadow_map::cpu::render(backend, frame, ctx, &o))
+            if backend == Backend::Wgpu {
+                soft_shadow_map::wgpu::render(frame, &o)
+            } else {
+                Ok(soft_shadow_map::cpu::render(backend, frame, ctx, &o))
+            }
         }
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }

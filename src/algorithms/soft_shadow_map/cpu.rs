@@ -41,9 +41,12 @@ const PROJECT_OPS: u32 = 9 + 3 + 10 + 6 + 6 + 2 + 2;
 /// Occluder texels per task of the extents step: one row of 4×4 blocks at a time.
 const ROW_BLOCKS: u32 = 1;
 
-/// The occluder map(s), the receiver map and their frame.
+/// The occluder map(s), the receiver map and their frames.
 struct Maps {
-    frame: LightFrame,
+    /// The occluder maps' frame, focused on the occluders.
+    occ: LightFrame,
+    /// The receiver map's and the SSM's frame.
+    ssm: LightFrame,
     /// Nearest surfaces, then (two passes) back faces.
     occluders: Vec<Surface>,
     receivers: Surface,
@@ -94,15 +97,16 @@ fn depth_map(
 /// renders them), the receiver map, and the transfer of the occluder maps to the host (§4.1).
 fn maps(m: &mut Machine, frame: &Frame, split: &Split, o: &SoftShadowMapOptions) -> Maps {
     m.phase("maps");
-    let lf = LightFrame::new(
+    let (occ, ssm) = LightFrame::new(
         &frame.scene.light,
         frame.scene.bounds(),
         frame.params.map_resolution,
-    );
+    )
+    .focused(split.occluder_bounds);
     let mut occluders = vec![depth_map(
         m,
         frame,
-        &lf,
+        &occ,
         "occluder_map",
         &split.occluders,
         Cull::None,
@@ -111,15 +115,15 @@ fn maps(m: &mut Machine, frame: &Frame, split: &Split, o: &SoftShadowMapOptions)
         occluders.push(depth_map(
             m,
             frame,
-            &lf,
+            &occ,
             "occluder_map_back",
             &split.occluders,
             Cull::Front,
         ));
     }
-    let receivers = depth_map(m, frame, &lf, "receiver_map", &split.receivers, Cull::None);
+    let receivers = depth_map(m, frame, &ssm, "receiver_map", &split.receivers, Cull::None);
     if o.occluder_map_transfer {
-        let texels = u64::from(lf.resolution) * u64::from(lf.resolution);
+        let texels = u64::from(occ.resolution) * u64::from(occ.resolution);
         m.transfer(
             "transfer",
             texels * 4 * occluders.len() as u64,
@@ -127,7 +131,8 @@ fn maps(m: &mut Machine, frame: &Frame, split: &Split, o: &SoftShadowMapOptions)
         );
     }
     Maps {
-        frame: lf,
+        occ,
+        ssm,
         occluders,
         receivers,
     }
@@ -140,7 +145,8 @@ struct Patches {
     vertices: Vec<Vec3>,
 }
 
-/// The quad of a micro-patch's penumbra extent (§3.3) in the SSM's NDC, at the far plane.
+/// The quad of a micro-patch's penumbra extent (§3.3) in the NDC of the SSM's frame `lf`, at the
+/// far plane.
 pub fn extent_quad(lf: &LightFrame, p: &MicroPatch) -> [Vec3; 4] {
     let (lo, hi) = penumbra_extent(lf, p, lf.far);
     let (a, b) = (lf.tan_to_ndc(lo), lf.tan_to_ndc(hi));
@@ -160,7 +166,8 @@ pub fn micro_patch(lf: &LightFrame, i: u32, j: u32, d: f32) -> Option<MicroPatch
 /// Step `extents`: every occluder texel becomes a micro-patch and its extent quad (§3.2, §3.3),
 /// one row of blocks per task, 16 texels to a vector; each task appends to its own region.
 struct Extents<'a> {
-    lf: &'a LightFrame,
+    occ: &'a LightFrame,
+    ssm: &'a LightFrame,
     map: &'a Surface,
     out_patches: &'a Buffer<MicroPatch>,
     out_vertices: &'a Buffer<Vec3>,
@@ -192,12 +199,12 @@ impl TaskKernel for Extents<'_> {
                 p.vector(EXTENT_OPS - 1, full);
                 for l in full.lanes() {
                     let (i, j) = (bx * BLOCK + l as u32 % BLOCK, by * BLOCK + l as u32 / BLOCK);
-                    let patch = micro_patch(self.lf, i, j, depth[l]).expect("full lane");
+                    let patch = micro_patch(self.occ, i, j, depth[l]).expect("full lane");
                     let k = first + out.patches.len();
                     p.scalar(PATCH_SCALAR);
                     self.out_patches.record_store(p, k, 1);
                     self.out_vertices.record_store(p, 4 * k, 4);
-                    out.vertices.extend(extent_quad(self.lf, &patch));
+                    out.vertices.extend(extent_quad(self.ssm, &patch));
                     out.patches.push(patch);
                 }
             }
@@ -260,7 +267,7 @@ fn splat(
     name: &str,
     o: &SoftShadowMapOptions,
 ) -> Surface {
-    let lf = &maps.frame;
+    let lf = &maps.ssm;
     let n = occluders.buf.data.len();
     let mut patches = m
         .memory
@@ -269,7 +276,8 @@ fn splat(
         .memory
         .buffer(&format!("{name}.vertices"), vec![Vec3::ZERO; 4 * n]);
     let step = Extents {
-        lf,
+        occ: &maps.occ,
+        ssm: lf,
         map: occluders,
         out_patches: &patches,
         out_vertices: &vertices,
@@ -580,9 +588,9 @@ pub fn ssm_texels(
     let split = Split::of(&frame.flat);
     let maps = maps(&mut m, frame, &split, o);
     let ssm = soft_shadow_map(&mut m, frame, &maps, o);
-    let n = maps.frame.resolution;
+    let n = maps.ssm.resolution;
     let texels = (0..n * n).map(|k| ssm.get(k % n, k / n)).collect();
-    (maps.frame, texels)
+    (maps.ssm, texels)
 }
 
 /// `soft_shadow_map` on a CPU execution.
@@ -596,7 +604,7 @@ pub fn render(
     let split = Split::of(&frame.flat);
     let maps = maps(&mut m, frame, &split, o);
     let ssm = soft_shadow_map(&mut m, frame, &maps, o);
-    let vis = project(&mut m, frame, &maps.frame, &ssm, &split);
+    let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
     let mut out = crate::algorithms::hard_shadow_map::cpu::output(m, vis);
     out.warnings.extend(split.warning());
     out

@@ -16,7 +16,7 @@
 //!
 //! Accumulation precision (§5.1.3, Appendix A): each add is rounded to half precision with
 //! `precision: "fp16"`, as blending into a half-float target does, so a micro-patch that hides
-//! less than 2⁻¹⁰ of what is already accumulated is lost.
+//! less than 2⁻¹⁰ of what is already accumulated is lost ([`Blend::AddHalf`]).
 //!
 //! Geometry is split by the scene tags ([`Role`](crate::scene::Role)) as the paper splits it:
 //! objects tagged occluder go into the occluder map, objects tagged receiver *only* into the
@@ -29,9 +29,11 @@
 //! perspective projection from the light centre onto planes parallel to the light, so their
 //! "tan" coordinates (x/z, y/z) are affine in texels ([`LightFrame`]).
 //!
-//! This file holds the math, once; [`cpu`] runs it on the CPU executions.
+//! This file holds the math, once; [`cpu`] runs it on the CPU executions and [`wgpu`] mirrors
+//! it in WGSL.
 
 pub mod cpu;
+pub mod wgpu;
 
 use std::collections::BTreeMap;
 
@@ -56,7 +58,8 @@ pub enum Precision {
     /// 32-bit float adds (R32Float blending on wgpu).
     #[default]
     Fp32,
-    /// Every add rounded to IEEE half (R16Float blending on wgpu), the paper's hardware.
+    /// Every add rounded to IEEE half toward zero (R16Float blending on wgpu, as llvmpipe does
+    /// it), the paper's hardware.
     Fp16,
 }
 
@@ -217,20 +220,47 @@ impl LightFrame {
         }
         let far = far * 1.01;
         let near = (near * 0.99).max(far * 1e-3);
-        let max_tan = MAX_HALF_ANGLE_DEG.to_radians().tan();
+        let mut f = LightFrame {
+            center,
+            e_u,
+            e_v,
+            normal,
+            half,
+            x0: -1.0,
+            x1: 1.0,
+            y0: -1.0,
+            y1: 1.0,
+            near,
+            far,
+            resolution,
+            view_proj: Mat4::IDENTITY,
+        };
+        let (lo, hi) = f.tan_bounds(scene);
+        f.set_window(lo, hi);
+        f
+    }
+
+    /// The tan-space rectangle of `b`'s corners (points nearer than the near plane taken at it,
+    /// angles clamped to [`MAX_HALF_ANGLE_DEG`]), and the smallest depth of a corner.
+    fn tan_bounds(&self, b: Bounds) -> (Vec2, Vec2) {
+        let max_tan = Vec2::splat(MAX_HALF_ANGLE_DEG.to_radians().tan());
         let (mut lo, mut hi) = (Vec2::splat(f32::INFINITY), Vec2::splat(f32::NEG_INFINITY));
-        for c in scene.corners() {
-            let l = to_light(c);
-            let t = (Vec2::new(l.x, l.y) / l.z.max(near))
-                .clamp(-Vec2::splat(max_tan), Vec2::splat(max_tan));
+        for c in b.corners() {
+            let l = self.to_light(c);
+            let t = (Vec2::new(l.x, l.y) / l.z.max(self.near)).clamp(-max_tan, max_tan);
             lo = lo.min(t);
             hi = hi.max(t);
         }
-        // A margin of 1 %, then the light's aspect ratio (§3.2): the narrower side grows.
+        (lo, hi)
+    }
+
+    /// Sets the window to `[lo, hi]` grown by 1 % and then to the light's aspect ratio (§3.2:
+    /// the narrower side grows), and the projection to it.
+    fn set_window(&mut self, lo: Vec2, hi: Vec2) {
         let pad = (hi - lo) * 0.01 + Vec2::splat(1e-4);
         let (lo, hi) = (lo - pad, hi + pad);
         let (mid, mut ext) = ((lo + hi) * 0.5, (hi - lo) * 0.5);
-        let aspect = half.x / half.y;
+        let aspect = self.half.x / self.half.y;
         if ext.x / ext.y < aspect {
             ext.x = ext.y * aspect;
         } else {
@@ -238,14 +268,15 @@ impl LightFrame {
         }
         let (x0, x1, y0, y1) = (mid.x - ext.x, mid.x + ext.x, mid.y - ext.y, mid.y + ext.y);
         let view = Mat4::from_cols(
-            e_u.extend(0.0),
-            e_v.extend(0.0),
-            (-normal).extend(0.0),
-            center.extend(1.0),
+            self.e_u.extend(0.0),
+            self.e_v.extend(0.0),
+            (-self.normal).extend(0.0),
+            self.center.extend(1.0),
         )
         .inverse();
         // Off-axis frustum: ndc.x = (2·x/(−z) − (x0 + x1)) / (x1 − x0), likewise y; depth 0 at
         // −near, 1 at −far.
+        let (near, far) = (self.near, self.far);
         let (a, b) = (far / (near - far), near * far / (near - far));
         let proj = Mat4::from_cols_array(&[
             2.0 / (x1 - x0),
@@ -265,21 +296,36 @@ impl LightFrame {
             b,
             0.0,
         ]);
-        LightFrame {
-            center,
-            e_u,
-            e_v,
-            normal,
-            half,
-            x0,
-            x1,
-            y0,
-            y1,
-            near,
-            far,
-            resolution,
-            view_proj: proj * view,
-        }
+        (self.x0, self.x1, self.y0, self.y1) = (x0, x1, y0, y1);
+        self.view_proj = proj * view;
+    }
+
+    /// The windows of the two maps: the occluder map focused on the occluders (`occluders`, their
+    /// bounds; §5.1.3: "our shadow map is focused on the moving occluder"), and the SSM (and
+    /// receiver map) on the occluders grown by the widest penumbra extent, that of a micro-patch
+    /// at the occluders' nearest depth seen from the far plane, within the scene's window.
+    /// Without occluders both are the scene's window.
+    pub fn focused(&self, occluders: Option<Bounds>) -> (LightFrame, LightFrame) {
+        let Some(b) = occluders.filter(|b| !b.is_empty()) else {
+            return (*self, *self);
+        };
+        let (lo, hi) = self.tan_bounds(b);
+        let mut occ = *self;
+        occ.set_window(lo, hi);
+        let z_min = b
+            .corners()
+            .iter()
+            .map(|&c| self.to_light(c).z)
+            .fold(f32::INFINITY, f32::min)
+            .max(self.near);
+        let grow = self.half * (1.0 / z_min - 1.0 / self.far) + occ.texel_tan();
+        let (slo, shi) = (
+            (lo - grow).max(Vec2::new(self.x0, self.y0)),
+            (hi + grow).min(Vec2::new(self.x1, self.y1)),
+        );
+        let mut ssm = *self;
+        ssm.set_window(slo, shi);
+        (occ, ssm)
     }
 
     /// `p` in the light frame: lateral (x, y) and depth z.
@@ -422,6 +468,8 @@ pub struct Split {
     /// Whether the receivers are the receiver-only objects (else every receiver-tagged object,
     /// occluders included).
     pub pure: bool,
+    /// Bounds of the occluders' vertices (`None` without occluders).
+    pub occluder_bounds: Option<Bounds>,
 }
 
 impl Split {
@@ -442,11 +490,15 @@ impl Split {
                 receivers.push(*tri);
             }
         }
+        let p = &flat.mesh.positions;
+        let occluder_bounds = (!occluders.is_empty())
+            .then(|| Bounds::of_points(occluders.iter().flatten().map(|&v| p[v as usize])));
         Split {
             occluders,
             receivers,
             receives,
             pure,
+            occluder_bounds,
         }
     }
 
