@@ -171,7 +171,6 @@ fn submit(gpu: &Gpu, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
     Ok(start.elapsed().as_secs_f64() * 1e3)
 }
 
-#[allow(clippy::too_many_lines)]
 fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput> {
     let device = &gpu.device;
     let (width, height) = (frame.width(), frame.height());
