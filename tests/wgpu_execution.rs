@@ -329,3 +329,56 @@ fn a_gpu_fault_fails_only_its_own_run_and_the_sweep_goes_on() {
         }
     }
 }
+
+#[test]
+fn soft_shadow_map_on_wgpu_agrees_with_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    for name in ["plate-on-plane", "torus-on-plane"] {
+        let mut scene = generators::find(name)
+            .unwrap()
+            .build(&GeneratorParams::default());
+        scene.light = light_as(scene.light, LightKind::Rect, scene.bounds().center());
+        let params = RunParams::of_scene(&scene, [64, 48], 96, 32);
+        let f = Frame::new(scene, params);
+        for options in [
+            serde_json::json!({}),
+            serde_json::json!({"passes": 2, "occluder_map_transfer": false}),
+            serde_json::json!({"precision": "fp16"}),
+            serde_json::json!({"precision": "fp16", "passes": 2, "occluder_map_transfer": false}),
+        ] {
+            let mut ctx = ExecContext::default();
+            ctx.options
+                .insert("soft_shadow_map".into(), options.clone());
+            let gpu = algorithms::run("soft_shadow_map", Backend::Wgpu, &f, &ctx).unwrap();
+            let model = algorithms::run("soft_shadow_map", Backend::CpuModel, &f, &ctx).unwrap();
+            let e = metrics::compare(&gpu.visibility, &model.visibility, &f.gbuffer.mask());
+            let fill = |o: &FrameOutput| o.counters.get("fill").unwrap_or(0.0);
+            let splat_fill = |o: &FrameOutput| {
+                o.phases
+                    .iter()
+                    .find(|p| p.name == "splat")
+                    .unwrap()
+                    .counters
+                    .get("fill")
+                    .unwrap()
+            };
+            eprintln!(
+                "{name} {options}: mae {:.2e} max {:.2e}; splat fill wgpu {} model {}; total {}",
+                e.mae,
+                e.max,
+                splat_fill(&gpu),
+                splat_fill(&model),
+                fill(&model)
+            );
+            assert!(e.mae < 1e-3 && e.max < 0.05, "{name} {options}: {e:?}");
+            // The same extents cover the same texels: fill agrees up to edge-rule ties.
+            let (a, b) = (splat_fill(&gpu), splat_fill(&model));
+            assert!(
+                (a - b).abs() <= 0.01 * b,
+                "{name} {options}: fill {a} vs {b}"
+            );
+        }
+    }
+}

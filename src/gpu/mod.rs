@@ -85,6 +85,10 @@ pub struct Gpu {
     pub limits: wgpu::Limits,
     /// Why the device was lost, once the driver says it was.
     lost: Arc<Mutex<Option<String>>>,
+    /// Whether R32Float (and the other 32-bit float formats) can be blended into
+    /// (`FLOAT32_BLENDABLE`, requested when the adapter offers it): additive FP32 accumulation
+    /// in render passes (soft shadow maps).
+    pub float32_blendable: bool,
 }
 
 impl Gpu {
@@ -250,9 +254,17 @@ fn acquire() -> std::result::Result<Gpu, String> {
     let info = adapter.get_info();
     let queries = QueryFeatures::of(adapter.features());
     let limits = adapter.limits();
+    let float32_blendable = adapter
+        .features()
+        .contains(wgpu::Features::FLOAT32_BLENDABLE);
+    let blendable = if float32_blendable {
+        wgpu::Features::FLOAT32_BLENDABLE
+    } else {
+        wgpu::Features::empty()
+    };
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("shadowbench"),
-        required_features: queries.features(),
+        required_features: queries.features() | blendable,
         required_limits: limits.clone(),
         ..Default::default()
     }))
@@ -278,6 +290,7 @@ fn acquire() -> std::result::Result<Gpu, String> {
         queries,
         limits,
         lost,
+        float32_blendable,
     })
 }
 

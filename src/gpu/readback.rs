@@ -32,6 +32,28 @@ impl Staging {
         encoder.copy_buffer_to_buffer(src, offset, &self.buffer, 0, self.size);
     }
 
+    /// Records a copy of a whole single-layer texture of `rows` rows of `bytes_per_row` bytes
+    /// (a multiple of 256, as buffer copies require) into this staging buffer.
+    pub fn copy_texture(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        texture: &wgpu::Texture,
+        bytes_per_row: u32,
+    ) {
+        encoder.copy_texture_to_buffer(
+            texture.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bytes_per_row),
+                    rows_per_image: None,
+                },
+            },
+            texture.size(),
+        );
+    }
+
     /// Waits for the GPU and returns the bytes (call after the copy was submitted).
     pub fn read(&self, gpu: &Gpu) -> Result<Vec<u8>> {
         let (tx, rx) = std::sync::mpsc::channel();

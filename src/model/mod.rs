@@ -274,6 +274,21 @@ impl Machine {
             .unwrap_or(0.0)
     }
 
+    /// A copy of `bytes` over an external link of `gb_per_s` (a device-to-host transfer) as step
+    /// `name` of the current phase: counted in `transfer.bytes` on both executions, and on
+    /// `cpu-model` timed as `bytes / bandwidth` (`step.<name>.model_ms`), serialised with the
+    /// cores' work.
+    pub fn transfer(&mut self, name: &str, bytes: u64, gb_per_s: f64) {
+        let model = self.is_model();
+        let phase = self.current();
+        phase.counters.add("transfer.bytes", bytes as f64);
+        if model {
+            let ms = bytes as f64 / (gb_per_s * 1e9) * 1e3;
+            phase.model_ms += ms;
+            phase.counters.add(&format!("step.{name}.model_ms"), ms);
+        }
+    }
+
     /// Runs step `name` of the current phase: `weights.len()` tasks of `kernel`, each with its
     /// estimated cost for the scheduler. Returns the tasks' outputs in task order.
     pub fn run_step<K: TaskKernel>(

@@ -93,9 +93,36 @@ pub enum Blend {
     Replace,
     /// Coverage accumulation, stencil-like counters (add ±1).
     Add,
+    /// Add into a half-float target (paper 002, Appendix A): the source and each sum rounded to
+    /// IEEE half precision toward zero, as blending into R16Float does on Mesa's llvmpipe (the
+    /// wgpu parity test matches it to 1e-3; round-to-nearest hardware loses less).
+    AddHalf,
     /// Penumbra maps keep the darkest value.
     Min,
     Max,
+}
+
+impl Blend {
+    /// The target's new value from its `old` value and the kernel's `new` one.
+    pub fn apply(self, old: f32, new: f32) -> f32 {
+        match self {
+            Blend::Replace => new,
+            Blend::Add => old + new,
+            Blend::AddHalf => half_toward_zero(old + half_toward_zero(new)),
+            Blend::Min => old.min(new),
+            Blend::Max => old.max(new),
+        }
+    }
+}
+
+/// `x` rounded to IEEE half precision toward zero.
+fn half_toward_zero(x: f32) -> f32 {
+    let h = half::f16::from_f32(x);
+    if h.to_f32().abs() > x.abs() {
+        half::f16::from_bits(h.to_bits() - 1).to_f32()
+    } else {
+        h.to_f32()
+    }
 }
 
 /// Fixed-function state of a draw.
@@ -750,13 +777,7 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
             c.buf.record_load(p, i, LANES);
             p.vector(cost::BLEND, write);
             for l in write.lanes() {
-                let (old, new) = (color[local][l], shade.value[l]);
-                color[local][l] = match blend {
-                    Blend::Replace => new,
-                    Blend::Add => old + new,
-                    Blend::Min => old.min(new),
-                    Blend::Max => old.max(new),
-                };
+                color[local][l] = blend.apply(color[local][l], shade.value[l]);
             }
             c.buf.record_store(p, i, LANES);
         }
