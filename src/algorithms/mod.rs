@@ -4,6 +4,7 @@
 //! counters, phases, times); the harness adds quality against the reference and writes results.
 
 pub mod accum_hard;
+pub mod dbuffer;
 pub mod eye_raster;
 pub mod hard_shadow_map;
 pub mod pcss;
@@ -157,6 +158,16 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         memory_estimate: penumbra_map::memory_estimate,
         check_options: penumbra_map::check_options,
     },
+    AlgorithmInfo {
+        id: dbuffer::ID,
+        source: "003 §2-§4 (umbra and penumbra volumes, D-buffer)",
+        summary: "umbra/penumbra volumes of the area silhouettes (p_near/p_far) drawn from the \
+              light centre into a D-buffer of distances; t by eq. 3, V(t) = 3t^2 - 2t^3",
+        lights: &[LightKind::Disc],
+        backends: &[Backend::CpuNative, Backend::CpuModel],
+        memory_estimate: dbuffer::memory_estimate,
+        check_options: dbuffer::check_options,
+    },
 ];
 
 /// `check_options` of an algorithm that takes no options.
@@ -175,7 +186,7 @@ pub fn no_options(
 
 /// Algorithms of the design that are not built yet; named so that scenarios asking for them get
 /// a clear answer rather than "unknown".
-pub const NOT_YET_BUILT: &[&str] = &["dbuffer", "soft_shadow_map"];
+pub const NOT_YET_BUILT: &[&str] = &["soft_shadow_map"];
 
 pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
     if let Some(a) = ALGORITHMS.iter().find(|a| a.id == id) {
@@ -264,6 +275,12 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             frame,
             ctx,
             penumbra_map::options(&ctx.options)?,
+        )),
+        dbuffer::ID => Ok(dbuffer::cpu::render(
+            backend,
+            frame,
+            ctx,
+            dbuffer::options(&ctx.options)?,
         )),
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
