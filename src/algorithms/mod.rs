@@ -164,7 +164,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         summary: "umbra/penumbra volumes of the area silhouettes (p_near/p_far) drawn from the \
               light centre into a D-buffer of distances; t by eq. 3, V(t) = 3t^2 - 2t^3",
         lights: &[LightKind::Disc],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: dbuffer::memory_estimate,
         check_options: dbuffer::check_options,
     },
@@ -276,6 +276,9 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             ctx,
             penumbra_map::options(&ctx.options)?,
         )),
+        dbuffer::ID if backend == Backend::Wgpu => {
+            dbuffer::wgpu::render(frame, ctx, dbuffer::options(&ctx.options)?)
+        }
         dbuffer::ID => Ok(dbuffer::cpu::render(
             backend,
             frame,

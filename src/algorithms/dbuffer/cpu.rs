@@ -311,8 +311,8 @@ impl VolumeMesh {
         let [z1, z2] = v.map(|x| disc.depth(x));
         let a = self.vertex(view, v[0], z1);
         let b = self.vertex(view, v[1], z2);
-        let fa = self.vertex(view, extrude(v[0], p, length), z1);
-        let fb = self.vertex(view, extrude(v[1], p, length), z2);
+        let fa = self.vertex(view, far_point(view, v[0], p, length), z1);
+        let fb = self.vertex(view, far_point(view, v[1], p, length), z2);
         self.triangles.push([a, b, fb]);
         self.triangles.push([a, fb, fa]);
     }
@@ -332,7 +332,27 @@ pub struct Volumes {
     pub penumbra: VolumeMesh,
 }
 
-/// Length the volumes are extruded by: past every point of the scene seen from the light.
+/// Light-view depth at which the volumes end, just inside the light view's far plane (which
+/// lies behind every point of the scene): both rasterizers then cover the same fragments (a GPU
+/// clips at the far plane, the binned rasterizer only at the near plane).
+const FAR_FRACTION: f32 = 0.999;
+
+/// The far end of the volume edge from `v` away from the disc point `p`: where it reaches the
+/// depth of [`FAR_FRACTION`] of the far plane (the volumes are infinite; nothing lies beyond),
+/// or `length` along it when it does not recede from the light.
+pub fn far_point(view: &LightView, v: Vec3, p: Vec3, length: f32) -> Vec3 {
+    let depth = |x: Vec3| -view.view.transform_point3(x).z;
+    let (dv, step) = (depth(v), depth(2.0 * v - p) - depth(v));
+    let s = (FAR_FRACTION * view.far - dv) / step;
+    if step > 1e-6 * (v - p).length() && s > 0.0 {
+        v + s * (v - p)
+    } else {
+        extrude(v, p, length)
+    }
+}
+
+/// Length the volumes are extruded by where [`far_point`] cannot use the far plane: past every
+/// point of the scene seen from the light.
 pub fn extrusion_length(frame: &Frame, disc: &Disc) -> f32 {
     let b = frame.scene.bounds();
     2.0 * (b.diagonal() + (b.center() - disc.c).length())
@@ -437,7 +457,7 @@ impl TaskKernel for Close<'_> {
                 let apex = fans.vertex(self.view, vertex, z);
                 let first = fans.positions.len() as u32;
                 for q in &arc {
-                    fans.vertex(self.view, extrude(vertex, *q, self.length), z);
+                    fans.vertex(self.view, far_point(self.view, vertex, *q, self.length), z);
                 }
                 for s in 0..self.segments {
                     fans.triangles.push([apex, first + s, first + s + 1]);

@@ -28,6 +28,7 @@
 //! would only save fill.
 
 pub mod cpu;
+pub mod wgpu;
 
 use std::collections::BTreeMap;
 
