@@ -203,6 +203,9 @@ fn the_silhouettes_of_figure_1_differ_between_centre_and_rim() {
     let volumes = out.phases.iter().find(|p| p.name == "volumes").unwrap();
     assert_eq!(volumes.counters.get("volumes.silhouette_faces"), Some(8.0));
     assert_eq!(volumes.counters.get("volumes.degenerate_edges"), Some(0.0));
+    // The bottom outline is convex: each umbra quad is trimmed by both neighbours' planes.
+    assert_eq!(volumes.counters.get("volumes.umbra_quads"), Some(4.0));
+    assert_eq!(volumes.counters.get("volumes.umbra_trim_planes"), Some(8.0));
 }
 
 #[test]

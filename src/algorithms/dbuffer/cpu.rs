@@ -3,8 +3,8 @@
 //!
 //! 1. `silhouettes`: every occluder face classified against the disc (eq. 1; step `faces`),
 //!    then every edge marked as umbra- and/or penumbra-volume silhouette edge (step `edges`);
-//! 2. `volumes`: extrusion points and quads per silhouette edge (step `extrude`), the closing
-//!    triangles of the penumbra volume and the silhouette faces of the umbra volume (step
+//! 2. `volumes`: extrusion points per silhouette edge (step `extrude`), the quads, umbra quads
+//!    trimmed at convex corners (step `quads`), the closing triangles of the penumbra volume and the silhouette faces of the umbra volume (step
 //!    `close`);
 //! 3. `dbuffer`: three draws from the light centre on the binned rasterizer: the scene's depth,
 //!    the umbra volume and the penumbra volume, each volume fragment writing the depth of its
@@ -61,6 +61,11 @@ const SILHOUETTE_EDGE_SCALAR: u32 = 12;
 /// root, 6 multiply-adds), the umbra/penumbra choice (2 crosses, 6 dots, compares) and the
 /// extruded far points (2 normalizations, 6 multiply-adds per quad).
 const EXTRUDE_SCALAR: u32 = 12 + 14 + 30 + 2 * 20;
+/// Scalar work per neighbour of an umbra edge at one of its vertices: its plane (a cross
+/// product, a normalization, the orientation dot) and the two convexity tests (2 dots).
+const TRIM_TEST_SCALAR: u32 = 24;
+/// Scalar work per polygon vertex of one clip: a dot, a compare, and for cut edges a lerp.
+const CLIP_SCALAR: u32 = 10;
 /// Scalar work per volume vertex: view-space depth and its reciprocal, the edge depth.
 const VERTEX_SCALAR: u32 = 8;
 /// Scalar work per penumbra edge end in the closing step: the vertex's list append and the
@@ -317,6 +322,20 @@ impl VolumeMesh {
         self.triangles.push([a, fb, fa]);
     }
 
+    /// A convex polygon (points with their edge depth) as a triangle fan.
+    fn polygon(&mut self, view: &LightView, poly: &[(Vec3, f32)]) {
+        if poly.len() < 3 {
+            return;
+        }
+        let first = self.positions.len() as u32;
+        for &(x, z) in poly {
+            self.vertex(view, x, z);
+        }
+        for k in 1..poly.len() as u32 - 1 {
+            self.triangles.push([first, first + k, first + k + 1]);
+        }
+    }
+
     fn append(&mut self, other: VolumeMesh) {
         let base = self.positions.len() as u32;
         self.positions.extend(other.positions);
@@ -358,21 +377,119 @@ pub fn extrusion_length(frame: &Frame, disc: &Disc) -> f32 {
     2.0 * (b.diagonal() + (b.center() - disc.c).length())
 }
 
-struct Extrude<'a> {
+/// The plane of an umbra quad (through the edge and `p_u`), unit normal towards the light
+/// centre: the umbra volume lies on that side of each of its planes.
+fn umbra_plane(v: [Vec3; 2], pu: Vec3, c: Vec3) -> (Vec3, Vec3) {
+    let m = (v[1] - v[0]).cross(pu - v[0]).normalize_or_zero();
+    (if m.dot(c - v[0]) < 0.0 { -m } else { m }, v[0])
+}
+
+/// Sutherland–Hodgman: the part of the convex polygon `poly` on the positive side of the plane
+/// `(m, o)`, edge depths interpolated along the cut edges.
+fn clip(poly: &[(Vec3, f32)], (m, o): (Vec3, Vec3)) -> Vec<(Vec3, f32)> {
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for k in 0..poly.len() {
+        let (a, b) = (poly[k], poly[(k + 1) % poly.len()]);
+        let (da, db) = (m.dot(a.0 - o), m.dot(b.0 - o));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            out.push((a.0.lerp(b.0, t), a.1 + (b.1 - a.1) * t));
+        }
+    }
+    out
+}
+
+/// Step `extrude`: the extrusion points of every silhouette edge.
+struct Points<'a> {
     edges: &'a [VolumeEdge],
+    disc: Disc,
+}
+
+impl TaskKernel for Points<'_> {
+    type Out = Vec<Option<(Vec3, Vec3)>>;
+
+    fn run<P: Probe>(&self, p: &mut P, task: usize) -> Self::Out {
+        let (start, end) = (
+            task * PRIM_CHUNK,
+            ((task + 1) * PRIM_CHUNK).min(self.edges.len()),
+        );
+        self.edges[start..end]
+            .iter()
+            .map(|e| {
+                p.scalar(EXTRUDE_SCALAR);
+                extrusion_points(e.v[0], e.v[1], e.q, &self.disc)
+            })
+            .collect()
+    }
+}
+
+/// Step `quads`: the umbra quads, trimmed by the planes of the umbra quads they meet at convex
+/// corners (§2.1, Figure 2b), and the penumbra quads.
+struct Quads<'a> {
+    edges: &'a [VolumeEdge],
+    points: &'a [Option<(Vec3, Vec3)>],
+    /// Umbra edges (with extrusion points) at each welded vertex.
+    at_vertex: &'a BTreeMap<u32, Vec<usize>>,
     disc: Disc,
     view: &'a LightView,
     length: f32,
     out: (crate::model::BufferId, u64),
 }
 
-impl TaskKernel for Extrude<'_> {
+impl Quads<'_> {
+    /// The umbra quad of edge `i` as a polygon, trimmed where a neighbouring umbra quad's plane
+    /// cuts it: at a vertex shared with umbra edge `j` whose far ends each lie on the other's
+    /// volume side (a convex corner), the part of `i` outside `j`'s plane is outside the umbra
+    /// volume. Concave corners are left untrimmed. Returns the polygon and the planes applied.
+    fn umbra_polygon<P: Probe>(&self, p: &mut P, i: usize, pu: Vec3) -> (Vec<(Vec3, f32)>, u32) {
+        let e = &self.edges[i];
+        let [z0, z1] = e.v.map(|x| self.disc.depth(x));
+        let far = |x: Vec3| far_point(self.view, x, pu, self.length);
+        let mut poly = vec![
+            (e.v[0], z0),
+            (e.v[1], z1),
+            (far(e.v[1]), z1),
+            (far(e.v[0]), z0),
+        ];
+        let plane_i = umbra_plane(e.v, pu, self.disc.c);
+        let tol = 1e-5 * (e.v[1] - e.v[0]).length().max(1e-6);
+        let mut planes = 0;
+        for k in 0..2 {
+            for &j in self.at_vertex.get(&e.w[k]).map_or(&[][..], |v| &v[..]) {
+                if j == i {
+                    continue;
+                }
+                p.scalar(TRIM_TEST_SCALAR);
+                let ej = &self.edges[j];
+                let Some((pu_j, _)) = self.points[j] else {
+                    continue;
+                };
+                let plane_j = umbra_plane(ej.v, pu_j, self.disc.c);
+                let other_i = e.v[1 - k];
+                let other_j = if ej.w[0] == e.w[k] { ej.v[1] } else { ej.v[0] };
+                let side = |(m, o): (Vec3, Vec3), x: Vec3| m.dot(x - o);
+                if side(plane_j, other_i) >= -tol && side(plane_i, other_j) >= -tol {
+                    p.scalar(CLIP_SCALAR * poly.len() as u32);
+                    poly = clip(&poly, plane_j);
+                    planes += 1;
+                }
+            }
+        }
+        (poly, planes)
+    }
+}
+
+impl TaskKernel for Quads<'_> {
     /// (umbra quads, penumbra quads, each penumbra edge's vertices with its `p_p`, edges with
-    /// no extrusion points).
+    /// no extrusion points, trimming planes applied).
     type Out = (
         VolumeMesh,
         VolumeMesh,
         Vec<([u32; 2], [Vec3; 2], Vec3)>,
+        u32,
         u32,
     );
 
@@ -383,29 +500,29 @@ impl TaskKernel for Extrude<'_> {
         );
         let (mut umbra, mut penumbra) = (VolumeMesh::default(), VolumeMesh::default());
         let mut ends = Vec::new();
-        let mut degenerate = 0;
-        for (i, e) in self.edges[start..end].iter().enumerate() {
-            p.scalar(EXTRUDE_SCALAR);
-            let Some((pu, pp)) = extrusion_points(e.v[0], e.v[1], e.q, &self.disc) else {
+        let (mut degenerate, mut trims) = (0, 0);
+        for i in start..end {
+            let e = &self.edges[i];
+            let Some((pu, pp)) = self.points[i] else {
                 degenerate += 1;
                 continue;
             };
+            let mut verts = 0;
             if e.umbra {
-                umbra.quad(self.view, &self.disc, e.v, pu, self.length);
+                let (poly, planes) = self.umbra_polygon(p, i, pu);
+                trims += planes;
+                verts += poly.len() as u32;
+                umbra.polygon(self.view, &poly);
             }
             if e.penumbra {
                 penumbra.quad(self.view, &self.disc, e.v, pp, self.length);
                 ends.push((e.w, e.v, pp));
+                verts += 4;
             }
-            let verts = 4 * (u32::from(e.umbra) + u32::from(e.penumbra));
             p.scalar(VERTEX_SCALAR * verts);
-            p.write(
-                self.out.0,
-                self.out.1 + ((start + i) as u64) * 256,
-                verts * 24,
-            );
+            p.write(self.out.0, self.out.1 + (i as u64) * 256, verts * 24);
         }
-        (umbra, penumbra, ends, degenerate)
+        (umbra, penumbra, ends, degenerate, trims)
     }
 }
 
@@ -498,24 +615,47 @@ pub fn volumes(
     m.phase("volumes");
     let length = extrusion_length(frame, &disc);
     let n = s.edges.len();
-    let step = Extrude {
+    let weights: Vec<u64> = (0..n.div_ceil(PRIM_CHUNK))
+        .map(|t| (((t + 1) * PRIM_CHUNK).min(n) - t * PRIM_CHUNK) as u64)
+        .collect();
+    let points: Vec<Option<(Vec3, Vec3)>> = m
+        .run_step(
+            "extrude",
+            &Points {
+                edges: &s.edges,
+                disc,
+            },
+            &weights,
+        )
+        .into_iter()
+        .flatten()
+        .collect();
+    let mut at_vertex: BTreeMap<u32, Vec<usize>> = BTreeMap::new();
+    for (i, e) in s.edges.iter().enumerate() {
+        if e.umbra && points[i].is_some() {
+            for w in e.w {
+                at_vertex.entry(w).or_default().push(i);
+            }
+        }
+    }
+    let step = Quads {
         edges: &s.edges,
+        points: &points,
+        at_vertex: &at_vertex,
         disc,
         view,
         length,
         out: m.memory.reserve("volumes.quads", n as u64 * 256),
     };
-    let weights: Vec<u64> = (0..n.div_ceil(PRIM_CHUNK))
-        .map(|t| (((t + 1) * PRIM_CHUNK).min(n) - t * PRIM_CHUNK) as u64)
-        .collect();
     let (mut umbra, mut penumbra) = (VolumeMesh::default(), VolumeMesh::default());
     let mut ends = Vec::new();
-    let mut degenerate = 0;
-    for (u, pv, e, d) in m.run_step("extrude", &step, &weights) {
+    let (mut degenerate, mut trims) = (0, 0);
+    for (u, pv, e, d, t) in m.run_step("quads", &step, &weights) {
         umbra.append(u);
         penumbra.append(pv);
         ends.extend(e);
         degenerate += d;
+        trims += t;
     }
     let close = Close {
         ends: &ends,
@@ -538,7 +678,16 @@ pub fn volumes(
         )
         .pop()
         .expect("one task");
-    m.count("volumes.umbra_quads", (umbra.triangles.len() / 2) as f64);
+    m.count(
+        "volumes.umbra_quads",
+        s.edges
+            .iter()
+            .zip(&points)
+            .filter(|(e, p)| e.umbra && p.is_some())
+            .count() as f64,
+    );
+    m.count("volumes.umbra_triangles", umbra.triangles.len() as f64);
+    m.count("volumes.umbra_trim_planes", f64::from(trims));
     m.count(
         "volumes.penumbra_quads",
         (penumbra.triangles.len() / 2) as f64,

@@ -8,8 +8,8 @@
 //!    between an all-frontfacing face and one that is not a penumbra-volume silhouette edge.
 //! 2. **Volumes** (§2.1, Figure 3b): per edge the point `a` where its line meets the light plane,
 //!    the two disc points `p_u`, `p_p` whose planes through the edge are tangent to the disc
-//!    ([`extrusion_points`]), an umbra quad extruded away from `p_u` and a penumbra quad away
-//!    from `p_p`; penumbra quads meeting at a vertex are closed by triangles extruded from disc
+//!    ([`extrusion_points`]), an umbra quad extruded away from `p_u` (trimmed, below) and a
+//!    penumbra quad away from `p_p`; penumbra quads meeting at a vertex are closed by triangles extruded from disc
 //!    points interpolated on the rim between their `p_p` ([`rim_arc`]); silhouette faces whose
 //!    plane has the light centre behind it are drawn with the umbra volume (§3.3, Figure 6).
 //! 3. **D-buffer** (§3): rendered from the light centre `c`: the scene (`|cx_o|`), the umbra
@@ -22,10 +22,12 @@
 //! the signs of eq. 1 ([`disc_extremes`]), the ratio of eq. 2 ([`edge_distance`]), the
 //! denominator of eq. 3 ([`t_umbra`]) and the depth rule of the D-buffer ([`DEPTH_RULE`]).
 //!
-//! Not built: the umbra quads are not trimmed against each other (§2.1, Figure 2b). The depth
-//! rule keeps, per texel, the *first* umbra surface behind the nearest occluder surface, which
-//! is the exit of the umbra volume whether or not the quads beyond it were trimmed; trimming
-//! would only save fill.
+//! Umbra quads are trimmed where they meet (§2.1, Figure 2b) locally: at a vertex shared by
+//! two umbra silhouette edges forming a convex corner, each quad is clipped by the other's
+//! plane. Not built: trimming against quads that do not share a vertex (a long thin occluder's
+//! umbra closes along a ridge between its long sides) and at concave corners. The depth rule
+//! keeps, per texel, the *first* umbra surface behind the nearest occluder surface, which is the
+//! exit of the umbra volume whether or not the quads beyond it were trimmed; trimming saves fill.
 
 pub mod cpu;
 pub mod wgpu;
@@ -43,8 +45,9 @@ pub const ID: &str = "dbuffer";
 
 /// How the D-buffer keeps one value per texel when several volume surfaces cover it (§4, first
 /// case). The paper keeps "the geometry with the greatest distance from the light source" with a
-/// depth test, which presumes umbra quads trimmed to the volume they bound; untrimmed quads
-/// reach past the umbra's end, and the farthest of them is not a boundary. We keep, by a
+/// depth test, which presumes umbra quads trimmed to the volume they bound; quads not trimmed
+/// (see the module doc) reach past the umbra's end, and the farthest of them is not a
+/// boundary. We keep, by a
 /// depth test (less) on the volume draws:
 /// * umbra volume: the nearest umbra surface at or behind the scene surface seen from `c`
 ///   (fragments in front of it are discarded): along a ray that passes an occluder, that is
