@@ -20,8 +20,8 @@ use std::collections::BTreeMap;
 use glam::{Vec2, Vec3};
 
 use super::{
-    centre_behind, classify, edge_distance, extrude, extrusion_points, rim_arc, t_penumbra,
-    t_umbra, visibility, DbufferOptions, Disc, Facing,
+    centre_behind, classify, edge_distance, extrude, extrusion_points, front_fraction, rim_arc,
+    t_penumbra, t_umbra, visibility, DbufferOptions, Disc, Facing,
 };
 use crate::algorithms::hard_shadow_map::cpu::{
     eye_lookup, machine, output, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
@@ -79,6 +79,11 @@ const RIM_POINT_SCALAR: u32 = 30;
 /// linear depths and the compare with the scene (2 × 3 + 2).
 const VOLUME_FRAGMENT_OPS: u32 = 9;
 const UMBRA_DISCARD_OPS: u32 = 8;
+/// The receiver's front fraction per block: the centre's distance to its plane (a 3-term dot),
+/// the normal's spread over the disc (a dot, 3 multiply-adds, a length), the offset (a divide,
+/// a clamp), the segment area (an arc cosine as a polynomial of 6, a square root, 3 multiplies,
+/// a clamp).
+const FRONT_FRACTION_OPS: u32 = 3 + 6 + 2 + 11;
 /// The eye sample's ray per block: view-space direction from uv (4 multiply-adds), its length
 /// (a 3-term dot, a square root), `dir·n_c` (a 3-term dot, a divide).
 const RAY_OPS: u32 = 4 + 4 + 4;
@@ -841,16 +846,21 @@ struct DLookup<'a> {
 }
 
 impl Lookup for DLookup<'_> {
-    /// A surface facing away from the centre may face part of the disc: it is judged by eq. 1
-    /// like the occluders' faces (none-frontfacing: dark) and looked up otherwise.
+    /// A surface facing away from the centre may face part of the disc: its visibility is the
+    /// part in front of its plane ([`front_fraction`]); the others are looked up.
     const AVERTED_IN_SHADOW: bool = false;
 
     fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32> {
         let view = &map.view;
-        p.vector(FACING_OPS, r.averted.and(r.mask));
-        let facing = r.mask.and_not(Mask::from_fn(|l| {
-            r.averted.get(l) && classify(r.normal[l], r.position[l], &self.disc) == Facing::None
-        }));
+        p.vector(FRONT_FRACTION_OPS, r.mask);
+        let plane: Lanes<f32> = std::array::from_fn(|l| {
+            if r.mask.get(l) {
+                front_fraction(r.normal[l], r.position[l], &self.disc)
+            } else {
+                0.0
+            }
+        });
+        let facing = r.mask.and_not(r.averted);
         let (idx, inside) = texel_indices(p, map, &r.uv, facing);
         let o = map.map.buf.gather(p, &idx, inside);
         p.vector(COMPARE_OPS, inside);
@@ -868,11 +878,8 @@ impl Lookup for DLookup<'_> {
         p.vector(LOOKUP_OPS, behind);
         p.vector(LOOKUP_OPS, front);
         std::array::from_fn(|l| {
-            if !facing.get(l) {
-                return 0.0;
-            }
-            if !inside.get(l) {
-                return 1.0;
+            if !facing.get(l) || !inside.get(l) {
+                return plane[l];
             }
             let t = ray_t(
                 view,
@@ -886,7 +893,7 @@ impl Lookup for DLookup<'_> {
                     (pd[l], pe[l])
                 },
             );
-            visibility(t, self.o.falloff)
+            visibility(t, self.o.falloff) * plane[l]
         })
     }
 }

@@ -16,7 +16,9 @@
 //!    volume (`|cx_uv|`) and the penumbra volume (`|cx_pv|`), each volume fragment also carrying
 //!    the depth of its silhouette edge below the light plane, from which eq. 2 gives `|cx_s|`.
 //! 4. **Eye lookup** (§4): per eye sample `x`, `t` by eq. 3 ([`t_umbra`], [`t_penumbra`]) and
-//!    `V(t) = 3t² − 2t³` (eq. 4) or `V = √t` (§6.2), option `falloff`.
+//!    `V(t) = 3t² − 2t³` (eq. 4) or `V = √t` (§6.2), option `falloff`, times the part of the
+//!    disc in front of the receiver's own plane ([`front_fraction`]; not in the paper, which
+//!    leaves attached shadows to the lighting).
 //!
 //! Where this implementation reads the paper in a particular way, the function says so:
 //! the signs of eq. 1 ([`disc_extremes`]), the ratio of eq. 2 ([`edge_distance`]), the
@@ -244,6 +246,23 @@ pub fn classify(n: Vec3, q: Vec3, disc: &Disc) -> Facing {
     } else {
         Facing::Silhouette
     }
+}
+
+/// The fraction of the disc in front of the receiver's own plane (through `q`, unit normal `n`):
+/// the receiver's plane divides the light by one straight line, the case of assumption 1
+/// (§2.3), and the area of the circular segment in front is
+/// `(acos d − d·√(1 − d²)) / π` with `d` the line's offset from the centre in radii. The eye
+/// lookup multiplies the cast-shadow visibility by it; for a surface facing away from the
+/// centre, where the D-buffer's distances are those of the surface itself, it is the
+/// visibility.
+pub fn front_fraction(n: Vec3, q: Vec3, disc: &Disc) -> f32 {
+    let h = n.dot(disc.c - q);
+    let spread = (n - disc.n * n.dot(disc.n)).length() * disc.r;
+    if spread <= 1e-9 {
+        return if h > 0.0 { 1.0 } else { 0.0 };
+    }
+    let d = (-h / spread).clamp(-1.0, 1.0);
+    ((d.acos() - d * (1.0 - d * d).sqrt()) / std::f32::consts::PI).clamp(0.0, 1.0)
 }
 
 /// §3.3: a silhouette face with the light centre behind its plane (the kind of Figure 6) is
@@ -520,6 +539,15 @@ mod tests {
         }
         assert!((visibility(0.5, Falloff::Smoothstep) - 0.5).abs() < 1e-6);
         assert!((visibility(0.25, Falloff::Sqrt) - 0.5).abs() < 1e-6);
+        // The receiver's plane through the centre halves the disc; beside it, all or nothing.
+        let d = disc();
+        assert!((front_fraction(Vec3::X, d.c, &d) - 0.5).abs() < 1e-5);
+        assert_eq!(front_fraction(Vec3::X, d.c - Vec3::X * 2.0, &d), 1.0);
+        assert_eq!(front_fraction(Vec3::Y, Vec3::ZERO, &d), 1.0);
+        assert_eq!(front_fraction(Vec3::NEG_Y, Vec3::ZERO, &d), 0.0);
+        // Half a radius: the segment beyond d = 0.5 is 19.55% of the disc.
+        let f = front_fraction(Vec3::X, d.c + Vec3::X * 0.5, &d);
+        assert!((f - 0.19550).abs() < 1e-4, "{f}");
         // Eq. 2 on the axis: the edge's depth itself.
         assert_eq!(edge_distance(3.0, Vec3::NEG_Y, Vec3::NEG_Y), 3.0);
     }

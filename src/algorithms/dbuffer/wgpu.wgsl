@@ -125,19 +125,15 @@ fn fs_penumbra(v: VolumeVertex) -> @location(0) vec4<f32> {
     return vec4<f32>(v.z_e, 0.0, 0.0, 0.0);
 }
 
-// dbuffer::classify(..) == Facing::None, with disc_extremes: p_near is the disc point farthest
-// in front of the plane.
-fn faces_none_of_the_disc(n: vec3<f32>, q: vec3<f32>) -> bool {
-    if all(n == vec3<f32>(0.0)) {
-        return true;
+// dbuffer::front_fraction: the part of the disc in front of the receiver's plane.
+fn front_fraction(n: vec3<f32>, q: vec3<f32>) -> f32 {
+    let h = dot(n, light.eye - q);
+    let spread = length(n - light.disc_n * dot(n, light.disc_n)) * light.radius;
+    if spread <= 1e-9 {
+        return select(0.0, 1.0, h > 0.0);
     }
-    let w = cross(cross(n, light.disc_n), light.disc_n);
-    let len = length(w);
-    var near = light.eye;
-    if len > 1e-12 {
-        near = light.eye - light.radius * w / len;
-    }
-    return dot(n, near - q) <= 0.0;
+    let d = clamp(-h / spread, -1.0, 1.0);
+    return clamp((acos(d) - d * sqrt(1.0 - d * d)) / 3.14159265358979, 0.0, 1.0);
 }
 
 // dbuffer::t_umbra; `s_ok` false where edge_distance is infinite.
@@ -220,7 +216,8 @@ fn visibility_at(uv: vec2<f32>, z: f32, bias: f32) -> f32 {
 }
 
 // Phase `eye_lookup` (hard_shadow_map::cpu::eye_lookup with DLookup): a surface facing away
-// from c is judged by eq. 1 (none-frontfacing: dark), any other is looked up.
+// from c sees the part of the disc in front of its plane, any other is looked up and scaled by
+// that part.
 @compute @workgroup_size(8, 8)
 fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= light.width || id.y >= light.height {
@@ -234,10 +231,11 @@ fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
         if m.w > 0.0 {
             let n = normals[i].xyz;
             let n_dot_l = dot(n, normalize(light.eye - pos.xyz));
-            if n_dot_l <= 0.0 && faces_none_of_the_disc(n, pos.xyz) {
-                v = 0.0;
+            let f = front_fraction(n, pos.xyz);
+            if n_dot_l <= 0.0 {
+                v = f;
             } else {
-                v = clamp(visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l)), 0.0, 1.0);
+                v = clamp(visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l)) * f, 0.0, 1.0);
             }
         }
     }
