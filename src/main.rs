@@ -174,10 +174,6 @@ fn list(scenarios: &std::path::Path) {
             a.summary
         );
     }
-    println!(
-        "  not implemented yet: {}",
-        algorithms::NOT_YET_BUILT.join(", ")
-    );
     println!("executions:");
     println!("  cpu-native   host kernels, uninstrumented");
     println!("  cpu-model    modelled many-core SIMD machine (see machines)");

@@ -4,6 +4,7 @@
 //! counters, phases, times); the harness adds quality against the reference and writes results.
 
 pub mod accum_hard;
+pub mod dbuffer;
 pub mod eye_raster;
 pub mod hard_shadow_map;
 pub mod pcss;
@@ -169,6 +170,16 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         memory_estimate: soft_shadow_map::memory_estimate,
         check_options: soft_shadow_map::check_options,
     },
+    AlgorithmInfo {
+        id: dbuffer::ID,
+        source: "003 §2-§4 (umbra and penumbra volumes, D-buffer)",
+        summary: "umbra/penumbra volumes of the area silhouettes (p_near/p_far) drawn from the \
+              light centre into a D-buffer of distances; t by eq. 3, V(t) = 3t^2 - 2t^3",
+        lights: &[LightKind::Disc],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
+        memory_estimate: dbuffer::memory_estimate,
+        check_options: dbuffer::check_options,
+    },
 ];
 
 /// `check_options` of an algorithm that takes no options.
@@ -187,14 +198,10 @@ pub fn no_options(
 
 /// Algorithms of the design that are not built yet; named so that scenarios asking for them get
 /// a clear answer rather than "unknown".
-pub const NOT_YET_BUILT: &[&str] = &["dbuffer"];
 
 pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
     if let Some(a) = ALGORITHMS.iter().find(|a| a.id == id) {
         return Ok(a);
-    }
-    if NOT_YET_BUILT.contains(&id) {
-        return Err(format!("algorithm '{id}' is not implemented yet"));
     }
     let ids: Vec<&str> = ALGORITHMS.iter().map(|a| a.id).collect();
     Err(unknown_name("algorithm", id, &ids))
@@ -254,6 +261,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),
             pcss::ID => pcss::wgpu::render(gpu, frame, ctx),
             penumbra_map::ID => penumbra_map::wgpu::render(gpu, frame, ctx),
+            dbuffer::ID => dbuffer::wgpu::render(gpu, frame, ctx, dbuffer::options(&ctx.options)?),
             soft_shadow_map::ID => soft_shadow_map::wgpu::render(
                 gpu,
                 frame,
@@ -293,6 +301,12 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             let o = soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options)?;
             Ok(soft_shadow_map::cpu::render(backend, frame, ctx, &o))
         }
+        dbuffer::ID => Ok(dbuffer::cpu::render(
+            backend,
+            frame,
+            ctx,
+            dbuffer::options(&ctx.options)?,
+        )),
         _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
     }
 }

@@ -76,8 +76,12 @@ pub struct Receivers {
     pub mask: Mask,
     /// Lanes whose surface faces away from the light centre (n·l ≤ 0): the surface itself hides
     /// the light from a point light, so they are in shadow whatever the map holds (a bias large
-    /// enough for grazing angles would otherwise light them).
+    /// enough for grazing angles would otherwise light them). With
+    /// [`Lookup::AVERTED_IN_SHADOW`] false they are in `mask` too.
     pub averted: Mask,
+    /// World position and unit normal of the surface.
+    pub position: Lanes<Vec3>,
+    pub normal: Lanes<Vec3>,
     pub uv: Lanes<Vec2>,
     /// Linear depth from the light.
     pub z: Lanes<f32>,
@@ -97,6 +101,9 @@ pub const COMPARE_OPS: u32 = 5;
 
 /// What the eye pass computes from a block's receivers and the map.
 pub trait Lookup: Sync {
+    /// Whether surfaces facing away from the light centre are in shadow without a lookup (the
+    /// point-light rule); an area-light lookup that judges them itself sets this to false.
+    const AVERTED_IN_SHADOW: bool = true;
     /// Visibility of the active lanes of `r` (the others are ignored).
     fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32>;
 }
@@ -169,6 +176,8 @@ impl<L: Lookup> EyePass<'_, L> {
         let mut r = Receivers {
             mask: Mask::NONE,
             averted: Mask::NONE,
+            position: [Vec3::ZERO; LANES],
+            normal: [Vec3::ZERO; LANES],
             uv: [Vec2::ZERO; LANES],
             z: [0.0; LANES],
             bias: [0.0; LANES],
@@ -193,9 +202,13 @@ impl<L: Lookup> EyePass<'_, L> {
                 let n_dot_l = nrm[c].dot((self.light - pos[c]).normalize_or_zero());
                 if n_dot_l <= 0.0 {
                     r.averted.0 |= 1 << lane;
-                    continue;
+                    if L::AVERTED_IN_SHADOW {
+                        continue;
+                    }
                 }
                 r.mask.0 |= 1 << lane;
+                r.position[lane] = pos[c];
+                r.normal[lane] = nrm[c];
                 r.uv[lane] = uv;
                 r.z[lane] = z;
                 r.bias[lane] = self.bias.at(&self.map.view, z, n_dot_l);
