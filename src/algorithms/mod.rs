@@ -144,7 +144,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "001 Papers III and IV",
         summary: "hard shadow quads plus penumbra wedges adding or subtracting light coverage",
         lights: &[LightKind::Rect, LightKind::Sphere],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_shadow_volume::memory_estimate,
         check_options: soft_shadow_volume::check_options,
     },
@@ -242,6 +242,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
             hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),
             pcss::ID => pcss::wgpu::render(gpu, frame, ctx),
             penumbra_map::ID => penumbra_map::wgpu::render(gpu, frame, ctx),
+            soft_shadow_volume::ID => soft_shadow_volume::wgpu::render(gpu, frame, ctx),
             soft_izb::ID => {
                 soft_izb::wgpu::render(gpu, frame, &soft_izb::SoftIzbOptions::parse(&ctx.options)?)
             }
