@@ -33,6 +33,7 @@
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach};
@@ -40,7 +41,7 @@ use super::{
     silhouette_loops, split_light, CoverageMethod, CoverageTexture, EmitterShape,
     SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
 };
-use crate::algorithms::eye_raster::{EyeRays, ScreenRect, DEPTH_BYTES};
+use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_map::parse_options;
 use crate::algorithms::shadow_volume::{eye_count, quad_footprints, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
@@ -204,7 +205,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
 /// kind 0 rect, 1 sphere, 2 disc; sphere radius in the second's w); a sphere's frame depends on
 /// the point and is built in the WGSL.
 fn frame_light(light: &Light, shape: EmitterShape) -> ([f32; 4], [f32; 4], [f32; 4]) {
-    let (c, u, v) = light.emitter_frame(light.center() + glam::Vec3::Y);
+    let (c, u, v) = light.emitter_frame(light.center() + Vec3::Y);
     let shape = match shape {
         EmitterShape::Square => 0.0,
         EmitterShape::Disc => 1.0,
@@ -339,15 +340,22 @@ impl FrameResources {
 }
 
 /// Per tile a `[start, end)` pair into the same array, then the primitive indices in
-/// submission order; and the number of entries.
-fn bins(rays: &EyeRays, footprints: &[Option<ScreenRect>]) -> (Vec<u32>, u64) {
+/// submission order (those `keep(primitive, tile)` lets through); and the number of entries.
+fn bins(
+    rays: &EyeRays,
+    footprints: &[Option<ScreenRect>],
+    keep: impl Fn(usize, usize) -> bool,
+) -> (Vec<u32>, u64) {
     let (tx, ty) = (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE));
     let mut lists: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
     for (k, f) in footprints.iter().enumerate() {
         let Some(f) = f else { continue };
         for by in f.y0 / TILE..f.y1.div_ceil(TILE) {
             for bx in f.x0 / TILE..f.x1.div_ceil(TILE) {
-                lists[(by * tx + bx) as usize].push(k as u32);
+                let t = (by * tx + bx) as usize;
+                if keep(k, t) {
+                    lists[t].push(k as u32);
+                }
             }
         }
     }
@@ -360,6 +368,41 @@ fn bins(rays: &EyeRays, footprints: &[Option<ScreenRect>]) -> (Vec<u32>, u64) {
         entries += l.len() as u64;
     }
     (out, entries)
+}
+
+/// Per 8×8 tile a cone around the eye-ray directions of its pixels: unit axis and the sine of
+/// the half-angle (2 when the half-angle reaches 90°: nothing is culled against it).
+fn tile_cones(rays: &EyeRays) -> Vec<(Vec3, f32)> {
+    let (tx, ty) = (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE));
+    (0..tx * ty)
+        .map(|t| {
+            let (x0, y0) = (t % tx * TILE, t / tx * TILE);
+            let pixels: Vec<Vec3> = (y0..(y0 + TILE).min(rays.height))
+                .flat_map(|y| (x0..(x0 + TILE).min(rays.width)).map(move |x| (x, y)))
+                .map(|(x, y)| rays.dir[(y * rays.width + x) as usize])
+                .collect();
+            let axis = pixels.iter().sum::<Vec3>().normalize_or_zero();
+            let cos = pixels.iter().map(|d| d.dot(axis)).fold(1.0f32, f32::min);
+            let sin = if cos > 0.0 {
+                (1.0 - cos * cos).max(0.0).sqrt()
+            } else {
+                2.0
+            };
+            (axis, sin)
+        })
+        .collect()
+}
+
+/// Whether a tile's eye rays all miss `volume`: one of its planes has the eye outside and
+/// every direction of the tile's cone leaving it (a coarse test a rasterizer makes per tile;
+/// the per-pixel test would reject every pixel, so the images and fragment counts do not
+/// change). Margins of 1e-4 keep it conservative under rounding.
+fn tile_misses(volume: &ConvexVolume, eye: Vec3, cone: (Vec3, f32)) -> bool {
+    let (axis, sin) = cone;
+    volume.planes.iter().any(|&(n, d)| {
+        let len = n.length();
+        n.dot(eye) - d > 1e-4 * (1.0 + d.abs()) && n.dot(axis) >= (sin + 1e-4) * len
+    })
 }
 
 fn rect(f: &Option<ScreenRect>) -> [u32; 4] {
@@ -393,6 +436,7 @@ struct Passes<'g> {
     soft: [wgpu::ComputePipeline; 2],
     groups: (u32, u32),
     pixels: u64,
+    cones: Vec<(Vec3, f32)>,
 }
 
 fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
@@ -458,6 +502,7 @@ impl<'g> Passes<'g> {
             soft: [pipeline("soft", false), pipeline("soft", true)],
             groups: (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE)),
             pixels: rays.len() as u64,
+            cones: tile_cones(rays),
         }
     }
 
@@ -529,7 +574,7 @@ impl<'g> Passes<'g> {
                 w
             })
             .collect();
-        let (quad_bins, entries) = bins(rays, &footprints);
+        let (quad_bins, entries) = bins(rays, &footprints, |_, _| true);
         let params = init(
             gpu,
             "ssv params",
@@ -584,7 +629,9 @@ impl<'g> Passes<'g> {
                 ]
             })
             .collect();
-        let (wedge_bins, entries) = bins(rays, &footprints);
+        let (wedge_bins, entries) = bins(rays, &footprints, |k, t| {
+            !tile_misses(&prims[k].volume, rays.eye, self.cones[t])
+        });
         let degenerate = wedges.iter().filter(|w| w.is_none()).count() as u64;
         let counts = WedgeCounts {
             wedges: wedges.len() as u64 - degenerate,
