@@ -7,8 +7,11 @@
 //!   walks its tile's quads in submission order and counts z-pass from the eye's count
 //!   ([`crate::algorithms::shadow_volume`]) into an i32 V-buffer.
 //! - `wedges` (III §3.1, IV §4.1): on the host, with the cpu executions' code
-//!   ([`super::cpu::build_wedge`], [`super::cpu::wedge_primitives`]: wedge halves when culling),
-//!   binned and uploaded; host wall time only.
+//!   (`cpu::build_wedge`, `cpu::wedge_primitives`: wedge halves when culling),
+//!   binned and uploaded; host wall time only. Binning drops a (primitive, tile) pair when one
+//!   of the primitive's planes has the eye outside and a cone around the tile's eye rays
+//!   leaving it (`tile_misses`, a rasterizer's coarse test): no pixel of the tile could pass
+//!   the per-pixel test, so images and fragment counts are unchanged.
 //! - `soft` (III §3.2.2, IV §4.2-4.4): one invocation per pixel walks its tile's wedge
 //!   primitives in submission order, intersects its eye ray with each, and for the points inside
 //!   projects the edge onto the light and adds or subtracts the coverage by exact clipping or
