@@ -146,11 +146,17 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
     for (s, sub) in sub_lights.iter().enumerate() {
         let centre = sub.center();
         let silhouette = adjacency.silhouette_from(centre);
-        let loops = if opts.overlap_approximation {
+        let mut loops = if opts.overlap_approximation {
             silhouette_loops(&silhouette.edges)
         } else {
             vec![silhouette.edges.clone()]
         };
+        // No loop at all (overlap approximation, empty silhouette): the sub-light is unshadowed,
+        // as on the cpu executions; one empty loop counted from 0 writes exactly that.
+        let no_loop = loops.is_empty();
+        if no_loop {
+            loops.push(Vec::new());
+        }
         let eye = eye_count(&occluders, centre, rays.eye);
         if loops.len() > 1 && eye != 0 {
             warnings.push(format!(
@@ -168,7 +174,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
                 width: rays.width,
                 height: rays.height,
                 tiles_x: rays.width.div_ceil(TILE),
-                eye_count: if loops.len() > 1 { 0 } else { eye },
+                eye_count: if loops.len() > 1 || no_loop { 0 } else { eye },
                 vbuffer: u32::from(opts.vbuffer == VBufferPrecision::Split12),
                 coverage: u32::from(texture.is_some()),
                 texture_n: opts.texture_n,
@@ -710,9 +716,10 @@ impl<'g> Passes<'g> {
     fn run(&self, rays: &EyeRays, runs: &[LoopRun], setup_ms: f64) -> Result<FrameOutput> {
         let gpu = self.gpu;
         let mut warnings = Vec::new();
+        // Every sub-light has at least one loop: `runs` is never empty.
         let n_passes = 2 * runs.len() as u32;
-        let timer = PassTimer::new(gpu, n_passes.max(1));
-        let stats = PassStats::new(gpu, n_passes.max(1));
+        let timer = PassTimer::new(gpu, n_passes);
+        let stats = PassStats::new(gpu, n_passes);
         let mut wall = [setup_ms, 0.0, 0.0];
         let mut loops = Vec::with_capacity(runs.len());
         let vis_staging = Staging::new(gpu, "visibility readback", self.res.visibility.size());
@@ -759,22 +766,18 @@ impl<'g> Passes<'g> {
             loops.push(lg);
         }
         let readback_start = Instant::now();
-        let data: Vec<f32> = if runs.is_empty() {
-            vec![1.0; self.pixels as usize]
-        } else {
-            words(&vis_staging.read(gpu)?)
-        };
+        let data: Vec<f32> = words(&vis_staging.read(gpu)?);
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let gpu_ms = match (&timer, runs.is_empty()) {
-            (Some(t), false) => Some(t.read_ms(gpu)?),
-            _ => {
-                warnings.push("no timestamps (no TIMESTAMP_QUERY or nothing ran)".into());
+        let gpu_ms = match &timer {
+            Some(t) => Some(t.read_ms(gpu)?),
+            None => {
+                warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
                 None
             }
         };
-        let pipeline = match (&stats, runs.is_empty()) {
-            (Some(s), false) => Some(s.read(gpu)?),
-            _ => {
+        let pipeline = match &stats {
+            Some(s) => Some(s.read(gpu)?),
+            None => {
                 warnings.push("no pipeline.* counters (no PIPELINE_STATISTICS_QUERY)".into());
                 None
             }
