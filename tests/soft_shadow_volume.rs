@@ -471,3 +471,30 @@ fn wgpu_agrees_with_the_cpu_model() {
         assert_eq!(phases, ["hard", "wedges", "soft"]);
     }
 }
+
+/// Nothing casts a shadow (every object a receiver only): no silhouette, so under the overlap
+/// approximation no loop at all; both executions leave every pixel fully lit.
+#[test]
+fn wgpu_without_occluders_is_fully_lit_like_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    let mut frame = generated("plate-on-plane", Some(rect_light()));
+    for o in &mut frame.scene.objects {
+        o.role = shadowbench::scene::Role::RECEIVER;
+    }
+    for options in [
+        serde_json::Value::Null,
+        serde_json::json!({ "overlap_approximation": true, "light_split": 2 }),
+    ] {
+        let gpu = run_on(Backend::Wgpu, &frame, SSV, options.clone());
+        let model = run_on(Backend::CpuModel, &frame, SSV, options.clone());
+        assert!(
+            gpu.visibility.data.iter().all(|&v| v == 1.0),
+            "{options}: a pixel in shadow without occluders"
+        );
+        assert_eq!(gpu.visibility.data, model.visibility.data, "{options}");
+        assert_eq!(counter(&gpu, "silhouette_edges"), 0.0);
+        assert_eq!(counter(&gpu, "fill"), 0.0);
+    }
+}
