@@ -362,3 +362,139 @@ fn cpu_model_counters_and_times_do_not_depend_on_the_host_thread_count() {
         }
     }
 }
+
+/// Whether the tests can run on a GPU; panics when one is required and missing.
+fn have_gpu() -> bool {
+    match shadowbench::gpu::gpu() {
+        Ok(_) => true,
+        Err(e) if std::env::var("SHADOWBENCH_REQUIRE_GPU").as_deref() == Ok("1") => {
+            panic!("SHADOWBENCH_REQUIRE_GPU=1 but {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            false
+        }
+    }
+}
+
+/// A 64×48 frame of generated scene `name`, with its own light or `light`.
+fn generated(name: &str, light: Option<Light>) -> Frame {
+    let mut scene = generators::find(name)
+        .unwrap()
+        .build(&GeneratorParams::default());
+    if let Some(l) = light {
+        scene.light = l;
+    }
+    let params = params(&scene);
+    Frame::new(scene, params)
+}
+
+/// The wgpu execution against the cpu-model one: the same host geometry (silhouettes, quads,
+/// wedges, footprints, bins in submission order) and the same per-pixel math in f32, so the
+/// images differ only where the GPU rounds an operation differently (fused multiply-adds,
+/// `atan2`, `sqrt`, divisions), which can flip a ray–primitive test for a pixel whose ray
+/// grazes a quad or wedge plane, or move a coverage by a few ulps. We allow a mean absolute
+/// difference of 1e-3 and 0.5% of the pixels off by more than 0.1 (a flipped hard-quad test
+/// changes a pixel by a whole unit); the fragment counts may differ by as many flips (0.5%),
+/// and the counts fixed on the host (silhouette edges, wedges, degenerate wedges) must agree
+/// exactly.
+#[test]
+fn wgpu_agrees_with_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    let cases: Vec<(&str, Option<Light>, serde_json::Value)> = vec![
+        ("plate-on-plane", None, serde_json::Value::Null),
+        ("sphere-on-plane", None, serde_json::Value::Null),
+        (
+            "cylinder-on-plane",
+            Some(rect_light()),
+            serde_json::Value::Null,
+        ),
+        (
+            "cylinder-on-plane",
+            Some(rect_light()),
+            serde_json::json!({ "coverage": "texture", "vbuffer": "split12" }),
+        ),
+        (
+            "sphere-on-plane",
+            Some(rect_light()),
+            serde_json::json!({ "wedge_culling": false, "tighter_wedges": false }),
+        ),
+        (
+            "plate-on-plane",
+            Some(rect_light()),
+            serde_json::json!({ "light_split": 2, "overlap_approximation": true }),
+        ),
+    ];
+    for (name, light, options) in cases {
+        let frame = generated(name, light);
+        let gpu = run_on(Backend::Wgpu, &frame, SSV, options.clone());
+        let model = run_on(Backend::CpuModel, &frame, SSV, options.clone());
+        let e = compare(&gpu.visibility, &model.visibility, &frame.gbuffer.mask());
+        eprintln!(
+            "{name} {:?} {options}: mae {:.2e}, frac>0.1 {:.4}, max {:.3}",
+            frame.scene.light.kind(),
+            e.mae,
+            e.frac_over_0_1,
+            e.max
+        );
+        assert!(
+            e.shadow_pixels > 100,
+            "{name}: the shadow must be on screen"
+        );
+        assert!(e.mae <= 1e-3, "{name} {options}: {e:?}");
+        assert!(e.frac_over_0_1 <= 0.005, "{name} {options}: {e:?}");
+        for c in ["silhouette_edges", "wedges", "wedges_degenerate"] {
+            assert_eq!(
+                counter(&gpu, c),
+                counter(&model, c),
+                "{name} {options}: {c}"
+            );
+        }
+        assert!(counter(&model, "wedges") > 0.0, "{name}: no wedges");
+        for c in [
+            "fill",
+            "overdraw",
+            "shader_invocations",
+            "culled_fragments",
+            "fragments_inside_wedges",
+        ] {
+            let (g, m) = (counter(&gpu, c), counter(&model, c));
+            eprintln!("  {c}: wgpu {g}, cpu-model {m}");
+            assert!(
+                (g - m).abs() <= 0.005 * m.max(1.0),
+                "{name} {options}: {c} {g} on wgpu, {m} on cpu-model"
+            );
+        }
+        let phases: Vec<&str> = gpu.phases.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(phases, ["hard", "wedges", "soft"]);
+    }
+}
+
+/// Nothing casts a shadow (every object a receiver only): no silhouette, so under the overlap
+/// approximation no loop at all; both executions leave every pixel fully lit.
+#[test]
+fn wgpu_without_occluders_is_fully_lit_like_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    let mut frame = generated("plate-on-plane", Some(rect_light()));
+    for o in &mut frame.scene.objects {
+        o.role = shadowbench::scene::Role::RECEIVER;
+    }
+    for options in [
+        serde_json::Value::Null,
+        serde_json::json!({ "overlap_approximation": true, "light_split": 2 }),
+    ] {
+        let gpu = run_on(Backend::Wgpu, &frame, SSV, options.clone());
+        let model = run_on(Backend::CpuModel, &frame, SSV, options.clone());
+        assert!(
+            gpu.visibility.data.iter().all(|&v| v == 1.0),
+            "{options}: a pixel in shadow without occluders"
+        );
+        assert_eq!(gpu.visibility.data, model.visibility.data, "{options}");
+        assert_eq!(counter(&gpu, "silhouette_edges"), 0.0);
+        assert_eq!(counter(&gpu, "fill"), 0.0);
+    }
+}

@@ -146,7 +146,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "001 Papers III and IV",
         summary: "hard shadow quads plus penumbra wedges adding or subtracting light coverage",
         lights: &[LightKind::Rect, LightKind::Sphere],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_shadow_volume::memory_estimate,
         check_options: soft_shadow_volume::check_options,
     },
@@ -267,6 +267,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
                 frame,
                 &soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options)?,
             ),
+            soft_shadow_volume::ID => soft_shadow_volume::wgpu::render(gpu, frame, ctx),
             soft_izb::ID => {
                 soft_izb::wgpu::render(gpu, frame, &soft_izb::SoftIzbOptions::parse(&ctx.options)?)
             }

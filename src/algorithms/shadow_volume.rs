@@ -214,6 +214,15 @@ impl TilePass for QuadPass<'_> {
     }
 }
 
+/// The screen footprints of `quads`, cut at twice the scene's size beyond their edges.
+pub fn quad_footprints(rays: &EyeRays, quads: &[ShadowQuad]) -> Vec<Option<ScreenRect>> {
+    let reach = 2.0 * rays.bounds.diagonal();
+    quads
+        .iter()
+        .map(|q| rays.footprint(&q.hull(reach)))
+        .collect()
+}
+
 /// Renders `quads` z-pass into a count buffer cleared to `eye_count` (tiles of `tile` pixels), as
 /// step `step` of the machine's current phase.
 pub fn render_quads(
@@ -225,11 +234,7 @@ pub fn render_quads(
     tile: u32,
     target: &CountTarget,
 ) -> HardPass {
-    let reach = 2.0 * rays.bounds.diagonal();
-    let footprints: Vec<Option<ScreenRect>> = quads
-        .iter()
-        .map(|q| rays.footprint(&q.hull(reach)))
-        .collect();
+    let footprints = quad_footprints(rays, quads);
     let pass = QuadPass {
         rays,
         quads,

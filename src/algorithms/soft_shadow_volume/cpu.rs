@@ -68,7 +68,7 @@ const WEDGE_BUILD_OPS: u32 = 12 + 4 * 20 + 4 * 14;
 const WEDGES_PER_TASK: usize = 4 * LANES;
 
 /// Coverage textures are precomputed once per (shape, n), as the paper does offline.
-fn coverage_texture(shape: EmitterShape, n: u32) -> Arc<CoverageTexture> {
+pub(super) fn coverage_texture(shape: EmitterShape, n: u32) -> Arc<CoverageTexture> {
     static CACHE: Mutex<Vec<Arc<CoverageTexture>>> = Mutex::new(Vec::new());
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(t) = cache.iter().find(|t| t.shape == shape && t.n == n) {
@@ -286,25 +286,41 @@ impl TaskKernel for BuildWedges<'_> {
         for chunk in edges.chunks(LANES) {
             p.vector(WEDGE_BUILD_OPS, Mask::first(chunk.len()));
         }
-        let centre = self.light.center();
         edges
             .iter()
-            .map(|e| match (self.light, self.tighter) {
-                (Light::Rect { half_u, half_v, .. }, true) => Wedge::tight_rect(
-                    e.a,
-                    e.b,
-                    [
-                        centre - *half_u - *half_v,
-                        centre + *half_u - *half_v,
-                        centre + *half_u + *half_v,
-                        centre - *half_u + *half_v,
-                    ],
-                    self.reach,
-                ),
-                _ => Wedge::robust(e.a, e.b, centre, bounding_radius(self.light), self.reach),
-            })
+            .map(|e| build_wedge(e, self.light, self.tighter, self.reach))
             .collect()
     }
+}
+
+/// The wedge of silhouette edge `e`: the tighter wedge of IV §4.1 for a rectangular light when
+/// `tighter`, else the robust wedge of III §3.1 around the light's bounding sphere.
+pub(super) fn build_wedge(
+    e: &SilhouetteEdge,
+    light: &Light,
+    tighter: bool,
+    reach: f32,
+) -> Option<Wedge> {
+    let centre = light.center();
+    match (light, tighter) {
+        (Light::Rect { half_u, half_v, .. }, true) => Wedge::tight_rect(
+            e.a,
+            e.b,
+            [
+                centre - *half_u - *half_v,
+                centre + *half_u - *half_v,
+                centre + *half_u + *half_v,
+                centre - *half_u + *half_v,
+            ],
+            reach,
+        ),
+        _ => Wedge::robust(e.a, e.b, centre, bounding_radius(light), reach),
+    }
+}
+
+/// Distance the wedges reach beyond their top edge: far enough to leave the scene bounds.
+pub(super) fn wedge_reach(rays: &EyeRays) -> f32 {
+    4.0 * rays.bounds.diagonal()
 }
 
 /// Renders one silhouette loop (or the whole silhouette) for one (sub-)light: returns its
@@ -339,7 +355,7 @@ fn render_loop(
         edges,
         light,
         tighter: s.opts.tighter_wedges,
-        reach: 4.0 * rays.bounds.diagonal(),
+        reach: wedge_reach(rays),
     };
     let weights: Vec<u64> = edges
         .chunks(WEDGES_PER_TASK)
@@ -386,11 +402,11 @@ fn bounding_radius(light: &Light) -> f32 {
 }
 
 /// One rasterized primitive of pass 2: a wedge, or one half of it when culling.
-struct WedgePrimitive {
-    edge: usize,
-    volume: ConvexVolume,
+pub(super) struct WedgePrimitive {
+    pub edge: usize,
+    pub volume: ConvexVolume,
     /// The half's side of the hard shadow quad (−1 inner, +1 outer); `None` for a whole wedge.
-    half: Option<f32>,
+    pub half: Option<f32>,
 }
 
 /// Pass 2 over the eye tiles.
@@ -568,33 +584,7 @@ fn soft_pass(
     wedges: &[Option<Wedge>],
 ) -> (Accum, SoftTally) {
     let rays = &s.rays;
-    let mut prims = Vec::new();
-    let mut footprints: Vec<Option<ScreenRect>> = Vec::new();
-    for (k, w) in wedges.iter().enumerate() {
-        let Some(w) = w else { continue };
-        let fp = rays.footprint(&w.hull);
-        if s.opts.wedge_culling {
-            let n = quads[k].normal.normalize_or_zero();
-            let d = n.dot(quads[k].light);
-            for side in [-1.0f32, 1.0] {
-                let mut volume = w.volume.clone();
-                volume.planes.push((n * side, d * side));
-                prims.push(WedgePrimitive {
-                    edge: k,
-                    volume,
-                    half: Some(-side),
-                });
-                footprints.push(fp);
-            }
-        } else {
-            prims.push(WedgePrimitive {
-                edge: k,
-                volume: w.volume.clone(),
-                half: None,
-            });
-            footprints.push(fp);
-        }
-    }
+    let (prims, footprints) = wedge_primitives(rays, quads, wedges, s.opts.wedge_culling);
     let pass = SoftPass {
         s,
         light,
@@ -626,4 +616,43 @@ fn soft_pass(
         }
     }
     (accum, tally)
+}
+
+/// The primitives of pass 2 in submission order, with their screen footprints: per wedge, its
+/// two halves split by the hard shadow quad's plane when `culling` (IV §4.4), else the whole
+/// wedge.
+pub(super) fn wedge_primitives(
+    rays: &EyeRays,
+    quads: &[ShadowQuad],
+    wedges: &[Option<Wedge>],
+    culling: bool,
+) -> (Vec<WedgePrimitive>, Vec<Option<ScreenRect>>) {
+    let mut prims = Vec::new();
+    let mut footprints: Vec<Option<ScreenRect>> = Vec::new();
+    for (k, w) in wedges.iter().enumerate() {
+        let Some(w) = w else { continue };
+        let fp = rays.footprint(&w.hull);
+        if culling {
+            let n = quads[k].normal.normalize_or_zero();
+            let d = n.dot(quads[k].light);
+            for side in [-1.0f32, 1.0] {
+                let mut volume = w.volume.clone();
+                volume.planes.push((n * side, d * side));
+                prims.push(WedgePrimitive {
+                    edge: k,
+                    volume,
+                    half: Some(-side),
+                });
+                footprints.push(fp);
+            }
+        } else {
+            prims.push(WedgePrimitive {
+                edge: k,
+                volume: w.volume.clone(),
+                half: None,
+            });
+            footprints.push(fp);
+        }
+    }
+    (prims, footprints)
 }

@@ -13,6 +13,7 @@
 //! half-axes, so a rectangle is `[−1, 1]²` and a sphere's disc is the unit disc.
 
 pub mod cpu;
+pub mod wgpu;
 
 use std::collections::HashMap;
 

@@ -1,0 +1,962 @@
+//! `soft_shadow_volume` on wgpu: the two passes of III §3.2 as compute passes over the eye
+//! pixels (`wgpu.wgsl`), per silhouette loop and sub-light as on the cpu executions.
+//!
+//! - `hard` (III §3.2.1): the hard shadow quads, built on the host from the silhouette seen from
+//!   the light centre and binned to 8×8 screen tiles on the host (sort-middle, as
+//!   [`crate::algorithms::eye_raster::raster_pass`] bins them), then one invocation per pixel
+//!   walks its tile's quads in submission order and counts z-pass from the eye's count
+//!   ([`crate::algorithms::shadow_volume`]) into an i32 V-buffer.
+//! - `wedges` (III §3.1, IV §4.1): on the host, with the cpu executions' code
+//!   (`cpu::build_wedge`, `cpu::wedge_primitives`: wedge halves when culling),
+//!   binned and uploaded; host wall time only. Binning drops a (primitive, tile) pair when one
+//!   of the primitive's planes has the eye outside and a cone around the tile's eye rays
+//!   leaving it (`tile_misses`, a rasterizer's coarse test): no pixel of the tile could pass
+//!   the per-pixel test, so images and fragment counts are unchanged.
+//! - `soft` (III §3.2.2, IV §4.2-4.4): one invocation per pixel walks its tile's wedge
+//!   primitives in submission order, intersects its eye ray with each, and for the points inside
+//!   projects the edge onto the light and adds or subtracts the coverage by exact clipping or
+//!   the 4D texture, in the f32 or the split 12-bit V-buffer; then the loop's V-buffer, the
+//!   overlap approximation across loops (IV §5.1) and the sub-light average (IV §5.2).
+//!
+//! Accumulation: we chose a per-pixel gather over binned primitives rather than fixed-point
+//! atomics or additive blending: each pixel's sum is formed by one invocation in the cpu
+//! executions' order, so it is deterministic, needs no atomics, keeps the f32 V-buffer in f32
+//! (the split 12-bit format is emulated per channel with saturating 8-bit adds), and mirrors
+//! the cpu math operation by operation. The price is that a pixel tests every primitive binned
+//! to its tile against its footprint.
+//!
+//! A pixel "rasterizes" a primitive when its eye ray meets it, exactly as on the cpu
+//! executions; the wedge-half culling of IV §4.4 is done by the extra plane of the half, and the
+//! stencil traffic it would cost is counted as the cpu-model counts it. A timed submission
+//! (timestamps and pipeline statistics per GPU pass) is followed by an instrumented replay with
+//! WGSL atomics counting fragments. Not built on the GPU: silhouette detection and wedge
+//! construction (host, as on the cpu executions), z-fail capping (the eye's count is computed
+//! on the host), textured lights.
+
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach};
+use super::{
+    silhouette_loops, split_light, CoverageMethod, CoverageTexture, EmitterShape,
+    SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
+};
+use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect, DEPTH_BYTES};
+use crate::algorithms::shadow_map::parse_options;
+use crate::algorithms::shadow_volume::{eye_count, quad_footprints, ShadowQuad};
+use crate::algorithms::{ExecContext, FrameOutput};
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::gpu::readback::{words, Staging};
+use crate::gpu::stats::PassStats;
+use crate::gpu::timing::PassTimer;
+use crate::gpu::Gpu;
+use crate::record::{Counters, Phase};
+use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
+use crate::scene::Light;
+use crate::visibility::VisibilityBuffer;
+
+const WGSL: &str = include_str!("wgpu.wgsl");
+
+/// Side of the screen tiles primitives are binned to (`TILE` and the workgroup in the WGSL).
+const TILE: u32 = 8;
+/// Storage buffers bound (bindings 1-11).
+const STORAGE_BUFFERS: u32 = 11;
+/// Record sizes: an eye ray, a shadow quad, a wedge primitive, a plane, a word.
+const RAY_BYTES: u64 = 48;
+const QUAD_BYTES: u64 = 80;
+const PRIM_BYTES: u64 = 32;
+const PLANE_BYTES: u64 = 16;
+const WORD: u64 = 4;
+/// Bytes per pixel of the V-buffer (f32, or one rgba8 buffer of the split pair) and of the
+/// stencil the wedge-half culling of IV §4.4 uses on a rasterizer.
+const VBUFFER_BYTES: u64 = 4;
+const STENCIL_BYTES: u64 = 1;
+
+/// The pipeline statistic that means something for compute passes.
+const COMPUTE_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
+
+/// The statistics slots of the instrumented pipelines (`STAT_*` in the WGSL), in slot order.
+#[derive(Clone, Copy)]
+enum Stat {
+    HardFill,
+    HardPassed,
+    SoftFill,
+    SoftFront,
+    SoftInside,
+    SoftCovered,
+    SoftContributing,
+    HardTests,
+    SoftTests,
+}
+
+const STATS: u64 = 9;
+
+/// The `Params` uniform of the WGSL.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Params {
+    center: [f32; 4],
+    half_u: [f32; 4],
+    half_v: [f32; 4],
+    eye: [f32; 4],
+    width: u32,
+    height: u32,
+    tiles_x: u32,
+    eye_count: i32,
+    vbuffer: u32,
+    coverage: u32,
+    texture_n: u32,
+    first_loop: u32,
+    last_loop: u32,
+    first_light: u32,
+    last_light: u32,
+    sub_lights: u32,
+    pad: [u32; 4],
+}
+
+/// `soft_shadow_volume` on wgpu.
+pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
+    let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
+    opts.validate()?;
+    let light = frame.scene.light;
+    let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
+        Error::Unsupported(format!(
+            "{ID}: light splitting (light_split = {}) needs a rectangular light, got {}",
+            opts.light_split,
+            light.kind()
+        ))
+    })?;
+    check_limits(gpu, frame)?;
+    let start = Instant::now();
+    let rays = EyeRays::new(frame);
+    let texture = (opts.coverage == CoverageMethod::Texture)
+        .then(|| coverage_texture(EmitterShape::of(&light), opts.texture_n));
+    let frame_res = FrameResources::new(gpu, &rays, texture.as_deref());
+    let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
+    let occluders = frame.scene.occluders();
+    let setup_ms = start.elapsed().as_secs_f64() * 1e3;
+    let passes = Passes::new(gpu, &rays, &opts, frame_res);
+
+    let mut runs = Vec::new();
+    let mut warnings = Vec::new();
+    for (s, sub) in sub_lights.iter().enumerate() {
+        let centre = sub.center();
+        let silhouette = adjacency.silhouette_from(centre);
+        let mut loops = if opts.overlap_approximation {
+            silhouette_loops(&silhouette.edges)
+        } else {
+            vec![silhouette.edges.clone()]
+        };
+        // No loop at all (overlap approximation, empty silhouette): the sub-light is unshadowed,
+        // as on the cpu executions; one empty loop counted from 0 writes exactly that.
+        let no_loop = loops.is_empty();
+        if no_loop {
+            loops.push(Vec::new());
+        }
+        let eye = eye_count(&occluders, centre, rays.eye);
+        if loops.len() > 1 && eye != 0 {
+            warnings.push(format!(
+                "the eye is inside {eye} shadow volume(s); per-loop V-buffers of the overlap \
+                 approximation start at 0"
+            ));
+        }
+        for (k, edges) in loops.iter().enumerate() {
+            let (center, half_u, half_v) = frame_light(sub, EmitterShape::of(sub));
+            let params = Params {
+                center,
+                half_u,
+                half_v,
+                eye: rays.eye.extend(0.0).to_array(),
+                width: rays.width,
+                height: rays.height,
+                tiles_x: rays.width.div_ceil(TILE),
+                eye_count: if loops.len() > 1 || no_loop { 0 } else { eye },
+                vbuffer: u32::from(opts.vbuffer == VBufferPrecision::Split12),
+                coverage: u32::from(texture.is_some()),
+                texture_n: opts.texture_n,
+                first_loop: u32::from(k == 0),
+                last_loop: u32::from(k + 1 == loops.len()),
+                first_light: u32::from(s == 0),
+                last_light: u32::from(s + 1 == sub_lights.len()),
+                sub_lights: sub_lights.len() as u32,
+                pad: [0; 4],
+            };
+            runs.push(LoopRun {
+                light: *sub,
+                edges: edges.clone(),
+                silhouette_edges: (k == 0).then_some(silhouette.edges.len()),
+                params,
+            });
+        }
+    }
+    let mut out = passes.run(&rays, &runs, setup_ms)?;
+    out.warnings.extend(warnings);
+    out.execution
+        .insert("options".to_string(), serde_json::json!(opts));
+    out.execution.insert(
+        "accumulation".into(),
+        serde_json::json!("per-pixel gather over 8x8-tile bins in submission order, no atomics"),
+    );
+    if let Some(t) = &texture {
+        out.execution.insert(
+            "coverage_texture_bytes".into(),
+            serde_json::json!(t.bytes()),
+        );
+    }
+    Ok(out)
+}
+
+/// The light's centre (w: emitter shape, 0 square, 1 disc) and constant half-axes (w: light
+/// kind 0 rect, 1 sphere, 2 disc; sphere radius in the second's w); a sphere's frame depends on
+/// the point and is built in the WGSL.
+fn frame_light(light: &Light, shape: EmitterShape) -> ([f32; 4], [f32; 4], [f32; 4]) {
+    let (c, u, v) = light.emitter_frame(light.center() + Vec3::Y);
+    let shape = match shape {
+        EmitterShape::Square => 0.0,
+        EmitterShape::Disc => 1.0,
+    };
+    let (kind, radius) = match *light {
+        Light::Rect { .. } => (0.0, 0.0),
+        Light::Sphere { radius, .. } => (1.0, radius),
+        Light::Disc { .. } => (2.0, 0.0),
+    };
+    (
+        c.extend(shape).to_array(),
+        u.extend(kind).to_array(),
+        v.extend(radius).to_array(),
+    )
+}
+
+fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
+    let l = &gpu.limits;
+    if l.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+        return Err(Error::Resource(format!(
+            "{ID} binds {STORAGE_BUFFERS} storage buffers; the adapter allows {}",
+            l.max_storage_buffers_per_shader_stage
+        )));
+    }
+    let bytes = RAY_BYTES * frame.gbuffer.len() as u64;
+    if bytes > l.max_storage_buffer_binding_size {
+        return Err(Error::Resource(format!(
+            "{ID} buffer eye_rays needs {bytes} bytes, more than the adapter's storage binding \
+             limit ({})",
+            l.max_storage_buffer_binding_size
+        )));
+    }
+    Ok(())
+}
+
+/// One silhouette loop of one sub-light.
+struct LoopRun {
+    light: Light,
+    edges: Vec<SilhouetteEdge>,
+    /// The sub-light's silhouette size, on its first loop.
+    silhouette_edges: Option<usize>,
+    params: Params,
+}
+
+/// Eye-sized buffers shared by every loop.
+struct FrameResources {
+    rays: wgpu::Buffer,
+    texels: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    covered: wgpu::Buffer,
+    visibility: wgpu::Buffer,
+    stats: wgpu::Buffer,
+}
+
+fn init(gpu: &Gpu, label: &str, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    // Zero-sized buffers are not bindable; pad empty contents to a record of any kind.
+    let padded = [0u8; 128];
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: if contents.is_empty() {
+                &padded
+            } else {
+                contents
+            },
+            usage,
+        })
+}
+
+fn empty(gpu: &Gpu, label: &str, bytes: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(WORD),
+        usage: wgpu::BufferUsages::STORAGE | usage,
+        mapped_at_creation: false,
+    })
+}
+
+/// Infinite and NaN parameters become the largest finite ones (WGSL has no infinities).
+fn finite(t: f32) -> f32 {
+    if t.is_nan() {
+        f32::MAX
+    } else {
+        t.clamp(-f32::MAX, f32::MAX)
+    }
+}
+
+impl FrameResources {
+    fn new(gpu: &Gpu, rays: &EyeRays, texture: Option<&CoverageTexture>) -> FrameResources {
+        let storage = wgpu::BufferUsages::STORAGE;
+        let records: Vec<[f32; 12]> = (0..rays.len())
+            .map(|i| {
+                let (d, p) = (rays.dir[i], rays.point[i]);
+                let (t0, t1) = rays.bounds_interval(i);
+                [
+                    d.x,
+                    d.y,
+                    d.z,
+                    finite(rays.depth[i]),
+                    p.x,
+                    p.y,
+                    p.z,
+                    finite(t0),
+                    finite(t1),
+                    if rays.is_hit(i) { 1.0 } else { 0.0 },
+                    0.0,
+                    0.0,
+                ]
+            })
+            .collect();
+        let texels: Vec<u8> = texture.map(|t| t.texels.clone()).unwrap_or_default();
+        let mut packed = vec![0u32; texels.len().div_ceil(4)];
+        for (k, &b) in texels.iter().enumerate() {
+            packed[k / 4] |= u32::from(b) << (8 * (k % 4));
+        }
+        let pixels = rays.len() as u64;
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        FrameResources {
+            rays: init(gpu, "eye rays", bytemuck::cast_slice(&records), storage),
+            texels: init(
+                gpu,
+                "coverage texture",
+                bytemuck::cast_slice(&packed),
+                storage,
+            ),
+            counts: empty(gpu, "hard counts", WORD * pixels, copy),
+            covered: empty(gpu, "covered", WORD * pixels, copy),
+            visibility: empty(gpu, "visibility", WORD * pixels, copy),
+            stats: empty(gpu, "statistics", 2 * WORD * STATS, copy),
+        }
+    }
+}
+
+/// Per tile a `[start, end)` pair into the same array, then the primitive indices in
+/// submission order (those `keep(primitive, tile)` lets through); and the number of entries.
+fn bins(
+    rays: &EyeRays,
+    footprints: &[Option<ScreenRect>],
+    keep: impl Fn(usize, usize) -> bool,
+) -> (Vec<u32>, u64) {
+    let (tx, ty) = (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE));
+    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+    for (k, f) in footprints.iter().enumerate() {
+        let Some(f) = f else { continue };
+        for by in f.y0 / TILE..f.y1.div_ceil(TILE) {
+            for bx in f.x0 / TILE..f.x1.div_ceil(TILE) {
+                let t = (by * tx + bx) as usize;
+                if keep(k, t) {
+                    lists[t].push(k as u32);
+                }
+            }
+        }
+    }
+    let mut out = vec![0u32; 2 * lists.len()];
+    let mut entries = 0;
+    for (t, l) in lists.iter().enumerate() {
+        out[2 * t] = out.len() as u32;
+        out.extend(l);
+        out[2 * t + 1] = out.len() as u32;
+        entries += l.len() as u64;
+    }
+    (out, entries)
+}
+
+/// Per 8×8 tile a cone around the eye-ray directions of its pixels: unit axis and the sine of
+/// the half-angle (2 when the half-angle reaches 90°: nothing is culled against it).
+fn tile_cones(rays: &EyeRays) -> Vec<(Vec3, f32)> {
+    let (tx, ty) = (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE));
+    (0..tx * ty)
+        .map(|t| {
+            let (x0, y0) = (t % tx * TILE, t / tx * TILE);
+            let pixels: Vec<Vec3> = (y0..(y0 + TILE).min(rays.height))
+                .flat_map(|y| (x0..(x0 + TILE).min(rays.width)).map(move |x| (x, y)))
+                .map(|(x, y)| rays.dir[(y * rays.width + x) as usize])
+                .collect();
+            let axis = pixels.iter().sum::<Vec3>().normalize_or_zero();
+            let cos = pixels.iter().map(|d| d.dot(axis)).fold(1.0f32, f32::min);
+            let sin = if cos > 0.0 {
+                (1.0 - cos * cos).max(0.0).sqrt()
+            } else {
+                2.0
+            };
+            (axis, sin)
+        })
+        .collect()
+}
+
+/// Whether a tile's eye rays all miss `volume`: one of its planes has the eye outside and
+/// every direction of the tile's cone leaving it (a coarse test a rasterizer makes per tile;
+/// the per-pixel test would reject every pixel, so the images and fragment counts do not
+/// change). Margins of 1e-4 keep it conservative under rounding.
+fn tile_misses(volume: &ConvexVolume, eye: Vec3, cone: (Vec3, f32)) -> bool {
+    let (axis, sin) = cone;
+    volume.planes.iter().any(|&(n, d)| {
+        let len = n.length();
+        n.dot(eye) - d > 1e-4 * (1.0 + d.abs()) && n.dot(axis) >= (sin + 1e-4) * len
+    })
+}
+
+fn rect(f: &Option<ScreenRect>) -> [u32; 4] {
+    f.map_or([0; 4], |r| [r.x0, r.y0, r.x1, r.y1])
+}
+
+/// A loop's uploaded primitives and what its counters need from the host.
+struct LoopGpu {
+    hard_group: wgpu::BindGroup,
+    soft_group: wgpu::BindGroup,
+    quads: u64,
+    quad_bin_entries: u64,
+    wedges: WedgeCounts,
+}
+
+/// What the wedges phase built for one loop.
+struct WedgeCounts {
+    wedges: u64,
+    degenerate: u64,
+    prims: u64,
+    planes: u64,
+    bin_entries: u64,
+}
+
+struct Passes<'g> {
+    gpu: &'g Gpu,
+    opts: SoftShadowVolumeOptions,
+    res: FrameResources,
+    layout: wgpu::BindGroupLayout,
+    hard: [wgpu::ComputePipeline; 2],
+    soft: [wgpu::ComputePipeline; 2],
+    groups: (u32, u32),
+    pixels: u64,
+    cones: Vec<(Vec3, f32)>,
+}
+
+fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl<'g> Passes<'g> {
+    fn new(
+        gpu: &'g Gpu,
+        rays: &EyeRays,
+        opts: &SoftShadowVolumeOptions,
+        res: FrameResources,
+    ) -> Passes<'g> {
+        let device = &gpu.device;
+        let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform)];
+        for b in 1..=STORAGE_BUFFERS {
+            entries.push(entry(
+                b,
+                wgpu::BufferBindingType::Storage { read_only: b <= 7 },
+            ));
+        }
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(ID),
+            entries: &entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(ID),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("soft_shadow_volume/wgpu.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(WGSL.into()),
+        });
+        let pipeline = |entry: &str, instrument: bool| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
+                    ..Default::default()
+                },
+                cache: None,
+            })
+        };
+        Passes {
+            gpu,
+            opts: *opts,
+            res,
+            layout,
+            hard: [pipeline("hard", false), pipeline("hard", true)],
+            soft: [pipeline("soft", false), pipeline("soft", true)],
+            groups: (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE)),
+            pixels: rays.len() as u64,
+            cones: tile_cones(rays),
+        }
+    }
+
+    fn group(
+        &self,
+        params: &wgpu::Buffer,
+        prims: [&wgpu::Buffer; 5],
+        label: &str,
+    ) -> wgpu::BindGroup {
+        let r = &self.res;
+        let buffers = [
+            params,
+            &r.rays,
+            prims[0],
+            prims[1],
+            prims[2],
+            prims[3],
+            prims[4],
+            &r.texels,
+            &r.counts,
+            &r.covered,
+            &r.visibility,
+            &r.stats,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.gpu
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout: &self.layout,
+                entries: &entries,
+            })
+    }
+
+    /// The hard phase's host part: quads, footprints, bins, upload. Returns the bind group of
+    /// the hard pass and the quads' buffers for the soft pass.
+    fn upload_quads(
+        &self,
+        rays: &EyeRays,
+        run: &LoopRun,
+        quads: &[ShadowQuad],
+    ) -> (wgpu::BindGroup, [wgpu::Buffer; 3], u64) {
+        let gpu = self.gpu;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let footprints = quad_footprints(rays, quads);
+        let records: Vec<[u32; 20]> = quads
+            .iter()
+            .zip(&footprints)
+            .map(|(q, f)| {
+                let mut w = [0u32; 20];
+                let eye_side = q.side(rays.eye);
+                for (k, v) in [q.a.extend(eye_side), q.b.extend(0.0)]
+                    .into_iter()
+                    .chain([q.light.extend(0.0), q.normal.extend(0.0)])
+                    .enumerate()
+                {
+                    for c in 0..4 {
+                        w[4 * k + c] = v[c].to_bits();
+                    }
+                }
+                w[16..20].copy_from_slice(&rect(f));
+                w
+            })
+            .collect();
+        let (quad_bins, entries) = bins(rays, &footprints, |_, _| true);
+        let params = init(
+            gpu,
+            "ssv params",
+            bytemuck::bytes_of(&run.params),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let quads_buf = init(gpu, "shadow quads", bytemuck::cast_slice(&records), storage);
+        let bins_buf = init(gpu, "quad bins", bytemuck::cast_slice(&quad_bins), storage);
+        let none = empty(gpu, "no primitives", 128, wgpu::BufferUsages::empty());
+        let group = self.group(
+            &params,
+            [&quads_buf, &none, &none, &bins_buf, &none],
+            "hard",
+        );
+        (group, [params, quads_buf, bins_buf], entries)
+    }
+
+    /// The wedges phase's host part: wedges, primitives, bins, upload; the soft pass's group.
+    fn upload_wedges(
+        &self,
+        rays: &EyeRays,
+        run: &LoopRun,
+        quads: &[ShadowQuad],
+        quad_buffers: &[wgpu::Buffer; 3],
+    ) -> (wgpu::BindGroup, WedgeCounts) {
+        let gpu = self.gpu;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let reach = wedge_reach(rays);
+        let wedges: Vec<Option<Wedge>> = run
+            .edges
+            .iter()
+            .map(|e| build_wedge(e, &run.light, self.opts.tighter_wedges, reach))
+            .collect();
+        let (prims, footprints) = wedge_primitives(rays, quads, &wedges, self.opts.wedge_culling);
+        let mut planes: Vec<[f32; 4]> = Vec::new();
+        let records: Vec<[u32; 8]> = prims
+            .iter()
+            .zip(&footprints)
+            .map(|(p, f)| {
+                let first = planes.len() as u32;
+                planes.extend(p.volume.planes.iter().map(|(n, d)| n.extend(*d).to_array()));
+                let r = rect(f);
+                [
+                    r[0],
+                    r[1],
+                    r[2],
+                    r[3],
+                    p.edge as u32,
+                    first,
+                    p.volume.planes.len() as u32,
+                    p.half.unwrap_or(0.0).to_bits(),
+                ]
+            })
+            .collect();
+        let (wedge_bins, entries) = bins(rays, &footprints, |k, t| {
+            !tile_misses(&prims[k].volume, rays.eye, self.cones[t])
+        });
+        let degenerate = wedges.iter().filter(|w| w.is_none()).count() as u64;
+        let counts = WedgeCounts {
+            wedges: wedges.len() as u64 - degenerate,
+            degenerate,
+            prims: prims.len() as u64,
+            planes: planes.len() as u64,
+            bin_entries: entries,
+        };
+        let prims_buf = init(
+            gpu,
+            "wedge primitives",
+            bytemuck::cast_slice(&records),
+            storage,
+        );
+        let planes_buf = init(gpu, "wedge planes", bytemuck::cast_slice(&planes), storage);
+        let bins_buf = init(
+            gpu,
+            "wedge bins",
+            bytemuck::cast_slice(&wedge_bins),
+            storage,
+        );
+        let [params, quads_buf, quad_bins] = quad_buffers;
+        let group = self.group(
+            params,
+            [quads_buf, &prims_buf, &planes_buf, quad_bins, &bins_buf],
+            "soft",
+        );
+        (group, counts)
+    }
+
+    /// Records one compute pass: `soft` picks the pass, `instrument` the counting pipelines.
+    fn pass(
+        &self,
+        e: &mut wgpu::CommandEncoder,
+        group: &wgpu::BindGroup,
+        soft: bool,
+        instrument: bool,
+        queries: Option<(Option<&PassTimer>, Option<&PassStats>, u32)>,
+    ) {
+        let (timer, stats, index) = queries.unwrap_or((None, None, 0));
+        let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(if soft { "soft" } else { "hard" }),
+            timestamp_writes: timer.map(|t| t.compute(index)),
+        });
+        if let Some(s) = stats {
+            s.begin_compute(&mut pass, index);
+        }
+        let k = usize::from(instrument);
+        pass.set_pipeline(if soft { &self.soft[k] } else { &self.hard[k] });
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+        if stats.is_some() {
+            pass.end_pipeline_statistics_query();
+        }
+    }
+
+    /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
+    fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
+        let start = Instant::now();
+        let mut encoder = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        f(&mut encoder);
+        self.gpu.queue.submit([encoder.finish()]);
+        self.gpu
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+
+    fn run(&self, rays: &EyeRays, runs: &[LoopRun], setup_ms: f64) -> Result<FrameOutput> {
+        let gpu = self.gpu;
+        let mut warnings = Vec::new();
+        // Every sub-light has at least one loop: `runs` is never empty.
+        let n_passes = 2 * runs.len() as u32;
+        let timer = PassTimer::new(gpu, n_passes);
+        let stats = PassStats::new(gpu, n_passes);
+        let mut wall = [setup_ms, 0.0, 0.0];
+        let mut loops = Vec::with_capacity(runs.len());
+        let vis_staging = Staging::new(gpu, "visibility readback", self.res.visibility.size());
+        for (j, run) in runs.iter().enumerate() {
+            let j = j as u32;
+            // Pass 1: hard shadow quads (III §3.2.1).
+            let start = Instant::now();
+            let centre = run.light.center();
+            let quads: Vec<ShadowQuad> = run
+                .edges
+                .iter()
+                .map(|e| ShadowQuad::new(e, centre))
+                .collect();
+            let (hard_group, quad_buffers, quad_entries) = self.upload_quads(rays, run, &quads);
+            let q = Some((timer.as_ref(), stats.as_ref(), 2 * j));
+            self.submit(|e| self.pass(e, &hard_group, false, false, q))?;
+            wall[0] += start.elapsed().as_secs_f64() * 1e3;
+            // Wedges (III §3.1, IV §4.1), on the host.
+            let start = Instant::now();
+            let (soft_group, w) = self.upload_wedges(rays, run, &quads, &quad_buffers);
+            let lg = LoopGpu {
+                hard_group,
+                soft_group,
+                quads: quads.len() as u64,
+                quad_bin_entries: quad_entries,
+                wedges: w,
+            };
+            wall[1] += start.elapsed().as_secs_f64() * 1e3;
+            // Pass 2: penumbra wedges (III §3.2.2).
+            let last = j + 1 == runs.len() as u32;
+            let q = Some((timer.as_ref(), stats.as_ref(), 2 * j + 1));
+            wall[2] += self.submit(|e| {
+                self.pass(e, &lg.soft_group, true, false, q);
+                if last {
+                    vis_staging.copy(e, &self.res.visibility);
+                    if let Some(t) = &timer {
+                        t.resolve(e);
+                    }
+                    if let Some(s) = &stats {
+                        s.resolve(e);
+                    }
+                }
+            })?;
+            loops.push(lg);
+        }
+        let readback_start = Instant::now();
+        let data: Vec<f32> = words(&vis_staging.read(gpu)?);
+        let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
+        let gpu_ms = match &timer {
+            Some(t) => Some(t.read_ms(gpu)?),
+            None => {
+                warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
+                None
+            }
+        };
+        let pipeline = match &stats {
+            Some(s) => Some(s.read(gpu)?),
+            None => {
+                warnings.push("no pipeline.* counters (no PIPELINE_STATISTICS_QUERY)".into());
+                None
+            }
+        };
+
+        // The instrumented replay: the same passes counting with atomics, per loop.
+        let mut per_phase = [
+            Counters::default(),
+            Counters::default(),
+            Counters::default(),
+        ];
+        for (run, lg) in runs.iter().zip(&loops) {
+            let staging = Staging::new(gpu, "statistics readback", self.res.stats.size());
+            self.submit(|e| {
+                e.clear_buffer(&self.res.stats, 0, None);
+                self.pass(e, &lg.hard_group, false, true, None);
+                self.pass(e, &lg.soft_group, true, true, None);
+                staging.copy(e, &self.res.stats);
+            })?;
+            let raw: Vec<u32> = words(&staging.read(gpu)?);
+            let stat = |s: Stat| {
+                let i = s as usize;
+                (u64::from(raw[2 * i + 1]) << 32 | u64::from(raw[2 * i])) as f64
+            };
+            let [hard, wedges, soft] = &mut per_phase;
+            if let Some(n) = run.silhouette_edges {
+                hard.add("silhouette_edges", n as f64);
+            }
+            self.hard_counters(hard, lg, &stat);
+            wedges.add("wedges", lg.wedges.wedges as f64);
+            wedges.add("wedges_degenerate", lg.wedges.degenerate as f64);
+            self.soft_counters(soft, lg, &stat);
+        }
+        if let Some(p) = &pipeline {
+            for (j, s) in p.iter().enumerate() {
+                if let Some(v) = s.get(COMPUTE_INVOCATIONS) {
+                    let phase = if j % 2 == 0 { 0 } else { 2 };
+                    per_phase[phase].add(COMPUTE_INVOCATIONS, v);
+                }
+            }
+        }
+        let names = ["hard", "wedges", "soft"];
+        let gpu_phase_ms = |phase: usize| {
+            gpu_ms.as_ref().map(|t| match phase {
+                0 => t.iter().step_by(2).sum(),
+                2 => t.iter().skip(1).step_by(2).sum(),
+                _ => 0.0,
+            })
+        };
+        let mut counters = Counters::default();
+        let mut phases = Vec::with_capacity(3);
+        for (i, c) in per_phase.into_iter().enumerate() {
+            counters.merge(&c);
+            phases.push(Phase {
+                name: names[i].into(),
+                wall_ms: wall[i],
+                model_ms: None,
+                gpu_ms: if i == 1 { None } else { gpu_phase_ms(i) },
+                counters: c,
+            });
+        }
+        let mut execution = gpu.execution();
+        execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
+        execution.insert(
+            "gpu_counters".into(),
+            serde_json::json!(
+                "fill, overdraw, shader invocations and culls from an instrumented replay (WGSL \
+                 atomics), in the cpu-model's terms; mem_est.* estimated from counts and record \
+                 sizes"
+            ),
+        );
+        Ok(FrameOutput {
+            visibility: VisibilityBuffer {
+                width: rays.width,
+                height: rays.height,
+                data,
+            },
+            counters,
+            phases,
+            model_ms: None,
+            gpu_ms: gpu_ms.map(|t| t.iter().sum()),
+            execution,
+            warnings,
+        })
+    }
+
+    /// `hard`: fill and overdraw as on the cpu executions (quad fragments within the scene
+    /// bounds, and those behind the visible surface), and estimated traffic: rays of every
+    /// pixel, quad records per test, the bins, a depth read per fragment, the count written.
+    fn hard_counters(&self, k: &mut Counters, lg: &LoopGpu, stat: &impl Fn(Stat) -> f64) {
+        let (fill, passed, tests) = (
+            stat(Stat::HardFill),
+            stat(Stat::HardPassed),
+            stat(Stat::HardTests),
+        );
+        k.add("fill", fill);
+        k.add("overdraw", fill - passed);
+        k.add("quad_tests", tests);
+        k.add("shadow_quads", lg.quads as f64);
+        let rays = (RAY_BYTES * self.pixels) as f64;
+        let quads = QUAD_BYTES as f64 * tests;
+        let bins = (WORD * (lg.quad_bin_entries + 2 * self.tiles())) as f64;
+        let depth = fill * DEPTH_BYTES as f64;
+        let vbuffer = (VBUFFER_BYTES * self.pixels) as f64;
+        k.add("mem_est.eye_rays.read_bytes", rays);
+        k.add("mem_est.shadow_quads.read_bytes", quads);
+        k.add("mem_est.quad_bins.read_bytes", bins);
+        k.add("mem_est.depth.read_bytes", depth);
+        k.add("mem_est.vbuffer.write_bytes", vbuffer);
+        k.add("mem_read_bytes", rays + quads + bins + depth);
+        k.add("mem_write_bytes", vbuffer);
+    }
+
+    /// `soft`: fill, overdraw, shader invocations, culled fragments and fragments inside wedges
+    /// in the cpu-model's terms (with culling each half is rasterized twice, IV §4.4), and
+    /// estimated traffic: rays, primitive records and planes per test, bins, depth and stencil
+    /// as a rasterizer would touch them, the V-buffer per fragment inside, texture reads.
+    fn soft_counters(&self, k: &mut Counters, lg: &LoopGpu, stat: &impl Fn(Stat) -> f64) {
+        let (fill, front, inside, covered, contributing, tests) = (
+            stat(Stat::SoftFill),
+            stat(Stat::SoftFront),
+            stat(Stat::SoftInside),
+            stat(Stat::SoftCovered),
+            stat(Stat::SoftContributing),
+            stat(Stat::SoftTests),
+        );
+        let (raster_fill, shaded, culled, stencil_read, stencil_write) = if self.opts.wedge_culling
+        {
+            (2.0 * fill, inside, fill - inside, fill, 2.0 * front)
+        } else {
+            (fill, front, 0.0, 0.0, 0.0)
+        };
+        k.add("fill", raster_fill);
+        k.add("overdraw", raster_fill - contributing);
+        k.add("shader_invocations", shaded);
+        k.add("culled_fragments", culled);
+        k.add("fragments_inside_wedges", covered);
+        k.add("wedge_tests", tests);
+        k.add("wedge_primitives", lg.wedges.prims as f64);
+        let texture_reads = if self.opts.coverage == CoverageMethod::Texture {
+            CoverageTexture::READS as f64 * covered
+        } else {
+            0.0
+        };
+        k.add("coverage_texture_reads", texture_reads);
+        let per_plane = if lg.wedges.prims > 0 {
+            lg.wedges.planes as f64 / lg.wedges.prims as f64
+        } else {
+            0.0
+        };
+        let rays = (RAY_BYTES * self.pixels) as f64;
+        let prims = tests * (PRIM_BYTES as f64 + per_plane * PLANE_BYTES as f64);
+        let bins = (WORD * (lg.wedges.bin_entries + 2 * self.tiles())) as f64;
+        let quads = QUAD_BYTES as f64 * inside;
+        let depth = raster_fill * DEPTH_BYTES as f64;
+        let stencil_r = stencil_read * STENCIL_BYTES as f64;
+        let stencil_w = stencil_write * STENCIL_BYTES as f64;
+        let vbuffer = VBUFFER_BYTES as f64 * covered;
+        let counts = (WORD * self.pixels) as f64;
+        let out = (2 * WORD * self.pixels) as f64;
+        k.add("mem_est.eye_rays.read_bytes", rays);
+        k.add("mem_est.wedge_primitives.read_bytes", prims);
+        k.add("mem_est.wedge_bins.read_bytes", bins);
+        k.add("mem_est.shadow_quads.read_bytes", quads);
+        k.add("mem_est.depth.read_bytes", depth);
+        k.add("mem_est.stencil.read_bytes", stencil_r);
+        k.add("mem_est.stencil.write_bytes", stencil_w);
+        k.add("mem_est.vbuffer.read_bytes", vbuffer + counts);
+        k.add("mem_est.vbuffer.write_bytes", vbuffer);
+        k.add("mem_est.coverage_texture.read_bytes", texture_reads);
+        k.add("mem_est.visibility.write_bytes", out);
+        k.add(
+            "mem_read_bytes",
+            rays + prims + bins + quads + depth + stencil_r + vbuffer + counts + texture_reads,
+        );
+        k.add("mem_write_bytes", stencil_w + vbuffer + out);
+    }
+
+    fn tiles(&self) -> u64 {
+        u64::from(self.groups.0) * u64::from(self.groups.1)
+    }
+}
