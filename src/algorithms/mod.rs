@@ -196,9 +196,7 @@ pub fn no_options(
     }
 }
 
-/// Algorithms of the design that are not built yet; named so that scenarios asking for them get
-/// a clear answer rather than "unknown".
-
+/// The registered algorithm `id`, or an error suggesting the closest name.
 pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
     if let Some(a) = ALGORITHMS.iter().find(|a| a.id == id) {
         return Ok(a);
