@@ -41,9 +41,11 @@ enum Command {
     Render(RenderArgs),
     /// Run a scenario sweep: DIR/results.json, DIR/results.csv, per-run images.
     Run(RunArgs),
-    /// Write charts and index.html into DIR from an existing results.json.
+    /// Write charts and index.html into DIR from an existing results.json; with several, each
+    /// into DIR/<scenario name>/ and DIR/index.html with every paper claim.
     Report {
-        results: PathBuf,
+        #[arg(required = true)]
+        results: Vec<PathBuf>,
         #[arg(long)]
         out: PathBuf,
     },
@@ -379,16 +381,43 @@ fn run(a: RunArgs) -> Result<()> {
     Ok(())
 }
 
-fn report_cmd(results: PathBuf, out: PathBuf) -> Result<()> {
-    let file = report::read_results(&results)?;
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
-    report::import_images(report::results_dir(&results), &out, &file.runs)?;
-    let written = report::write_report(&out, &file)?;
-    println!(
-        "report: {} ({} charts)",
-        written.index.display(),
-        written.charts.len()
-    );
+fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
+    let files = results
+        .iter()
+        .map(|p| report::read_results(p))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let several = files.len() > 1;
+    let mut reports: Vec<(String, harness::output::ResultsFile)> = Vec::new();
+    for (path, file) in results.iter().zip(files) {
+        if reports.iter().any(|(d, _)| *d == file.scenario) {
+            return Err(InputError::file(
+                path,
+                format!("scenario '{}' is given twice", file.scenario),
+            )
+            .into());
+        }
+        let dir = if several {
+            out.join(&file.scenario)
+        } else {
+            out.clone()
+        };
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        report::import_images(report::results_dir(path), &dir, &file.runs)?;
+        if several && !report::same_dir(report::results_dir(path), &dir) {
+            harness::output::write_results(&dir, &file)?;
+        }
+        let written = report::write_report(&dir, &file)?;
+        println!(
+            "report: {} ({} charts)",
+            written.index.display(),
+            written.charts.len()
+        );
+        reports.push((file.scenario.clone(), file));
+    }
+    print!("{}", report::write_claims(&out, &reports, several)?);
+    if several {
+        println!("index: {}", out.join("index.html").display());
+    }
     Ok(())
 }
 

@@ -23,13 +23,13 @@ pub struct Outcome {
 }
 
 /// Evaluates every claim of `claims` (stated by `scenario`) over `all` runs: the runs of every
-/// scenario of the execution, so a claim may compare runs of different scenarios by naming
-/// them in `where.scenario`.
+/// scenario of the execution. A measure takes the runs of `scenario` unless its `where` names
+/// another, so a claim may compare runs of different scenarios run together.
 pub fn evaluate(scenario: &str, claims: &[Claim], all: &[ScenarioRuns]) -> Vec<Outcome> {
     claims
         .iter()
         .map(|c| {
-            let measured = measure(&c.measure, all);
+            let measured = measure(&c.measure, scenario, all);
             let holds = match (&c.expect, &measured) {
                 (Some(e), Ok(values)) => Expect::parse(e)
                     .ok()
@@ -46,9 +46,18 @@ pub fn evaluate(scenario: &str, claims: &[Claim], all: &[ScenarioRuns]) -> Vec<O
         .collect()
 }
 
-fn measure(m: &Measure, all: &[ScenarioRuns]) -> Result<Vec<(String, f64)>, String> {
+fn measure(
+    m: &Measure,
+    stated_by: &str,
+    all: &[ScenarioRuns],
+) -> Result<Vec<(String, f64)>, String> {
     let mut values = Vec::new();
-    for set in all {
+    // Without `where.scenario`, only the runs of the scenario stating the claim.
+    let own_only = !m.select.contains_key("scenario");
+    for set in all
+        .iter()
+        .filter(|set| !own_only || set.scenario == stated_by)
+    {
         for r in set.runs.iter().filter(|r| r.failure.is_none()) {
             let json = serde_json::to_value(r).expect("records serialize");
             if matches(&m.select, set.scenario, &json) {
@@ -82,7 +91,7 @@ fn measure(m: &Measure, all: &[ScenarioRuns]) -> Result<Vec<(String, f64)>, Stri
     match &m.over {
         None => one(&label, numerator),
         Some(over) => {
-            let denominator = measure(over, all).map_err(|e| format!("over: {e}"))?[0].1;
+            let denominator = measure(over, stated_by, all).map_err(|e| format!("over: {e}"))?[0].1;
             if denominator == 0.0 {
                 return Err("the `over` figure is 0".into());
             }
@@ -208,11 +217,21 @@ mod tests {
         let mut b = record("pcss", "cpu-model", 1000, 16);
         b.model_ms = Some(40.0);
         b.counters.set("fill", 100.0);
+        let mut c = record("soft_izb", "cpu-model", 1000, 16);
+        c.model_ms = Some(10.0);
         let runs = [a, b];
-        let all = [ScenarioRuns {
-            scenario: "s",
-            runs: &runs,
-        }];
+        let others = [c];
+        // A claim of "s" takes only the runs of "s" unless it names another scenario.
+        let all = [
+            ScenarioRuns {
+                scenario: "s",
+                runs: &runs,
+            },
+            ScenarioRuns {
+                scenario: "t",
+                runs: &others,
+            },
+        ];
         let fps = claim(serde_json::json!({
             "paper": "p", "claim": "c", "expect": "> 49",
             "measure": { "figure": "per_second.model_ms", "where": { "algorithm": "soft_izb" } }
@@ -233,7 +252,13 @@ mod tests {
             "measure": { "figure": "model_ms", "where": { "backend": "wgpu" } }
         }));
         let out = evaluate("s", &[fps, ratio, share, none], &all);
-        assert_eq!(out[0].measured.as_ref().unwrap()[0].1, 50.0);
+        assert_eq!(
+            out[0].measured.as_ref().unwrap(),
+            &[(
+                "s sphere-on-plane_soft_izb_cpu-model_t1000_l0.5_m512_b16_96x72".to_string(),
+                50.0
+            )]
+        );
         assert_eq!(out[0].holds, Some(true));
         // 300 / mean(300, 100) = 1.5
         assert_eq!(out[1].measured.as_ref().unwrap()[0].1, 1.5);

@@ -103,7 +103,8 @@ pub fn import_images(from: &Path, out: &Path, records: &[RunRecord]) -> Result<(
     Ok(())
 }
 
-fn same_dir(a: &Path, b: &Path) -> bool {
+/// Whether two paths name the same folder (compared canonically when both exist).
+pub fn same_dir(a: &Path, b: &Path) -> bool {
     match (a.canonicalize(), b.canonicalize()) {
         (Ok(a), Ok(b)) => a == b,
         _ => false,

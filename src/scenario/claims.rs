@@ -49,8 +49,8 @@ pub struct Measure {
     /// - `phase_share.PHASE.TIME`: the phase's `TIME` (`model_ms`, `gpu_ms`, `wall_ms`) over
     ///   the sum of all phases' `TIME`.
     pub figure: String,
-    /// Runs whose fields equal these values: `scenario`, `algorithm`, `backend`, `scene`,
-    /// `light`, or a parameter (`triangles`, `light_size`, `map_resolution`, `tile_size`,
+    /// Runs whose fields equal these values: `scenario` (default: the scenario stating the
+    /// claim), `algorithm`, `backend`, `scene`, `light`, or a parameter (`triangles`, `light_size`, `map_resolution`, `tile_size`,
     /// `image`, `occluder_height`, `cores`).
     #[serde(default, rename = "where")]
     pub select: BTreeMap<String, serde_json::Value>,
