@@ -51,5 +51,11 @@ fn bench_algorithms(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_algorithms);
+criterion_group! {
+    name = benches;
+    // criterion's own plots would draw text through plotters' ab_glyph backend (the feature
+    // the report enables), which has no font registered for them; the figures are printed.
+    config = Criterion::default().without_plots();
+    targets = bench_algorithms
+}
 criterion_main!(benches);
