@@ -92,6 +92,21 @@ pub struct Gpu {
 }
 
 impl Gpu {
+    /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
+    /// this took on the host.
+    pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
+        let start = std::time::Instant::now();
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        f(&mut encoder);
+        self.queue.submit([encoder.finish()]);
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
+        Ok(start.elapsed().as_secs_f64() * 1e3)
+    }
+
     /// Why the device was lost, or `None` while it is usable.
     pub fn lost(&self) -> Option<String> {
         self.lost.lock().unwrap_or_else(|e| e.into_inner()).clone()

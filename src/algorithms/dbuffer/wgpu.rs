@@ -650,32 +650,17 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
-    fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
-        let start = Instant::now();
-        let mut encoder = self
-            .gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        f(&mut encoder);
-        self.gpu.queue.submit([encoder.finish()]);
-        self.gpu
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-        Ok(start.elapsed().as_secs_f64() * 1e3)
-    }
-
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let gpu = self.gpu;
         let image = (self.width, self.height);
         let mut warnings = Vec::new();
         let timer = PassTimer::new(gpu, PASSES);
         let stats = PassStats::new(gpu, PASSES);
-        let dbuffer_wall =
-            self.submit(|e| self.dbuffer_passes(e, &self.timed, timer.as_ref(), stats.as_ref()))?;
+        let dbuffer_wall = self
+            .gpu
+            .submit(|e| self.dbuffer_passes(e, &self.timed, timer.as_ref(), stats.as_ref()))?;
         let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
-        let lookup_wall = self.submit(|e| {
+        let lookup_wall = self.gpu.submit(|e| {
             self.compute_pass(e, &self.timed.lookup, image, timer.as_ref(), stats.as_ref());
             vis_staging.copy(e, &self.visibility);
             if let Some(t) = &timer {
@@ -707,7 +692,7 @@ impl<'g> Passes<'g> {
 
         // The instrumented submission: same passes, counting with atomics.
         let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());
-        self.submit(|e| {
+        self.gpu.submit(|e| {
             e.clear_buffer(&self.counts, 0, None);
             self.dbuffer_passes(e, &self.counting, None, None);
             let res = (self.resolution, self.resolution);

@@ -356,7 +356,7 @@ impl<'g> PenumbraPasses<'g> {
             stats: stats.as_ref(),
             index,
         };
-        let shadow_wall = p.submit(|e| p.raster_pass(e, false, q(0)))?;
+        let shadow_wall = p.gpu.submit(|e| p.raster_pass(e, false, q(0)))?;
 
         let start = Instant::now();
         let s = silhouettes(&adj, &self.view, light, light_radius, o.max_sheet_strips);
@@ -365,11 +365,12 @@ impl<'g> PenumbraPasses<'g> {
         let start = Instant::now();
         let g = PenumbraGeometry::build(&s, &self.view, light_radius, o.cone_segments);
         let cones = self.upload(&g);
-        p.submit(|e| self.penumbra_pass(e, &cones, false, q(1)))?;
+        p.gpu
+            .submit(|e| self.penumbra_pass(e, &cones, false, q(1)))?;
         let penumbra_wall = start.elapsed().as_secs_f64() * 1e3;
 
         let vis_staging = Staging::new(gpu, "visibility readback", p.visibility.size());
-        let lookup_wall = p.submit(|e| {
+        let lookup_wall = p.gpu.submit(|e| {
             let pipeline = &p.lookup_timed;
             p.compute_pass(
                 e,
@@ -392,7 +393,7 @@ impl<'g> PenumbraPasses<'g> {
         let staging: Vec<Staging> = (0..3)
             .map(|_| Staging::new(gpu, "counts readback", p.counts.size()))
             .collect();
-        p.submit(|e| {
+        p.gpu.submit(|e| {
             e.clear_buffer(&p.counts, 0, None);
             p.raster_pass(e, true, Queries::NONE);
             let res = (p.resolution, p.resolution);

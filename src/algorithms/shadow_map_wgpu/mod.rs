@@ -522,22 +522,6 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
-    pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
-        let start = Instant::now();
-        let mut encoder = self
-            .gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        f(&mut encoder);
-        self.gpu.queue.submit([encoder.finish()]);
-        self.gpu
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-        Ok(start.elapsed().as_secs_f64() * 1e3)
-    }
-
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let gpu = self.gpu;
         let image = (self.width, self.height);
@@ -551,9 +535,9 @@ impl<'g> Passes<'g> {
             stats: stats.as_ref(),
             index,
         };
-        let raster_wall = self.submit(|e| self.raster_pass(e, false, q(0)))?;
+        let raster_wall = self.gpu.submit(|e| self.raster_pass(e, false, q(0)))?;
         let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
-        let lookup_wall = self.submit(|e| {
+        let lookup_wall = self.gpu.submit(|e| {
             self.compute_pass(e, "eye_lookup", &self.lookup_timed, image, q(1), None);
             vis_staging.copy(e, &self.visibility);
             resolve(e, timer.as_ref(), stats.as_ref());
@@ -566,7 +550,7 @@ impl<'g> Passes<'g> {
 
         // The instrumented submission: same passes, counting with atomics.
         let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());
-        self.submit(|e| {
+        self.gpu.submit(|e| {
             e.clear_buffer(&self.counts, 0, None);
             self.raster_pass(e, true, Queries::NONE);
             let res = (self.resolution, self.resolution);

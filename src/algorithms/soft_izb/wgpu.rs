@@ -506,22 +506,6 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
-    fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
-        let start = Instant::now();
-        let mut encoder = self
-            .gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        f(&mut encoder);
-        self.gpu.queue.submit([encoder.finish()]);
-        self.gpu
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-        Ok(start.elapsed().as_secs_f64() * 1e3)
-    }
-
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let gpu = self.gpu;
         let mut warnings = Vec::new();
@@ -533,7 +517,7 @@ impl<'g> Passes<'g> {
         let samples_staging = Staging::new(gpu, "sample count readback", WORD);
         let mut wall = Vec::with_capacity(PHASES.len());
         for i in 0..PHASES.len() {
-            wall.push(self.submit(|e| {
+            wall.push(self.gpu.submit(|e| {
                 self.pass(e, i, false, timer.as_ref(), stats.as_ref());
                 if i + 1 == PHASES.len() {
                     vis_staging.copy(e, &self.visibility);
@@ -574,7 +558,7 @@ impl<'g> Passes<'g> {
 
         // The instrumented submission: same passes, counting with atomics.
         let stats_staging = Staging::new(gpu, "statistics readback", self.stats.size());
-        self.submit(|e| {
+        self.gpu.submit(|e| {
             e.clear_buffer(&self.stats, 0, None);
             for i in 0..PHASES.len() {
                 self.pass(e, i, true, None, None);

@@ -156,20 +156,6 @@ fn texture_ty(sample_type: wgpu::TextureSampleType) -> wgpu::BindingType {
     }
 }
 
-/// Encodes with `f`, submits and waits; the host milliseconds this took.
-fn submit(gpu: &Gpu, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
-    let start = Instant::now();
-    let mut encoder = gpu
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-    f(&mut encoder);
-    gpu.queue.submit([encoder.finish()]);
-    gpu.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-    Ok(start.elapsed().as_secs_f64() * 1e3)
-}
-
 fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput> {
     let device = &gpu.device;
     let (width, height) = (frame.width(), frame.height());
@@ -581,7 +567,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
         pass.set_index_buffer(ib.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..count as u32, 0, 0..1);
     };
-    let maps_wall = submit(gpu, |e| {
+    let maps_wall = gpu.submit(|e| {
         depth_pass(
             e,
             0,
@@ -631,7 +617,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
                 )
             })
             .collect();
-        submit(gpu, |e| {
+        gpu.submit(|e| {
             for (s, t) in stagings.iter().zip(&occ_maps) {
                 s.copy_texture(e, t, row);
             }
@@ -712,9 +698,9 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
             }
         }
     };
-    let splat_wall = submit(gpu, |e| splat(e, &splat_timed, true))?;
+    let splat_wall = gpu.submit(|e| splat(e, &splat_timed, true))?;
     let vis_staging = Staging::new(gpu, "visibility readback", visibility.size());
-    let project_wall = submit(gpu, |e| {
+    let project_wall = gpu.submit(|e| {
         {
             let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("project"),
@@ -742,7 +728,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
 
     // The instrumented replay of `splat`.
     let counts_staging = Staging::new(gpu, "counts readback", counts.size());
-    submit(gpu, |e| {
+    gpu.submit(|e| {
         e.clear_buffer(&counts, 0, None);
         splat(e, &splat_counting, false);
         if !host {

@@ -697,22 +697,6 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// Encodes with `f`, submits and waits; returns the milliseconds this took on the host.
-    fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
-        let start = Instant::now();
-        let mut encoder = self
-            .gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
-        f(&mut encoder);
-        self.gpu.queue.submit([encoder.finish()]);
-        self.gpu
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-        Ok(start.elapsed().as_secs_f64() * 1e3)
-    }
-
     fn run(&self, rays: &EyeRays, runs: &[LoopRun], setup_ms: f64) -> Result<FrameOutput> {
         let gpu = self.gpu;
         let mut warnings = Vec::new();
@@ -735,7 +719,8 @@ impl<'g> Passes<'g> {
                 .collect();
             let (hard_group, quad_buffers, quad_entries) = self.upload_quads(rays, run, &quads);
             let q = Some((timer.as_ref(), stats.as_ref(), 2 * j));
-            self.submit(|e| self.pass(e, &hard_group, false, false, q))?;
+            self.gpu
+                .submit(|e| self.pass(e, &hard_group, false, false, q))?;
             wall[0] += start.elapsed().as_secs_f64() * 1e3;
             // Wedges (III §3.1, IV §4.1), on the host.
             let start = Instant::now();
@@ -751,7 +736,7 @@ impl<'g> Passes<'g> {
             // Pass 2: penumbra wedges (III §3.2.2).
             let last = j + 1 == runs.len() as u32;
             let q = Some((timer.as_ref(), stats.as_ref(), 2 * j + 1));
-            wall[2] += self.submit(|e| {
+            wall[2] += self.gpu.submit(|e| {
                 self.pass(e, &lg.soft_group, true, false, q);
                 if last {
                     vis_staging.copy(e, &self.res.visibility);
@@ -791,7 +776,7 @@ impl<'g> Passes<'g> {
         ];
         for (run, lg) in runs.iter().zip(&loops) {
             let staging = Staging::new(gpu, "statistics readback", self.res.stats.size());
-            self.submit(|e| {
+            self.gpu.submit(|e| {
                 e.clear_buffer(&self.res.stats, 0, None);
                 self.pass(e, &lg.hard_group, false, true, None);
                 self.pass(e, &lg.soft_group, true, true, None);
