@@ -95,3 +95,20 @@ impl PassStats {
             .collect())
     }
 }
+
+/// The counters per pass of `stats`, or `None` and a warning when the adapter has no
+/// PIPELINE_STATISTICS_QUERY (no query set was made).
+pub fn read_or_warn(
+    gpu: &Gpu,
+    stats: &Option<PassStats>,
+    warnings: &mut Vec<String>,
+) -> Result<Option<Vec<Counters>>> {
+    match stats {
+        Some(s) => s.read(gpu).map(Some),
+        None => {
+            warnings
+                .push("adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into());
+            Ok(None)
+        }
+    }
+}

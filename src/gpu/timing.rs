@@ -71,3 +71,19 @@ impl PassTimer {
             .collect())
     }
 }
+
+/// The milliseconds per pass of `timer`, or `None` and a warning when the adapter has no
+/// TIMESTAMP_QUERY (no timer was made).
+pub fn read_ms_or_warn(
+    gpu: &Gpu,
+    timer: &Option<PassTimer>,
+    warnings: &mut Vec<String>,
+) -> Result<Option<Vec<f64>>> {
+    match timer {
+        Some(t) => t.read_ms(gpu).map(Some),
+        None => {
+            warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
+            Ok(None)
+        }
+    }
+}

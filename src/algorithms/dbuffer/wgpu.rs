@@ -29,8 +29,8 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
-use crate::gpu::stats::PassStats;
-use crate::gpu::timing::PassTimer;
+use crate::gpu::stats::{read_or_warn, PassStats};
+use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::Gpu;
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::EdgeAdjacency;
@@ -673,22 +673,8 @@ impl<'g> Passes<'g> {
         let readback_start = Instant::now();
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let gpu_ms = match &timer {
-            Some(t) => Some(t.read_ms(gpu)?),
-            None => {
-                warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
-                None
-            }
-        };
-        let pipeline = match &stats {
-            Some(s) => Some(s.read(gpu)?),
-            None => {
-                warnings.push(
-                    "adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into(),
-                );
-                None
-            }
-        };
+        let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+        let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
 
         // The instrumented submission: same passes, counting with atomics.
         let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());

@@ -727,20 +727,8 @@ pub(crate) fn read_queries(
     stats: &Option<PassStats>,
     warnings: &mut Vec<String>,
 ) -> Result<(Option<Vec<f64>>, Option<Vec<Counters>>)> {
-    let gpu_ms = match timer {
-        Some(t) => Some(t.read_ms(gpu)?),
-        None => {
-            warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
-            None
-        }
-    };
-    let pipeline = match stats {
-        Some(s) => Some(s.read(gpu)?),
-        None => {
-            warnings
-                .push("adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into());
-            None
-        }
-    };
-    Ok((gpu_ms, pipeline))
+    Ok((
+        crate::gpu::timing::read_ms_or_warn(gpu, timer, warnings)?,
+        crate::gpu::stats::read_or_warn(gpu, stats, warnings)?,
+    ))
 }

@@ -28,7 +28,7 @@ use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
-use crate::gpu::timing::PassTimer;
+use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::Gpu;
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
@@ -718,13 +718,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     })?;
     let data: Vec<f32> = words(&vis_staging.read(gpu)?);
     let mut warnings: Vec<String> = split.warning().into_iter().collect();
-    let gpu_ms = match &timer {
-        Some(t) => Some(t.read_ms(gpu)?),
-        None => {
-            warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
-            None
-        }
-    };
+    let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
 
     // The instrumented replay of `splat`.
     let counts_staging = Staging::new(gpu, "counts readback", counts.size());
