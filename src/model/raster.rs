@@ -181,6 +181,20 @@ impl Target {
             y1: ((ty + 1) * self.tile).min(self.height),
         }
     }
+
+    /// Per tile, how many of its pixels (row-major index `y * width + x`) satisfy `counts`:
+    /// the scheduling weights of a per-pixel step over the tiles.
+    pub fn tile_weights(&self, counts: impl Fn(usize) -> bool) -> Vec<u64> {
+        (0..self.tiles())
+            .map(|t| {
+                let r = self.tile_rect(t);
+                (r.y0..r.y1)
+                    .flat_map(|y| (r.x0..r.x1).map(move |x| (y * self.width + x) as usize))
+                    .filter(|&i| counts(i))
+                    .count() as u64
+            })
+            .collect()
+    }
 }
 
 /// Pixels [x0, x1) × [y0, y1) of tile `index`.

@@ -282,15 +282,7 @@ pub fn eye_lookup<L: Lookup>(
         normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
-    let weights: Vec<u64> = (0..tiles.tiles())
-        .map(|t| {
-            let r = tiles.tile_rect(t);
-            (r.y0..r.y1)
-                .flat_map(|y| (r.x0..r.x1).map(move |x| (y * g.width + x) as usize))
-                .filter(|&i| g.is_hit(i))
-                .count() as u64
-        })
-        .collect();
+    let weights = tiles.tile_weights(|i| g.is_hit(i));
     let outs = m.run_step("lookup", &pass, &weights);
     let mut vis = VisibilityBuffer::lit(g.width, g.height);
     for (i, v) in outs.into_iter().flatten() {
