@@ -11,6 +11,8 @@ use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::harness::{light_as, ReferenceCache};
 use shadowbench::metrics::compare;
+use shadowbench::model::MachineConfig;
+use shadowbench::record::Phase;
 use shadowbench::scene::generators::{self, primitives, GeneratorParams};
 use shadowbench::scene::{Camera, Light, Object, Role, Scene};
 use shadowbench::visibility::VisibilityBuffer;
@@ -270,4 +272,89 @@ fn the_sqrt_falloff_is_the_same_t_through_another_function() {
         penumbra += usize::from(*a > 0.05 && *a < 0.95);
     }
     assert!(penumbra > 20, "{penumbra}");
+}
+
+/// `volume_build: single_core` (the paper's single CPU, §5) runs phases `silhouettes` and
+/// `volumes` on one core: the same work, so the same image and counts, in the time the
+/// parallel run's cores spent together: about the core count times longer where the work
+/// spreads over every core (on 24 cores the steps of this frame have fewer tasks than cores;
+/// on 4 they fill them).
+#[test]
+fn single_core_volume_build_takes_the_cores_summed_time_and_changes_nothing_else() {
+    let scene = generated("blob-on-plane", 5_760, disc(Vec3::new(1.0, 7.0, 0.5), 0.8));
+    let f = frame(scene, [64, 48], 256);
+    for machine in [MachineConfig::default(), MachineConfig::larrabee(4)] {
+        let with = |build: &str| ExecContext {
+            options: [(ID.to_string(), serde_json::json!({ "volume_build": build }))].into(),
+            machine: machine.clone(),
+            ..ExecContext::default()
+        };
+        let par = algorithms::run(ID, Backend::CpuModel, &f, &with("parallel")).unwrap();
+        let one = algorithms::run(ID, Backend::CpuModel, &f, &with("single_core")).unwrap();
+        assert_eq!(par.visibility.data, one.visibility.data);
+        let native = algorithms::run(ID, Backend::CpuNative, &f, &with("single_core")).unwrap();
+        assert_eq!(native.visibility.data, one.visibility.data);
+        // The algorithm's counts and the work executed are the same; only caches and times
+        // differ.
+        for name in [
+            "fill",
+            "overdraw",
+            "dbuffer.scene_fill",
+            "dbuffer.bytes",
+            "silhouette.umbra_edges",
+            "silhouette.penumbra_edges",
+            "volumes.umbra_triangles",
+            "volumes.closing_triangles",
+            "vector_ops",
+            "active_lanes",
+            "scalar_ops",
+            "gathers",
+        ] {
+            assert!(par.counters.get(name).is_some(), "{name}");
+            assert_eq!(par.counters.get(name), one.counters.get(name), "{name}");
+        }
+        let cores = f64::from(machine.cores);
+        let barrier_ms = machine.barrier_cycles / (machine.clock_ghz * 1e6);
+        let (mut par_total, mut one_total) = (0.0, 0.0);
+        let mut spread = 0;
+        for phase in ["silhouettes", "volumes"] {
+            let get = |o: &FrameOutput| o.phases.iter().find(|p| p.name == phase).unwrap().clone();
+            let (p, s) = (get(&par), get(&one));
+            par_total += p.model_ms.unwrap();
+            one_total += s.model_ms.unwrap();
+            let steps: Vec<&str> = p
+                .counters
+                .0
+                .keys()
+                .filter_map(|k| k.strip_prefix("step.")?.strip_suffix(".model_ms"))
+                .collect();
+            assert!(!steps.is_empty(), "{phase}");
+            for step in steps {
+                let c =
+                    |o: &Phase, what: &str| o.counters.get(&format!("step.{step}.{what}")).unwrap();
+                assert_eq!(c(&p, "bandwidth_bound"), 0.0, "{step}");
+                assert_eq!(c(&s, "load_imbalance"), 1.0, "{step}");
+                // The parallel step took its busiest core's time; its cores together spent
+                // `cores × mean = cores × busiest / imbalance`, which one core spends alone.
+                let busiest = c(&p, "model_ms") - barrier_ms;
+                let summed = cores * busiest / c(&p, "load_imbalance");
+                let alone = c(&s, "model_ms") - barrier_ms;
+                let ratio = alone / summed;
+                assert!((0.8..1.25).contains(&ratio), "{step}: {alone} vs {summed}");
+                if c(&p, "load_imbalance") < 1.4 {
+                    // Work spread about evenly over every core: one core takes about `cores`
+                    // times as long.
+                    spread += 1;
+                    assert!(
+                        alone / busiest > 0.6 * cores,
+                        "{step}: {alone} vs {busiest}"
+                    );
+                }
+            }
+        }
+        assert!(one_total > 2.0 * par_total, "{one_total} vs {par_total}");
+        if machine.cores == 4 {
+            assert!(spread > 0, "no step spread over the 4 cores");
+        }
+    }
 }

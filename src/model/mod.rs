@@ -201,6 +201,10 @@ pub struct Machine {
     phases: Vec<PhaseRecord>,
     /// Index of the phase being recorded.
     current: usize,
+    /// Whether steps run on one core ([`Machine::set_single_core`]).
+    single_core: bool,
+    /// The caches of that core on `cpu-model`, created on first use.
+    single_core_caches: Option<CoreCaches>,
 }
 
 impl Machine {
@@ -217,7 +221,21 @@ impl Machine {
             cores,
             phases: Vec::new(),
             current: 0,
+            single_core: false,
+            single_core_caches: None,
         }
+    }
+
+    /// Runs the steps that follow, until called with `false`, on one core instead of all of
+    /// them: on `cpu-native` the tasks run one after the other on the calling host thread; on
+    /// `cpu-model` every task goes to one core of the model's kind (the same costs and cache
+    /// sizes) whose caches are its own, apart from the machine's cores: the work of a host
+    /// processor beside the machine, which leaves the cores' caches as they were. The step's
+    /// time is that core's cycles (plus the barrier); its work counters are the same sums as on
+    /// all cores, its cache counters those of the one core. The one core keeps its caches
+    /// from one single-core stretch to the next within the frame.
+    pub fn set_single_core(&mut self, on: bool) {
+        self.single_core = on;
     }
 
     pub fn is_model(&self) -> bool {
@@ -297,13 +315,25 @@ impl Machine {
         kernel: &K,
         weights: &[u64],
     ) -> Vec<K::Out> {
-        let Some(cores) = self.cores.as_mut() else {
-            return (0..weights.len())
-                .into_par_iter()
-                .map(|t| kernel.run(&mut NoProbe, t))
-                .collect();
-        };
         let config = &self.config;
+        let cores: &mut [CoreCaches] = match (self.cores.as_mut(), self.single_core) {
+            (None, false) => {
+                return (0..weights.len())
+                    .into_par_iter()
+                    .map(|t| kernel.run(&mut NoProbe, t))
+                    .collect();
+            }
+            (None, true) => {
+                return (0..weights.len())
+                    .map(|t| kernel.run(&mut NoProbe, t))
+                    .collect();
+            }
+            (Some(cores), false) => cores,
+            (Some(_), true) => std::slice::from_mut(
+                self.single_core_caches
+                    .get_or_insert_with(|| CoreCaches::new(config)),
+            ),
+        };
         let lists = timing::schedule(weights, cores.len());
         type CoreResult<O> = (CoreWork, Vec<BufferStats>, Vec<(usize, O)>);
         let per_core: Vec<CoreResult<K::Out>> = cores
@@ -431,9 +461,18 @@ impl Machine {
         self.close_phase();
         let line = f64::from(self.config.line_bytes);
         if let Some(cores) = self.cores.as_mut() {
+            let cores: Vec<&mut CoreCaches> = cores
+                .iter_mut()
+                .chain(&mut self.single_core_caches)
+                .collect();
             let before: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
-            cores.iter_mut().for_each(CoreCaches::flush);
-            let after: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
+            let after: u64 = cores
+                .into_iter()
+                .map(|c| {
+                    c.flush();
+                    c.stats.dram_write_lines
+                })
+                .sum();
             if let Some(p) = self.phases.last_mut() {
                 p.counters
                     .add("dram_write_bytes", (after - before) as f64 * line);
@@ -553,5 +592,38 @@ mod tests {
                 assert!(f.model_ms.is_none());
             }
         }
+    }
+
+    #[test]
+    fn single_core_steps_do_the_same_work_on_one_core() {
+        struct Ops;
+        impl TaskKernel for Ops {
+            type Out = usize;
+            fn run<P: Probe>(&self, p: &mut P, t: usize) -> usize {
+                p.vector(1000, Mask::ALL);
+                t
+            }
+        }
+        let weights = vec![1u64; 8];
+        let run = |single: bool| {
+            let mut m = Machine::new(Backend::CpuModel, MachineConfig::larrabee(4));
+            m.phase("p");
+            m.set_single_core(single);
+            let out = m.run_step("ops", &Ops, &weights);
+            m.set_single_core(false);
+            assert_eq!(out, (0..8).collect::<Vec<_>>());
+            m.finish()
+        };
+        let (par, one) = (run(false), run(true));
+        assert_eq!(par.counters.get("vector_ops"), Some(8000.0));
+        assert_eq!(one.counters.get("vector_ops"), Some(8000.0));
+        // 8 equal tasks: 2 per core on 4 cores, 8 on one.
+        let config = MachineConfig::larrabee(4);
+        let barrier = config.barrier_cycles / (config.clock_ghz * 1e6);
+        let (p, o) = (
+            par.model_ms.unwrap() - barrier,
+            one.model_ms.unwrap() - barrier,
+        );
+        assert!((o / p - 4.0).abs() < 1e-9, "{o} vs {p}");
     }
 }

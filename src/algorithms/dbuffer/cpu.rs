@@ -21,7 +21,7 @@ use glam::{Vec2, Vec3};
 
 use super::{
     centre_behind, classify, edge_distance, extrude, extrusion_points, front_fraction, rim_arc,
-    t_penumbra, t_umbra, visibility, DbufferOptions, Disc, Facing,
+    t_penumbra, t_umbra, visibility, DbufferOptions, Disc, Facing, VolumeBuild,
 };
 use crate::algorithms::hard_shadow_map::cpu::{
     eye_lookup, machine, output, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
@@ -705,6 +705,22 @@ pub fn volumes(
     Volumes { umbra, penumbra }
 }
 
+/// Phases `silhouettes` and `volumes`, on every core or on one ([`VolumeBuild`]).
+pub fn build_volumes(
+    m: &mut Machine,
+    frame: &Frame,
+    adj: &EdgeAdjacency,
+    disc: Disc,
+    view: &LightView,
+    o: &DbufferOptions,
+) -> Volumes {
+    m.set_single_core(o.volume_build == VolumeBuild::SingleCore);
+    let s = silhouettes(m, adj, disc);
+    let v = volumes(m, frame, &s, disc, view, o);
+    m.set_single_core(false);
+    v
+}
+
 /// The fragment program of the volume draws: the perspective-correct edge depth; the umbra
 /// volume discards fragments in front of the scene surface seen from `c`. Tile state: unused.
 struct VolumeFragments<'a> {
@@ -941,13 +957,12 @@ pub fn render(
     let mut m = machine(backend, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
-    let s = silhouettes(&mut m, &adj, disc);
     let view = LightView::new(
         &frame.scene.light,
         frame.scene.bounds(),
         frame.params.map_resolution,
     );
-    let v = volumes(&mut m, frame, &s, disc, &view, &o);
+    let v = build_volumes(&mut m, frame, &adj, disc, &view, &o);
     let d = dbuffer(&mut m, frame, &v);
     let lookup = DLookup {
         d: &d,
@@ -956,5 +971,10 @@ pub fn render(
         o,
     };
     let vis = eye_lookup(&mut m, frame, &d.scene, o.bias, &lookup);
-    output(m, vis)
+    let mut out = output(m, vis);
+    out.execution.insert(
+        "volume_build".into(),
+        serde_json::json!(o.volume_build.describe()),
+    );
+    out
 }

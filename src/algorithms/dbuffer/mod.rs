@@ -72,6 +72,36 @@ pub enum Falloff {
     Sqrt,
 }
 
+/// Where phases `silhouettes` and `volumes` run (§5, §6.1: the paper generates the volumes on
+/// the CPU and renders on the graphics card, and finds scenes of complex occluders
+/// "CPU-limited").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VolumeBuild {
+    /// On every core, as the other phases (cpu-model: the machine's cores; cpu-native and the
+    /// host phases of wgpu: the host's threads).
+    #[default]
+    Parallel,
+    /// On one core, as the paper's single CPU: on cpu-model one core of the model's kind beside
+    /// the machine (its own caches; the machine's cores only rasterize and look up); on
+    /// cpu-native and on wgpu's host phases one host thread. The phases' results, and so the
+    /// image and every counter but the cache ones and the times, are those of `parallel`.
+    SingleCore,
+}
+
+impl VolumeBuild {
+    /// In words, for the run's `execution` record.
+    pub fn describe(self) -> &'static str {
+        match self {
+            VolumeBuild::Parallel => "silhouettes and volumes on every core",
+            VolumeBuild::SingleCore => {
+                "silhouettes and volumes on one core (cpu-model: one modelled core beside the \
+                 machine; cpu-native and wgpu: one host thread)"
+            }
+        }
+    }
+}
+
 /// Options of `dbuffer` (scenario `options.dbuffer`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,6 +115,9 @@ pub struct DbufferOptions {
     /// Bias of the test "x lies behind the scene surface seen from c" (the shadow-map test).
     #[serde(default)]
     pub bias: Bias,
+    /// Where the volumes are built ([`VolumeBuild`]).
+    #[serde(default)]
+    pub volume_build: VolumeBuild,
 }
 
 fn default_closing_segments() -> u32 {
@@ -97,6 +130,7 @@ impl Default for DbufferOptions {
             falloff: Falloff::default(),
             closing_segments: default_closing_segments(),
             bias: Bias::default(),
+            volume_build: VolumeBuild::default(),
         }
     }
 }
@@ -563,5 +597,20 @@ mod tests {
         assert!(e.contains("closing_segments") && e.contains("got 0"), "{e}");
         o.insert(ID.to_string(), serde_json::json!({"falloff": "sqrt"}));
         assert_eq!(options(&o).unwrap().falloff, Falloff::Sqrt);
+        o.insert(ID.to_string(), serde_json::json!({"volume_build": "gpu"}));
+        let e = options(&o).unwrap_err().to_string();
+        assert!(
+            e.contains("$.options.dbuffer.volume_build") && e.contains("gpu"),
+            "{e}"
+        );
+        o.insert(
+            ID.to_string(),
+            serde_json::json!({"volume_build": "single_core"}),
+        );
+        assert_eq!(options(&o).unwrap().volume_build, VolumeBuild::SingleCore);
+        assert_eq!(
+            options(&BTreeMap::new()).unwrap().volume_build,
+            VolumeBuild::Parallel
+        );
     }
 }

@@ -1,6 +1,7 @@
 //! `dbuffer` as GPU passes. As in the paper's implementation (§5, §6.1: "the volumes are
 //! generated on the CPU"), phases `silhouettes` and `volumes` run on the host (the cpu-native
-//! kernels, wall time only); then:
+//! kernels, wall time only: on the host's threads, or on one thread with `volume_build:
+//! single_core`, the paper's single CPU); then:
 //!
 //! 1. `dbuffer` — three render passes from the light centre into `map_resolution`² targets:
 //!    the scene's depth (Depth32Float, `|cx_o|`); the umbra volume (its own Depth32Float for
@@ -21,7 +22,7 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-use super::cpu::{silhouettes, volumes, VolumeMesh};
+use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
 use crate::algorithms::hard_shadow_map::cpu::machine;
 use crate::algorithms::shadow_map::LightView;
@@ -91,15 +92,19 @@ pub fn render(
             gpu.limits.max_texture_dimension_2d
         )));
     }
-    // The host phases, as the cpu-native execution runs them.
+    // The host phases, as the cpu-native execution runs them: their wall time on the host's
+    // threads, or on one host thread with `volume_build: single_core`.
     let mut m = machine(Backend::CpuNative, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
-    let s = silhouettes(&mut m, &adj, disc);
     let view = LightView::new(&frame.scene.light, frame.scene.bounds(), res);
-    let v = volumes(&mut m, frame, &s, disc, &view, &o);
+    let v = build_volumes(&mut m, frame, &adj, disc, &view, &o);
     let host = m.finish();
     let mut out = Passes::new(gpu, frame, &view, disc, &v.umbra, &v.penumbra, &o).run(frame)?;
+    out.execution.insert(
+        "volume_build".into(),
+        serde_json::json!(o.volume_build.describe()),
+    );
     let mut phases = host.phases;
     phases.append(&mut out.phases);
     for p in &phases[..2] {
