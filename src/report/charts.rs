@@ -313,7 +313,108 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
             },
         });
     }
+    specs.extend(phase_grids(&ok));
     specs
+}
+
+/// Most runs a per-run phase chart shows.
+const GRID_BARS: usize = 30;
+
+/// Per-phase time of every run of a series whose runs vary along two or more axes (such as
+/// paper 003's grid of scenes × resolutions): one bar per run, named by the values that
+/// vary, ordered by them. Where the phases' shares move along one axis and not another (fill
+/// growing with the resolution, volume generation with the scene), the chart shows it.
+fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
+    let mut specs = Vec::new();
+    let mut names: Vec<String> = ok.iter().map(|r| series_name(r)).collect();
+    names.sort();
+    names.dedup();
+    for name in names {
+        let runs: Vec<&RunRecord> = ok
+            .iter()
+            .copied()
+            .filter(|r| series_name(r) == name)
+            .collect();
+        let varying: Vec<Axis> = Axis::ALL
+            .into_iter()
+            .filter(|a| {
+                let mut v: Vec<Option<f64>> = runs.iter().map(|r| a.value(r)).collect();
+                v.dedup();
+                v.iter().any(|x| *x != v[0])
+            })
+            .collect();
+        if varying.len() < 2 || runs.len() > GRID_BARS {
+            continue;
+        }
+        let key = |r: &RunRecord| -> Vec<f64> {
+            varying
+                .iter()
+                .map(|a| a.value(r).unwrap_or(f64::NAN))
+                .collect()
+        };
+        let mut runs = runs;
+        runs.sort_by(|a, b| {
+            key(a)
+                .iter()
+                .zip(key(b))
+                .map(|(x, y)| x.total_cmp(&y))
+                .find(|o| o.is_ne())
+                .unwrap_or(std::cmp::Ordering::Equal)
+        });
+        for (id, label) in TIMES {
+            let bars: Option<Vec<Bar>> = runs
+                .iter()
+                .map(|r| {
+                    let parts = r
+                        .phases
+                        .iter()
+                        .map(|p| Some((p.name.clone(), phase_time(p, id)?)))
+                        .collect::<Option<Vec<_>>>()?;
+                    let values: Vec<String> = varying.iter().map(|a| axis_value(*a, r)).collect();
+                    Some(Bar {
+                        name: values.join(" / "),
+                        parts,
+                    })
+                })
+                .collect();
+            let Some(bars) = bars.filter(|b| !b.is_empty()) else {
+                continue;
+            };
+            let axes: Vec<&str> = varying.iter().map(|a| a.label()).collect();
+            specs.push(Spec {
+                file: format!(
+                    "phases_grid_{id}_{}",
+                    name.replace(" / ", "_").replace(['/', ' '], "_")
+                ),
+                title: format!("{label} per phase, every run of {name}"),
+                caption: format!(
+                    "One bar per run, named and ordered by what varies: {}.",
+                    axes.join(", then ")
+                ),
+                kind: Kind::Stacked {
+                    y_label: format!("{label} (ms)"),
+                    bars,
+                },
+            });
+        }
+    }
+    specs
+}
+
+/// A run's value on `axis`, short, for a bar's name.
+fn axis_value(axis: Axis, r: &RunRecord) -> String {
+    let p = &r.params;
+    match axis {
+        Axis::Triangles => format!("{} tris", p.triangles),
+        Axis::LightSize => format!("light {}", fmt_num(p.light_size as f64)),
+        Axis::MapResolution => format!("map {}", p.map_resolution),
+        Axis::TileSize => format!("tile {}", p.tile_size),
+        Axis::ImagePixels => format!("{}×{}", p.image[0], p.image[1]),
+        Axis::OccluderHeight => p
+            .occluder_height
+            .map_or("-".into(), |h| format!("height {}", fmt_num(h as f64))),
+        Axis::Cores => p.cores.map_or("-".into(), |c| format!("{c} cores")),
+    }
 }
 
 fn describe_params(r: &RunRecord) -> String {
@@ -851,6 +952,56 @@ mod tests {
             c.series[1].points[2].1,
             r.counters.get("mem_read_bytes").unwrap() + r.counters.get("mem_write_bytes").unwrap()
         );
+    }
+
+    #[test]
+    fn a_series_swept_along_two_axes_gets_a_bar_per_run_split_by_phase() {
+        let mut runs = Vec::new();
+        for image in [[600, 600], [300, 300]] {
+            for t in [5760, 224] {
+                let mut r = record("dbuffer", "cpu-model", t, 32);
+                r.params.image = image;
+                r.phases[0].model_ms = Some(f64::from(t) / 1000.0);
+                r.phases[1].model_ms = Some(f64::from(image[0]) / 100.0);
+                runs.push(r);
+            }
+        }
+        // A series along one axis only gets none.
+        runs.push(record("pcss", "cpu-model", 100, 32));
+        runs.push(record("pcss", "cpu-model", 1000, 32));
+        let specs = plan(&runs);
+        let grids: Vec<&Spec> = specs
+            .iter()
+            .filter(|s| s.file.starts_with("phases_grid_"))
+            .collect();
+        let files: Vec<&str> = grids.iter().map(|s| s.file.as_str()).collect();
+        assert_eq!(
+            files,
+            [
+                "phases_grid_model_ms_dbuffer_cpu-model",
+                "phases_grid_wall_ms_dbuffer_cpu-model"
+            ]
+        );
+        let Kind::Stacked { bars, .. } = &grids[0].kind else {
+            panic!()
+        };
+        let names: Vec<&str> = bars.iter().map(|b| b.name.as_str()).collect();
+        assert_eq!(
+            names,
+            [
+                "224 tris / 300×300",
+                "224 tris / 600×600",
+                "5760 tris / 300×300",
+                "5760 tris / 600×600"
+            ]
+        );
+        assert_eq!(
+            bars[3].parts,
+            [("construct".to_string(), 5.76), ("soft".to_string(), 6.0)]
+        );
+        assert!(grids[0]
+            .caption
+            .contains("scene triangles, then image pixels"));
     }
 
     #[test]

@@ -145,10 +145,16 @@ fn figure(name: &str, json: &serde_json::Value) -> Option<f64> {
         let (phase, time) = rest.rsplit_once('.')?;
         let phases = json["phases"].as_array()?;
         let total: f64 = phases.iter().filter_map(|p| p[time].as_f64()).sum();
-        let mine = phases
-            .iter()
-            .find(|p| p["name"] == phase)
-            .and_then(|p| p[time].as_f64())?;
+        // `a+b`: the phases' times together.
+        let mine = phase
+            .split('+')
+            .map(|name| {
+                phases
+                    .iter()
+                    .find(|p| p["name"] == name)
+                    .and_then(|p| p[time].as_f64())
+            })
+            .sum::<Option<f64>>()?;
         return (total > 0.0).then(|| mine / total);
     }
     // Counter names contain dots (`mem_est.gbuffer.read_bytes`): after `counters.` the rest is
@@ -247,11 +253,16 @@ mod tests {
             "paper": "p", "claim": "c",
             "measure": { "figure": "phase_share.soft.model_ms", "where": { "backend": "cpu-model" } }
         }));
+        let both = claim(serde_json::json!({
+            "paper": "p", "claim": "c", "expect": "> 0.99",
+            "measure": { "figure": "phase_share.construct+soft.wall_ms",
+                         "where": { "backend": "cpu-model" }, "aggregate": "min" }
+        }));
         let none = claim(serde_json::json!({
             "paper": "p", "claim": "c", "expect": "> 0",
             "measure": { "figure": "model_ms", "where": { "backend": "wgpu" } }
         }));
-        let out = evaluate("s", &[fps, ratio, share, none], &all);
+        let out = evaluate("s", &[fps, ratio, share, none, both], &all);
         assert_eq!(
             out[0].measured.as_ref().unwrap(),
             &[(
@@ -268,5 +279,8 @@ mod tests {
         assert_eq!(shares.len(), 2);
         assert!(shares.iter().all(|(_, v)| (v - 0.6).abs() < 1e-12));
         assert!(out[3].measured.is_err() && out[3].holds.is_none());
+        // Phases of 1 and 2 wall ms together: the whole frame.
+        assert_eq!(out[4].measured.as_ref().unwrap()[0].1, 1.0);
+        assert_eq!(out[4].holds, Some(true));
     }
 }

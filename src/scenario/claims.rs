@@ -47,7 +47,8 @@ pub struct Measure {
     ///   `params.light_size`);
     /// - `per_second.PATH`: 1000 / the figure at PATH (frames per second from a time in ms);
     /// - `phase_share.PHASE.TIME`: the phase's `TIME` (`model_ms`, `gpu_ms`, `wall_ms`) over
-    ///   the sum of all phases' `TIME`.
+    ///   the sum of all phases' `TIME`; `PHASE` may join several with `+`
+    ///   (`silhouettes+volumes`: their times together).
     pub figure: String,
     /// Runs whose fields equal these values: `scenario` (default: the scenario stating the
     /// claim), `algorithm`, `backend`, `scene`, `light`, or a parameter (`triangles`, `light_size`, `map_resolution`, `tile_size`,
@@ -154,10 +155,11 @@ fn measure(at: &str, m: &Measure) -> Result<(), InputError> {
     }
     if let Some(rest) = m.figure.strip_prefix("phase_share.") {
         match rest.rsplit_once('.') {
-            Some((phase, "model_ms" | "gpu_ms" | "wall_ms")) if !phase.is_empty() => {}
+            Some((phase, "model_ms" | "gpu_ms" | "wall_ms"))
+                if !phase.split('+').any(str::is_empty) => {}
             _ => {
                 return Err(bad_figure(
-                    "must be phase_share.PHASE.(model_ms|gpu_ms|wall_ms)",
+                    "must be phase_share.PHASE[+PHASE...].(model_ms|gpu_ms|wall_ms)",
                 ))
             }
         }
