@@ -11,6 +11,9 @@
 //!    silhouette edge below the light plane (the rule of [`super::DEPTH_RULE`]);
 //! 4. `eye_lookup`: eq. 2, eq. 3 and eq. 4 per eye sample.
 //!
+//! Steps 1 and 2 run on every core, or with `volume_build: single_core` on one
+//! ([`build_volumes`], [`super::VolumeBuild`]).
+//!
 //! `fill` counts the fragments of the two volume draws (the scene's depth draw is
 //! `dbuffer.scene_fill`); `overdraw` the volume fragments that did not end up in the D-buffer
 //! (behind a nearer volume surface, or in front of the scene for the umbra volume).

@@ -27,9 +27,19 @@
 //! Umbra quads are trimmed where they meet (§2.1, Figure 2b) locally: at a vertex shared by
 //! two umbra silhouette edges forming a convex corner, each quad is clipped by the other's
 //! plane. Not built: trimming against quads that do not share a vertex (a long thin occluder's
-//! umbra closes along a ridge between its long sides) and at concave corners. The depth rule
-//! keeps, per texel, the *first* umbra surface behind the nearest occluder surface, which is the
-//! exit of the umbra volume whether or not the quads beyond it were trimmed; trimming saves fill.
+//! umbra closes along a ridge between its long sides). The depth rule keeps, per texel, the
+//! *first* umbra surface behind the nearest occluder surface, which is the exit of the umbra
+//! volume whether or not the quads beyond it were trimmed; trimming saves fill.
+//!
+//! At a concave corner (a reflex vertex `v` of the silhouette seen from the light) there is
+//! nothing to trim: the two umbra quads, extruded from `v` away from different `p_u`, diverge,
+//! and the umbra between them is bounded by the cone of lines through `v` and the rim arc
+//! between the two `p_u` (worked out for an L-shaped plate under the disc: below the corner the
+//! umbra reaches the arc, beyond both quads). Not built either: the paper does not describe that
+//! surface, and along a ray from `c` through that gap the umbra is *entered* behind the
+//! occluder, not left, which eq. 3's umbra branch (0 up to the volume, rising after) cannot
+//! express; such corners are concave occluders, the first case §4 lists as breaking
+//! assumption 1.
 
 pub mod cpu;
 pub mod wgpu;
