@@ -421,5 +421,28 @@ fn dbuffer_on_wgpu_agrees_with_the_cpu_model() {
         if gpu.gpu_ms.is_some() {
             assert!(gpu.phases[2].gpu_ms.is_some() && gpu.phases[3].gpu_ms.is_some());
         }
+        // The volumes built on one host thread (the paper's one CPU) are the same volumes:
+        // the same image and counts, the host phases timed on that thread.
+        let ctx = ExecContext {
+            options: [(
+                "dbuffer".to_string(),
+                serde_json::json!({"volume_build": "single_core"}),
+            )]
+            .into(),
+            ..ExecContext::default()
+        };
+        let one = algorithms::run("dbuffer", Backend::Wgpu, &f, &ctx).unwrap();
+        assert_eq!(one.visibility.data, gpu.visibility.data, "{name}");
+        for c in [
+            "fill",
+            "overdraw",
+            "silhouette.umbra_edges",
+            "volumes.umbra_triangles",
+        ] {
+            assert_eq!(one.counters.get(c), gpu.counters.get(c), "{name}: {c}");
+        }
+        let build = one.execution["volume_build"].as_str().unwrap();
+        assert!(build.contains("one host thread"), "{build}");
+        assert!(one.phases[..2].iter().all(|p| p.wall_ms > 0.0));
     }
 }
