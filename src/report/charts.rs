@@ -30,17 +30,19 @@ pub enum Axis {
     TileSize,
     ImagePixels,
     OccluderHeight,
+    OccluderOffset,
     Cores,
 }
 
 impl Axis {
-    pub const ALL: [Axis; 7] = [
+    pub const ALL: [Axis; 8] = [
         Axis::Triangles,
         Axis::LightSize,
         Axis::MapResolution,
         Axis::TileSize,
         Axis::ImagePixels,
         Axis::OccluderHeight,
+        Axis::OccluderOffset,
         Axis::Cores,
     ];
 
@@ -52,6 +54,7 @@ impl Axis {
             Axis::TileSize => "tile_size",
             Axis::ImagePixels => "image_pixels",
             Axis::OccluderHeight => "occluder_height",
+            Axis::OccluderOffset => "occluder_offset",
             Axis::Cores => "cores",
         }
     }
@@ -65,6 +68,7 @@ impl Axis {
             Axis::TileSize => "tile size (pixels per side)",
             Axis::ImagePixels => "image pixels (width × height)",
             Axis::OccluderHeight => "occluder height above receiver",
+            Axis::OccluderOffset => "occluder lateral offset (x)",
             Axis::Cores => "modelled cores",
         }
     }
@@ -87,6 +91,7 @@ impl Axis {
             Axis::TileSize => Some(p.tile_size as f64),
             Axis::ImagePixels => Some(p.image[0] as f64 * p.image[1] as f64),
             Axis::OccluderHeight => p.occluder_height.map(f64::from),
+            Axis::OccluderOffset => p.occluder_offset.map(f64::from),
             Axis::Cores => p.cores.map(f64::from),
         }
     }
@@ -330,6 +335,9 @@ fn describe_params(r: &RunRecord) -> String {
     );
     if let Some(h) = p.occluder_height {
         s.push_str(&format!(", occluder height {}", fmt_num(h as f64)));
+    }
+    if let Some(d) = p.occluder_offset {
+        s.push_str(&format!(", occluder offset {}", fmt_num(d as f64)));
     }
     if let Some(c) = p.cores {
         s.push_str(&format!(", {c} cores"));
@@ -818,6 +826,7 @@ mod tests {
             "image_pixels",
             "cores",
             "occluder_height",
+            "occluder_offset",
         ] {
             assert!(
                 !names.iter().any(|n| n.ends_with(axis)),
