@@ -1,6 +1,6 @@
-//! Comparison charts, each as PNG and SVG: every time and cost figure against every sweep axis
-//! the runs vary along (one line per algorithm × backend), quality against cost with its Pareto
-//! front, and per-phase time split as stacked bars.
+//! Comparison charts, each as PNG and SVG: every time, cost and error figure against every sweep
+//! axis the runs vary along (one line per algorithm × backend), quality against cost with its
+//! Pareto front, and per-phase time split as stacked bars.
 //!
 //! Planning ([`plan`]) is separate from drawing ([`render`]) so which charts a set of runs gets,
 //! and what is on them, can be checked without pixels.
@@ -119,7 +119,7 @@ pub fn overdraw_ratio(r: &RunRecord) -> Option<f64> {
     Some(r.counters.get("overdraw")? / fill)
 }
 
-pub const METRICS: [Metric; 6] = [
+pub const METRICS: [Metric; 7] = [
     Metric {
         id: "wall_ms",
         label: "wall time (ms, measured on the host)",
@@ -149,6 +149,12 @@ pub const METRICS: [Metric; 6] = [
         id: "overdraw_ratio",
         label: "overdraw ratio (overdraw / fill)",
         value: overdraw_ratio,
+    },
+    // Error against a sweep axis, as paper 002 plots it (Figures 17-20).
+    Metric {
+        id: "mae_shadow",
+        label: "error: mean absolute error in shadow (mae_shadow)",
+        value: |r| r.error.as_ref().map(|e| e.mae_shadow),
     },
 ];
 
@@ -811,6 +817,7 @@ mod tests {
                 "memory_bytes",
                 "fill",
                 "overdraw_ratio",
+                "mae_shadow",
             ] {
                 assert!(
                     names.contains(&format!("{m}_vs_{axis}")),
