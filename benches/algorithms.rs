@@ -17,6 +17,7 @@ fn small_frame(algorithm: &str) -> Frame {
             triangles: Some(2_000),
             seed: 1,
             occluder_height: None,
+            occluder_offset: None,
         });
     let kind = algorithms::find(algorithm)
         .expect("registered")

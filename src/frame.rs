@@ -27,6 +27,9 @@ pub struct RunParams {
     /// Height of the main occluder above the receiver, where the scene has one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub occluder_height: Option<f32>,
+    /// Lateral offset of the moving occluder along x, where the scene has one (paper 002 §5.2.5).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub occluder_offset: Option<f32>,
     /// Core count of the modelled machine (cpu-model runs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cores: Option<u32>,
@@ -34,7 +37,7 @@ pub struct RunParams {
 
 impl RunParams {
     /// Parameters of a run in `scene`: its triangle count and light size, the given image and
-    /// map resolution and tile size, no occluder height or core count.
+    /// map resolution and tile size, no occluder height, occluder offset or core count.
     pub fn of_scene(
         scene: &Scene,
         image: [u32; 2],
@@ -48,6 +51,7 @@ impl RunParams {
             tile_size,
             image,
             occluder_height: None,
+            occluder_offset: None,
             cores: None,
         }
     }

@@ -17,6 +17,7 @@
 //!     tile_size: 16,
 //!     image: [32, 24],
 //!     occluder_height: None,
+//!     occluder_offset: None,
 //!     cores: None,
 //! };
 //! let frame = Frame::new(scene, params);

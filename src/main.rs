@@ -119,6 +119,9 @@ struct RenderArgs {
     triangles: Option<u32>,
     #[arg(long)]
     occluder_height: Option<f32>,
+    /// Lateral offset of the moving occluder along x (scene units; paper 002 §5.2.5).
+    #[arg(long, allow_hyphen_values = true)]
+    occluder_offset: Option<f32>,
     /// Light samples per pixel of the reference (a perfect square).
     #[arg(long, default_value_t = algorithms::reference::DEFAULT_SAMPLES)]
     samples: u32,
@@ -235,6 +238,9 @@ fn render(a: RenderArgs) -> Result<()> {
     if let Some(v) = a.occluder_height {
         check::occluder_height("--occluder-height", v)?;
     }
+    if let Some(v) = a.occluder_offset {
+        check::occluder_offset("--occluder-offset", v)?;
+    }
     let machine = MachineConfig::resolve("--machine", &a.machine, Path::new("."))?;
     if let Some(c) = a.cores {
         check::cores("--cores", c)?;
@@ -246,6 +252,7 @@ fn render(a: RenderArgs) -> Result<()> {
             triangles: a.triangles,
             seed,
             occluder_height: a.occluder_height,
+            occluder_offset: a.occluder_offset,
         },
     )?;
     if let Some(s) = a.light_size {
@@ -256,6 +263,7 @@ fn render(a: RenderArgs) -> Result<()> {
     scene.light = harness::light_as(scene.light, kind, scene.bounds().center());
     let params = shadowbench::frame::RunParams {
         occluder_height: a.occluder_height,
+        occluder_offset: a.occluder_offset,
         cores: a.cores,
         ..shadowbench::frame::RunParams::of_scene(&scene, image, a.map_resolution, a.tile_size)
     };

@@ -137,6 +137,9 @@ pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> St
         if let Some(h) = p.occluder_height {
             id.push_str(&format!("_h{h}"));
         }
+        if let Some(d) = p.occluder_offset {
+            id.push_str(&format!("_x{d}"));
+        }
         if let Some(c) = p.cores {
             id.push_str(&format!("_c{c}"));
         }

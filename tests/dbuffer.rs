@@ -32,6 +32,7 @@ fn generated(name: &str, triangles: u32, light: Light) -> Scene {
         triangles: Some(triangles),
         seed: 1,
         occluder_height: None,
+        occluder_offset: None,
     });
     s.light = light;
     s

@@ -20,6 +20,7 @@ fn frame(light_size: f32, tile: u32) -> Frame {
             triangles: Some(600),
             seed: 1,
             occluder_height: None,
+            occluder_offset: None,
         });
     scene.light = scene.light.with_size(light_size);
     let params = RunParams {
@@ -29,6 +30,7 @@ fn frame(light_size: f32, tile: u32) -> Frame {
         tile_size: tile,
         image: [64, 48],
         occluder_height: None,
+        occluder_offset: None,
         cores: None,
     };
     Frame::new(scene, params)

@@ -22,6 +22,7 @@ fn frame(light_size: f32, occluder_height: Option<f32>) -> Frame {
             triangles: Some(2_000),
             seed: 1,
             occluder_height,
+            occluder_offset: None,
         });
     scene.light = scene.light.with_size(light_size);
     let params = RunParams {
@@ -31,6 +32,7 @@ fn frame(light_size: f32, occluder_height: Option<f32>) -> Frame {
         tile_size: 32,
         image: [64, 48],
         occluder_height,
+        occluder_offset: None,
         cores: None,
     };
     Frame::new(scene, params)
@@ -381,6 +383,7 @@ fn a_simplified_shadow_mesh_keeps_the_shadow() {
             triangles: Some(20_000),
             seed: 1,
             occluder_height: None,
+            occluder_offset: None,
         });
     scene.light = scene.light.with_size(0.5);
     let params = RunParams::of_scene(&scene, [96, 72], 512, 32);

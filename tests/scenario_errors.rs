@@ -151,6 +151,40 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             vec!["$.algorithms", "at least one"],
         ),
         (
+            "infinite occluder offset",
+            mutate(
+                r#""sweep": {"#,
+                r#""sweep": { "occluder_offset": [0, 1e39],"#,
+            ),
+            vec!["$.sweep.occluder_offset[1]", "inf"],
+        ),
+        (
+            "occluder offset out of range",
+            mutate(
+                r#""map_resolution": 64"#,
+                r#""map_resolution": 64, "occluder_offset": -250"#,
+            ),
+            vec!["$.params.occluder_offset", "-250"],
+        ),
+        (
+            "occluder offset for a scene without a moving occluder",
+            mutate(r#""sweep": {"#, r#""sweep": { "occluder_offset": [1],"#).replacen(
+                "sphere-on-plane",
+                "street",
+                1,
+            ),
+            vec!["$.sweep.occluder_offset", "street", "plate-on-plane"],
+        ),
+        (
+            "occluder offset for user meshes",
+            objects("data/triangle.obj").replacen(
+                r#""map_resolution": 64"#,
+                r#""map_resolution": 64, "occluder_offset": 1"#,
+                1,
+            ),
+            vec!["$.params.occluder_offset", "generator scene"],
+        ),
+        (
             "cores out of range",
             mutate(r#""sweep": {"#, r#""sweep": { "cores": [0],"#),
             vec!["$.sweep.cores[0]", "got 0"],

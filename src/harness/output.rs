@@ -79,7 +79,7 @@ const CSV_COUNTERS: [&str; 4] = ["fill", "overdraw", "mem_read_bytes", "mem_writ
 /// One row per run with the headline columns; every counter stays in results.json.
 pub fn csv(records: &[RunRecord]) -> String {
     let mut s = String::from(
-        "algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,cores,wall_ms,model_ms,gpu_ms",
+        "algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,occluder_offset,cores,wall_ms,model_ms,gpu_ms",
     );
     for c in CSV_COUNTERS {
         s.push(',');
@@ -101,6 +101,7 @@ pub fn csv(records: &[RunRecord]) -> String {
             p.image[0].to_string(),
             p.image[1].to_string(),
             opt(p.occluder_height.map(f64::from)),
+            opt(p.occluder_offset.map(f64::from)),
             opt(p.cores.map(f64::from)),
             r.wall_ms.to_string(),
             opt(r.model_ms),

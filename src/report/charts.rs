@@ -1,6 +1,6 @@
-//! Comparison charts, each as PNG and SVG: every time and cost figure against every sweep axis
-//! the runs vary along (one line per algorithm × backend), quality against cost with its Pareto
-//! front, and per-phase time split as stacked bars.
+//! Comparison charts, each as PNG and SVG: every time, cost and error figure against every sweep
+//! axis the runs vary along (one line per algorithm × backend), quality against cost with its
+//! Pareto front, and per-phase time split as stacked bars.
 //!
 //! Planning ([`plan`]) is separate from drawing ([`render`]) so which charts a set of runs gets,
 //! and what is on them, can be checked without pixels.
@@ -30,17 +30,19 @@ pub enum Axis {
     TileSize,
     ImagePixels,
     OccluderHeight,
+    OccluderOffset,
     Cores,
 }
 
 impl Axis {
-    pub const ALL: [Axis; 7] = [
+    pub const ALL: [Axis; 8] = [
         Axis::Triangles,
         Axis::LightSize,
         Axis::MapResolution,
         Axis::TileSize,
         Axis::ImagePixels,
         Axis::OccluderHeight,
+        Axis::OccluderOffset,
         Axis::Cores,
     ];
 
@@ -52,6 +54,7 @@ impl Axis {
             Axis::TileSize => "tile_size",
             Axis::ImagePixels => "image_pixels",
             Axis::OccluderHeight => "occluder_height",
+            Axis::OccluderOffset => "occluder_offset",
             Axis::Cores => "cores",
         }
     }
@@ -65,6 +68,7 @@ impl Axis {
             Axis::TileSize => "tile size (pixels per side)",
             Axis::ImagePixels => "image pixels (width × height)",
             Axis::OccluderHeight => "occluder height above receiver",
+            Axis::OccluderOffset => "occluder lateral offset (x)",
             Axis::Cores => "modelled cores",
         }
     }
@@ -87,6 +91,7 @@ impl Axis {
             Axis::TileSize => Some(p.tile_size as f64),
             Axis::ImagePixels => Some(p.image[0] as f64 * p.image[1] as f64),
             Axis::OccluderHeight => p.occluder_height.map(f64::from),
+            Axis::OccluderOffset => p.occluder_offset.map(f64::from),
             Axis::Cores => p.cores.map(f64::from),
         }
     }
@@ -114,7 +119,7 @@ pub fn overdraw_ratio(r: &RunRecord) -> Option<f64> {
     Some(r.counters.get("overdraw")? / fill)
 }
 
-pub const METRICS: [Metric; 6] = [
+pub const METRICS: [Metric; 7] = [
     Metric {
         id: "wall_ms",
         label: "wall time (ms, measured on the host)",
@@ -144,6 +149,12 @@ pub const METRICS: [Metric; 6] = [
         id: "overdraw_ratio",
         label: "overdraw ratio (overdraw / fill)",
         value: overdraw_ratio,
+    },
+    // Error against a sweep axis, as paper 002 plots it (Figures 17-20).
+    Metric {
+        id: "mae_shadow",
+        label: "error: mean absolute error in shadow (mae_shadow)",
+        value: |r| r.error.as_ref().map(|e| e.mae_shadow),
     },
 ];
 
@@ -431,6 +442,9 @@ fn describe_params(r: &RunRecord) -> String {
     );
     if let Some(h) = p.occluder_height {
         s.push_str(&format!(", occluder height {}", fmt_num(h as f64)));
+    }
+    if let Some(d) = p.occluder_offset {
+        s.push_str(&format!(", occluder offset {}", fmt_num(d as f64)));
     }
     if let Some(c) = p.cores {
         s.push_str(&format!(", {c} cores"));
@@ -904,6 +918,7 @@ mod tests {
                 "memory_bytes",
                 "fill",
                 "overdraw_ratio",
+                "mae_shadow",
             ] {
                 assert!(
                     names.contains(&format!("{m}_vs_{axis}")),
@@ -919,6 +934,7 @@ mod tests {
             "image_pixels",
             "cores",
             "occluder_height",
+            "occluder_offset",
         ] {
             assert!(
                 !names.iter().any(|n| n.ends_with(axis)),

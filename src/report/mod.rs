@@ -228,6 +228,7 @@ pub(crate) mod testdata {
                 tile_size: tile,
                 image: [96, 72],
                 occluder_height: None,
+                occluder_offset: None,
                 cores: None,
             },
             counters,

@@ -52,7 +52,7 @@ pub struct Measure {
     pub figure: String,
     /// Runs whose fields equal these values: `scenario` (default: the scenario stating the
     /// claim), `algorithm`, `backend`, `scene`, `light`, or a parameter (`triangles`, `light_size`, `map_resolution`, `tile_size`,
-    /// `image`, `occluder_height`, `cores`).
+    /// `image`, `occluder_height`, `occluder_offset`, `cores`).
     #[serde(default, rename = "where")]
     pub select: BTreeMap<String, serde_json::Value>,
     /// How the values of the matching runs become the figure compared with the claim.
@@ -77,7 +77,7 @@ pub enum Aggregate {
 }
 
 /// Fields a `where` may name.
-pub const SELECT_KEYS: [&str; 12] = [
+pub const SELECT_KEYS: [&str; 13] = [
     "scenario",
     "algorithm",
     "backend",
@@ -89,6 +89,7 @@ pub const SELECT_KEYS: [&str; 12] = [
     "tile_size",
     "image",
     "occluder_height",
+    "occluder_offset",
     "cores",
 ];
 

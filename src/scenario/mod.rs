@@ -119,6 +119,10 @@ pub struct BaseParams {
     pub image: [u32; 2],
     #[serde(default)]
     pub occluder_height: Option<f32>,
+    /// Lateral offset of the moving occluder along x, in scene units (generators with a moving
+    /// occluder; paper 002 §5.2.5).
+    #[serde(default)]
+    pub occluder_offset: Option<f32>,
     #[serde(default)]
     pub cores: Option<u32>,
 }
@@ -142,6 +146,7 @@ impl Default for BaseParams {
             tile_size: default_tile_size(),
             image: default_image(),
             occluder_height: None,
+            occluder_offset: None,
             cores: None,
         }
     }
@@ -163,6 +168,8 @@ pub struct Sweep {
     pub image: Vec<[u32; 2]>,
     #[serde(default)]
     pub occluder_height: Vec<f32>,
+    #[serde(default)]
+    pub occluder_offset: Vec<f32>,
     #[serde(default)]
     pub cores: Vec<u32>,
 }
@@ -210,6 +217,7 @@ impl Default for ReferenceSpec {
 pub struct ScenePoint {
     pub triangles: Option<u32>,
     pub occluder_height: Option<f32>,
+    pub occluder_offset: Option<f32>,
 }
 
 /// One point of a sweep (before choosing algorithm and backend).
@@ -228,6 +236,7 @@ impl Case {
     pub fn run_params(&self, scene: &Scene) -> RunParams {
         RunParams {
             occluder_height: self.scene.occluder_height,
+            occluder_offset: self.scene.occluder_offset,
             cores: self.cores,
             ..RunParams::of_scene(scene, self.image, self.map_resolution, self.tile_size)
         }
@@ -314,6 +323,7 @@ impl Loaded {
             scene: ScenePoint {
                 triangles: b.triangles,
                 occluder_height: b.occluder_height,
+                occluder_offset: b.occluder_offset,
             },
             light_size: b.light_size,
             map_resolution: b.map_resolution,
@@ -331,6 +341,10 @@ impl Loaded {
             w.occluder_height
                 .iter()
                 .map(|&v| Box::new(move |c: &mut Case| c.scene.occluder_height = Some(v)) as Apply)
+                .collect(),
+            w.occluder_offset
+                .iter()
+                .map(|&v| Box::new(move |c: &mut Case| c.scene.occluder_offset = Some(v)) as Apply)
                 .collect(),
             w.light_size
                 .iter()
@@ -406,6 +420,7 @@ impl Loaded {
                         triangles: point.triangles,
                         seed: s.seed,
                         occluder_height: point.occluder_height,
+                        occluder_offset: point.occluder_offset,
                     })
             }
             None => {
@@ -498,12 +513,19 @@ pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> Scene {
 
 /// A scene by name (a generator) or by file (an OBJ placed over a ground, or a scenario's scene).
 pub fn scene_from_arg(arg: &str, params: GeneratorParams) -> Result<Scene, InputError> {
+    // `--occluder-offset` needs a scene with a moving occluder.
+    let offset_applies = |generator: Option<&str>| match params.occluder_offset {
+        Some(_) => validate::occluder_offset_scene("--occluder-offset", generator),
+        None => Ok(()),
+    };
     if let Some(g) = generators::find(arg) {
+        offset_applies(Some(g.name))?;
         return Ok(g.build(&params));
     }
     let path = Path::new(arg);
     match path.extension().and_then(|e| e.to_str()) {
         Some("obj") => {
+            offset_applies(None)?;
             let mesh = obj::load_obj(path)?;
             let mut s = framed_scene(
                 vec![Object {
@@ -526,10 +548,12 @@ pub fn scene_from_arg(arg: &str, params: GeneratorParams) -> Result<Scene, Input
         }
         Some("json") => {
             let l = Loaded::from_file(path)?;
+            offset_applies(l.scenario.scene.generator.as_deref())?;
             Ok(l.build_scene(
                 ScenePoint {
                     triangles: params.triangles.or(l.scenario.params.triangles),
                     occluder_height: params.occluder_height.or(l.scenario.params.occluder_height),
+                    occluder_offset: params.occluder_offset.or(l.scenario.params.occluder_offset),
                 },
                 l.scenario.params.light_size,
             ))

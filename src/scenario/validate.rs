@@ -92,6 +92,50 @@ pub fn occluder_height(field: &str, v: f32) -> Check {
     Ok(())
 }
 
+/// Largest lateral occluder offset accepted, in scene units either way: beyond it the occluder
+/// is far outside every built-in scene (their grounds span at most ±30 units).
+pub const MAX_OCCLUDER_OFFSET: f32 = 100.0;
+
+pub fn occluder_offset(field: &str, v: f32) -> Check {
+    if !v.is_finite() || v.abs() > MAX_OCCLUDER_OFFSET {
+        return fail(
+            field,
+            format!(
+                "occluder offset must be finite and in -{MAX_OCCLUDER_OFFSET}..={MAX_OCCLUDER_OFFSET} scene units, got {v}"
+            ),
+        );
+    }
+    Ok(())
+}
+
+/// An occluder offset needs a generator scene with a moving occluder
+/// ([`generators::Generator::moves_laterally`]); `generator` is the scene's, if any.
+pub fn occluder_offset_scene(field: &str, generator: Option<&str>) -> Check {
+    let movable: Vec<&str> = generators::GENERATORS
+        .iter()
+        .filter(|g| g.moves_laterally)
+        .map(|g| g.name)
+        .collect();
+    match generator.and_then(generators::find) {
+        Some(g) if g.moves_laterally => Ok(()),
+        Some(g) => fail(
+            field,
+            format!(
+                "scene '{}' has no single moving occluder to offset; an occluder offset needs one of: {}",
+                g.name,
+                movable.join(", ")
+            ),
+        ),
+        None => fail(
+            field,
+            format!(
+                "an occluder offset needs a generator scene with a moving occluder, one of: {}",
+                movable.join(", ")
+            ),
+        ),
+    }
+}
+
 pub fn cores(field: &str, v: u32) -> Check {
     if !(1..=64).contains(&v) {
         return fail(field, format!("core count must be in 1..=64, got {v}"));
@@ -256,6 +300,9 @@ pub fn validate(s: &Scenario) -> Check {
     if let Some(h) = p.occluder_height {
         occluder_height("$.params.occluder_height", h)?;
     }
+    if let Some(d) = p.occluder_offset {
+        occluder_offset("$.params.occluder_offset", d)?;
+    }
     if let Some(c) = p.cores {
         cores("$.params.cores", c)?;
     }
@@ -281,6 +328,9 @@ pub fn validate(s: &Scenario) -> Check {
     for (f, &v) in each("occluder_height", w.occluder_height.len()).zip(&w.occluder_height) {
         occluder_height(&f, v)?;
     }
+    for (f, &v) in each("occluder_offset", w.occluder_offset.len()).zip(&w.occluder_offset) {
+        occluder_offset(&f, v)?;
+    }
     for (f, &v) in each("cores", w.cores.len()).zip(&w.cores) {
         cores(&f, v)?;
     }
@@ -290,6 +340,12 @@ pub fn validate(s: &Scenario) -> Check {
             "$.sweep.occluder_height",
             "an occluder height needs a generator scene".into(),
         );
+    }
+    if p.occluder_offset.is_some() {
+        occluder_offset_scene("$.params.occluder_offset", s.scene.generator.as_deref())?;
+    }
+    if !w.occluder_offset.is_empty() {
+        occluder_offset_scene("$.sweep.occluder_offset", s.scene.generator.as_deref())?;
     }
     reference_samples("$.reference.samples", s.reference.samples)?;
     Ok(())

@@ -19,6 +19,10 @@ pub struct GeneratorParams {
     pub seed: u64,
     /// Height of the main occluder's lowest point above the receiver (contact-hardening sweeps).
     pub occluder_height: Option<f32>,
+    /// Lateral offset of the moving occluders along world x (the u axis of the rectangular
+    /// lights), in scene units, from the generator's own placement; the light and the receiver
+    /// stay put (paper 002 §5.2.5). Only generators with [`Generator::moves_laterally`] apply it.
+    pub occluder_offset: Option<f32>,
 }
 
 impl Default for GeneratorParams {
@@ -27,6 +31,7 @@ impl Default for GeneratorParams {
             triangles: None,
             seed: 1,
             occluder_height: None,
+            occluder_offset: None,
         }
     }
 }
@@ -36,6 +41,10 @@ pub struct Generator {
     pub name: &'static str,
     pub summary: &'static str,
     pub default_triangles: u32,
+    /// Whether the generator has a moving occluder (the objects `occluder_height` places) that
+    /// `occluder_offset` translates sideways. Scenes whose occluders are the whole set (room,
+    /// street, fern) do not.
+    pub moves_laterally: bool,
     build: fn(&GeneratorParams, u32) -> Scene,
 }
 
@@ -53,54 +62,63 @@ pub const GENERATORS: &[Generator] = &[
         name: "sphere-on-plane",
         summary: "UV sphere above a tessellated ground plane, sphere light",
         default_triangles: 2_000,
+        moves_laterally: true,
         build: sphere_on_plane,
     },
     Generator {
         name: "blob-on-plane",
         summary: "lumpy closed blob (a bunny stand-in) above the ground, sphere light (paper 000)",
         default_triangles: 10_000,
+        moves_laterally: true,
         build: blob_on_plane,
     },
     Generator {
         name: "plate-on-plane",
         summary: "thin square plate parallel to the ground, square light (paper 002)",
         default_triangles: 200,
+        moves_laterally: true,
         build: plate_on_plane,
     },
     Generator {
         name: "box-on-plane",
         summary: "tessellated box above the ground",
         default_triangles: 1_000,
+        moves_laterally: true,
         build: box_on_plane,
     },
     Generator {
         name: "cylinder-on-plane",
         summary: "upright capped cylinder on the ground (paper 001)",
         default_triangles: 1_000,
+        moves_laterally: true,
         build: cylinder_on_plane,
     },
     Generator {
         name: "torus-on-plane",
         summary: "tilted torus above the ground; many silhouette edges, holes",
         default_triangles: 2_000,
+        moves_laterally: true,
         build: torus_on_plane,
     },
     Generator {
         name: "sphere-grid",
         summary: "k x k x k grid of spheres (3x3x3 in paper 001) above the ground",
         default_triangles: 5_000,
+        moves_laterally: true,
         build: sphere_grid,
     },
     Generator {
         name: "replicated",
         summary: "K copies of a compound object (torus, box, sphere) for polygon sweeps",
         default_triangles: 10_000,
+        moves_laterally: true,
         build: replicated,
     },
     Generator {
         name: "terrain",
         summary: "fractal terrain receiver with floating occluders",
         default_triangles: 20_000,
+        moves_laterally: true,
         build: terrain,
     },
     Generator {
@@ -108,18 +126,21 @@ pub const GENERATORS: &[Generator] = &[
         summary:
             "interior: walls, tables, chairs, objects; light near the ceiling (paper 004 saloon)",
         default_triangles: 20_000,
+        moves_laterally: false,
         build: room,
     },
     Generator {
         name: "street",
         summary: "exterior: buildings and posts, distant high light, many silhouette edges",
         default_triangles: 30_000,
+        moves_laterally: false,
         build: street,
     },
     Generator {
         name: "fern",
         summary: "fern: fronds of open leaflets over tessellated ground (paper 004 fern)",
         default_triangles: 20_000,
+        moves_laterally: false,
         build: fern,
     },
 ];
@@ -154,11 +175,23 @@ fn scene(objects: Vec<Object>, camera: Camera, light: Light) -> Scene {
     }
 }
 
+/// `at` moved by the lateral occluder offset (unchanged when there is none, so scenes without
+/// an offset keep their exact geometry).
+fn lateral(p: &GeneratorParams, at: Vec3) -> Vec3 {
+    match p.occluder_offset {
+        Some(d) => at + Vec3::X * d,
+        None => at,
+    }
+}
+
 fn sphere_on_plane(p: &GeneratorParams, target: u32) -> Scene {
     let h = p.occluder_height.unwrap_or(1.0);
     let ground_tris = (target / 10).clamp(2, 2_000);
     let sphere = primitives::uv_sphere_with_triangles(target.saturating_sub(ground_tris).max(8));
-    let sphere = sphere.transformed(Mat4::from_translation(Vec3::new(0.0, h + 1.0, 0.0)));
+    let sphere = sphere.transformed(Mat4::from_translation(lateral(
+        p,
+        Vec3::new(0.0, h + 1.0, 0.0),
+    )));
     scene(
         vec![
             ground(6.0, ground_tris),
@@ -199,7 +232,10 @@ fn blob_on_plane(p: &GeneratorParams, target: u32) -> Scene {
         .iter()
         .map(|v| v.y)
         .fold(f32::INFINITY, f32::min);
-    let blob = blob.transformed(Mat4::from_translation(Vec3::new(0.0, h - lowest, 0.0)));
+    let blob = blob.transformed(Mat4::from_translation(lateral(
+        p,
+        Vec3::new(0.0, h - lowest, 0.0),
+    )));
     scene(
         vec![ground(6.0, ground_tris), object("blob", blob, Role::BOTH)],
         Camera {
@@ -218,7 +254,10 @@ fn blob_on_plane(p: &GeneratorParams, target: u32) -> Scene {
 fn plate_on_plane(p: &GeneratorParams, target: u32) -> Scene {
     let h = p.occluder_height.unwrap_or(1.5);
     let ground_tris = (target / 2).clamp(2, 2_000);
-    let plate = primitives::cuboid(Vec3::new(-1.0, h, -1.0), Vec3::new(1.0, h + 0.02, 1.0));
+    let plate = primitives::cuboid(
+        lateral(p, Vec3::new(-1.0, h, -1.0)),
+        lateral(p, Vec3::new(1.0, h + 0.02, 1.0)),
+    );
     scene(
         vec![ground(5.0, ground_tris), object("plate", plate, Role::BOTH)],
         Camera {
@@ -249,8 +288,11 @@ fn box_on_plane(p: &GeneratorParams, target: u32) -> Scene {
     let ground_tris = (target / 10).clamp(2, 2_000);
     let per_face = (target.saturating_sub(ground_tris) / 12).max(1);
     let n = ((per_face as f32).sqrt().round() as u32).max(1);
-    let b =
-        primitives::tessellated_cuboid(Vec3::new(-0.8, h, -0.8), Vec3::new(0.8, h + 1.2, 0.8), n);
+    let b = primitives::tessellated_cuboid(
+        lateral(p, Vec3::new(-0.8, h, -0.8)),
+        lateral(p, Vec3::new(0.8, h + 1.2, 0.8)),
+        n,
+    );
     scene(
         vec![ground(6.0, ground_tris), object("box", b, Role::BOTH)],
         default_view(),
@@ -265,7 +307,7 @@ fn cylinder_on_plane(p: &GeneratorParams, target: u32) -> Scene {
     let h = p.occluder_height.unwrap_or(0.0);
     let ground_tris = (target / 10).clamp(2, 2_000);
     let c = primitives::cylinder_with_triangles(0.6, 2.5, target.saturating_sub(ground_tris))
-        .transformed(Mat4::from_translation(Vec3::new(0.0, h, 0.0)));
+        .transformed(Mat4::from_translation(lateral(p, Vec3::new(0.0, h, 0.0))));
     scene(
         vec![ground(6.0, ground_tris), object("cylinder", c, Role::BOTH)],
         default_view(),
@@ -282,7 +324,8 @@ fn torus_on_plane(p: &GeneratorParams, target: u32) -> Scene {
     let ground_tris = (target / 10).clamp(2, 2_000);
     let t = primitives::torus_with_triangles(1.2, 0.35, target.saturating_sub(ground_tris))
         .transformed(
-            Mat4::from_translation(Vec3::new(0.0, h + 1.2, 0.0)) * Mat4::from_rotation_x(1.1),
+            Mat4::from_translation(lateral(p, Vec3::new(0.0, h + 1.2, 0.0)))
+                * Mat4::from_rotation_x(1.1),
         );
     scene(
         vec![ground(6.0, ground_tris), object("torus", t, Role::BOTH)],
@@ -304,10 +347,13 @@ fn sphere_grid(p: &GeneratorParams, target: u32) -> Scene {
     for i in 0..k {
         for j in 0..k {
             for l in 0..k {
-                let c = Vec3::new(
-                    (i as f32 - 1.0) * 1.0,
-                    h + 0.35 + j as f32 * 1.0,
-                    (l as f32 - 1.0) * 1.0,
+                let c = lateral(
+                    p,
+                    Vec3::new(
+                        (i as f32 - 1.0) * 1.0,
+                        h + 0.35 + j as f32 * 1.0,
+                        (l as f32 - 1.0) * 1.0,
+                    ),
                 );
                 let m = unit
                     .clone()
@@ -360,10 +406,13 @@ fn replicated(p: &GeneratorParams, target: u32) -> Scene {
     for c in 0..copies {
         let (i, j) = (c % side, c / side);
         let jitter = unit_f32(mix64(p.seed ^ c as u64)) * std::f32::consts::TAU;
-        let at = Vec3::new(
-            (i as f32 + 0.5) * spacing - 2.5,
-            h + 0.6 * scale,
-            (j as f32 + 0.5) * spacing - 2.5,
+        let at = lateral(
+            p,
+            Vec3::new(
+                (i as f32 + 0.5) * spacing - 2.5,
+                h + 0.6 * scale,
+                (j as f32 + 0.5) * spacing - 2.5,
+            ),
         );
         let m = unit.clone().transformed(
             Mat4::from_translation(at)
@@ -395,7 +444,7 @@ fn terrain(p: &GeneratorParams, target: u32) -> Scene {
     for k in 0..4u32 {
         let a = k as f32 * std::f32::consts::FRAC_PI_2 + 0.4;
         let m = primitives::uv_sphere_with_triangles(occ_tris / 4).transformed(
-            Mat4::from_translation(Vec3::new(2.0 * a.cos(), h + 0.6, 2.0 * a.sin()))
+            Mat4::from_translation(lateral(p, Vec3::new(2.0 * a.cos(), h + 0.6, 2.0 * a.sin())))
                 * Mat4::from_scale(Vec3::splat(0.5)),
         );
         objects.push(object(&format!("rock{k}"), m, Role::BOTH));
@@ -946,6 +995,48 @@ mod tests {
         assert_eq!(adj.count(EdgeKind::Boundary), 0);
         assert_eq!(adj.count(EdgeKind::NonManifold), 0);
         assert!((blob.bounds().min.y - 0.7).abs() < 1e-5);
+    }
+
+    #[test]
+    fn the_occluder_offset_translates_the_moving_occluders_only() {
+        let d = 0.75;
+        for g in GENERATORS.iter().filter(|g| g.moves_laterally) {
+            let p = GeneratorParams {
+                triangles: Some(2_000),
+                ..Default::default()
+            };
+            let (a, b) = (
+                g.build(&p),
+                g.build(&GeneratorParams {
+                    occluder_offset: Some(d),
+                    ..p
+                }),
+            );
+            assert_eq!(a.light, b.light, "{}", g.name);
+            assert_eq!(a.objects.len(), b.objects.len(), "{}", g.name);
+            let mut moved = 0;
+            for (oa, ob) in a.objects.iter().zip(&b.objects) {
+                assert_eq!(oa.mesh.triangles, ob.mesh.triangles, "{}", g.name);
+                if oa.mesh.positions == ob.mesh.positions {
+                    continue;
+                }
+                // Every vertex of a moved object goes exactly d along x; receivers stay.
+                assert!(oa.role.occluder, "{}: {} moved", g.name, oa.name);
+                for (u, v) in oa.mesh.positions.iter().zip(&ob.mesh.positions) {
+                    let delta = *v - *u;
+                    assert!(
+                        (delta - Vec3::X * d).abs().max_element() < 1e-5,
+                        "{}: {} moved by {delta}",
+                        g.name,
+                        oa.name
+                    );
+                }
+                moved += 1;
+            }
+            assert!(moved > 0, "{}: nothing moved", g.name);
+            // The ground under the occluders stays where it was.
+            assert_eq!(a.objects[0].mesh.positions, b.objects[0].mesh.positions);
+        }
     }
 
     #[test]

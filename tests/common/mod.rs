@@ -19,6 +19,7 @@ pub fn frame_of(objects: Vec<Object>, light: Light, camera: Camera) -> Frame {
         tile_size: 16,
         image: [24, 18],
         occluder_height: None,
+        occluder_offset: None,
         cores: None,
     };
     Frame::new(scene, params)
