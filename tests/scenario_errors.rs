@@ -176,6 +176,15 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             vec!["$.sweep.occluder_offset", "street", "plate-on-plane"],
         ),
         (
+            "occluder height for a scene whose occluders stand on the ground",
+            mutate(
+                r#""map_resolution": 64"#,
+                r#""map_resolution": 64, "occluder_height": 2"#,
+            )
+            .replacen("sphere-on-plane", "fern", 1),
+            vec!["$.params.occluder_height", "fern", "room"],
+        ),
+        (
             "occluder offset for user meshes",
             objects("data/triangle.obj").replacen(
                 r#""map_resolution": 64"#,

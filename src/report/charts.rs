@@ -424,6 +424,9 @@ fn axis_value(axis: Axis, r: &RunRecord) -> String {
         Axis::OccluderHeight => p
             .occluder_height
             .map_or("-".into(), |h| format!("height {}", fmt_num(h as f64))),
+        Axis::OccluderOffset => p
+            .occluder_offset
+            .map_or("-".into(), |d| format!("offset {}", fmt_num(d as f64))),
         Axis::Cores => p.cores.map_or("-".into(), |c| format!("{c} cores")),
     }
 }

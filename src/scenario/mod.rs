@@ -513,19 +513,35 @@ pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> Scene {
 
 /// A scene by name (a generator) or by file (an OBJ placed over a ground, or a scenario's scene).
 pub fn scene_from_arg(arg: &str, params: GeneratorParams) -> Result<Scene, InputError> {
-    // `--occluder-offset` needs a scene with a moving occluder.
-    let offset_applies = |generator: Option<&str>| match params.occluder_offset {
-        Some(_) => validate::occluder_offset_scene("--occluder-offset", generator),
-        None => Ok(()),
+    // `--occluder-height` and `--occluder-offset` need a scene whose occluder they move.
+    let placement_applies = |generator: Option<&str>| {
+        use validate::OccluderAxis::{Height, Offset};
+        for (given, flag, axis) in [
+            (
+                params.occluder_height.is_some(),
+                "--occluder-height",
+                Height,
+            ),
+            (
+                params.occluder_offset.is_some(),
+                "--occluder-offset",
+                Offset,
+            ),
+        ] {
+            if given {
+                validate::occluder_axis_scene(flag, generator, axis)?;
+            }
+        }
+        Ok::<(), InputError>(())
     };
     if let Some(g) = generators::find(arg) {
-        offset_applies(Some(g.name))?;
+        placement_applies(Some(g.name))?;
         return Ok(g.build(&params));
     }
     let path = Path::new(arg);
     match path.extension().and_then(|e| e.to_str()) {
         Some("obj") => {
-            offset_applies(None)?;
+            placement_applies(None)?;
             let mesh = obj::load_obj(path)?;
             let mut s = framed_scene(
                 vec![Object {
@@ -548,7 +564,7 @@ pub fn scene_from_arg(arg: &str, params: GeneratorParams) -> Result<Scene, Input
         }
         Some("json") => {
             let l = Loaded::from_file(path)?;
-            offset_applies(l.scenario.scene.generator.as_deref())?;
+            placement_applies(l.scenario.scene.generator.as_deref())?;
             Ok(l.build_scene(
                 ScenePoint {
                     triangles: params.triangles.or(l.scenario.params.triangles),

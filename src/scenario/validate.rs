@@ -108,20 +108,46 @@ pub fn occluder_offset(field: &str, v: f32) -> Check {
     Ok(())
 }
 
-/// An occluder offset needs a generator scene with a moving occluder
-/// ([`generators::Generator::moves_laterally`]); `generator` is the scene's, if any.
-pub fn occluder_offset_scene(field: &str, generator: Option<&str>) -> Check {
+/// How a sweep moves a generator's occluder: up (`occluder_height`) or sideways
+/// (`occluder_offset`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OccluderAxis {
+    Height,
+    Offset,
+}
+
+impl OccluderAxis {
+    fn what(self) -> &'static str {
+        match self {
+            OccluderAxis::Height => "an occluder height",
+            OccluderAxis::Offset => "an occluder offset",
+        }
+    }
+
+    fn moves(self, g: &generators::Generator) -> bool {
+        match self {
+            OccluderAxis::Height => g.moves_vertically,
+            OccluderAxis::Offset => g.moves_laterally,
+        }
+    }
+}
+
+/// An occluder height or offset needs a generator scene whose occluder it moves
+/// ([`generators::Generator::moves_vertically`], [`generators::Generator::moves_laterally`]);
+/// `generator` is the scene's, if any.
+pub fn occluder_axis_scene(field: &str, generator: Option<&str>, axis: OccluderAxis) -> Check {
     let movable: Vec<&str> = generators::GENERATORS
         .iter()
-        .filter(|g| g.moves_laterally)
+        .filter(|g| axis.moves(g))
         .map(|g| g.name)
         .collect();
+    let what = axis.what();
     match generator.and_then(generators::find) {
-        Some(g) if g.moves_laterally => Ok(()),
+        Some(g) if axis.moves(g) => Ok(()),
         Some(g) => fail(
             field,
             format!(
-                "scene '{}' has no single moving occluder to offset; an occluder offset needs one of: {}",
+                "scene '{}' has no moving occluder for {what}; {what} needs one of: {}",
                 g.name,
                 movable.join(", ")
             ),
@@ -129,7 +155,7 @@ pub fn occluder_offset_scene(field: &str, generator: Option<&str>) -> Check {
         None => fail(
             field,
             format!(
-                "an occluder offset needs a generator scene with a moving occluder, one of: {}",
+                "{what} needs a generator scene with a moving occluder, one of: {}",
                 movable.join(", ")
             ),
         ),
@@ -334,18 +360,32 @@ pub fn validate(s: &Scenario) -> Check {
     for (f, &v) in each("cores", w.cores.len()).zip(&w.cores) {
         cores(&f, v)?;
     }
-    if (!w.occluder_height.is_empty() || p.occluder_height.is_some()) && s.scene.generator.is_none()
-    {
-        return fail(
+    let generator = s.scene.generator.as_deref();
+    for (given, field, axis) in [
+        (
+            p.occluder_height.is_some(),
+            "$.params.occluder_height",
+            OccluderAxis::Height,
+        ),
+        (
+            !w.occluder_height.is_empty(),
             "$.sweep.occluder_height",
-            "an occluder height needs a generator scene".into(),
-        );
-    }
-    if p.occluder_offset.is_some() {
-        occluder_offset_scene("$.params.occluder_offset", s.scene.generator.as_deref())?;
-    }
-    if !w.occluder_offset.is_empty() {
-        occluder_offset_scene("$.sweep.occluder_offset", s.scene.generator.as_deref())?;
+            OccluderAxis::Height,
+        ),
+        (
+            p.occluder_offset.is_some(),
+            "$.params.occluder_offset",
+            OccluderAxis::Offset,
+        ),
+        (
+            !w.occluder_offset.is_empty(),
+            "$.sweep.occluder_offset",
+            OccluderAxis::Offset,
+        ),
+    ] {
+        if given {
+            occluder_axis_scene(field, generator, axis)?;
+        }
     }
     reference_samples("$.reference.samples", s.reference.samples)?;
     Ok(())

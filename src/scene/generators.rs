@@ -41,6 +41,9 @@ pub struct Generator {
     pub name: &'static str,
     pub summary: &'static str,
     pub default_triangles: u32,
+    /// Whether the generator places an occluder at `occluder_height` above its ground. Street
+    /// and fern, whose occluders stand on the ground, do not.
+    pub moves_vertically: bool,
     /// Whether the generator has a moving occluder (the objects `occluder_height` places) that
     /// `occluder_offset` translates sideways. Scenes whose occluders are the whole set (room,
     /// street, fern) do not.
@@ -62,6 +65,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "sphere-on-plane",
         summary: "UV sphere above a tessellated ground plane, sphere light",
         default_triangles: 2_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: sphere_on_plane,
     },
@@ -69,6 +73,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "blob-on-plane",
         summary: "lumpy closed blob (a bunny stand-in) above the ground, sphere light (paper 000)",
         default_triangles: 10_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: blob_on_plane,
     },
@@ -76,6 +81,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "plate-on-plane",
         summary: "thin square plate parallel to the ground, square light (paper 002)",
         default_triangles: 200,
+        moves_vertically: true,
         moves_laterally: true,
         build: plate_on_plane,
     },
@@ -83,6 +89,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "box-on-plane",
         summary: "tessellated box above the ground",
         default_triangles: 1_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: box_on_plane,
     },
@@ -90,6 +97,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "cylinder-on-plane",
         summary: "upright capped cylinder on the ground (paper 001)",
         default_triangles: 1_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: cylinder_on_plane,
     },
@@ -97,6 +105,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "torus-on-plane",
         summary: "tilted torus above the ground; many silhouette edges, holes",
         default_triangles: 2_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: torus_on_plane,
     },
@@ -104,6 +113,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "sphere-grid",
         summary: "k x k x k grid of spheres (3x3x3 in paper 001) above the ground",
         default_triangles: 5_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: sphere_grid,
     },
@@ -111,6 +121,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "replicated",
         summary: "K copies of a compound object (torus, box, sphere) for polygon sweeps",
         default_triangles: 10_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: replicated,
     },
@@ -118,6 +129,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "terrain",
         summary: "fractal terrain receiver with floating occluders",
         default_triangles: 20_000,
+        moves_vertically: true,
         moves_laterally: true,
         build: terrain,
     },
@@ -126,6 +138,7 @@ pub const GENERATORS: &[Generator] = &[
         summary:
             "interior: walls, tables, chairs, objects; light near the ceiling (paper 004 saloon)",
         default_triangles: 20_000,
+        moves_vertically: true,
         moves_laterally: false,
         build: room,
     },
@@ -133,6 +146,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "street",
         summary: "exterior: buildings and posts, distant high light, many silhouette edges",
         default_triangles: 30_000,
+        moves_vertically: false,
         moves_laterally: false,
         build: street,
     },
@@ -140,6 +154,7 @@ pub const GENERATORS: &[Generator] = &[
         name: "fern",
         summary: "fern: fronds of open leaflets over tessellated ground (paper 004 fern)",
         default_triangles: 20_000,
+        moves_vertically: false,
         moves_laterally: false,
         build: fern,
     },
@@ -1036,6 +1051,32 @@ mod tests {
             assert!(moved > 0, "{}: nothing moved", g.name);
             // The ground under the occluders stays where it was.
             assert_eq!(a.objects[0].mesh.positions, b.objects[0].mesh.positions);
+        }
+    }
+
+    #[test]
+    fn the_occluder_height_moves_geometry_exactly_where_a_generator_says_it_does() {
+        for g in GENERATORS {
+            let p = GeneratorParams {
+                triangles: Some(2_000),
+                ..Default::default()
+            };
+            let positions = |h: f32| -> Vec<Vec3> {
+                g.build(&GeneratorParams {
+                    occluder_height: Some(h),
+                    ..p
+                })
+                .objects
+                .iter()
+                .flat_map(|o| o.mesh.positions.iter().copied())
+                .collect()
+            };
+            assert_eq!(
+                positions(0.3) != positions(0.6),
+                g.moves_vertically,
+                "{}",
+                g.name
+            );
         }
     }
 
