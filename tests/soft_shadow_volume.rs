@@ -512,6 +512,11 @@ fn wgpu_agrees_with_the_cpu_model() {
             Some(rect_light()),
             serde_json::json!({ "light_split": 2, "overlap_approximation": true }),
         ),
+        (
+            "cylinder-on-plane",
+            Some(rect_light()),
+            serde_json::json!({ "counting": "z_fail" }),
+        ),
     ];
     for (name, light, options) in cases {
         let frame = generated(name, light);
@@ -582,5 +587,39 @@ fn wgpu_without_occluders_is_fully_lit_like_the_cpu_model() {
         assert_eq!(gpu.visibility.data, model.visibility.data, "{options}");
         assert_eq!(counter(&gpu, "silhouette_edges"), 0.0);
         assert_eq!(counter(&gpu, "fill"), 0.0);
+    }
+}
+
+/// z-fail on wgpu with the eye in the umbra under the pentagon: the cpu-model's z-fail image
+/// and fragment counts (within the flips `wgpu_agrees_with_the_cpu_model` allows), and the
+/// z-pass image.
+#[test]
+fn wgpu_zfail_with_the_eye_in_the_umbra_agrees_with_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    let mut scene = planar_polygon_scene(rect_light());
+    scene.camera.eye = Vec3::new(0.2, 1.0, 0.1);
+    scene.camera.target = Vec3::new(3.0, 0.0, 2.0);
+    let frame = Frame::new(scene.clone(), params(&scene));
+    let zfail = serde_json::json!({ "counting": "z_fail" });
+    let gpu = run_on(Backend::Wgpu, &frame, SSV, zfail.clone());
+    let model = run_on(Backend::CpuModel, &frame, SSV, zfail);
+    let zpass = run_on(Backend::Wgpu, &frame, SSV, serde_json::Value::Null);
+    for (other, what) in [(&model, "cpu-model z-fail"), (&zpass, "wgpu z-pass")] {
+        let e = compare(&gpu.visibility, &other.visibility, &frame.gbuffer.mask());
+        eprintln!("vs {what}: {e:?}");
+        assert!(e.shadow_pixels > 100);
+        assert!(e.mae <= 1e-3, "{what}: {e:?}");
+        assert!(e.frac_over_0_1 <= 0.005, "{what}: {e:?}");
+    }
+    for c in ["fill", "overdraw", "volume_caps"] {
+        let (g, m) = (counter(&gpu, c), counter(&model, c));
+        eprintln!("  {c}: wgpu {g}, cpu-model {m}");
+        assert!(m > 0.0, "{c}");
+        assert!(
+            (g - m).abs() <= 0.005 * m,
+            "{c}: {g} on wgpu, {m} on cpu-model"
+        );
     }
 }

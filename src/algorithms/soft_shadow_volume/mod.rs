@@ -1,7 +1,9 @@
 //! Soft shadow volumes with penumbra wedges (paper 001, Papers III and IV), the math once.
 //!
 //! Pass 1 renders the hard shadow quads of the silhouette seen from the light centre into the
-//! V-buffer exactly as hard shadow volumes do ([`super::shadow_volume`]). Pass 2 rasterizes one
+//! V-buffer exactly as hard shadow volumes do ([`super::shadow_volume`]): z-pass from the eye's
+//! count, or (option `counting: "z_fail"`, Paper II §5) z-fail over volumes closed by light and
+//! dark caps. Pass 2 rasterizes one
 //! penumbra wedge per silhouette edge ([`Wedge`]); for each point p inside a wedge it projects
 //! the edge's hard shadow quad onto the light as seen from p, takes the fraction of the light the
 //! projection covers ([`exact_coverage`] or the 4D [`CoverageTexture`]) and adds it on the inner
