@@ -9,6 +9,7 @@
 //! [`Light::stratified_sample`]: crate::scene::Light::stratified_sample
 
 pub mod cpu;
+pub mod wgpu;
 
 use serde::{Deserialize, Serialize};
 

@@ -243,7 +243,7 @@ fn frame_light(light: &Light, shape: EmitterShape) -> ([f32; 4], [f32; 4], [f32;
     )
 }
 
-fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
+pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
     let l = &gpu.limits;
     if l.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
         return Err(Error::Resource(format!(
@@ -488,6 +488,8 @@ struct Passes<'g> {
     layout: wgpu::BindGroupLayout,
     hard: [wgpu::ComputePipeline; 2],
     soft: [wgpu::ComputePipeline; 2],
+    /// `accum_hard`'s accumulation of one sample's lit pixels.
+    accumulate: wgpu::ComputePipeline,
     groups: (u32, u32),
     pixels: u64,
     cones: Vec<(Vec3, f32)>,
@@ -557,6 +559,7 @@ impl<'g> Passes<'g> {
             layout,
             hard: [pipeline("hard", false), pipeline("hard", true)],
             soft: [pipeline("soft", false), pipeline("soft", true)],
+            accumulate: pipeline("accumulate", false),
             groups: (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE)),
             pixels: rays.len() as u64,
             cones: tile_cones(rays),
@@ -1008,5 +1011,148 @@ impl<'g> Passes<'g> {
 
     fn tiles(&self) -> u64 {
         u64::from(self.groups.0) * u64::from(self.groups.1)
+    }
+}
+
+/// The hard pass of this module once per light sample, for `accum_hard` on wgpu: per sample the
+/// hard shadow quads (or z-fail faces) binned and counted per pixel by the `hard` entry, then
+/// the `accumulate` entry adding the pixels with count 0 to a per-pixel sum (the `covered`
+/// buffer) and, after the last sample, writing the average to `visibility`.
+pub(crate) struct HardSamples<'g> {
+    passes: Passes<'g>,
+    samples: u32,
+}
+
+/// One light sample's uploaded hard pass.
+pub(crate) struct SampleUpload {
+    up: HardUpload,
+    /// Quads and cap faces, for the counters.
+    pub quads: u64,
+    pub caps: u64,
+}
+
+/// Fragment counts of the instrumented replay, summed over samples.
+pub(crate) struct HardTally {
+    pub fill: f64,
+    pub passed: f64,
+    pub tests: f64,
+}
+
+impl<'g> HardSamples<'g> {
+    pub(crate) fn new(
+        gpu: &'g Gpu,
+        rays: &EyeRays,
+        counting: Counting,
+        occluders: Mesh,
+        samples: u32,
+    ) -> HardSamples<'g> {
+        let opts = SoftShadowVolumeOptions {
+            counting,
+            ..Default::default()
+        };
+        let res = FrameResources::new(gpu, rays, None);
+        HardSamples {
+            passes: Passes::new(gpu, rays, &opts, res, occluders),
+            samples,
+        }
+    }
+
+    /// Uploads sample `s`'s quads from light point `light` (host part of the hard phase).
+    pub(crate) fn upload(
+        &self,
+        rays: &EyeRays,
+        s: u32,
+        light: Vec3,
+        quads: &[ShadowQuad],
+        eye_count: i32,
+    ) -> SampleUpload {
+        let params = Params {
+            center: light.extend(0.0).to_array(),
+            half_u: [0.0; 4],
+            half_v: [0.0; 4],
+            eye: rays.eye.extend(0.0).to_array(),
+            width: rays.width,
+            height: rays.height,
+            tiles_x: rays.width.div_ceil(TILE),
+            eye_count,
+            vbuffer: 0,
+            coverage: 0,
+            texture_n: 0,
+            first_loop: 1,
+            last_loop: 1,
+            first_light: u32::from(s == 0),
+            last_light: u32::from(s + 1 == self.samples),
+            sub_lights: self.samples,
+            counting: u32::from(self.passes.opts.counting == Counting::ZFail),
+            pad: [0; 3],
+        };
+        let up = self.passes.upload_quads(rays, &params, light, quads);
+        SampleUpload {
+            quads: quads.len() as u64,
+            caps: up.caps,
+            up,
+        }
+    }
+
+    /// Records the sample's hard pass (timed as pass `index` when queries are given).
+    pub(crate) fn hard(
+        &self,
+        e: &mut wgpu::CommandEncoder,
+        s: &SampleUpload,
+        queries: Option<(Option<&PassTimer>, Option<&PassStats>, u32)>,
+    ) {
+        self.passes.pass(e, &s.up.group, false, false, queries);
+    }
+
+    /// Records the sample's accumulation (timed as pass `index` when queries are given).
+    pub(crate) fn accumulate(
+        &self,
+        e: &mut wgpu::CommandEncoder,
+        s: &SampleUpload,
+        queries: Option<(Option<&PassTimer>, Option<&PassStats>, u32)>,
+    ) {
+        let (timer, stats, index) = queries.unwrap_or((None, None, 0));
+        let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("accumulate"),
+            timestamp_writes: timer.map(|t| t.compute(index)),
+        });
+        if let Some(st) = stats {
+            st.begin_compute(&mut pass, index);
+        }
+        pass.set_pipeline(&self.passes.accumulate);
+        pass.set_bind_group(0, &s.up.group, &[]);
+        pass.dispatch_workgroups(self.passes.groups.0, self.passes.groups.1, 1);
+        if stats.is_some() {
+            pass.end_pipeline_statistics_query();
+        }
+    }
+
+    /// The averaged visibility, written by the last sample's accumulation.
+    pub(crate) fn visibility(&self) -> &wgpu::Buffer {
+        &self.passes.res.visibility
+    }
+
+    /// The instrumented replay of every sample's hard pass (WGSL atomics), in one submission.
+    pub(crate) fn replay(&self, samples: &[SampleUpload]) -> Result<HardTally> {
+        let gpu = self.passes.gpu;
+        let stats = &self.passes.res.stats;
+        let staging = Staging::new(gpu, "statistics readback", stats.size());
+        gpu.submit(|e| {
+            e.clear_buffer(stats, 0, None);
+            for s in samples {
+                self.passes.pass(e, &s.up.group, false, true, None);
+            }
+            staging.copy(e, stats);
+        })?;
+        let raw: Vec<u32> = words(&staging.read(gpu)?);
+        let stat = |s: Stat| {
+            let i = s as usize;
+            (u64::from(raw[2 * i + 1]) << 32 | u64::from(raw[2 * i])) as f64
+        };
+        Ok(HardTally {
+            fill: stat(Stat::HardFill),
+            passed: stat(Stat::HardPassed),
+            tests: stat(Stat::HardTests),
+        })
     }
 }

@@ -622,3 +622,22 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
         count(STAT_SOFT_CONTRIBUTING, contributing);
     }
 }
+
+// `accum_hard` (`accum_hard::cpu::Accumulate`): adds this light sample's lit pixels (count 0) to
+// the per-pixel sum kept in `covered`; after the last sample (`last_light`), the average over
+// the `sub_lights` samples in `visibility` (1 for pixels without a surface).
+@compute @workgroup_size(8, 8)
+fn accumulate(@builtin(global_invocation_id) id: vec3u) {
+    if id.x >= P.width || id.y >= P.height {
+        return;
+    }
+    let i = id.y * P.width + id.x;
+    var sum = select(0.0, 1.0, counts[i] == 0);
+    if P.first_light == 0u {
+        sum += covered[i];
+    }
+    covered[i] = sum;
+    if P.last_light == 1u {
+        visibility[i] = select(1.0, sum / f32(P.sub_lights), rays[i].extra.y == 1.0);
+    }
+}
