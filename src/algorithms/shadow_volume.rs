@@ -207,7 +207,9 @@ impl VolumeFace {
 
 /// The distance from the light point at which z-fail closes its volumes: twice the farthest
 /// corner of `bounds`, so that every point of the scene in a volume's cone is in front of the
-/// dark cap.
+/// dark cap. The dark cap's triangles and the sides' far edges are flat chords of that sphere:
+/// they stay beyond the scene as long as no light-facing triangle or silhouette edge spans more
+/// than 120° seen from the light (a chord's middle is at `cos(angle / 2)` of the distance).
 pub fn dark_cap_distance(bounds: &Bounds, light: Vec3) -> f32 {
     2.0 * bounds
         .corners()
