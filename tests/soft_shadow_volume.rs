@@ -264,6 +264,87 @@ fn bad_options_are_errors_that_name_the_field() {
         .insert(SSV.into(), serde_json::json!({ "light_split": 2 }));
     let e = algorithms::run(SSV, Backend::CpuNative, &frame, &ctx).unwrap_err();
     assert!(e.to_string().contains("rectangular"), "{e}");
+    // The counting is z_pass or z_fail; z-fail has no per-loop caps for the overlap
+    // approximation.
+    for (id, options, message) in [
+        (SSV, serde_json::json!({ "counting": "zfail" }), "z_fail"),
+        (
+            "accum_hard",
+            serde_json::json!({ "counting": "depth_fail" }),
+            "z_pass",
+        ),
+        (
+            SSV,
+            serde_json::json!({ "counting": "z_fail", "overlap_approximation": true }),
+            "overlap_approximation",
+        ),
+    ] {
+        let mut ctx = ExecContext::default();
+        ctx.options.insert(id.into(), options.clone());
+        for backend in [Backend::CpuNative, Backend::CpuModel] {
+            let e = algorithms::run(id, backend, &frame, &ctx).unwrap_err();
+            let text = e.to_string();
+            assert!(
+                text.contains(&format!("$.options.{id}.counting")),
+                "{options}: {text}"
+            );
+            assert!(text.contains(message), "{options}: {text}");
+        }
+        let o = std::collections::BTreeMap::from([(id.to_string(), options.clone())]);
+        let check = algorithms::ALGORITHMS
+            .iter()
+            .find(|a| a.id == id)
+            .unwrap()
+            .check_options;
+        assert!(check(&o).is_err(), "{options}");
+    }
+}
+
+/// z-fail counting over capped volumes (Paper II §5) draws the z-pass image (whose count starts
+/// at the eye's own count), both with the eye outside every shadow volume and with the eye in
+/// the umbra under the pentagon, where z-pass from 0 would light the whole shadow (the hard
+/// counts themselves are checked against an independent count in `shadow_volume`'s unit
+/// tests). Fill differs: z-fail rasterizes the caps and the fragments behind the surfaces.
+#[test]
+fn zfail_draws_the_zpass_image_with_the_eye_outside_and_inside_the_umbra() {
+    let scene = planar_polygon_scene(rect_light());
+    let mut inside = scene.clone();
+    inside.camera.eye = Vec3::new(0.2, 1.0, 0.1);
+    inside.camera.target = Vec3::new(3.0, 0.0, 2.0);
+    let occluders = scene.occluders();
+    let centre = scene.light.center();
+    for (name, scene, eye_in_shadow) in [("outside", scene, false), ("inside", inside, true)] {
+        let eye = algorithms::shadow_volume::eye_count(&occluders, centre, scene.camera.eye);
+        assert_eq!(eye > 0, eye_in_shadow, "{name}: eye count {eye}");
+        let frame = Frame::new(scene.clone(), params(&scene));
+        for (id, base) in [
+            (SSV, serde_json::json!({})),
+            (
+                SSV,
+                serde_json::json!({ "light_split": 2, "vbuffer": "split12" }),
+            ),
+            ("accum_hard", serde_json::json!({ "samples": 16 })),
+        ] {
+            let mut zfail = base.clone();
+            zfail["counting"] = "z_fail".into();
+            let a = run_on(Backend::CpuModel, &frame, id, base.clone());
+            let b = run_on(Backend::CpuModel, &frame, id, zfail);
+            let e = compare(&b.visibility, &a.visibility, &frame.gbuffer.mask());
+            eprintln!(
+                "{name} {id} {base}: z-fail vs z-pass mae {:.2e} max {:.3}; fill {} vs {}",
+                e.mae,
+                e.max,
+                counter(&b, "fill"),
+                counter(&a, "fill")
+            );
+            assert!(e.shadow_pixels > 100, "{name} {id}: no shadow on screen");
+            assert!(e.mae <= 1e-4, "{name} {id} {base}: {e:?}");
+            assert!(e.frac_over_0_1 <= 0.002, "{name} {id} {base}: {e:?}");
+            assert_ne!(counter(&a, "fill"), counter(&b, "fill"));
+            assert!(counter(&b, "volume_caps") > 0.0);
+            assert_eq!(counter(&a, "volume_caps"), 0.0);
+        }
+    }
 }
 
 /// The counters both executions keep: tallied per fragment on `cpu-native`, counted by the
@@ -309,6 +390,11 @@ fn cpu_model_draws_the_native_image_and_its_probe_counts_the_native_tallies() {
             serde_json::json!({ "vbuffer": "split12", "overlap_approximation": true }),
         ),
         ("accum_hard", serde_json::json!({ "samples": 16 })),
+        (SSV, serde_json::json!({ "counting": "z_fail" })),
+        (
+            "accum_hard",
+            serde_json::json!({ "samples": 16, "counting": "z_fail" }),
+        ),
     ] {
         let native = run_on(Backend::CpuNative, &frame, id, opts.clone());
         let model = run_on(Backend::CpuModel, &frame, id, opts.clone());
@@ -426,6 +512,11 @@ fn wgpu_agrees_with_the_cpu_model() {
             Some(rect_light()),
             serde_json::json!({ "light_split": 2, "overlap_approximation": true }),
         ),
+        (
+            "cylinder-on-plane",
+            Some(rect_light()),
+            serde_json::json!({ "counting": "z_fail" }),
+        ),
     ];
     for (name, light, options) in cases {
         let frame = generated(name, light);
@@ -496,5 +587,39 @@ fn wgpu_without_occluders_is_fully_lit_like_the_cpu_model() {
         assert_eq!(gpu.visibility.data, model.visibility.data, "{options}");
         assert_eq!(counter(&gpu, "silhouette_edges"), 0.0);
         assert_eq!(counter(&gpu, "fill"), 0.0);
+    }
+}
+
+/// z-fail on wgpu with the eye in the umbra under the pentagon: the cpu-model's z-fail image
+/// and fragment counts (within the flips `wgpu_agrees_with_the_cpu_model` allows), and the
+/// z-pass image.
+#[test]
+fn wgpu_zfail_with_the_eye_in_the_umbra_agrees_with_the_cpu_model() {
+    if !have_gpu() {
+        return;
+    }
+    let mut scene = planar_polygon_scene(rect_light());
+    scene.camera.eye = Vec3::new(0.2, 1.0, 0.1);
+    scene.camera.target = Vec3::new(3.0, 0.0, 2.0);
+    let frame = Frame::new(scene.clone(), params(&scene));
+    let zfail = serde_json::json!({ "counting": "z_fail" });
+    let gpu = run_on(Backend::Wgpu, &frame, SSV, zfail.clone());
+    let model = run_on(Backend::CpuModel, &frame, SSV, zfail);
+    let zpass = run_on(Backend::Wgpu, &frame, SSV, serde_json::Value::Null);
+    for (other, what) in [(&model, "cpu-model z-fail"), (&zpass, "wgpu z-pass")] {
+        let e = compare(&gpu.visibility, &other.visibility, &frame.gbuffer.mask());
+        eprintln!("vs {what}: {e:?}");
+        assert!(e.shadow_pixels > 100);
+        assert!(e.mae <= 1e-3, "{what}: {e:?}");
+        assert!(e.frac_over_0_1 <= 0.005, "{what}: {e:?}");
+    }
+    for c in ["fill", "overdraw", "volume_caps"] {
+        let (g, m) = (counter(&gpu, c), counter(&model, c));
+        eprintln!("  {c}: wgpu {g}, cpu-model {m}");
+        assert!(m > 0.0, "{c}");
+        assert!(
+            (g - m).abs() <= 0.005 * m,
+            "{c}: {g} on wgpu, {m} on cpu-model"
+        );
     }
 }

@@ -137,7 +137,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         source: "001 §1.3, Paper III §5",
         summary: "average of N hard shadow-volume shadows from N light samples",
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel],
+        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: accum_hard::memory_estimate,
         check_options: accum_hard::check_options,
     },
@@ -266,6 +266,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
                 &soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options)?,
             ),
             soft_shadow_volume::ID => soft_shadow_volume::wgpu::render(gpu, frame, ctx),
+            accum_hard::ID => accum_hard::wgpu::render(gpu, frame, ctx),
             soft_izb::ID => {
                 soft_izb::wgpu::render(gpu, frame, &soft_izb::SoftIzbOptions::parse(&ctx.options)?)
             }

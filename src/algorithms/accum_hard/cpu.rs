@@ -7,7 +7,8 @@ use crate::algorithms::eye_raster::{tiles, Block, EyeBuffer, EyeRays, ScreenRect
 use crate::algorithms::hard_shadow_map::cpu::{machine, output};
 use crate::algorithms::shadow_map::parse_options;
 use crate::algorithms::shadow_volume::{
-    eye_count, mem_read, mem_write, render_quads, CountTarget, HardPass, ShadowQuad,
+    eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, HardPass,
+    ShadowQuad,
 };
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
@@ -97,16 +98,28 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
             .iter()
             .map(|e| ShadowQuad::new(e, sample))
             .collect();
-        let pass = render_quads(
+        let counting = match opts.counting {
+            Counting::ZPass => HardCounting::ZPass {
+                eye_count: eye_count(&occluders, sample, rays.eye),
+            },
+            Counting::ZFail => HardCounting::ZFail {
+                occluders: &occluders,
+                light: sample,
+            },
+        };
+        let pass = render_hard(
             &mut m,
             "stencil",
             &rays,
             &quads,
-            eye_count(&occluders, sample, rays.eye),
+            counting,
             frame.params.tile_size,
             &hard,
         );
         m.count("silhouette_edges", quads.len() as f64);
+        if opts.counting == Counting::ZFail {
+            m.count("volume_caps", pass.caps as f64);
+        }
         m.count("fill", pass.fill as f64);
         m.count("overdraw", (pass.fill - pass.passed) as f64);
         mem_write(&mut m, "stencil", n * u64::from(STENCIL_BYTES));
@@ -149,5 +162,7 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
     let mut out = output(m, visibility);
     out.execution
         .insert("samples".to_string(), serde_json::json!(k * k));
+    out.execution
+        .insert("counting".to_string(), serde_json::json!(opts.counting));
     Ok(out)
 }

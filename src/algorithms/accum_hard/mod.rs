@@ -9,9 +9,11 @@
 //! [`Light::stratified_sample`]: crate::scene::Light::stratified_sample
 
 pub mod cpu;
+pub mod wgpu;
 
 use serde::{Deserialize, Serialize};
 
+pub use super::shadow_volume::Counting;
 use crate::error::InputError;
 
 pub const ID: &str = "accum_hard";
@@ -23,6 +25,10 @@ pub struct AccumHardOptions {
     /// N, the number of light samples: a perfect square in 16..=1024.
     #[serde(default = "default_samples")]
     pub samples: u32,
+    /// The hard passes' counting: z-pass from the eye's count, or z-fail over capped volumes
+    /// ([`Counting`]).
+    #[serde(default)]
+    pub counting: Counting,
 }
 
 fn default_samples() -> u32 {
@@ -33,6 +39,7 @@ impl Default for AccumHardOptions {
     fn default() -> Self {
         AccumHardOptions {
             samples: default_samples(),
+            counting: Counting::ZPass,
         }
     }
 }

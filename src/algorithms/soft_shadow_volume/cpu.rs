@@ -18,7 +18,7 @@ use crate::algorithms::eye_raster::{
 use crate::algorithms::hard_shadow_map::cpu::{machine, output};
 use crate::algorithms::shadow_map::parse_options;
 use crate::algorithms::shadow_volume::{
-    eye_count, mem_read, mem_write, render_quads, CountTarget, ShadowQuad,
+    eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
 };
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
@@ -220,7 +220,10 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
         } else {
             vec![silhouette.edges.clone()]
         };
-        let eye = eye_count(&occluders, centre, setup.rays.eye);
+        let eye = match opts.counting {
+            Counting::ZPass => eye_count(&occluders, centre, setup.rays.eye),
+            Counting::ZFail => 0,
+        };
         if loops.len() > 1 && eye != 0 {
             warnings.push(format!(
                 "the eye is inside {eye} shadow volume(s); per-loop V-buffers of the overlap \
@@ -229,8 +232,16 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
         }
         let mut covered = vec![0.0f32; n];
         for (k, edges) in loops.iter().enumerate() {
-            let eye = if loops.len() > 1 { 0 } else { eye };
-            let v = render_loop(&mut m, &setup, sub, edges, eye);
+            let counting = match opts.counting {
+                Counting::ZPass => HardCounting::ZPass {
+                    eye_count: if loops.len() > 1 { 0 } else { eye },
+                },
+                Counting::ZFail => HardCounting::ZFail {
+                    occluders: &occluders,
+                    light: centre,
+                },
+            };
+            let v = render_loop(&mut m, &setup, sub, edges, counting);
             for i in 0..n {
                 let c = (1.0 - v[i]).clamp(0.0, 1.0);
                 covered[i] = if k == 0 {
@@ -330,7 +341,7 @@ fn render_loop(
     s: &Setup,
     light: &Light,
     edges: &[SilhouetteEdge],
-    eye: i32,
+    counting: HardCounting,
 ) -> Vec<f32> {
     let centre = light.center();
     let rays = &s.rays;
@@ -338,7 +349,10 @@ fn render_loop(
     // Pass 1: hard shadow quads (III §3.2.1).
     m.phase("hard");
     let quads: Vec<ShadowQuad> = edges.iter().map(|e| ShadowQuad::new(e, centre)).collect();
-    let hard = render_quads(m, "quads", rays, &quads, eye, s.tile, &s.hard);
+    let hard = render_hard(m, "quads", rays, &quads, counting, s.tile, &s.hard);
+    if let HardCounting::ZFail { .. } = counting {
+        m.count("volume_caps", hard.caps as f64);
+    }
     m.count("fill", hard.fill as f64);
     m.count("overdraw", (hard.fill - hard.passed) as f64);
     mem_read(m, "depth", hard.fill * DEPTH_BYTES);

@@ -1,7 +1,9 @@
 //! Soft shadow volumes with penumbra wedges (paper 001, Papers III and IV), the math once.
 //!
 //! Pass 1 renders the hard shadow quads of the silhouette seen from the light centre into the
-//! V-buffer exactly as hard shadow volumes do ([`super::shadow_volume`]). Pass 2 rasterizes one
+//! V-buffer exactly as hard shadow volumes do ([`super::shadow_volume`]): z-pass from the eye's
+//! count, or (option `counting: "z_fail"`, Paper II §5) z-fail over volumes closed by light and
+//! dark caps. Pass 2 rasterizes one
 //! penumbra wedge per silhouette edge ([`Wedge`]); for each point p inside a wedge it projects
 //! the edge's hard shadow quad onto the light as seen from p, takes the fraction of the light the
 //! projection covers ([`exact_coverage`] or the 4D [`CoverageTexture`]) and adds it on the inner
@@ -21,6 +23,7 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::eye_raster::ConvexVolume;
+pub use super::shadow_volume::Counting;
 use crate::error::InputError;
 use crate::scene::adjacency::SilhouetteEdge;
 use crate::scene::Light;
@@ -576,6 +579,9 @@ pub struct SoftShadowVolumeOptions {
     /// Split a rectangular light into k×k sub-lights (IV §5.2); 1 = no splitting.
     #[serde(default = "one")]
     pub light_split: u32,
+    /// Pass 1's counting (III §3.2.1 with z-pass, Paper II §5 z-fail with capped volumes).
+    #[serde(default)]
+    pub counting: Counting,
 }
 
 fn default_texture_n() -> u32 {
@@ -600,6 +606,7 @@ impl Default for SoftShadowVolumeOptions {
             vbuffer: VBufferPrecision::default(),
             overlap_approximation: false,
             light_split: 1,
+            counting: Counting::ZPass,
         }
     }
 }
@@ -621,6 +628,14 @@ impl SoftShadowVolumeOptions {
                     "must be 1, 2 or 3 (k×k sub-lights), got {}",
                     self.light_split
                 ),
+            ));
+        }
+        if self.counting == Counting::ZFail && self.overlap_approximation {
+            return Err(InputError::new(
+                format!("$.options.{ID}.counting"),
+                "\"z_fail\" cannot be combined with overlap_approximation: the caps of each \
+                 silhouette loop's volume are not built"
+                    .to_string(),
             ));
         }
         Ok(())

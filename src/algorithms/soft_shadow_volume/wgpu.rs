@@ -5,7 +5,9 @@
 //!   the light centre and binned to 8×8 screen tiles on the host (sort-middle, as
 //!   [`crate::algorithms::eye_raster::raster_pass`] bins them), then one invocation per pixel
 //!   walks its tile's quads in submission order and counts z-pass from the eye's count
-//!   ([`crate::algorithms::shadow_volume`]) into an i32 V-buffer.
+//!   ([`crate::algorithms::shadow_volume`]) into an i32 V-buffer; with `counting: "z_fail"`
+//!   (Paper II §5) it walks the faces of the capped volumes instead (sides, light and dark caps,
+//!   built on the host by [`zfail_faces`]) and counts those at or behind the visible surface.
 //! - `wedges` (III §3.1, IV §4.1): on the host, with the cpu executions' code
 //!   (`cpu::build_wedge`, `cpu::wedge_primitives`: wedge halves when culling),
 //!   binned and uploaded; host wall time only. Binning drops a (primitive, tile) pair when one
@@ -30,8 +32,8 @@
 //! stencil traffic it would cost is counted as the cpu-model counts it. A timed submission
 //! (timestamps and pipeline statistics per GPU pass) is followed by an instrumented replay with
 //! WGSL atomics counting fragments. Not built on the GPU: silhouette detection and wedge
-//! construction (host, as on the cpu executions), z-fail capping (the eye's count is computed
-//! on the host), textured lights.
+//! construction (host, as on the cpu executions), the z-fail caps (host; z-fail is counted on
+//! the GPU), textured lights.
 
 use std::time::Instant;
 
@@ -46,7 +48,9 @@ use super::{
 };
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_map::parse_options;
-use crate::algorithms::shadow_volume::{eye_count, quad_footprints, ShadowQuad};
+use crate::algorithms::shadow_volume::{
+    eye_count, face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad, VolumeFace,
+};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -56,7 +60,7 @@ use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::Gpu;
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
-use crate::scene::Light;
+use crate::scene::{Light, Mesh};
 use crate::visibility::VisibilityBuffer;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
@@ -68,6 +72,8 @@ const STORAGE_BUFFERS: u32 = 11;
 /// Record sizes: an eye ray, a shadow quad, a wedge primitive, a plane, a word.
 const RAY_BYTES: u64 = 48;
 const QUAD_BYTES: u64 = 80;
+/// A z-fail volume face: six vec4 (corners, normal, footprint) in the `planes` binding.
+const FACE_BYTES: u64 = 96;
 const PRIM_BYTES: u64 = 32;
 const PLANE_BYTES: u64 = 16;
 const WORD: u64 = 4;
@@ -115,7 +121,9 @@ struct Params {
     first_light: u32,
     last_light: u32,
     sub_lights: u32,
-    pad: [u32; 4],
+    /// 0: z-pass, 1: z-fail over the capped volumes.
+    counting: u32,
+    pad: [u32; 3],
 }
 
 /// `soft_shadow_volume` on wgpu.
@@ -139,7 +147,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
     let setup_ms = start.elapsed().as_secs_f64() * 1e3;
-    let passes = Passes::new(gpu, &rays, &opts, frame_res);
+    let passes = Passes::new(gpu, &rays, &opts, frame_res, occluders.clone());
 
     let mut runs = Vec::new();
     let mut warnings = Vec::new();
@@ -157,7 +165,10 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
         if no_loop {
             loops.push(Vec::new());
         }
-        let eye = eye_count(&occluders, centre, rays.eye);
+        let eye = match opts.counting {
+            Counting::ZPass => eye_count(&occluders, centre, rays.eye),
+            Counting::ZFail => 0,
+        };
         if loops.len() > 1 && eye != 0 {
             warnings.push(format!(
                 "the eye is inside {eye} shadow volume(s); per-loop V-buffers of the overlap \
@@ -183,7 +194,8 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
                 first_light: u32::from(s == 0),
                 last_light: u32::from(s + 1 == sub_lights.len()),
                 sub_lights: sub_lights.len() as u32,
-                pad: [0; 4],
+                counting: u32::from(opts.counting == Counting::ZFail),
+                pad: [0; 3],
             };
             runs.push(LoopRun {
                 light: *sub,
@@ -231,7 +243,7 @@ fn frame_light(light: &Light, shape: EmitterShape) -> ([f32; 4], [f32; 4], [f32;
     )
 }
 
-fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
+pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
     let l = &gpu.limits;
     if l.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
         return Err(Error::Resource(format!(
@@ -418,11 +430,44 @@ fn rect(f: &Option<ScreenRect>) -> [u32; 4] {
     f.map_or([0; 4], |r| [r.x0, r.y0, r.x1, r.y1])
 }
 
+/// The z-fail faces as the WGSL reads them from the `planes` binding: six vec4 per face, the
+/// four corners (w of the first: the count change of a passing fragment, minus the eye's side;
+/// w of the second: the number of corners), the outward normal and the footprint's bits.
+fn face_records(rays: &EyeRays, faces: &[VolumeFace]) -> Vec<[u32; 24]> {
+    faces
+        .iter()
+        .zip(face_footprints(rays, faces))
+        .map(|(f, fp)| {
+            let mut w = [0u32; 24];
+            let ws = [-f.side(rays.eye), f.sides as f32, 0.0, 0.0];
+            for (k, c) in f.corners.iter().chain([&f.normal]).enumerate() {
+                let v = c.extend(ws.get(k).copied().unwrap_or(0.0));
+                for j in 0..4 {
+                    w[4 * k + j] = v[j].to_bits();
+                }
+            }
+            w[20..24].copy_from_slice(&rect(&fp));
+            w
+        })
+        .collect()
+}
+
+/// What the hard phase uploaded for one loop: the hard pass's bind group, the params, quads and
+/// bins buffers the soft pass binds too, and the counts its counters need.
+struct HardUpload {
+    group: wgpu::BindGroup,
+    buffers: [wgpu::Buffer; 3],
+    bin_entries: u64,
+    caps: u64,
+}
+
 /// A loop's uploaded primitives and what its counters need from the host.
 struct LoopGpu {
     hard_group: wgpu::BindGroup,
     soft_group: wgpu::BindGroup,
     quads: u64,
+    /// Cap faces of the z-fail volumes (0 for z-pass).
+    caps: u64,
     quad_bin_entries: u64,
     wedges: WedgeCounts,
 }
@@ -443,9 +488,13 @@ struct Passes<'g> {
     layout: wgpu::BindGroupLayout,
     hard: [wgpu::ComputePipeline; 2],
     soft: [wgpu::ComputePipeline; 2],
+    /// `accum_hard`'s accumulation of one sample's lit pixels.
+    accumulate: wgpu::ComputePipeline,
     groups: (u32, u32),
     pixels: u64,
     cones: Vec<(Vec3, f32)>,
+    /// The occluders, whose light-facing triangles cap the z-fail volumes.
+    occluders: Mesh,
 }
 
 fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
@@ -467,6 +516,7 @@ impl<'g> Passes<'g> {
         rays: &EyeRays,
         opts: &SoftShadowVolumeOptions,
         res: FrameResources,
+        occluders: Mesh,
     ) -> Passes<'g> {
         let device = &gpu.device;
         let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform)];
@@ -509,9 +559,11 @@ impl<'g> Passes<'g> {
             layout,
             hard: [pipeline("hard", false), pipeline("hard", true)],
             soft: [pipeline("soft", false), pipeline("soft", true)],
+            accumulate: pipeline("accumulate", false),
             groups: (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE)),
             pixels: rays.len() as u64,
             cones: tile_cones(rays),
+            occluders,
         }
     }
 
@@ -553,14 +605,15 @@ impl<'g> Passes<'g> {
             })
     }
 
-    /// The hard phase's host part: quads, footprints, bins, upload. Returns the bind group of
-    /// the hard pass and the quads' buffers for the soft pass.
+    /// The hard phase's host part: quads (and for z-fail the capped volumes' faces from light
+    /// point `light`), footprints, bins, upload.
     fn upload_quads(
         &self,
         rays: &EyeRays,
-        run: &LoopRun,
+        params: &Params,
+        light: Vec3,
         quads: &[ShadowQuad],
-    ) -> (wgpu::BindGroup, [wgpu::Buffer; 3], u64) {
+    ) -> HardUpload {
         let gpu = self.gpu;
         let storage = wgpu::BufferUsages::STORAGE;
         let footprints = quad_footprints(rays, quads);
@@ -583,22 +636,42 @@ impl<'g> Passes<'g> {
                 w
             })
             .collect();
-        let (quad_bins, entries) = bins(rays, &footprints, |_, _| true);
+        let faces = (params.counting == 1)
+            .then(|| zfail_faces(quads, &self.occluders, light, &rays.bounds));
+        let (quad_bins, entries) = match &faces {
+            None => bins(rays, &footprints, |_, _| true),
+            Some(f) => bins(rays, &face_footprints(rays, f), |_, _| true),
+        };
         let params = init(
             gpu,
             "ssv params",
-            bytemuck::bytes_of(&run.params),
+            bytemuck::bytes_of(params),
             wgpu::BufferUsages::UNIFORM,
         );
         let quads_buf = init(gpu, "shadow quads", bytemuck::cast_slice(&records), storage);
         let bins_buf = init(gpu, "quad bins", bytemuck::cast_slice(&quad_bins), storage);
         let none = empty(gpu, "no primitives", 128, wgpu::BufferUsages::empty());
+        let faces_buf = faces.as_ref().map(|f| {
+            let records = face_records(rays, f);
+            init(gpu, "volume faces", bytemuck::cast_slice(&records), storage)
+        });
         let group = self.group(
             &params,
-            [&quads_buf, &none, &none, &bins_buf, &none],
+            [
+                &quads_buf,
+                &none,
+                faces_buf.as_ref().unwrap_or(&none),
+                &bins_buf,
+                &none,
+            ],
             "hard",
         );
-        (group, [params, quads_buf, bins_buf], entries)
+        HardUpload {
+            group,
+            buffers: [params, quads_buf, bins_buf],
+            bin_entries: entries,
+            caps: faces.map_or(0, |f| (f.len() - quads.len()) as u64),
+        }
     }
 
     /// The wedges phase's host part: wedges, primitives, bins, upload; the soft pass's group.
@@ -717,19 +790,20 @@ impl<'g> Passes<'g> {
                 .iter()
                 .map(|e| ShadowQuad::new(e, centre))
                 .collect();
-            let (hard_group, quad_buffers, quad_entries) = self.upload_quads(rays, run, &quads);
+            let up = self.upload_quads(rays, &run.params, centre, &quads);
             let q = Some((timer.as_ref(), stats.as_ref(), 2 * j));
             self.gpu
-                .submit(|e| self.pass(e, &hard_group, false, false, q))?;
+                .submit(|e| self.pass(e, &up.group, false, false, q))?;
             wall[0] += start.elapsed().as_secs_f64() * 1e3;
             // Wedges (III §3.1, IV §4.1), on the host.
             let start = Instant::now();
-            let (soft_group, w) = self.upload_wedges(rays, run, &quads, &quad_buffers);
+            let (soft_group, w) = self.upload_wedges(rays, run, &quads, &up.buffers);
             let lg = LoopGpu {
-                hard_group,
+                hard_group: up.group,
                 soft_group,
                 quads: quads.len() as u64,
-                quad_bin_entries: quad_entries,
+                caps: up.caps,
+                quad_bin_entries: up.bin_entries,
                 wedges: w,
             };
             wall[1] += start.elapsed().as_secs_f64() * 1e3;
@@ -850,8 +924,14 @@ impl<'g> Passes<'g> {
         k.add("overdraw", fill - passed);
         k.add("quad_tests", tests);
         k.add("shadow_quads", lg.quads as f64);
+        let record = if self.opts.counting == Counting::ZFail {
+            k.add("volume_caps", lg.caps as f64);
+            FACE_BYTES
+        } else {
+            QUAD_BYTES
+        };
         let rays = (RAY_BYTES * self.pixels) as f64;
-        let quads = QUAD_BYTES as f64 * tests;
+        let quads = record as f64 * tests;
         let bins = (WORD * (lg.quad_bin_entries + 2 * self.tiles())) as f64;
         let depth = fill * DEPTH_BYTES as f64;
         let vbuffer = (VBUFFER_BYTES * self.pixels) as f64;
@@ -931,5 +1011,148 @@ impl<'g> Passes<'g> {
 
     fn tiles(&self) -> u64 {
         u64::from(self.groups.0) * u64::from(self.groups.1)
+    }
+}
+
+/// The hard pass of this module once per light sample, for `accum_hard` on wgpu: per sample the
+/// hard shadow quads (or z-fail faces) binned and counted per pixel by the `hard` entry, then
+/// the `accumulate` entry adding the pixels with count 0 to a per-pixel sum (the `covered`
+/// buffer) and, after the last sample, writing the average to `visibility`.
+pub(crate) struct HardSamples<'g> {
+    passes: Passes<'g>,
+    samples: u32,
+}
+
+/// One light sample's uploaded hard pass.
+pub(crate) struct SampleUpload {
+    up: HardUpload,
+    /// Quads and cap faces, for the counters.
+    pub quads: u64,
+    pub caps: u64,
+}
+
+/// Fragment counts of the instrumented replay, summed over samples.
+pub(crate) struct HardTally {
+    pub fill: f64,
+    pub passed: f64,
+    pub tests: f64,
+}
+
+impl<'g> HardSamples<'g> {
+    pub(crate) fn new(
+        gpu: &'g Gpu,
+        rays: &EyeRays,
+        counting: Counting,
+        occluders: Mesh,
+        samples: u32,
+    ) -> HardSamples<'g> {
+        let opts = SoftShadowVolumeOptions {
+            counting,
+            ..Default::default()
+        };
+        let res = FrameResources::new(gpu, rays, None);
+        HardSamples {
+            passes: Passes::new(gpu, rays, &opts, res, occluders),
+            samples,
+        }
+    }
+
+    /// Uploads sample `s`'s quads from light point `light` (host part of the hard phase).
+    pub(crate) fn upload(
+        &self,
+        rays: &EyeRays,
+        s: u32,
+        light: Vec3,
+        quads: &[ShadowQuad],
+        eye_count: i32,
+    ) -> SampleUpload {
+        let params = Params {
+            center: light.extend(0.0).to_array(),
+            half_u: [0.0; 4],
+            half_v: [0.0; 4],
+            eye: rays.eye.extend(0.0).to_array(),
+            width: rays.width,
+            height: rays.height,
+            tiles_x: rays.width.div_ceil(TILE),
+            eye_count,
+            vbuffer: 0,
+            coverage: 0,
+            texture_n: 0,
+            first_loop: 1,
+            last_loop: 1,
+            first_light: u32::from(s == 0),
+            last_light: u32::from(s + 1 == self.samples),
+            sub_lights: self.samples,
+            counting: u32::from(self.passes.opts.counting == Counting::ZFail),
+            pad: [0; 3],
+        };
+        let up = self.passes.upload_quads(rays, &params, light, quads);
+        SampleUpload {
+            quads: quads.len() as u64,
+            caps: up.caps,
+            up,
+        }
+    }
+
+    /// Records the sample's hard pass (timed as pass `index` when queries are given).
+    pub(crate) fn hard(
+        &self,
+        e: &mut wgpu::CommandEncoder,
+        s: &SampleUpload,
+        queries: Option<(Option<&PassTimer>, Option<&PassStats>, u32)>,
+    ) {
+        self.passes.pass(e, &s.up.group, false, false, queries);
+    }
+
+    /// Records the sample's accumulation (timed as pass `index` when queries are given).
+    pub(crate) fn accumulate(
+        &self,
+        e: &mut wgpu::CommandEncoder,
+        s: &SampleUpload,
+        queries: Option<(Option<&PassTimer>, Option<&PassStats>, u32)>,
+    ) {
+        let (timer, stats, index) = queries.unwrap_or((None, None, 0));
+        let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("accumulate"),
+            timestamp_writes: timer.map(|t| t.compute(index)),
+        });
+        if let Some(st) = stats {
+            st.begin_compute(&mut pass, index);
+        }
+        pass.set_pipeline(&self.passes.accumulate);
+        pass.set_bind_group(0, &s.up.group, &[]);
+        pass.dispatch_workgroups(self.passes.groups.0, self.passes.groups.1, 1);
+        if stats.is_some() {
+            pass.end_pipeline_statistics_query();
+        }
+    }
+
+    /// The averaged visibility, written by the last sample's accumulation.
+    pub(crate) fn visibility(&self) -> &wgpu::Buffer {
+        &self.passes.res.visibility
+    }
+
+    /// The instrumented replay of every sample's hard pass (WGSL atomics), in one submission.
+    pub(crate) fn replay(&self, samples: &[SampleUpload]) -> Result<HardTally> {
+        let gpu = self.passes.gpu;
+        let stats = &self.passes.res.stats;
+        let staging = Staging::new(gpu, "statistics readback", stats.size());
+        gpu.submit(|e| {
+            e.clear_buffer(stats, 0, None);
+            for s in samples {
+                self.passes.pass(e, &s.up.group, false, true, None);
+            }
+            staging.copy(e, stats);
+        })?;
+        let raw: Vec<u32> = words(&staging.read(gpu)?);
+        let stat = |s: Stat| {
+            let i = s as usize;
+            (u64::from(raw[2 * i + 1]) << 32 | u64::from(raw[2 * i])) as f64
+        };
+        Ok(HardTally {
+            fill: stat(Stat::HardFill),
+            passed: stat(Stat::HardPassed),
+            tests: stat(Stat::HardTests),
+        })
     }
 }

@@ -33,7 +33,8 @@ struct Params {
     first_light: u32,
     last_light: u32,
     sub_lights: u32,
-    pad0: u32,
+    // 0: z-pass from `eye_count`, 1: z-fail over the capped volumes' faces in `planes`.
+    counting: u32,
     pad3: u32,
     pad1: u32,
     pad2: u32,
@@ -151,16 +152,75 @@ fn in_rect(r: vec4u, x: u32, y: u32) -> bool {
     return x >= r.x && x < r.z && y >= r.y && y < r.w;
 }
 
+// `VolumeFace::ray_hit` for z-fail face k (six vec4 of `planes`: corners, normal, footprint):
+// distance along o + t·d to the face, or -1.
+fn face_hit(k: u32, o: vec3f, d: vec3f) -> f32 {
+    let n = planes[6u * k + 4u].xyz;
+    let nd = dot(n, d);
+    if abs(nd) < 1e-12 * length(n) {
+        return -1.0;
+    }
+    let t = dot(n, planes[6u * k].xyz - o) / nd;
+    let y = o + d * t;
+    let sides = u32(planes[6u * k + 1u].w);
+    var inside = true;
+    for (var j = 0u; j < sides; j++) {
+        let a = planes[6u * k + j].xyz;
+        let b = planes[6u * k + (j + 1u) % sides].xyz;
+        inside = inside && dot(cross(b - a, y - a), n) >= 0.0;
+    }
+    if t > 0.0 && inside {
+        return t;
+    }
+    return -1.0;
+}
+
+// `shadow_volume::QuadPass::block` with z-fail counting (Paper II §5) for one pixel over the
+// faces of the capped volumes binned to its tile: fragments from the entry into the scene
+// bounds on, counted at or behind the visible surface.
+fn hard_zfail(i: u32, id: vec3u, tile: u32) {
+    let ray = rays[i];
+    var c = 0;
+    var fill = 0u;
+    var passed = 0u;
+    var tests = 0u;
+    for (var e = quad_bins[2u * tile]; e < quad_bins[2u * tile + 1u]; e++) {
+        let k = quad_bins[e];
+        if !in_rect(bitcast<vec4u>(planes[6u * k + 5u]), id.x, id.y) {
+            continue;
+        }
+        tests++;
+        let t = face_hit(k, P.eye.xyz, ray.dir.xyz);
+        if t >= 0.0 && t >= ray.point.w {
+            fill++;
+            if t >= ray.dir.w {
+                passed++;
+                c += i32(planes[6u * k].w);
+            }
+        }
+    }
+    counts[i] = c;
+    if INSTRUMENT != 0u {
+        count(STAT_HARD_TESTS, tests);
+        count(STAT_HARD_FILL, fill);
+        count(STAT_HARD_PASSED, passed);
+    }
+}
+
 // `shadow_volume::QuadPass::block` for one pixel over the quads binned to its tile (III §3.2.1,
-// z-pass counting started at the eye's count).
+// z-pass counting started at the eye's count; z-fail in `hard_zfail`).
 @compute @workgroup_size(8, 8)
 fn hard(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= P.width || id.y >= P.height {
         return;
     }
     let i = id.y * P.width + id.x;
-    let ray = rays[i];
     let tile = (id.y / TILE) * P.tiles_x + id.x / TILE;
+    if P.counting == 1u {
+        hard_zfail(i, id, tile);
+        return;
+    }
+    let ray = rays[i];
     var c = P.eye_count;
     var fill = 0u;
     var passed = 0u;
@@ -560,5 +620,24 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
         count(STAT_SOFT_INSIDE, inside_n);
         count(STAT_SOFT_COVERED, covered_n);
         count(STAT_SOFT_CONTRIBUTING, contributing);
+    }
+}
+
+// `accum_hard` (`accum_hard::cpu::Accumulate`): adds this light sample's lit pixels (count 0) to
+// the per-pixel sum kept in `covered`; after the last sample (`last_light`), the average over
+// the `sub_lights` samples in `visibility` (1 for pixels without a surface).
+@compute @workgroup_size(8, 8)
+fn accumulate(@builtin(global_invocation_id) id: vec3u) {
+    if id.x >= P.width || id.y >= P.height {
+        return;
+    }
+    let i = id.y * P.width + id.x;
+    var sum = select(0.0, 1.0, counts[i] == 0);
+    if P.first_light == 0u {
+        sum += covered[i];
+    }
+    covered[i] = sum;
+    if P.last_light == 1u {
+        visibility[i] = select(1.0, sum / f32(P.sub_lights), rays[i].extra.y == 1.0);
     }
 }
