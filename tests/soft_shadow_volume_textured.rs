@@ -212,11 +212,11 @@ fn half_red_half_blue_light_over_a_half_covered_light_is_analytic() {
     let g = &frame.gbuffer;
     let mut pixels = Vec::new();
     let mut expected = vec![[0.0f32; 3]; g.len()];
-    for i in 0..g.len() {
+    for (i, x) in expected.iter_mut().enumerate() {
         let p = g.position[i];
         if g.is_hit(i) && p.y.abs() < 1e-3 && p.x.abs() < 3.0 && p.z.abs() < 3.0 {
             let e = -2.0 * p.x;
-            expected[i] = [
+            *x = [
                 (e.clamp(-1.0, 0.0) + 1.0) / 2.0,
                 0.0,
                 e.clamp(0.0, 1.0) / 2.0,
