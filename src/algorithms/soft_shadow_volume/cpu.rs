@@ -54,7 +54,10 @@ const PROJECT_OPS: u32 = (3 + 4 + 6 + 6) + (6 + 2 + 4 + 4 + 6) + 2 * (3 + 3 + 6)
 const EXACT_OPS: u32 = 3 * 4 * 6 + 10;
 /// The texture lookup's addressing and bilinear filter: two texel positions (multiply-add, clamp
 /// per coordinate), a round, two floors, the four indices and the two lerps in each direction.
-const TEXTURE_OPS: u32 = 8 + 2 + 2 + 4 * 3 + 6;
+const TEXTURE_OPS: u32 = 8 + 2 + 2 + 4 * 3 + TEXTURE_FILTER_OPS;
+/// The bilinear filter's lerps (part of `TEXTURE_OPS`), once more per extra channel of a
+/// textured light's RGB texture.
+const TEXTURE_FILTER_OPS: u32 = 6;
 /// Adding or subtracting the coverage into the V-buffer (select by side, add; the split format's
 /// digit split and carry blend in the 12-bit case).
 const VBUFFER_OPS_F32: u32 = 2;
@@ -189,6 +192,9 @@ struct Setup {
 pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
     opts.validate()?;
+    if frame.scene.light_texture.is_some() {
+        super::check_light_texture(&ctx.options)?;
+    }
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
         Error::Unsupported(format!(
@@ -203,8 +209,14 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
     }
     let rays = EyeRays::new(frame);
     let depth = EyeBuffer::new(&mut m, &rays, "depth", DEPTH_BYTES as u32);
+    // One f32 per channel under a textured light (III §4.1).
+    let channels = if frame.scene.light_texture.is_some() {
+        3
+    } else {
+        1
+    };
     let vbuffer_bytes = match opts.vbuffer {
-        VBufferPrecision::F32 => VBUFFER_F32_BYTES,
+        VBufferPrecision::F32 => VBUFFER_F32_BYTES * channels,
         VBufferPrecision::Split12 => VBUFFER_RGBA8_BYTES,
     };
     let vbuffer = EyeBuffer::new(&mut m, &rays, "vbuffer", vbuffer_bytes);
@@ -611,7 +623,10 @@ impl TilePass for SoftPass<'_> {
         }
         match &s.texture {
             Some(tex) => {
-                p.vector(TEXTURE_OPS, covered);
+                p.vector(
+                    TEXTURE_OPS + TEXTURE_FILTER_OPS * (tex.texture.channels - 1),
+                    covered,
+                );
                 if P::ENABLED {
                     // One gather per bilinear tap, each lane reading its own texel.
                     let ch = u64::from(tex.texture.channels);
@@ -637,7 +652,7 @@ impl TilePass for SoftPass<'_> {
         s.vbuffer.read(p, b, covered);
         p.vector(
             match s.opts.vbuffer {
-                VBufferPrecision::F32 => VBUFFER_OPS_F32,
+                VBufferPrecision::F32 => VBUFFER_OPS_F32 * s.channels(),
                 VBufferPrecision::Split12 => VBUFFER_OPS_SPLIT12,
             },
             covered,

@@ -8,6 +8,15 @@
 //! side of the quad, subtracts it on the outer side (III §3.2.2). Summed over a silhouette loop
 //! this is Green's theorem: the visible fraction of the light.
 //!
+//! Textured and coloured lights (III §3.3, `light.texture` on a rectangular light): the 4D
+//! texture's texels hold, per channel, the integral of the light's texture over the covered
+//! part ([`CoverageTexture::build_textured`]), and the V-buffer holds one f32 per channel
+//! (III §4.1): `mean·(1 − count) ± coverage`, the light received per channel. The frame's
+//! scalar visibility is its luminance fraction
+//! ([`crate::scene::LightTexture::visibility`]). Not built for textured lights (refused by
+//! [`check_light_texture`]): exact clipping, the split 12-bit V-buffer, the overlap
+//! approximation and light splitting; spherical textured lights (the paper did not try them).
+//!
 //! Light coordinates: the emitter seen from p is spanned by two half-axes from its centre
 //! ([`crate::scene::Light::emitter_frame`]); a point of its plane is written in units of those
 //! half-axes, so a rectangle is `[−1, 1]²` and a sphere's disc is the unit disc.
@@ -757,7 +766,9 @@ mod tests;
 
 /// Bytes of the eye-sized buffers (V-buffer, stencil, per-loop buffers of the overlap
 /// approximation counted once) and the default 4D coverage texture (n⁴ 8-bit texels), estimated
-/// before anything is allocated, for the harness's memory limit.
+/// before anything is allocated, for the harness's memory limit. A textured light's RGB
+/// texture and V-buffer (three times these) are not in the estimate: it sees only the
+/// run's parameters.
 pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
     let pixels = u64::from(p.image[0]) * u64::from(p.image[1]);
     let n = u64::from(default_texture_n());

@@ -129,6 +129,9 @@ struct Params {
 pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
     opts.validate()?;
+    if frame.scene.light_texture.is_some() {
+        super::check_light_texture(&ctx.options)?;
+    }
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
         Error::Unsupported(format!(
