@@ -494,3 +494,56 @@ fn textured_wgpu_agrees_with_the_cpu_model() {
     }
     assert!(model.counters.get("wedges").unwrap_or(0.0) > 0.0);
 }
+
+/// The RGB coverage texture against the exact texture-weighted coverage it samples (III §3.3),
+/// and a white light's RGB texture against the untextured one (both exact clipping, 8 bits).
+#[test]
+fn rgb_coverage_texture_agrees_with_the_exact_textured_coverage() {
+    use shadowbench::algorithms::soft_shadow_volume::{
+        exact_coverage, textured_coverage, CoverageTexture, EmitterShape,
+    };
+    use shadowbench::util::hash::unit_pair;
+    let shape = EmitterShape::Square;
+    let white = texture(LightTextureSpec {
+        color: Some([1.0; 3]),
+        ..Default::default()
+    });
+    let plain = CoverageTexture::build(shape, 8);
+    let whites = CoverageTexture::build_textured(&white, 8);
+    assert_eq!(whites.channels, 3);
+    for (k, &b) in plain.texels.iter().enumerate() {
+        for c in 0..3 {
+            assert!(
+                (i32::from(whites.texels[3 * k + c]) - i32::from(b)).abs() <= 1,
+                "texel {k} channel {c}"
+            );
+        }
+    }
+    let light = checker();
+    let t = CoverageTexture::build_textured(&light, 32);
+    let (mut sum, mut count) = ([0.0f32; 3], 0);
+    for i in 0..2000u64 {
+        let q0 = unit_pair(7, 2 * i) * 4.0 - glam::Vec2::splat(2.0);
+        let q1 = unit_pair(7, 2 * i + 1) * 4.0 - glam::Vec2::splat(2.0);
+        let Some((c0, c1)) = shape.clip(q0, q1) else {
+            continue;
+        };
+        let exact = textured_coverage(&light, c0, c1);
+        let (looked_up, _) = t.lookup_texels(c0, c1);
+        for c in 0..3 {
+            sum[c] += (looked_up[c] - exact[c]).abs();
+        }
+        // White light weighting is plain coverage.
+        let w = textured_coverage(&white, c0, c1);
+        assert!((w[0] - exact_coverage(shape, c0, c1)).abs() < 1e-4);
+        count += 1;
+    }
+    assert!(count > 500);
+    for c in 0..3 {
+        assert!(
+            sum[c] / (count as f32) < 0.01,
+            "channel {c}: {:?}",
+            sum.map(|s| s / count as f32)
+        );
+    }
+}
