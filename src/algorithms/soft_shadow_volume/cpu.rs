@@ -273,9 +273,15 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
             let v = render_loop(&mut m, &setup, sub, edges, eye);
             if let Some(mean) = setup.mean {
                 // One loop and one light (`check_light_texture`): the light received per
-                // channel, at most the unoccluded mean colour.
+                // channel, at most the unoccluded mean colour (all of it without a surface),
+                // and its luminance fraction.
                 for i in 0..n {
-                    rgb[i] = std::array::from_fn(|c| v[i][c].clamp(0.0, mean[c]));
+                    rgb[i] = if setup.rays.is_hit(i) {
+                        std::array::from_fn(|c| v[i][c].clamp(0.0, mean[c]))
+                    } else {
+                        mean
+                    };
+                    visibility[i] = LightTexture::visibility(rgb[i], mean);
                 }
                 continue;
             }
@@ -288,16 +294,10 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
                 };
             }
         }
-        for i in 0..n {
-            visibility[i] += (1.0 - covered[i]) / sub_lights.len() as f32;
-        }
-    }
-    if let Some(mean) = setup.mean {
-        for i in 0..n {
-            if !setup.rays.is_hit(i) {
-                rgb[i] = mean;
+        if setup.mean.is_none() {
+            for i in 0..n {
+                visibility[i] += (1.0 - covered[i]) / sub_lights.len() as f32;
             }
-            visibility[i] = LightTexture::visibility(rgb[i], mean);
         }
     }
     for (i, v) in visibility.iter_mut().enumerate() {
