@@ -285,6 +285,7 @@ fn render(a: RenderArgs) -> Result<()> {
         &a.out,
         &record,
         out.as_ref().map(|o| &o.visibility),
+        out.as_ref().and_then(|o| o.rgb.as_ref()),
         reference.as_ref(),
         &frame,
     )?;

@@ -93,6 +93,31 @@ impl VisibilityBuffer {
     }
 }
 
+/// Light received per channel at each eye pixel under a textured or coloured light
+/// ([`crate::scene::light_texture`]), row-major, y down, values in [0, 1]; an unoccluded point
+/// holds the light's mean colour.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RgbBuffer {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<[f32; 3]>,
+}
+
+impl RgbBuffer {
+    /// 8-bit RGB PNG (linear values times 255).
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        let bytes: Vec<u8> = self
+            .data
+            .iter()
+            .flat_map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8))
+            .collect();
+        image::RgbImage::from_raw(self.width, self.height, bytes)
+            .expect("buffer size matches image size")
+            .save(path)
+            .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+    }
+}
+
 /// Writes `bytes` to `path` atomically: a temporary file beside it, then a rename, so a reader
 /// (or an interrupted run) never sees a half-written file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {

@@ -66,6 +66,7 @@ fn box_under_large_light() -> Scene {
             fov_y_deg: 50.0,
         },
         light: disc(Vec3::new(0.0, 2.3, 0.0), 0.8),
+        light_texture: None,
     }
 }
 

@@ -38,6 +38,7 @@ fn half_plane_scene(h: f32, light: Light) -> Scene {
             .build(&GeneratorParams::default())
             .camera,
         light,
+        light_texture: None,
     }
 }
 

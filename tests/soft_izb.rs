@@ -65,6 +65,7 @@ fn straight_edge() -> (Frame, Vec3, f32, f32) {
             center: c,
             radius: r,
         },
+        light_texture: None,
     };
     let frame = Frame::new(scene.clone(), params(&scene, [64, 48]));
     (frame, c, r, h)

@@ -48,6 +48,7 @@ fn planar_polygon_scene(light: Light) -> Scene {
         objects,
         camera: ground.camera,
         light,
+        light_texture: None,
     }
 }
 

@@ -26,7 +26,7 @@ use crate::frame::{Frame, RunParams};
 use crate::model::MachineConfig;
 use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
-use crate::visibility::VisibilityBuffer;
+use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 /// Where an algorithm runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
@@ -196,6 +196,28 @@ pub fn no_options(
     }
 }
 
+/// Whether algorithm `id` with `options` honours a textured light (`$.light.texture`): the
+/// reference weights each light sample by the texture, `soft_shadow_volume` with the 4D coverage
+/// texture weights its texels (Paper III §3.3). Every other algorithm would treat the light as
+/// uniform white, so it is refused rather than silently wrong.
+pub fn check_light_texture(
+    id: &str,
+    options: &BTreeMap<String, serde_json::Value>,
+) -> std::result::Result<(), InputError> {
+    match id {
+        "reference" => Ok(()),
+        soft_shadow_volume::ID => soft_shadow_volume::check_light_texture(options),
+        _ => Err(InputError::new(
+            "$.light.texture",
+            format!(
+                "algorithm '{id}' cannot honour a textured light (only reference and {} with \
+                 coverage \"texture\" do); drop '{id}' from the algorithms or the texture",
+                soft_shadow_volume::ID
+            ),
+        )),
+    }
+}
+
 /// The registered algorithm `id`, or an error suggesting the closest name.
 pub fn find(id: &str) -> std::result::Result<&'static AlgorithmInfo, String> {
     if let Some(a) = ALGORITHMS.iter().find(|a| a.id == id) {
@@ -239,6 +261,9 @@ pub struct FrameOutput {
     pub gpu_ms: Option<f64>,
     pub execution: BTreeMap<String, serde_json::Value>,
     pub warnings: Vec<String>,
+    /// Light received per channel, from algorithms that honour a textured light
+    /// ([`check_light_texture`]) when the scene has one.
+    pub rgb: Option<RgbBuffer>,
 }
 
 /// Runs algorithm `id` on `backend` for `frame`.
@@ -253,6 +278,9 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
                 .collect::<Vec<_>>()
                 .join(", ")
         )));
+    }
+    if frame.scene.light_texture.is_some() {
+        check_light_texture(id, &ctx.options)?;
     }
     if backend == Backend::Wgpu {
         return crate::gpu::guarded_run(|gpu| match id {

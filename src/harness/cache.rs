@@ -46,6 +46,10 @@ impl ReferenceCache {
             .u64(frame.params.image[1] as u64)
             .u64(self.samples as u64)
             .u64(self.seed);
+        // Only textured lights add to the key, so untextured keys stay as they were.
+        if let Some(t) = &s.light_texture {
+            h.u64(t.hash());
+        }
         h.finish()
     }
 

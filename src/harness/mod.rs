@@ -19,7 +19,7 @@ use crate::metrics;
 use crate::record::{case_id, RunRecord};
 use crate::scenario::Loaded;
 use crate::scene::{Light, LightKind, Scene};
-use crate::visibility::VisibilityBuffer;
+use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 pub use cache::ReferenceCache;
 pub use shard::Shard;
@@ -222,7 +222,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         if let Err(e) = limits::check(info, &params, opts.memory_limit) {
             let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
             record.failure = Some(e.to_string());
-            writer.push(record, None, None, None)?;
+            writer.push(record, None, None, None, None)?;
             bar.inc(1);
             continue;
         }
@@ -254,6 +254,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         writer.push(
             record,
             out.as_ref().map(|o| &o.visibility),
+            out.as_ref().and_then(|o| o.rgb.as_ref()),
             reference.as_ref(),
             Some(frame),
         )?;
@@ -304,16 +305,21 @@ pub fn summary_table(records: &[RunRecord]) -> String {
     s
 }
 
-/// Writes the files of a single rendered frame: visibility.png, visibility.npy, run.json and,
-/// with a reference, reference.png and error.png.
+/// Writes the files of a single rendered frame: visibility.png, visibility.npy, run.json,
+/// visibility_rgb.png (the light received per channel) under a textured light and, with a
+/// reference, reference.png and error.png.
 pub fn write_frame_files(
     dir: &Path,
     record: &RunRecord,
     visibility: Option<&VisibilityBuffer>,
+    rgb: Option<&RgbBuffer>,
     reference: Option<&VisibilityBuffer>,
     frame: &Frame,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    if let Some(c) = rgb {
+        c.write_png(&dir.join("visibility_rgb.png"))?;
+    }
     if let Some(v) = visibility {
         v.write_png(&dir.join("visibility.png"))?;
         v.write_npy(&dir.join("visibility.npy"))?;

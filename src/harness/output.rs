@@ -8,7 +8,7 @@ use crate::error::Result;
 use crate::frame::Frame;
 use crate::record::RunRecord;
 use crate::scenario::claims::Claim;
-use crate::visibility::{write_atomic, VisibilityBuffer};
+use crate::visibility::{write_atomic, RgbBuffer, VisibilityBuffer};
 
 pub struct ResultsWriter {
     out: PathBuf,
@@ -51,12 +51,13 @@ impl ResultsWriter {
         &mut self,
         record: RunRecord,
         visibility: Option<&VisibilityBuffer>,
+        rgb: Option<&RgbBuffer>,
         reference: Option<&VisibilityBuffer>,
         frame: Option<&Frame>,
     ) -> Result<()> {
         if let Some(frame) = frame {
             let dir = self.out.join("images").join(record.case_id());
-            super::write_frame_files(&dir, &record, visibility, reference, frame)?;
+            super::write_frame_files(&dir, &record, visibility, rgb, reference, frame)?;
         }
         self.file.runs.push(record);
         write_results(&self.out, &self.file)

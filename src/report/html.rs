@@ -281,12 +281,32 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
         h.push_str("<p class=\"none\">No runs.</p>\n");
     }
     for scene in scenes {
+        // Under a textured light, the light received per channel gets its own column.
+        let rgb = runs.iter().filter(|r| r.scene == scene).any(|r| {
+            out.join(format!("images/{}/visibility_rgb.png", r.case_id()))
+                .is_file()
+        });
         let _ = writeln!(
             h,
             "<h3>{}</h3>\n<table class=\"gallery\"><tr><th>run</th><th>visibility</th>\
-             <th>reference</th><th>error (black 0, yellow ≥ 0.5)</th></tr>",
-            text(scene)
+             <th>reference</th><th>error (black 0, yellow ≥ 0.5)</th>{}</tr>",
+            text(scene),
+            if rgb {
+                "<th>light received (rgb)</th>"
+            } else {
+                ""
+            }
         );
+        let files: &[&str] = if rgb {
+            &[
+                "visibility.png",
+                "reference.png",
+                "error.png",
+                "visibility_rgb.png",
+            ]
+        } else {
+            &["visibility.png", "reference.png", "error.png"]
+        };
         for r in runs.iter().filter(|r| r.scene == scene) {
             let case = r.case_id();
             let _ = write!(
@@ -295,7 +315,7 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
                 text(&charts::series_name(r)),
                 text(&case)
             );
-            for file in ["visibility.png", "reference.png", "error.png"] {
+            for file in files {
                 let rel = format!("images/{case}/{file}");
                 if out.join(&rel).is_file() {
                     let _ = write!(
@@ -333,6 +353,27 @@ mod tests {
                     .into_owned()
             })
             .collect()
+    }
+
+    #[test]
+    fn the_gallery_shows_the_light_received_only_where_a_run_wrote_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let r = record("soft_shadow_volume", "cpu-model", 100, 32);
+        let results = ResultsFile {
+            scenario: "textured".into(),
+            runs: vec![r.clone()],
+            claims: vec![],
+        };
+        let img = dir.path().join("images").join(r.case_id());
+        std::fs::create_dir_all(&img).unwrap();
+        std::fs::write(img.join("visibility.png"), b"png").unwrap();
+        let plain = page(dir.path(), &results, &[]);
+        assert!(!plain.contains("light received"), "{plain}");
+        std::fs::write(img.join("visibility_rgb.png"), b"png").unwrap();
+        let textured = page(dir.path(), &results, &[]);
+        assert!(textured.contains("light received (rgb)"), "{textured}");
+        let rgb = format!("images/{}/visibility_rgb.png", r.case_id());
+        assert!(sources(&textured).contains(&rgb));
     }
 
     #[test]

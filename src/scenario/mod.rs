@@ -7,6 +7,7 @@ pub mod validate;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
@@ -15,8 +16,9 @@ use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::model::MachineConfig;
 use crate::scene::generators::{self, GeneratorParams};
+use crate::scene::light_texture::LightTextureSpec;
 use crate::scene::mesh::{Mesh, Object, Role};
-use crate::scene::{obj, Camera, Light, Scene};
+use crate::scene::{obj, Camera, Light, LightTexture, Scene};
 
 pub use validate::validate;
 
@@ -33,7 +35,7 @@ pub struct Scenario {
     pub camera: Option<Camera>,
     /// Overrides the scene's default light.
     #[serde(default)]
-    pub light: Option<Light>,
+    pub light: Option<LightSpec>,
     pub algorithms: Vec<String>,
     #[serde(default = "default_backends")]
     pub backends: Vec<String>,
@@ -58,6 +60,16 @@ pub struct Scenario {
     /// Paper claims these runs reproduce, shown in the report next to our figures.
     #[serde(default)]
     pub claims: Vec<claims::Claim>,
+}
+
+/// `$.light`: the light (`type` and its fields) and an optional `texture` (rectangular lights;
+/// [`crate::scene::light_texture`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LightSpec {
+    #[serde(flatten)]
+    pub light: Light,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub texture: Option<LightTextureSpec>,
 }
 
 fn default_backends() -> Vec<String> {
@@ -252,6 +264,8 @@ pub struct Loaded {
     meshes: Vec<Mesh>,
     /// The machine `$.machine` names, resolved during validation.
     pub machine: MachineConfig,
+    /// The texture `$.light.texture` describes, resolved during validation.
+    pub light_texture: Option<Arc<LightTexture>>,
 }
 
 impl Loaded {
@@ -298,11 +312,19 @@ impl Loaded {
             Some(m) => MachineConfig::resolve("$.machine", m, base).map_err(|e| e.in_file(path))?,
             None => MachineConfig::default(),
         };
+        let light_texture = match scenario.light.as_ref().and_then(|l| l.texture.as_ref()) {
+            Some(t) => Some(Arc::new(
+                t.resolve("$.light.texture", base)
+                    .map_err(|e| e.in_file(path))?,
+            )),
+            None => None,
+        };
         Ok(Loaded {
             path: path.to_path_buf(),
             scenario,
             meshes,
             machine,
+            light_texture,
         })
     }
 
@@ -451,8 +473,9 @@ impl Loaded {
         if let Some(c) = s.camera {
             scene.camera = c;
         }
-        if let Some(l) = s.light {
-            scene.light = l;
+        if let Some(l) = &s.light {
+            scene.light = l.light;
+            scene.light_texture = self.light_texture.clone();
         }
         if let Some(size) = light_size {
             scene.light = scene.light.with_size(size);
@@ -508,6 +531,7 @@ pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> Scene {
             center: c + Vec3::new(0.3, 1.8, 0.2) * d,
             radius: 0.08 * d,
         },
+        light_texture: None,
     }
 }
 

@@ -179,6 +179,29 @@ pub fn reference_samples(field: &str, v: u32) -> Check {
     Ok(())
 }
 
+/// A textured light must be rectangular (Paper III §3.3 textures rectangles; it has not tried
+/// spherical textured lights) and every algorithm must honour the texture.
+pub fn light_texture(
+    field: &str,
+    l: &Light,
+    algorithms: &[String],
+    options: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Check {
+    if !matches!(l, Light::Rect { .. }) {
+        return fail(
+            field,
+            format!(
+                "a light texture needs a rectangular light (type rect), got type {}",
+                l.kind()
+            ),
+        );
+    }
+    for a in algorithms {
+        algorithms::check_light_texture(a, options)?;
+    }
+    Ok(())
+}
+
 pub fn light(field: &str, l: &Light) -> Check {
     finite_vec(&format!("{field}.center"), l.center())?;
     match *l {
@@ -293,7 +316,7 @@ pub fn validate(s: &Scenario) -> Check {
         }
     }
     if let Some(l) = &s.light {
-        light("$.light", l)?;
+        light("$.light", &l.light)?;
     }
     super::claims::validate(&s.claims)?;
     if s.algorithms.is_empty() {
@@ -312,6 +335,9 @@ pub fn validate(s: &Scenario) -> Check {
         algorithm(&format!("$.options.{k}"), k)?;
         let info = algorithms::find(k).expect("checked above");
         (info.check_options)(&s.options)?;
+    }
+    if let Some(l) = s.light.as_ref().filter(|l| l.texture.is_some()) {
+        light_texture("$.light.texture", &l.light, &s.algorithms, &s.options)?;
     }
     let p = &s.params;
     if let Some(t) = p.triangles {

@@ -187,6 +187,7 @@ fn scene(objects: Vec<Object>, camera: Camera, light: Light) -> Scene {
         objects,
         camera,
         light,
+        light_texture: None,
     }
 }
 

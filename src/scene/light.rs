@@ -127,16 +127,22 @@ impl Light {
     /// the deterministic stream `seed`.
     pub fn stratified_sample(&self, p: Vec3, i: u32, k: u32, seed: u64) -> Vec3 {
         let (c, u, v) = self.emitter_frame(p);
+        let d = self.stratified_coords(i, k, seed);
+        c + u * d.x + v * d.y
+    }
+
+    /// [`Self::stratified_sample`] in light coordinates: units of the half-axes from the centre
+    /// (`[−1, 1]²` for a rectangle, the unit disc otherwise), where a light texture is indexed.
+    pub fn stratified_coords(&self, i: u32, k: u32, seed: u64) -> Vec2 {
         let jitter = unit_pair(seed, i as u64);
         let s = Vec2::new(
             ((i % k) as f32 + jitter.x) / k as f32,
             ((i / k) as f32 + jitter.y) / k as f32,
         );
-        let d = match self {
+        match self {
             Light::Rect { .. } => s * 2.0 - Vec2::ONE,
             _ => concentric_disc(s),
-        };
-        c + u * d.x + v * d.y
+        }
     }
 
     /// Area of the emitter.

@@ -6,12 +6,14 @@ pub mod bvh;
 pub mod camera;
 pub mod generators;
 pub mod light;
+pub mod light_texture;
 pub mod mesh;
 pub mod obj;
 pub mod simplify;
 
 pub use camera::Camera;
 pub use light::{Light, LightKind};
+pub use light_texture::LightTexture;
 pub use mesh::{Bounds, FlatMesh, Mesh, Object, Role};
 
 use crate::util::hash::Fnv64;
@@ -23,6 +25,8 @@ pub struct Scene {
     pub objects: Vec<Object>,
     pub camera: Camera,
     pub light: Light,
+    /// The light's texture (rectangular lights only); `None`: uniform white.
+    pub light_texture: Option<std::sync::Arc<LightTexture>>,
 }
 
 impl Scene {

@@ -11,6 +11,7 @@ pub fn frame_of(objects: Vec<Object>, light: Light, camera: Camera) -> Frame {
         objects,
         camera,
         light,
+        light_texture: None,
     };
     let params = RunParams {
         triangles: scene.triangle_count() as u32,

@@ -185,5 +185,6 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
         gpu_ms: gpu_ms.map(|t| t.iter().sum()),
         execution,
         warnings,
+        rgb: None,
     })
 }

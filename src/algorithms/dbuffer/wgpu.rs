@@ -760,6 +760,7 @@ impl<'g> Passes<'g> {
             gpu_ms: gpu_ms.map(|t| t.iter().sum()),
             execution,
             warnings,
+            rgb: None,
         })
     }
 }

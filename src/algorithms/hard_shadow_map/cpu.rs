@@ -302,6 +302,7 @@ pub fn output(m: Machine, visibility: VisibilityBuffer) -> FrameOutput {
         gpu_ms: None,
         execution: f.execution,
         warnings: vec![],
+        rgb: None,
     }
 }
 

@@ -6,6 +6,9 @@
 //! surface by the frame's epsilon along the eye-facing normal) to the sample either reaches it or
 //! not. Jitter is a pure function of (seed, pixel, sample), so the image is identical for any
 //! host thread count.
+//!
+//! A textured light ([`crate::scene::light_texture`]) weights each sample by the texture's
+//! colour at its place on the light; the output then also holds the light received per channel.
 
 use std::time::Instant;
 
@@ -16,9 +19,9 @@ use super::FrameOutput;
 use crate::frame::Frame;
 use crate::record::{Counters, Phase};
 use crate::scene::bvh::SceneBvh;
-use crate::scene::Light;
+use crate::scene::{Light, LightTexture};
 use crate::util::hash::mix64;
-use crate::visibility::VisibilityBuffer;
+use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 pub const DEFAULT_SAMPLES: u32 = 256;
 pub const PAPER_SAMPLES: u32 = 1024;
@@ -39,21 +42,73 @@ pub fn visible_fraction(bvh: &SceneBvh, light: &Light, p: Vec3, k: u32, seed: u6
     visible as f32 / n as f32
 }
 
+/// Light received from a textured `light` at `p` (moved off its surface), from k×k stratified
+/// samples of stream `seed`, each weighted by the texture's colour where it lies on the light:
+/// per channel the visible samples' mean colour over all samples, and the luminance fraction
+/// of the visible samples over all of them ([`LightTexture::visibility`]'s quantity).
+pub fn received_light(
+    bvh: &SceneBvh,
+    light: &Light,
+    texture: &LightTexture,
+    p: Vec3,
+    k: u32,
+    seed: u64,
+) -> ([f32; 3], f32) {
+    let n = k * k;
+    let (mut visible, mut all) = ([0.0f64; 3], [0.0f64; 3]);
+    for i in 0..n {
+        let c = texture.at(light.stratified_coords(i, k, seed));
+        let lit = !bvh.occluded(p, light.stratified_sample(p, i, k, seed));
+        for ch in 0..3 {
+            all[ch] += f64::from(c[ch]);
+            if lit {
+                visible[ch] += f64::from(c[ch]);
+            }
+        }
+    }
+    let rgb = visible.map(|v| (v / f64::from(n)) as f32);
+    let lum = |c: [f64; 3]| LightTexture::luminance(c.map(|v| v as f32));
+    let fraction = if lum(all) > 0.0 {
+        (lum(visible) / lum(all)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    (rgb, fraction)
+}
+
 pub fn render(frame: &Frame, samples: u32, seed: u64) -> FrameOutput {
     let start = Instant::now();
     let k = strata_side(samples).expect("sample count validated as a perfect square");
     let g = &frame.gbuffer;
     let light = frame.scene.light;
-    let data: Vec<f32> = (0..g.len())
+    let texture = frame.scene.light_texture.as_deref();
+    let pixels: Vec<(f32, [f32; 3])> = (0..g.len())
         .into_par_iter()
         .map(|i| {
+            let unoccluded = texture.map_or([1.0; 3], LightTexture::mean);
             if !g.is_hit(i) {
-                return 1.0;
+                return (1.0, unoccluded);
             }
             let p = g.position[i] + g.normal[i] * frame.epsilon;
-            visible_fraction(&frame.bvh, &light, p, k, mix64(seed ^ i as u64))
+            let stream = mix64(seed ^ i as u64);
+            match texture {
+                Some(t) => {
+                    let (rgb, v) = received_light(&frame.bvh, &light, t, p, k, stream);
+                    (v, rgb)
+                }
+                None => {
+                    let v = visible_fraction(&frame.bvh, &light, p, k, stream);
+                    (v, [v; 3])
+                }
+            }
         })
         .collect();
+    let data = pixels.iter().map(|p| p.0).collect();
+    let rgb = texture.map(|_| RgbBuffer {
+        width: g.width,
+        height: g.height,
+        data: pixels.iter().map(|p| p.1).collect(),
+    });
     let hits = g.triangle.iter().filter(|&&t| t != u32::MAX).count() as f64;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let mut counters = Counters::default();
@@ -75,5 +130,6 @@ pub fn render(frame: &Frame, samples: u32, seed: u64) -> FrameOutput {
         gpu_ms: None,
         execution: [("samples".to_string(), serde_json::json!(k * k))].into(),
         warnings: vec![],
+        rgb,
     }
 }

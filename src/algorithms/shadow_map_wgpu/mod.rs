@@ -639,6 +639,7 @@ impl<'g> Passes<'g> {
             gpu_ms,
             execution,
             warnings,
+            rgb: None,
         }
     }
 

@@ -811,5 +811,6 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
         gpu_ms: gpu_ms.map(|t| t.iter().sum()),
         execution,
         warnings,
+        rgb: None,
     })
 }

@@ -25,8 +25,8 @@ use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::model::{BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
-use crate::scene::Light;
-use crate::visibility::VisibilityBuffer;
+use crate::scene::{Light, LightTexture};
+use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 /// Bytes per pixel of the f32 V-buffer, of one rgba8 buffer of the split V-buffer, and of the
 /// stencil buffer.
@@ -54,7 +54,10 @@ const PROJECT_OPS: u32 = (3 + 4 + 6 + 6) + (6 + 2 + 4 + 4 + 6) + 2 * (3 + 3 + 6)
 const EXACT_OPS: u32 = 3 * 4 * 6 + 10;
 /// The texture lookup's addressing and bilinear filter: two texel positions (multiply-add, clamp
 /// per coordinate), a round, two floors, the four indices and the two lerps in each direction.
-const TEXTURE_OPS: u32 = 8 + 2 + 2 + 4 * 3 + 6;
+const TEXTURE_OPS: u32 = 8 + 2 + 2 + 4 * 3 + TEXTURE_FILTER_OPS;
+/// The bilinear filter's lerps (part of `TEXTURE_OPS`), once more per extra channel of a
+/// textured light's RGB texture.
+const TEXTURE_FILTER_OPS: u32 = 6;
 /// Adding or subtracting the coverage into the V-buffer (select by side, add; the split format's
 /// digit split and carry blend in the 12-bit case).
 const VBUFFER_OPS_F32: u32 = 2;
@@ -67,14 +70,26 @@ const WEDGE_BUILD_OPS: u32 = 12 + 4 * 20 + 4 * 14;
 /// Silhouette edges built into wedges by one task.
 const WEDGES_PER_TASK: usize = 4 * LANES;
 
-/// Coverage textures are precomputed once per (shape, n), as the paper does offline.
-pub(super) fn coverage_texture(shape: EmitterShape, n: u32) -> Arc<CoverageTexture> {
+/// Coverage textures are precomputed once per (shape, n, light texture), as the paper does
+/// offline; a textured light's is RGB.
+pub(super) fn coverage_texture(
+    shape: EmitterShape,
+    n: u32,
+    light: Option<&LightTexture>,
+) -> Arc<CoverageTexture> {
     static CACHE: Mutex<Vec<Arc<CoverageTexture>>> = Mutex::new(Vec::new());
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    if let Some(t) = cache.iter().find(|t| t.shape == shape && t.n == n) {
+    let hash = light.map(LightTexture::hash);
+    if let Some(t) = cache
+        .iter()
+        .find(|t| t.shape == shape && t.n == n && t.light == hash)
+    {
         return t.clone();
     }
-    let t = Arc::new(CoverageTexture::build(shape, n));
+    let t = Arc::new(match light {
+        Some(l) => CoverageTexture::build_textured(l, n),
+        None => CoverageTexture::build(shape, n),
+    });
     cache.push(t.clone());
     t
 }
@@ -82,34 +97,44 @@ pub(super) fn coverage_texture(shape: EmitterShape, n: u32) -> Arc<CoverageTextu
 /// The per-pixel V-buffer contributions of one silhouette loop.
 enum Accum {
     F32(Vec<f32>),
+    /// One f32 per channel of a textured light (III §4.1).
+    Rgb(Vec<[f32; 3]>),
     /// Additive and subtractive rgba8 buffers (IV §4.3).
     Split(Vec<[u8; 4]>, Vec<[u8; 4]>),
 }
 
 impl Accum {
-    fn new(precision: VBufferPrecision, n: usize) -> Accum {
+    fn new(precision: VBufferPrecision, rgb: bool, n: usize) -> Accum {
         match precision {
+            VBufferPrecision::F32 if rgb => Accum::Rgb(vec![[0.0; 3]; n]),
             VBufferPrecision::F32 => Accum::F32(vec![0.0; n]),
             VBufferPrecision::Split12 => Accum::Split(vec![[0; 4]; n], vec![[0; 4]; n]),
         }
     }
 
-    /// Adds `coverage` on the inner side (`side < 0`), subtracts it on the outer side.
-    fn add(&mut self, j: usize, side: f32, coverage: f32) {
+    /// Adds `coverage` on the inner side (`side < 0`), subtracts it on the outer side (per
+    /// channel for a textured light; else the channels are equal and one is kept).
+    fn add(&mut self, j: usize, side: f32, coverage: [f32; 3]) {
         match self {
-            Accum::F32(v) => v[j] -= side * coverage,
+            Accum::F32(v) => v[j] -= side * coverage[0],
+            Accum::Rgb(v) => {
+                for c in 0..3 {
+                    v[j][c] -= side * coverage[c];
+                }
+            }
             Accum::Split(add, sub) => {
-                let digits = split12::split(coverage);
+                let digits = split12::split(coverage[0]);
                 let target = if side < 0.0 { add } else { sub };
                 target[j] = split12::blend(target[j], digits);
             }
         }
     }
 
-    fn value(&self, j: usize) -> f32 {
+    fn value(&self, j: usize) -> [f32; 3] {
         match self {
-            Accum::F32(v) => v[j],
-            Accum::Split(add, sub) => split12::value(add[j]) - split12::value(sub[j]),
+            Accum::F32(v) => [v[j]; 3],
+            Accum::Rgb(v) => v[j],
+            Accum::Split(add, sub) => [split12::value(add[j]) - split12::value(sub[j]); 3],
         }
     }
 }
@@ -154,6 +179,9 @@ struct Setup {
     rays: EyeRays,
     opts: SoftShadowVolumeOptions,
     texture: Option<TextureBuffer>,
+    /// Mean colour of a textured light (what an unoccluded point receives); `None`: uniform
+    /// white, one channel.
+    mean: Option<[f32; 3]>,
     tile: u32,
     /// Pass 1's target: the V-buffer (f32) or the stencil (split12), tested against `depth`.
     hard: CountTarget,
@@ -164,6 +192,9 @@ struct Setup {
 pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
     opts.validate()?;
+    if frame.scene.light_texture.is_some() {
+        super::check_light_texture(&ctx.options)?;
+    }
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
         Error::Unsupported(format!(
@@ -178,14 +209,21 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
     }
     let rays = EyeRays::new(frame);
     let depth = EyeBuffer::new(&mut m, &rays, "depth", DEPTH_BYTES as u32);
+    // One f32 per channel under a textured light (III §4.1).
+    let channels = if frame.scene.light_texture.is_some() {
+        3
+    } else {
+        1
+    };
     let vbuffer_bytes = match opts.vbuffer {
-        VBufferPrecision::F32 => VBUFFER_F32_BYTES,
+        VBufferPrecision::F32 => VBUFFER_F32_BYTES * channels,
         VBufferPrecision::Split12 => VBUFFER_RGBA8_BYTES,
     };
     let vbuffer = EyeBuffer::new(&mut m, &rays, "vbuffer", vbuffer_bytes);
     let stencil = EyeBuffer::new(&mut m, &rays, "stencil", STENCIL_BYTES);
+    let light_texture = frame.scene.light_texture.as_deref();
     let texture = (opts.coverage == CoverageMethod::Texture).then(|| {
-        let texture = coverage_texture(EmitterShape::of(&light), opts.texture_n);
+        let texture = coverage_texture(EmitterShape::of(&light), opts.texture_n, light_texture);
         let (id, base) = m.memory.reserve("coverage_texture", texture.bytes());
         TextureBuffer { texture, id, base }
     });
@@ -200,6 +238,7 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
         },
         rays,
         texture,
+        mean: light_texture.map(LightTexture::mean),
         opts,
         tile: frame.params.tile_size.max(1),
         vbuffer,
@@ -210,6 +249,7 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
     let n = setup.rays.len();
     let mut warnings = Vec::new();
     let mut visibility = vec![0.0f32; n];
+    let mut rgb = vec![[0.0f32; 3]; n];
     for sub in &sub_lights {
         let centre = sub.center();
         let silhouette = adjacency.silhouette_from(centre);
@@ -242,8 +282,22 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
                 },
             };
             let v = render_loop(&mut m, &setup, sub, edges, counting);
+            if let Some(mean) = setup.mean {
+                // One loop and one light (`check_light_texture`): the light received per
+                // channel, at most the unoccluded mean colour (all of it without a surface),
+                // and its luminance fraction.
+                for i in 0..n {
+                    rgb[i] = if setup.rays.is_hit(i) {
+                        std::array::from_fn(|c| v[i][c].clamp(0.0, mean[c]))
+                    } else {
+                        mean
+                    };
+                    visibility[i] = LightTexture::visibility(rgb[i], mean);
+                }
+                continue;
+            }
             for i in 0..n {
-                let c = (1.0 - v[i]).clamp(0.0, 1.0);
+                let c = (1.0 - v[i][0]).clamp(0.0, 1.0);
                 covered[i] = if k == 0 {
                     c
                 } else {
@@ -251,8 +305,10 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
                 };
             }
         }
-        for i in 0..n {
-            visibility[i] += (1.0 - covered[i]) / sub_lights.len() as f32;
+        if setup.mean.is_none() {
+            for i in 0..n {
+                visibility[i] += (1.0 - covered[i]) / sub_lights.len() as f32;
+            }
         }
     }
     for (i, v) in visibility.iter_mut().enumerate() {
@@ -269,6 +325,13 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
     };
     let mut out = output(m, visibility);
     out.warnings = warnings;
+    if setup.mean.is_some() {
+        out.rgb = Some(RgbBuffer {
+            width: frame.width(),
+            height: frame.height(),
+            data: rgb,
+        });
+    }
     out.execution
         .insert("options".to_string(), serde_json::json!(opts));
     if let Some(t) = &setup.texture {
@@ -278,6 +341,17 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
         );
     }
     Ok(out)
+}
+
+impl Setup {
+    /// Channels of the V-buffer and the coverage texture: 3 for a textured light, else 1.
+    fn channels(&self) -> u32 {
+        if self.mean.is_some() {
+            3
+        } else {
+            1
+        }
+    }
 }
 
 /// Wedge construction, `WEDGES_PER_TASK` silhouette edges per task.
@@ -335,14 +409,16 @@ pub(super) fn wedge_reach(rays: &EyeRays) -> f32 {
 }
 
 /// Renders one silhouette loop (or the whole silhouette) for one (sub-)light: returns its
-/// V-buffer, 1 − (hard count) ± wedge coverage, and adds to the phases' counters.
+/// V-buffer, 1 − (hard count) ± wedge coverage, and adds to the phases' counters. Per channel
+/// for a textured light, where the unoccluded light is its mean colour: `mean·(1 − count) ±
+/// coverage`; else the three channels are equal.
 fn render_loop(
     m: &mut Machine,
     s: &Setup,
     light: &Light,
     edges: &[SilhouetteEdge],
     counting: HardCounting,
-) -> Vec<f32> {
+) -> Vec<[f32; 3]> {
     let centre = light.center();
     let rays = &s.rays;
 
@@ -396,14 +472,18 @@ fn render_loop(
         tally.stencil_writes * u64::from(STENCIL_BYTES),
     );
     let vbytes = match s.opts.vbuffer {
-        VBufferPrecision::F32 => VBUFFER_F32_BYTES,
+        VBufferPrecision::F32 => VBUFFER_F32_BYTES * s.channels(),
         VBufferPrecision::Split12 => VBUFFER_RGBA8_BYTES,
     };
     mem_read(m, "vbuffer", tally.inside * u64::from(vbytes));
     mem_write(m, "vbuffer", tally.inside * u64::from(vbytes));
     mem_read(m, "coverage_texture", tally.texture_reads);
+    let unoccluded = s.mean.unwrap_or([1.0; 3]);
     (0..rays.len())
-        .map(|i| 1.0 - hard.count[i] as f32 + accum.value(i))
+        .map(|i| {
+            let (lit, acc) = (1.0 - hard.count[i] as f32, accum.value(i));
+            std::array::from_fn(|c| unoccluded[c] * lit + acc[c])
+        })
         .collect()
 }
 
@@ -441,13 +521,13 @@ impl SoftPass<'_> {
     /// Coverage of the light seen from `p` by the hard shadow quad of `quad`'s edge, and the
     /// four coverage-texture texels read for it (when the texture is used); `None` when the
     /// projected edge misses the light.
-    fn coverage(&self, quad: &ShadowQuad, p: Vec3) -> Option<(f32, [u32; 4])> {
+    fn coverage(&self, quad: &ShadowQuad, p: Vec3) -> Option<([f32; 3], [u32; 4])> {
         let emitter = Emitter::seen_from(self.light, p);
         let (q0, q1) = emitter.project_edge(p, quad.a, quad.b)?;
         let (c0, c1) = emitter.shape.clip(q0, q1)?;
         Some(match &self.s.texture {
             Some(t) => t.texture.lookup_texels(c0, c1),
-            None => (exact_coverage(emitter.shape, c0, c1), [0; 4]),
+            None => ([exact_coverage(emitter.shape, c0, c1); 3], [0; 4]),
         })
     }
 }
@@ -460,6 +540,7 @@ impl TilePass for SoftPass<'_> {
             rect,
             accum: Accum::new(
                 self.s.opts.vbuffer,
+                self.s.mean.is_some(),
                 ((rect.x1 - rect.x0) * (rect.y1 - rect.y0)) as usize,
             ),
             tally: SoftTally::default(),
@@ -537,7 +618,7 @@ impl TilePass for SoftPass<'_> {
             return;
         }
         p.vector(PROJECT_OPS, inside);
-        let mut coverage = [0.0f32; LANES];
+        let mut coverage = [[0.0f32; 3]; LANES];
         let mut texels = [[0u32; 4]; LANES];
         let covered = Mask::from_fn(|l| {
             if !inside.get(l) {
@@ -556,26 +637,36 @@ impl TilePass for SoftPass<'_> {
         }
         match &s.texture {
             Some(tex) => {
-                p.vector(TEXTURE_OPS, covered);
+                p.vector(
+                    TEXTURE_OPS + TEXTURE_FILTER_OPS * (tex.texture.channels - 1),
+                    covered,
+                );
                 if P::ENABLED {
                     // One gather per bilinear tap, each lane reading its own texel.
+                    let ch = u64::from(tex.texture.channels);
                     let taps: [Lanes<u64>; 4] = std::array::from_fn(|r| {
-                        std::array::from_fn(|l| tex.base + u64::from(texels[l][r]))
+                        std::array::from_fn(|l| tex.base + ch * u64::from(texels[l][r]))
                     });
                     for addrs in &taps {
-                        p.gather(tex.id, addrs, 1, covered);
+                        p.gather(tex.id, addrs, ch as u32, covered);
                     }
                 }
-                t.texture_reads += CoverageTexture::READS * u64::from(covered.count());
+                t.texture_reads += CoverageTexture::READS
+                    * u64::from(tex.texture.channels)
+                    * u64::from(covered.count());
             }
             None => p.vector(EXACT_OPS, covered),
         }
         t.inside += u64::from(covered.count());
-        t.contributing += u64::from(Mask::from_fn(|l| coverage[l] > 0.0).and(covered).count());
+        t.contributing += u64::from(
+            Mask::from_fn(|l| coverage[l].iter().any(|&c| c > 0.0))
+                .and(covered)
+                .count(),
+        );
         s.vbuffer.read(p, b, covered);
         p.vector(
             match s.opts.vbuffer {
-                VBufferPrecision::F32 => VBUFFER_OPS_F32,
+                VBufferPrecision::F32 => VBUFFER_OPS_F32 * s.channels(),
                 VBufferPrecision::Split12 => VBUFFER_OPS_SPLIT12,
             },
             covered,
@@ -606,7 +697,7 @@ fn soft_pass(
         prims,
     };
     let tiles = raster_pass(m, "wedges", rays, &footprints, s.tile, &pass);
-    let mut accum = Accum::new(s.opts.vbuffer, rays.len());
+    let mut accum = Accum::new(s.opts.vbuffer, s.mean.is_some(), rays.len());
     let mut tally = SoftTally::default();
     for tile in tiles {
         let st = tile.state;
@@ -620,6 +711,7 @@ fn soft_pass(
                 );
                 match (&mut accum, &st.accum) {
                     (Accum::F32(a), Accum::F32(b)) => a[g] = b[j],
+                    (Accum::Rgb(a), Accum::Rgb(b)) => a[g] = b[j],
                     (Accum::Split(a0, a1), Accum::Split(b0, b1)) => {
                         a0[g] = b0[j];
                         a1[g] = b1[j];

@@ -10,6 +10,15 @@
 //! side of the quad, subtracts it on the outer side (III §3.2.2). Summed over a silhouette loop
 //! this is Green's theorem: the visible fraction of the light.
 //!
+//! Textured and coloured lights (III §3.3, `light.texture` on a rectangular light): the 4D
+//! texture's texels hold, per channel, the integral of the light's texture over the covered
+//! part ([`CoverageTexture::build_textured`]), and the V-buffer holds one f32 per channel
+//! (III §4.1): `mean·(1 − count) ± coverage`, the light received per channel. The frame's
+//! scalar visibility is its luminance fraction
+//! ([`crate::scene::LightTexture::visibility`]). Not built for textured lights (refused by
+//! [`check_light_texture`]): exact clipping, the split 12-bit V-buffer, the overlap
+//! approximation and light splitting; spherical textured lights (the paper did not try them).
+//!
 //! Light coordinates: the emitter seen from p is spanned by two half-axes from its centre
 //! ([`crate::scene::Light::emitter_frame`]); a point of its plane is written in units of those
 //! half-axes, so a rectangle is `[−1, 1]²` and a sphere's disc is the unit disc.
@@ -26,7 +35,7 @@ use super::eye_raster::ConvexVolume;
 pub use super::shadow_volume::Counting;
 use crate::error::InputError;
 use crate::scene::adjacency::SilhouetteEdge;
-use crate::scene::Light;
+use crate::scene::{Light, LightTexture};
 
 /// The shape of the emitter in light coordinates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -177,25 +186,40 @@ pub fn exact_coverage(shape: EmitterShape, q0: Vec2, q1: Vec2) -> f32 {
         return 0.0;
     }
     let area = match shape {
-        EmitterShape::Square => {
-            // The square clipped by the sector's two rays and the segment's line.
-            let mut poly = vec![
-                Vec2::new(-1.0, -1.0),
-                Vec2::new(1.0, -1.0),
-                Vec2::new(1.0, 1.0),
-                Vec2::new(-1.0, 1.0),
-            ];
-            poly = clip_half_plane(&poly, |x| q0.perp_dot(x));
-            poly = clip_half_plane(&poly, |x| x.perp_dot(q1));
-            poly = clip_half_plane(&poly, |x| -(q1 - q0).perp_dot(x - q0));
-            polygon_area(&poly)
-        }
+        EmitterShape::Square => polygon_area(&covered_square(q0, q1)),
         EmitterShape::Disc => {
             let angle = cross.atan2(q0.dot(q1));
             0.5 * angle - 0.5 * cross
         }
     };
     (area / shape.area()).clamp(0.0, 1.0)
+}
+
+/// The part of the square light the projected quad of `q0q1` covers (`q0 × q1 ≥ 0`): the
+/// square clipped by the sector's two rays and the segment's line (III §3.2.2).
+fn covered_square(q0: Vec2, q1: Vec2) -> Vec<Vec2> {
+    let mut poly = vec![
+        Vec2::new(-1.0, -1.0),
+        Vec2::new(1.0, -1.0),
+        Vec2::new(1.0, 1.0),
+        Vec2::new(-1.0, 1.0),
+    ];
+    poly = clip_half_plane(&poly, |x| q0.perp_dot(x));
+    poly = clip_half_plane(&poly, |x| x.perp_dot(q1));
+    clip_half_plane(&poly, |x| -(q1 - q0).perp_dot(x - q0))
+}
+
+/// [`exact_coverage`] of a square light weighted by its texture (Paper III §3.3): per channel,
+/// `∫ T` over the covered part over the light's area, in [0, 1].
+pub fn textured_coverage(light: &LightTexture, q0: Vec2, q1: Vec2) -> [f32; 3] {
+    let cross = q0.perp_dot(q1);
+    if cross == 0.0 {
+        return [0.0; 3];
+    }
+    let (q0, q1) = if cross > 0.0 { (q0, q1) } else { (q1, q0) };
+    light
+        .integrate(&covered_square(q0, q1))
+        .map(|v| (v / EmitterShape::Square.area()).clamp(0.0, 1.0))
 }
 
 /// Sutherland–Hodgman: the part of `poly` where `f ≥ 0` (`f` affine).
@@ -227,11 +251,20 @@ fn polygon_area(poly: &[Vec2]) -> f32 {
 /// The 4D coverage texture of III §3.3: `n×n` sub-textures of `n×n` texels, sub-texture
 /// `(a, b)` holding the coverage for a first clipped end point at texel centre `(a, b)` and a
 /// second end point at each texel centre, precomputed by exact clipping and stored in 8 bits.
+/// For a textured light (§3.3, "the sum of the red components that the corresponding projected
+/// quad covers") each texel holds three such values, one per channel, each the integral of the
+/// light's texture over the covered part ([`textured_coverage`]); the light texture is first
+/// box-filtered to at most `n×n` texels, as the paper undersamples its fire texture.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CoverageTexture {
     pub n: u32,
     pub shape: EmitterShape,
-    /// `n²×n²` texels, row-major: texel `(a·n + i, b·n + j)` at index `(b·n + j)·n² + a·n + i`.
+    /// 1 (uniform white light) or 3 (r, g, b of a textured light).
+    pub channels: u32,
+    /// [`LightTexture::hash`] of the light texture it integrates.
+    pub light: Option<u64>,
+    /// `n²×n²` texels of `channels` bytes, row-major: texel `(a·n + i, b·n + j)` at index
+    /// `(b·n + j)·n² + a·n + i`, its channels at `channels·index + c`.
     pub texels: Vec<u8>,
 }
 
@@ -240,16 +273,55 @@ impl CoverageTexture {
         let side = (n * n) as usize;
         let texels = (0..side * side)
             .map(|k| {
-                let (tx, ty) = ((k % side) as u32, (k / side) as u32);
-                let q0 = Self::centre(n, tx / n, ty / n);
-                let q1 = Self::centre(n, tx % n, ty % n);
+                let (q0, q1) = Self::end_points(n, k);
                 let c = shape
                     .clip(q0, q1)
                     .map_or(0.0, |(c0, c1)| exact_coverage(shape, c0, c1));
                 (c * 255.0).round() as u8
             })
             .collect();
-        CoverageTexture { n, shape, texels }
+        CoverageTexture {
+            n,
+            shape,
+            channels: 1,
+            light: None,
+            texels,
+        }
+    }
+
+    /// The RGB coverage texture of a square light with texture `light`.
+    pub fn build_textured(light: &LightTexture, n: u32) -> CoverageTexture {
+        use rayon::prelude::*;
+        let shape = EmitterShape::Square;
+        let filtered = light.resampled(n);
+        let side = (n * n) as usize;
+        let texels = (0..side * side)
+            .into_par_iter()
+            .flat_map_iter(|k| {
+                let (q0, q1) = Self::end_points(n, k);
+                let c = shape
+                    .clip(q0, q1)
+                    .map_or([0.0; 3], |(c0, c1)| textured_coverage(&filtered, c0, c1));
+                c.map(|v| (v * 255.0).round() as u8)
+            })
+            .collect();
+        CoverageTexture {
+            n,
+            shape,
+            channels: 3,
+            light: Some(light.hash()),
+            texels,
+        }
+    }
+
+    /// The two end points texel `k` stands for.
+    fn end_points(n: u32, k: usize) -> (Vec2, Vec2) {
+        let side = (n * n) as usize;
+        let (tx, ty) = ((k % side) as u32, (k / side) as u32);
+        (
+            Self::centre(n, tx / n, ty / n),
+            Self::centre(n, tx % n, ty % n),
+        )
     }
 
     /// Light coordinate of texel centre `(i, j)`.
@@ -274,11 +346,12 @@ impl CoverageTexture {
     /// Coverage of the clipped projected edge `q0q1`: the sub-texture of the texel centre
     /// nearest `q0`, read bilinearly at `q1` (III §3.3). Four texel reads of one byte.
     pub fn lookup(&self, q0: Vec2, q1: Vec2) -> f32 {
-        self.lookup_texels(q0, q1).0
+        self.lookup_texels(q0, q1).0[0]
     }
 
-    /// [`Self::lookup`] and the indices into `texels` of the four texels it reads.
-    pub fn lookup_texels(&self, q0: Vec2, q1: Vec2) -> (f32, [u32; 4]) {
+    /// [`Self::lookup`] per channel (the one channel of an untextured light repeated) and the
+    /// indices of the four texels it reads (bytes `channels·index ..`).
+    pub fn lookup_texels(&self, q0: Vec2, q1: Vec2) -> ([f32; 3], [u32; 4]) {
         let s = self.texel_pos(q0).round();
         let (a, b) = (s.x as u32, s.y as u32);
         let t = self.texel_pos(q1);
@@ -286,10 +359,19 @@ impl CoverageTexture {
         let (i1, j1) = ((i0 + 1).min(self.n - 1), (j0 + 1).min(self.n - 1));
         let f = t - Vec2::new(i0 as f32, j0 as f32);
         let index = [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].map(|(i, j)| self.index(a, b, i, j));
-        let [t00, t10, t01, t11] = index.map(|k| self.texels[k as usize] as f32 / 255.0);
-        let top = t00 * (1.0 - f.x) + t10 * f.x;
-        let bottom = t01 * (1.0 - f.x) + t11 * f.x;
-        (top * (1.0 - f.y) + bottom * f.y, index)
+        let channel = |c: u32| {
+            let [t00, t10, t01, t11] =
+                index.map(|k| self.texels[(k * self.channels + c) as usize] as f32 / 255.0);
+            let top = t00 * (1.0 - f.x) + t10 * f.x;
+            let bottom = t01 * (1.0 - f.x) + t11 * f.x;
+            top * (1.0 - f.y) + bottom * f.y
+        };
+        let c = if self.channels == 3 {
+            [channel(0), channel(1), channel(2)]
+        } else {
+            [channel(0); 3]
+        };
+        (c, index)
     }
 
     /// Texture reads per lookup (bilinear).
@@ -648,12 +730,60 @@ pub fn check_options(
     super::shadow_map::parse_options::<SoftShadowVolumeOptions>(ID, options)?.validate()
 }
 
+/// A textured light needs the 4D coverage texture (Paper III §3.3: it is what makes textured
+/// lights possible) in the f32 V-buffer (III §4.1: "one float per r, g, and b"; the 8-bit
+/// version holds intensity only), one silhouette loop and one light: the overlap approximation
+/// and light splitting are not built for textured lights.
+pub fn check_light_texture(
+    options: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Result<(), InputError> {
+    let o = super::shadow_map::parse_options::<SoftShadowVolumeOptions>(ID, options)?;
+    let refuse = |field: &str, got: String, why: &str| {
+        Err(InputError::new(
+            format!("$.options.{ID}.{field}"),
+            format!("with a textured light ($.light.texture) {why}, got {got}"),
+        ))
+    };
+    if o.coverage != CoverageMethod::Texture {
+        return refuse(
+            "coverage",
+            serde_json::json!(o.coverage).to_string(),
+            "the coverage must be \"texture\" (the 4D coverage texture integrates the light's \
+             texture; exact clipping is not built for textured lights)",
+        );
+    }
+    if o.vbuffer != VBufferPrecision::F32 {
+        return refuse(
+            "vbuffer",
+            serde_json::json!(o.vbuffer).to_string(),
+            "the V-buffer must be \"f32\" (one float per r, g, b)",
+        );
+    }
+    if o.overlap_approximation {
+        return refuse(
+            "overlap_approximation",
+            "true".into(),
+            "the overlap approximation is not built",
+        );
+    }
+    if o.light_split != 1 {
+        return refuse(
+            "light_split",
+            o.light_split.to_string(),
+            "light splitting is not built (light_split must be 1)",
+        );
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests;
 
 /// Bytes of the eye-sized buffers (V-buffer, stencil, per-loop buffers of the overlap
 /// approximation counted once) and the default 4D coverage texture (n⁴ 8-bit texels), estimated
-/// before anything is allocated, for the harness's memory limit.
+/// before anything is allocated, for the harness's memory limit. A textured light's RGB
+/// texture and V-buffer (three times these) are not in the estimate: it sees only the
+/// run's parameters.
 pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
     let pixels = u64::from(p.image[0]) * u64::from(p.image[1]);
     let n = u64::from(default_texture_n());

@@ -33,7 +33,11 @@
 //! (timestamps and pipeline statistics per GPU pass) is followed by an instrumented replay with
 //! WGSL atomics counting fragments. Not built on the GPU: silhouette detection and wedge
 //! construction (host, as on the cpu executions), the z-fail caps (host; z-fail is counted on
-//! the GPU), textured lights.
+//! the GPU).
+//!
+//! Textured lights (III §3.3): the RGB coverage texture is uploaded (three bytes a texel) and
+//! the soft pass accumulates one f32 per channel (III §4.1), writing the light received per
+//! channel and its luminance fraction as the visibility.
 
 use std::time::Instant;
 
@@ -60,15 +64,15 @@ use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::Gpu;
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
-use crate::scene::{Light, Mesh};
-use crate::visibility::VisibilityBuffer;
+use crate::scene::{Light, LightTexture, Mesh};
+use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 const WGSL: &str = include_str!("wgpu.wgsl");
 
 /// Side of the screen tiles primitives are binned to (`TILE` and the workgroup in the WGSL).
 const TILE: u32 = 8;
-/// Storage buffers bound (bindings 1-11).
-const STORAGE_BUFFERS: u32 = 11;
+/// Storage buffers bound (bindings 1-12).
+const STORAGE_BUFFERS: u32 = 12;
 /// Record sizes: an eye ray, a shadow quad, a wedge primitive, a plane, a word.
 const RAY_BYTES: u64 = 48;
 const QUAD_BYTES: u64 = 80;
@@ -123,13 +127,19 @@ struct Params {
     sub_lights: u32,
     /// 0: z-pass, 1: z-fail over the capped volumes.
     counting: u32,
-    pad: [u32; 3],
+    channels: u32,
+    pad: [u32; 2],
+    /// Mean colour of a textured light (`channels` = 3).
+    mean: [f32; 4],
 }
 
 /// `soft_shadow_volume` on wgpu.
 pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
     opts.validate()?;
+    if frame.scene.light_texture.is_some() {
+        super::check_light_texture(&ctx.options)?;
+    }
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
         Error::Unsupported(format!(
@@ -141,9 +151,11 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
     check_limits(gpu, frame)?;
     let start = Instant::now();
     let rays = EyeRays::new(frame);
+    let light_texture = frame.scene.light_texture.as_deref();
     let texture = (opts.coverage == CoverageMethod::Texture)
-        .then(|| coverage_texture(EmitterShape::of(&light), opts.texture_n));
-    let frame_res = FrameResources::new(gpu, &rays, texture.as_deref());
+        .then(|| coverage_texture(EmitterShape::of(&light), opts.texture_n, light_texture));
+    let mean = light_texture.map(LightTexture::mean);
+    let frame_res = FrameResources::new(gpu, &rays, texture.as_deref(), mean.is_some());
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
     let setup_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -195,7 +207,9 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
                 last_light: u32::from(s + 1 == sub_lights.len()),
                 sub_lights: sub_lights.len() as u32,
                 counting: u32::from(opts.counting == Counting::ZFail),
-                pad: [0; 3],
+                channels: if mean.is_some() { 3 } else { 1 },
+                pad: [0; 2],
+                mean: mean.map_or([1.0; 4], |m| [m[0], m[1], m[2], 1.0]),
             };
             runs.push(LoopRun {
                 light: *sub,
@@ -206,6 +220,14 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
         }
     }
     let mut out = passes.run(&rays, &runs, setup_ms)?;
+    if let (Some(rgb), Some(mean)) = (&mut out.rgb, mean) {
+        // Pixels without a surface receive the whole light, as their visibility is 1.
+        for (i, c) in rgb.data.iter_mut().enumerate() {
+            if !rays.is_hit(i) {
+                *c = mean;
+            }
+        }
+    }
     out.warnings.extend(warnings);
     out.execution
         .insert("options".to_string(), serde_json::json!(opts));
@@ -279,6 +301,10 @@ struct FrameResources {
     covered: wgpu::Buffer,
     visibility: wgpu::Buffer,
     stats: wgpu::Buffer,
+    /// Light received per channel (3 words a pixel) under a textured light, else one word.
+    rgb: wgpu::Buffer,
+    /// 3 for a textured light, else 1.
+    channels: u32,
 }
 
 fn init(gpu: &Gpu, label: &str, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
@@ -315,7 +341,12 @@ fn finite(t: f32) -> f32 {
 }
 
 impl FrameResources {
-    fn new(gpu: &Gpu, rays: &EyeRays, texture: Option<&CoverageTexture>) -> FrameResources {
+    fn new(
+        gpu: &Gpu,
+        rays: &EyeRays,
+        texture: Option<&CoverageTexture>,
+        textured: bool,
+    ) -> FrameResources {
         let storage = wgpu::BufferUsages::STORAGE;
         let records: Vec<[f32; 12]> = (0..rays.len())
             .map(|i| {
@@ -356,6 +387,13 @@ impl FrameResources {
             covered: empty(gpu, "covered", WORD * pixels, copy),
             visibility: empty(gpu, "visibility", WORD * pixels, copy),
             stats: empty(gpu, "statistics", 2 * WORD * STATS, copy),
+            rgb: empty(
+                gpu,
+                "rgb",
+                if textured { 3 * WORD * pixels } else { WORD },
+                copy,
+            ),
+            channels: if textured { 3 } else { 1 },
         }
     }
 }
@@ -587,6 +625,7 @@ impl<'g> Passes<'g> {
             &r.covered,
             &r.visibility,
             &r.stats,
+            &r.rgb,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
@@ -780,6 +819,8 @@ impl<'g> Passes<'g> {
         let mut wall = [setup_ms, 0.0, 0.0];
         let mut loops = Vec::with_capacity(runs.len());
         let vis_staging = Staging::new(gpu, "visibility readback", self.res.visibility.size());
+        let rgb_staging = (self.res.channels == 3)
+            .then(|| Staging::new(gpu, "rgb readback", self.res.rgb.size()));
         for (j, run) in runs.iter().enumerate() {
             let j = j as u32;
             // Pass 1: hard shadow quads (III §3.2.1).
@@ -814,6 +855,9 @@ impl<'g> Passes<'g> {
                 self.pass(e, &lg.soft_group, true, false, q);
                 if last {
                     vis_staging.copy(e, &self.res.visibility);
+                    if let Some(r) = &rgb_staging {
+                        r.copy(e, &self.res.rgb);
+                    }
                     if let Some(t) = &timer {
                         t.resolve(e);
                     }
@@ -826,6 +870,17 @@ impl<'g> Passes<'g> {
         }
         let readback_start = Instant::now();
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
+        let rgb = match &rgb_staging {
+            Some(r) => {
+                let w: Vec<f32> = words(&r.read(gpu)?);
+                Some(RgbBuffer {
+                    width: rays.width,
+                    height: rays.height,
+                    data: w.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                })
+            }
+            None => None,
+        };
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
         let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
         let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
@@ -908,6 +963,7 @@ impl<'g> Passes<'g> {
             gpu_ms: gpu_ms.map(|t| t.iter().sum()),
             execution,
             warnings,
+            rgb,
         })
     }
 
@@ -976,6 +1032,8 @@ impl<'g> Passes<'g> {
             0.0
         };
         k.add("coverage_texture_reads", texture_reads);
+        // Bytes: one per channel of each texel read.
+        let texture_reads = texture_reads * f64::from(self.res.channels);
         let per_plane = if lg.wedges.prims > 0 {
             lg.wedges.planes as f64 / lg.wedges.prims as f64
         } else {
@@ -988,7 +1046,7 @@ impl<'g> Passes<'g> {
         let depth = raster_fill * DEPTH_BYTES as f64;
         let stencil_r = stencil_read * STENCIL_BYTES as f64;
         let stencil_w = stencil_write * STENCIL_BYTES as f64;
-        let vbuffer = VBUFFER_BYTES as f64 * covered;
+        let vbuffer = (VBUFFER_BYTES * u64::from(self.res.channels)) as f64 * covered;
         let counts = (WORD * self.pixels) as f64;
         let out = (2 * WORD * self.pixels) as f64;
         k.add("mem_est.eye_rays.read_bytes", rays);
@@ -1050,7 +1108,7 @@ impl<'g> HardSamples<'g> {
             counting,
             ..Default::default()
         };
-        let res = FrameResources::new(gpu, rays, None);
+        let res = FrameResources::new(gpu, rays, None, false);
         HardSamples {
             passes: Passes::new(gpu, rays, &opts, res, occluders),
             samples,
@@ -1084,7 +1142,9 @@ impl<'g> HardSamples<'g> {
             last_light: u32::from(s + 1 == self.samples),
             sub_lights: self.samples,
             counting: u32::from(self.passes.opts.counting == Counting::ZFail),
-            pad: [0; 3],
+            channels: 1,
+            pad: [0; 2],
+            mean: [1.0; 4],
         };
         let up = self.passes.upload_quads(rays, &params, light, quads);
         SampleUpload {

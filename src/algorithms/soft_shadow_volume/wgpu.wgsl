@@ -35,9 +35,12 @@ struct Params {
     sub_lights: u32,
     // 0: z-pass from `eye_count`, 1: z-fail over the capped volumes' faces in `planes`.
     counting: u32,
-    pad3: u32,
+    // 3 for a textured light (RGB coverage texture, one f32 per channel), else 1.
+    channels: u32,
     pad1: u32,
     pad2: u32,
+    // The textured light's mean colour (`LightTexture::mean`).
+    mean: vec4f,
 }
 
 // `EyeRays` of one pixel: dir.xyz, depth (f32::MAX without a surface); point.xyz, bounds t0;
@@ -83,6 +86,8 @@ struct Prim {
 @group(0) @binding(10) var<storage, read_write> visibility: array<f32>;
 // 64-bit counters as (lo, hi) word pairs, slots `STAT_*`.
 @group(0) @binding(11) var<storage, read_write> stats: array<atomic<u32>>;
+// Light received per channel (r, g, b per pixel) under a textured light.
+@group(0) @binding(12) var<storage, read_write> rgb: array<f32>;
 
 const STAT_HARD_FILL: u32 = 0u;
 const STAT_HARD_PASSED: u32 = 1u;
@@ -481,9 +486,9 @@ fn texel_pos(q: vec2f) -> vec2f {
     return clamp((q + vec2f(1.0)) * 0.5 * n - vec2f(0.5), vec2f(0.0), vec2f(n - 1.0));
 }
 
-// `CoverageTexture::lookup` (III §3.3): the sub-texture of q0's nearest texel centre, read
-// bilinearly at q1.
-fn texture_coverage(q0: vec2f, q1: vec2f) -> f32 {
+// `CoverageTexture::lookup_texels` (III §3.3): the sub-texture of q0's nearest texel centre,
+// read bilinearly at q1, per channel (texel index k's channel c at byte channels·k + c).
+fn texture_coverage(q0: vec2f, q1: vec2f) -> vec3f {
     let n = P.texture_n;
     let s = texel_pos(q0);
     let a = u32(round_pos(s.x));
@@ -495,13 +500,26 @@ fn texture_coverage(q0: vec2f, q1: vec2f) -> f32 {
     let j1 = min(j0 + 1u, n - 1u);
     let f = t - vec2f(f32(i0), f32(j0));
     let side = n * n;
-    let t00 = texel((b * n + j0) * side + a * n + i0);
-    let t10 = texel((b * n + j0) * side + a * n + i1);
-    let t01 = texel((b * n + j1) * side + a * n + i0);
-    let t11 = texel((b * n + j1) * side + a * n + i1);
-    let top = t00 * (1.0 - f.x) + t10 * f.x;
-    let bottom = t01 * (1.0 - f.x) + t11 * f.x;
-    return top * (1.0 - f.y) + bottom * f.y;
+    let ch = P.channels;
+    let k00 = ((b * n + j0) * side + a * n + i0) * ch;
+    let k10 = ((b * n + j0) * side + a * n + i1) * ch;
+    let k01 = ((b * n + j1) * side + a * n + i0) * ch;
+    let k11 = ((b * n + j1) * side + a * n + i1) * ch;
+    var out = vec3f(0.0);
+    for (var c = 0u; c < ch; c++) {
+        let top = texel(k00 + c) * (1.0 - f.x) + texel(k10 + c) * f.x;
+        let bottom = texel(k01 + c) * (1.0 - f.x) + texel(k11 + c) * f.x;
+        out[c] = top * (1.0 - f.y) + bottom * f.y;
+    }
+    if ch == 1u {
+        out = vec3f(out.x);
+    }
+    return out;
+}
+
+// `LightTexture::visibility`: the luminance fraction (Rec. 709) of the received light.
+fn luminance(c: vec3f) -> f32 {
+    return 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
 }
 
 // `split12::split`: 12-bit quantization in four 3-bit digits.
@@ -532,6 +550,7 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
     let o = P.eye.xyz;
     let tile = (id.y / TILE) * P.tiles_x + id.x / TILE;
     var acc = 0.0;
+    var acc3 = vec3f(0.0);
     var add = vec4u(0u);
     var sub = vec4u(0u);
     var tests = 0u;
@@ -574,17 +593,20 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
         if !cl.ok {
             continue;
         }
-        var c = 0.0;
+        var c3 = vec3f(0.0);
         if P.coverage == 1u {
-            c = texture_coverage(cl.q0, cl.q1);
+            c3 = texture_coverage(cl.q0, cl.q1);
         } else {
-            c = exact_coverage(cl.q0, cl.q1);
+            c3 = vec3f(exact_coverage(cl.q0, cl.q1));
         }
+        let c = c3.x;
         covered_n++;
-        if c > 0.0 {
+        if any(c3 > vec3f(0.0)) {
             contributing++;
         }
-        if P.vbuffer == 0u {
+        if P.channels == 3u {
+            acc3 -= side * c3;
+        } else if P.vbuffer == 0u {
             acc -= side * c;
         } else if side < 0.0 {
             add = min(add + split12(c), vec4u(255u));
@@ -594,6 +616,26 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
     }
     if P.vbuffer == 1u {
         acc = split12_value(add) - split12_value(sub);
+    }
+    if P.channels == 3u {
+        // `cpu::render` for a textured light (one loop, one light): the light received per
+        // channel, mean·(1 − count) ± coverage, at most the mean; its luminance fraction.
+        let m = P.mean.xyz;
+        let v3 = clamp(m * (1.0 - f32(counts[i])) + acc3, vec3f(0.0), m);
+        rgb[3u * i] = v3.x;
+        rgb[3u * i + 1u] = v3.y;
+        rgb[3u * i + 2u] = v3.z;
+        let vis = clamp(luminance(v3) / luminance(m), 0.0, 1.0);
+        visibility[i] = select(1.0, vis, ray.extra.y != 0.0);
+        if INSTRUMENT != 0u {
+            count(STAT_SOFT_TESTS, tests);
+            count(STAT_SOFT_FILL, fill);
+            count(STAT_SOFT_FRONT, front);
+            count(STAT_SOFT_INSIDE, inside_n);
+            count(STAT_SOFT_COVERED, covered_n);
+            count(STAT_SOFT_CONTRIBUTING, contributing);
+        }
+        return;
     }
     let v = 1.0 - f32(counts[i]) + acc;
     let c = clamp(1.0 - v, 0.0, 1.0);
