@@ -14,6 +14,9 @@ use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::LightKind;
 use shadowbench::visibility::VisibilityBuffer;
 
+mod gpu_check;
+use gpu_check::have_gpu;
+
 /// The paper-000 stand-in scene, small: a lumpy blob over the ground.
 fn frame(light_size: f32, occluder_height: Option<f32>) -> Frame {
     let mut scene = generators::find("blob-on-plane")
@@ -215,20 +218,6 @@ fn bad_penumbra_map_options_name_the_field() {
         );
         let e = Loaded::from_str(&text, std::path::Path::new("s.json")).unwrap_err();
         assert_eq!(e.field.as_deref(), Some(field), "{e}");
-    }
-}
-
-/// Whether the tests can run on a GPU; panics when one is required and missing.
-fn have_gpu() -> bool {
-    match shadowbench::gpu::gpu() {
-        Ok(_) => true,
-        Err(e) if std::env::var("SHADOWBENCH_REQUIRE_GPU").as_deref() == Ok("1") => {
-            panic!("SHADOWBENCH_REQUIRE_GPU=1 but {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            false
-        }
     }
 }
 

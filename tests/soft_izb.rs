@@ -9,6 +9,9 @@ use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scene::generators::{self, primitives, GeneratorParams};
 use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
 
+mod gpu_check;
+use gpu_check::have_gpu;
+
 fn params(scene: &Scene, image: [u32; 2]) -> RunParams {
     RunParams::of_scene(scene, image, 256, 16)
 }
@@ -292,21 +295,6 @@ fn more_modelled_cores_take_less_modelled_time() {
     };
     let (one, four, sixteen) = (ms(1), ms(4), ms(16));
     assert!(four < one && sixteen < four, "{one} {four} {sixteen}");
-}
-
-/// Whether the wgpu tests can run; panics when a GPU is required (`SHADOWBENCH_REQUIRE_GPU=1`)
-/// and missing, as in tests/wgpu_execution.rs.
-fn have_gpu() -> bool {
-    match shadowbench::gpu::gpu() {
-        Ok(_) => true,
-        Err(e) if std::env::var("SHADOWBENCH_REQUIRE_GPU").as_deref() == Ok("1") => {
-            panic!("SHADOWBENCH_REQUIRE_GPU=1 but {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            false
-        }
-    }
 }
 
 fn run_with(backend: Backend, frame: &Frame, options: &serde_json::Value) -> FrameOutput {

@@ -10,6 +10,9 @@ use shadowbench::metrics::{compare, ErrorMetrics};
 use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::{Light, Mesh, Object, Role, Scene};
 
+mod gpu_check;
+use gpu_check::have_gpu;
+
 const SSV: &str = "soft_shadow_volume";
 
 fn params(scene: &Scene) -> RunParams {
@@ -446,20 +449,6 @@ fn cpu_model_counters_and_times_do_not_depend_on_the_host_thread_count() {
         for (pa, pb) in a.phases.iter().zip(&b.phases) {
             assert_eq!(pa.counters, pb.counters);
             assert_eq!(pa.model_ms, pb.model_ms);
-        }
-    }
-}
-
-/// Whether the tests can run on a GPU; panics when one is required and missing.
-fn have_gpu() -> bool {
-    match shadowbench::gpu::gpu() {
-        Ok(_) => true,
-        Err(e) if std::env::var("SHADOWBENCH_REQUIRE_GPU").as_deref() == Ok("1") => {
-            panic!("SHADOWBENCH_REQUIRE_GPU=1 but {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            false
         }
     }
 }

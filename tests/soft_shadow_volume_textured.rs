@@ -16,6 +16,9 @@ use shadowbench::scene::generators::{self, primitives, GeneratorParams};
 use shadowbench::scene::light_texture::LightTextureSpec;
 use shadowbench::scene::{Camera, Light, LightTexture, Mesh, Object, Role, Scene};
 
+mod gpu_check;
+use gpu_check::have_gpu;
+
 const SSV: &str = "soft_shadow_volume";
 
 fn texture(spec: LightTextureSpec) -> Arc<LightTexture> {
@@ -423,19 +426,6 @@ fn a_textured_run_writes_the_rgb_image() {
         assert_eq!(rgb.dimensions(), (24, 16));
     }
     std::fs::remove_dir_all(&dir).ok();
-}
-
-fn have_gpu() -> bool {
-    match shadowbench::gpu::gpu() {
-        Ok(_) => true,
-        Err(e) if std::env::var("SHADOWBENCH_REQUIRE_GPU").as_deref() == Ok("1") => {
-            panic!("SHADOWBENCH_REQUIRE_GPU=1 but {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            false
-        }
-    }
 }
 
 /// The wgpu execution with the RGB coverage texture uploaded and one f32 per channel against

@@ -14,19 +14,8 @@ use shadowbench::metrics;
 use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::{Light, LightKind};
 
-/// Whether the tests can run on a GPU; panics when one is required and missing.
-fn have_gpu() -> bool {
-    match shadowbench::gpu::gpu() {
-        Ok(_) => true,
-        Err(e) if std::env::var("SHADOWBENCH_REQUIRE_GPU").as_deref() == Ok("1") => {
-            panic!("SHADOWBENCH_REQUIRE_GPU=1 but {e}")
-        }
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            false
-        }
-    }
-}
+mod gpu_check;
+use gpu_check::have_gpu;
 
 /// A 64×48 frame of generated scene `name`, its light changed by `light` and made a disc
 /// facing the scene (a light both algorithms take).

@@ -372,3 +372,18 @@ pub fn adapter_report() -> Vec<String> {
     }
     lines
 }
+
+/// Records the resolve of a timed submission's optional queries (after its last pass): the
+/// pass timestamps and the pipeline statistics, where the adapter offers them.
+pub fn resolve_queries(
+    e: &mut wgpu::CommandEncoder,
+    timer: Option<&timing::PassTimer>,
+    stats: Option<&stats::PassStats>,
+) {
+    if let Some(t) = timer {
+        t.resolve(e);
+    }
+    if let Some(s) = stats {
+        s.resolve(e);
+    }
+}

@@ -27,7 +27,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
-use crate::gpu::Gpu;
+use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::visibility::VisibilityBuffer;
@@ -82,12 +82,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
             samples.accumulate(e, &up, q);
             if last {
                 staging.copy(e, samples.visibility());
-                if let Some(t) = &timer {
-                    t.resolve(e);
-                }
-                if let Some(st) = &stats {
-                    st.resolve(e);
-                }
+                resolve_queries(e, timer.as_ref(), stats.as_ref());
             }
         })?;
         uploads.push(up);

@@ -32,7 +32,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
-use crate::gpu::Gpu;
+use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::visibility::VisibilityBuffer;
@@ -668,12 +668,7 @@ impl<'g> Passes<'g> {
         let lookup_wall = self.gpu.submit(|e| {
             self.compute_pass(e, &self.timed.lookup, image, timer.as_ref(), stats.as_ref());
             vis_staging.copy(e, &self.visibility);
-            if let Some(t) = &timer {
-                t.resolve(e);
-            }
-            if let Some(s) = &stats {
-                s.resolve(e);
-            }
+            resolve_queries(e, timer.as_ref(), stats.as_ref());
         })?;
         let readback_start = Instant::now();
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);

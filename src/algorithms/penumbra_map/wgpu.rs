@@ -28,7 +28,7 @@ use super::{
 };
 use crate::algorithms::shadow_map::LightView;
 use crate::algorithms::shadow_map_wgpu::{
-    self, gpu_phase, read_queries, resolve, Counts, Lookup, Passes, Queries, DEPTH_TEXEL_BYTES,
+    self, gpu_phase, read_queries, Counts, Lookup, Passes, Queries, DEPTH_TEXEL_BYTES,
 };
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
@@ -36,7 +36,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
-use crate::gpu::Gpu;
+use crate::gpu::{resolve_queries, Gpu};
 use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
 
@@ -381,7 +381,7 @@ impl<'g> PenumbraPasses<'g> {
                 Some(&self.lookup_group),
             );
             vis_staging.copy(e, &p.visibility);
-            resolve(e, timer.as_ref(), stats.as_ref());
+            resolve_queries(e, timer.as_ref(), stats.as_ref());
         })?;
         let readback_start = Instant::now();
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);

@@ -27,7 +27,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
-use crate::gpu::Gpu;
+use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::Mesh;
 use crate::visibility::VisibilityBuffer;
@@ -540,7 +540,7 @@ impl<'g> Passes<'g> {
         let lookup_wall = self.gpu.submit(|e| {
             self.compute_pass(e, "eye_lookup", &self.lookup_timed, image, q(1), None);
             vis_staging.copy(e, &self.visibility);
-            resolve(e, timer.as_ref(), stats.as_ref());
+            resolve_queries(e, timer.as_ref(), stats.as_ref());
         })?;
         let readback_start = Instant::now();
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
@@ -702,20 +702,6 @@ pub(crate) fn gpu_phase(
         model_ms: None,
         gpu_ms,
         counters,
-    }
-}
-
-/// Records the resolve of the timed submission's queries (after its last pass).
-pub(crate) fn resolve(
-    e: &mut wgpu::CommandEncoder,
-    timer: Option<&PassTimer>,
-    stats: Option<&PassStats>,
-) {
-    if let Some(t) = timer {
-        t.resolve(e);
-    }
-    if let Some(s) = stats {
-        s.resolve(e);
     }
 }
 

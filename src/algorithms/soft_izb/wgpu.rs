@@ -56,7 +56,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
-use crate::gpu::Gpu;
+use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::visibility::VisibilityBuffer;
 
@@ -526,12 +526,7 @@ impl<'g> Passes<'g> {
                         &self.cell_start,
                         WORD * u64::from(self.params.cells),
                     );
-                    if let Some(t) = &timer {
-                        t.resolve(e);
-                    }
-                    if let Some(s) = &stats {
-                        s.resolve(e);
-                    }
+                    resolve_queries(e, timer.as_ref(), stats.as_ref());
                 }
             })?);
         }

@@ -61,7 +61,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
-use crate::gpu::Gpu;
+use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::{Light, LightTexture, Mesh};
@@ -858,12 +858,7 @@ impl<'g> Passes<'g> {
                     if let Some(r) = &rgb_staging {
                         r.copy(e, &self.res.rgb);
                     }
-                    if let Some(t) = &timer {
-                        t.resolve(e);
-                    }
-                    if let Some(s) = &stats {
-                        s.resolve(e);
-                    }
+                    resolve_queries(e, timer.as_ref(), stats.as_ref());
                 }
             })?;
             loops.push(lg);
