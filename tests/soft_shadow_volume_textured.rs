@@ -12,12 +12,14 @@ use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
 use shadowbench::error::Error;
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scenario::Loaded;
-use shadowbench::scene::generators::{self, primitives, GeneratorParams};
+use shadowbench::scene::generators::primitives;
 use shadowbench::scene::light_texture::LightTextureSpec;
 use shadowbench::scene::{Camera, Light, LightTexture, Mesh, Object, Role, Scene};
 
 mod gpu_check;
+mod pentagon;
 use gpu_check::have_gpu;
+use pentagon::{planar_polygon_scene, rect_light};
 
 const SSV: &str = "soft_shadow_volume";
 
@@ -34,43 +36,11 @@ fn checker() -> Arc<LightTexture> {
     })
 }
 
-fn rect_light() -> Light {
-    Light::Rect {
-        center: Vec3::new(0.4, 6.0, 0.2),
-        half_u: Vec3::new(0.9, 0.0, 0.0),
-        half_v: Vec3::new(0.0, 0.0, 0.7),
-    }
-}
-
-/// A single planar pentagon above the ground (no single-silhouette or overlap error).
+/// The pentagon under `light` with its texture `tex`.
 fn pentagon_frame(light: Light, tex: Arc<LightTexture>) -> Frame {
-    let ground = generators::find("plate-on-plane")
-        .unwrap()
-        .build(&GeneratorParams::default());
-    let mut objects: Vec<Object> = ground
-        .objects
-        .into_iter()
-        .filter(|o| o.name != "plate")
-        .collect();
-    let mut positions = vec![Vec3::new(0.0, 1.6, 0.0)];
-    positions.extend((0..5).map(|k| {
-        let a = k as f32 * std::f32::consts::TAU / 5.0 + 0.3;
-        Vec3::new(1.3 * a.cos(), 1.6 + 0.15 * a.sin(), 1.1 * a.sin())
-    }));
-    objects.push(Object {
-        name: "pentagon".into(),
-        mesh: Mesh {
-            positions,
-            triangles: (0..5u32).map(|k| [0, 1 + (k + 1) % 5, 1 + k]).collect(),
-        },
-        role: Role::BOTH,
-    });
     let scene = Scene {
-        name: "pentagon".into(),
-        objects,
-        camera: ground.camera,
-        light,
         light_texture: Some(tex),
+        ..planar_polygon_scene(light)
     };
     let params = RunParams::of_scene(&scene, [64, 48], 256, 16);
     Frame::new(scene, params)

@@ -627,33 +627,25 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
         rgb[3u * i + 2u] = v3.z;
         let vis = clamp(luminance(v3) / luminance(m), 0.0, 1.0);
         visibility[i] = select(1.0, vis, ray.extra.y != 0.0);
-        if INSTRUMENT != 0u {
-            count(STAT_SOFT_TESTS, tests);
-            count(STAT_SOFT_FILL, fill);
-            count(STAT_SOFT_FRONT, front);
-            count(STAT_SOFT_INSIDE, inside_n);
-            count(STAT_SOFT_COVERED, covered_n);
-            count(STAT_SOFT_CONTRIBUTING, contributing);
+    } else {
+        let v = 1.0 - f32(counts[i]) + acc;
+        let c = clamp(1.0 - v, 0.0, 1.0);
+        var cov = c;
+        if P.first_loop == 0u {
+            cov = overlap_coverage(covered[i], c);
         }
-        return;
-    }
-    let v = 1.0 - f32(counts[i]) + acc;
-    let c = clamp(1.0 - v, 0.0, 1.0);
-    var cov = c;
-    if P.first_loop == 0u {
-        cov = overlap_coverage(covered[i], c);
-    }
-    covered[i] = cov;
-    if P.last_loop == 1u {
-        var vis = 0.0;
-        if P.first_light == 0u {
-            vis = visibility[i];
+        covered[i] = cov;
+        if P.last_loop == 1u {
+            var vis = 0.0;
+            if P.first_light == 0u {
+                vis = visibility[i];
+            }
+            vis += (1.0 - cov) / f32(P.sub_lights);
+            if P.last_light == 1u {
+                vis = select(1.0, clamp(vis, 0.0, 1.0), ray.extra.y != 0.0);
+            }
+            visibility[i] = vis;
         }
-        vis += (1.0 - cov) / f32(P.sub_lights);
-        if P.last_light == 1u {
-            vis = select(1.0, clamp(vis, 0.0, 1.0), ray.extra.y != 0.0);
-        }
-        visibility[i] = vis;
     }
     if INSTRUMENT != 0u {
         count(STAT_SOFT_TESTS, tests);
