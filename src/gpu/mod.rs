@@ -21,7 +21,10 @@ use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex, OnceLock};
 
+use wgpu::util::DeviceExt;
+
 use crate::error::{Error, Result};
+use crate::frame::GBuffer;
 
 /// Environment variable naming the adapter to use (substring of its name).
 pub const ADAPTER_ENV: &str = "SHADOWBENCH_ADAPTER";
@@ -92,6 +95,44 @@ pub struct Gpu {
 }
 
 impl Gpu {
+    /// A buffer holding `contents`. Zero-sized buffers cannot be bound, so empty contents become
+    /// `empty_bytes` zero bytes (at least one record of what the shader reads from it).
+    pub fn buffer_init(
+        &self,
+        label: &str,
+        contents: &[u8],
+        empty_bytes: usize,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        let padded = vec![0u8; empty_bytes];
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: if contents.is_empty() {
+                    &padded
+                } else {
+                    contents
+                },
+                usage,
+            })
+    }
+
+    /// An uninitialised storage buffer of `bytes` (at least one 4-byte word), with `usage`
+    /// besides `STORAGE`.
+    pub fn storage_buffer(
+        &self,
+        label: &str,
+        bytes: u64,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: bytes.max(4),
+            usage: wgpu::BufferUsages::STORAGE | usage,
+            mapped_at_creation: false,
+        })
+    }
+
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
     /// this took on the host.
     pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
@@ -386,4 +427,16 @@ pub fn resolve_queries(
     if let Some(s) = stats {
         s.resolve(e);
     }
+}
+
+/// The gbuffer's positions as the WGSL passes read them: xyz, and in w 1 where the pixel sees a
+/// surface, else 0.
+pub fn gbuffer_positions(g: &GBuffer) -> Vec<[f32; 4]> {
+    (0..g.len())
+        .map(|i| {
+            g.position[i]
+                .extend(f32::from(u8::from(g.is_hit(i))))
+                .to_array()
+        })
+        .collect()
 }

@@ -20,7 +20,6 @@
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
@@ -32,7 +31,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
-use crate::gpu::{resolve_queries, Gpu};
+use crate::gpu::{gbuffer_positions, resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::visibility::VisibilityBuffer;
@@ -253,19 +252,8 @@ impl<'g> Passes<'g> {
             height,
             pad: 0,
         };
-        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            // Zero-sized buffers are not bindable; pad empty contents to one vertex.
-            let padded = [0u8; 16];
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: if contents.is_empty() {
-                    &padded
-                } else {
-                    contents
-                },
-                usage,
-            })
-        };
+        let init =
+            |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 16, usage);
         let uniform_buf = init(
             "dbuffer uniform",
             bytemuck::bytes_of(&uniform),
@@ -306,13 +294,7 @@ impl<'g> Passes<'g> {
         let penumbra_mesh = volume("penumbra volume", penumbra);
 
         let g = &frame.gbuffer;
-        let gpos: Vec<[f32; 4]> = (0..g.len())
-            .map(|i| {
-                g.position[i]
-                    .extend(f32::from(u8::from(g.is_hit(i))))
-                    .to_array()
-            })
-            .collect();
+        let gpos = gbuffer_positions(g);
         let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
         let positions_buf = init(
             "gbuffer positions",

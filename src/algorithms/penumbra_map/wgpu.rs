@@ -262,20 +262,7 @@ impl<'g> PenumbraPasses<'g> {
             .collect();
         let indices: Vec<u32> = g.triangles.iter().flatten().copied().collect();
         let init = |label: &str, contents: &[u8], usage| {
-            // Zero-sized buffers are not bindable; pad empty contents to one vertex.
-            let padded = [0u8; 16];
-            self.passes
-                .gpu
-                .device
-                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: if contents.is_empty() {
-                        &padded
-                    } else {
-                        contents
-                    },
-                    usage,
-                })
+            self.passes.gpu.buffer_init(label, contents, 16, usage)
         };
         Cones {
             vertices: init(

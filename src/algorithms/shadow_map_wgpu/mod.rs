@@ -18,7 +18,6 @@
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 use super::shadow_map::{Bias, LightView};
 use super::FrameOutput;
@@ -27,7 +26,7 @@ use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
-use crate::gpu::{resolve_queries, Gpu};
+use crate::gpu::{gbuffer_positions, resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::Mesh;
 use crate::visibility::VisibilityBuffer;
@@ -206,19 +205,7 @@ impl<'g> Passes<'g> {
             height,
             pad: [0; 2],
         };
-        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            // Zero-sized buffers are not bindable; pad empty contents to one word.
-            let padded = [0u8; 4];
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: if contents.is_empty() {
-                    &padded
-                } else {
-                    contents
-                },
-                usage,
-            })
-        };
+        let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 4, usage);
         let uniform_buf = init(
             "light uniform",
             bytemuck::bytes_of(&uniform),
@@ -242,13 +229,7 @@ impl<'g> Passes<'g> {
 
         // The gbuffer: position with the hit flag in w, and the eye-facing normal.
         let g = &frame.gbuffer;
-        let gpos: Vec<[f32; 4]> = (0..g.len())
-            .map(|i| {
-                g.position[i]
-                    .extend(f32::from(u8::from(g.is_hit(i))))
-                    .to_array()
-            })
-            .collect();
+        let gpos = gbuffer_positions(g);
         let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
         let positions_buf = init(
             "gbuffer positions",

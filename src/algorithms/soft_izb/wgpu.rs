@@ -43,7 +43,6 @@
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 use super::{
     check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, NEAR_CLIP,
@@ -292,27 +291,7 @@ impl<'g> Passes<'g> {
         let device = &gpu.device;
         let g = &frame.gbuffer;
         let pixels = g.len() as u64;
-        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-            // Zero-sized buffers are not bindable; pad empty contents to one word.
-            let padded = [0u8; 4];
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: if contents.is_empty() {
-                    &padded
-                } else {
-                    contents
-                },
-                usage,
-            })
-        };
-        let empty = |label: &str, bytes: u64, usage: wgpu::BufferUsages| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(WORD),
-                usage: wgpu::BufferUsages::STORAGE | usage,
-                mapped_at_creation: false,
-            })
-        };
+        let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 4, usage);
         let storage = wgpu::BufferUsages::STORAGE;
         let uniform = init(
             "soft_izb params",
@@ -356,20 +335,20 @@ impl<'g> Passes<'g> {
                 storage,
             ),
             init("gbuffer normals", bytemuck::cast_slice(&normals), storage),
-            empty("light-view points", POINT_BYTES * pixels, storage),
-            empty("bins", WORD * (grid.bins() as u64 + 2), storage),
-            empty("cell counts", WORD * cells, storage),
-            empty(
+            gpu.storage_buffer("light-view points", POINT_BYTES * pixels, storage),
+            gpu.storage_buffer("bins", WORD * (grid.bins() as u64 + 2), storage),
+            gpu.storage_buffer("cell counts", WORD * cells, storage),
+            gpu.storage_buffer(
                 "izb_grid",
                 WORD * (cells + 1 + u64::from(params.scan_blocks)),
                 copy_src,
             ),
-            empty("izb_samples", SAMPLE_BYTES * pixels, storage),
-            empty("occlusion", 2 * WORD * pixels, storage),
-            empty("visibility", WORD * pixels, copy_src),
+            gpu.storage_buffer("izb_samples", SAMPLE_BYTES * pixels, storage),
+            gpu.storage_buffer("occlusion", 2 * WORD * pixels, storage),
+            gpu.storage_buffer("visibility", WORD * pixels, copy_src),
             init("light triangles", bytemuck::cast_slice(&triangles), storage),
             init("penumbra edges", bytemuck::cast_slice(&edges), storage),
-            empty(
+            gpu.storage_buffer(
                 "statistics",
                 2 * WORD * STATS as u64,
                 copy_src | wgpu::BufferUsages::COPY_DST,

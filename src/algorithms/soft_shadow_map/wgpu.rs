@@ -20,7 +20,6 @@
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 use super::cpu::{extent_quad, micro_patch};
 use super::{LightFrame, Precision, SoftShadowMapOptions, Split};
@@ -29,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
-use crate::gpu::Gpu;
+use crate::gpu::{gbuffer_positions, Gpu};
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
 use crate::record::{Counters, Phase};
@@ -180,18 +179,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
         near: ssm.near,
         far: ssm.far,
     };
-    let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
-        let padded = [0u8; 64];
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: if contents.is_empty() {
-                &padded
-            } else {
-                contents
-            },
-            usage,
-        })
-    };
+    let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 64, usage);
     let uniform_buf = init(
         "ssm uniform",
         bytemuck::bytes_of(&uniform),
@@ -229,13 +217,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
 
     // The gbuffer: position with the hit flag, normal with the receives flag.
     let g = &frame.gbuffer;
-    let gpos: Vec<[f32; 4]> = (0..g.len())
-        .map(|i| {
-            g.position[i]
-                .extend(f32::from(u8::from(g.is_hit(i))))
-                .to_array()
-        })
-        .collect();
+    let gpos = gbuffer_positions(g);
     let gnrm: Vec<[f32; 4]> = (0..g.len())
         .map(|i| {
             let receives = g.is_hit(i)

@@ -43,7 +43,6 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use wgpu::util::DeviceExt;
 
 use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach};
 use super::{
@@ -81,6 +80,8 @@ const FACE_BYTES: u64 = 96;
 const PRIM_BYTES: u64 = 32;
 const PLANE_BYTES: u64 = 16;
 const WORD: u64 = 4;
+/// What an empty upload is padded to: a record of any kind the passes read.
+const RECORD_BYTES: usize = 128;
 /// Bytes per pixel of the V-buffer (f32, or one rgba8 buffer of the split pair) and of the
 /// stencil the wedge-half culling of IV §4.4 uses on a rasterizer.
 const VBUFFER_BYTES: u64 = 4;
@@ -307,30 +308,6 @@ struct FrameResources {
     channels: u32,
 }
 
-fn init(gpu: &Gpu, label: &str, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-    // Zero-sized buffers are not bindable; pad empty contents to a record of any kind.
-    let padded = [0u8; 128];
-    gpu.device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: if contents.is_empty() {
-                &padded
-            } else {
-                contents
-            },
-            usage,
-        })
-}
-
-fn empty(gpu: &Gpu, label: &str, bytes: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
-    gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes.max(WORD),
-        usage: wgpu::BufferUsages::STORAGE | usage,
-        mapped_at_creation: false,
-    })
-}
-
 /// Infinite and NaN parameters become the largest finite ones (WGSL has no infinities).
 fn finite(t: f32) -> f32 {
     if t.is_nan() {
@@ -376,23 +353,23 @@ impl FrameResources {
         let pixels = rays.len() as u64;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         FrameResources {
-            rays: init(gpu, "eye rays", bytemuck::cast_slice(&records), storage),
-            texels: init(
-                gpu,
-                "coverage texture",
-                bytemuck::cast_slice(&packed),
+            rays: gpu.buffer_init(
+                "eye rays",
+                bytemuck::cast_slice(&records),
+                RECORD_BYTES,
                 storage,
             ),
-            counts: empty(gpu, "hard counts", WORD * pixels, copy),
-            covered: empty(gpu, "covered", WORD * pixels, copy),
-            visibility: empty(gpu, "visibility", WORD * pixels, copy),
-            stats: empty(gpu, "statistics", 2 * WORD * STATS, copy),
-            rgb: empty(
-                gpu,
-                "rgb",
-                if textured { 3 * WORD * pixels } else { WORD },
-                copy,
+            texels: gpu.buffer_init(
+                "coverage texture",
+                bytemuck::cast_slice(&packed),
+                RECORD_BYTES,
+                storage,
             ),
+            counts: gpu.storage_buffer("hard counts", WORD * pixels, copy),
+            covered: gpu.storage_buffer("covered", WORD * pixels, copy),
+            visibility: gpu.storage_buffer("visibility", WORD * pixels, copy),
+            stats: gpu.storage_buffer("statistics", 2 * WORD * STATS, copy),
+            rgb: gpu.storage_buffer("rgb", if textured { 3 * WORD * pixels } else { WORD }, copy),
             channels: if textured { 3 } else { 1 },
         }
     }
@@ -681,18 +658,33 @@ impl<'g> Passes<'g> {
             None => bins(rays, &footprints, |_, _| true),
             Some(f) => bins(rays, &face_footprints(rays, f), |_, _| true),
         };
-        let params = init(
-            gpu,
+        let params = gpu.buffer_init(
             "ssv params",
             bytemuck::bytes_of(params),
+            RECORD_BYTES,
             wgpu::BufferUsages::UNIFORM,
         );
-        let quads_buf = init(gpu, "shadow quads", bytemuck::cast_slice(&records), storage);
-        let bins_buf = init(gpu, "quad bins", bytemuck::cast_slice(&quad_bins), storage);
-        let none = empty(gpu, "no primitives", 128, wgpu::BufferUsages::empty());
+        let quads_buf = gpu.buffer_init(
+            "shadow quads",
+            bytemuck::cast_slice(&records),
+            RECORD_BYTES,
+            storage,
+        );
+        let bins_buf = gpu.buffer_init(
+            "quad bins",
+            bytemuck::cast_slice(&quad_bins),
+            RECORD_BYTES,
+            storage,
+        );
+        let none = gpu.storage_buffer("no primitives", 128, wgpu::BufferUsages::empty());
         let faces_buf = faces.as_ref().map(|f| {
             let records = face_records(rays, f);
-            init(gpu, "volume faces", bytemuck::cast_slice(&records), storage)
+            gpu.buffer_init(
+                "volume faces",
+                bytemuck::cast_slice(&records),
+                RECORD_BYTES,
+                storage,
+            )
         });
         let group = self.group(
             &params,
@@ -761,17 +753,22 @@ impl<'g> Passes<'g> {
             planes: planes.len() as u64,
             bin_entries: entries,
         };
-        let prims_buf = init(
-            gpu,
+        let prims_buf = gpu.buffer_init(
             "wedge primitives",
             bytemuck::cast_slice(&records),
+            RECORD_BYTES,
             storage,
         );
-        let planes_buf = init(gpu, "wedge planes", bytemuck::cast_slice(&planes), storage);
-        let bins_buf = init(
-            gpu,
+        let planes_buf = gpu.buffer_init(
+            "wedge planes",
+            bytemuck::cast_slice(&planes),
+            RECORD_BYTES,
+            storage,
+        );
+        let bins_buf = gpu.buffer_init(
             "wedge bins",
             bytemuck::cast_slice(&wedge_bins),
+            RECORD_BYTES,
             storage,
         );
         let [params, quads_buf, quad_bins] = quad_buffers;
