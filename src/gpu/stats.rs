@@ -7,6 +7,9 @@ use crate::record::Counters;
 use super::readback::{words, Staging};
 use super::Gpu;
 
+/// The statistic that means something for compute passes.
+pub const COMPUTE_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
+
 /// The statistics gathered, in the order the query writes them (bit order of
 /// [`wgpu::PipelineStatisticsTypes`]), with the counter names they get.
 const STATISTICS: [(wgpu::PipelineStatisticsTypes, &str); 5] = [
@@ -28,7 +31,7 @@ const STATISTICS: [(wgpu::PipelineStatisticsTypes, &str); 5] = [
     ),
     (
         wgpu::PipelineStatisticsTypes::COMPUTE_SHADER_INVOCATIONS,
-        "pipeline.compute_shader_invocations",
+        COMPUTE_INVOCATIONS,
     ),
 ];
 

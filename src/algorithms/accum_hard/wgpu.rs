@@ -25,7 +25,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
-use crate::gpu::stats::{read_or_warn, PassStats};
+use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
@@ -35,9 +35,6 @@ use crate::visibility::VisibilityBuffer;
 /// Bytes of a stencil value and of an accumulation-buffer value, as `accum_hard::cpu` counts.
 const STENCIL_BYTES: f64 = 1.0;
 const ACCUMULATION_BYTES: f64 = 2.0;
-
-/// The pipeline statistic that means something for compute passes.
-const COMPUTE_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
 
 /// `accum_hard` on wgpu.
 pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {

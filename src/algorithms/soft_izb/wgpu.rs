@@ -53,7 +53,7 @@ use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
-use crate::gpu::stats::{read_or_warn, PassStats};
+use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
@@ -76,9 +76,6 @@ const EDGE_BYTES: u64 = 24;
 const GBUFFER_BYTES: u64 = 16;
 const POINT_BYTES: u64 = 16;
 const WORD: u64 = 4;
-
-/// The pipeline statistic that means something for compute passes.
-const COMPUTE_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
 
 /// The phases with GPU passes, in order.
 const PHASES: [&str; 3] = ["construct", "hard", "soft"];

@@ -58,7 +58,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::readback::{words, Staging};
-use crate::gpu::stats::{read_or_warn, PassStats};
+use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
@@ -86,9 +86,6 @@ const RECORD_BYTES: usize = 128;
 /// stencil the wedge-half culling of IV §4.4 uses on a rasterizer.
 const VBUFFER_BYTES: u64 = 4;
 const STENCIL_BYTES: u64 = 1;
-
-/// The pipeline statistic that means something for compute passes.
-const COMPUTE_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
 
 /// The statistics slots of the instrumented pipelines (`STAT_*` in the WGSL), in slot order.
 #[derive(Clone, Copy)]
