@@ -133,6 +133,33 @@ impl Gpu {
         })
     }
 
+    /// A square `resolution`² map (one mip level, one sample) that passes render into and
+    /// read from, with `usage` besides `RENDER_ATTACHMENT | TEXTURE_BINDING`.
+    pub fn map_texture(
+        &self,
+        label: &str,
+        resolution: u32,
+        format: wgpu::TextureFormat,
+        usage: wgpu::TextureUsages,
+    ) -> wgpu::Texture {
+        self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: resolution,
+                height: resolution,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | usage,
+            view_formats: &[],
+        })
+    }
+
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
     /// this took on the host.
     pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {

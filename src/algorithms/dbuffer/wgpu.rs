@@ -117,21 +117,8 @@ struct Target {
     view: wgpu::TextureView,
 }
 
-fn texture(device: &wgpu::Device, label: &str, res: u32, format: wgpu::TextureFormat) -> Target {
-    let t = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: res,
-            height: res,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-        view_formats: &[],
-    });
+fn texture(gpu: &Gpu, label: &str, res: u32, format: wgpu::TextureFormat) -> Target {
+    let t = gpu.map_texture(label, res, format, wgpu::TextureUsages::empty());
     Target {
         view: t.create_view(&Default::default()),
     }
@@ -319,11 +306,11 @@ impl<'g> Passes<'g> {
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,
         );
-        let scene_depth = texture(device, "dbuffer scene depth", resolution, DEPTH);
-        let umbra_depth = texture(device, "dbuffer umbra depth", resolution, DEPTH);
-        let umbra_edge = texture(device, "dbuffer umbra edge", resolution, EDGE);
-        let penumbra_depth = texture(device, "dbuffer penumbra depth", resolution, DEPTH);
-        let penumbra_edge = texture(device, "dbuffer penumbra edge", resolution, EDGE);
+        let scene_depth = texture(gpu, "dbuffer scene depth", resolution, DEPTH);
+        let umbra_depth = texture(gpu, "dbuffer umbra depth", resolution, DEPTH);
+        let umbra_edge = texture(gpu, "dbuffer umbra edge", resolution, EDGE);
+        let penumbra_depth = texture(gpu, "dbuffer penumbra depth", resolution, DEPTH);
+        let penumbra_edge = texture(gpu, "dbuffer penumbra edge", resolution, EDGE);
 
         let all =
             wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;

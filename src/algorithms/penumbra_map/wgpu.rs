@@ -123,20 +123,12 @@ impl<'g> PenumbraPasses<'g> {
             Some(&lookup_layout),
         );
 
-        let penumbra = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("penumbra map"),
-            size: wgpu::Extent3d {
-                width: resolution,
-                height: resolution,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Depth32Float,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let penumbra = gpu.map_texture(
+            "penumbra map",
+            resolution,
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::empty(),
+        );
         let penumbra_view = penumbra.create_view(&Default::default());
         let lookup_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("penumbra lookup"),

@@ -255,20 +255,12 @@ impl<'g> Passes<'g> {
                 | wgpu::BufferUsages::COPY_DST,
         );
 
-        let depth = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("shadow map"),
-            size: wgpu::Extent3d {
-                width: resolution,
-                height: resolution,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Depth32Float,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        });
+        let depth = gpu.map_texture(
+            "shadow map",
+            resolution,
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::empty(),
+        );
         let depth_view = depth.create_view(&Default::default());
 
         // Group 0 (both shaders): the light uniform and the counters.

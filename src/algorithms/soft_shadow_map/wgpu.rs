@@ -99,25 +99,6 @@ pub fn render(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<Fram
     run(gpu, frame, o)
 }
 
-fn texture(gpu: &Gpu, label: &str, res: u32, format: wgpu::TextureFormat) -> wgpu::Texture {
-    gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: res,
-            height: res,
-            depth_or_array_layers: 1,
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format,
-        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-            | wgpu::TextureUsages::TEXTURE_BINDING
-            | wgpu::TextureUsages::COPY_SRC,
-        view_formats: &[],
-    })
-}
-
 fn entry(
     binding: u32,
     visibility: wgpu::ShaderStages,
@@ -243,10 +224,11 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     });
 
     let passes = o.passes as usize;
+    // The occluder maps are read back for the paper's transfer to the CPU.
+    let copy_src = wgpu::TextureUsages::COPY_SRC;
     let occ_maps: Vec<wgpu::Texture> = (0..passes)
         .map(|k| {
-            texture(
-                gpu,
+            gpu.map_texture(
                 if k == 0 {
                     "occluder map"
                 } else {
@@ -254,18 +236,23 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
                 },
                 res,
                 wgpu::TextureFormat::Depth32Float,
+                copy_src,
             )
         })
         .collect();
-    let receiver_map = texture(gpu, "receiver map", res, wgpu::TextureFormat::Depth32Float);
+    let receiver_map = gpu.map_texture(
+        "receiver map",
+        res,
+        wgpu::TextureFormat::Depth32Float,
+        wgpu::TextureUsages::empty(),
+    );
     let ssm_format = match o.precision {
         Precision::Fp32 => wgpu::TextureFormat::R32Float,
         Precision::Fp16 => wgpu::TextureFormat::R16Float,
     };
     let ssm_maps: Vec<wgpu::Texture> = (0..passes)
         .map(|k| {
-            texture(
-                gpu,
+            gpu.map_texture(
                 if k == 0 {
                     "soft shadow map"
                 } else {
@@ -273,6 +260,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
                 },
                 res,
                 ssm_format,
+                wgpu::TextureUsages::empty(),
             )
         })
         .collect();
