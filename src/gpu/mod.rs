@@ -12,6 +12,7 @@
 //! [`fault`] injects such faults on purpose, for the robustness tests.
 
 pub mod fault;
+pub mod layout;
 
 pub mod readback;
 pub mod stats;

@@ -28,6 +28,7 @@ use crate::algorithms::shadow_map::LightView;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
+use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
@@ -129,43 +130,18 @@ fn texture_entry(
     stage: wgpu::ShaderStages,
     depth: bool,
 ) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: stage,
-        ty: wgpu::BindingType::Texture {
-            sample_type: if depth {
-                wgpu::TextureSampleType::Depth
-            } else {
-                wgpu::TextureSampleType::Float { filterable: false }
-            },
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
+    let sample_type = if depth {
+        wgpu::TextureSampleType::Depth
+    } else {
+        wgpu::TextureSampleType::Float { filterable: false }
+    };
+    layout::texture(binding, stage, sample_type)
 }
 
 fn tex(binding: u32, t: &Target) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry {
         binding,
         resource: wgpu::BindingResource::TextureView(&t.view),
-    }
-}
-
-fn storage_entry(
-    binding: u32,
-    stage: wgpu::ShaderStages,
-    read_only: bool,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: stage,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
     }
 }
 
@@ -317,17 +293,8 @@ impl<'g> Passes<'g> {
         let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("dbuffer shared"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: all,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                storage_entry(
+                layout::uniform(0, all),
+                layout::storage(
                     1,
                     wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
                     false,
@@ -347,9 +314,9 @@ impl<'g> Passes<'g> {
                 texture_entry(2, cs, false),
                 texture_entry(3, cs, true),
                 texture_entry(4, cs, false),
-                storage_entry(5, cs, true),
-                storage_entry(6, cs, true),
-                storage_entry(7, cs, false),
+                layout::storage(5, cs, true),
+                layout::storage(6, cs, true),
+                layout::storage(7, cs, false),
             ],
         });
         let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -33,6 +33,7 @@ use crate::algorithms::shadow_map_wgpu::{
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
+use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
@@ -80,19 +81,6 @@ struct PenumbraPasses<'g> {
     counting: wgpu::RenderPipeline,
 }
 
-fn texture_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Depth,
-            view_dimension: wgpu::TextureViewDimension::D2,
-            multisampled: false,
-        },
-        count: None,
-    }
-}
-
 impl<'g> PenumbraPasses<'g> {
     fn new(
         gpu: &'g Gpu,
@@ -107,7 +95,11 @@ impl<'g> PenumbraPasses<'g> {
         // Group 2 of the eye lookup: the penumbra map.
         let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra lookup"),
-            entries: &[texture_entry(0, wgpu::ShaderStages::COMPUTE)],
+            entries: &[layout::texture(
+                0,
+                wgpu::ShaderStages::COMPUTE,
+                wgpu::TextureSampleType::Depth,
+            )],
         });
         let lookup = Lookup {
             wgsl: include_str!("wgpu_lookup.wgsl"),
@@ -150,17 +142,12 @@ impl<'g> PenumbraPasses<'g> {
         let penumbra_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("penumbra pass"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
-                texture_entry(1, wgpu::ShaderStages::FRAGMENT),
+                layout::uniform(0, wgpu::ShaderStages::VERTEX),
+                layout::texture(
+                    1,
+                    wgpu::ShaderStages::FRAGMENT,
+                    wgpu::TextureSampleType::Depth,
+                ),
             ],
         });
         let penumbra_group = device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -23,6 +23,7 @@ use super::shadow_map::{Bias, LightView};
 use super::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
+use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
 use crate::gpu::timing::PassTimer;
@@ -161,17 +162,13 @@ pub(crate) struct Passes<'g> {
     pub count_covered: wgpu::ComputePipeline,
 }
 
+/// A storage buffer of the lookup and counting passes (compute and fragment shaders).
 fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
+    layout::storage(
         binding,
-        visibility: wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
+        wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT,
+        read_only,
+    )
 }
 
 impl<'g> Passes<'g> {
@@ -267,18 +264,12 @@ impl<'g> Passes<'g> {
         let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow map shared"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::VERTEX
+                layout::uniform(
+                    0,
+                    wgpu::ShaderStages::VERTEX
                         | wgpu::ShaderStages::FRAGMENT
                         | wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                ),
                 storage_entry(1, false),
             ],
         });
@@ -286,16 +277,11 @@ impl<'g> Passes<'g> {
         let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("eye lookup"),
             entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                layout::texture(
+                    0,
+                    wgpu::ShaderStages::COMPUTE,
+                    wgpu::TextureSampleType::Depth,
+                ),
                 storage_entry(1, true),
                 storage_entry(2, true),
                 storage_entry(3, false),

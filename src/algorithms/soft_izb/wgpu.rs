@@ -52,6 +52,7 @@ use crate::algorithms::shadow_map::LightView;
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
+use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
@@ -270,19 +271,6 @@ struct Passes<'g> {
     resolve: wgpu::ComputePipeline,
 }
 
-fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl<'g> Passes<'g> {
     fn new(gpu: &'g Gpu, frame: &Frame, occ: &Occluders, grid: &Grid, params: Params) -> Self {
         let device = &gpu.device;
@@ -353,10 +341,15 @@ impl<'g> Passes<'g> {
         ];
         // Bindings 1-12 in order; the gbuffer and the primitives are only read.
         let read_only = |i: usize| matches!(i, 0 | 1 | 9 | 10);
-        let mut layout_entries = vec![entry(0, wgpu::BufferBindingType::Uniform)];
+        let mut layout_entries = vec![layout::buffer(
+            0,
+            wgpu::ShaderStages::COMPUTE,
+            wgpu::BufferBindingType::Uniform,
+        )];
         for i in 0..buffers.len() {
-            layout_entries.push(entry(
+            layout_entries.push(layout::buffer(
                 i as u32 + 1,
+                wgpu::ShaderStages::COMPUTE,
                 wgpu::BufferBindingType::Storage {
                     read_only: read_only(i),
                 },

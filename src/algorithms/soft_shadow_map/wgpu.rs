@@ -26,6 +26,7 @@ use super::{LightFrame, Precision, SoftShadowMapOptions, Split};
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
+use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
 use crate::gpu::{gbuffer_positions, Gpu};
@@ -97,43 +98,6 @@ pub fn render(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<Fram
         )));
     }
     run(gpu, frame, o)
-}
-
-fn entry(
-    binding: u32,
-    visibility: wgpu::ShaderStages,
-    ty: wgpu::BindingType,
-) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility,
-        ty,
-        count: None,
-    }
-}
-
-fn uniform_ty() -> wgpu::BindingType {
-    wgpu::BindingType::Buffer {
-        ty: wgpu::BufferBindingType::Uniform,
-        has_dynamic_offset: false,
-        min_binding_size: None,
-    }
-}
-
-fn storage_ty(read_only: bool) -> wgpu::BindingType {
-    wgpu::BindingType::Buffer {
-        ty: wgpu::BufferBindingType::Storage { read_only },
-        has_dynamic_offset: false,
-        min_binding_size: None,
-    }
-}
-
-fn texture_ty(sample_type: wgpu::TextureSampleType) -> wgpu::BindingType {
-    wgpu::BindingType::Texture {
-        sample_type,
-        view_dimension: wgpu::TextureViewDimension::D2,
-        multisampled: false,
-    }
 }
 
 fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput> {
@@ -273,41 +237,37 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("ssm shared"),
         entries: &[
-            entry(0, S::VERTEX | S::FRAGMENT | S::COMPUTE, uniform_ty()),
-            entry(1, S::FRAGMENT | S::COMPUTE, storage_ty(false)),
+            layout::uniform(0, S::VERTEX | S::FRAGMENT | S::COMPUTE),
+            layout::storage(1, S::FRAGMENT | S::COMPUTE, false),
         ],
     });
     let map_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("ssm map view"),
-        entries: &[entry(0, S::VERTEX, uniform_ty())],
+        entries: &[layout::uniform(0, S::VERTEX)],
     });
     let splat_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("ssm splat"),
         entries: &[
-            entry(
-                1,
-                S::VERTEX | S::COMPUTE,
-                texture_ty(wgpu::TextureSampleType::Depth),
-            ),
-            entry(2, S::FRAGMENT, texture_ty(wgpu::TextureSampleType::Depth)),
+            layout::texture(1, S::VERTEX | S::COMPUTE, wgpu::TextureSampleType::Depth),
+            layout::texture(2, S::FRAGMENT, wgpu::TextureSampleType::Depth),
         ],
     });
     let project_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("ssm project"),
         entries: &[
-            entry(
+            layout::texture(
                 0,
                 S::COMPUTE,
-                texture_ty(wgpu::TextureSampleType::Float { filterable: false }),
+                wgpu::TextureSampleType::Float { filterable: false },
             ),
-            entry(
+            layout::texture(
                 1,
                 S::COMPUTE,
-                texture_ty(wgpu::TextureSampleType::Float { filterable: false }),
+                wgpu::TextureSampleType::Float { filterable: false },
             ),
-            entry(2, S::COMPUTE, storage_ty(true)),
-            entry(3, S::COMPUTE, storage_ty(true)),
-            entry(4, S::COMPUTE, storage_ty(false)),
+            layout::storage(2, S::COMPUTE, true),
+            layout::storage(3, S::COMPUTE, true),
+            layout::storage(4, S::COMPUTE, false),
         ],
     });
     let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {

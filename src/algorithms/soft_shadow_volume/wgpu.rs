@@ -57,6 +57,7 @@ use crate::algorithms::shadow_volume::{
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
+use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use crate::gpu::timing::{read_ms_or_warn, PassTimer};
@@ -509,19 +510,6 @@ struct Passes<'g> {
     occluders: Mesh,
 }
 
-fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl<'g> Passes<'g> {
     fn new(
         gpu: &'g Gpu,
@@ -531,10 +519,15 @@ impl<'g> Passes<'g> {
         occluders: Mesh,
     ) -> Passes<'g> {
         let device = &gpu.device;
-        let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform)];
+        let mut entries = vec![layout::buffer(
+            0,
+            wgpu::ShaderStages::COMPUTE,
+            wgpu::BufferBindingType::Uniform,
+        )];
         for b in 1..=STORAGE_BUFFERS {
-            entries.push(entry(
+            entries.push(layout::buffer(
                 b,
+                wgpu::ShaderStages::COMPUTE,
                 wgpu::BufferBindingType::Storage { read_only: b <= 7 },
             ));
         }
