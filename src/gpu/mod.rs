@@ -161,6 +161,29 @@ impl Gpu {
         })
     }
 
+    /// The compute pipeline of `entry` in `module`, with the WGSL override `INSTRUMENT` 1 for
+    /// the instrumented replay (fragments counted with atomics) or 0 for the timed run.
+    pub fn instrumented_compute_pipeline(
+        &self,
+        layout: &wgpu::PipelineLayout,
+        module: &wgpu::ShaderModule,
+        entry: &str,
+        instrument: bool,
+    ) -> wgpu::ComputePipeline {
+        self.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(layout),
+                module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
+                    ..Default::default()
+                },
+                cache: None,
+            })
+    }
+
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
     /// this took on the host.
     pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {

@@ -432,17 +432,7 @@ impl<'g> Passes<'g> {
             })
         };
         let compute = |entry: &str, instrument: bool| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&compute_pl),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
-                    ..Default::default()
-                },
-                cache: None,
-            })
+            gpu.instrumented_compute_pipeline(&compute_pl, &module, entry, instrument)
         };
         let pipelines = |instrument: bool| Pipelines {
             scene: render("fs_scene", false, instrument),

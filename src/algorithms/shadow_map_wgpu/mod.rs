@@ -381,17 +381,7 @@ impl<'g> Passes<'g> {
             })
         };
         let compute = |entry: &str, instrument: bool| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&compute_layout),
-                module: &lookup_module,
-                entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
-                    ..Default::default()
-                },
-                cache: None,
-            })
+            gpu.instrumented_compute_pipeline(&compute_layout, &lookup_module, entry, instrument)
         };
         Passes {
             gpu,

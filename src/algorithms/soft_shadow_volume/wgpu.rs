@@ -545,17 +545,7 @@ impl<'g> Passes<'g> {
             source: wgpu::ShaderSource::Wgsl(WGSL.into()),
         });
         let pipeline = |entry: &str, instrument: bool| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
-                    ..Default::default()
-                },
-                cache: None,
-            })
+            gpu.instrumented_compute_pipeline(&pipeline_layout, &module, entry, instrument)
         };
         Passes {
             gpu,
