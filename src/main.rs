@@ -259,8 +259,7 @@ fn render(a: RenderArgs) -> Result<()> {
         scene.light = scene.light.with_size(s);
     }
     let info = algorithms::find(&a.algorithm).map_err(Error::Unsupported)?;
-    let kind = info.light_for(scene.light.kind());
-    scene.light = harness::light_as(scene.light, kind, scene.bounds().center());
+    scene.light = harness::light_for_run(&scene, info)?;
     let params = shadowbench::frame::RunParams {
         occluder_height: a.occluder_height,
         occluder_offset: a.occluder_offset,

@@ -65,6 +65,41 @@ impl std::fmt::Display for Backend {
     }
 }
 
+/// Shadowing an algorithm's method does not compute: its paper's design, not a fault. Declared
+/// per algorithm ([`AlgorithmInfo::limits`]), listed in every record
+/// (`execution.method_limits`), and a warning in a run where the reference shows it matters
+/// (`harness::limit_warnings`); `error.mae_shadow_receivers` restricts the error to receiver-only
+/// surfaces.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MethodLimit {
+    /// Occluders are not shadowed (by themselves or each other) when the scene has receiver-only
+    /// objects: only those receive the soft shadow (002 §3).
+    NoOccluderShadowing,
+    /// The penumbra is computed only outside the hard shadow of the light centre; the umbra is
+    /// that hard shadow, so the inner penumbra is dark (000 §3).
+    OuterPenumbraOnly,
+    /// No penumbra: the hard shadow of a point light at the light's centre.
+    NoPenumbra,
+    /// One light-space map: receivers outside it are lit (`light_view.receivers_outside`, with
+    /// its own warning).
+    OneMap,
+}
+
+impl MethodLimit {
+    pub fn describe(self) -> &'static str {
+        match self {
+            MethodLimit::NoOccluderShadowing => {
+                "no shadow on occluders when the scene has receiver-only objects"
+            }
+            MethodLimit::OuterPenumbraOnly => {
+                "outer penumbra only: the hard shadow of the light centre is umbra"
+            }
+            MethodLimit::NoPenumbra => "no penumbra: the hard shadow of the light centre",
+            MethodLimit::OneMap => "one light-space map: receivers outside it are lit",
+        }
+    }
+}
+
 /// A registered algorithm.
 pub struct AlgorithmInfo {
     pub id: &'static str,
@@ -80,6 +115,8 @@ pub struct AlgorithmInfo {
     /// Checks `options.<id>` of a scenario before any work starts.
     pub check_options:
         fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
+    /// The shadowing its method does not compute.
+    pub limits: &'static [MethodLimit],
 }
 
 impl AlgorithmInfo {
@@ -102,6 +139,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative],
         memory_estimate: |_| 0,
         check_options: |o| no_options("reference", o),
+        limits: &[],
     },
     AlgorithmInfo {
         id: hard_shadow_map::ID,
@@ -111,6 +149,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: shadow_map::memory_estimate,
         check_options: hard_shadow_map::check_options,
+        limits: &[MethodLimit::NoPenumbra],
     },
     AlgorithmInfo {
         id: pcss::ID,
@@ -120,6 +159,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: shadow_map::memory_estimate,
         check_options: pcss::check_options,
+        limits: &[],
     },
     AlgorithmInfo {
         id: soft_izb::ID,
@@ -127,10 +167,14 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         summary: "eye samples in a light-space grid; umbra by irregular rasterization (depth \
               complexity), penumbra quads per silhouette edge with analytic circular-segment \
               occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)",
-        lights: &[LightKind::Sphere],
+        // §2.3 sizes the light's footprint in the light's image plane: the light it computes is
+        // the disc there (normal along its view axis), so a sphere is converted to that disc and
+        // the reference is computed for it.
+        lights: &[LightKind::Disc],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_izb::cpu::memory_estimate,
         check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
+        limits: &[MethodLimit::OneMap],
     },
     AlgorithmInfo {
         id: accum_hard::ID,
@@ -140,6 +184,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: accum_hard::memory_estimate,
         check_options: accum_hard::check_options,
+        limits: &[],
     },
     AlgorithmInfo {
         id: soft_shadow_volume::ID,
@@ -149,6 +194,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_shadow_volume::memory_estimate,
         check_options: soft_shadow_volume::check_options,
+        limits: &[],
     },
     AlgorithmInfo {
         id: penumbra_map::ID,
@@ -158,6 +204,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: penumbra_map::memory_estimate,
         check_options: penumbra_map::check_options,
+        limits: &[MethodLimit::OuterPenumbraOnly, MethodLimit::OneMap],
     },
     AlgorithmInfo {
         id: soft_shadow_map::ID,
@@ -169,6 +216,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_shadow_map::memory_estimate,
         check_options: soft_shadow_map::check_options,
+        limits: &[MethodLimit::NoOccluderShadowing, MethodLimit::OneMap],
     },
     AlgorithmInfo {
         id: dbuffer::ID,
@@ -179,6 +227,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: dbuffer::memory_estimate,
         check_options: dbuffer::check_options,
+        limits: &[MethodLimit::OneMap],
     },
 ];
 

@@ -25,7 +25,8 @@ pub use cache::ReferenceCache;
 pub use shard::Shard;
 
 /// Converts `light` to `kind` keeping its centre and size: a sphere of radius r ↔ a disc of
-/// radius r facing `toward` ↔ a square of half-width r facing `toward`.
+/// radius r facing `toward` ↔ a square of half-width r facing `toward`. The one rule for every
+/// conversion; [`light_for_run`] adds the check that the result still fits in the scene.
 pub fn light_as(light: Light, kind: LightKind, toward: glam::Vec3) -> Light {
     if light.kind() == kind {
         return light;
@@ -51,6 +52,49 @@ pub fn light_as(light: Light, kind: LightKind, toward: glam::Vec3) -> Light {
             }
         }
     }
+}
+
+/// The light a run of algorithm `info` in `scene` uses: the scene's own when the algorithm takes
+/// its kind, else [`light_as`] toward the scene's centre, refused (naming `$.light`) when the
+/// converted emitter would meet triangles of the scene that the scene's light does not meet
+/// (e.g. a 130 × 105 rectangle 0.1 below a ceiling made a sphere of radius 65 pokes through the
+/// ceiling, and its reference would be taken half inside it).
+pub fn light_for_run(
+    scene: &Scene,
+    info: &algorithms::AlgorithmInfo,
+) -> std::result::Result<Light, crate::error::InputError> {
+    let kind = info.light_for(scene.light.kind());
+    let light = light_as(scene.light, kind, scene.bounds().center());
+    if kind == scene.light.kind() {
+        return Ok(light);
+    }
+    let poking = scene
+        .objects
+        .iter()
+        .flat_map(|o| (0..o.mesh.triangles.len()).map(|t| o.mesh.triangle(t)))
+        .filter(|&t| light.meets_triangle(t) && !scene.light.meets_triangle(t))
+        .count();
+    if poking > 0 {
+        let c = light.center();
+        return Err(crate::error::InputError::new(
+            "$.light",
+            format!(
+                "algorithm '{}' takes a {kind} light, but the scene's {} light converted to a                  {kind} of size {} at ({}, {}, {}) would pass through {poking} triangles of the                  scene; give the scene a light of a kind it takes ({}) or a smaller one",
+                info.id,
+                scene.light.kind(),
+                light.size(),
+                c.x,
+                c.y,
+                c.z,
+                info.lights
+                    .iter()
+                    .map(|k| k.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        ));
+    }
+    Ok(light)
 }
 
 /// Runs one algorithm on one frame and turns its output into a record, with quality against
@@ -81,6 +125,19 @@ pub fn run_one(
     });
     let mut record = RunRecord::new(algorithm, backend, &frame.scene, frame.params.clone());
     record.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    // The light the run (and its reference) used, in full: after a conversion it is not the
+    // scenario's.
+    if let Ok(light) = serde_json::to_value(frame.scene.light) {
+        record.execution.insert("light".into(), light);
+    }
+    if let Ok(info) = algorithms::find(algorithm) {
+        if !info.limits.is_empty() {
+            record.execution.insert(
+                "method_limits".into(),
+                serde_json::json!(info.limits.iter().map(|l| l.describe()).collect::<Vec<_>>()),
+            );
+        }
+    }
     match result {
         Ok(out) => {
             record.counters = out.counters.clone();
@@ -90,7 +147,15 @@ pub fn run_one(
             record.execution.extend(out.execution.clone());
             record.warnings = out.warnings.clone();
             if let Some(r) = reference.filter(|_| algorithm != "reference") {
-                record.error = Some(metrics::compare(&out.visibility, r, &frame.gbuffer.mask()));
+                record.error = Some(metrics::compare_with_receivers(
+                    &out.visibility,
+                    r,
+                    &frame.gbuffer.mask(),
+                    &frame.receiver_only_mask(),
+                ));
+                if let Ok(info) = algorithms::find(algorithm) {
+                    record.warnings.extend(limit_warnings(frame, info, r));
+                }
             }
             (record, Some(out))
         }
@@ -99,6 +164,52 @@ pub fn run_one(
             (record, None)
         }
     }
+}
+
+/// Warnings for the declared limits of `info`'s method ([`algorithms::MethodLimit`]) that
+/// matter in this frame, judged on the `reference`: pixels on occluders in shadow when the
+/// method shadows receiver-only objects only; penumbra pixels (partly lit) inside the hard
+/// shadow of the light centre for an outer-penumbra method; any penumbra for a hard-shadow
+/// method. `OneMap` warns from the run itself (`light_view.receivers_outside`).
+pub fn limit_warnings(
+    frame: &Frame,
+    info: &algorithms::AlgorithmInfo,
+    reference: &VisibilityBuffer,
+) -> Vec<String> {
+    use crate::algorithms::MethodLimit;
+    let g = &frame.gbuffer;
+    let hits = || (0..g.len()).filter(|&i| g.is_hit(i));
+    let in_shadow = |i: usize| reference.data[i] < metrics::SHADOW_THRESHOLD;
+    let penumbra = |i: usize| in_shadow(i) && reference.data[i] > 0.0;
+    let has_receivers_only = frame.flat.roles.iter().any(|r| r.receiver && !r.occluder);
+    let centre = frame.scene.light.center();
+    let mut warnings = Vec::new();
+    for &limit in info.limits {
+        let n = match limit {
+            MethodLimit::NoOccluderShadowing if has_receivers_only => hits()
+                .filter(|&i| frame.flat.role_of(g.triangle[i] as usize).occluder && in_shadow(i))
+                .count(),
+            MethodLimit::OuterPenumbraOnly => hits()
+                .filter(|&i| {
+                    penumbra(i)
+                        && frame
+                            .bvh
+                            .occluded(g.position[i] + g.normal[i] * frame.epsilon, centre)
+                })
+                .count(),
+            MethodLimit::NoPenumbra => hits().filter(|&i| penumbra(i)).count(),
+            _ => 0,
+        };
+        if n > 0 {
+            warnings.push(format!(
+                "method limit ({}): {n} pixels the reference shadows this way are not computed \
+                 by '{}'; error.mae_shadow_receivers gives the error on receiver-only surfaces",
+                limit.describe(),
+                info.id
+            ));
+        }
+    }
+    warnings
 }
 
 /// Options of `shadowbench run`.
@@ -217,11 +328,19 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         let info = algorithms::find(&p.algorithm).expect("validated");
         let kind = info.light_for(scene.light.kind());
         let mut sc = scene.clone();
-        sc.light = light_as(sc.light, kind, sc.bounds().center());
+        let converted = light_for_run(scene, info);
+        if let Ok(l) = converted {
+            sc.light = l;
+        }
         let params = case.run_params(&sc);
-        if let Err(e) = limits::check(info, &params, opts.memory_limit) {
+        let refused = converted.err().map(|e| e.to_string()).or_else(|| {
+            limits::check(info, &params, opts.memory_limit)
+                .err()
+                .map(|e| e.to_string())
+        });
+        if let Some(e) = refused {
             let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
-            record.failure = Some(e.to_string());
+            record.failure = Some(e);
             writer.push(record, None, None, None, None)?;
             bar.inc(1);
             continue;

@@ -86,7 +86,7 @@ pub fn csv(records: &[RunRecord]) -> String {
         s.push(',');
         s.push_str(c);
     }
-    s.push_str(",mae,rmse,max,mae_shadow,frac_over_0_1,failure\n");
+    s.push_str(",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,failure\n");
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for r in records {
         let p = &r.params;
@@ -116,6 +116,7 @@ pub fn csv(records: &[RunRecord]) -> String {
             opt(e.map(|e| e.max)),
             opt(e.map(|e| e.mae_shadow)),
             opt(e.map(|e| e.frac_over_0_1)),
+            opt(e.and_then(|e| e.mae_shadow_receivers)),
             r.failure
                 .as_ref()
                 .map(|f| format!("\"{}\"", f.replace('"', "'")))

@@ -23,6 +23,12 @@ pub struct ErrorMetrics {
     pub frac_over_0_1: f64,
     pub pixels: u64,
     pub shadow_pixels: u64,
+    /// `mae_shadow` restricted to pixels on receiver-only surfaces (objects that receive and do
+    /// not occlude): the part of the image every method claims to compute, beside the
+    /// unrestricted figure ([`crate::algorithms::MethodLimit`]). Absent without such pixels in
+    /// shadow.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mae_shadow_receivers: Option<f64>,
 }
 
 /// Compares `result` with `reference` over `mask` (pixels that see a surface).
@@ -62,6 +68,22 @@ pub fn compare(
         frac_over_0_1: div(over as f64, n),
         pixels: n,
         shadow_pixels: shadow_n,
+        mae_shadow_receivers: None,
+    }
+}
+
+/// [`compare`] with `mae_shadow_receivers` over `receivers` (a mask within `mask`: pixels on
+/// receiver-only surfaces).
+pub fn compare_with_receivers(
+    result: &VisibilityBuffer,
+    reference: &VisibilityBuffer,
+    mask: &[bool],
+    receivers: &[bool],
+) -> ErrorMetrics {
+    let restricted = compare(result, reference, receivers);
+    ErrorMetrics {
+        mae_shadow_receivers: (restricted.shadow_pixels > 0).then_some(restricted.mae_shadow),
+        ..compare(result, reference, mask)
     }
 }
 

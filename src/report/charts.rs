@@ -119,7 +119,7 @@ pub fn overdraw_ratio(r: &RunRecord) -> Option<f64> {
     Some(r.counters.get("overdraw")? / fill)
 }
 
-pub const METRICS: [Metric; 7] = [
+pub const METRICS: [Metric; 8] = [
     Metric {
         id: "wall_ms",
         label: "wall time (ms, measured on the host)",
@@ -155,6 +155,12 @@ pub const METRICS: [Metric; 7] = [
         id: "mae_shadow",
         label: "error: mean absolute error in shadow (mae_shadow)",
         value: |r| r.error.as_ref().map(|e| e.mae_shadow),
+    },
+    // The same restricted to receiver-only surfaces (what every method claims to compute).
+    Metric {
+        id: "mae_shadow_receivers",
+        label: "error: mean absolute error in shadow on receiver-only surfaces",
+        value: |r| r.error.as_ref().and_then(|e| e.mae_shadow_receivers),
     },
 ];
 

@@ -257,6 +257,7 @@ pub(crate) mod testdata {
                 frac_over_0_1: 0.01,
                 pixels: 6912,
                 shadow_pixels: 800,
+                mae_shadow_receivers: None,
             }),
             execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
             warnings: vec![],

@@ -156,6 +156,108 @@ impl Light {
     }
 }
 
+impl Light {
+    /// Whether the emitter meets triangle `tri`: a sphere as the ball of its radius (every disc
+    /// it may show a receiver lies in it), a disc or rectangle as the flat region it spans (a
+    /// triangle in the emitter's plane touches it nowhere off that plane, and is not counted).
+    /// Used to refuse a converted light that would poke through the scene's geometry.
+    pub fn meets_triangle(&self, tri: [Vec3; 3]) -> bool {
+        match *self {
+            Light::Sphere { center, radius } => {
+                closest_on_triangle(center, tri).distance(center) < radius
+            }
+            Light::Disc { .. } | Light::Rect { .. } => {
+                let (c, u, v) = self.emitter_frame(self.center());
+                let n = u.cross(v).normalize_or_zero();
+                let h = tri.map(|p| (p - c).dot(n));
+                // The triangle's cut through the emitter's plane: points on edges whose ends lie
+                // on opposite sides.
+                let mut cut = Vec::with_capacity(2);
+                for i in 0..3 {
+                    let (a, b) = (i, (i + 1) % 3);
+                    if (h[a] < 0.0) != (h[b] < 0.0) {
+                        let t = h[a] / (h[a] - h[b]);
+                        cut.push(tri[a] + (tri[b] - tri[a]) * t);
+                    }
+                }
+                let [p, q] = match cut[..] {
+                    [p, q] => [p, q],
+                    _ => return false,
+                };
+                // In the emitter's coordinates (half-axes to ±1).
+                let local = |x: Vec3| {
+                    let d = x - c;
+                    Vec2::new(d.dot(u) / u.length_squared(), d.dot(v) / v.length_squared())
+                };
+                let (p, q) = (local(p), local(q));
+                match self {
+                    Light::Rect { .. } => segment_meets_square(p, q),
+                    _ => {
+                        let e = q - p;
+                        let t =
+                            (-p.dot(e) / e.length_squared().max(f32::MIN_POSITIVE)).clamp(0.0, 1.0);
+                        (p + e * t).length() < 1.0
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The point of triangle `tri` nearest `p` (Ericson, Real-Time Collision Detection, §5.1.5).
+fn closest_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Whether segment `p`–`q` meets the open square (−1, 1)² (Liang–Barsky clipping).
+fn segment_meets_square(p: Vec2, q: Vec2) -> bool {
+    let d = q - p;
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for (pk, dk) in [(p.x, d.x), (p.y, d.y)] {
+        for (num, den) in [(1.0 - pk, dk), (1.0 + pk, -dk)] {
+            // Inside where num − den·t > 0.
+            if den == 0.0 {
+                if num <= 0.0 {
+                    return false;
+                }
+            } else if den > 0.0 {
+                t1 = t1.min(num / den);
+            } else {
+                t0 = t0.max(num / den);
+            }
+        }
+    }
+    t0 < t1
+}
+
 /// Shirley–Chiu concentric map from the unit square to the unit disc; it keeps strata compact,
 /// so stratification survives the mapping.
 pub fn concentric_disc(s: Vec2) -> Vec2 {

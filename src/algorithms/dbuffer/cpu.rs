@@ -31,7 +31,7 @@ use crate::algorithms::hard_shadow_map::cpu::{
     COMPARE_OPS,
 };
 use crate::algorithms::hard_shadow_map::lit;
-use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{
@@ -828,9 +828,9 @@ fn draw_volume(
 }
 
 /// Phase `dbuffer`.
-pub fn dbuffer(m: &mut Machine, frame: &Frame, v: &Volumes) -> DBuffer {
+pub fn dbuffer(m: &mut Machine, frame: &Frame, face: &FaceView, v: &Volumes) -> DBuffer {
     m.phase("dbuffer");
-    let scene = raster_shadow_map(m, frame, &frame.flat.mesh);
+    let scene = raster_shadow_map(m, frame, face, &face.view.casters(&frame.flat.mesh));
     // The scene's draw is the |cx_o| channel; fill and overdraw count the volumes.
     let (scene_fill, scene_over) = (m.counter("fill"), m.counter("overdraw"));
     m.count("fill", -scene_fill);
@@ -960,13 +960,14 @@ pub fn render(
     let mut m = machine(backend, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
-    let view = LightView::new(
+    let views = LightViews::fit(
+        frame,
         &frame.scene.light,
-        frame.scene.bounds(),
         frame.params.map_resolution,
+        ViewFit::Single,
     );
-    let v = build_volumes(&mut m, frame, &adj, disc, &view, &o);
-    let d = dbuffer(&mut m, frame, &v);
+    let v = build_volumes(&mut m, frame, &adj, disc, views.single(), &o);
+    let d = dbuffer(&mut m, frame, &views.views[0], &v);
     let lookup = DLookup {
         d: &d,
         disc,
@@ -979,5 +980,6 @@ pub fn render(
         "volume_build".into(),
         serde_json::json!(o.volume_build.describe()),
     );
+    views.record(&mut out);
     out
 }

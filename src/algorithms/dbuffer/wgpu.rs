@@ -24,7 +24,7 @@ use bytemuck::{Pod, Zeroable};
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
 use crate::algorithms::hard_shadow_map::cpu::machine;
-use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -97,7 +97,8 @@ pub fn render(
     let mut m = machine(Backend::CpuNative, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
-    let view = LightView::new(&frame.scene.light, frame.scene.bounds(), res);
+    let views = LightViews::fit(frame, &frame.scene.light, res, ViewFit::Single);
+    let view = *views.single();
     let v = build_volumes(&mut m, frame, &adj, disc, &view, &o);
     let host = m.finish();
     let mut out = Passes::new(gpu, frame, &view, disc, &v.umbra, &v.penumbra, &o).run(frame)?;
@@ -111,6 +112,7 @@ pub fn render(
         out.counters.merge(&p.counters);
     }
     out.phases = phases;
+    views.record(&mut out);
     Ok(out)
 }
 

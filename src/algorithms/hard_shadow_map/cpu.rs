@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3};
 
 use super::{lit, texel};
-use crate::algorithms::shadow_map::{Bias, LightView};
+use crate::algorithms::shadow_map::{Bias, FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
@@ -25,21 +25,29 @@ pub fn machine(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Machine {
 /// A rasterized shadow map and the view it was rasterized from.
 pub struct ShadowMap {
     pub view: LightView,
+    /// Which receivers the map shades (a single frustum, or one cube face).
+    pub face: FaceView,
     pub map: Surface,
 }
 
-/// Phase `light_raster`: NDC depth of every triangle from the light centre, nearest kept.
-pub fn light_raster(m: &mut Machine, frame: &Frame) -> ShadowMap {
-    m.phase("light_raster");
-    raster_shadow_map(m, frame, &frame.flat.mesh)
+/// Phase `light_raster` (`light_raster[+x]` per cube face): NDC depth of every triangle that
+/// meets `face`'s frustum, nearest kept.
+pub fn light_raster(m: &mut Machine, frame: &Frame, face: &FaceView) -> ShadowMap {
+    m.phase(&face.phase("light_raster"));
+    raster_shadow_map(m, frame, face, &face.view.casters(&frame.flat.mesh))
 }
 
-/// The light pass in the current phase: `mesh` (the scene's triangles, or a stand-in for them)
-/// rasterized from the light centre of `frame`'s view, nearest NDC depth kept (the first pass
-/// of the penumbra map too).
-pub fn raster_shadow_map(m: &mut Machine, frame: &Frame, mesh: &Mesh) -> ShadowMap {
+/// The light pass in the current phase: `mesh` (the scene's triangles that meet the view, or a
+/// stand-in for them) rasterized from the light centre into `face`'s view, nearest NDC depth
+/// kept (the first pass of the penumbra map too).
+pub fn raster_shadow_map(
+    m: &mut Machine,
+    frame: &Frame,
+    face: &FaceView,
+    mesh: &Mesh,
+) -> ShadowMap {
     let res = frame.params.map_resolution;
-    let view = LightView::new(&frame.scene.light, frame.scene.bounds(), res);
+    let view = face.view;
     let positions = m.memory.buffer("vertices", mesh.positions.clone());
     let triangles = m.memory.buffer("indices", mesh.triangles.clone());
     let target = Target {
@@ -66,7 +74,11 @@ pub fn raster_shadow_map(m: &mut Machine, frame: &Frame, mesh: &Mesh) -> ShadowM
     let kept = map.buf.data.iter().filter(|&&d| d < 1.0).count() as f64;
     let overdraw = m.counter("fill") - kept;
     m.count("overdraw", overdraw);
-    ShadowMap { view, map }
+    ShadowMap {
+        view,
+        face: *face,
+        map,
+    }
 }
 
 /// Eye samples of one 16-lane block in light space.
@@ -193,7 +205,7 @@ impl<L: Lookup> EyePass<'_, L> {
             let nrm = self.normal.load_run(p, i, n);
             for c in 0..n {
                 let lane = (row * BLOCK) as usize + c;
-                if !g.is_hit(i + c) {
+                if !g.is_hit(i + c) || !self.map.face.owns(pos[c]) {
                     continue;
                 }
                 let Some((uv, _, z)) = self.map.view.project(pos[c]) else {
@@ -255,8 +267,9 @@ impl<L: Lookup> TaskKernel for EyePass<'_, L> {
     }
 }
 
-/// Phase `eye_lookup`: visibility of every eye pixel from the map, one eye tile per task.
-/// Pixels that see no surface, or whose surface the light view does not contain, are lit.
+/// Phase `eye_lookup` (`eye_lookup[+x]` per cube face): visibility of every eye pixel the map's
+/// view shades ([`FaceView::owns`]), one eye tile per task. Pixels that see no surface, that
+/// another face shades, or whose surface the light view does not contain, are lit.
 pub fn eye_lookup<L: Lookup>(
     m: &mut Machine,
     frame: &Frame,
@@ -264,7 +277,7 @@ pub fn eye_lookup<L: Lookup>(
     bias: Bias,
     lookup: &L,
 ) -> VisibilityBuffer {
-    m.phase("eye_lookup");
+    m.phase(&map.face.phase("eye_lookup"));
     let g = &frame.gbuffer;
     let tiles = Target {
         width: g.width,
@@ -282,7 +295,7 @@ pub fn eye_lookup<L: Lookup>(
         normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
-    let weights = tiles.tile_weights(|i| g.is_hit(i));
+    let weights = tiles.tile_weights(|i| g.is_hit(i) && map.face.owns(g.position[i]));
     let outs = m.run_step("lookup", &pass, &weights);
     let mut vis = VisibilityBuffer::lit(g.width, g.height);
     for (i, v) in outs.into_iter().flatten() {
@@ -306,10 +319,35 @@ pub fn output(m: Machine, visibility: VisibilityBuffer) -> FrameOutput {
     }
 }
 
+/// The shadow-map family's frame on a CPU execution with `lookup`: the light views of the frame
+/// ([`ViewFit::CubeWhenWide`]), then per view its light pass and its eye pass, each pixel taken
+/// from the view that shades it.
+pub fn render_views<L: Lookup>(
+    backend: Backend,
+    frame: &Frame,
+    ctx: &ExecContext,
+    bias: Bias,
+    lookup: &L,
+) -> FrameOutput {
+    let mut m = machine(backend, frame, ctx);
+    let views = LightViews::fit(
+        frame,
+        &frame.scene.light,
+        frame.params.map_resolution,
+        ViewFit::CubeWhenWide,
+    );
+    let mut vis = VisibilityBuffer::lit(frame.width(), frame.height());
+    for face in &views.views {
+        let map = light_raster(&mut m, frame, face);
+        let part = eye_lookup(&mut m, frame, &map, bias, lookup);
+        face.take_owned(frame, &part, &mut vis);
+    }
+    let mut out = output(m, vis);
+    views.record(&mut out);
+    out
+}
+
 /// `hard_shadow_map` on a CPU execution.
 pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext, bias: Bias) -> FrameOutput {
-    let mut m = machine(backend, frame, ctx);
-    let map = light_raster(&mut m, frame);
-    let vis = eye_lookup(&mut m, frame, &map, bias, &HardLookup);
-    output(m, vis)
+    render_views(backend, frame, ctx, bias, &HardLookup)
 }

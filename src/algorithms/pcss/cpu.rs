@@ -4,7 +4,7 @@
 use glam::Vec2;
 
 use crate::algorithms::hard_shadow_map::cpu::{
-    eye_lookup, light_raster, machine, output, tap, Lookup, Receivers, ShadowMap, COMPARE_OPS,
+    render_views, tap, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
 use crate::algorithms::hard_shadow_map::lit;
 use crate::algorithms::shadow_map::{
@@ -88,12 +88,9 @@ pub fn render(
     ctx: &ExecContext,
     options: PcssOptions,
 ) -> FrameOutput {
-    let mut m = machine(backend, frame, ctx);
-    let map = light_raster(&mut m, frame);
     let lookup = PcssLookup {
         options,
         light_radius: frame.scene.light.size(),
     };
-    let vis = eye_lookup(&mut m, frame, &map, options.bias, &lookup);
-    output(m, vis)
+    render_views(backend, frame, ctx, options.bias, &lookup)
 }

@@ -20,7 +20,7 @@ use crate::algorithms::hard_shadow_map::cpu::{
     COMPARE_OPS,
 };
 use crate::algorithms::hard_shadow_map::lit;
-use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{
@@ -452,8 +452,20 @@ pub fn render(
 ) -> FrameOutput {
     let mut m = machine(backend, frame, ctx);
     let geometry = shadow_geometry(frame, &o);
+    let views = LightViews::fit(
+        frame,
+        &frame.scene.light,
+        frame.params.map_resolution,
+        ViewFit::Single,
+    );
+    let face = &views.views[0];
     m.phase("shadow_map");
-    let shadow = raster_shadow_map(&mut m, frame, &geometry.shadow_map);
+    let shadow = raster_shadow_map(
+        &mut m,
+        frame,
+        face,
+        &face.view.casters(&geometry.shadow_map),
+    );
     let light = frame.scene.light.center();
     let light_radius = frame.scene.light.size();
     let adj = EdgeAdjacency::build(&geometry.occluders);
@@ -463,5 +475,7 @@ pub fn render(
         penumbra: &penumbra,
     };
     let vis = eye_lookup(&mut m, frame, &shadow, o.bias, &lookup);
-    output(m, vis)
+    let mut out = output(m, vis);
+    views.record(&mut out);
+    out
 }

@@ -439,7 +439,7 @@ impl PenumbraGeometry {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Bounds, Light};
+    use crate::scene::Light;
 
     #[test]
     fn intensity_runs_from_dark_at_the_silhouette_to_lit_at_the_surface() {
@@ -466,11 +466,7 @@ mod tests {
             center: Vec3::new(0.0, 10.0, 0.0),
             radius: 0.5,
         };
-        let b = Bounds {
-            min: Vec3::new(-3.0, 0.0, -3.0),
-            max: Vec3::new(3.0, 2.0, 3.0),
-        };
-        let view = LightView::new(&light, b, 256);
+        let view = LightView::looking(light.center(), Vec3::NEG_Y, 0.5, 5.0, 11.0, 256);
         let corners = [(-1.0, 1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)]
             .map(|(x, z)| view.view.transform_point3(Vec3::new(x, 2.0, z)));
         // Counter-clockwise seen from +y is the order that makes the face normal point up.

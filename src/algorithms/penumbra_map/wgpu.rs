@@ -26,7 +26,7 @@ use super::{
     options, shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry,
     Silhouettes,
 };
-use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::shadow_map_wgpu::{
     self, gpu_phase, read_queries, Counts, Lookup, Passes, Queries, DEPTH_TEXEL_BYTES,
 };
@@ -53,7 +53,16 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
     let o = options(&ctx.options)?;
     shadow_map_wgpu::check_limits(gpu, frame)?;
     let geometry = shadow_geometry(frame, &o);
-    PenumbraPasses::new(gpu, frame, &o, &geometry).run(frame, &geometry, &o)
+    let views = LightViews::fit(
+        frame,
+        &frame.scene.light,
+        frame.params.map_resolution,
+        ViewFit::Single,
+    );
+    let mut out = PenumbraPasses::new(gpu, frame, &o, &geometry, &views.views[0])
+        .run(frame, &geometry, &o)?;
+    views.record(&mut out);
+    Ok(out)
 }
 
 /// The penumbra pass's uniform: the light view's projection.
@@ -87,10 +96,11 @@ impl<'g> PenumbraPasses<'g> {
         frame: &Frame,
         o: &PenumbraMapOptions,
         geometry: &ShadowGeometry,
+        face: &FaceView,
     ) -> PenumbraPasses<'g> {
         let device = &gpu.device;
         let resolution = frame.params.map_resolution;
-        let view = LightView::new(&frame.scene.light, frame.scene.bounds(), resolution);
+        let view = face.view;
 
         // Group 2 of the eye lookup: the penumbra map.
         let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -111,7 +121,8 @@ impl<'g> PenumbraPasses<'g> {
             gpu,
             frame,
             &lookup,
-            &geometry.shadow_map,
+            face,
+            &view.casters(&geometry.shadow_map),
             Some(&lookup_layout),
         );
 

@@ -17,8 +17,9 @@ struct Light {
     pcf_samples: u32,
     width: u32,
     height: u32,
-    pad0: u32,
-    pad1: u32,
+    // FaceView::face_code: the cube face whose receivers this view shades, 6 for all.
+    face: u32,
+    pad: u32,
 }
 
 struct Counts {
@@ -49,6 +50,23 @@ fn project(p: vec3<f32>) -> vec4<f32> {
     let c = light.view_proj * vec4<f32>(p, 1.0);
     let ndc = c.xyz / c.w;
     return vec4<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5, ndc.z, c.w);
+}
+
+// shadow_map::cube_face
+fn cube_face(d: vec3<f32>) -> u32 {
+    let a = abs(d);
+    if a.x >= a.y && a.x >= a.z {
+        return select(0u, 1u, d.x < 0.0);
+    }
+    if a.y >= a.z {
+        return select(2u, 3u, d.y < 0.0);
+    }
+    return select(4u, 5u, d.z < 0.0);
+}
+
+// FaceView::owns
+fn owns(p: vec3<f32>) -> bool {
+    return light.face == 6u || cube_face(p - light.eye) == light.face;
 }
 
 // LightView::linear_depth
@@ -119,7 +137,7 @@ fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.y * light.width + id.x;
     let pos = positions[i];
     var v = 1.0;
-    if pos.w != 0.0 {
+    if pos.w != 0.0 && owns(pos.xyz) {
         let m = project(pos.xyz);
         if m.w > 0.0 {
             let n_dot_l = dot(normals[i].xyz, normalize(light.eye - pos.xyz));

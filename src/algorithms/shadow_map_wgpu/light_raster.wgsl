@@ -17,8 +17,8 @@ struct Light {
     pcf_samples: u32,
     width: u32,
     height: u32,
-    pad0: u32,
-    pad1: u32,
+    face: u32,
+    pad: u32,
 }
 
 // Instrumented-mode counters, layout matches `Counts` in mod.rs.

@@ -19,7 +19,7 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use super::shadow_map::{Bias, LightView};
+use super::shadow_map::{Bias, FaceView, LightViews, ViewFit};
 use super::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -72,7 +72,9 @@ struct LightUniform {
     pcf_samples: u32,
     width: u32,
     height: u32,
-    pad: [u32; 2],
+    /// The cube face whose receivers this view shades ([`FaceView::face_code`]; 6: all).
+    face: u32,
+    pad: u32,
 }
 
 /// The `Counts` storage buffer of the instrumented mode.
@@ -109,10 +111,64 @@ impl Queries<'_> {
     };
 }
 
-/// Renders `frame` with the family's two passes and the algorithm's lookup.
+/// Renders `frame` with the family's two passes and the algorithm's lookup, once per light view
+/// ([`ViewFit::CubeWhenWide`]: one frustum, or the faces of a cube map, each pixel from the
+/// face that shades it; phases `light_raster[+x]`, `eye_lookup[+x]`, ... per face).
 pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
     check_limits(gpu, frame)?;
-    Passes::new(gpu, frame, lookup, &frame.flat.mesh, None).run(frame)
+    let views = LightViews::fit(
+        frame,
+        &frame.scene.light,
+        frame.params.map_resolution,
+        ViewFit::CubeWhenWide,
+    );
+    let mut merged: Option<FrameOutput> = None;
+    for face in &views.views {
+        let casters = face.view.casters(&frame.flat.mesh);
+        let mut out = Passes::new(gpu, frame, lookup, face, &casters, None).run(frame)?;
+        for p in &mut out.phases {
+            p.name = face.phase(&p.name);
+        }
+        merged = Some(match merged {
+            None => out,
+            Some(mut all) => {
+                face.take_owned(frame, &out.visibility, &mut all.visibility);
+                all.phases.extend(out.phases);
+                all.gpu_ms = match (all.gpu_ms, out.gpu_ms) {
+                    (Some(a), Some(b)) => Some(a + b),
+                    _ => None,
+                };
+                for w in out.warnings {
+                    if !all.warnings.contains(&w) {
+                        all.warnings.push(w);
+                    }
+                }
+                all
+            }
+        });
+    }
+    let mut out = merged.expect("a fit has at least one view");
+    if views.views.len() > 1 {
+        out.counters = sum_phases(&out.phases);
+    }
+    views.record(&mut out);
+    Ok(out)
+}
+
+/// The counters of a run: those of its phases summed, with `overdraw_ratio`.
+fn sum_phases(phases: &[Phase]) -> Counters {
+    let mut counters = Counters::default();
+    for p in phases {
+        counters.merge(&p.counters);
+    }
+    let fill = counters.get("fill").unwrap_or(0.0);
+    if fill > 0.0 {
+        counters.set(
+            "overdraw_ratio",
+            counters.get("overdraw").unwrap_or(0.0) / fill,
+        );
+    }
+    counters
 }
 
 /// Checks the frame against the adapter's limits before anything is allocated.
@@ -172,20 +228,22 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
 }
 
 impl<'g> Passes<'g> {
-    /// The passes of `frame` with the shadow map of `occluders` (the scene's flat mesh, or a
-    /// stand-in for it) and `lookup`'s `visibility_at`; `extra` is the layout of a group 2
-    /// that the lookup's WGSL declares (bound by [`Self::compute_pass`]).
+    /// The passes of `frame` in light view `face` with the shadow map of `occluders` (the
+    /// scene's triangles that meet the view, or a stand-in for them) and `lookup`'s
+    /// `visibility_at`; `extra` is the layout of a group 2 that the lookup's WGSL declares
+    /// (bound by [`Self::compute_pass`]).
     pub fn new(
         gpu: &'g Gpu,
         frame: &Frame,
         lookup: &Lookup,
+        face: &FaceView,
         occluders: &Mesh,
         extra: Option<&wgpu::BindGroupLayout>,
     ) -> Passes<'g> {
         let device = &gpu.device;
         let (width, height) = (frame.width(), frame.height());
         let resolution = frame.params.map_resolution;
-        let view = LightView::new(&frame.scene.light, frame.scene.bounds(), resolution);
+        let view = face.view;
         let uniform = LightUniform {
             view_proj: view.view_proj.to_cols_array(),
             eye: view.eye.to_array(),
@@ -200,7 +258,8 @@ impl<'g> Passes<'g> {
             pcf_samples: lookup.pcf_samples,
             width,
             height,
-            pad: [0; 2],
+            face: face.face_code(),
+            pad: 0,
         };
         let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 4, usage);
         let uniform_buf = init(
@@ -555,17 +614,7 @@ impl<'g> Passes<'g> {
         readback_ms: f64,
         warnings: Vec<String>,
     ) -> FrameOutput {
-        let mut counters = Counters::default();
-        for p in &phases {
-            counters.merge(&p.counters);
-        }
-        let fill = counters.get("fill").unwrap_or(0.0);
-        if fill > 0.0 {
-            counters.set(
-                "overdraw_ratio",
-                counters.get("overdraw").unwrap_or(0.0) / fill,
-            );
-        }
+        let counters = sum_phases(&phases);
         let gpu_ms = phases.iter().filter_map(|p| p.gpu_ms).reduce(|a, b| a + b);
         let mut execution = self.gpu.execution();
         execution.insert("readback_ms".into(), serde_json::json!(readback_ms));

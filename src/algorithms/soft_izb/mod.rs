@@ -565,7 +565,7 @@ impl Grid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Bounds, Light};
+    use crate::scene::Light;
     use std::f32::consts::PI;
 
     /// Fraction of the unit disc beyond a chord at distance d, from the textbook formula.
@@ -655,11 +655,7 @@ mod tests {
             center: Vec3::new(0.5, 10.0, -0.3),
             radius: 1.0,
         };
-        let bounds = Bounds {
-            min: Vec3::splat(-3.0),
-            max: Vec3::splat(3.0),
-        };
-        let view = LightView::new(&light, bounds, 256);
+        let view = LightView::looking(light.center(), -light.center(), 0.5, 1.0, 20.0, 256);
         // Counter-clockwise seen from above (normal +y): faces the light.
         let tri = [
             Vec3::new(0.0, 1.0, 0.0),

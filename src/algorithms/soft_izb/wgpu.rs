@@ -48,7 +48,7 @@ use super::{
     check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, NEAR_CLIP,
     OCCLUSION_SCALE,
 };
-use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::shadow_map::{LightViews, ViewFit};
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -127,7 +127,8 @@ pub fn render(gpu: &Gpu, frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOu
     check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
     let start = Instant::now();
     let light = frame.scene.light;
-    let view = LightView::new(&light, frame.scene.bounds(), frame.params.map_resolution);
+    let views = LightViews::fit(frame, &light, frame.params.map_resolution, ViewFit::Single);
+    let view = *views.single();
     let mut occ = Occluders {
         triangles: vec![],
         edges: vec![],
@@ -201,6 +202,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOu
     ] {
         out.execution.insert(k.to_string(), v);
     }
+    views.record(&mut out);
     Ok(out)
 }
 

@@ -432,6 +432,31 @@ pub fn classify(lf: &LightFrame, pos: Vec3, n: Vec3, receives: bool) -> Sample {
     Sample::Receiver(s)
 }
 
+/// Receivers the eye sees that the SSM does not hold (behind the light's plane or beyond the
+/// map's window, [`Sample::Lit`] on a receiving object): the method takes them as lit. Recorded
+/// as `light_view.receivers_outside`, with a warning when there are any.
+pub fn record_receivers_outside(
+    frame: &Frame,
+    lf: &LightFrame,
+    split: &Split,
+    out: &mut FrameOutput,
+) {
+    let g = &frame.gbuffer;
+    let outside = (0..g.len())
+        .filter(|&i| g.is_hit(i))
+        .filter(|&i| split.receives[frame.flat.object_of_triangle[g.triangle[i] as usize] as usize])
+        .filter(|&i| classify(lf, g.position[i], g.normal[i], true) == Sample::Lit)
+        .count();
+    out.counters
+        .set("light_view.receivers_outside", outside as f64);
+    if outside > 0 {
+        out.warnings.push(format!(
+            "{outside} visible receiver pixels lie outside the soft shadow map (behind the \
+             light's plane or beyond its window) and are taken as lit"
+        ));
+    }
+}
+
 /// Step `lookup` of phase `project`: each eye tile's samples look the SSM up.
 struct Project<'a> {
     lf: &'a LightFrame,
@@ -599,5 +624,6 @@ pub fn render(
     let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
     let mut out = crate::algorithms::hard_shadow_map::cpu::output(m, vis);
     out.warnings.extend(split.warning());
+    record_receivers_outside(frame, &maps.ssm, &split, &mut out);
     out
 }

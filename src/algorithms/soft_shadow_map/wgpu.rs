@@ -729,7 +729,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
             "device (vertex shader)"
         }),
     );
-    Ok(FrameOutput {
+    let mut out = FrameOutput {
         visibility: VisibilityBuffer {
             width,
             height,
@@ -742,5 +742,7 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
         execution,
         warnings,
         rgb: None,
-    })
+    };
+    super::cpu::record_receivers_outside(frame, &ssm, &split, &mut out);
+    Ok(out)
 }

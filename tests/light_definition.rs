@@ -1,0 +1,208 @@
+//! One definition of each light: the light an algorithm computes is the light its reference is
+//! computed for, and a converted light that would pass through the scene is refused.
+//!
+//! Oracle for `soft_izb`: the analytic visible fraction of a disc light cut by a straight edge,
+//! the area of a circular segment, computed here from the geometry alone.
+
+use glam::Vec3;
+use shadowbench::algorithms::{self, Backend, ExecContext};
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::harness::{light_for_run, run_one};
+use shadowbench::scene::generators::primitives;
+use shadowbench::scene::{Camera, Light, LightKind, Object, Role, Scene};
+
+/// Light height, disc radius, and the occluder's edge: a thin slab over x < EDGE_X whose top
+/// edge (x = EDGE_X, y = EDGE_TOP) bounds the shadow of a receiver on the ground at x > EDGE_X.
+const H: f32 = 3.0;
+const R: f32 = 0.5;
+const EDGE_X: f32 = -0.3;
+const EDGE_TOP: f32 = 1.01;
+
+fn edge_scene(light: Light) -> Scene {
+    let ground = Object {
+        name: "ground".into(),
+        mesh: primitives::plane(10.0, 8),
+        role: Role::RECEIVER,
+    };
+    let slab = Object {
+        name: "slab".into(),
+        mesh: primitives::cuboid(
+            Vec3::new(-10.0, 1.0, -10.0),
+            Vec3::new(EDGE_X, EDGE_TOP, 10.0),
+        ),
+        role: Role::OCCLUDER,
+    };
+    Scene {
+        name: "straight-edge".into(),
+        objects: vec![ground, slab],
+        // Below the slab, looking at the ground across the penumbra: no eye ray meets the slab.
+        camera: Camera {
+            eye: Vec3::new(2.5, 0.6, 0.0),
+            target: Vec3::new(-0.45, 0.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 40.0,
+        },
+        light,
+        light_texture: None,
+    }
+}
+
+/// Visible fraction of a horizontal disc light (centre (0, H, 0), radius R) from ground point
+/// `x_p`: a ray from the point to light point X (in the light's plane) is blocked by the slab
+/// when X < X_e, X_e the top edge projected from the point; the visible part is the disc's
+/// circular segment beyond X_e: (acos d − d·√(1 − d²))/π with d = X_e/R.
+fn analytic_visible(x_p: f32) -> f32 {
+    let x_e = x_p + (EDGE_X - x_p) * H / EDGE_TOP;
+    let d = (x_e / R).clamp(-1.0, 1.0);
+    (d.acos() - d * (1.0 - d * d).sqrt()) / std::f32::consts::PI
+}
+
+#[test]
+fn soft_izb_matches_the_circular_segment_of_a_disc_cut_by_a_straight_edge() {
+    // A sphere light, as a scenario gives it: soft_izb takes it as the disc in its image plane,
+    // and the reference is computed for that same disc.
+    let scene = edge_scene(Light::Sphere {
+        center: Vec3::new(0.0, H, 0.0),
+        radius: R,
+    });
+    let info = algorithms::find("soft_izb").unwrap();
+    let mut scene = scene;
+    scene.light = light_for_run(&scene, info).unwrap();
+    assert_eq!(scene.light.kind(), LightKind::Disc);
+    let params = RunParams::of_scene(&scene, [128, 96], 256, 16);
+    let frame = Frame::new(scene, params);
+    let ctx = ExecContext {
+        reference_samples: 1024,
+        ..Default::default()
+    };
+    let reference = algorithms::run("reference", Backend::CpuNative, &frame, &ctx)
+        .unwrap()
+        .visibility;
+    let g = &frame.gbuffer;
+    let penumbra: Vec<(usize, f32)> = (0..g.len())
+        .filter(|&i| g.is_hit(i) && g.position[i].y.abs() < 1e-4)
+        .map(|i| (i, analytic_visible(g.position[i].x)))
+        .filter(|&(_, v)| v > 0.02 && v < 0.98)
+        .collect();
+    assert!(penumbra.len() > 500, "{} penumbra pixels", penumbra.len());
+    let mae = |data: &[f32]| {
+        penumbra
+            .iter()
+            .map(|&(i, v)| (data[i] - v).abs())
+            .sum::<f32>()
+            / penumbra.len() as f32
+    };
+    // The reference samples the same disc: its error is sampling noise.
+    let e_ref = mae(&reference.data);
+    assert!(
+        e_ref < 0.01,
+        "reference against the circular segment: {e_ref}"
+    );
+    for backend in [Backend::CpuNative, Backend::CpuModel] {
+        let (record, out) = run_one(&frame, "soft_izb", backend, &ctx, Some(&reference));
+        let out = out.unwrap_or_else(|| panic!("{:?}", record.failure));
+        let e = mae(&out.visibility.data);
+        let worst = penumbra
+            .iter()
+            .map(|&(i, v)| (out.visibility.data[i] - v).abs())
+            .fold(0.0f32, f32::max);
+        eprintln!("soft_izb {backend}: penumbra mae {e:.4}, max {worst:.4} (reference {e_ref:.4})");
+        assert!(e < 0.01, "soft_izb {backend}: penumbra mae {e}");
+        // The run records the light it used: the disc, not the scenario's sphere.
+        assert_eq!(record.light, "disc");
+        assert_eq!(
+            record.execution["light"]["type"],
+            serde_json::json!("disc"),
+            "{:?}",
+            record.execution
+        );
+    }
+}
+
+#[test]
+fn a_converted_light_that_would_pass_through_the_ceiling_is_refused() {
+    // A 130 × 105 rectangle 0.1 below a ceiling (the case), over a floor.
+    let ceiling = Object {
+        name: "ceiling".into(),
+        mesh: primitives::plane(400.0, 2)
+            .transformed(glam::Mat4::from_translation(Vec3::new(0.0, 500.0, 0.0))),
+        role: Role::BOTH,
+    };
+    let floor = Object {
+        name: "floor".into(),
+        mesh: primitives::plane(400.0, 2),
+        role: Role::BOTH,
+    };
+    let rect = Light::Rect {
+        center: Vec3::new(0.0, 499.9, 0.0),
+        half_u: Vec3::new(65.0, 0.0, 0.0),
+        half_v: Vec3::new(0.0, 0.0, 52.5),
+    };
+    let scene = Scene {
+        name: "ceiling-light".into(),
+        objects: vec![ceiling, floor],
+        camera: Camera {
+            eye: Vec3::new(0.0, 250.0, 600.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 50.0,
+        },
+        light: rect,
+        light_texture: None,
+    };
+    // penumbra_map takes spheres only: a sphere of radius 65 pokes 64.9 through the ceiling.
+    let e = light_for_run(&scene, algorithms::find("penumbra_map").unwrap()).unwrap_err();
+    let msg = e.to_string();
+    assert!(
+        msg.contains("penumbra_map") && msg.contains("sphere") && msg.contains("$.light"),
+        "{msg}"
+    );
+    // soft_izb takes the disc of radius 65 in the rectangle's own plane: it fits.
+    let disc = light_for_run(&scene, algorithms::find("soft_izb").unwrap()).unwrap();
+    assert_eq!(disc.kind(), LightKind::Disc);
+    // The rectangle itself is in force for algorithms that take it.
+    assert_eq!(
+        light_for_run(&scene, algorithms::find("soft_shadow_map").unwrap()).unwrap(),
+        rect
+    );
+    // A small sphere there fits.
+    let mut small = scene.clone();
+    small.light = Light::Rect {
+        center: Vec3::new(0.0, 490.0, 0.0),
+        half_u: Vec3::new(5.0, 0.0, 0.0),
+        half_v: Vec3::new(0.0, 0.0, 4.0),
+    };
+    assert!(light_for_run(&small, algorithms::find("penumbra_map").unwrap()).is_ok());
+}
+
+#[test]
+fn emitters_meet_the_triangles_they_cross_and_no_others() {
+    let tri = [
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(1.0, 0.0, -1.0),
+        Vec3::new(0.0, 0.0, 1.0),
+    ];
+    let sphere = |y: f32| Light::Sphere {
+        center: Vec3::new(0.0, y, 0.0),
+        radius: 0.5,
+    };
+    assert!(sphere(0.4).meets_triangle(tri));
+    assert!(!sphere(0.6).meets_triangle(tri));
+    // A vertical disc crossing the triangle's plane meets it; lifted by more than its radius,
+    // not.
+    let disc = |y: f32| Light::Disc {
+        center: Vec3::new(0.0, y, 0.0),
+        normal: Vec3::X,
+        radius: 0.5,
+    };
+    assert!(disc(0.3).meets_triangle(tri));
+    assert!(!disc(0.6).meets_triangle(tri));
+    // A vertical rectangle beside the triangle (past its right corner) does not meet it.
+    let rect = |x: f32| Light::Rect {
+        center: Vec3::new(x, 0.0, -1.0),
+        half_u: Vec3::new(0.0, 0.5, 0.0),
+        half_v: Vec3::new(0.0, 0.0, 0.2),
+    };
+    assert!(rect(0.5).meets_triangle(tri));
+    assert!(!rect(1.5).meets_triangle(tri));
+}
