@@ -30,7 +30,10 @@ fn edge_scene(light: Light) -> Scene {
             Vec3::new(-10.0, 1.0, -10.0),
             Vec3::new(EDGE_X, EDGE_TOP, 10.0),
         ),
-        role: Role::OCCLUDER,
+        role: Role {
+            occluder: true,
+            receiver: false,
+        },
     };
     Scene {
         name: "straight-edge".into(),

@@ -115,10 +115,9 @@ impl LightView {
         depth > 0.0 && tan <= self.tan_half_fov
     }
 
-    /// The smallest depth of the part of triangle `tri` inside the frustum's side planes between
-    /// the light and the far plane (Sutherland–Hodgman in view space), or `None` when no part of
-    /// it is inside: the triangle can neither shadow a receiver of this view nor appear in its map.
-    pub fn caster_depth(&self, tri: [Vec3; 3]) -> Option<f32> {
+    /// The part of triangle `tri` inside the frustum's side planes between the light and the
+    /// far plane (Sutherland–Hodgman in view space, winding kept), empty when none is.
+    fn clip_to_frustum(&self, tri: [Vec3; 3]) -> Vec<Vec3> {
         let t = self.tan_half_fov;
         let far = self.far;
         let planes: [&dyn Fn(Vec3) -> f32; 6] = [
@@ -144,25 +143,55 @@ impl LightView {
             }
             poly = out;
             if poly.is_empty() {
-                return None;
+                break;
             }
         }
-        poly.iter().map(|v| -v.z).reduce(f32::min)
+        poly
     }
 
-    /// The triangles of `mesh` that meet the frustum ([`Self::caster_depth`]), the draw list of
-    /// the light pass (culled on the host, as engines cull per shadow-map face).
+    /// The smallest depth of the part of triangle `tri` inside the frustum's side planes between
+    /// the light and the far plane, or `None` when no part of it is inside: the triangle can
+    /// neither shadow a receiver of this view nor appear in its map.
+    pub fn caster_depth(&self, tri: [Vec3; 3]) -> Option<f32> {
+        self.clip_to_frustum(tri)
+            .iter()
+            .map(|v| -v.z)
+            .reduce(f32::min)
+    }
+
+    /// The draw list of the light pass for `mesh`, built on the host as engines build a shadow
+    /// map face's: triangles that do not meet the frustum are culled, triangles wholly beyond
+    /// the near plane drawn as they are, and the few that reach nearer the light than the near
+    /// plane (e.g. a wall through the light's plane, whose near part lies outside the frustum)
+    /// drawn as their part inside the frustum (a fan, new vertices appended), so the rasterizer
+    /// never clips away a part that lies in the map.
     pub fn casters(&self, mesh: &Mesh) -> Mesh {
-        Mesh {
+        let to_world = self.view.inverse();
+        let mut out = Mesh {
             positions: mesh.positions.clone(),
-            triangles: mesh
-                .triangles
+            triangles: Vec::with_capacity(mesh.triangles.len()),
+        };
+        for (t, &idx) in mesh.triangles.iter().enumerate() {
+            let tri = mesh.triangle(t);
+            let poly = self.clip_to_frustum(tri);
+            if poly.is_empty() {
+                continue;
+            }
+            let nearer = tri
                 .iter()
-                .enumerate()
-                .filter(|&(t, _)| self.caster_depth(mesh.triangle(t)).is_some())
-                .map(|(_, tri)| *tri)
-                .collect(),
+                .any(|&p| -self.view.transform_point3(p).z < self.near);
+            if !nearer {
+                out.triangles.push(idx);
+                continue;
+            }
+            let base = out.positions.len() as u32;
+            out.positions
+                .extend(poly.iter().map(|&v| to_world.transform_point3(v)));
+            for k in 1..poly.len().saturating_sub(1) as u32 {
+                out.triangles.push([base, base + k, base + k + 1]);
+            }
         }
+        out
     }
 
     /// Map coordinates of `p`: (u, v) in [0, 1]² with v down, NDC depth in [0, 1], and linear

@@ -7,7 +7,7 @@ use glam::{Mat4, Vec2, Vec3};
 
 use super::{
     bias_at, occlusion, penumbra_extent, visibility, LightFrame, MicroPatch, SoftShadowMapOptions,
-    Split,
+    Split, MAX_HALF_ANGLE_DEG,
 };
 use crate::algorithms::hard_shadow_map::cpu::machine;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
@@ -432,27 +432,30 @@ pub fn classify(lf: &LightFrame, pos: Vec3, n: Vec3, receives: bool) -> Sample {
     Sample::Receiver(s)
 }
 
-/// Receivers the eye sees that the SSM does not hold (behind the light's plane or beyond the
-/// map's window, [`Sample::Lit`] on a receiving object): the method takes them as lit. Recorded
-/// as `light_view.receivers_outside`, with a warning when there are any.
-pub fn record_receivers_outside(
-    frame: &Frame,
-    lf: &LightFrame,
-    split: &Split,
-    out: &mut FrameOutput,
-) {
+/// Receivers the eye sees that no map of the method can hold: behind the light's plane or
+/// beyond the scene's window ([`LightFrame::new`], clamped at [`MAX_HALF_ANGLE_DEG`]); the
+/// method takes them as lit. (Receivers outside the SSM focused on the occluders but inside the
+/// scene's window lie beyond every penumbra extent and are lit rightly.) Recorded as
+/// `light_view.receivers_outside`, with a warning when there are any.
+pub fn record_receivers_outside(frame: &Frame, split: &Split, out: &mut FrameOutput) {
+    let lf = LightFrame::new(
+        &frame.scene.light,
+        frame.scene.bounds(),
+        frame.params.map_resolution,
+    );
     let g = &frame.gbuffer;
     let outside = (0..g.len())
         .filter(|&i| g.is_hit(i))
         .filter(|&i| split.receives[frame.flat.object_of_triangle[g.triangle[i] as usize] as usize])
-        .filter(|&i| classify(lf, g.position[i], g.normal[i], true) == Sample::Lit)
+        .filter(|&i| classify(&lf, g.position[i], g.normal[i], true) == Sample::Lit)
         .count();
     out.counters
         .set("light_view.receivers_outside", outside as f64);
     if outside > 0 {
         out.warnings.push(format!(
-            "{outside} visible receiver pixels lie outside the soft shadow map (behind the \
-             light's plane or beyond its window) and are taken as lit"
+            "{outside} visible receiver pixels lie outside the soft shadow map's reach (behind \
+             the light's plane or beyond {MAX_HALF_ANGLE_DEG}° from its normal) and are taken \
+             as lit"
         ));
     }
 }
@@ -624,6 +627,6 @@ pub fn render(
     let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
     let mut out = crate::algorithms::hard_shadow_map::cpu::output(m, vis);
     out.warnings.extend(split.warning());
-    record_receivers_outside(frame, &maps.ssm, &split, &mut out);
+    record_receivers_outside(frame, &split, &mut out);
     out
 }

@@ -743,6 +743,6 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
         warnings,
         rgb: None,
     };
-    super::cpu::record_receivers_outside(frame, &ssm, &split, &mut out);
+    super::cpu::record_receivers_outside(frame, &split, &mut out);
     Ok(out)
 }
