@@ -48,7 +48,7 @@ pub fn cube_face(d: Vec3) -> u32 {
 
 /// The axis of cube face `f`.
 fn cube_axis(f: u32) -> Vec3 {
-    let s = if f % 2 == 0 { 1.0 } else { -1.0 };
+    let s = if f.is_multiple_of(2) { 1.0 } else { -1.0 };
     match f / 2 {
         0 => Vec3::X * s,
         1 => Vec3::Y * s,
