@@ -27,8 +27,9 @@ use crate::error::InputError;
 pub fn load_gltf(path: &Path, node: Option<&str>) -> Result<MeshFile, InputError> {
     let err = |m: String| InputError::file(path, m);
     let bytes = super::load::read_file(path)?;
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(&bytes).map_err(|e| err(format!("cannot parse glTF: {e}")))?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes)
+        .map_err(|e| err(format!("cannot parse glTF: {e}")))?;
+    validate(&document).map_err(err)?;
     let base = path.parent().unwrap_or(Path::new("."));
     for b in document.buffers() {
         if let gltf::buffer::Source::Uri(uri) = b.source() {
@@ -118,6 +119,39 @@ pub fn load_gltf(path: &Path, node: Option<&str>) -> Result<MeshFile, InputError
         return Err(err("no triangles in the default scene".into()));
     }
     Ok(out)
+}
+
+/// Required extensions this reader handles although the `gltf` crate's validation does not
+/// know them.
+const HANDLED_EXTENSIONS: [&str; 1] = ["KHR_mesh_quantization"];
+
+/// The `gltf` crate's validation of the JSON (every index in range, required fields present),
+/// accepting the required extensions of [`HANDLED_EXTENSIONS`].
+fn validate(document: &gltf::Document) -> Result<(), String> {
+    use gltf::json::validation::{Error, Validate};
+    let root = document.as_json();
+    let mut errors: Vec<(String, Error)> = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, e| {
+        errors.push((path().to_string(), e))
+    });
+    errors.retain(|(path, e)| {
+        !(*e == Error::Unsupported
+            && path.starts_with("extensionsRequired")
+            && HANDLED_EXTENSIONS
+                .iter()
+                .any(|h| path.ends_with(&format!("\"{h}\""))))
+    });
+    match errors.first() {
+        None => Ok(()),
+        Some((path, e)) => Err(format!(
+            "invalid glTF: {path}: {e}{}",
+            if errors.len() > 1 {
+                format!(" (and {} more problems)", errors.len() - 1)
+            } else {
+                String::new()
+            }
+        )),
+    }
 }
 
 /// The triangles of one primitive in its mesh's coordinates; `None` for points and lines.

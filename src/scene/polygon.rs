@@ -33,11 +33,14 @@ impl std::fmt::Display for PolygonFault {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             PolygonFault::Degenerate => f.write_str("has no area (its vertices are collinear)"),
-            PolygonFault::SelfIntersecting { deviation } => write!(
+            PolygonFault::SelfIntersecting { deviation } if deviation.is_finite() => write!(
                 f,
                 "intersects itself (its triangles' area differs from its area by {:.3}%)",
                 deviation * 100.0
             ),
+            PolygonFault::SelfIntersecting { .. } => {
+                f.write_str("intersects itself (its loops cancel: it has no net area)")
+            }
         }
     }
 }
@@ -60,12 +63,26 @@ pub fn triangulate(positions: &[Vec3], poly: &[u32]) -> Result<Vec<[u32; 3]>, Po
         .iter()
         .zip(p.iter().cycle().skip(1))
         .fold(DVec3::ZERO, |n, (a, b)| n + a.cross(*b));
-    let scale = p
+    // Collinear (or coincident) vertices: no point lies off the line through the first vertex
+    // and the one farthest from it.
+    let far = p
         .iter()
-        .map(|q| (*q - p[0]).length_squared())
+        .map(|q| *q - p[0])
+        .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))
+        .unwrap_or_default();
+    let off_line = p
+        .iter()
+        .map(|q| far.cross(*q - p[0]).length())
         .fold(0.0, f64::max);
-    if !(normal.length() > scale * 1e-12) {
+    let scale = far.length_squared();
+    if !(off_line > scale * 1e-12) {
         return Err(PolygonFault::Degenerate);
+    }
+    // Loops of opposite orientation that cancel (a symmetric figure eight): no net area.
+    if !(normal.length() > scale * 1e-12) {
+        return Err(PolygonFault::SelfIntersecting {
+            deviation: f64::INFINITY,
+        });
     }
     let rings: Vec<[f64; 3]> = p.iter().map(|q| q.to_array()).collect();
     let mut flat = Vec::with_capacity(p.len());
