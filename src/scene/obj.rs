@@ -11,9 +11,10 @@
 //! - `v x y z [w]` and `v x y z r g b`: the position is `x y z`; `w` and colours are ignored.
 //! - `f`: `v`, `v/vt`, `v//vn` or `v/vt/vn` references; 1-based, negative ones relative to the
 //!   vertices read so far; polygons of any size triangulated on their plane
-//!   ([`super::polygon`]). A face with fewer than 3 vertices, an index 0 or out of range, or a
-//!   self-intersecting polygon is an error naming its line; a polygon with no area is dropped
-//!   with a warning.
+//!   ([`super::polygon`]). A face with fewer than 3 vertices, an index 0, a vertex index out of
+//!   range, or a self-intersecting polygon is an error naming its line; a polygon with no area
+//!   is dropped with a warning, and references to texture coordinates or normals the file lacks
+//!   are ignored with a warning (they do not shape shadows).
 //! - `l` and `p` (lines and points bound no surface) and free-form statements are skipped with
 //!   a warning; `mtllib` files that are missing give one warning per OBJ file.
 //! - A UTF-8 byte-order mark is skipped; bytes that are not UTF-8 are tolerated anywhere but in
@@ -104,8 +105,8 @@ pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshF
     let mut position_line: Vec<usize> = Vec::new();
     let (mut texcoords, mut normals) = (0usize, 0usize);
     let mut refs: Vec<u32> = Vec::new();
-    // Forward references (a positive index beyond the vertices read so far) are checked at the
-    // end; remember the first one.
+    // Positive indices may refer to vertices defined later: they are checked at the end, for
+    // the faces used.
     let mut faces: Vec<Face> = Vec::new();
     let mut groups: Vec<String> = vec![String::new()];
     let mut current_group = 0usize;
@@ -168,6 +169,8 @@ pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshF
                     let vi = u32::try_from(vi)
                         .map_err(|_| at(n, format!("vertex index {} is out of range", vi + 1)))?;
                     refs.push(vi);
+                    // The largest texture coordinate and normal referenced, with its line:
+                    // checked at the end, as they may be defined after the face.
                     if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
                         let ti = resolve(t, "texture coordinate", texcoords)?;
                         if ti >= max_vt.0 {
@@ -215,20 +218,20 @@ pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshF
             _ => {}
         }
     }
-    if max_vt.0 > texcoords {
-        return Err(at(
-            max_vt.1,
-            format!(
-                "texture coordinate index {} is out of range ({texcoords} in the file)",
-                max_vt.0
-            ),
-        ));
-    }
-    if max_vn.0 > normals {
-        return Err(at(
-            max_vn.1,
-            format!("normal index {} is out of range ({normals} in the file)", max_vn.0),
-        ));
+    // Texture coordinates and normals do not shape shadows: references to missing ones are
+    // ignored, and said once.
+    let mut warnings = Vec::new();
+    for ((max, line), count, what) in [
+        (max_vt, texcoords, "texture coordinate"),
+        (max_vn, normals, "normal"),
+    ] {
+        if max > count {
+            warnings.push(format!(
+                "{}: line {line}: faces refer to {what} {max} but the file has {count} (ignored: \
+                 only positions shape shadows)",
+                path.display()
+            ));
+        }
     }
     let selected: Vec<usize> = match group {
         None => (0..faces.len()).collect(),
@@ -304,7 +307,6 @@ pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshF
             }
         }
     }
-    let mut warnings = Vec::new();
     if !dropped.is_empty() {
         warnings.push(format!(
             "{}: dropped {} polygon{} with no area (line{} {})",
