@@ -56,6 +56,11 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Scene tools: `scene export`.
+    Scene {
+        #[command(subcommand)]
+        command: SceneCommand,
+    },
     /// Compare the deterministic figures of two results files; exit 1 on a regression.
     Compare {
         baseline: PathBuf,
@@ -64,6 +69,36 @@ enum Command {
         #[arg(long, default_value_t = report::compare::DEFAULT_THRESHOLD_PCT)]
         threshold: f64,
     },
+}
+
+#[derive(Subcommand)]
+enum SceneCommand {
+    /// Write the exact triangles a run uses (world coordinates, generated and added geometry
+    /// included) as .obj or .glb, one part per object named INDEX_NAME_ROLE.
+    Export(ExportArgs),
+}
+
+#[derive(clap::Args)]
+struct ExportArgs {
+    /// A built-in scene name, a mesh file (.obj, .gltf, .glb, .ply) or a scenario .json file.
+    scene: String,
+    /// The file to write: FILE.obj or FILE.glb.
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write a scenario that loads the exported file back: its parts as `objects` with
+    /// their roles, the scene's camera and light, no added ground.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Target triangle count of a generated scene.
+    #[arg(long)]
+    triangles: Option<u32>,
+    #[arg(long)]
+    occluder_height: Option<f32>,
+    /// Lateral offset of the moving occluder along x (scene units; paper 002 §5.2.5).
+    #[arg(long, allow_hyphen_values = true)]
+    occluder_offset: Option<f32>,
+    #[arg(long)]
+    seed: Option<u64>,
 }
 
 #[derive(clap::Args)]
@@ -98,7 +133,8 @@ struct RunArgs {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// A built-in scene name, or a path to an .obj or scenario .json file.
+    /// A built-in scene name, or a path to a mesh file (.obj, .gltf, .glb, .ply) or a scenario
+    /// .json file.
     #[arg(long, default_value = "sphere-on-plane")]
     scene: String,
     #[arg(long, default_value = "reference")]
@@ -246,7 +282,7 @@ fn render(a: RenderArgs) -> Result<()> {
         check::cores("--cores", c)?;
     }
     let seed = a.seed.unwrap_or(1);
-    let mut scene = scenario::scene_from_arg(
+    let (mut scene, notes) = scenario::scene_from_arg(
         &a.scene,
         GeneratorParams {
             triangles: a.triangles,
@@ -255,6 +291,12 @@ fn render(a: RenderArgs) -> Result<()> {
             occluder_offset: a.occluder_offset,
         },
     )?;
+    for line in notes.framing.iter().flat_map(|f| f.describe()) {
+        println!("{line}");
+    }
+    for w in &notes.warnings {
+        eprintln!("warning: {w}");
+    }
     if let Some(s) = a.light_size {
         scene.light = scene.light.with_size(s);
     }
@@ -279,7 +321,9 @@ fn render(a: RenderArgs) -> Result<()> {
     } else {
         Some(ReferenceCache::new(None, a.samples, seed).get_or_compute(&frame)?)
     };
-    let (record, out) = harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
+    let (mut record, out) =
+        harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
+    notes.annotate(&mut record);
     harness::write_frame_files(
         &a.out,
         &record,
@@ -296,6 +340,47 @@ fn render(a: RenderArgs) -> Result<()> {
             Ok(())
         }
     }
+}
+
+fn scene_export(a: ExportArgs) -> Result<()> {
+    if let Some(v) = a.triangles {
+        check::triangles("--triangles", v)?;
+    }
+    if let Some(v) = a.occluder_height {
+        check::occluder_height("--occluder-height", v)?;
+    }
+    if let Some(v) = a.occluder_offset {
+        check::occluder_offset("--occluder-offset", v)?;
+    }
+    let (scene, notes) = scenario::scene_from_arg(
+        &a.scene,
+        GeneratorParams {
+            triangles: a.triangles,
+            seed: a.seed.unwrap_or(1),
+            occluder_height: a.occluder_height,
+            occluder_offset: a.occluder_offset,
+        },
+    )?;
+    for w in &notes.warnings {
+        eprintln!("warning: {w}");
+    }
+    shadowbench::scene::export::write_scene(&scene, &a.out, "--out")?;
+    println!(
+        "wrote {} ({} objects, {} triangles)",
+        a.out.display(),
+        scene.objects.len(),
+        scene.triangle_count()
+    );
+    if let Some(path) = &a.scenario {
+        let json = scenario::export_scenario(&scene, &a.out, path)?;
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        let text = serde_json::to_vec_pretty(&json).expect("JSON values serialize");
+        shadowbench::visibility::write_atomic(path, &text)?;
+        println!("wrote {}", path.display());
+    }
+    Ok(())
 }
 
 fn run(a: RunArgs) -> Result<()> {
@@ -477,6 +562,9 @@ fn main() -> ExitCode {
         Command::Run(a) => run(a),
         Command::Report { results, out } => report_cmd(results, out),
         Command::Merge { results, out } => merge(results, out),
+        Command::Scene {
+            command: SceneCommand::Export(a),
+        } => scene_export(a),
         Command::Compare {
             baseline,
             current,

@@ -72,6 +72,10 @@ pub struct RunRecord {
     pub execution: BTreeMap<String, serde_json::Value>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// What was added around user meshes (ground plane, camera, light), when the scene was made
+    /// from mesh files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub framing: Option<crate::scenario::Framing>,
     /// Why the run failed; a failed run keeps its place in the results.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub failure: Option<String>,
@@ -109,6 +113,7 @@ impl RunRecord {
             ]
             .into(),
             warnings: vec![],
+            framing: None,
             failure: None,
         }
     }

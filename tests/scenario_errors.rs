@@ -108,6 +108,14 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             vec!["$.camera.target"],
         ),
         (
+            "camera beyond the coordinate range",
+            mutate(
+                r#""sweep""#,
+                r#""camera": { "eye": [1e20,2,3], "target": [0,0,0] }, "sweep""#,
+            ),
+            vec!["$.camera.eye", "2^40"],
+        ),
+        (
             "zero light radius",
             mutate(
                 r#""sweep""#,
@@ -128,7 +136,12 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
         (
             "OBJ index out of range",
             objects("data/bad_index.obj"),
-            vec!["bad_index.obj"],
+            vec!["bad_index.obj", "line 4", "vertex 9"],
+        ),
+        (
+            "mesh file of an unknown format",
+            objects("data/triangle.stl"),
+            vec!["triangle.stl", "unknown mesh format"],
         ),
         (
             "OBJ without triangles",

@@ -340,6 +340,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         });
         if let Some(e) = refused {
             let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
+            loaded.notes.annotate(&mut record);
             record.failure = Some(e);
             writer.push(record, None, None, None, None)?;
             bar.inc(1);
@@ -363,6 +364,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             None
         };
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
+        loaded.notes.annotate(&mut record);
         if kind != scene.light.kind() {
             record.warnings.push(format!(
                 "light converted from {} to {} (same centre and size) for this algorithm",

@@ -261,6 +261,7 @@ pub(crate) mod testdata {
             }),
             execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
             warnings: vec![],
+            framing: None,
             failure: None,
         }
     }

@@ -17,8 +17,9 @@ use crate::frame::RunParams;
 use crate::model::MachineConfig;
 use crate::scene::generators::{self, GeneratorParams};
 use crate::scene::light_texture::LightTextureSpec;
-use crate::scene::mesh::{Mesh, Object, Role};
-use crate::scene::{obj, Camera, Light, LightTexture, Scene};
+use crate::scene::load::{self, MeshFile};
+use crate::scene::mesh::{Object, Role};
+use crate::scene::{Camera, Light, LightTexture, Scene};
 
 pub use validate::validate;
 
@@ -97,8 +98,15 @@ pub struct SceneSpec {
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObjectSpec {
-    /// OBJ file, relative to the scenario file.
+    /// Mesh file, relative to the scenario file: `.obj`, `.gltf`, `.glb` or `.ply`
+    /// ([`crate::scene::load::load_mesh`]). Also accepted as `mesh`.
+    #[serde(alias = "mesh")]
     pub obj: PathBuf,
+    /// Only this named part of the file: an OBJ object or group (`o`/`g`), or a glTF node with
+    /// its children (what `shadowbench scene export` writes per object).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub part: Option<String>,
+    /// Default: the part's name, else the file's stem.
     #[serde(default)]
     pub name: Option<String>,
     #[serde(default)]
@@ -255,13 +263,87 @@ impl Case {
     }
 }
 
+/// A square ground plane added under user meshes: a receiver of side `size` centred at
+/// `center` (its height is `center.y`), in scene units.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GroundPlane {
+    pub center: Vec3,
+    pub size: f32,
+}
+
+/// What was added around user meshes to make a scene ([`framed_scene`]): each part is absent
+/// where the file or scenario gave its own. Recorded in every run of such a scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Framing {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ground: Option<GroundPlane>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub camera: Option<Camera>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub light: Option<Light>,
+}
+
+impl Framing {
+    /// One line per added part, for the terminal.
+    pub fn describe(&self) -> Vec<String> {
+        let v = |p: Vec3| format!("({:.4}, {:.4}, {:.4})", p.x, p.y, p.z);
+        let mut out = Vec::new();
+        if let Some(g) = &self.ground {
+            out.push(format!(
+                "added ground plane: {:.4} × {:.4} square at y = {:.4}, centred at {}",
+                g.size,
+                g.size,
+                g.center.y,
+                v(g.center)
+            ));
+        }
+        if let Some(c) = &self.camera {
+            out.push(format!(
+                "added camera: eye {}, target {}, vertical field of view {}°",
+                v(c.eye),
+                v(c.target),
+                c.fov_y_deg
+            ));
+        }
+        if let Some(l) = &self.light {
+            out.push(format!(
+                "added light: {} at {}, size {:.4}",
+                l.kind(),
+                v(l.center()),
+                l.size()
+            ));
+        }
+        out
+    }
+}
+
+/// What a scene of user meshes brings besides its geometry: the readers' warnings (skipped
+/// elements, missing material libraries) and what was added around the meshes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SceneNotes {
+    pub warnings: Vec<String>,
+    pub framing: Option<Framing>,
+}
+
+impl SceneNotes {
+    /// Adds the notes to a run's record.
+    pub fn annotate(&self, record: &mut crate::record::RunRecord) {
+        record.warnings.extend(self.warnings.iter().cloned());
+        if record.framing.is_none() {
+            record.framing = self.framing.clone();
+        }
+    }
+}
+
 /// A scenario that passed validation, with its file's folder for relative paths.
 #[derive(Clone, Debug)]
 pub struct Loaded {
     pub path: PathBuf,
     pub scenario: Scenario,
-    /// Meshes of `scene.objects`, loaded during validation.
-    meshes: Vec<Mesh>,
+    /// Objects of `scene.objects`, loaded, transformed and checked during validation.
+    objects: Vec<Object>,
+    /// Readers' warnings and the framing of `scene.objects` (empty for generators).
+    pub notes: SceneNotes,
     /// The machine `$.machine` names, resolved during validation.
     pub machine: MachineConfig,
     /// The texture `$.light.texture` describes, resolved during validation.
@@ -299,15 +381,56 @@ impl Loaded {
         })?;
         let base = path.parent().unwrap_or(Path::new("."));
         validate(&scenario).map_err(|e| e.in_file(path))?;
-        let mut meshes = Vec::new();
+        let mut objects = Vec::new();
+        let mut warnings = Vec::new();
         for (i, o) in scenario.scene.objects.iter().flatten().enumerate() {
-            let mesh = obj::load_obj(&base.join(&o.obj)).map_err(|e| InputError {
-                file: Some(path.to_path_buf()),
-                field: Some(format!("$.scene.objects[{i}].obj")),
-                message: e.to_string(),
+            let MeshFile {
+                mesh,
+                warnings: w,
+            } = load::load_mesh(&base.join(&o.obj), o.part.as_deref()).map_err(|e| {
+                InputError {
+                    file: Some(path.to_path_buf()),
+                    field: Some(format!("$.scene.objects[{i}].obj")),
+                    message: e.to_string(),
+                }
             })?;
-            meshes.push(mesh);
+            warnings.extend(w);
+            objects.push(Object {
+                name: o.name.clone().or_else(|| o.part.clone()).unwrap_or_else(|| {
+                    o.obj
+                        .file_stem()
+                        .map(|s| s.to_string_lossy().into_owned())
+                        .unwrap_or_default()
+                }),
+                mesh: mesh.transformed(object_transform(o)),
+                role: Role {
+                    occluder: o.occluder.unwrap_or(true),
+                    receiver: o.receiver.unwrap_or(true),
+                },
+            });
         }
+        load::check_extent(&objects).map_err(|f| InputError {
+            file: Some(path.to_path_buf()),
+            field: Some(format!("$.scene.objects[{}]", f.object)),
+            message: format!(
+                "{} after its transform: {}",
+                scenario.scene.objects.as_ref().expect("objects were loaded")[f.object]
+                    .obj
+                    .display(),
+                f.message
+            ),
+        })?;
+        let framing = scenario.scene.objects.as_ref().map(|_| {
+            let (_, mut framing) =
+                framed_scene(objects.clone(), scenario.scene.ground.unwrap_or(true));
+            if scenario.camera.is_some() {
+                framing.camera = None;
+            }
+            if scenario.light.is_some() {
+                framing.light = None;
+            }
+            framing
+        });
         let machine = match &scenario.machine {
             Some(m) => MachineConfig::resolve("$.machine", m, base).map_err(|e| e.in_file(path))?,
             None => MachineConfig::default(),
@@ -322,7 +445,8 @@ impl Loaded {
         Ok(Loaded {
             path: path.to_path_buf(),
             scenario,
-            meshes,
+            objects,
+            notes: SceneNotes { warnings, framing },
             machine,
             light_texture,
         })
@@ -445,29 +569,7 @@ impl Loaded {
                         occluder_offset: point.occluder_offset,
                     })
             }
-            None => {
-                let objects = s
-                    .scene
-                    .objects
-                    .iter()
-                    .flatten()
-                    .zip(&self.meshes)
-                    .map(|(o, m)| Object {
-                        name: o.name.clone().unwrap_or_else(|| {
-                            o.obj
-                                .file_stem()
-                                .map(|s| s.to_string_lossy().into_owned())
-                                .unwrap_or_default()
-                        }),
-                        mesh: m.clone().transformed(object_transform(o)),
-                        role: Role {
-                            occluder: o.occluder.unwrap_or(true),
-                            receiver: o.receiver.unwrap_or(true),
-                        },
-                    })
-                    .collect();
-                framed_scene(objects, s.scene.ground.unwrap_or(true))
-            }
+            None => framed_scene(self.objects.clone(), s.scene.ground.unwrap_or(true)).0,
         };
         scene.name = s.scene.generator.clone().unwrap_or_else(|| self.name());
         if let Some(c) = s.camera {
@@ -499,44 +601,60 @@ fn object_transform(o: &ObjectSpec) -> Mat4 {
 }
 
 /// A scene around user meshes: optional ground under them, a camera that frames them and a
-/// sphere light above them, all scaled to their bounds.
-pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> Scene {
+/// sphere light above them, all scaled to their bounds; with what was added.
+pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> (Scene, Framing) {
     let b = objects
         .iter()
         .fold(crate::scene::Bounds::EMPTY, |b, o| b.union(o.mesh.bounds()));
     let (c, d) = (b.center(), b.diagonal().max(1e-3));
-    if ground {
-        let plane = generators::primitives::plane(d * 1.5, 16).transformed(Mat4::from_translation(
-            Vec3::new(c.x, b.min.y - 0.02 * d, c.z),
-        ));
+    let plane = ground.then(|| GroundPlane {
+        center: Vec3::new(c.x, b.min.y - 0.02 * d, c.z),
+        size: d * 1.5,
+    });
+    if let Some(g) = plane {
+        let mesh = generators::primitives::plane(g.size, 16)
+            .transformed(Mat4::from_translation(g.center));
         objects.insert(
             0,
             Object {
                 name: "ground".into(),
-                mesh: plane,
+                mesh,
                 role: Role::RECEIVER,
             },
         );
     }
-    Scene {
-        name: String::new(),
-        objects,
-        camera: Camera {
-            eye: c + Vec3::new(0.0, 0.9, 1.3) * d,
-            target: Vec3::new(c.x, b.min.y, c.z),
-            up: Vec3::Y,
-            fov_y_deg: 45.0,
+    let camera = Camera {
+        eye: c + Vec3::new(0.0, 0.9, 1.3) * d,
+        target: Vec3::new(c.x, b.min.y, c.z),
+        up: Vec3::Y,
+        fov_y_deg: 45.0,
+    };
+    let light = Light::Sphere {
+        center: c + Vec3::new(0.3, 1.8, 0.2) * d,
+        radius: 0.08 * d,
+    };
+    (
+        Scene {
+            name: String::new(),
+            objects,
+            camera,
+            light,
+            light_texture: None,
         },
-        light: Light::Sphere {
-            center: c + Vec3::new(0.3, 1.8, 0.2) * d,
-            radius: 0.08 * d,
+        Framing {
+            ground: plane,
+            camera: Some(camera),
+            light: Some(light),
         },
-        light_texture: None,
-    }
+    )
 }
 
-/// A scene by name (a generator) or by file (an OBJ placed over a ground, or a scenario's scene).
-pub fn scene_from_arg(arg: &str, params: GeneratorParams) -> Result<Scene, InputError> {
+/// A scene by name (a generator) or by file (a mesh file placed over a ground, or a scenario's
+/// scene), with the notes of its loading (empty for a generator).
+pub fn scene_from_arg(
+    arg: &str,
+    params: GeneratorParams,
+) -> Result<(Scene, SceneNotes), InputError> {
     // `--occluder-height` and `--occluder-offset` need a scene whose occluder they move.
     let placement_applies = |generator: Option<&str>| {
         use validate::OccluderAxis::{Height, Offset};
@@ -560,48 +678,101 @@ pub fn scene_from_arg(arg: &str, params: GeneratorParams) -> Result<Scene, Input
     };
     if let Some(g) = generators::find(arg) {
         placement_applies(Some(g.name))?;
-        return Ok(g.build(&params));
+        return Ok((g.build(&params), SceneNotes::default()));
     }
     let path = Path::new(arg);
+    if load::mesh_extension(path).is_some() {
+        placement_applies(None)?;
+        let file = load::load_mesh(path, None)?;
+        let name = path
+            .file_stem()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        let objects = vec![Object {
+            name: name.clone(),
+            mesh: file.mesh,
+            role: Role::BOTH,
+        }];
+        load::check_extent(&objects).map_err(|f| InputError::file(path, f.message))?;
+        let (mut s, framing) = framed_scene(objects, true);
+        s.name = name;
+        return Ok((
+            s,
+            SceneNotes {
+                warnings: file.warnings,
+                framing: Some(framing),
+            },
+        ));
+    }
     match path.extension().and_then(|e| e.to_str()) {
-        Some("obj") => {
-            placement_applies(None)?;
-            let mesh = obj::load_obj(path)?;
-            let mut s = framed_scene(
-                vec![Object {
-                    name: path
-                        .file_stem()
-                        .unwrap_or_default()
-                        .to_string_lossy()
-                        .into_owned(),
-                    mesh,
-                    role: Role::BOTH,
-                }],
-                true,
-            );
-            s.name = path
-                .file_stem()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .into_owned();
-            Ok(s)
-        }
         Some("json") => {
             let l = Loaded::from_file(path)?;
             placement_applies(l.scenario.scene.generator.as_deref())?;
-            Ok(l.build_scene(
+            let scene = l.build_scene(
                 ScenePoint {
                     triangles: params.triangles.or(l.scenario.params.triangles),
                     occluder_height: params.occluder_height.or(l.scenario.params.occluder_height),
                     occluder_offset: params.occluder_offset.or(l.scenario.params.occluder_offset),
                 },
                 l.scenario.params.light_size,
-            ))
+            );
+            Ok((scene, l.notes))
         }
         _ => Err(InputError::new(
             "--scene",
             crate::error::unknown_name("scene", arg, &generators::names())
-                + " (or a path to an .obj or scenario .json file)",
+                + &format!(
+                    " (or a path to a mesh file, .{}, or a scenario .json file)",
+                    load::EXTENSIONS.join(", .")
+                ),
         )),
     }
+}
+
+/// A scenario (as JSON) that loads `mesh` (written by [`crate::scene::export::write_scene`] from
+/// `scene`) back as the same scene: each part as an object with its role, the scene's camera and
+/// light, no added ground; to be saved at `scenario`. The mesh is named relative to the
+/// scenario's folder when it lies in it, else by its absolute path. A light texture is not
+/// carried over (an input error: the exported scenario would have a white light).
+pub fn export_scenario(
+    scene: &Scene,
+    mesh: &Path,
+    scenario: &Path,
+) -> Result<serde_json::Value, InputError> {
+    if scene.light_texture.is_some() {
+        return Err(InputError::new(
+            "--scenario",
+            "the scene's light has a texture, which an exported scenario cannot carry",
+        ));
+    }
+    let same_dir = mesh.parent().unwrap_or(Path::new("")) == scenario.parent().unwrap_or(Path::new(""));
+    let file = if same_dir {
+        PathBuf::from(mesh.file_name().unwrap_or_default())
+    } else {
+        std::path::absolute(mesh).map_err(|e| InputError::file(mesh, e.to_string()))?
+    };
+    let objects: Vec<serde_json::Value> = scene
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            serde_json::json!({
+                "mesh": file,
+                "part": crate::scene::export::part_name(i, o),
+                "name": o.name,
+                "occluder": o.role.occluder,
+                "receiver": o.role.receiver,
+            })
+        })
+        .collect();
+    Ok(serde_json::json!({
+        "name": scene.name,
+        "description": format!("scene '{}' exported by shadowbench scene export", scene.name),
+        "scene": { "objects": objects, "ground": false },
+        "camera": scene.camera,
+        "light": LightSpec { light: scene.light, texture: None },
+        "algorithms": ["reference"],
+        "backends": ["cpu-native"],
+    }))
 }

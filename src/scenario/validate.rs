@@ -25,9 +25,18 @@ fn finite_positive(field: &str, what: &str, v: f32) -> Check {
     Ok(())
 }
 
+/// A finite vector within the coordinate range the algorithms hold
+/// ([`crate::scene::load::MAX_COORDINATE`], 2^40).
 fn finite_vec(field: &str, v: Vec3) -> Check {
+    use crate::scene::load::MAX_COORDINATE;
     if !v.is_finite() {
         return fail(field, format!("must be finite, got {v}"));
+    }
+    if v.abs().max_element() > MAX_COORDINATE {
+        return fail(
+            field,
+            format!("must be within ±{MAX_COORDINATE:.3e} (2^40), got {v}"),
+        );
     }
     Ok(())
 }

@@ -196,17 +196,33 @@ impl LightTexture {
     }
 
     /// An 8-bit RGB(A) PNG, top row at `v = +1`, values over 255.
+    ///
+    /// The size is read from the PNG header and checked against [`MAX_SIDE`] before any pixel is
+    /// decoded, so a small file that declares a huge image is refused without allocating it.
     pub fn load_png(path: &Path) -> Result<LightTexture, InputError> {
-        let img = image::open(path)
-            .map_err(|e| InputError::file(path, format!("cannot read light texture: {e}")))?
-            .to_rgb8();
-        let (w, h) = img.dimensions();
+        let bad = |e: image::ImageError| {
+            InputError::file(path, format!("cannot read light texture: {e}"))
+        };
+        let open = || {
+            image::ImageReader::open(path)
+                .map_err(|e| InputError::file(path, format!("cannot read light texture: {e}")))?
+                .with_guessed_format()
+                .map_err(|e| InputError::file(path, format!("cannot read light texture: {e}")))
+        };
+        let (w, h) = open()?.into_dimensions().map_err(bad)?;
         if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
             return Err(InputError::file(
                 path,
                 format!("light texture must be 1..={MAX_SIDE} pixels a side, got {w}x{h}"),
             ));
         }
+        let mut reader = open()?;
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(MAX_SIDE);
+        limits.max_image_height = Some(MAX_SIDE);
+        reader.limits(limits);
+        let img = reader.decode().map_err(bad)?.to_rgb8();
+        let (w, h) = img.dimensions();
         Ok(LightTexture::from_fn(w, h, |i, j| {
             img.get_pixel(i, h - 1 - j).0.map(|v| v as f32 / 255.0)
         }))
@@ -437,6 +453,40 @@ mod tests {
                 s[ch]
             );
         }
+    }
+
+    /// A PNG whose header declares 11000×11000 pixels (and holds no pixel data) is refused by
+    /// its declared size: the header is checked before decoding, which would otherwise allocate
+    /// 11000·11000·3 bytes (or fail on the missing data with a message that hides the cause).
+    #[test]
+    fn png_size_is_checked_from_the_header() {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut c = !0u32;
+            for &b in bytes {
+                c ^= u32::from(b);
+                for _ in 0..8 {
+                    c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+                }
+            }
+            !c
+        }
+        let mut ihdr = b"IHDR".to_vec();
+        ihdr.extend_from_slice(&11000u32.to_be_bytes());
+        ihdr.extend_from_slice(&11000u32.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 2, 0, 0, 0]); // 8-bit RGB, deflate, no filter, no interlace
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        // IHDR, then an IDAT with an empty zlib stream (far too little data), then IEND.
+        for chunk in [ihdr, b"IDAT\x78\x9c\x03\x00\x00\x00\x00\x01".to_vec(), b"IEND".to_vec()] {
+            png.extend_from_slice(&(chunk.len() as u32 - 4).to_be_bytes());
+            png.extend_from_slice(&chunk);
+            png.extend_from_slice(&crc32(&chunk).to_be_bytes());
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("huge.png");
+        std::fs::write(&path, &png).unwrap();
+        let e = LightTexture::load_png(&path).unwrap_err();
+        assert!(e.message.contains("11000x11000"), "{e}");
+        assert!(e.message.contains("4096"), "{e}");
     }
 
     #[test]

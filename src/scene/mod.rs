@@ -1,14 +1,20 @@
 //! The scene model: meshes with adjacency, objects tagged occluder/receiver, camera, lights,
-//! procedural generators, OBJ loading, and the BVH used for ground truth and the eye pass.
+//! procedural generators, mesh files (OBJ, glTF 2.0, PLY) in and out, and the BVH used for ground
+//! truth and the eye pass.
 
 pub mod adjacency;
 pub mod bvh;
 pub mod camera;
+pub mod export;
 pub mod generators;
+pub mod gltf;
 pub mod light;
 pub mod light_texture;
+pub mod load;
 pub mod mesh;
 pub mod obj;
+pub mod ply;
+pub mod polygon;
 pub mod simplify;
 
 pub use camera::Camera;

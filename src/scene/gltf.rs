@@ -1,0 +1,334 @@
+//! glTF 2.0 geometry (`.gltf` with external or embedded buffers, and `.glb`) through the `gltf`
+//! crate: the triangles of every mesh primitive of the default scene (or the first scene), in
+//! world coordinates with the node hierarchy's transforms applied.
+//!
+//! - Primitive modes `TRIANGLES`, `TRIANGLE_STRIP` and `TRIANGLE_FAN`, indexed (u8/u16/u32) or
+//!   not. `POINTS` and the line modes bound no surface and are skipped with a warning.
+//! - Positions as `f32`, or, under `KHR_mesh_quantization`, as (normalized) i8/u8/i16/u16,
+//!   dequantized by the extension's rules (the node transform carries the dequantization scale).
+//! - A node whose transform mirrors (negative determinant) has its triangles' winding flipped,
+//!   as glTF prescribes.
+//! - Not read: sparse accessors (an input error), morph targets and skins (the bind pose is
+//!   used), materials.
+
+use std::collections::HashSet;
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::Mode;
+
+use super::load::MeshFile;
+use super::mesh::Mesh;
+use crate::error::InputError;
+
+/// Loads the default scene's triangles of the glTF file `path`; with `node`, only those of the
+/// node of that name and its descendants.
+pub fn load_gltf(path: &Path, node: Option<&str>) -> Result<MeshFile, InputError> {
+    let err = |m: String| InputError::file(path, m);
+    let bytes = super::load::read_file(path)?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes)
+        .map_err(|e| err(format!("cannot parse glTF: {e}")))?;
+    validate(&document).map_err(err)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    for b in document.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = b.source() {
+            if !uri.starts_with("data:") {
+                let file = base.join(
+                    percent_encoding::percent_decode_str(uri)
+                        .decode_utf8_lossy()
+                        .as_ref(),
+                );
+                if file.exists() && !file.is_file() {
+                    return Err(err(format!(
+                        "buffer {} ('{uri}') is not a regular file",
+                        b.index()
+                    )));
+                }
+            }
+        }
+    }
+    let buffers = gltf::import_buffers(&document, Some(base), blob)
+        .map_err(|e| err(format!("cannot load glTF buffers: {e}")))?;
+    let scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| err("the file has no scene".into()))?;
+    let mut out = MeshFile::default();
+    let mut visited = HashSet::new();
+    let mut stack: Vec<(gltf::Node, Mat4, bool)> = scene
+        .nodes()
+        .map(|n| (n, Mat4::IDENTITY, node.is_none()))
+        .collect();
+    stack.reverse();
+    let mut found = node.is_none();
+    while let Some((n, parent, selected)) = stack.pop() {
+        if !visited.insert(n.index()) {
+            return Err(err(format!(
+                "node {} is reached twice: the node hierarchy is not a tree",
+                n.index()
+            )));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&n.transform().matrix());
+        let selected = selected || node.is_some_and(|want| n.name() == Some(want));
+        found |= selected;
+        if let (Some(mesh), true) = (n.mesh(), selected) {
+            let name = mesh
+                .name()
+                .or(n.name())
+                .map(|s| format!("'{s}'"))
+                .unwrap_or_else(|| format!("{}", mesh.index()));
+            for p in mesh.primitives() {
+                let what = format!("mesh {name} primitive {}", p.index());
+                match primitive(&p, &buffers, &what).map_err(err)? {
+                    Some(part) => {
+                        if !world.is_finite() {
+                            return Err(err(format!(
+                                "node {}: transform is not finite",
+                                n.index()
+                            )));
+                        }
+                        out.mesh.append(&part.transformed(world));
+                    }
+                    None => out.warnings.push(format!(
+                        "{}: skipped {what}: mode {:?} bounds no surface",
+                        path.display(),
+                        p.mode()
+                    )),
+                }
+            }
+        }
+        let children: Vec<_> = n.children().collect();
+        for c in children.into_iter().rev() {
+            stack.push((c, world, selected));
+        }
+    }
+    if !found {
+        let names: Vec<&str> = document.nodes().filter_map(|n| n.name()).collect();
+        return Err(err(format!(
+            "no node named '{}' in the default scene (named nodes: {})",
+            node.unwrap_or_default(),
+            if names.is_empty() {
+                "none".into()
+            } else {
+                names.join(", ")
+            }
+        )));
+    }
+    if out.mesh.triangles.is_empty() {
+        return Err(err("no triangles in the default scene".into()));
+    }
+    Ok(out)
+}
+
+/// Required extensions this reader handles although the `gltf` crate's validation does not
+/// know them.
+const HANDLED_EXTENSIONS: [&str; 1] = ["KHR_mesh_quantization"];
+
+/// The `gltf` crate's validation of the JSON (every index in range, required fields present),
+/// accepting the required extensions of [`HANDLED_EXTENSIONS`].
+fn validate(document: &gltf::Document) -> Result<(), String> {
+    use gltf::json::validation::{Error, Validate};
+    let root = document.as_json();
+    let mut errors: Vec<(String, Error)> = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, e| {
+        errors.push((path().to_string(), e))
+    });
+    errors.retain(|(path, e)| {
+        !(*e == Error::Unsupported
+            && path.starts_with("extensionsRequired")
+            && HANDLED_EXTENSIONS
+                .iter()
+                .any(|h| path.ends_with(&format!("\"{h}\""))))
+    });
+    match errors.first() {
+        None => Ok(()),
+        Some((path, e)) => Err(format!(
+            "invalid glTF: {path}: {e}{}",
+            if errors.len() > 1 {
+                format!(" (and {} more problems)", errors.len() - 1)
+            } else {
+                String::new()
+            }
+        )),
+    }
+}
+
+/// The triangles of one primitive in its mesh's coordinates; `None` for points and lines.
+fn primitive(
+    p: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    what: &str,
+) -> Result<Option<Mesh>, String> {
+    if matches!(
+        p.mode(),
+        Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
+    ) {
+        return Ok(None);
+    }
+    let acc = p
+        .get(&gltf::Semantic::Positions)
+        .ok_or_else(|| format!("{what}: no POSITION attribute"))?;
+    if acc.dimensions() != Dimensions::Vec3 {
+        return Err(format!(
+            "{what}: POSITION accessor {} is {:?}, not VEC3",
+            acc.index(),
+            acc.dimensions()
+        ));
+    }
+    let values = read(&acc, buffers, 3).map_err(|m| format!("{what}: {m}"))?;
+    let positions: Vec<Vec3> = values
+        .chunks_exact(3)
+        .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+        .collect();
+    if let Some((k, v)) = positions.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(format!(
+            "{what}: POSITION accessor {} vertex {k} is not finite ({v})",
+            acc.index()
+        ));
+    }
+    let n = positions.len();
+    let indices: Vec<u32> = match p.indices() {
+        Some(ia) => {
+            if ia.dimensions() != Dimensions::Scalar
+                || !matches!(ia.data_type(), DataType::U8 | DataType::U16 | DataType::U32)
+            {
+                return Err(format!(
+                    "{what}: indices accessor {} must be unsigned integer scalars",
+                    ia.index()
+                ));
+            }
+            let v = read(&ia, buffers, 1).map_err(|m| format!("{what}: {m}"))?;
+            let mut out = Vec::with_capacity(v.len());
+            for (k, i) in v.into_iter().enumerate() {
+                if i as usize >= n {
+                    return Err(format!(
+                        "{what}: index {k} is {i} but there are {n} vertices"
+                    ));
+                }
+                out.push(i as u32);
+            }
+            out
+        }
+        None => (0..n as u32).collect(),
+    };
+    let triangles: Vec<[u32; 3]> = match p.mode() {
+        Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
+            .map(|i| {
+                if i % 2 == 0 {
+                    [indices[i], indices[i + 1], indices[i + 2]]
+                } else {
+                    [indices[i + 1], indices[i], indices[i + 2]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (1..indices.len().saturating_sub(1))
+            .map(|i| [indices[i], indices[i + 1], indices[0]])
+            .collect(),
+        _ => {
+            if indices.len() % 3 != 0 {
+                return Err(format!(
+                    "{what}: {} indices do not make whole triangles",
+                    indices.len()
+                ));
+            }
+            indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect()
+        }
+    };
+    Ok(Some(Mesh {
+        positions,
+        triangles,
+    }))
+}
+
+/// The components of a dense accessor as `f64`, `count × width` values, dequantized for
+/// normalized integer types (KHR_mesh_quantization, glTF §3.11).
+fn read(
+    acc: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+    width: usize,
+) -> Result<Vec<f64>, String> {
+    let id = acc.index();
+    if acc.sparse().is_some() {
+        return Err(format!("accessor {id} is sparse (not supported)"));
+    }
+    let view = acc
+        .view()
+        .ok_or_else(|| format!("accessor {id} has no buffer view"))?;
+    let data = buffers
+        .get(view.buffer().index())
+        .ok_or_else(|| format!("buffer {} is missing", view.buffer().index()))?;
+    let view_bytes = data
+        .get(view.offset()..view.offset().saturating_add(view.length()))
+        .ok_or_else(|| format!("buffer view {} lies outside its buffer", view.index()))?;
+    let size = acc.data_type().size();
+    let elem = size * width;
+    let stride = view.stride().unwrap_or(elem);
+    if stride < elem {
+        return Err(format!(
+            "buffer view {} stride {stride} is less than accessor {id}'s element size {elem}",
+            view.index()
+        ));
+    }
+    let count = acc.count();
+    let end = count
+        .checked_sub(1)
+        .and_then(|c| c.checked_mul(stride))
+        .and_then(|b| b.checked_add(acc.offset() + elem));
+    if count > 0 && end.is_none_or(|e| e > view_bytes.len()) {
+        return Err(format!(
+            "accessor {id} ({count} elements of {elem} bytes, stride {stride}) reads past its \
+             buffer view of {} bytes",
+            view_bytes.len()
+        ));
+    }
+    let normalized = acc.normalized();
+    let mut out = Vec::with_capacity(count * width);
+    for k in 0..count {
+        let at = acc.offset() + k * stride;
+        for c in 0..width {
+            let b = &view_bytes[at + c * size..at + (c + 1) * size];
+            let v = match acc.data_type() {
+                DataType::F32 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+                DataType::U32 => f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+                DataType::I8 => {
+                    let v = f64::from(b[0] as i8);
+                    if normalized {
+                        (v / 127.0).max(-1.0)
+                    } else {
+                        v
+                    }
+                }
+                DataType::U8 => {
+                    let v = f64::from(b[0]);
+                    if normalized {
+                        v / 255.0
+                    } else {
+                        v
+                    }
+                }
+                DataType::I16 => {
+                    let v = f64::from(i16::from_le_bytes([b[0], b[1]]));
+                    if normalized {
+                        (v / 32767.0).max(-1.0)
+                    } else {
+                        v
+                    }
+                }
+                DataType::U16 => {
+                    let v = f64::from(u16::from_le_bytes([b[0], b[1]]));
+                    if normalized {
+                        v / 65535.0
+                    } else {
+                        v
+                    }
+                }
+            };
+            out.push(v);
+        }
+    }
+    Ok(out)
+}
