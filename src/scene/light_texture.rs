@@ -197,6 +197,8 @@ impl LightTexture {
 
     /// An 8-bit RGB(A) PNG, top row at `v = +1`, values over 255.
     pub fn load_png(path: &Path) -> Result<LightTexture, InputError> {
+        // A missing file, a folder, a device or a link loop, named as such.
+        crate::util::input::open(path, "light texture")?;
         let img = image::open(path)
             .map_err(|e| InputError::file(path, format!("cannot read light texture: {e}")))?
             .to_rgb8();

@@ -11,12 +11,17 @@ use crate::error::InputError;
 /// triangulated by tobj; lines and points are skipped (they bound no surface), and a file with no
 /// triangles left, or with out-of-range indices, is an error.
 pub fn load_obj(path: &Path) -> Result<Mesh, InputError> {
-    if !path.is_file() {
-        return Err(InputError::file(path, "file not found"));
+    let file = crate::util::input::open(path, "OBJ file")?;
+    let mut reader = std::io::BufReader::new(file);
+    // A UTF-8 byte order mark would hide the first statement from the parser.
+    use std::io::BufRead;
+    if reader
+        .fill_buf()
+        .is_ok_and(|b| b.starts_with(b"\xEF\xBB\xBF"))
+    {
+        reader.consume(3);
     }
-    let file = std::fs::File::open(path)
-        .map_err(|e| InputError::file(path, format!("cannot open: {e}")))?;
-    parse_obj(&mut std::io::BufReader::new(file), path)
+    parse_obj(&mut reader, path)
 }
 
 /// Parses OBJ text from `reader`; `path` names it in errors. Material libraries are not read
