@@ -190,6 +190,7 @@ fn report_keeps_a_results_files_names_inside_out() {
                 || [
                     dir.path().join("a"),
                     root.clone(),
+                    root.join("results.json"),
                     f1.clone(),
                     f2.clone(),
                     dir.path().join("seed.json"),
@@ -331,6 +332,7 @@ fn a_killed_run_leaves_no_temporary_file_once_the_next_run_starts() {
     let mut v = tiny(None);
     v["algorithms"] = json!(["reference"]);
     v["params"]["image"] = json!([64, 48]);
+    v["params"]["light_size"] = json!(0.05);
     v["sweep"] = json!({ "light_size": [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8] });
     v["reference"]["samples"] = json!(256);
     write(&scenario, &v);
@@ -464,7 +466,7 @@ fn a_run_past_its_timeout_is_stopped_and_the_sweep_goes_on() {
     let f = results(&out)[0]["failure"].as_str().unwrap().to_string();
     assert!(f.contains("budget of 1 s"), "{f}");
     // A budget that is not a duration is an input error.
-    let o = shadowbench(&["run", s(&scenario), "--out", s(&out), "--run-timeout", "-1"]);
+    let o = shadowbench(&["run", s(&scenario), "--out", s(&out), "--run-timeout", "0"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(error_line(&o).contains("--run-timeout"), "{}", stderr(&o));
 }
