@@ -399,7 +399,8 @@ impl Loaded {
             file: Some(self.path.clone()),
             field: Some("$.sweep".into()),
             message: format!(
-                "the sweep has {n} cases ({} mode), up to {runs} runs, over the limit of {limit}                  cases; narrow the sweep or raise the limit with --max-cases",
+                "the sweep has {n} cases ({} mode), up to {runs} runs, over the limit of {limit} \
+                 cases; narrow the sweep or raise the limit with --max-cases",
                 match self.scenario.sweep_mode {
                     SweepMode::Each => "each",
                     SweepMode::Grid => "grid",
