@@ -80,17 +80,19 @@ pub fn lock(field: &str, out: &Path) -> Result<OutLock> {
         std::process::id(),
         args.join(" ")
     );
-    let written = (|| {
-        file.set_len(0)?;
-        file.rewind()?;
-        file.write_all(note.as_bytes())
-    })();
-    written.map_err(|e| Error::io(&path, e))?;
+    replace_contents(&mut file, note.as_bytes()).map_err(|e| Error::io(&path, e))?;
     remove_orphaned_temps(out, 4);
     Ok(OutLock {
         _file: file,
         dir: out.to_path_buf(),
     })
+}
+
+/// Replaces what `file` holds with `bytes`.
+fn replace_contents(file: &mut File, bytes: &[u8]) -> std::io::Result<()> {
+    file.set_len(0)?;
+    file.rewind()?;
+    file.write_all(bytes)
 }
 
 /// "process 1234, `shadowbench run x.json`, started 12 s ago" from the lock file's text.
