@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
 use clap::{Parser, Subcommand};
 
@@ -13,6 +14,7 @@ use shadowbench::model::{self, MachineConfig};
 use shadowbench::report;
 use shadowbench::scenario::{self, validate as check, Loaded};
 use shadowbench::scene::generators::{self, GeneratorParams};
+use shadowbench::util::paths::slug;
 
 #[derive(Parser)]
 #[command(
@@ -129,6 +131,13 @@ struct RunArgs {
     /// Run only shard K of N of the planned runs (every N-th run, from the K-th).
     #[arg(long, value_name = "K/N")]
     shard: Option<String>,
+    /// Refuse a scenario whose sweep has more points than this.
+    #[arg(long, default_value_t = scenario::MAX_CASES)]
+    max_cases: u64,
+    /// Stop any run that takes longer than this many seconds and record it as failed, with its
+    /// work estimate (overrides the scenario's `run_timeout_s`).
+    #[arg(long, value_name = "SECONDS")]
+    run_timeout: Option<f64>,
 }
 
 #[derive(clap::Args)]
@@ -308,7 +317,17 @@ fn render(a: RenderArgs) -> Result<()> {
         cores: a.cores,
         ..shadowbench::frame::RunParams::of_scene(&scene, image, a.map_resolution, a.tile_size)
     };
-    harness::limits::check(info, &params, memory_limit(a.memory_limit)?)?;
+    harness::limits::check(
+        info,
+        backend,
+        &machine,
+        &params,
+        memory_limit(a.memory_limit)?,
+    )?;
+    if a.scene.ends_with(".json") {
+        not_an_output(Path::new(&a.scene), &[a.out.join("run.json")])?;
+    }
+    let _lock = harness::outdir::lock("--out", &a.out)?;
     let frame = Frame::new(scene, params);
     let ctx = ExecContext {
         reference_samples: a.samples,
@@ -383,6 +402,31 @@ fn scene_export(a: ExportArgs) -> Result<()> {
     Ok(())
 }
 
+/// The files `run` writes into each scenario's folder (besides images, charts and the cache).
+const RESULT_FILES: [&str; 3] = ["results.json", "results.csv", "index.html"];
+
+/// Refuses an input file that the command would overwrite: one of `outputs` (when it exists,
+/// compared as canonical paths).
+fn not_an_output(input: &Path, outputs: &[PathBuf]) -> std::result::Result<(), InputError> {
+    let Ok(canonical) = input.canonicalize() else {
+        return Ok(());
+    };
+    match outputs
+        .iter()
+        .find(|o| o.canonicalize().is_ok_and(|o| o == canonical))
+    {
+        Some(o) => Err(InputError::file(
+            input,
+            format!(
+                "this input is the file '{}' the command writes, so it would be overwritten; \
+                 copy it elsewhere or choose another --out",
+                o.display()
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 fn run(a: RunArgs) -> Result<()> {
     let RunArgs {
         scenario,
@@ -393,13 +437,21 @@ fn run(a: RunArgs) -> Result<()> {
         memory_limit: memory_gib,
         machine,
         shard,
+        max_cases,
+        run_timeout,
     } = a;
     // Every scenario is checked before anything runs.
     let loaded = scenario
         .iter()
         .map(|p| Loaded::from_file(p))
         .collect::<std::result::Result<Vec<Loaded>, InputError>>()?;
+    for l in &loaded {
+        l.check_case_count(max_cases)?;
+    }
     let memory_limit = memory_limit(memory_gib)?;
+    let run_timeout = run_timeout
+        .map(|t| check::run_timeout("--run-timeout", t).map(|_| Duration::from_secs_f64(t)))
+        .transpose()?;
     let machine = machine
         .map(|m| MachineConfig::resolve("--machine", &m, Path::new(".")))
         .transpose()?;
@@ -419,16 +471,34 @@ fn run(a: RunArgs) -> Result<()> {
     let several = loaded.len() > 1;
     let mut dirs: Vec<String> = Vec::new();
     for (l, path) in loaded.iter().zip(&scenario) {
-        let name = l.name();
+        // Each scenario's folder under OUT: its name as one safe file name component.
+        let name = slug(&l.name());
         if dirs.contains(&name) {
             return Err(InputError::file(
                 path,
-                format!("scenario name '{name}' is given twice; each needs its own folder"),
+                format!(
+                    "scenario name '{}' is given twice (folder '{name}'); each needs its own folder",
+                    l.name()
+                ),
             )
             .into());
         }
         dirs.push(name);
     }
+    let outputs: Vec<PathBuf> = if several {
+        std::iter::once(out.join("index.html"))
+            .chain(
+                dirs.iter()
+                    .flat_map(|d| RESULT_FILES.map(|f| out.join(d).join(f))),
+            )
+            .collect()
+    } else {
+        RESULT_FILES.map(|f| out.join(f)).to_vec()
+    };
+    for path in &scenario {
+        not_an_output(path, &outputs)?;
+    }
+    let _lock = harness::outdir::lock("--out", &out)?;
     let mut reports = Vec::new();
     for (l, dir) in loaded.iter().zip(&dirs) {
         let out_dir = if several { out.join(dir) } else { out.clone() };
@@ -448,6 +518,8 @@ fn run(a: RunArgs) -> Result<()> {
                 memory_limit,
                 machine: machine.clone(),
                 shard,
+                max_cases,
+                run_timeout,
             },
         )?;
         print!("{}", harness::summary_table(&results.runs));
@@ -480,9 +552,12 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
         .map(|p| report::read_results(p))
         .collect::<std::result::Result<Vec<_>, _>>()?;
     let several = files.len() > 1;
+    let _lock = harness::outdir::lock("--out", &out)?;
     let mut reports: Vec<(String, harness::output::ResultsFile)> = Vec::new();
     for (path, file) in results.iter().zip(files) {
-        if reports.iter().any(|(d, _)| *d == file.scenario) {
+        // Each file's folder under OUT: its scenario name as one safe file name component.
+        let name = slug(&file.scenario);
+        if reports.iter().any(|(d, _)| *d == name) {
             return Err(InputError::file(
                 path,
                 format!("scenario '{}' is given twice", file.scenario),
@@ -490,7 +565,7 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
             .into());
         }
         let dir = if several {
-            out.join(&file.scenario)
+            out.join(&name)
         } else {
             out.clone()
         };
@@ -505,7 +580,7 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
             written.index.display(),
             written.charts.len()
         );
-        reports.push((file.scenario.clone(), file));
+        reports.push((name, file));
     }
     print!("{}", report::write_claims(&out, &reports, several)?);
     if several {
@@ -519,6 +594,8 @@ fn merge(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
         .into_iter()
         .map(|p| report::read_results(&p).map(|f| (p, f)))
         .collect::<std::result::Result<Vec<_>, _>>()?;
+    report::merge(&inputs)?;
+    let _lock = harness::outdir::lock("--out", &out)?;
     let written = report::write_merged(&out, &inputs)?;
     println!(
         "merged {} files into {}; report: {}",

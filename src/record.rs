@@ -124,14 +124,19 @@ impl RunRecord {
     }
 }
 
-/// The identifier of a run: scene, algorithm, backend and every parameter.
+/// The identifier of a run: scene, algorithm, backend and every parameter. It names the run's
+/// image folder (`images/<case_id>/`), so it is always one safe file name component: the
+/// scene, algorithm and backend (user text in a results file) go through
+/// [`crate::util::paths::slug`], and the whole identifier is cut to 200 bytes (with a hash of
+/// the rest) when it grows longer.
 pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> String {
+    use crate::util::paths::{slug, slug_max};
     {
         let mut id = format!(
             "{}_{}_{}_t{}_l{}_m{}_b{}_{}x{}",
-            scene,
-            algorithm,
-            backend,
+            slug(scene),
+            slug(algorithm),
+            slug(backend),
             p.triangles,
             p.light_size,
             p.map_resolution,
@@ -148,6 +153,6 @@ pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> St
         if let Some(c) = p.cores {
             id.push_str(&format!("_c{c}"));
         }
-        id
+        slug_max(&id, 200)
     }
 }

@@ -45,7 +45,7 @@ fn cornell_box() -> Option<Frame> {
         eprintln!("skipping: {} not found", path.display());
         return None;
     }
-    let mesh = obj::load_obj(&path).unwrap();
+    let mesh = obj::load_obj(&path, None).unwrap().mesh;
     let scene = Scene {
         name: "cornell_box".into(),
         objects: vec![Object {

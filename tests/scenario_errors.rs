@@ -221,7 +221,7 @@ fn scenario_path() -> std::path::PathBuf {
 #[test]
 fn the_valid_scenario_is_valid() {
     let l = Loaded::from_str(VALID, &scenario_path()).expect("valid");
-    assert_eq!(l.cases().len(), 3);
+    assert_eq!(l.cases(shadowbench::scenario::MAX_CASES).unwrap().len(), 3);
     Loaded::from_str(&objects("data/triangle.obj"), &scenario_path()).expect("valid OBJ scene");
 }
 

@@ -20,6 +20,8 @@ fn run(loaded: &Loaded, out: &Path, cache: &Path, shard: Option<Shard>) -> Vec<R
             memory_limit: harness::limits::default_limit(),
             machine: None,
             shard,
+            max_cases: shadowbench::scenario::MAX_CASES,
+            run_timeout: None,
         },
     )
     .unwrap()

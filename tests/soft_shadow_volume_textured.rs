@@ -382,6 +382,8 @@ fn a_textured_run_writes_the_rgb_image() {
             memory_limit: u64::MAX,
             machine: None,
             shard: None,
+            max_cases: shadowbench::scenario::MAX_CASES,
+            run_timeout: None,
         },
     )
     .unwrap();

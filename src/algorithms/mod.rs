@@ -16,6 +16,7 @@ pub mod shadow_volume;
 pub mod soft_izb;
 pub mod soft_shadow_map;
 pub mod soft_shadow_volume;
+pub mod work;
 
 use std::collections::BTreeMap;
 
@@ -26,6 +27,7 @@ use crate::frame::{Frame, RunParams};
 use crate::model::MachineConfig;
 use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
+use crate::util::deadline::Deadline;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 /// Where an algorithm runs.
@@ -112,6 +114,9 @@ pub struct AlgorithmInfo {
     /// Bytes of the algorithm's own buffers for a run (maps, grids, bins), estimated before
     /// anything is allocated; the frame itself is counted by the harness.
     pub memory_estimate: fn(&RunParams) -> u64,
+    /// Estimated fill of a run ([`work`]), made before anything runs: reported with a run
+    /// stopped by its time budget, and summed over a sweep before it starts.
+    pub work_estimate: fn(&work::SceneExtent, &RunParams, &ExecContext) -> f64,
     /// Checks `options.<id>` of a scenario before any work starts.
     pub check_options:
         fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
@@ -138,6 +143,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
         backends: &[Backend::CpuNative],
         memory_estimate: |_| 0,
+        work_estimate: work::reference,
         check_options: |o| no_options("reference", o),
         limits: &[],
     },
@@ -148,6 +154,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: shadow_map::memory_estimate,
+        work_estimate: work::hard_shadow_map,
         check_options: hard_shadow_map::check_options,
         limits: &[MethodLimit::NoPenumbra],
     },
@@ -158,6 +165,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: shadow_map::memory_estimate,
+        work_estimate: work::pcss,
         check_options: pcss::check_options,
         limits: &[],
     },
@@ -173,6 +181,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Disc],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_izb::cpu::memory_estimate,
+        work_estimate: work::soft_izb,
         check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
         limits: &[MethodLimit::OneMap],
     },
@@ -183,6 +192,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: accum_hard::memory_estimate,
+        work_estimate: work::accum_hard,
         check_options: accum_hard::check_options,
         limits: &[],
     },
@@ -193,6 +203,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Rect, LightKind::Sphere],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_shadow_volume::memory_estimate,
+        work_estimate: work::soft_shadow_volume,
         check_options: soft_shadow_volume::check_options,
         limits: &[],
     },
@@ -203,6 +214,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Sphere],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: penumbra_map::memory_estimate,
+        work_estimate: work::penumbra_map,
         check_options: penumbra_map::check_options,
         limits: &[MethodLimit::OuterPenumbraOnly, MethodLimit::OneMap],
     },
@@ -215,6 +227,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Rect],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: soft_shadow_map::memory_estimate,
+        work_estimate: work::soft_shadow_map,
         check_options: soft_shadow_map::check_options,
         limits: &[MethodLimit::NoOccluderShadowing, MethodLimit::OneMap],
     },
@@ -226,6 +239,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
         lights: &[LightKind::Disc],
         backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
         memory_estimate: dbuffer::memory_estimate,
+        work_estimate: work::dbuffer,
         check_options: dbuffer::check_options,
         limits: &[MethodLimit::OneMap],
     },
@@ -287,6 +301,8 @@ pub struct ExecContext {
     pub options: BTreeMap<String, serde_json::Value>,
     /// The modelled machine of `cpu-model` runs (a run's `cores` overrides its core count).
     pub machine: MachineConfig,
+    /// When the run must stop (`--run-timeout`); checked cooperatively by every execution.
+    pub deadline: Deadline,
 }
 
 impl Default for ExecContext {
@@ -296,6 +312,7 @@ impl Default for ExecContext {
             seed: 1,
             options: BTreeMap::new(),
             machine: MachineConfig::default(),
+            deadline: Deadline::default(),
         }
     }
 }
@@ -332,7 +349,7 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         check_light_texture(id, &ctx.options)?;
     }
     if backend == Backend::Wgpu {
-        return crate::gpu::guarded_run(|gpu| match id {
+        return crate::gpu::guarded_run(ctx.deadline, |gpu| match id {
             hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),
             pcss::ID => pcss::wgpu::render(gpu, frame, ctx),
             penumbra_map::ID => penumbra_map::wgpu::render(gpu, frame, ctx),
@@ -351,7 +368,12 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         });
     }
     match id {
-        "reference" => Ok(reference::render(frame, ctx.reference_samples, ctx.seed)),
+        "reference" => Ok(reference::render_until(
+            frame,
+            ctx.reference_samples,
+            ctx.seed,
+            ctx.deadline,
+        )),
         hard_shadow_map::ID => {
             let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;
             Ok(hard_shadow_map::cpu::render(backend, frame, ctx, o.bias))

@@ -26,6 +26,7 @@ use wgpu::util::DeviceExt;
 
 use crate::error::{Error, Result};
 use crate::frame::GBuffer;
+use crate::util::deadline::Deadline;
 
 /// Environment variable naming the adapter to use (substring of its name).
 pub const ADAPTER_ENV: &str = "SHADOWBENCH_ADAPTER";
@@ -185,8 +186,10 @@ impl Gpu {
     }
 
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
-    /// this took on the host.
+    /// this took on the host. Past the deadline of the run ([`guarded_run`]) it unwinds
+    /// instead ([`Deadline::check`]).
     pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
+        DEADLINE.get().check();
         let start = std::time::Instant::now();
         let mut encoder = self
             .device
@@ -225,6 +228,12 @@ impl Gpu {
 }
 
 static PREFERENCE: OnceLock<String> = OnceLock::new();
+
+thread_local! {
+    /// The deadline of the wgpu run on this thread ([`guarded_run`]); wgpu runs submit from the
+    /// thread that started them.
+    static DEADLINE: std::cell::Cell<Deadline> = std::cell::Cell::new(Deadline::default());
+}
 /// The device in use: acquired on first use, replaced when it is lost. A lost device is leaked
 /// rather than dropped (it is rare, and runs may still hold references to it).
 static GPU: Mutex<Option<std::result::Result<&'static Gpu, String>>> = Mutex::new(None);
@@ -404,15 +413,19 @@ fn acquire() -> std::result::Result<Gpu, String> {
 /// Runs one wgpu run `f` on the shared device with validation and out-of-memory errors
 /// captured, turning them into an error instead of a panic. A device lost during the run fails
 /// it with the driver's reason, whatever `f` returned, since its buffers cannot be trusted; the
-/// next call acquires a new device. [`fault`] injections happen here.
-pub fn guarded_run<T>(f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
+/// next call acquires a new device. [`fault`] injections happen here. The run stops at
+/// `deadline`, checked before each submission ([`Gpu::submit`]; work already submitted runs
+/// to its end).
+pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
     let gpu = gpu()?;
+    DEADLINE.set(deadline);
     let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
     fault::inject(gpu);
     // wgpu's helpers panic on some calls to a lost device (e.g. initialised buffers); the
     // panic is caught here so that the error scopes are popped and the loss is reported.
     let out = catch_unwind(AssertUnwindSafe(|| f(gpu)));
+    DEADLINE.set(Deadline::default());
     let v = pollster::block_on(validation.pop());
     let o = pollster::block_on(oom.pop());
     // Polling delivers a pending device-lost notice before it is checked.
@@ -421,6 +434,10 @@ pub fn guarded_run<T>(f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
         return Err(Error::Gpu(format!("device lost during the run: {why}")));
     }
     let out = out.map_err(|panic| {
+        if crate::util::deadline::cancelled(panic.as_ref()).is_some() {
+            // The run's budget ran out between submissions: not a wgpu fault.
+            std::panic::resume_unwind(panic);
+        }
         Error::Gpu(format!(
             "wgpu panicked: {}",
             crate::error::panic_message(panic.as_ref())

@@ -69,27 +69,46 @@ impl ReferenceCache {
         (b.width == frame.width() && b.height == frame.height()).then_some(b)
     }
 
-    /// Stores a reference computed for `frame` (in memory, and on disk when a folder is set).
+    /// Stores a reference computed for `frame` in memory, and on disk when a folder is set.
+    /// The disk copy is written under a temporary name and renamed, so a reader never sees half
+    /// a file; an error writing it (a full or read-only cache folder) is returned after the
+    /// image is kept in memory.
     pub fn put(&mut self, frame: &Frame, b: &VisibilityBuffer) -> Result<()> {
         let key = self.key(frame);
+        self.memory.insert(key, b.clone());
         if let Some(file) = self.file(key) {
             let dir = file.parent().expect("cache file has a folder");
             std::fs::create_dir_all(dir).map_err(|e| crate::error::Error::io(dir, e))?;
-            let tmp = file.with_extension("npy.part");
-            b.write_npy(&tmp)?;
-            std::fs::rename(&tmp, &file).map_err(|e| crate::error::Error::io(&file, e))?;
+            let tmp = crate::harness::outdir::temp_path(&file);
+            let written = b.write_npy(&tmp).and_then(|_| {
+                std::fs::rename(&tmp, &file).map_err(|e| crate::error::Error::io(&file, e))
+            });
+            if written.is_err() {
+                let _ = std::fs::remove_file(&tmp);
+            }
+            written?;
         }
-        self.memory.insert(key, b.clone());
         Ok(())
     }
 
+    /// The reference of `frame`: from memory, from the cache folder, or computed. The cache is
+    /// optional: when the folder cannot be written (full, read-only), a warning says so once
+    /// and the cache goes on in memory only.
     pub fn get_or_compute(&mut self, frame: &Frame) -> Result<VisibilityBuffer> {
         if let Some(b) = self.get(frame) {
             return Ok(b);
         }
         let b = reference::render(frame, self.samples, self.seed).visibility;
-        self.put(frame, &b)?;
+        if let Err(e) = self.put(frame, &b) {
+            eprintln!("warning: reference cache: {e}; going on without the cache folder");
+            self.dir = None;
+        }
         Ok(b)
+    }
+
+    /// Stops using the cache folder (keeps the images in memory).
+    pub fn memory_only(&mut self) {
+        self.dir = None;
     }
 }
 

@@ -1,9 +1,11 @@
 //! Memory limits: a run's working set is estimated before anything is allocated, and a run
 //! that would exceed the limit is refused with the estimate instead of being killed.
 
-use crate::algorithms::AlgorithmInfo;
+use crate::algorithms::{AlgorithmInfo, Backend};
 use crate::error::{Error, Result};
 use crate::frame::RunParams;
+use crate::model::cache::CoreCaches;
+use crate::model::MachineConfig;
 
 /// Physical memory from /proc/meminfo, when readable.
 pub fn physical_memory() -> Option<u64> {
@@ -26,12 +28,43 @@ pub fn frame_bytes(p: &RunParams) -> u64 {
     pixels * (12 + 12 + 4 + 4 + 4) + p.triangles as u64 * 112
 }
 
-/// Refuses a run whose estimated working set exceeds `limit` bytes.
-pub fn check(info: &AlgorithmInfo, p: &RunParams, limit: u64) -> Result<()> {
-    let estimate = frame_bytes(p) + (info.memory_estimate)(p);
+/// Bytes of the modelled caches of a `cpu-model` run on `machine` (0 on other backends): every
+/// core's L1 and L2 partition plus the one core of single-core steps
+/// ([`crate::model::Machine::set_single_core`]), all allocated when the run starts. The run's
+/// `cores` overrides the machine's.
+pub fn model_bytes(backend: Backend, machine: &MachineConfig, p: &RunParams) -> u64 {
+    if backend != Backend::CpuModel {
+        return 0;
+    }
+    let cores = p.cores.unwrap_or(machine.cores) as u64;
+    (cores + 1) * CoreCaches::bytes(machine)
+}
+
+/// Refuses a run on `backend` whose estimated working set (the frame, the algorithm's buffers
+/// and, on `cpu-model`, the modelled caches of `machine`) exceeds `limit` bytes.
+pub fn check(
+    info: &AlgorithmInfo,
+    backend: Backend,
+    machine: &MachineConfig,
+    p: &RunParams,
+    limit: u64,
+) -> Result<()> {
+    let caches = model_bytes(backend, machine, p);
+    let estimate = frame_bytes(p)
+        .saturating_add((info.memory_estimate)(p))
+        .saturating_add(caches);
     if estimate > limit {
+        let of_caches = if caches > 0 {
+            format!(
+                " ({} of it the modelled caches of {} cores)",
+                bytes(caches),
+                p.cores.unwrap_or(machine.cores)
+            )
+        } else {
+            String::new()
+        };
         return Err(Error::Resource(format!(
-            "{} at {}x{} with map resolution {} needs about {}, over the limit of {} (raise it with --memory-limit, in GiB)",
+            "{} on {backend} at {}x{} with map resolution {} needs about {}{of_caches}, over the limit of {} (raise it with --memory-limit, in GiB)",
             info.id,
             p.image[0],
             p.image[1],

@@ -2,6 +2,7 @@
 
 pub mod cache;
 pub mod limits;
+pub mod outdir;
 pub mod output;
 pub mod shard;
 
@@ -19,6 +20,7 @@ use crate::metrics;
 use crate::record::{case_id, RunRecord};
 use crate::scenario::Loaded;
 use crate::scene::{Light, LightKind, Scene};
+use crate::util::deadline::Deadline;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 pub use cache::ReferenceCache;
@@ -98,8 +100,9 @@ pub fn light_for_run(
 }
 
 /// Runs one algorithm on one frame and turns its output into a record, with quality against
-/// `reference` when given. Failures (errors, panics, invalid visibility) become a record with
-/// `failure` set, so a sweep keeps going.
+/// `reference` when given. Failures (errors, panics, invalid visibility, a run stopped at
+/// `ctx.deadline` with its work estimate and elapsed time) become a record with `failure` set,
+/// so a sweep keeps going.
 pub fn run_one(
     frame: &Frame,
     algorithm: &str,
@@ -112,6 +115,20 @@ pub fn run_one(
         algorithms::run(algorithm, backend, frame, ctx)
     }))
     .unwrap_or_else(|panic| {
+        if let Some(c) = crate::util::deadline::cancelled(panic.as_ref()) {
+            let estimate = algorithms::find(algorithm)
+                .map(|info| {
+                    let extent = algorithms::work::SceneExtent::of(&frame.scene);
+                    (info.work_estimate)(&extent, &frame.params, ctx)
+                })
+                .map_or_else(|_| "unknown".into(), |w| format!("{w:.3e}"));
+            return Err(Error::Resource(format!(
+                "run timeout: stopped after {:.2} s, over its budget of {} s (estimated work \
+                 {estimate} fill; raise --run-timeout or the scenario's run_timeout_s)",
+                start.elapsed().as_secs_f64(),
+                c.limit.as_secs_f64()
+            )));
+        }
         Err(Error::Other(format!(
             "internal error (panic): {}",
             crate::error::panic_message(panic.as_ref())
@@ -147,12 +164,22 @@ pub fn run_one(
             record.execution.extend(out.execution.clone());
             record.warnings = out.warnings.clone();
             if let Some(r) = reference.filter(|_| algorithm != "reference") {
-                record.error = Some(metrics::compare_with_receivers(
+                let e = metrics::compare_with_receivers(
                     &out.visibility,
                     r,
                     &frame.gbuffer.mask(),
                     &frame.receiver_only_mask(),
-                ));
+                );
+                if e.pixels == 0 {
+                    // An error over no pixel is no measurement: leave it out, say why.
+                    record.warnings.push(
+                        "no pixel of the image sees a surface: no quality metrics (they would \
+                         be over 0 pixels)"
+                            .into(),
+                    );
+                } else {
+                    record.error = Some(e);
+                }
                 if let Ok(info) = algorithms::find(algorithm) {
                     record.warnings.extend(limit_warnings(frame, info, r));
                 }
@@ -228,6 +255,11 @@ pub struct RunOptions {
     pub machine: Option<crate::model::MachineConfig>,
     /// Run only this shard of the plan.
     pub shard: Option<Shard>,
+    /// Most sweep points a scenario may have ([`crate::scenario::MAX_CASES`] by default).
+    pub max_cases: u64,
+    /// Wall-clock budget of one run (overrides the scenario's `run_timeout_s`); a run past it
+    /// is cancelled and recorded as failed.
+    pub run_timeout: Option<std::time::Duration>,
 }
 
 /// One planned run.
@@ -241,7 +273,7 @@ struct Planned {
 /// `opts.out` after each run, and returns what `results.json` holds.
 pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::ResultsFile> {
     let s = &loaded.scenario;
-    let cases = loaded.cases();
+    let cases = loaded.cases(opts.max_cases)?;
     let algorithms: Vec<String> = s
         .algorithms
         .iter()
@@ -294,11 +326,15 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         .cache_dir
         .clone()
         .unwrap_or_else(|| opts.out.join("reference-cache"));
+    let mut refs = ReferenceCache::new(Some(cache_dir.clone()), s.reference.samples, s.seed);
     if s.reference.enabled {
-        cache::describe(&cache_dir)?;
+        if let Err(e) = cache::describe(&cache_dir) {
+            // The cache only saves time: without its folder the sweep goes on.
+            eprintln!("warning: reference cache: {e}; going on without the cache folder");
+            refs.memory_only();
+        }
     }
-    let mut refs = ReferenceCache::new(Some(cache_dir), s.reference.samples, s.seed);
-    let ctx = ExecContext {
+    let mut ctx = ExecContext {
         reference_samples: s.reference.samples,
         seed: s.seed,
         options: s.options.clone(),
@@ -306,7 +342,21 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             .machine
             .clone()
             .unwrap_or_else(|| loaded.machine.clone()),
+        deadline: Deadline::default(),
     };
+    let timeout = opts
+        .run_timeout
+        .or(s.run_timeout_s.map(std::time::Duration::from_secs_f64));
+    eprintln!(
+        "planned {} runs over {} cases; estimated work {:.3e} fill{}",
+        plan.len(),
+        cases.len(),
+        sweep_work(loaded, &cases, &plan, &ctx),
+        timeout.map_or(String::new(), |t| format!(
+            "; each run stops after {} s",
+            t.as_secs_f64()
+        ))
+    );
 
     let bar = ProgressBar::new(plan.len() as u64);
     bar.set_style(
@@ -334,7 +384,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         }
         let params = case.run_params(&sc);
         let refused = converted.err().map(|e| e.to_string()).or_else(|| {
-            limits::check(info, &params, opts.memory_limit)
+            limits::check(info, p.backend, &ctx.machine, &params, opts.memory_limit)
                 .err()
                 .map(|e| e.to_string())
         });
@@ -363,6 +413,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         } else {
             None
         };
+        ctx.deadline = timeout.map_or(Deadline::default(), Deadline::after);
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
         loaded.notes.annotate(&mut record);
         if kind != scene.light.kind() {
@@ -383,6 +434,40 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     }
     bar.finish_and_clear();
     Ok(writer.into_results())
+}
+
+/// The estimated fill of the planned runs ([`algorithms::work`]), before anything runs. Builds
+/// only the first case's scene (geometry dominates its cost); each case differs from it in its
+/// light size and parameters, which is what the estimates depend on most.
+fn sweep_work(
+    loaded: &Loaded,
+    cases: &[crate::scenario::Case],
+    plan: &[Planned],
+    ctx: &ExecContext,
+) -> f64 {
+    let Some(first) = plan.first() else {
+        return 0.0;
+    };
+    let base = loaded.build_scene(cases[first.case].scene, None);
+    let center = base.bounds().center();
+    plan.iter()
+        .map(|p| {
+            let case = &cases[p.case];
+            let info = algorithms::find(&p.algorithm).expect("validated");
+            let light = case
+                .light_size
+                .map_or(base.light, |size| base.light.with_size(size));
+            let extent = algorithms::work::SceneExtent {
+                light: light_as(light, info.light_for(light.kind()), center),
+                center,
+            };
+            let params = crate::frame::RunParams {
+                light_size: extent.light.size(),
+                ..case.run_params(&base)
+            };
+            (info.work_estimate)(&extent, &params, ctx)
+        })
+        .sum()
 }
 
 /// A one-line summary table of records.

@@ -26,11 +26,20 @@ pub struct ResultsFile {
 }
 
 impl ResultsFile {
-    pub fn read(path: &Path) -> Result<ResultsFile> {
-        let text = std::fs::read_to_string(path).map_err(|e| crate::error::Error::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| {
-            crate::error::InputError::file(path, format!("not a results file: {e}")).into()
-        })
+    /// Refuses a file in which one run (one [`RunRecord::case_id`]) appears more than once,
+    /// naming the second one: which of the two counts is undecidable, so neither `report` nor
+    /// `compare` nor `merge` picks one.
+    pub fn check_unique_runs(&self) -> std::result::Result<(), crate::error::InputError> {
+        let mut seen = std::collections::HashSet::new();
+        for (i, r) in self.runs.iter().enumerate() {
+            if !seen.insert(r.case_id()) {
+                return Err(crate::error::InputError::new(
+                    format!("$.runs[{i}]"),
+                    format!("run '{}' appears more than once", r.case_id()),
+                ));
+            }
+        }
+        Ok(())
     }
 }
 

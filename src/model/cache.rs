@@ -114,6 +114,14 @@ pub struct CoreCaches {
 }
 
 impl CoreCaches {
+    /// Bytes the model allocates for one core's L1 and L2 (a tag and a dirty flag per line,
+    /// [`Cache::new`]), for the memory estimate made before a run.
+    pub fn bytes(machine: &MachineConfig) -> u64 {
+        let lines = |c: &CacheConfig| machine.sets(c) as u64 * c.ways as u64;
+        (lines(&machine.l1) + lines(&machine.l2))
+            * (std::mem::size_of::<u64>() + std::mem::size_of::<bool>()) as u64
+    }
+
     pub fn new(machine: &MachineConfig) -> CoreCaches {
         CoreCaches {
             l1: Cache::new(machine, &machine.l1),

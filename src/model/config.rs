@@ -155,9 +155,15 @@ impl MachineConfig {
 
     /// Reads and validates a JSON configuration.
     pub fn from_file(path: &Path) -> Result<MachineConfig, InputError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| InputError::file(path, format!("cannot read machine config: {e}")))?;
-        let de = &mut serde_json::Deserializer::from_str(&text);
+        MachineConfig::from_json(
+            &crate::util::input::read_text(path, "machine config")?,
+            path,
+        )
+    }
+
+    /// Parses and validates the text of a JSON configuration; `path` names it in errors.
+    pub fn from_json(text: &str, path: &Path) -> Result<MachineConfig, InputError> {
+        let de = &mut serde_json::Deserializer::from_str(text);
         let m: MachineConfig = serde_path_to_error::deserialize(de).map_err(|e| {
             let field = e.path().to_string();
             InputError {

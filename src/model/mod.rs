@@ -27,6 +27,8 @@ use rayon::prelude::*;
 
 pub use buffer::{Buffer, Memory};
 pub use config::MachineConfig;
+
+use crate::util::deadline::Deadline;
 pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
 
 use crate::algorithms::Backend;
@@ -205,6 +207,8 @@ pub struct Machine {
     single_core: bool,
     /// The caches of that core on `cpu-model`, created on first use.
     single_core_caches: Option<CoreCaches>,
+    /// The run's budget, checked before every task of a step.
+    deadline: Deadline,
 }
 
 impl Machine {
@@ -223,7 +227,15 @@ impl Machine {
             current: 0,
             single_core: false,
             single_core_caches: None,
+            deadline: Deadline::default(),
         }
+    }
+
+    /// The same machine stopping the run at `deadline`: every task of a step checks it first
+    /// ([`Deadline::check`]), so a run past it unwinds within one task.
+    pub fn with_deadline(mut self, deadline: Deadline) -> Machine {
+        self.deadline = deadline;
+        self
     }
 
     /// Runs the steps that follow, until called with `false`, on one core instead of all of
@@ -316,16 +328,23 @@ impl Machine {
         weights: &[u64],
     ) -> Vec<K::Out> {
         let config = &self.config;
+        let deadline = self.deadline;
         let cores: &mut [CoreCaches] = match (self.cores.as_mut(), self.single_core) {
             (None, false) => {
                 return (0..weights.len())
                     .into_par_iter()
-                    .map(|t| kernel.run(&mut NoProbe, t))
+                    .map(|t| {
+                        deadline.check();
+                        kernel.run(&mut NoProbe, t)
+                    })
                     .collect();
             }
             (None, true) => {
                 return (0..weights.len())
-                    .map(|t| kernel.run(&mut NoProbe, t))
+                    .map(|t| {
+                        deadline.check();
+                        kernel.run(&mut NoProbe, t)
+                    })
                     .collect();
             }
             (Some(cores), false) => cores,
@@ -345,6 +364,7 @@ impl Machine {
                 let outs: Vec<(usize, K::Out)> = list
                     .into_iter()
                     .map(|t| {
+                        deadline.check();
                         probe.work.tasks += 1;
                         (t, kernel.run(&mut probe, t))
                     })

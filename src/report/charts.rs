@@ -232,6 +232,9 @@ pub struct Spec {
     /// What the chart holds fixed or how it was chosen, for the report.
     pub caption: String,
     pub kind: Kind,
+    /// Values of runs the chart cannot show ([`plottable`]), one warning each naming the run
+    /// and the figure.
+    pub left_out: Vec<String>,
 }
 
 /// A chart on disk, relative to the report folder.
@@ -252,7 +255,10 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
             continue;
         };
         for m in &METRICS {
-            let series = collect_series(&slice, |r| Some((axis.value(r)?, (m.value)(r)?)));
+            let mut left_out = Vec::new();
+            let series = collect_series(&slice, (axis.id(), m.id), &mut left_out, |r| {
+                Some((axis.value(r)?, (m.value)(r)?))
+            });
             if series.is_empty() {
                 continue;
             }
@@ -260,6 +266,7 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
                 file: format!("{}_vs_{}", m.id, axis.id()),
                 title: format!("{} vs. {}{}", m.label, axis.label(), axis.meaning()),
                 caption: fixed.clone(),
+                left_out,
                 kind: Kind::Xy(XyChart {
                     x_label: axis.label().into(),
                     y_label: m.label.into(),
@@ -271,7 +278,8 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
         }
     }
     for (id, label) in TIMES {
-        let series = collect_series(&ok, |r| {
+        let mut left_out = Vec::new();
+        let series = collect_series(&ok, (id, "mae_shadow"), &mut left_out, |r| {
             Some((run_time(r, id)?, r.error.as_ref()?.mae_shadow))
         });
         if series.is_empty() {
@@ -284,6 +292,7 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
             caption: "Every successful run with quality metrics; the dashed line joins the runs \
                       no other run beats on both cost and error (lower is better on both)."
                 .into(),
+            left_out,
             kind: Kind::Xy(XyChart {
                 x_label: format!("{label} (ms)"),
                 y_label: "error: mean absolute error in shadow (mae_shadow)".into(),
@@ -296,15 +305,26 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
     for (id, label) in TIMES {
         let mut bars: Vec<Bar> = Vec::new();
         let mut params: Vec<String> = Vec::new();
+        let mut left_out = Vec::new();
+        let mut more = 0usize;
         for r in &ok {
             let name = series_name(r);
             if bars.iter().any(|b| b.name == name) {
                 continue;
             }
+            if bars.len() == MAX_BARS {
+                // The image grows with the bars; a results file can name any number of series.
+                more += 1;
+                continue;
+            }
             let parts: Vec<(String, f64)> = r
                 .phases
                 .iter()
-                .filter_map(|p| Some((p.name.clone(), phase_time(p, id)?)))
+                .filter_map(|p| {
+                    let v = phase_time(p, id)?;
+                    let v = checked(r, &format!("phase {} {id}", p.name), v, &mut left_out)?;
+                    Some((p.name.clone(), v))
+                })
                 .collect();
             if !parts.is_empty() {
                 params.push(describe_params(r));
@@ -313,6 +333,11 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
         }
         if bars.is_empty() {
             continue;
+        }
+        if more > 0 {
+            left_out.push(format!(
+                "{more} more series beyond the first {MAX_BARS} are not drawn"
+            ));
         }
         params.dedup();
         let what = if params.len() == 1 {
@@ -324,6 +349,7 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
             file: format!("phases_{id}"),
             title: format!("{label} per phase"),
             caption: format!("One bar per algorithm / backend, {what}."),
+            left_out,
             kind: Kind::Stacked {
                 y_label: format!("{label} (ms)"),
                 bars,
@@ -336,6 +362,9 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
 
 /// Most runs a per-run phase chart shows.
 const GRID_BARS: usize = 30;
+
+/// Most bars (series) a per-phase chart shows.
+const MAX_BARS: usize = 40;
 
 /// Per-phase time of every run of a series whose runs vary along two or more axes (such as
 /// paper 003's grid of scenes × resolutions): one bar per run, named by the values that
@@ -379,6 +408,7 @@ fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
                 .unwrap_or(std::cmp::Ordering::Equal)
         });
         for (id, label) in TIMES {
+            let mut left_out = Vec::new();
             let bars: Option<Vec<Bar>> = runs
                 .iter()
                 .map(|r| {
@@ -386,7 +416,12 @@ fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
                         .phases
                         .iter()
                         .map(|p| Some((p.name.clone(), phase_time(p, id)?)))
-                        .collect::<Option<Vec<_>>>()?;
+                        .collect::<Option<Vec<_>>>()?
+                        .into_iter()
+                        .filter(|(phase, v)| {
+                            checked(r, &format!("phase {phase} {id}"), *v, &mut left_out).is_some()
+                        })
+                        .collect();
                     let values: Vec<String> = varying.iter().map(|a| axis_value(*a, r)).collect();
                     Some(Bar {
                         name: values.join(" / "),
@@ -399,15 +434,16 @@ fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
             };
             let axes: Vec<&str> = varying.iter().map(|a| a.label()).collect();
             specs.push(Spec {
-                file: format!(
+                file: crate::util::paths::slug(&format!(
                     "phases_grid_{id}_{}",
-                    name.replace(" / ", "_").replace(['/', ' '], "_")
-                ),
+                    name.replace(" / ", "_")
+                )),
                 title: format!("{label} per phase, every run of {name}"),
                 caption: format!(
                     "One bar per run, named and ordered by what varies: {}.",
                     axes.join(", then ")
                 ),
+                left_out,
                 kind: Kind::Stacked {
                     y_label: format!("{label} (ms)"),
                     bars,
@@ -517,15 +553,48 @@ fn axis_slice<'a>(runs: &[&'a RunRecord], axis: Axis) -> Option<(Vec<&'a RunReco
 }
 
 /// Groups points by series (in order of first appearance), each sorted by x.
+/// Smallest and largest magnitude a chart shows (zero is shown too). Beyond them an axis range
+/// overflows (1.5 × 1.7e308 is infinite) or a log axis spans thousands of decades, and the
+/// chart library can loop for ever computing ticks; such values are left out with a warning.
+pub const PLOT_RANGE: (f64, f64) = (1e-30, 1e30);
+
+/// Whether a chart can show `v` ([`PLOT_RANGE`]).
+pub fn plottable(v: f64) -> bool {
+    v == 0.0 || (v.is_finite() && (PLOT_RANGE.0..=PLOT_RANGE.1).contains(&v.abs()))
+}
+
+/// `v` when a chart can show it; otherwise a warning naming the run and the figure in `left`.
+fn checked(r: &RunRecord, figure: &str, v: f64, left: &mut Vec<String>) -> Option<f64> {
+    if plottable(v) {
+        return Some(v);
+    }
+    left.push(format!(
+        "run {}: {figure} = {v:e} is outside the range a chart can show (0, or {:e} to {:e} in \
+         magnitude); left out",
+        r.case_id(),
+        PLOT_RANGE.0,
+        PLOT_RANGE.1
+    ));
+    None
+}
+
+/// The series of `runs` with the point `point` gives each (x named `x`, y named `y` in
+/// warnings); points with a coordinate a chart cannot show are left out and named in `left`.
 fn collect_series(
     runs: &[&RunRecord],
+    (x, y): (&str, &str),
+    left: &mut Vec<String>,
     point: impl Fn(&RunRecord) -> Option<(f64, f64)>,
 ) -> Vec<Series> {
     let mut series: Vec<Series> = Vec::new();
     for r in runs {
-        let Some(p) = point(r).filter(|(x, y)| x.is_finite() && y.is_finite()) else {
+        let Some((px, py)) = point(r) else {
             continue;
         };
+        let (Some(px), Some(py)) = (checked(r, x, px, left), checked(r, y, py, left)) else {
+            continue;
+        };
+        let p = (px, py);
         let name = series_name(r);
         match series.iter_mut().find(|s| s.name == name) {
             Some(s) => s.points.push(p),
@@ -593,11 +662,26 @@ pub fn render(spec: &Spec, dir: &Path) -> Result<Written> {
     })
 }
 
+/// Draws `spec` as SVG text, without touching the disk (what [`render`] writes as `.svg`).
+pub fn render_svg(spec: &Spec) -> Result<String> {
+    ensure_font()?;
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, spec.size()).into_drawing_area();
+        draw(&root, spec).map_err(|e| Error::Other(format!("drawing chart {}: {e}", spec.file)))?;
+        root.present()
+            .map_err(|e| Error::Other(format!("drawing chart {}: {e}", spec.file)))?;
+    }
+    Ok(text)
+}
+
 impl Spec {
     fn size(&self) -> (u32, u32) {
         match &self.kind {
             Kind::Xy(_) => (1000, 600),
-            Kind::Stacked { bars, .. } => ((400 + 180 * bars.len() as u32).max(900), 600),
+            Kind::Stacked { bars, .. } => {
+                ((400 + 180 * bars.len().min(MAX_BARS) as u32).max(900), 600)
+            }
         }
     }
 }
@@ -1082,6 +1166,54 @@ mod tests {
             .collect();
         expect.sort_by(|a, b| a.0.total_cmp(&b.0));
         assert_eq!(pareto_front(pts.into_iter()), expect);
+    }
+
+    #[test]
+    fn values_a_chart_cannot_show_are_left_out_naming_the_run_and_figure() {
+        assert!(plottable(0.0) && plottable(1e30) && plottable(-1e-30) && plottable(3.5));
+        for v in [
+            1.7e308,
+            1e307,
+            -1e31,
+            1e-31,
+            5e-324,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            assert!(!plottable(v), "{v}");
+        }
+        let mut runs: Vec<RunRecord> = (1..=4)
+            .map(|t| record("pcss", "cpu-model", t * 100, 32))
+            .collect();
+        runs[1].model_ms = Some(1.7e308);
+        runs[2].model_ms = Some(1e307);
+        let specs = plan(&runs);
+        let spec = specs
+            .iter()
+            .find(|s| s.file == "model_ms_vs_triangles")
+            .unwrap();
+        assert_eq!(spec.left_out.len(), 2, "{:?}", spec.left_out);
+        for (i, w) in [(1, "1.7e308"), (2, "1e307")] {
+            assert!(
+                spec.left_out.iter().any(|l| l.contains(&runs[i].case_id())
+                    && l.contains("model_ms")
+                    && l.contains(w)),
+                "{:?}",
+                spec.left_out
+            );
+        }
+        let Kind::Xy(c) = &spec.kind else { panic!() };
+        assert_eq!(c.series[0].points.len(), 2);
+        // Every chart draws, in bounded time (the unchecked values made the log axis loop).
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for s in &specs {
+                render_svg(s).unwrap();
+            }
+            tx.send(()).unwrap();
+        });
+        rx.recv_timeout(std::time::Duration::from_secs(120))
+            .expect("charts drawn");
     }
 
     #[test]

@@ -17,7 +17,8 @@
 //! Quality metrics are errors, so larger is worse too. A run fails the gate when a figure
 //! worsens by more than the threshold (in percent of the baseline; any increase from zero
 //! counts as infinite), when a baseline run is missing from the current results, or when a run
-//! that succeeded now fails. Figures that appear or disappear are listed but do not fail it.
+//! that succeeded now fails. A baseline with no runs is refused as an input error: a gate that
+//! compared nothing must not pass. Figures that appear or disappear are listed but do not fail it.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -243,22 +244,14 @@ impl Comparison {
     }
 }
 
-/// The runs of a results file by case id; two runs of one case is an error naming the file.
+/// The runs of a results file by case id; two runs of one case is an error naming the file
+/// (the rule [`crate::report::read_results`] applies to every input).
 fn by_case<'a>(
     path: &Path,
     file: &'a ResultsFile,
 ) -> Result<BTreeMap<String, &'a RunRecord>, InputError> {
-    let mut m = BTreeMap::new();
-    for (i, r) in file.runs.iter().enumerate() {
-        if m.insert(r.case_id(), r).is_some() {
-            return Err(InputError {
-                file: Some(path.to_path_buf()),
-                field: Some(format!("$.runs[{i}]")),
-                message: format!("run '{}' appears more than once", r.case_id()),
-            });
-        }
-    }
-    Ok(m)
+    file.check_unique_runs().map_err(|e| e.in_file(path))?;
+    Ok(file.runs.iter().map(|r| (r.case_id(), r)).collect())
 }
 
 /// Checks a `--threshold` value.
@@ -280,6 +273,14 @@ pub fn compare(
     threshold_pct: f64,
 ) -> Result<Comparison, InputError> {
     let threshold_pct = check_threshold(threshold_pct)?;
+    if baseline.1.runs.is_empty() {
+        // A gate that compared nothing must not pass.
+        return Err(InputError {
+            file: Some(baseline.0.to_path_buf()),
+            field: Some("$.runs".into()),
+            message: "the baseline has no runs, so nothing would be compared".into(),
+        });
+    }
     let old = by_case(baseline.0, baseline.1)?;
     let new = by_case(current.0, current.1)?;
     let mut cmp = Comparison {
@@ -521,6 +522,21 @@ mod tests {
         let c = run(&b, &cur);
         assert!(c.regressed());
         assert!(c.render().contains("+inf%"), "{}", c.render());
+    }
+
+    #[test]
+    fn a_baseline_with_no_runs_is_refused() {
+        let e = compare(
+            (Path::new("base.json"), &file(vec![])),
+            (Path::new("cur.json"), &baseline()),
+            2.0,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("base.json: $.runs: ") && e.contains("nothing would be compared"),
+            "{e}"
+        );
     }
 
     #[test]

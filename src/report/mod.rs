@@ -17,13 +17,22 @@ use crate::error::{Error, InputError, Result};
 use crate::harness::output::{self, ResultsFile};
 use crate::record::RunRecord;
 
-/// Reads a `results.json`; any problem (missing, unreadable, not a results file) is an input
-/// error naming the file.
+/// Reads a `results.json`; any problem (missing, unreadable, not a results file, a scenario
+/// name that is a path, a run given twice: [`parse_results`]) is an input error naming the file.
 pub fn read_results(path: &Path) -> Result<ResultsFile, InputError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| InputError::file(path, format!("cannot read results: {e}")))?;
-    serde_json::from_str(&text)
-        .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))
+    parse_results(&crate::util::input::read_text(path, "results")?, path)
+}
+
+/// Parses and checks the text of a results file; `path` names it in errors. `report`,
+/// `compare` and `merge` all read through here, so they accept and refuse the same files: the
+/// `scenario` must be a plain name ([`crate::util::paths::check_name`]: it names a folder of
+/// `report`) and no run may appear twice ([`ResultsFile::check_unique_runs`]).
+pub fn parse_results(text: &str, path: &Path) -> Result<ResultsFile, InputError> {
+    let file: ResultsFile = serde_json::from_str(text)
+        .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))?;
+    crate::util::paths::check_name("$.scenario", &file.scenario).map_err(|e| e.in_file(path))?;
+    file.check_unique_runs().map_err(|e| e.in_file(path))?;
+    Ok(file)
 }
 
 /// What [`write_report`] produced, relative to the output folder.
@@ -40,7 +49,16 @@ pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
     let chart_dir = out.join("charts");
     std::fs::create_dir_all(&chart_dir).map_err(|e| Error::io(&chart_dir, e))?;
     let mut written = Vec::new();
-    for spec in charts::plan(&results.runs) {
+    for mut spec in charts::plan(&results.runs) {
+        if !spec.left_out.is_empty() {
+            for w in &spec.left_out {
+                eprintln!("warning: chart {}: {w}", spec.file);
+            }
+            spec.caption.push_str(&format!(
+                " Left out, outside the range a chart can show: {}.",
+                spec.left_out.join("; ")
+            ));
+        }
         written.push(charts::render(&spec, &chart_dir)?);
     }
     let index = out.join("index.html");

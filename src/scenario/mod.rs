@@ -61,6 +61,10 @@ pub struct Scenario {
     /// Paper claims these runs reproduce, shown in the report next to our figures.
     #[serde(default)]
     pub claims: Vec<claims::Claim>,
+    /// Wall-clock budget of each run in seconds (`--run-timeout` overrides it): a run past it
+    /// is stopped and recorded as failed, and the sweep goes on.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub run_timeout_s: Option<f64>,
 }
 
 /// `$.light`: the light (`type` and its fields) and an optional `texture` (rectangular lights;
@@ -251,7 +255,28 @@ pub struct Case {
     pub cores: Option<u32>,
 }
 
+/// Most sweep points a scenario may have unless `--max-cases` says otherwise.
+pub const MAX_CASES: u64 = 100_000;
+
 impl Case {
+    /// A hashable key equal for two cases exactly when they are equal (`-0.0` and `0.0` are
+    /// one value, as `==` has it; NaN cannot occur in a validated scenario).
+    fn key(&self) -> [u64; 9] {
+        let f = |v: Option<f32>| v.map_or(0, |v| (1 << 32) | (v + 0.0).to_bits() as u64);
+        let u = |v: Option<u32>| v.map_or(0, |v| (1 << 32) | v as u64);
+        [
+            u(self.scene.triangles),
+            f(self.scene.occluder_height),
+            f(self.scene.occluder_offset),
+            f(self.light_size),
+            self.map_resolution as u64,
+            self.tile_size as u64,
+            self.image[0] as u64,
+            self.image[1] as u64,
+            u(self.cores),
+        ]
+    }
+
     /// Run parameters for this case in `scene` (whose light already has the case's size).
     pub fn run_params(&self, scene: &Scene) -> RunParams {
         RunParams {
@@ -353,8 +378,7 @@ pub struct Loaded {
 impl Loaded {
     /// Reads and validates a scenario file.
     pub fn from_file(path: &Path) -> Result<Loaded, InputError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| InputError::file(path, format!("cannot read scenario: {e}")))?;
+        let text = crate::util::input::read_text(path, "scenario")?;
         Loaded::from_str(&text, path)
     }
 
@@ -461,8 +485,59 @@ impl Loaded {
         })
     }
 
-    /// The points of the sweep, in a stable order.
-    pub fn cases(&self) -> Vec<Case> {
+    /// How many points the sweep has before duplicates are removed, computed from the axis
+    /// lengths without expanding anything: `1 + Σ len` in `each` mode, `Π max(len, 1)` in
+    /// `grid` mode (saturating; u128 holds the product of eight axes of up to 2^16 values
+    /// each, and anything beyond saturates).
+    pub fn case_count(&self) -> u128 {
+        let w = &self.scenario.sweep;
+        let lens = [
+            w.triangles.len(),
+            w.occluder_height.len(),
+            w.occluder_offset.len(),
+            w.light_size.len(),
+            w.map_resolution.len(),
+            w.tile_size.len(),
+            w.image.len(),
+            w.cores.len(),
+        ];
+        match self.scenario.sweep_mode {
+            SweepMode::Each => 1 + lens.iter().map(|&n| n as u128).sum::<u128>(),
+            SweepMode::Grid => lens.iter().fold(1u128, |p, &n| {
+                p.checked_mul(n.max(1) as u128).unwrap_or(u128::MAX)
+            }),
+        }
+    }
+
+    /// Refuses a sweep of more than `limit` points ([`Loaded::case_count`]) before anything
+    /// proportional to it is allocated, with the count and the runs it would make.
+    pub fn check_case_count(&self, limit: u64) -> Result<(), InputError> {
+        let n = self.case_count();
+        if n <= limit as u128 {
+            return Ok(());
+        }
+        let runs = n.saturating_mul(
+            self.scenario.algorithms.len() as u128 * self.scenario.backends.len() as u128,
+        );
+        Err(InputError {
+            file: Some(self.path.clone()),
+            field: Some("$.sweep".into()),
+            message: format!(
+                "the sweep has {n} cases ({} mode), up to {runs} runs, over the limit of {limit} \
+                 cases; narrow the sweep or raise the limit with --max-cases",
+                match self.scenario.sweep_mode {
+                    SweepMode::Each => "each",
+                    SweepMode::Grid => "grid",
+                },
+            ),
+        })
+    }
+
+    /// The points of the sweep, in a stable order, without duplicates; a sweep of more than
+    /// `limit` points is refused first ([`Loaded::check_case_count`]). Linear in the number of
+    /// points (duplicates are found with a hash set).
+    pub fn cases(&self, limit: u64) -> Result<Vec<Case>, InputError> {
+        self.check_case_count(limit)?;
         let s = &self.scenario;
         let b = &s.params;
         let base = Case {
@@ -542,16 +617,9 @@ impl Loaded {
                 v
             }
         };
-        let mut seen = Vec::new();
-        cases.retain(|c| {
-            if seen.contains(c) {
-                false
-            } else {
-                seen.push(c.clone());
-                true
-            }
-        });
-        cases
+        let mut seen = std::collections::HashSet::with_capacity(cases.len());
+        cases.retain(|c| seen.insert(c.key()));
+        Ok(cases)
     }
 
     /// Builds the scene at a sweep point, with the scenario's camera and light overrides and the

@@ -260,6 +260,10 @@ pub fn algorithm(field: &str, id: &str) -> Check {
 
 /// All semantic checks of a scenario.
 pub fn validate(s: &Scenario) -> Check {
+    if let Some(name) = &s.name {
+        // The name becomes a folder under `--out` (as a slug); a path here is a mistake.
+        crate::util::paths::check_name("$.name", name)?;
+    }
     match (&s.scene.generator, &s.scene.objects) {
         (Some(_), Some(_)) => {
             return fail(
@@ -423,5 +427,19 @@ pub fn validate(s: &Scenario) -> Check {
         }
     }
     reference_samples("$.reference.samples", s.reference.samples)?;
+    if let Some(t) = s.run_timeout_s {
+        run_timeout("$.run_timeout_s", t)?;
+    }
+    Ok(())
+}
+
+/// A run's time budget in seconds: finite and > 0 (at most a year, so that it is a duration).
+pub fn run_timeout(field: &str, seconds: f64) -> Check {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3.2e7) {
+        return fail(
+            field,
+            format!("run timeout must be a number of seconds in (0, 3.2e7], got {seconds}"),
+        );
+    }
     Ok(())
 }

@@ -200,6 +200,8 @@ impl LightTexture {
     /// The size is read from the PNG header and checked against [`MAX_SIDE`] before any pixel is
     /// decoded, so a small file that declares a huge image is refused without allocating it.
     pub fn load_png(path: &Path) -> Result<LightTexture, InputError> {
+        // A missing file, a folder, a device or a link loop, named as such.
+        crate::util::input::open(path, "light texture")?;
         let bad = |e: image::ImageError| {
             InputError::file(path, format!("cannot read light texture: {e}"))
         };

@@ -57,14 +57,13 @@ pub fn load_mesh(path: &Path, part: Option<&str>) -> Result<MeshFile, InputError
 
 /// Reads a whole regular file (not a device, pipe or folder, which could be endless).
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
-    let meta = std::fs::metadata(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => InputError::file(path, "file not found"),
-        _ => InputError::file(path, format!("cannot open: {e}")),
-    })?;
-    if !meta.is_file() {
-        return Err(InputError::file(path, "not a regular file"));
-    }
-    std::fs::read(path).map_err(|e| InputError::file(path, format!("cannot read: {e}")))
+    use std::io::Read;
+    // A missing file, a folder, a device such as /dev/zero or a link loop, named as such.
+    let mut bytes = Vec::new();
+    crate::util::input::open(path, "mesh file")?
+        .read_to_end(&mut bytes)
+        .map_err(|e| InputError::file(path, format!("cannot read mesh file: {e}")))?;
+    Ok(bytes)
 }
 
 /// Largest magnitude of a scene coordinate, 2⁴⁰ ≈ 1.1·10¹²: the algorithms form products of up

@@ -19,7 +19,7 @@ pub fn machine(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Machine {
         Some(c) => ctx.machine.with_cores(c),
         None => ctx.machine.clone(),
     };
-    Machine::new(backend, config)
+    Machine::new(backend, config).with_deadline(ctx.deadline)
 }
 
 /// A rasterized shadow map and the view it was rasterized from.

@@ -20,6 +20,7 @@ use crate::frame::Frame;
 use crate::record::{Counters, Phase};
 use crate::scene::bvh::SceneBvh;
 use crate::scene::{Light, LightTexture};
+use crate::util::deadline::Deadline;
 use crate::util::hash::mix64;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
@@ -77,6 +78,11 @@ pub fn received_light(
 }
 
 pub fn render(frame: &Frame, samples: u32, seed: u64) -> FrameOutput {
+    render_until(frame, samples, seed, Deadline::default())
+}
+
+/// [`render`] stopping at `deadline` (checked before each pixel).
+pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) -> FrameOutput {
     let start = Instant::now();
     let k = strata_side(samples).expect("sample count validated as a perfect square");
     let g = &frame.gbuffer;
@@ -85,6 +91,7 @@ pub fn render(frame: &Frame, samples: u32, seed: u64) -> FrameOutput {
     let pixels: Vec<(f32, [f32; 3])> = (0..g.len())
         .into_par_iter()
         .map(|i| {
+            deadline.check();
             let unoccluded = texture.map_or([1.0; 3], LightTexture::mean);
             if !g.is_hit(i) {
                 return (1.0, unoccluded);

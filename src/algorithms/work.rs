@@ -1,0 +1,170 @@
+//! Work estimates made before a run, beside the memory estimate: the *fill* an algorithm will
+//! generate (fragments, texels or samples rasterised or tested, the design's unit), from the run
+//! parameters, the scene's light and bounds, and the algorithm's options.
+//!
+//! These are *estimated* figures (the third kind of cost figure, never mixed with measured or
+//! modelled ones): first-order formulas for the order of magnitude, not calibrated predictions.
+//! The one quantity they share is the width of a penumbra in texels of a map (or pixels of an
+//! image) that frames the scene, [`penumbra_texels`]; the cost of the soft algorithms grows with
+//! it (002's penumbra extents, 000's cones and sheets, 001's wedges, 003's volumes, 004's
+//! penumbra quads), which is what makes a wide light at a fine map a runaway run (002 at a map
+//! of 512² with a light 1.5 units wide took minutes). The harness reports the estimate of a
+//! run stopped by `--run-timeout`, and the total of a sweep before it starts.
+
+use glam::Vec3;
+
+use super::{accum_hard, ExecContext};
+use crate::frame::RunParams;
+use crate::scene::{Light, Scene};
+
+/// What the estimates look at in a scene: its light and the centre of its bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneExtent {
+    pub light: Light,
+    pub center: Vec3,
+}
+
+impl SceneExtent {
+    pub fn of(scene: &Scene) -> SceneExtent {
+        SceneExtent {
+            light: scene.light,
+            center: scene.bounds().center(),
+        }
+    }
+}
+
+/// Width in texels of the penumbra of a typical occluder, in a map of `resolution` texels that
+/// frames the scene as seen from the light: by similar triangles the penumbra is the light's
+/// width `2·size` times `(d_r − d_o) / d_o`; with the receivers about a scene half-diagonal
+/// behind the occluders and the map spanning about the scene diagonal, that is
+/// `resolution · size / d`, `d` the light's distance to the scene centre. Clamped to
+/// `[0, resolution]` (a penumbra wider than the map covers the map).
+pub fn penumbra_texels(scene: &SceneExtent, resolution: u32) -> f64 {
+    let d = f64::from((scene.center - scene.light.center()).length());
+    let size = f64::from(scene.light.size());
+    let w = f64::from(resolution) * size / d.max(1e-6);
+    if w.is_finite() {
+        w.clamp(0.0, f64::from(resolution))
+    } else {
+        f64::from(resolution)
+    }
+}
+
+fn pixels(p: &RunParams) -> f64 {
+    f64::from(p.image[0]) * f64::from(p.image[1])
+}
+
+fn texels(p: &RunParams) -> f64 {
+    f64::from(p.map_resolution) * f64::from(p.map_resolution)
+}
+
+/// The ground truth: one shadow ray per pixel and light sample.
+pub fn reference(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
+    pixels(p) * f64::from(ctx.reference_samples)
+}
+
+/// A shadow map: the map's texels once, and one lookup per pixel.
+pub fn hard_shadow_map(_: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+    texels(p) + pixels(p)
+}
+
+/// PCSS: the shadow map, then per pixel the blocker-search and filter taps.
+pub fn pcss(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
+    let o = super::pcss::options(&ctx.options).unwrap_or_default();
+    texels(p) + pixels(p) * f64::from(o.blocker_samples + o.pcf_samples)
+}
+
+/// Accumulated hard shadows: per light sample, a shadow-volume pass over the image (about two
+/// volume faces per pixel) and the accumulation.
+pub fn accum_hard(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
+    let n = super::shadow_map::parse_options::<accum_hard::AccumHardOptions>(
+        accum_hard::ID,
+        &ctx.options,
+    )
+    .unwrap_or_default()
+    .samples;
+    f64::from(n) * pixels(p) * 3.0
+}
+
+/// Penumbra-extent rectangles of every micro-patch (002 §3.3): up to one micro-patch per
+/// occluder-map texel, about a quarter of the map covered by occluders, each extent the patch
+/// plus the penumbra wide; the second pass of two-pass maps doubles it.
+pub fn soft_shadow_map(scene: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
+    let passes =
+        super::soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options).map_or(1, |o| o.passes);
+    let extent = 1.0 + penumbra_texels(scene, p.map_resolution);
+    f64::from(passes) * texels(p) * (2.0 + 0.25 * extent * extent)
+}
+
+/// Silhouette primitives drawn into a map or image of `resolution` texels across: the outline
+/// of the occluders (about twice the resolution long) times the penumbra's width.
+fn outline(scene: &SceneExtent, resolution: u32) -> f64 {
+    2.0 * f64::from(resolution) * (1.0 + penumbra_texels(scene, resolution))
+}
+
+/// Penumbra map: the shadow map, then cones and sheets along the silhouette into the map.
+pub fn penumbra_map(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+    2.0 * texels(p) + outline(scene, p.map_resolution) + pixels(p)
+}
+
+/// Soft shadow volumes: hard shadow quads and penumbra wedges over the image, per pixel they
+/// cover.
+pub fn soft_shadow_volume(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+    2.0 * pixels(p) + outline(scene, p.image[0].max(p.image[1]))
+}
+
+/// D-buffer: umbra and penumbra volumes over the image, then one evaluation per pixel.
+pub fn dbuffer(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+    2.0 * pixels(p) + 2.0 * outline(scene, p.image[0].max(p.image[1]))
+}
+
+/// Soft irregular shadow mapping: the eye samples into the light-space grid, the umbra by
+/// irregular rasterization, and the penumbra quads along the silhouette in the grid.
+pub fn soft_izb(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+    3.0 * pixels(p) + outline(scene, p.map_resolution)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::generators::{self, GeneratorParams};
+
+    fn scene(light_size: f32) -> SceneExtent {
+        let mut s = generators::find("sphere-on-plane")
+            .unwrap()
+            .build(&GeneratorParams::default());
+        s.light = s.light.with_size(light_size);
+        SceneExtent::of(&s)
+    }
+
+    fn params(map: u32) -> RunParams {
+        RunParams {
+            triangles: 1000,
+            light_size: 1.5,
+            map_resolution: map,
+            tile_size: 32,
+            image: [160, 120],
+            occluder_height: None,
+            occluder_offset: None,
+            cores: None,
+        }
+    }
+
+    #[test]
+    fn a_penumbra_widens_with_the_light_and_the_map() {
+        let (small, wide) = (scene(0.1), scene(1.5));
+        assert!(penumbra_texels(&wide, 512) > 10.0 * penumbra_texels(&small, 512));
+        assert!(penumbra_texels(&wide, 512) > 1.9 * penumbra_texels(&wide, 256));
+        assert!(penumbra_texels(&scene(1e30), 512) <= 512.0);
+    }
+
+    #[test]
+    fn soft_shadow_map_work_grows_with_the_fourth_power_of_the_map_at_a_wide_light() {
+        let ctx = ExecContext::default();
+        let wide = scene(1.5);
+        let r =
+            soft_shadow_map(&wide, &params(512), &ctx) / soft_shadow_map(&wide, &params(128), &ctx);
+        // texels × extent²: 4² × about 4² once the penumbra dominates the extent.
+        assert!(r > 100.0 && r < 300.0, "{r}");
+    }
+}
