@@ -8,7 +8,10 @@
 pub mod charts;
 pub mod claims;
 pub mod compare;
+pub mod font;
 pub mod html;
+pub mod style;
+pub mod summary;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -33,7 +36,8 @@ pub struct Report {
     pub charts: Vec<charts::Written>,
 }
 
-/// Writes the charts (`charts/*.png`, `charts/*.svg`) and `index.html` into `out`. The images
+/// Writes the charts (`charts/*.png`, `charts/*.svg`), the summary at the base point
+/// (`summary.csv`, `summary.tex`) and `index.html` into `out`. The images
 /// of each run are expected under `out/images/<case_id>/` (see [`import_images`]); the page
 /// shows only the ones that exist there.
 pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
@@ -43,8 +47,15 @@ pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
     for spec in charts::plan(&results.runs) {
         written.push(charts::render(&spec, &chart_dir)?);
     }
+    let ok: Vec<&RunRecord> = results.runs.iter().filter(|r| r.failure.is_none()).collect();
+    let summary = summary::Summary::of(&ok);
+    if let Some(s) = &summary {
+        crate::visibility::write_atomic(&out.join("summary.csv"), s.csv().as_bytes())?;
+        let tex = s.latex(&results.scenario);
+        crate::visibility::write_atomic(&out.join("summary.tex"), tex.as_bytes())?;
+    }
     let index = out.join("index.html");
-    let page = html::page(out, results, &written);
+    let page = html::page(out, results, &written, summary.as_ref());
     crate::visibility::write_atomic(&index, page.as_bytes())?;
     Ok(Report {
         index,
