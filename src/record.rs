@@ -119,6 +119,12 @@ impl RunRecord {
     }
 }
 
+/// A light size as written in case ids (folder names), `results.csv` and progress lines: the
+/// shortest decimal that reads back as the same `f32` (`0.6`, not `0.6000000238418579`).
+pub fn fmt_light_size(v: f32) -> String {
+    v.to_string()
+}
+
 /// The identifier of a run: scene, algorithm, backend and every parameter.
 pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> String {
     {
@@ -128,7 +134,7 @@ pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> St
             algorithm,
             backend,
             p.triangles,
-            p.light_size,
+            fmt_light_size(p.light_size),
             p.map_resolution,
             p.tile_size,
             p.image[0],

@@ -20,6 +20,7 @@ fn run(loaded: &Loaded, out: &Path, cache: &Path, shard: Option<Shard>) -> Vec<R
             memory_limit: harness::limits::default_limit(),
             machine: None,
             shard,
+            verbosity: harness::Verbosity::Quiet,
         },
     )
     .unwrap()

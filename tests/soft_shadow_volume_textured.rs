@@ -382,6 +382,7 @@ fn a_textured_run_writes_the_rgb_image() {
             memory_limit: u64::MAX,
             machine: None,
             shard: None,
+            verbosity: shadowbench::harness::Verbosity::Quiet,
         },
     )
     .unwrap();
