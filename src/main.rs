@@ -594,8 +594,13 @@ fn diff(a: PathBuf, b: PathBuf, out: PathBuf) -> Result<()> {
         (x, y) => x.or(y),
     };
     let (img, d) = images::difference(&va, &vb, mask.as_deref());
-    if out.extension().is_none_or(|e| !e.eq_ignore_ascii_case("png")) {
-        return Err(InputError::new("--out", format!("'{}' is not a .png file", out.display())).into());
+    if out
+        .extension()
+        .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
+    {
+        return Err(
+            InputError::new("--out", format!("'{}' is not a .png file", out.display())).into(),
+        );
     }
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;

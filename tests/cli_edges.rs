@@ -44,15 +44,36 @@ fn a_run_selecting_nothing_says_so_and_writes_nothing() {
     // The scenario has no pcss; and no wgpu execution.
     for args in [
         vec!["run", &s, "--only", "pcss", "--out", out_s],
-        vec!["run", &s, "--only", "hard_shadow_map", "--backend", "wgpu", "--out", out_s],
+        vec![
+            "run",
+            &s,
+            "--only",
+            "hard_shadow_map",
+            "--backend",
+            "wgpu",
+            "--out",
+            out_s,
+        ],
         // reference has only cpu-native.
-        vec!["run", &s, "--only", "reference", "--backend", "cpu-model", "--out", out_s],
+        vec![
+            "run",
+            &s,
+            "--only",
+            "reference",
+            "--backend",
+            "cpu-model",
+            "--out",
+            out_s,
+        ],
     ] {
         let o = shadowbench(&args);
         let e = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
         assert!(e.contains("no run selected"), "{args:?}: {e}");
-        assert!(e.contains("edges.json") && e.contains("hard_shadow_map"), "{e}");
+        assert!(
+            e.contains("edges.json") && e.contains("hard_shadow_map"),
+            "{e}"
+        );
         assert!(!out.exists(), "{args:?} wrote {}", out.display());
         assert!(!stdout(&o).contains("results in"), "{}", stdout(&o));
     }
@@ -131,11 +152,7 @@ fn compare_of_different_scenarios_says_so_first() {
     let dir = tempfile::tempdir().unwrap();
     let file = |name: &str| {
         let p = dir.path().join(format!("{name}.json"));
-        std::fs::write(
-            &p,
-            format!(r#"{{"scenario": "{name}", "runs": []}}"#),
-        )
-        .unwrap();
+        std::fs::write(&p, format!(r#"{{"scenario": "{name}", "runs": []}}"#)).unwrap();
         p.to_str().unwrap().to_string()
     };
     let (a, b) = (file("ci"), file("quick"));
@@ -143,7 +160,9 @@ fn compare_of_different_scenarios_says_so_first() {
     let text = stdout(&o);
     let first = text.lines().next().unwrap_or_default();
     assert!(
-        first.contains("different scenarios") && first.contains("'ci'") && first.contains("'quick'"),
+        first.contains("different scenarios")
+            && first.contains("'ci'")
+            && first.contains("'quick'"),
         "{text}"
     );
 }

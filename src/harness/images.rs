@@ -43,7 +43,12 @@ pub fn write_masked_png(v: &VisibilityBuffer, mask: &[bool], path: &Path) -> Res
         .data
         .iter()
         .zip(mask)
-        .flat_map(|(x, &m)| [(x.clamp(0.0, 1.0) * 255.0).round() as u8, if m { 255 } else { 0 }])
+        .flat_map(|(x, &m)| {
+            [
+                (x.clamp(0.0, 1.0) * 255.0).round() as u8,
+                if m { 255 } else { 0 },
+            ]
+        })
         .collect();
     image::GrayAlphaImage::from_raw(v.width, v.height, bytes)
         .expect("buffer size matches image size")
@@ -104,7 +109,11 @@ pub fn difference(
     b: &VisibilityBuffer,
     mask: Option<&[bool]>,
 ) -> (image::RgbImage, Difference) {
-    assert_eq!((a.width, a.height), (b.width, b.height), "image sizes differ");
+    assert_eq!(
+        (a.width, a.height),
+        (b.width, b.height),
+        "image sizes differ"
+    );
     let mut img = image::RgbImage::new(a.width, a.height);
     let (mut n, mut sum, mut max, mut over) = (0u64, 0.0f64, 0.0f64, 0u64);
     for (i, px) in img.pixels_mut().enumerate() {
@@ -160,7 +169,11 @@ pub fn load_run(arg: &Path) -> Result<(VisibilityBuffer, Option<Vec<bool>>)> {
         if m.len() != v.data.len() {
             return Err(InputError::file(
                 &mask_path,
-                format!("{} pixels, but the visibility has {}", m.len(), v.data.len()),
+                format!(
+                    "{} pixels, but the visibility has {}",
+                    m.len(),
+                    v.data.len()
+                ),
             )
             .into());
         }

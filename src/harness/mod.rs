@@ -7,9 +7,9 @@ pub mod output;
 pub mod shard;
 
 use std::collections::BTreeMap;
+use std::io::IsTerminal;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
-use std::io::IsTerminal;
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
@@ -172,7 +172,10 @@ fn nothing_selected(
     );
     if s.backends.iter().any(|b| b == "wgpu")
         && !usable.contains(&Backend::Wgpu)
-        && opts.backends.as_ref().is_none_or(|b| b.contains(&Backend::Wgpu))
+        && opts
+            .backends
+            .as_ref()
+            .is_none_or(|b| b.contains(&Backend::Wgpu))
     {
         message.push_str("; the wgpu execution has no adapter here");
     }

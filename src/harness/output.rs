@@ -231,7 +231,15 @@ mod tests {
         let rows = parse(&phases_csv(std::slice::from_ref(&r)));
         assert_eq!(
             rows[0],
-            ["case_id", "algorithm", "backend", "scene", "phase", "time", "ms"]
+            [
+                "case_id",
+                "algorithm",
+                "backend",
+                "scene",
+                "phase",
+                "time",
+                "ms"
+            ]
         );
         // Two phases, each with a wall and a modelled time, no GPU time.
         assert_eq!(rows.len(), 1 + 4);

@@ -164,12 +164,21 @@ mod tests {
         // sbatch --array=1-4: tasks 1..=4 are shards 1/4..4/4.
         for id in 1..=4 {
             let id_s = id.to_string();
-            let vars = [(SLURM_ID, id_s.as_str()), (SLURM_COUNT, "4"), (SLURM_MIN, "1")];
+            let vars = [
+                (SLURM_ID, id_s.as_str()),
+                (SLURM_COUNT, "4"),
+                (SLURM_MIN, "1"),
+            ];
             let (s, var) = Shard::from_env(env(&vars), None).unwrap().unwrap();
             assert_eq!((s.index, s.count, var), (id, 4, SLURM_ID));
         }
         // --array=0-10:5 → tasks 0, 5, 10 are shards 1, 2, 3 of 3.
-        let vars = [(SLURM_ID, "10"), (SLURM_COUNT, "3"), (SLURM_MIN, "0"), (SLURM_STEP, "5")];
+        let vars = [
+            (SLURM_ID, "10"),
+            (SLURM_COUNT, "3"),
+            (SLURM_MIN, "0"),
+            (SLURM_STEP, "5"),
+        ];
         let (s, _) = Shard::from_env(env(&vars), None).unwrap().unwrap();
         assert_eq!((s.index, s.count), (3, 3));
         // Off the step, or beyond the count: named errors.

@@ -379,7 +379,12 @@ fn phase_charts(ok: &[&RunRecord]) -> Vec<Spec> {
         .copied()
         .filter(|r| super::summary::case_key(r) == base)
         .collect();
-    at.sort_by_key(|r| (style::algorithm_rank(&r.algorithm), style::execution_rank(&r.backend)));
+    at.sort_by_key(|r| {
+        (
+            style::algorithm_rank(&r.algorithm),
+            style::execution_rank(&r.backend),
+        )
+    });
     let mut specs = Vec::new();
     for (id, name) in TIMES {
         let mut panels: Vec<Panel> = Vec::new();
@@ -820,10 +825,9 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, spec: &Spec) -> DrawR
     let (grid, legend) = body.split_horizontally(cols * w);
     for (i, panel) in spec.panels.iter().enumerate() {
         let (c, r) = (i as u32 % cols, i as u32 / cols);
-        let area = grid.clone().shrink(
-            (c * w, r * PANEL_HEIGHT),
-            (w, PANEL_HEIGHT),
-        );
+        let area = grid
+            .clone()
+            .shrink((c * w, r * PANEL_HEIGHT), (w, PANEL_HEIGHT));
         let (head, plot) = area.split_vertically(26);
         head.draw(&Text::new(
             panel.title.clone(),
@@ -901,7 +905,11 @@ fn tick_axis(values: &[f64], from_zero: bool) -> (TickAxis, bool) {
         let mut bold = Vec::new();
         let mut light = Vec::new();
         let decades = hi - lo;
-        let mults: &[f64] = if decades < 3.0 { &[1.0, 2.0, 5.0] } else { &[1.0] };
+        let mults: &[f64] = if decades < 3.0 {
+            &[1.0, 2.0, 5.0]
+        } else {
+            &[1.0]
+        };
         let step = if decades > 8.0 { 2 } else { 1 };
         for k in (lo.floor() as i32)..=(hi.ceil() as i32) {
             for m in 1..10 {
@@ -950,7 +958,11 @@ fn tick_axis(values: &[f64], from_zero: bool) -> (TickAxis, bool) {
         bold.push((v / step).round() * step);
         v += step;
     }
-    let light = bold.iter().map(|b| b + step / 2.0).filter(|v| *v < hi).collect();
+    let light = bold
+        .iter()
+        .map(|b| b + step / 2.0)
+        .filter(|v| *v < hi)
+        .collect();
     (
         TickAxis {
             range: lo..hi,
@@ -976,8 +988,16 @@ fn tick_label(v: f64, log: bool) -> String {
 }
 
 fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> DrawResult {
-    let xs: Vec<f64> = c.series.iter().flat_map(|s| s.points.iter().map(|p| p.0)).collect();
-    let ys: Vec<f64> = c.series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).collect();
+    let xs: Vec<f64> = c
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.0))
+        .collect();
+    let ys: Vec<f64> = c
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.1))
+        .collect();
     if xs.is_empty() {
         return Ok(());
     }
@@ -1021,7 +1041,8 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
         }
         for &p in &pts {
             let (px, py) = chart.backend_coord(&p);
-            draw_marker(area, (px - ox, py - oy), marker, col, 5)?;
+            let size = if c.lines { 5 } else { 7 };
+            draw_marker(area, (px - ox, py - oy), marker, col, size)?;
         }
     }
     if let Some(front) = &c.front {
@@ -1075,11 +1096,20 @@ fn draw_marker<DB: DrawingBackend>(
             fill,
         )),
         Marker::Triangle => area.draw(&Polygon::new(
-            vec![(x, y - size - 1), (x + size + 1, y + size), (x - size - 1, y + size)],
+            vec![
+                (x, y - size - 1),
+                (x + size + 1, y + size),
+                (x - size - 1, y + size),
+            ],
             fill,
         )),
         Marker::Diamond => area.draw(&Polygon::new(
-            vec![(x, y - size - 1), (x + size + 1, y), (x, y + size + 1), (x - size - 1, y)],
+            vec![
+                (x, y - size - 1),
+                (x + size + 1, y),
+                (x, y + size + 1),
+                (x - size - 1, y),
+            ],
             fill,
         )),
     }
@@ -1101,7 +1131,7 @@ fn phase_names(bars: &[Bar]) -> Vec<String> {
 /// The colour of the `i`-th phase: the algorithm's colour, lighter for later phases.
 fn phase_color(s: &Stacked, i: usize) -> RGBColor {
     let n = phase_names(&s.bars).len().max(2) - 1;
-    style::tint(s.color, 0.7 * i as f64 / n as f64)
+    style::tint(s.color, 0.65 * i as f64 / n as f64)
 }
 
 fn draw_stacked<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, s: &Stacked) -> DrawResult {
@@ -1139,12 +1169,20 @@ fn draw_stacked<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, s: &Stacked) 
             let k = b.parts.iter().position(|p| p.0 == *phase)?;
             let below: f64 = b.parts[..k].iter().map(|p| p.1).sum();
             let x = bi as f64;
-            Some(Rectangle::new(
-                [(x - 0.32, below), (x + 0.32, below + b.parts[k].1)],
-                col.filled(),
-            ))
+            Some([(x - 0.32, below), (x + 0.32, below + b.parts[k].1)])
         });
-        chart.draw_series(rects).map_err(err)?;
+        let rects: Vec<[(f64, f64); 2]> = rects.collect();
+        chart
+            .draw_series(rects.iter().map(|c| Rectangle::new(*c, col.filled())))
+            .map_err(err)?;
+        // A white edge between stacked phases.
+        chart
+            .draw_series(
+                rects
+                    .iter()
+                    .map(|c| Rectangle::new(*c, WHITE.stroke_width(1))),
+            )
+            .map_err(err)?;
     }
     // Bar names under the axis, on up to two lines so long names do not collide.
     let (ox, oy) = area.get_base_pixel();
@@ -1176,21 +1214,21 @@ fn draw_legend<DB: DrawingBackend>(
     for (i, e) in entries.iter().enumerate() {
         let y = top + 22 * i as i32;
         if e.square {
-            area.draw(&Rectangle::new([(14, y - 7), (28, y + 7)], e.color.filled()))
-                .map_err(err)?;
+            area.draw(&Rectangle::new(
+                [(14, y - 7), (28, y + 7)],
+                e.color.filled(),
+            ))
+            .map_err(err)?;
         }
         if let Some(d) = e.dash {
             let s = e.color.stroke_width(2);
             match d {
                 Dash::Solid => area.draw(&PathElement::new(vec![(6, y), (36, y)], s)),
-                Dash::Dashed => area.draw(&PathElement::new(vec![(6, y), (15, y)], s)).and(
-                    area.draw(&PathElement::new(vec![(20, y), (29, y)], s)),
-                ),
+                Dash::Dashed => area
+                    .draw(&PathElement::new(vec![(6, y), (15, y)], s))
+                    .and(area.draw(&PathElement::new(vec![(20, y), (29, y)], s))),
                 Dash::Dotted => (0..6).try_for_each(|k| {
-                    area.draw(&PathElement::new(
-                        vec![(6 + 6 * k, y), (8 + 6 * k, y)],
-                        s,
-                    ))
+                    area.draw(&PathElement::new(vec![(6 + 6 * k, y), (8 + 6 * k, y)], s))
                 }),
             }
             .map_err(err)?;
@@ -1340,7 +1378,10 @@ mod tests {
             }
         }
         // 9 algorithms on one execution: split in two panels; every series still drawn once.
-        let wall = specs.iter().find(|s| s.file == "wall_ms_vs_triangles").unwrap();
+        let wall = specs
+            .iter()
+            .find(|s| s.file == "wall_ms_vs_triangles")
+            .unwrap();
         let drawn: Vec<String> = wall.panels.iter().flat_map(|p| p.series_names()).collect();
         let mut expect: Vec<String> = runs.iter().map(series_name).collect();
         expect.sort();
@@ -1348,9 +1389,17 @@ mod tests {
         let mut got = drawn.clone();
         got.sort();
         assert_eq!(got, expect);
-        assert_eq!(wall.panels.len(), 6, "{:?}", wall.panels.iter().map(|p| &p.title).collect::<Vec<_>>());
+        assert_eq!(
+            wall.panels.len(),
+            6,
+            "{:?}",
+            wall.panels.iter().map(|p| &p.title).collect::<Vec<_>>()
+        );
         // GPU time exists on wgpu only: one execution.
-        let gpu = specs.iter().find(|s| s.file == "gpu_ms_vs_triangles").unwrap();
+        let gpu = specs
+            .iter()
+            .find(|s| s.file == "gpu_ms_vs_triangles")
+            .unwrap();
         assert!(gpu.panels.iter().all(|p| p.title.starts_with("wgpu")));
     }
 
@@ -1361,7 +1410,12 @@ mod tests {
             let legend: Vec<String> = s.legend().into_iter().map(|e| e.label).collect();
             for p in &s.panels {
                 for se in &xy(p).series {
-                    assert!(legend.contains(&se.algorithm), "{}: {}", s.file, se.algorithm);
+                    assert!(
+                        legend.contains(&se.algorithm),
+                        "{}: {}",
+                        s.file,
+                        se.algorithm
+                    );
                     assert!(legend.contains(&se.backend), "{}: {}", s.file, se.backend);
                 }
                 if xy(p).front.is_some() {
@@ -1524,7 +1578,10 @@ mod tests {
         assert!(log);
         let labels: Vec<String> = a.bold.iter().map(|v| tick_label(*v, true)).collect();
         // Two decades: decades and 2×, 5× between.
-        assert_eq!(labels, ["100", "200", "500", "1000", "2000", "5000", "10000"]);
+        assert_eq!(
+            labels,
+            ["100", "200", "500", "1000", "2000", "5000", "10000"]
+        );
         let (a, _) = tick_axis(&[1e-6, 1e3], false);
         let labels: Vec<String> = a.bold.iter().map(|v| tick_label(*v, true)).collect();
         assert_eq!(labels, ["1e-6", "1e-4", "0.01", "1", "100"]);

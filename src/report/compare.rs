@@ -418,7 +418,9 @@ mod tests {
         let text = c.render();
         let first = text.lines().next().unwrap();
         assert!(
-            first.contains("different scenarios") && first.contains("'ci'") && first.contains("'quick'"),
+            first.contains("different scenarios")
+                && first.contains("'ci'")
+                && first.contains("'quick'"),
             "{text}"
         );
         // The same scenario: no such line.

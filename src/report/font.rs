@@ -79,9 +79,8 @@ pub fn ensure() -> Result<()> {
                 Cow::Borrowed(b) => b,
                 Cow::Owned(v) => Box::leak(v.into_boxed_slice()),
             };
-            plotters::style::register_font(FAMILY, FontStyle::Normal, bytes).map_err(|_| {
-                format!("chart font {source:?}: not a TrueType/OpenType font")
-            })
+            plotters::style::register_font(FAMILY, FontStyle::Normal, bytes)
+                .map_err(|_| format!("chart font {source:?}: not a TrueType/OpenType font"))
         })
         .clone()
         .map_err(Error::Other)
@@ -115,7 +114,10 @@ mod tests {
             Source::File(font.clone())
         );
         let e = choose(Some(dir.path().join("gone.ttf").into()), &[f]).unwrap_err();
-        assert!(e.contains("SHADOWBENCH_FONT") && e.contains("gone.ttf"), "{e}");
+        assert!(
+            e.contains("SHADOWBENCH_FONT") && e.contains("gone.ttf"),
+            "{e}"
+        );
         assert_eq!(load(&Source::File(font)).unwrap(), dejavu::sans::regular());
     }
 }

@@ -38,9 +38,9 @@ tr.fail td{background:#fde8e8}td.status-fail{color:#b00;font-weight:bold;text-al
 figure{display:block;margin:0 0 2em 0;max-width:1800px}\
 figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:13px;color:#555}\
 .gallery td{text-align:center;vertical-align:top;padding:2px}.gallery img{image-rendering:pixelated;width:160px;border:1px solid #bbb;\
-background:repeating-conic-gradient(#28303a 0% 25%,#343c48 0% 50%) 50%/12px 12px}.gallery th{text-align:center}\
+background:repeating-conic-gradient(#28303a 0% 25%,#343c48 0% 50%) 50%/12px 12px}.gallery th{text-align:center}.gallery td.t{text-align:left;white-space:nowrap}\
 details.case{margin:0 0 1em 0}details.case>summary{cursor:pointer;margin:.4em 0}\
-.none{color:#999}nav{background:#f7f7f7;border:1px solid #ddd;padding:.5em 1em;display:inline-block}\
+.none{color:#999}nav{background:#f7f7f7;border:1px solid #ddd;padding:.5em 1em;max-width:1200px}nav li{margin:.15em 0}\
 .sw{display:inline-block;width:.9em;height:.9em;margin-right:.4em;vertical-align:middle;border-radius:2px}\
 td.pareto{font-weight:bold}dl{margin:0;text-align:left}dt{font-weight:bold}dd{margin:0 0 .3em 1em;max-width:40em}\
 figure img{max-width:100%}";
@@ -96,13 +96,27 @@ pub fn page(
         h.push_str("<li><a href=\"#claims\">Paper claims</a></li>");
     }
     h.push_str("<li><a href=\"#charts\">Charts</a><ul>");
+    // One line per group (against an axis, per phase, per run of a series).
+    let mut groups: Vec<(String, Vec<(&str, String)>)> = Vec::new();
     for c in &other_charts {
-        let _ = write!(
-            h,
-            "<li><a href=\"#chart-{}\">{}</a></li>",
-            attr(&c.file),
-            text(&c.title)
-        );
+        let (group, name) = match c.title.split_once(" vs. ") {
+            Some((m, axis)) => (format!("against {axis}"), m.to_string()),
+            None => match c.title.split_once(", every run of ") {
+                Some((t, series)) => (format!("{t}, every run"), series.to_string()),
+                None => ("at the base point".to_string(), c.title.clone()),
+            },
+        };
+        match groups.iter_mut().find(|g| g.0 == group) {
+            Some(g) => g.1.push((&c.file, name)),
+            None => groups.push((group, vec![(&c.file, name)])),
+        }
+    }
+    for (group, links) in groups {
+        let links: Vec<String> = links
+            .iter()
+            .map(|(f, n)| format!("<a href=\"#chart-{}\">{}</a>", attr(f), text(n)))
+            .collect();
+        let _ = write!(h, "<li>{}: {}</li>", text(&group), links.join(" · "));
     }
     h.push_str(
         "</ul></li><li><a href=\"#images\">Images</a></li>\
@@ -320,6 +334,7 @@ fn runs_table(runs: &[RunRecord]) -> String {
         "mae_shadow",
         "status",
         "execution",
+        "case id (image folder)",
     ] {
         let _ = write!(h, "<th>{c}</th>");
     }
@@ -361,7 +376,13 @@ fn runs_table(runs: &[RunRecord]) -> String {
         }
         h.push_str(&status);
         h.push_str(&execution_cell(r));
-        h.push_str("</tr>\n");
+        let case = r.case_id();
+        let _ = writeln!(
+            h,
+            "<td class=\"t\"><a href=\"{}\">{}</a></td></tr>",
+            attr(&url(&format!("images/{case}/"))),
+            text(&case)
+        );
     }
     h.push_str("</table>\n");
     h
@@ -429,8 +450,16 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
         })
     };
     for (ci, key) in cases.iter().enumerate() {
-        let mut at: Vec<&RunRecord> = runs.iter().filter(|r| summary::case_key(r) == *key).collect();
-        at.sort_by_key(|r| (style::algorithm_rank(&r.algorithm), style::execution_rank(&r.backend)));
+        let mut at: Vec<&RunRecord> = runs
+            .iter()
+            .filter(|r| summary::case_key(r) == *key)
+            .collect();
+        at.sort_by_key(|r| {
+            (
+                style::algorithm_rank(&r.algorithm),
+                style::execution_rank(&r.backend),
+            )
+        });
         let mut backends: Vec<&str> = at.iter().map(|r| r.backend.as_str()).collect();
         backends.sort_by_key(|b| style::execution_rank(b));
         backends.dedup();
@@ -441,7 +470,11 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
                 .is_file()
         });
         let files: Vec<(&str, &str)> = {
-            let mut f = vec![("shaded.png", "shaded"), ("visibility.png", "visibility"), ("error.png", "error")];
+            let mut f = vec![
+                ("shaded.png", "shaded"),
+                ("visibility.png", "visibility"),
+                ("error.png", "error"),
+            ];
             if rgb {
                 f.push(("visibility_rgb.png", "light received (rgb)"));
             }
@@ -462,7 +495,10 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
             .find(|r| r.algorithm == "reference")
             .and_then(|r| {
                 let d = format!("images/{}", r.case_id());
-                Some((img(&format!("{d}/shaded.png"), "reference shaded"), img(&format!("{d}/visibility.png"), "reference")?))
+                Some((
+                    img(&format!("{d}/shaded.png"), "reference shaded"),
+                    img(&format!("{d}/visibility.png"), "reference")?,
+                ))
             })
             .or_else(|| {
                 at.iter().find_map(|r| {

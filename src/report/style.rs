@@ -139,7 +139,10 @@ mod tests {
         assert_eq!(algorithm_color("reference"), REFERENCE);
         // Stable: the same name gives the same colour.
         assert_eq!(algorithm_color("pcss"), algorithm_color("pcss"));
-        assert_eq!(algorithm_color("not-registered"), algorithm_color("not-registered"));
+        assert_eq!(
+            algorithm_color("not-registered"),
+            algorithm_color("not-registered")
+        );
     }
 
     #[test]

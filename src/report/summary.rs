@@ -179,7 +179,9 @@ impl Summary {
                         backend: b.clone(),
                         mae_shadow: r.error.as_ref().map(|e| e.mae_shadow),
                         restricted: restricted_error(r),
-                        costs: COSTS.each_ref().map(|c| (c.value)(r).filter(|v| v.is_finite())),
+                        costs: COSTS
+                            .each_ref()
+                            .map(|c| (c.value)(r).filter(|v| v.is_finite())),
                         pareto: [false; 4],
                     });
                 }
@@ -190,16 +192,19 @@ impl Summary {
                         .collect();
                     for (i, p) in pts.iter().enumerate() {
                         let Some(p) = p else { continue };
-                        let dominated = pts.iter().flatten().any(|q| {
-                            q.0 <= p.0 && q.1 <= p.1 && (q.0 < p.0 || q.1 < p.1)
-                        });
+                        let dominated = pts
+                            .iter()
+                            .flatten()
+                            .any(|q| q.0 <= p.0 && q.1 <= p.1 && (q.0 < p.0 || q.1 < p.1));
                         rows[i].pareto[ci] = !dominated;
                     }
                 }
                 rows.sort_by(|a, b| {
                     let q = |r: &Row| r.mae_shadow.unwrap_or(f64::INFINITY);
-                    q(a).total_cmp(&q(b))
-                        .then(style::algorithm_rank(&a.algorithm).cmp(&style::algorithm_rank(&b.algorithm)))
+                    q(a).total_cmp(&q(b)).then(
+                        style::algorithm_rank(&a.algorithm)
+                            .cmp(&style::algorithm_rank(&b.algorithm)),
+                    )
                 });
                 Execution { backend: b, rows }
             })
@@ -358,7 +363,11 @@ impl Summary {
                 s.push_str("\\midrule\n");
             }
             for (j, r) in e.rows.iter().enumerate() {
-                let exec = if j == 0 { tex(&e.backend) } else { String::new() };
+                let exec = if j == 0 {
+                    tex(&e.backend)
+                } else {
+                    String::new()
+                };
                 let _ = write!(
                     s,
                     "{exec} & {} & {}",
@@ -397,7 +406,13 @@ mod tests {
     /// An `each` sweep: base (2000 triangles, light 0.5), triangles 500/8000, light 0.2/1.0.
     fn sweep() -> Vec<RunRecord> {
         let mut runs = Vec::new();
-        for (t, l) in [(2000, 0.5), (500, 0.5), (8000, 0.5), (2000, 0.2), (2000, 1.0)] {
+        for (t, l) in [
+            (2000, 0.5),
+            (500, 0.5),
+            (8000, 0.5),
+            (2000, 0.2),
+            (2000, 1.0),
+        ] {
             for (a, mae, wall) in [
                 ("pcss", 0.02, 5.0),
                 ("hard_shadow_map", 0.10, 1.0),
@@ -427,7 +442,10 @@ mod tests {
         let runs = sweep();
         let refs: Vec<&RunRecord> = runs.iter().collect();
         let (key, case) = base_case(&refs).unwrap();
-        assert!(case.contains("2000 triangles") && case.contains("light size 0.5"), "{case}");
+        assert!(
+            case.contains("2000 triangles") && case.contains("light size 0.5"),
+            "{case}"
+        );
         // Reordering the runs (as shards merged in another order) keeps the base point.
         let mut rev = refs.clone();
         rev.reverse();
@@ -444,7 +462,10 @@ mod tests {
         let native = &s.executions[0];
         let algs: Vec<&str> = native.rows.iter().map(|r| r.algorithm.as_str()).collect();
         // The reference has no quality of its own and is not a row.
-        assert_eq!(algs, ["soft_izb", "pcss", "penumbra_map", "hard_shadow_map"]);
+        assert_eq!(
+            algs,
+            ["soft_izb", "pcss", "penumbra_map", "hard_shadow_map"]
+        );
         // Brute force on wall time: soft_izb (best quality), pcss, hard_shadow_map (cheapest)
         // are undominated; penumbra_map is beaten by pcss on both.
         let on: Vec<bool> = native.rows.iter().map(|r| r.pareto[0]).collect();
@@ -452,7 +473,10 @@ mod tests {
         // Only base-point runs: wall times are the base ones.
         assert_eq!(native.rows[0].costs[0], Some(9.0));
         // No modelled time on cpu-native; on cpu-model, its own front.
-        assert!(native.rows.iter().all(|r| r.costs[1].is_none() && !r.pareto[1]));
+        assert!(native
+            .rows
+            .iter()
+            .all(|r| r.costs[1].is_none() && !r.pareto[1]));
         let model = &s.executions[1];
         assert!(model.rows.iter().any(|r| r.pareto[1]));
         assert!(!s.has_restricted);
@@ -470,8 +494,16 @@ mod tests {
             "execution,algorithm,mae_shadow,wall_ms,model_ms,gpu_ms,memory_bytes,pareto_optimal_on"
         );
         assert_eq!(lines.len(), 1 + 8);
-        assert!(lines[1].starts_with("cpu-native,soft_izb,0.015,9,,,"), "{}", lines[1]);
-        assert!(lines[1].ends_with(",wall;memory") || lines[1].ends_with(",wall"), "{}", lines[1]);
+        assert!(
+            lines[1].starts_with("cpu-native,soft_izb,0.015,9,,,"),
+            "{}",
+            lines[1]
+        );
+        assert!(
+            lines[1].ends_with(",wall;memory") || lines[1].ends_with(",wall"),
+            "{}",
+            lines[1]
+        );
         let tex = s.latex("quick");
         assert!(tex.contains("\\toprule") && tex.contains("\\bottomrule"));
         assert!(tex.contains("soft\\_izb") && !tex.contains("soft_izb"));
