@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Loads OUT_DIR/index.html in headless Chromium, takes a screenshot, and fails when the page
-# does not load or any <img> on it is broken.
+# does not load, any <img> on it is broken, or a chart's legend does not name a series the chart
+# draws (read from each chart's SVG: every colour a marker, line or bar is drawn in must also be
+# the colour of a legend swatch with a label beside it).
 #
 #   scripts/check-report.sh OUT_DIR [SCREENSHOT.png]
 #
@@ -67,4 +69,72 @@ if [[ "$broken" -ne 0 ]]; then
     exit 1
 fi
 [[ -s "$shot" ]] || { echo "error: no screenshot written to $shot" >&2; exit 1; }
-echo "report ok: $images images load; screenshot: ${2:-(temporary, not kept)}"
+
+# Legends: every series colour drawn in a chart has a labelled legend swatch.
+charts=$(python3 - "$out" "$index" <<'PY'
+import re, sys, os
+import xml.etree.ElementTree as ET
+
+out, index = sys.argv[1], sys.argv[2]
+page = open(index, encoding="utf-8").read()
+svgs = sorted(set(re.findall(r'href="(charts/[^"]+\.svg)"', page)))
+# Colours of axes, grid and background: not series.
+chrome = {"#000000", "#FFFFFF", "#D7D7D7", "#F0F0F0"}
+bad = []
+
+def num(v):
+    return float(v) if v not in (None, "") else 0.0
+
+def points(e):
+    pts = [tuple(map(float, p.split(","))) for p in e.get("points", "").split()]
+    return pts
+
+for rel in svgs:
+    root = ET.parse(os.path.join(out, rel)).getroot()
+    texts, shapes = [], []
+    for e in root.iter():
+        tag = e.tag.split("}")[-1]
+        if tag == "text":
+            texts.append((num(e.get("x")), num(e.get("y")), "".join(e.itertext()).strip()))
+            continue
+        colour = None
+        for attr in ("fill", "stroke"):
+            c = (e.get(attr) or "").upper()
+            if c.startswith("#") and c not in chrome:
+                colour = c
+        if colour is None:
+            continue
+        if tag == "circle":
+            x, y, r = num(e.get("cx")), num(e.get("cy")), num(e.get("r"))
+            box = (x - r, y - r, x + r, y + r)
+        elif tag == "rect":
+            x, y = num(e.get("x")), num(e.get("y"))
+            box = (x, y, x + num(e.get("width")), y + num(e.get("height")))
+        elif tag in ("polyline", "polygon", "line"):
+            pts = points(e) if tag != "line" else [(num(e.get("x1")), num(e.get("y1"))), (num(e.get("x2")), num(e.get("y2")))]
+            if not pts:
+                continue
+            xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+            box = (min(xs), min(ys), max(xs), max(ys))
+        else:
+            continue
+        shapes.append((colour, box))
+    def labelled(box):
+        # A swatch: small, with a text starting just right of it at the same height.
+        x0, y0, x1, y1 = box
+        if x1 - x0 > 40 or y1 - y0 > 20:
+            return False
+        cy = (y0 + y1) / 2
+        return any(0 <= tx - x1 <= 30 and abs(ty - cy) <= 16 and t for tx, ty, t in texts)
+    drawn = {c for c, _ in shapes}
+    legend = {c for c, b in shapes if labelled(b)}
+    missing = sorted(drawn - legend)
+    if missing:
+        bad.append(f"{rel}: drawn in {', '.join(missing)} with no labelled legend entry")
+if bad:
+    print("\n".join(bad), file=sys.stderr)
+    sys.exit(1)
+print(len(svgs))
+PY
+) || { echo "error: a chart's legend misses a series (above)" >&2; exit 1; }
+echo "report ok: $images images load; every legend of $charts charts names every series drawn; screenshot: ${2:-(temporary, not kept)}"

@@ -23,21 +23,43 @@ use shadowbench::util::paths::slug;
     about = "Benchmark real-time soft-shadow algorithms on wgpu and on a modelled many-core SIMD machine"
 )]
 struct Cli {
-    /// GPU adapter for the wgpu execution: a substring of its name (default: the best found;
-    /// also settable with SHADOWBENCH_ADAPTER).
-    #[arg(long, global = true)]
-    adapter: Option<String>,
     #[command(subcommand)]
     command: Command,
 }
 
+/// The GPU adapter option of the subcommands that use the wgpu execution.
+#[derive(clap::Args)]
+struct AdapterArg {
+    /// GPU adapter for the wgpu execution: a substring of its name (default: the best found,
+    /// discrete > integrated > CPU; also settable with SHADOWBENCH_ADAPTER).
+    #[arg(long, value_name = "NAME")]
+    adapter: Option<String>,
+}
+
+/// The ids of the registered algorithms, for `--algorithm` and `--only`.
+fn algorithm_ids() -> Vec<&'static str> {
+    algorithms::ALGORITHMS.iter().map(|a| a.id).collect()
+}
+
+/// The names of the executions, for `--backend`.
+fn backend_names() -> Vec<&'static str> {
+    Backend::ALL.iter().map(|b| b.name()).collect()
+}
+
 #[derive(Subcommand)]
 enum Command {
-    /// List algorithms, executions, scenes and scenarios.
+    /// List algorithms, executions, machines, scenes and scenarios; with --machine, print one
+    /// machine's full parameters as JSON.
     List {
         /// Folder of scenario files to list.
-        #[arg(long, default_value = "scenarios")]
+        #[arg(long, default_value = "scenarios", value_name = "DIR")]
         scenarios: PathBuf,
+        /// Print this machine preset's (or machine .json file's) full parameters as JSON, to
+        /// copy and edit into a machine file, instead of the lists.
+        #[arg(long, value_name = "NAME")]
+        machine: Option<String>,
+        #[command(flatten)]
+        adapter: AdapterArg,
     },
     /// Render one frame: DIR/visibility.png, DIR/visibility.npy, DIR/run.json.
     Render(RenderArgs),
@@ -46,16 +68,31 @@ enum Command {
     /// Write charts and index.html into DIR from an existing results.json; with several, each
     /// into DIR/<scenario name>/ and DIR/index.html with every paper claim.
     Report {
+        /// results.json files written by `run` or `merge`.
         #[arg(required = true)]
         results: Vec<PathBuf>,
-        #[arg(long)]
+        /// Folder to write the report into.
+        #[arg(long, value_name = "DIR")]
         out: PathBuf,
     },
     /// Join the results of shards into DIR: results.json, results.csv, images and report.
     Merge {
+        /// results.json files of the shards of one sweep.
         #[arg(required = true)]
         results: Vec<PathBuf>,
-        #[arg(long)]
+        /// Folder to write the joined results and report into.
+        #[arg(long, value_name = "DIR")]
+        out: PathBuf,
+    },
+    /// Difference image of two runs' visibility: red where A is brighter, blue where darker,
+    /// background (per A's mask.npy) in blue-grey; prints the mean and largest difference.
+    Diff {
+        /// A run's image folder (images/<case>/ or a render output) or its visibility.npy.
+        a: PathBuf,
+        /// The run to subtract, as A.
+        b: PathBuf,
+        /// PNG to write.
+        #[arg(long, default_value = "out/diff.png", value_name = "FILE")]
         out: PathBuf,
     },
     /// Scene tools: `scene export`.
@@ -65,7 +102,9 @@ enum Command {
     },
     /// Compare the deterministic figures of two results files; exit 1 on a regression.
     Compare {
+        /// The results.json to compare against.
         baseline: PathBuf,
+        /// The results.json to check.
         current: PathBuf,
         /// Largest worsening allowed, in percent.
         #[arg(long, default_value_t = report::compare::DEFAULT_THRESHOLD_PCT)]
@@ -109,16 +148,19 @@ struct RunArgs {
     /// links their reports and evaluates every paper claim over all of their runs.
     #[arg(required = true)]
     scenario: Vec<PathBuf>,
-    #[arg(long, default_value = "out/run")]
+    /// Folder for results.json, results.csv, summary.csv/.tex, images/, charts/, index.html.
+    #[arg(long, default_value = "out/run", value_name = "DIR")]
     out: PathBuf,
-    /// Only these algorithms (comma-separated).
-    #[arg(long, value_delimiter = ',')]
+    /// Only these algorithms (comma-separated); selecting no run of the scenario is an error.
+    #[arg(long, value_delimiter = ',', value_name = "ALGORITHM",
+          value_parser = clap::builder::PossibleValuesParser::new(algorithm_ids()))]
     only: Option<Vec<String>>,
-    /// Only these backends (comma-separated).
-    #[arg(long, value_delimiter = ',')]
+    /// Only these executions (comma-separated).
+    #[arg(long, value_delimiter = ',', value_name = "BACKEND",
+          value_parser = clap::builder::PossibleValuesParser::new(backend_names()))]
     backend: Option<Vec<String>>,
     /// Where to cache reference images (default: OUT/reference-cache).
-    #[arg(long)]
+    #[arg(long, value_name = "DIR")]
     cache_dir: Option<PathBuf>,
     /// Refuse runs whose estimated working set exceeds this many GiB
     /// (default: half of physical memory).
@@ -128,7 +170,10 @@ struct RunArgs {
     /// scenario's `machine`).
     #[arg(long)]
     machine: Option<String>,
-    /// Run only shard K of N of the planned runs (every N-th run, from the K-th).
+    /// Run only shard K of N of the planned runs (every N-th run, from the K-th). Without it,
+    /// inside a Slurm array job K and N come from SLURM_ARRAY_TASK_ID (less
+    /// SLURM_ARRAY_TASK_MIN, over SLURM_ARRAY_TASK_STEP) and SLURM_ARRAY_TASK_COUNT, and in a
+    /// Kubernetes indexed Job K from JOB_COMPLETION_INDEX with N from --shard-count.
     #[arg(long, value_name = "K/N")]
     shard: Option<String>,
     /// Refuse a scenario whose sweep has more points than this.
@@ -138,6 +183,19 @@ struct RunArgs {
     /// work estimate (overrides the scenario's `run_timeout_s`).
     #[arg(long, value_name = "SECONDS")]
     run_timeout: Option<f64>,
+    /// The number of shards when the index comes from the batch system (JOB_COMPLETION_INDEX,
+    /// or SLURM_ARRAY_TASK_ID overriding SLURM_ARRAY_TASK_COUNT).
+    #[arg(long, value_name = "N", conflicts_with = "shard")]
+    shard_count: Option<usize>,
+    /// No progress bar, no line per run, no summary: only warnings, errors and where the
+    /// results are.
+    #[arg(long, short, conflicts_with = "verbose")]
+    quiet: bool,
+    /// One line per finished run also on a terminal.
+    #[arg(long, short)]
+    verbose: bool,
+    #[command(flatten)]
+    adapter: AdapterArg,
 }
 
 #[derive(clap::Args)]
@@ -146,14 +204,22 @@ struct RenderArgs {
     /// .json file.
     #[arg(long, default_value = "sphere-on-plane")]
     scene: String,
-    #[arg(long, default_value = "reference")]
+    /// The algorithm to run.
+    #[arg(long, default_value = "reference",
+          value_parser = clap::builder::PossibleValuesParser::new(algorithm_ids()))]
     algorithm: String,
-    #[arg(long, default_value = "cpu-native")]
+    /// The execution to run it on (the algorithm must have it).
+    #[arg(long, default_value = "cpu-native",
+          value_parser = clap::builder::PossibleValuesParser::new(backend_names()))]
     backend: String,
+    /// Light size: radius of a sphere or disc light, half-width of a square one (scene units;
+    /// default: the scene's).
     #[arg(long)]
     light_size: Option<f32>,
+    /// Shadow-map resolution, texels per side.
     #[arg(long, default_value_t = 512)]
     map_resolution: u32,
+    /// Tile (bin) size of the binned rasterizers, pixels per side.
     #[arg(long, default_value_t = 32)]
     tile_size: u32,
     /// Eye image size, WxH.
@@ -162,6 +228,7 @@ struct RenderArgs {
     /// Target triangle count of a generated scene.
     #[arg(long)]
     triangles: Option<u32>,
+    /// Height of the occluder above the receiver in generated scenes (scene units).
     #[arg(long)]
     occluder_height: Option<f32>,
     /// Lateral offset of the moving occluder along x (scene units; paper 002 §5.2.5).
@@ -173,13 +240,15 @@ struct RenderArgs {
     /// Skip the reference (no quality metrics).
     #[arg(long)]
     no_reference: bool,
+    /// Seed of the scene generators and the reference's sampling (default 1).
     #[arg(long)]
     seed: Option<u64>,
     /// Refuse the run if its estimated working set exceeds this many GiB
     /// (default: half of physical memory).
     #[arg(long)]
     memory_limit: Option<f64>,
-    #[arg(long, default_value = "out/render")]
+    /// Folder for visibility.png, visibility.npy, run.json (and reference.png, error.png).
+    #[arg(long, default_value = "out/render", value_name = "DIR")]
     out: PathBuf,
     /// Modelled machine of cpu-model runs: a preset or a machine .json file.
     #[arg(long, default_value = "larrabee-24")]
@@ -187,6 +256,8 @@ struct RenderArgs {
     /// Core count of the modelled machine (overrides the preset's).
     #[arg(long)]
     cores: Option<u32>,
+    #[command(flatten)]
+    adapter: AdapterArg,
 }
 
 /// `--memory-limit` in bytes, validated.
@@ -208,6 +279,16 @@ fn parse_image(s: &str) -> std::result::Result<[u32; 2], InputError> {
         w.trim().parse().map_err(|_| bad())?,
         h.trim().parse().map_err(|_| bad())?,
     ])
+}
+
+/// `list --machine NAME`: the machine's parameters as pretty JSON.
+fn list_machine(name: &str) -> Result<()> {
+    let m = MachineConfig::resolve("--machine", name, Path::new("."))?;
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&m).expect("machine configs serialize")
+    );
+    Ok(())
 }
 
 fn list(scenarios: &std::path::Path) {
@@ -265,6 +346,20 @@ fn list(scenarios: &std::path::Path) {
 fn render(a: RenderArgs) -> Result<()> {
     let backend = check::backend("--backend", &a.backend)?;
     check::algorithm("--algorithm", &a.algorithm)?;
+    let info = algorithms::find(&a.algorithm).map_err(Error::Unsupported)?;
+    if !info.backends.contains(&backend) {
+        let has: Vec<&str> = info.backends.iter().map(|b| b.name()).collect();
+        return Err(InputError::new(
+            "--backend",
+            format!(
+                "algorithm '{}' has no '{}' execution (it has: {})",
+                a.algorithm,
+                backend,
+                has.join(", ")
+            ),
+        )
+        .into());
+    }
     if backend == Backend::Wgpu {
         // Fail before the (slow) reference when the execution cannot run at all.
         shadowbench::gpu::gpu()?;
@@ -309,7 +404,12 @@ fn render(a: RenderArgs) -> Result<()> {
     if let Some(s) = a.light_size {
         scene.light = scene.light.with_size(s);
     }
-    let info = algorithms::find(&a.algorithm).map_err(Error::Unsupported)?;
+    let kind = info.light_for(scene.light.kind());
+    let converted =
+        (kind != scene.light.kind()).then(|| harness::light_converted(scene.light.kind(), kind));
+    if let Some(w) = &converted {
+        eprintln!("warning: {w}");
+    }
     scene.light = harness::light_for_run(&scene, info)?;
     let params = shadowbench::frame::RunParams {
         occluder_height: a.occluder_height,
@@ -343,6 +443,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let (mut record, out) =
         harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
     notes.annotate(&mut record);
+    record.warnings.extend(converted);
     harness::write_frame_files(
         &a.out,
         &record,
@@ -439,7 +540,18 @@ fn run(a: RunArgs) -> Result<()> {
         shard,
         max_cases,
         run_timeout,
+        shard_count,
+        quiet,
+        verbose,
+        adapter: _,
     } = a;
+    let verbosity = if quiet {
+        harness::Verbosity::Quiet
+    } else if verbose {
+        harness::Verbosity::Verbose
+    } else {
+        harness::Verbosity::Normal
+    };
     // Every scenario is checked before anything runs.
     let loaded = scenario
         .iter()
@@ -455,7 +567,13 @@ fn run(a: RunArgs) -> Result<()> {
     let machine = machine
         .map(|m| MachineConfig::resolve("--machine", &m, Path::new(".")))
         .transpose()?;
-    let shard = shard.map(|s| Shard::parse("--shard", &s)).transpose()?;
+    let shard = match shard {
+        Some(s) => Some(Shard::parse("--shard", &s)?),
+        None => Shard::from_env(|k| std::env::var(k).ok(), shard_count)?.map(|(s, var)| {
+            eprintln!("note: running shard {s} (from {var})");
+            s
+        }),
+    };
     if let Some(only) = &only {
         for a in only {
             check::algorithm("--only", a)?;
@@ -520,9 +638,12 @@ fn run(a: RunArgs) -> Result<()> {
                 shard,
                 max_cases,
                 run_timeout,
+                verbosity,
             },
         )?;
-        print!("{}", harness::summary_table(&results.runs));
+        if verbosity != harness::Verbosity::Quiet {
+            print!("{}", harness::grouped_summary(&results.runs));
+        }
         let written = report::write_report(&out_dir, &results)?;
         let failed = results.runs.iter().filter(|r| r.failure.is_some()).count();
         println!(
@@ -531,15 +652,19 @@ fn run(a: RunArgs) -> Result<()> {
             failed,
             out_dir.join("results.json").display()
         );
-        println!(
-            "report: {} ({} charts)",
-            written.index.display(),
-            written.charts.len()
-        );
+        if verbosity != harness::Verbosity::Quiet {
+            println!(
+                "report: {} ({} charts)",
+                written.index.display(),
+                written.charts.len()
+            );
+        }
         reports.push((dir.clone(), results));
     }
     let claims = report::write_claims(&out, &reports, several)?;
-    print!("{claims}");
+    if verbosity != harness::Verbosity::Quiet {
+        print!("{claims}");
+    }
     if several {
         println!("index: {}", out.join("index.html").display());
     }
@@ -606,6 +731,62 @@ fn merge(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
     Ok(())
 }
 
+fn diff(a: PathBuf, b: PathBuf, out: PathBuf) -> Result<()> {
+    use shadowbench::harness::images;
+    let (va, ma) = images::load_run(&a)?;
+    let (vb, mb) = images::load_run(&b)?;
+    if (va.width, va.height) != (vb.width, vb.height) {
+        return Err(InputError::file(
+            &b,
+            format!(
+                "image is {}×{}, but {} is {}×{}",
+                vb.width,
+                vb.height,
+                a.display(),
+                va.width,
+                va.height
+            ),
+        )
+        .into());
+    }
+    // Pixels that see a surface in both.
+    let mask: Option<Vec<bool>> = match (ma, mb) {
+        (Some(x), Some(y)) => Some(x.iter().zip(&y).map(|(p, q)| *p && *q).collect()),
+        (x, y) => x.or(y),
+    };
+    let (img, d) = images::difference(&va, &vb, mask.as_deref());
+    if out
+        .extension()
+        .is_none_or(|e| !e.eq_ignore_ascii_case("png"))
+    {
+        return Err(
+            InputError::new("--out", format!("'{}' is not a .png file", out.display())).into(),
+        );
+    }
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    img.save(&out)
+        .map_err(|e| Error::Other(format!("{}: {e}", out.display())))?;
+    println!(
+        "{} − {}: {} pixels compared{}; mean |A−B| {:.4}, largest {:.4}, {:.2}% differ by more \
+         than 0.1; wrote {}",
+        a.display(),
+        b.display(),
+        d.pixels,
+        if mask.is_some() {
+            " (those that see a surface)"
+        } else {
+            ""
+        },
+        d.mean_abs,
+        d.max_abs,
+        d.frac_over_0_1 * 100.0,
+        out.display()
+    );
+    Ok(())
+}
+
 /// Prints what moved; `Ok(true)` when the gate passes.
 fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> {
     let old = report::read_results(&baseline)?;
@@ -615,9 +796,54 @@ fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> 
     Ok(!c.regressed())
 }
 
+/// Gives the process a private `XDG_RUNTIME_DIR` when it has none (or one that is not an
+/// absolute path to a folder), as in containers and CI: the Vulkan loader and Mesa's window-system
+/// code otherwise print "XDG_RUNTIME_DIR is invalid or not set" while the GPU is probed, which
+/// reads as if it came from shadowbench. The folder (mode 0700) is under the system's temporary
+/// folder and is removed when the process ends normally; nothing is written into it.
+fn private_runtime_dir() {
+    let valid = std::env::var_os("XDG_RUNTIME_DIR")
+        .map(PathBuf::from)
+        .is_some_and(|p| p.is_absolute() && p.is_dir());
+    if valid {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("shadowbench-runtime-{}", std::process::id()));
+    let mut builder = std::fs::DirBuilder::new();
+    #[cfg(unix)]
+    std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+    if builder.create(&dir).is_ok() {
+        // Single-threaded here: main has not started any thread yet.
+        std::env::set_var("XDG_RUNTIME_DIR", &dir);
+        RUNTIME_DIR.with(|d| *d.borrow_mut() = Some(dir));
+    }
+}
+
+thread_local! {
+    /// The private runtime folder [`private_runtime_dir`] made, removed at exit.
+    static RUNTIME_DIR: std::cell::RefCell<Option<PathBuf>> = const { std::cell::RefCell::new(None) };
+}
+
 fn main() -> ExitCode {
+    let code = real_main();
+    RUNTIME_DIR.with(|d| {
+        if let Some(dir) = d.borrow_mut().take() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    });
+    code
+}
+
+fn real_main() -> ExitCode {
+    private_runtime_dir();
     let cli = Cli::parse();
-    if let Some(name) = &cli.adapter {
+    let adapter = match &cli.command {
+        Command::List { adapter, .. } => adapter.adapter.clone(),
+        Command::Render(a) => a.adapter.adapter.clone(),
+        Command::Run(a) => a.adapter.adapter.clone(),
+        _ => None,
+    };
+    if let Some(name) = &adapter {
         if let Err(e) = shadowbench::gpu::prefer_adapter(name) {
             eprintln!("error: {e}");
             return ExitCode::from(e.exit_code() as u8);
@@ -631,7 +857,10 @@ fn main() -> ExitCode {
         }
     }
     let result = match cli.command {
-        Command::List { scenarios } => {
+        Command::List {
+            machine: Some(m), ..
+        } => list_machine(&m),
+        Command::List { scenarios, .. } => {
             list(&scenarios);
             Ok(())
         }
@@ -642,6 +871,7 @@ fn main() -> ExitCode {
         Command::Scene {
             command: SceneCommand::Export(a),
         } => scene_export(a),
+        Command::Diff { a, b, out } => diff(a, b, out),
         Command::Compare {
             baseline,
             current,

@@ -124,6 +124,12 @@ impl RunRecord {
     }
 }
 
+/// A light size as written in case ids (folder names), `results.csv` and progress lines: the
+/// shortest decimal that reads back as the same `f32` (`0.6`, not `0.6000000238418579`).
+pub fn fmt_light_size(v: f32) -> String {
+    v.to_string()
+}
+
 /// The identifier of a run: scene, algorithm, backend and every parameter. It names the run's
 /// image folder (`images/<case_id>/`), so it is always one safe file name component: the
 /// scene, algorithm and backend (user text in a results file) go through
@@ -138,7 +144,7 @@ pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> St
             slug(algorithm),
             slug(backend),
             p.triangles,
-            p.light_size,
+            fmt_light_size(p.light_size),
             p.map_resolution,
             p.tile_size,
             p.image[0],

@@ -22,6 +22,7 @@ fn run(loaded: &Loaded, out: &Path, cache: &Path, shard: Option<Shard>) -> Vec<R
             shard,
             max_cases: shadowbench::scenario::MAX_CASES,
             run_timeout: None,
+            verbosity: harness::Verbosity::Quiet,
         },
     )
     .unwrap()

@@ -384,6 +384,7 @@ fn a_textured_run_writes_the_rgb_image() {
             shard: None,
             max_cases: shadowbench::scenario::MAX_CASES,
             run_timeout: None,
+            verbosity: shadowbench::harness::Verbosity::Quiet,
         },
     )
     .unwrap();

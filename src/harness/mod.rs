@@ -1,15 +1,17 @@
 //! The sweep runner: scenario → cases → frames → runs → results, written as they complete.
 
 pub mod cache;
+pub mod images;
 pub mod limits;
 pub mod outdir;
 pub mod output;
 pub mod shard;
 
 use std::collections::BTreeMap;
+use std::io::IsTerminal;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -97,6 +99,11 @@ pub fn light_for_run(
         ));
     }
     Ok(light)
+}
+
+/// The warning a run gets when its algorithm needs another light kind than the scene's.
+pub fn light_converted(from: LightKind, to: LightKind) -> String {
+    format!("light converted from {from} to {to} (same centre and size) for this algorithm")
 }
 
 /// Runs one algorithm on one frame and turns its output into a record, with quality against
@@ -260,6 +267,21 @@ pub struct RunOptions {
     /// Wall-clock budget of one run (overrides the scenario's `run_timeout_s`); a run past it
     /// is cancelled and recorded as failed.
     pub run_timeout: Option<std::time::Duration>,
+    /// What is printed while the sweep runs.
+    pub verbosity: Verbosity,
+}
+
+/// What `run` prints while it works.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Verbosity {
+    /// Nothing but warnings and errors: no progress bar, no line per run.
+    Quiet,
+    /// A progress bar on a terminal; one line per finished run on standard output when that is
+    /// not a terminal (a pipe, a CI log).
+    #[default]
+    Normal,
+    /// One line per finished run always, beside the progress bar.
+    Verbose,
 }
 
 /// One planned run.
@@ -267,6 +289,44 @@ struct Planned {
     case: usize,
     algorithm: String,
     backend: Backend,
+}
+
+/// The error when `--only` / `--backend` leave no run of the scenario: what was asked and what
+/// the scenario has.
+fn nothing_selected(
+    loaded: &Loaded,
+    opts: &RunOptions,
+    usable: &[Backend],
+) -> crate::error::InputError {
+    let s = &loaded.scenario;
+    let asked = |v: Option<Vec<String>>| v.map_or("all".to_string(), |v| v.join(","));
+    let mut message = format!(
+        "no run selected: --only {} with --backend {} matches no algorithm × execution of \
+         scenario '{}' (algorithms: {}; backends: {})",
+        asked(opts.only.clone()),
+        asked(
+            opts.backends
+                .as_ref()
+                .map(|b| b.iter().map(|b| b.name().to_string()).collect())
+        ),
+        loaded.name(),
+        s.algorithms.join(", "),
+        s.backends.join(", "),
+    );
+    if s.backends.iter().any(|b| b == "wgpu")
+        && !usable.contains(&Backend::Wgpu)
+        && opts
+            .backends
+            .as_ref()
+            .is_none_or(|b| b.contains(&Backend::Wgpu))
+    {
+        message.push_str("; the wgpu execution has no adapter here");
+    }
+    crate::error::InputError {
+        file: Some(loaded.path.clone()),
+        field: Some("--only/--backend".into()),
+        message,
+    }
 }
 
 /// Runs every case of the scenario; writes `results.json`, `results.csv` and images under
@@ -309,6 +369,9 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
                 }
             }
         }
+    }
+    if plan.is_empty() {
+        return Err(nothing_selected(loaded, opts, &backends).into());
     }
     if let Some(shard) = opts.shard {
         plan = plan
@@ -358,18 +421,22 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         ))
     );
 
-    let bar = ProgressBar::new(plan.len() as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} [{elapsed}<{eta}] {msg}")
-            .expect("valid template"),
-    );
+    let mut progress = Progress::new(plan.len(), opts.verbosity);
+    let bar = progress.bar.clone();
     let mut writer = output::ResultsWriter::new(&opts.out, &loaded.name(), &s.claims);
     let mut current: Option<(usize, Scene)> = None;
     let mut frames: BTreeMap<LightKind, Frame> = BTreeMap::new();
     let mut done = std::collections::HashSet::new();
     for p in &plan {
         let case = &cases[p.case];
-        bar.set_message(format!("{} {} case {}", p.algorithm, p.backend, p.case + 1));
+        bar.set_message(format!(
+            "{} on {} at case {}/{}: {}",
+            p.algorithm,
+            p.backend,
+            p.case + 1,
+            cases.len(),
+            case_label(case)
+        ));
         if current.as_ref().map(|c| c.0) != Some(p.case) {
             current = Some((p.case, loaded.build_scene(case.scene, case.light_size)));
             frames.clear();
@@ -392,8 +459,8 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
             loaded.notes.annotate(&mut record);
             record.failure = Some(e);
+            progress.finished(&record);
             writer.push(record, None, None, None, None)?;
-            bar.inc(1);
             continue;
         }
         let frame = frames.entry(kind).or_insert_with(|| Frame::new(sc, params));
@@ -405,7 +472,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         );
         if !done.insert(id) {
             // Two sweep points resolved to the same run (e.g. a swept value equal to the base).
-            bar.inc(1);
+            progress.skipped();
             continue;
         }
         let reference = if s.reference.enabled {
@@ -417,12 +484,11 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
         loaded.notes.annotate(&mut record);
         if kind != scene.light.kind() {
-            record.warnings.push(format!(
-                "light converted from {} to {} (same centre and size) for this algorithm",
-                scene.light.kind(),
-                kind
-            ));
+            record
+                .warnings
+                .push(light_converted(scene.light.kind(), kind));
         }
+        progress.finished(&record);
         writer.push(
             record,
             out.as_ref().map(|o| &o.visibility),
@@ -430,7 +496,6 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             reference.as_ref(),
             Some(frame),
         )?;
-        bar.inc(1);
     }
     bar.finish_and_clear();
     Ok(writer.into_results())
@@ -468,6 +533,212 @@ fn sweep_work(
             (info.work_estimate)(&extent, &params, ctx)
         })
         .sum()
+}
+
+/// The progress of a sweep: a bar on a terminal (standard error) and, where asked, one line per
+/// finished run on standard output.
+struct Progress {
+    bar: ProgressBar,
+    lines: bool,
+    started: Instant,
+    total: usize,
+    done: usize,
+}
+
+impl Progress {
+    fn new(total: usize, verbosity: Verbosity) -> Progress {
+        let bar = if verbosity == Verbosity::Quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::new(total as u64)
+        };
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{bar:30} {pos}/{len} runs, {elapsed_precise} elapsed, ETA {eta_precise}  {msg}",
+            )
+            .expect("valid template"),
+        );
+        let lines = match verbosity {
+            Verbosity::Quiet => false,
+            Verbosity::Normal => !std::io::stdout().is_terminal(),
+            Verbosity::Verbose => true,
+        };
+        Progress {
+            bar,
+            lines,
+            started: Instant::now(),
+            total,
+            done: 0,
+        }
+    }
+
+    /// A run finished (or failed).
+    fn finished(&mut self, record: &RunRecord) {
+        self.done += 1;
+        if self.lines {
+            let line = progress_line(self.done, self.total, self.started.elapsed(), record);
+            self.bar.suspend(|| println!("{line}"));
+        }
+        self.bar.inc(1);
+    }
+
+    /// A planned run that repeats one already done.
+    fn skipped(&mut self) {
+        self.done += 1;
+        self.bar.inc(1);
+    }
+}
+
+/// `h:mm:ss` or `m:ss`.
+fn clock(d: Duration) -> String {
+    let s = d.as_secs();
+    if s >= 3600 {
+        format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
+    } else {
+        format!("{}:{:02}", s / 60, s % 60)
+    }
+}
+
+/// A case's parameters, short: `2000 tris, light 0.6, map 256, tile 32, 160×120`.
+fn case_label(c: &crate::scenario::Case) -> String {
+    let mut s = Vec::new();
+    if let Some(t) = c.scene.triangles {
+        s.push(format!("{t} tris"));
+    }
+    if let Some(l) = c.light_size {
+        s.push(format!("light {l}"));
+    }
+    s.push(format!("map {}", c.map_resolution));
+    s.push(format!("tile {}", c.tile_size));
+    s.push(format!("{}×{}", c.image[0], c.image[1]));
+    if let Some(h) = c.scene.occluder_height {
+        s.push(format!("height {h}"));
+    }
+    if let Some(d) = c.scene.occluder_offset {
+        s.push(format!("offset {d}"));
+    }
+    if let Some(n) = c.cores {
+        s.push(format!("{n} cores"));
+    }
+    s.join(", ")
+}
+
+/// The line of a finished run: count, elapsed time and ETA, algorithm, execution, the case's
+/// parameters and the outcome.
+pub fn progress_line(done: usize, total: usize, elapsed: Duration, r: &RunRecord) -> String {
+    let eta = if done > 0 {
+        elapsed.mul_f64((total - done.min(total)) as f64 / done as f64)
+    } else {
+        Duration::ZERO
+    };
+    let p = &r.params;
+    let outcome = match (&r.failure, &r.error) {
+        (Some(f), _) => format!("FAILED: {}", f.lines().next().unwrap_or_default()),
+        (None, Some(e)) => format!("{} ms, mae_shadow {:.4}", short(r.wall_ms), e.mae_shadow),
+        (None, None) => format!("{} ms", short(r.wall_ms)),
+    };
+    let width = total.to_string().len();
+    format!(
+        "[{done:>width$}/{total} {} ETA {}] {:<18} {:<10} {} tris, light {}, map {}: {outcome}",
+        clock(elapsed),
+        clock(eta),
+        r.algorithm,
+        r.backend,
+        p.triangles,
+        crate::record::fmt_light_size(p.light_size),
+        p.map_resolution,
+    )
+}
+
+/// Three significant digits.
+fn short(v: f64) -> String {
+    if !v.is_finite() {
+        return v.to_string();
+    }
+    let a = v.abs();
+    if a >= 100.0 || a == 0.0 {
+        format!("{v:.0}")
+    } else if a >= 10.0 {
+        format!("{v:.1}")
+    } else if a >= 1.0 {
+        format!("{v:.2}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+/// The end-of-sweep summary, per algorithm × execution, at most 100 columns wide: runs,
+/// failures, and the range (min–max over the runs) of wall, modelled and GPU time and of
+/// `mae_shadow`.
+pub fn grouped_summary(records: &[RunRecord]) -> String {
+    let mut groups: Vec<(&str, &str)> = records
+        .iter()
+        .map(|r| (r.algorithm.as_str(), r.backend.as_str()))
+        .collect();
+    // Registered order of algorithms and executions, unknown names last.
+    groups.sort_by_key(|(a, b)| {
+        (
+            algorithms::ALGORITHMS
+                .iter()
+                .position(|x| x.id == *a)
+                .unwrap_or(usize::MAX),
+            Backend::ALL
+                .iter()
+                .position(|x| x.name() == *b)
+                .unwrap_or(usize::MAX),
+            *a,
+            *b,
+        )
+    });
+    groups.dedup();
+    let range = |v: Vec<f64>| -> String {
+        let min = v.iter().copied().fold(f64::INFINITY, f64::min);
+        let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        match v.len() {
+            0 => "-".into(),
+            _ if min == max => short(min),
+            _ => format!("{}-{}", short(min), short(max)),
+        }
+    };
+    let mut s = format!(
+        "{:<18} {:<10} {:>4} {:>4} {:>14} {:>14} {:>14} {:>15}\n",
+        "algorithm", "execution", "runs", "fail", "wall ms", "model ms", "gpu ms", "mae_shadow"
+    );
+    for (a, b) in groups {
+        let runs: Vec<&RunRecord> = records
+            .iter()
+            .filter(|r| r.algorithm == a && r.backend == b)
+            .collect();
+        let ok: Vec<&&RunRecord> = runs.iter().filter(|r| r.failure.is_none()).collect();
+        let mae: Vec<f64> = ok
+            .iter()
+            .filter_map(|r| r.error.as_ref().map(|e| e.mae_shadow))
+            .collect();
+        let mae = match mae.len() {
+            0 => "-".to_string(),
+            _ => {
+                let min = mae.iter().copied().fold(f64::INFINITY, f64::min);
+                let max = mae.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                if min == max {
+                    format!("{min:.4}")
+                } else {
+                    format!("{min:.4}-{max:.4}")
+                }
+            }
+        };
+        s.push_str(&format!(
+            "{:<18} {:<10} {:>4} {:>4} {:>14} {:>14} {:>14} {:>15}\n",
+            a,
+            b,
+            runs.len(),
+            runs.len() - ok.len(),
+            range(ok.iter().map(|r| r.wall_ms).collect()),
+            range(ok.iter().filter_map(|r| r.model_ms).collect()),
+            range(ok.iter().filter_map(|r| r.gpu_ms).collect()),
+            mae,
+        ));
+    }
+    s
 }
 
 /// A one-line summary table of records.
@@ -511,9 +782,11 @@ pub fn summary_table(records: &[RunRecord]) -> String {
     s
 }
 
-/// Writes the files of a single rendered frame: visibility.png, visibility.npy, run.json,
+/// Writes the files of a single rendered frame: visibility.png (grey, transparent where the
+/// pixel sees no surface), visibility.npy, mask.npy (1 where the pixel sees a surface),
+/// shaded.png (visibility × a Lambertian term, [`images::write_shaded`]), run.json,
 /// visibility_rgb.png (the light received per channel) under a textured light and, with a
-/// reference, reference.png and error.png.
+/// reference, reference.png, reference_shaded.png and error.png.
 pub fn write_frame_files(
     dir: &Path,
     record: &RunRecord,
@@ -527,11 +800,15 @@ pub fn write_frame_files(
         c.write_png(&dir.join("visibility_rgb.png"))?;
     }
     if let Some(v) = visibility {
-        v.write_png(&dir.join("visibility.png"))?;
+        let mask = frame.gbuffer.mask();
+        images::write_masked_png(v, &mask, &dir.join("visibility.png"))?;
         v.write_npy(&dir.join("visibility.npy"))?;
+        images::write_mask_npy(&mask, v.width, v.height, &dir.join("mask.npy"))?;
+        images::write_shaded(v, frame, &dir.join("shaded.png"))?;
         if let Some(r) = reference.filter(|_| record.algorithm != "reference") {
-            r.write_png(&dir.join("reference.png"))?;
-            metrics::write_error_heatmap(v, r, &frame.gbuffer.mask(), &dir.join("error.png"))?;
+            images::write_masked_png(r, &mask, &dir.join("reference.png"))?;
+            images::write_shaded(r, frame, &dir.join("reference_shaded.png"))?;
+            metrics::write_error_heatmap(v, r, &mask, &dir.join("error.png"))?;
         }
     }
     let json = serde_json::to_vec_pretty(record).expect("records serialize");

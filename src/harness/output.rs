@@ -77,35 +77,77 @@ impl ResultsWriter {
     }
 }
 
-/// Writes `out/results.json` and `out/results.csv`, each atomically.
+/// Writes `out/results.json`, `out/results.csv` and `out/phases.csv`, each atomically.
 pub fn write_results(out: &Path, file: &ResultsFile) -> Result<()> {
     let json = serde_json::to_vec_pretty(file).expect("records serialize");
     write_atomic(&out.join("results.json"), &json)?;
-    write_atomic(&out.join("results.csv"), csv(&file.runs).as_bytes())
+    write_atomic(&out.join("results.csv"), csv(&file.runs).as_bytes())?;
+    write_atomic(&out.join("phases.csv"), phases_csv(&file.runs).as_bytes())
+}
+
+/// A CSV field: quoted (inner quotes doubled, RFC 4180) when it holds a comma, quote or line
+/// break.
+fn field(s: &str) -> String {
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// Per-phase times in tidy (long) form, one row per run, phase and time kind: `case_id,
+/// algorithm, backend, scene, phase, time (wall_ms | model_ms | gpu_ms), ms`, so pandas and R
+/// can group them.
+pub fn phases_csv(records: &[RunRecord]) -> String {
+    let mut s = String::from("case_id,algorithm,backend,scene,phase,time,ms\n");
+    for r in records {
+        for p in &r.phases {
+            for (kind, v) in [
+                ("wall_ms", Some(p.wall_ms)),
+                ("model_ms", p.model_ms),
+                ("gpu_ms", p.gpu_ms),
+            ] {
+                if let Some(v) = v {
+                    s.push_str(&format!(
+                        "{},{},{},{},{},{kind},{v}\n",
+                        field(&r.case_id()),
+                        field(&r.algorithm),
+                        field(&r.backend),
+                        field(&r.scene),
+                        field(&p.name)
+                    ));
+                }
+            }
+        }
+    }
+    s
 }
 
 const CSV_COUNTERS: [&str; 4] = ["fill", "overdraw", "mem_read_bytes", "mem_write_bytes"];
 
-/// One row per run with the headline columns; every counter stays in results.json.
+/// One row per run with the headline columns — the case id, the run's image folder (relative to
+/// the results, empty for a failed run) and its warnings included; every counter stays in
+/// results.json.
 pub fn csv(records: &[RunRecord]) -> String {
     let mut s = String::from(
-        "algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,occluder_offset,cores,wall_ms,model_ms,gpu_ms",
+        "case_id,algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,occluder_offset,cores,wall_ms,model_ms,gpu_ms",
     );
     for c in CSV_COUNTERS {
         s.push(',');
         s.push_str(c);
     }
-    s.push_str(",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,failure\n");
+    s.push_str(",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,images,warnings,failure\n");
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for r in records {
         let p = &r.params;
         let mut row = vec![
+            field(&r.case_id()),
             r.algorithm.clone(),
             r.backend.clone(),
             r.scene.clone(),
             r.light.clone(),
             p.triangles.to_string(),
-            p.light_size.to_string(),
+            crate::record::fmt_light_size(p.light_size),
             p.map_resolution.to_string(),
             p.tile_size.to_string(),
             p.image[0].to_string(),
@@ -126,13 +168,106 @@ pub fn csv(records: &[RunRecord]) -> String {
             opt(e.map(|e| e.mae_shadow)),
             opt(e.map(|e| e.frac_over_0_1)),
             opt(e.and_then(|e| e.mae_shadow_receivers)),
-            r.failure
-                .as_ref()
-                .map(|f| format!("\"{}\"", f.replace('"', "'")))
-                .unwrap_or_default(),
+            if r.failure.is_none() {
+                format!("images/{}", field(&r.case_id()))
+            } else {
+                String::new()
+            },
+            field(&r.warnings.join("; ")),
+            r.failure.as_deref().map(field).unwrap_or_default(),
         ]);
         s.push_str(&row.join(","));
         s.push('\n');
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::testdata::record;
+
+    /// Splits CSV text into rows of fields (RFC 4180 quoting), as a CSV reader would.
+    fn parse(text: &str) -> Vec<Vec<String>> {
+        let mut rows = vec![];
+        let mut row = vec![];
+        let mut cur = String::new();
+        let mut quoted = false;
+        let mut chars = text.chars().peekable();
+        while let Some(c) = chars.next() {
+            match (c, quoted) {
+                ('"', true) if chars.peek() == Some(&'"') => {
+                    cur.push('"');
+                    chars.next();
+                }
+                ('"', _) => quoted = !quoted,
+                (',', false) => row.push(std::mem::take(&mut cur)),
+                ('\n', false) => {
+                    row.push(std::mem::take(&mut cur));
+                    rows.push(std::mem::take(&mut row));
+                }
+                (c, _) => cur.push(c),
+            }
+        }
+        rows
+    }
+
+    #[test]
+    fn results_csv_has_the_case_id_image_folder_and_warnings_in_every_row() {
+        let mut ok = record("pcss", "cpu-model", 100, 32);
+        ok.params.light_size = 0.6;
+        ok.warnings = vec!["light converted, from disc".into(), "two".into()];
+        let mut bad = record("dbuffer", "wgpu", 100, 32);
+        bad.failure = Some("no \"adapter\", sorry".into());
+        let rows = parse(&csv(&[ok.clone(), bad.clone()]));
+        assert_eq!(rows.len(), 3);
+        let col = |name: &str| rows[0].iter().position(|c| c == name).unwrap();
+        for r in &rows {
+            assert_eq!(r.len(), rows[0].len(), "{r:?}");
+        }
+        assert_eq!(rows[1][col("case_id")], ok.case_id());
+        assert_eq!(rows[1][col("images")], format!("images/{}", ok.case_id()));
+        assert_eq!(rows[1][col("warnings")], "light converted, from disc; two");
+        // The light size reads the same in the CSV and in the folder name.
+        assert_eq!(rows[1][col("light_size")], "0.6");
+        assert!(ok.case_id().contains("_l0.6_"), "{}", ok.case_id());
+        assert_eq!(rows[2][col("images")], "");
+        assert_eq!(rows[2][col("failure")], "no \"adapter\", sorry");
+    }
+
+    #[test]
+    fn phases_csv_is_long_one_row_per_run_phase_and_time() {
+        let r = record("pcss", "cpu-model", 100, 32);
+        let rows = parse(&phases_csv(std::slice::from_ref(&r)));
+        assert_eq!(
+            rows[0],
+            [
+                "case_id",
+                "algorithm",
+                "backend",
+                "scene",
+                "phase",
+                "time",
+                "ms"
+            ]
+        );
+        // Two phases, each with a wall and a modelled time, no GPU time.
+        assert_eq!(rows.len(), 1 + 4);
+        let expect: Vec<(String, String, f64)> = r
+            .phases
+            .iter()
+            .flat_map(|p| {
+                [
+                    (p.name.clone(), "wall_ms".to_string(), p.wall_ms),
+                    (p.name.clone(), "model_ms".to_string(), p.model_ms.unwrap()),
+                ]
+            })
+            .collect();
+        let got: Vec<(String, String, f64)> = rows[1..]
+            .iter()
+            .map(|x| (x[4].clone(), x[5].clone(), x[6].parse().unwrap()))
+            .collect();
+        assert_eq!(got, expect);
+        assert!(rows[1..].iter().all(|x| x[0] == r.case_id()));
+    }
 }

@@ -1,25 +1,39 @@
-//! Comparison charts, each as PNG and SVG: every time, cost and error figure against every sweep
-//! axis the runs vary along (one line per algorithm × backend), quality against cost with its
-//! Pareto front, and per-phase time split as stacked bars.
+//! Comparison charts, each as PNG and SVG, drawn as small multiples so no panel holds more than
+//! [`MAX_SERIES`] series:
+//!
+//! - quality against cost at the scenario's base point, one figure per execution with a panel
+//!   per cost (wall, modelled, GPU time; memory traffic) and the Pareto front of that panel
+//!   (see [`super::summary`]);
+//! - every time, cost and error figure against every sweep axis the runs vary along, one panel
+//!   per execution, one line per algorithm, the other parameters fixed (named in the title);
+//! - per-phase time at the base point, one panel per algorithm, one stacked bar per execution,
+//!   and per run of a series swept along two or more axes.
+//!
+//! Every algorithm has one colour in every chart and every execution one marker and line style
+//! ([`super::style`]); the legend, beside the panels, names every series drawn. Axes spanning a
+//! decade or more are logarithmic with ticks at the decades.
 //!
 //! Planning ([`plan`]) is separate from drawing ([`render`]) so which charts a set of runs gets,
 //! and what is on them, can be checked without pixels.
 //!
-//! Text is drawn with the pure-Rust `ab_glyph` rasterizer from a TrueType font found on the
-//! system at run time (see [`FONT_CANDIDATES`], or `SHADOWBENCH_FONT`): no C font libraries at
-//! build time, and on Debian the only thing needed is the `fonts-dejavu-core` package.
+//! Text is drawn with the pure-Rust `ab_glyph` rasterizer from a system TrueType font, or the
+//! DejaVu Sans built into the binary when there is none (see [`super::font`]).
 
-use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::ops::Range;
+use std::path::Path;
 
-use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::fmt_num;
+use super::style::{self, Dash, Marker};
 use crate::error::{Error, Result};
-use crate::record::RunRecord;
+use crate::record::{Phase, RunRecord};
+
+/// Most series one panel shows; more are split over several panels.
+pub const MAX_SERIES: usize = 8;
 
 /// A sweep axis as it appears in the runs' parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -59,16 +73,30 @@ impl Axis {
         }
     }
 
-    /// Axis description on a chart.
+    /// Axis title on a chart, with its unit.
     pub fn label(self) -> &'static str {
         match self {
-            Axis::Triangles => "scene triangles",
-            Axis::LightSize => "light size (radius or half-width)",
+            Axis::Triangles => "scene triangles (count)",
+            Axis::LightSize => "light size (scene units, radius or half-width)",
             Axis::MapResolution => "map resolution (texels per side)",
             Axis::TileSize => "tile size (pixels per side)",
             Axis::ImagePixels => "image pixels (width × height)",
-            Axis::OccluderHeight => "occluder height above receiver",
-            Axis::OccluderOffset => "occluder lateral offset (x)",
+            Axis::OccluderHeight => "occluder height above receiver (scene units)",
+            Axis::OccluderOffset => "occluder lateral offset x (scene units)",
+            Axis::Cores => "modelled cores (count)",
+        }
+    }
+
+    /// Short name, for titles.
+    fn name(self) -> &'static str {
+        match self {
+            Axis::Triangles => "scene triangles",
+            Axis::LightSize => "light size",
+            Axis::MapResolution => "map resolution",
+            Axis::TileSize => "tile size",
+            Axis::ImagePixels => "image pixels",
+            Axis::OccluderHeight => "occluder height",
+            Axis::OccluderOffset => "occluder offset",
             Axis::Cores => "modelled cores",
         }
     }
@@ -100,6 +128,9 @@ impl Axis {
 /// A figure of a run plotted against the sweep axes.
 pub struct Metric {
     pub id: &'static str,
+    /// Short name, for titles.
+    pub name: &'static str,
+    /// Axis title with its unit.
     pub label: &'static str,
     pub value: fn(&RunRecord) -> Option<f64>,
 }
@@ -119,67 +150,60 @@ pub fn overdraw_ratio(r: &RunRecord) -> Option<f64> {
     Some(r.counters.get("overdraw")? / fill)
 }
 
-pub const METRICS: [Metric; 8] = [
+pub const METRICS: [Metric; 7] = [
     Metric {
         id: "wall_ms",
+        name: "wall time",
         label: "wall time (ms, measured on the host)",
         value: |r| Some(r.wall_ms),
     },
     Metric {
         id: "gpu_ms",
+        name: "GPU time",
         label: "GPU time (ms, timestamp queries)",
         value: |r| r.gpu_ms,
     },
     Metric {
         id: "model_ms",
+        name: "modelled time",
         label: "modelled time (ms)",
         value: |r| r.model_ms,
     },
     Metric {
         id: "memory_bytes",
+        name: "memory traffic",
         label: "memory traffic (bytes read + written)",
         value: memory_bytes,
     },
     Metric {
         id: "fill",
+        name: "fill",
         label: "fill (fragments, texels or samples)",
         value: |r| r.counters.get("fill"),
     },
     Metric {
         id: "overdraw_ratio",
+        name: "overdraw ratio",
         label: "overdraw ratio (overdraw / fill)",
         value: overdraw_ratio,
     },
     // Error against a sweep axis, as paper 002 plots it (Figures 17-20).
     Metric {
         id: "mae_shadow",
-        label: "error: mean absolute error in shadow (mae_shadow)",
+        name: "shadow error",
+        label: "mean absolute error in shadow (mae_shadow, 0–1)",
         value: |r| r.error.as_ref().map(|e| e.mae_shadow),
-    },
-    // The same restricted to receiver-only surfaces (what every method claims to compute).
-    Metric {
-        id: "mae_shadow_receivers",
-        label: "error: mean absolute error in shadow on receiver-only surfaces",
-        value: |r| r.error.as_ref().and_then(|e| e.mae_shadow_receivers),
     },
 ];
 
-/// Times a cost can be measured in, for the quality-vs-cost and per-phase charts.
+/// Times a cost can be measured in, for the per-phase charts: id, name.
 const TIMES: [(&str, &str); 3] = [
     ("model_ms", "modelled time"),
     ("gpu_ms", "GPU time"),
     ("wall_ms", "wall time"),
 ];
 
-fn run_time(r: &RunRecord, id: &str) -> Option<f64> {
-    match id {
-        "model_ms" => r.model_ms,
-        "gpu_ms" => r.gpu_ms,
-        _ => Some(r.wall_ms),
-    }
-}
-
-fn phase_time(p: &crate::record::Phase, id: &str) -> Option<f64> {
+fn phase_time(p: &Phase, id: &str) -> Option<f64> {
     match id {
         "model_ms" => p.model_ms,
         "gpu_ms" => p.gpu_ms,
@@ -192,21 +216,25 @@ pub fn series_name(r: &RunRecord) -> String {
     format!("{} / {}", r.algorithm, r.backend)
 }
 
+/// The points of one algorithm on one execution.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Series {
+    /// `algorithm / backend`.
     pub name: String,
+    pub algorithm: String,
+    pub backend: String,
     /// Sorted by x.
     pub points: Vec<(f64, f64)>,
 }
 
-/// A chart of points: lines through each series' points, or a scatter with a Pareto front.
+/// A panel of points: lines through each series' points, or a scatter with a Pareto front.
 #[derive(Clone, Debug)]
 pub struct XyChart {
     pub x_label: String,
     pub y_label: String,
     pub series: Vec<Series>,
     pub lines: bool,
-    /// Points no other point beats on both axes (lower is better on both), by x.
+    /// Points no other point of this panel beats on both axes (lower is better on both), by x.
     pub front: Option<Vec<(f64, f64)>>,
 }
 
@@ -217,154 +245,194 @@ pub struct Bar {
     pub parts: Vec<(String, f64)>,
 }
 
+/// Stacked bars of one algorithm's phases; the phases are shades of `color`.
+#[derive(Clone, Debug)]
+pub struct Stacked {
+    pub y_label: String,
+    pub bars: Vec<Bar>,
+    pub color: RGBColor,
+}
+
 #[derive(Clone, Debug)]
 pub enum Kind {
     Xy(XyChart),
-    Stacked { y_label: String, bars: Vec<Bar> },
+    Stacked(Stacked),
 }
 
-/// One chart to draw.
+/// One plot of a figure.
+#[derive(Clone, Debug)]
+pub struct Panel {
+    pub title: String,
+    pub kind: Kind,
+}
+
+impl Panel {
+    /// The series drawn in the panel: `algorithm / backend` of an xy panel, the phases of a
+    /// stacked one.
+    pub fn series_names(&self) -> Vec<String> {
+        match &self.kind {
+            Kind::Xy(c) => c.series.iter().map(|s| s.name.clone()).collect(),
+            Kind::Stacked(s) => phase_names(&s.bars),
+        }
+    }
+}
+
+/// One chart (a figure of one or more panels) to draw.
 #[derive(Clone, Debug)]
 pub struct Spec {
     /// File stem under `charts/`.
     pub file: String,
     pub title: String,
-    /// What the chart holds fixed or how it was chosen, for the report.
+    /// The case shown: the parameters held fixed.
+    pub case: String,
+    /// How to read the chart, for the report.
     pub caption: String,
-    pub kind: Kind,
-    /// Values of runs the chart cannot show ([`plottable`]), one warning each naming the run
-    /// and the figure.
-    pub left_out: Vec<String>,
+    pub panels: Vec<Panel>,
 }
 
 /// A chart on disk, relative to the report folder.
 #[derive(Clone, Debug)]
 pub struct Written {
+    pub file: String,
     pub png: String,
     pub svg: String,
     pub title: String,
+    pub case: String,
     pub caption: String,
 }
 
-/// Every chart `records` support, in report order. Failed runs are left out.
+/// Every chart `records` support, in report order: quality against cost at the base point,
+/// figures against each sweep axis, per-phase times. Failed runs are left out.
 pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
     let ok: Vec<&RunRecord> = records.iter().filter(|r| r.failure.is_none()).collect();
     let mut specs = Vec::new();
+    if let Some(summary) = super::summary::Summary::of(&ok) {
+        specs.extend(summary.charts());
+    }
     for axis in Axis::ALL {
         let Some((slice, fixed)) = axis_slice(&ok, axis) else {
             continue;
         };
         for m in &METRICS {
-            let mut left_out = Vec::new();
-            let series = collect_series(&slice, (axis.id(), m.id), &mut left_out, |r| {
-                Some((axis.value(r)?, (m.value)(r)?))
-            });
+            let series = collect_series(&slice, |r| Some((axis.value(r)?, (m.value)(r)?)));
             if series.is_empty() {
                 continue;
             }
             specs.push(Spec {
                 file: format!("{}_vs_{}", m.id, axis.id()),
-                title: format!("{} vs. {}{}", m.label, axis.label(), axis.meaning()),
-                caption: fixed.clone(),
-                left_out,
-                kind: Kind::Xy(XyChart {
+                title: format!("{} vs. {}{}", m.name, axis.name(), axis.meaning()),
+                case: fixed.clone(),
+                caption: "One panel per execution, one line per algorithm.".into(),
+                panels: per_execution(series, |_| XyChart {
                     x_label: axis.label().into(),
                     y_label: m.label.into(),
-                    series,
+                    series: vec![],
                     lines: true,
                     front: None,
                 }),
             });
         }
     }
-    for (id, label) in TIMES {
-        let mut left_out = Vec::new();
-        let series = collect_series(&ok, (id, "mae_shadow"), &mut left_out, |r| {
-            Some((run_time(r, id)?, r.error.as_ref()?.mae_shadow))
-        });
-        if series.is_empty() {
-            continue;
+    specs.extend(phase_charts(&ok));
+    specs.extend(phase_grids(&ok));
+    specs
+}
+
+/// Splits `series` into panels: one per execution (in [`style::execution_rank`] order), each
+/// split again into balanced parts when it holds more than [`MAX_SERIES`] algorithms. `chart`
+/// gives a panel's axes for its execution; its series are filled in.
+pub fn per_execution(series: Vec<Series>, chart: impl Fn(&str) -> XyChart) -> Vec<Panel> {
+    let mut backends: Vec<String> = series.iter().map(|s| s.backend.clone()).collect();
+    backends.sort_by_key(|b| style::execution_rank(b));
+    backends.dedup();
+    let mut panels = Vec::new();
+    for b in backends {
+        let mut mine: Vec<Series> = series.iter().filter(|s| s.backend == b).cloned().collect();
+        mine.sort_by_key(|s| style::algorithm_rank(&s.algorithm));
+        let parts = mine.len().div_ceil(MAX_SERIES);
+        let per = mine.len().div_ceil(parts);
+        for (i, chunk) in mine.chunks(per).enumerate() {
+            let title = if parts > 1 {
+                format!("{b} ({} of {parts})", i + 1)
+            } else {
+                b.clone()
+            };
+            let mut c = chart(&b);
+            c.series = chunk.to_vec();
+            panels.push(Panel {
+                title,
+                kind: Kind::Xy(c),
+            });
         }
-        let front = pareto_front(series.iter().flat_map(|s| s.points.iter().copied()));
-        specs.push(Spec {
-            file: format!("quality_vs_{id}"),
-            title: format!("quality vs. cost: shadow error against {label}"),
-            caption: "Every successful run with quality metrics; the dashed line joins the runs \
-                      no other run beats on both cost and error (lower is better on both)."
-                .into(),
-            left_out,
-            kind: Kind::Xy(XyChart {
-                x_label: format!("{label} (ms)"),
-                y_label: "error: mean absolute error in shadow (mae_shadow)".into(),
-                series,
-                lines: false,
-                front: Some(front),
-            }),
-        });
     }
-    for (id, label) in TIMES {
-        let mut bars: Vec<Bar> = Vec::new();
-        let mut params: Vec<String> = Vec::new();
-        let mut left_out = Vec::new();
-        let mut more = 0usize;
-        for r in &ok {
-            let name = series_name(r);
-            if bars.iter().any(|b| b.name == name) {
-                continue;
-            }
-            if bars.len() == MAX_BARS {
-                // The image grows with the bars; a results file can name any number of series.
-                more += 1;
-                continue;
-            }
-            let parts: Vec<(String, f64)> = r
+    panels
+}
+
+/// Per-phase time at the base point: per time kind, one panel per algorithm with one bar per
+/// execution that has that time.
+fn phase_charts(ok: &[&RunRecord]) -> Vec<Spec> {
+    let Some((base, case)) = super::summary::base_case(ok) else {
+        return vec![];
+    };
+    let mut at: Vec<&RunRecord> = ok
+        .iter()
+        .copied()
+        .filter(|r| super::summary::case_key(r) == base)
+        .collect();
+    at.sort_by_key(|r| {
+        (
+            style::algorithm_rank(&r.algorithm),
+            style::execution_rank(&r.backend),
+        )
+    });
+    let mut specs = Vec::new();
+    for (id, name) in TIMES {
+        let mut panels: Vec<Panel> = Vec::new();
+        for r in &at {
+            let Some(parts) = r
                 .phases
                 .iter()
-                .filter_map(|p| {
-                    let v = phase_time(p, id)?;
-                    let v = checked(r, &format!("phase {} {id}", p.name), v, &mut left_out)?;
-                    Some((p.name.clone(), v))
-                })
-                .collect();
-            if !parts.is_empty() {
-                params.push(describe_params(r));
-                bars.push(Bar { name, parts });
+                .map(|p| Some((p.name.clone(), phase_time(p, id)?)))
+                .collect::<Option<Vec<_>>>()
+                .filter(|p| !p.is_empty())
+            else {
+                continue;
+            };
+            let bar = Bar {
+                name: r.backend.clone(),
+                parts,
+            };
+            match panels.iter_mut().find(|p| p.title == r.algorithm) {
+                Some(Panel {
+                    kind: Kind::Stacked(s),
+                    ..
+                }) => s.bars.push(bar),
+                _ => panels.push(Panel {
+                    title: r.algorithm.clone(),
+                    kind: Kind::Stacked(Stacked {
+                        y_label: format!("{name} (ms)"),
+                        bars: vec![bar],
+                        color: style::algorithm_color(&r.algorithm),
+                    }),
+                }),
             }
         }
-        if bars.is_empty() {
+        if panels.is_empty() {
             continue;
         }
-        if more > 0 {
-            left_out.push(format!(
-                "{more} more series beyond the first {MAX_BARS} are not drawn"
-            ));
-        }
-        params.dedup();
-        let what = if params.len() == 1 {
-            format!("all at {}", params[0])
-        } else {
-            "each at its first run in the results".into()
-        };
         specs.push(Spec {
             file: format!("phases_{id}"),
-            title: format!("{label} per phase"),
-            caption: format!("One bar per algorithm / backend, {what}."),
-            left_out,
-            kind: Kind::Stacked {
-                y_label: format!("{label} (ms)"),
-                bars,
-            },
+            title: format!("{name} per phase"),
+            case: case.clone(),
+            caption: "One panel per algorithm, one bar per execution, split by phase.".into(),
+            panels,
         });
     }
-    specs.extend(phase_grids(&ok));
     specs
 }
 
 /// Most runs a per-run phase chart shows.
 const GRID_BARS: usize = 30;
-
-/// Most bars (series) a per-phase chart shows.
-const MAX_BARS: usize = 40;
 
 /// Per-phase time of every run of a series whose runs vary along two or more axes (such as
 /// paper 003's grid of scenes × resolutions): one bar per run, named by the values that
@@ -408,7 +476,6 @@ fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
                 .unwrap_or(std::cmp::Ordering::Equal)
         });
         for (id, label) in TIMES {
-            let mut left_out = Vec::new();
             let bars: Option<Vec<Bar>> = runs
                 .iter()
                 .map(|r| {
@@ -416,12 +483,7 @@ fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
                         .phases
                         .iter()
                         .map(|p| Some((p.name.clone(), phase_time(p, id)?)))
-                        .collect::<Option<Vec<_>>>()?
-                        .into_iter()
-                        .filter(|(phase, v)| {
-                            checked(r, &format!("phase {phase} {id}"), *v, &mut left_out).is_some()
-                        })
-                        .collect();
+                        .collect::<Option<Vec<_>>>()?;
                     let values: Vec<String> = varying.iter().map(|a| axis_value(*a, r)).collect();
                     Some(Bar {
                         name: values.join(" / "),
@@ -432,22 +494,26 @@ fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
             let Some(bars) = bars.filter(|b| !b.is_empty()) else {
                 continue;
             };
-            let axes: Vec<&str> = varying.iter().map(|a| a.label()).collect();
+            let axes: Vec<&str> = varying.iter().map(|a| a.name()).collect();
             specs.push(Spec {
-                file: crate::util::paths::slug(&format!(
+                file: format!(
                     "phases_grid_{id}_{}",
-                    name.replace(" / ", "_")
-                )),
+                    name.replace(" / ", "_").replace(['/', ' '], "_")
+                ),
                 title: format!("{label} per phase, every run of {name}"),
+                case: format!("{}; varying {}", runs[0].scene, axes.join(" and ")),
                 caption: format!(
                     "One bar per run, named and ordered by what varies: {}.",
                     axes.join(", then ")
                 ),
-                left_out,
-                kind: Kind::Stacked {
-                    y_label: format!("{label} (ms)"),
-                    bars,
-                },
+                panels: vec![Panel {
+                    title: name.clone(),
+                    kind: Kind::Stacked(Stacked {
+                        y_label: format!("{label} (ms)"),
+                        bars,
+                        color: style::algorithm_color(&runs[0].algorithm),
+                    }),
+                }],
             });
         }
     }
@@ -473,33 +539,34 @@ fn axis_value(axis: Axis, r: &RunRecord) -> String {
     }
 }
 
-fn describe_params(r: &RunRecord) -> String {
+/// The parameters of `r` other than `except`, for a title: `scene; light size 0.5, map 256, …`.
+pub fn describe_case(r: &RunRecord, except: Option<Axis>) -> String {
     let p = &r.params;
-    let mut s = format!(
-        "{}: {} triangles, light size {}, map {}, tile {}, image {}×{}",
-        r.scene,
-        p.triangles,
-        fmt_num(p.light_size as f64),
-        p.map_resolution,
-        p.tile_size,
-        p.image[0],
-        p.image[1]
-    );
-    if let Some(h) = p.occluder_height {
-        s.push_str(&format!(", occluder height {}", fmt_num(h as f64)));
+    let mut fixed = Vec::new();
+    for a in Axis::ALL.iter().filter(|a| Some(**a) != except) {
+        let v = match a {
+            Axis::Triangles => Some(format!("{} triangles", p.triangles)),
+            Axis::LightSize => Some(format!("light size {}", fmt_num(p.light_size as f64))),
+            Axis::MapResolution => Some(format!("map {}", p.map_resolution)),
+            Axis::TileSize => Some(format!("tile {}", p.tile_size)),
+            Axis::ImagePixels => Some(format!("image {}×{}", p.image[0], p.image[1])),
+            Axis::OccluderHeight => p
+                .occluder_height
+                .map(|h| format!("occluder height {}", fmt_num(h as f64))),
+            Axis::OccluderOffset => p
+                .occluder_offset
+                .map(|d| format!("occluder offset {}", fmt_num(d as f64))),
+            Axis::Cores => p.cores.map(|c| format!("{c} cores")),
+        };
+        fixed.extend(v);
     }
-    if let Some(d) = p.occluder_offset {
-        s.push_str(&format!(", occluder offset {}", fmt_num(d as f64)));
-    }
-    if let Some(c) = p.cores {
-        s.push_str(&format!(", {c} cores"));
-    }
-    s
+    format!("{}; {}", r.scene, fixed.join(", "))
 }
 
 /// The runs along which `axis` varies with every other axis (and the scene) fixed: of all such
 /// slices, the one with the most distinct values of `axis` (the first on a tie, which for a
-/// sweep is the one through its base point). `None` when no slice has two values.
+/// sweep is the one through its base point), and the fixed parameters. `None` when no slice
+/// has two values.
 fn axis_slice<'a>(runs: &[&'a RunRecord], axis: Axis) -> Option<(Vec<&'a RunRecord>, String)> {
     let rest = |r: &RunRecord| -> String {
         let others: Vec<String> = Axis::ALL
@@ -534,72 +601,27 @@ fn axis_slice<'a>(runs: &[&'a RunRecord], axis: Axis) -> Option<(Vec<&'a RunReco
         .copied()
         .filter(|r| axis.value(r).is_some() && rest(r) == *key)
         .collect();
-    let sample = members[0];
-    let p = &sample.params;
-    let mut fixed = vec![format!("scene {}", sample.scene)];
-    for a in Axis::ALL.iter().filter(|a| **a != axis) {
-        let v = match a {
-            Axis::ImagePixels => Some(format!("{}×{}", p.image[0], p.image[1])),
-            _ => a.value(sample).map(fmt_num),
-        };
-        if let Some(v) = v {
-            fixed.push(format!("{} {v}", a.id().replace('_', " ")));
-        }
-    }
-    Some((
-        members,
-        format!("Other parameters fixed: {}.", fixed.join(", ")),
-    ))
+    let fixed = describe_case(members[0], Some(axis));
+    Some((members, fixed))
 }
 
 /// Groups points by series (in order of first appearance), each sorted by x.
-/// Smallest and largest magnitude a chart shows (zero is shown too). Beyond them an axis range
-/// overflows (1.5 × 1.7e308 is infinite) or a log axis spans thousands of decades, and the
-/// chart library can loop for ever computing ticks; such values are left out with a warning.
-pub const PLOT_RANGE: (f64, f64) = (1e-30, 1e30);
-
-/// Whether a chart can show `v` ([`PLOT_RANGE`]).
-pub fn plottable(v: f64) -> bool {
-    v == 0.0 || (v.is_finite() && (PLOT_RANGE.0..=PLOT_RANGE.1).contains(&v.abs()))
-}
-
-/// `v` when a chart can show it; otherwise a warning naming the run and the figure in `left`.
-fn checked(r: &RunRecord, figure: &str, v: f64, left: &mut Vec<String>) -> Option<f64> {
-    if plottable(v) {
-        return Some(v);
-    }
-    left.push(format!(
-        "run {}: {figure} = {v:e} is outside the range a chart can show (0, or {:e} to {:e} in \
-         magnitude); left out",
-        r.case_id(),
-        PLOT_RANGE.0,
-        PLOT_RANGE.1
-    ));
-    None
-}
-
-/// The series of `runs` with the point `point` gives each (x named `x`, y named `y` in
-/// warnings); points with a coordinate a chart cannot show are left out and named in `left`.
-fn collect_series(
+pub fn collect_series(
     runs: &[&RunRecord],
-    (x, y): (&str, &str),
-    left: &mut Vec<String>,
     point: impl Fn(&RunRecord) -> Option<(f64, f64)>,
 ) -> Vec<Series> {
     let mut series: Vec<Series> = Vec::new();
     for r in runs {
-        let Some((px, py)) = point(r) else {
+        let Some(p) = point(r).filter(|(x, y)| x.is_finite() && y.is_finite()) else {
             continue;
         };
-        let (Some(px), Some(py)) = (checked(r, x, px, left), checked(r, y, py, left)) else {
-            continue;
-        };
-        let p = (px, py);
         let name = series_name(r);
         match series.iter_mut().find(|s| s.name == name) {
             Some(s) => s.points.push(p),
             None => series.push(Series {
                 name,
+                algorithm: r.algorithm.clone(),
+                backend: r.backend.clone(),
                 points: vec![p],
             }),
         }
@@ -609,6 +631,76 @@ fn collect_series(
             .sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
     }
     series
+}
+
+/// Smallest and largest magnitude a chart shows (zero is shown too). Beyond them an axis range
+/// overflows (1.5 × 1.7e308 is infinite) or a log axis spans thousands of decades, and the
+/// chart library can loop for ever computing ticks.
+pub const PLOT_RANGE: (f64, f64) = (1e-30, 1e30);
+
+/// Whether a chart can show `v` ([`PLOT_RANGE`]).
+pub fn plottable(v: f64) -> bool {
+    v == 0.0 || (v.is_finite() && (PLOT_RANGE.0..=PLOT_RANGE.1).contains(&v.abs()))
+}
+
+/// The records as the charts may see them: every figure a chart cannot show ([`plottable`])
+/// removed (a run whose wall time is such a figure is left out whole), with one warning per
+/// figure naming the run and the figure. Planning only ever sees these copies.
+pub fn chartable(records: &[RunRecord]) -> (Vec<RunRecord>, Vec<String>) {
+    let mut warnings = Vec::new();
+    let mut out = Vec::with_capacity(records.len());
+    for r in records {
+        let mut warn = |figure: &str, v: f64| {
+            warnings.push(format!(
+                "run {}: {figure} = {v:e} is outside the range a chart can show (0, or {:e} to \
+                 {:e} in magnitude); left out of the charts",
+                r.case_id(),
+                PLOT_RANGE.0,
+                PLOT_RANGE.1
+            ))
+        };
+        let mut keep = |figure: &str, v: Option<f64>| match v {
+            Some(v) if !plottable(v) => {
+                warn(figure, v);
+                None
+            }
+            v => v,
+        };
+        if !plottable(r.wall_ms) {
+            keep("wall_ms", Some(r.wall_ms));
+            continue;
+        }
+        let mut c = r.clone();
+        c.model_ms = keep("model_ms", c.model_ms);
+        c.gpu_ms = keep("gpu_ms", c.gpu_ms);
+        c.counters
+            .0
+            .retain(|name, v| keep(&format!("counters.{name}"), Some(*v)).is_some());
+        c.phases.retain_mut(|p| {
+            p.model_ms = keep(&format!("phase {} model_ms", p.name), p.model_ms);
+            p.gpu_ms = keep(&format!("phase {} gpu_ms", p.name), p.gpu_ms);
+            keep(&format!("phase {} wall_ms", p.name), Some(p.wall_ms)).is_some()
+        });
+        if let Some(e) = &c.error {
+            let figures = [
+                ("mae", Some(e.mae)),
+                ("rmse", Some(e.rmse)),
+                ("max", Some(e.max)),
+                ("mae_shadow", Some(e.mae_shadow)),
+                ("frac_over_0_1", Some(e.frac_over_0_1)),
+                ("mae_shadow_receivers", e.mae_shadow_receivers),
+            ];
+            let bad = figures
+                .iter()
+                .filter(|(name, v)| keep(&format!("error.{name}"), *v).is_none() && v.is_some())
+                .count();
+            if bad > 0 {
+                c.error = None;
+            }
+        }
+        out.push(c);
+    }
+    (out, warnings)
 }
 
 /// The points that no other point beats on both coordinates (lower is better), by x.
@@ -633,7 +725,7 @@ pub fn wants_log(values: &[f64]) -> bool {
 
 /// Draws `spec` into `dir` as `<file>.png` and `<file>.svg`.
 pub fn render(spec: &Spec, dir: &Path) -> Result<Written> {
-    ensure_font()?;
+    super::font::ensure()?;
     let size = spec.size();
     let png = dir.join(format!("{}.png", spec.file));
     let svg = dir.join(format!("{}.svg", spec.file));
@@ -655,111 +747,261 @@ pub fn render(spec: &Spec, dir: &Path) -> Result<Written> {
         root.present().map_err(|e| fail(&svg, e.to_string()))?;
     }
     Ok(Written {
+        file: spec.file.clone(),
         png: format!("charts/{}.png", spec.file),
         svg: format!("charts/{}.svg", spec.file),
         title: spec.title.clone(),
+        case: spec.case.clone(),
         caption: spec.caption.clone(),
     })
 }
 
-/// Draws `spec` as SVG text, without touching the disk (what [`render`] writes as `.svg`).
-pub fn render_svg(spec: &Spec) -> Result<String> {
-    ensure_font()?;
-    let mut text = String::new();
-    {
-        let root = SVGBackend::with_string(&mut text, spec.size()).into_drawing_area();
-        draw(&root, spec).map_err(|e| Error::Other(format!("drawing chart {}: {e}", spec.file)))?;
-        root.present()
-            .map_err(|e| Error::Other(format!("drawing chart {}: {e}", spec.file)))?;
-    }
-    Ok(text)
-}
+/// Height of the title block.
+const HEADER: u32 = 64;
+/// Width of the legend beside the panels of an xy figure.
+const LEGEND_WIDTH: u32 = 230;
+/// Width of the legend inside a stacked panel.
+const PANEL_LEGEND_WIDTH: u32 = 150;
+const PANEL_HEIGHT: u32 = 400;
+const FONT: &str = super::font::FAMILY;
 
 impl Spec {
-    fn size(&self) -> (u32, u32) {
-        match &self.kind {
-            Kind::Xy(_) => (1000, 600),
-            Kind::Stacked { bars, .. } => {
-                ((400 + 180 * bars.len().min(MAX_BARS) as u32).max(900), 600)
+    /// Panel grid columns and rows, and one panel's width.
+    fn grid(&self) -> (u32, u32, u32) {
+        let n = self.panels.len().max(1) as u32;
+        let cols = n.min(3);
+        let rows = n.div_ceil(cols);
+        let width = match self.panels.first().map(|p| &p.kind) {
+            Some(Kind::Stacked(s)) if n == 1 => {
+                (260 + 120 * s.bars.len() as u32).max(700) + PANEL_LEGEND_WIDTH
+            }
+            Some(Kind::Stacked(_)) => 560,
+            _ if n == 1 => 760,
+            _ => 540,
+        };
+        (cols, rows, width)
+    }
+
+    /// Pixel size of the figure.
+    pub fn size(&self) -> (u32, u32) {
+        let (cols, rows, w) = self.grid();
+        let legend = if self.is_xy() { LEGEND_WIDTH } else { 0 };
+        let legend_h = if self.is_xy() {
+            40 + 22 * self.legend().len() as u32
+        } else {
+            0
+        };
+        (
+            cols * w + legend,
+            HEADER + (rows * PANEL_HEIGHT).max(legend_h),
+        )
+    }
+
+    fn is_xy(&self) -> bool {
+        self.panels.iter().any(|p| matches!(p.kind, Kind::Xy(_)))
+    }
+
+    /// The legend of an xy figure: every algorithm drawn (its colour), every execution drawn
+    /// (its marker and line), and the Pareto front where a panel has one.
+    pub fn legend(&self) -> Vec<LegendEntry> {
+        let mut algorithms: Vec<String> = Vec::new();
+        let mut backends: Vec<String> = Vec::new();
+        let mut lines = false;
+        let mut front = false;
+        for p in &self.panels {
+            if let Kind::Xy(c) = &p.kind {
+                lines |= c.lines;
+                front |= c.front.is_some();
+                for s in &c.series {
+                    if !algorithms.contains(&s.algorithm) {
+                        algorithms.push(s.algorithm.clone());
+                    }
+                    if !backends.contains(&s.backend) {
+                        backends.push(s.backend.clone());
+                    }
+                }
             }
         }
+        algorithms.sort_by_key(|a| style::algorithm_rank(a));
+        backends.sort_by_key(|b| style::execution_rank(b));
+        let mut entries: Vec<LegendEntry> = algorithms
+            .into_iter()
+            .map(|a| LegendEntry {
+                color: style::algorithm_color(&a),
+                label: a,
+                marker: None,
+                dash: lines.then_some(Dash::Solid),
+                square: !lines,
+            })
+            .collect();
+        entries.extend(backends.into_iter().map(|b| {
+            let (m, d) = style::execution_style(&b);
+            LegendEntry {
+                label: b,
+                color: style::INK,
+                marker: Some(m),
+                dash: lines.then_some(d),
+                square: false,
+            }
+        }));
+        if front {
+            entries.push(LegendEntry {
+                label: "Pareto front".into(),
+                color: style::INK,
+                marker: None,
+                dash: Some(Dash::Dashed),
+                square: false,
+            });
+        }
+        entries
     }
 }
 
-const LEGEND_WIDTH: u32 = 260;
-const FONT: &str = "sans-serif";
+/// One line of a legend.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LegendEntry {
+    pub label: String,
+    pub color: RGBColor,
+    pub marker: Option<Marker>,
+    pub dash: Option<Dash>,
+    /// A filled square (an algorithm of a scatter, a phase of a bar).
+    pub square: bool,
+}
 
 type DrawResult = std::result::Result<(), String>;
 
+fn err<E: std::fmt::Display>(e: E) -> String {
+    e.to_string()
+}
+
 fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, spec: &Spec) -> DrawResult {
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let (title, root) = root.split_vertically(44);
-    title
+    root.fill(&WHITE).map_err(err)?;
+    let (header, body) = root.split_vertically(HEADER);
+    header
         .draw(&Text::new(
             spec.title.clone(),
-            (16, 16),
+            (16, 10),
             TextStyle::from((FONT, 22).into_font()).color(&BLACK),
         ))
-        .map_err(|e| e.to_string())?;
-    let (w, _) = root.dim_in_pixel();
-    let (plot, legend) = root.split_horizontally(w.saturating_sub(LEGEND_WIDTH));
-    match &spec.kind {
-        Kind::Xy(c) => {
-            let xs: Vec<f64> = c
-                .series
-                .iter()
-                .flat_map(|s| s.points.iter().map(|p| p.0))
-                .collect();
-            let ys: Vec<f64> = c
-                .series
-                .iter()
-                .flat_map(|s| s.points.iter().map(|p| p.1))
-                .collect();
-            let (xlog, ylog) = (wants_log(&xs), wants_log(&ys));
-            let (x0, x1) = extent(&xs, xlog, false);
-            let (y0, y1) = extent(&ys, ylog, true);
-            match (xlog, ylog) {
-                (false, false) => draw_xy(&plot, c, x0..x1, y0..y1),
-                (true, false) => draw_xy(&plot, c, (x0..x1).log_scale(), y0..y1),
-                (false, true) => draw_xy(&plot, c, x0..x1, (y0..y1).log_scale()),
-                (true, true) => draw_xy(&plot, c, (x0..x1).log_scale(), (y0..y1).log_scale()),
-            }?;
-            let mut entries: Vec<(String, RGBColor, bool)> = c
-                .series
-                .iter()
-                .enumerate()
-                .map(|(i, s)| (s.name.clone(), color(i), c.lines))
-                .collect();
-            if c.front.is_some() {
-                entries.push(("Pareto front".into(), BLACK, true));
+        .map_err(err)?;
+    header
+        .draw(&Text::new(
+            spec.case.clone(),
+            (16, 38),
+            TextStyle::from((FONT, 15).into_font()).color(&RGBColor(70, 70, 70)),
+        ))
+        .map_err(err)?;
+    let (cols, _, w) = spec.grid();
+    let (grid, legend) = body.split_horizontally(cols * w);
+    for (i, panel) in spec.panels.iter().enumerate() {
+        let (c, r) = (i as u32 % cols, i as u32 / cols);
+        let area = grid
+            .clone()
+            .shrink((c * w, r * PANEL_HEIGHT), (w, PANEL_HEIGHT));
+        let (head, plot) = area.split_vertically(26);
+        head.draw(&Text::new(
+            panel.title.clone(),
+            (w as i32 / 2, 6),
+            TextStyle::from((FONT, 17).into_font())
+                .color(&BLACK)
+                .pos(Pos::new(HPos::Center, VPos::Top)),
+        ))
+        .map_err(err)?;
+        match &panel.kind {
+            Kind::Xy(c) => draw_xy(&plot, c)?,
+            Kind::Stacked(s) => {
+                let (pw, _) = plot.dim_in_pixel();
+                let (bars, key) = plot.split_horizontally(pw.saturating_sub(PANEL_LEGEND_WIDTH));
+                draw_stacked(&bars, s)?;
+                let entries: Vec<LegendEntry> = phase_names(&s.bars)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(i, p)| LegendEntry {
+                        label: p,
+                        color: phase_color(s, i),
+                        marker: None,
+                        dash: None,
+                        square: true,
+                    })
+                    .collect();
+                draw_legend(&key, &entries, 30)?;
             }
-            draw_legend(&legend, &entries)
         }
-        Kind::Stacked { y_label, bars } => {
-            let phases = phase_names(bars);
-            draw_stacked(&plot, y_label, bars, &phases)?;
-            let entries: Vec<(String, RGBColor, bool)> = phases
-                .iter()
-                .enumerate()
-                .map(|(i, p)| (p.clone(), color(i), false))
-                .collect();
-            draw_legend(&legend, &entries)
+    }
+    if spec.is_xy() {
+        draw_legend(&legend, &spec.legend(), 36)?;
+    }
+    Ok(())
+}
+
+/// A linear axis (of values, or of log10 of values) with given tick positions.
+#[derive(Clone)]
+struct TickAxis {
+    range: Range<f64>,
+    bold: Vec<f64>,
+    light: Vec<f64>,
+}
+
+impl Ranged for TickAxis {
+    type FormatOption = DefaultFormatting;
+    type ValueType = f64;
+
+    fn map(&self, v: &f64, limit: (i32, i32)) -> i32 {
+        let t = (v - self.range.start) / (self.range.end - self.range.start);
+        limit.0 + ((limit.1 - limit.0) as f64 * t).round() as i32
+    }
+
+    fn key_points<H: KeyPointHint>(&self, hint: H) -> Vec<f64> {
+        if hint.weight().allow_light_points() {
+            self.light.clone()
+        } else {
+            self.bold.clone()
         }
+    }
+
+    fn range(&self) -> Range<f64> {
+        self.range.clone()
     }
 }
 
-fn color(i: usize) -> RGBColor {
-    let c = Palette99::pick(i).to_rgba();
-    RGBColor(c.0, c.1, c.2)
-}
-
-/// Axis range around `v`: padded linearly, or by a factor on a log axis; from zero for
-/// non-negative values on a linear value axis.
-fn extent(v: &[f64], log: bool, from_zero: bool) -> (f64, f64) {
-    let min = v.iter().copied().fold(f64::INFINITY, f64::min);
-    let max = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    if log {
-        return (min / 1.5, max * 1.5);
+/// The axis for `values`: logarithmic (in log10 units, ticks at the decades, and at 2× and 5×
+/// when it spans under three decades) when they span a decade or more, else linear with ticks
+/// at 1, 2 or 5 × 10^k (from zero when `from_zero` and all are non-negative).
+fn tick_axis(values: &[f64], from_zero: bool) -> (TickAxis, bool) {
+    let min = values.iter().copied().fold(f64::INFINITY, f64::min);
+    let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if wants_log(values) {
+        let (lo, hi) = (min.log10() - 0.12, max.log10() + 0.12);
+        let mut bold = Vec::new();
+        let mut light = Vec::new();
+        let decades = hi - lo;
+        let mults: &[f64] = if decades < 3.0 {
+            &[1.0, 2.0, 5.0]
+        } else {
+            &[1.0]
+        };
+        let step = if decades > 8.0 { 2 } else { 1 };
+        for k in (lo.floor() as i32)..=(hi.ceil() as i32) {
+            for m in 1..10 {
+                let v = (m as f64).log10() + k as f64;
+                if v < lo || v > hi {
+                    continue;
+                }
+                if mults.contains(&(m as f64)) && (m != 1 || k.rem_euclid(step) == 0) {
+                    bold.push(v);
+                } else {
+                    light.push(v);
+                }
+            }
+        }
+        return (
+            TickAxis {
+                range: lo..hi,
+                bold,
+                light,
+            },
+            true,
+        );
     }
     let span = if max > min {
         max - min
@@ -769,62 +1011,179 @@ fn extent(v: &[f64], log: bool, from_zero: bool) -> (f64, f64) {
     let lo = if from_zero && min >= 0.0 {
         0.0
     } else {
-        min - span * 0.05
+        min - span * 0.06
     };
-    (lo, max + span * 0.05)
+    let hi = max + span * 0.06;
+    let raw = (hi - lo) / 5.0;
+    let mag = 10f64.powf(raw.log10().floor());
+    let step = [1.0, 2.0, 5.0, 10.0]
+        .into_iter()
+        .map(|m| m * mag)
+        .find(|s| *s >= raw)
+        .unwrap_or(10.0 * mag);
+    let mut bold = Vec::new();
+    let mut v = (lo / step).ceil() * step;
+    while v <= hi + step * 1e-9 {
+        // Snap away float noise (0.30000000000000004).
+        bold.push((v / step).round() * step);
+        v += step;
+    }
+    let light = bold
+        .iter()
+        .map(|b| b + step / 2.0)
+        .filter(|v| *v < hi)
+        .collect();
+    (
+        TickAxis {
+            range: lo..hi,
+            bold,
+            light,
+        },
+        false,
+    )
 }
 
-fn draw_xy<DB, X, Y>(area: &DrawingArea<DB, Shift>, c: &XyChart, x: X, y: Y) -> DrawResult
-where
-    DB: DrawingBackend,
-    X: AsRangedCoord<Value = f64>,
-    Y: AsRangedCoord<Value = f64>,
-    X::CoordDescType: ValueFormatter<f64>,
-    Y::CoordDescType: ValueFormatter<f64>,
-{
-    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+/// A tick label: the value (10^v on a log axis), short.
+fn tick_label(v: f64, log: bool) -> String {
+    if !log {
+        return fmt_num(v);
+    }
+    let x = 10f64.powf(v);
+    let k = v.round();
+    if (v - k).abs() < 1e-9 && !(-3.0..=5.0).contains(&k) {
+        format!("1e{}", k as i32)
+    } else {
+        fmt_num(x)
+    }
+}
+
+fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> DrawResult {
+    let xs: Vec<f64> = c
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.0))
+        .collect();
+    let ys: Vec<f64> = c
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| p.1))
+        .collect();
+    if xs.is_empty() {
+        return Ok(());
+    }
+    let (xa, xlog) = tick_axis(&xs, false);
+    let (ya, ylog) = tick_axis(&ys, true);
+    let tx = move |v: f64| if xlog { v.log10() } else { v };
+    let ty = move |v: f64| if ylog { v.log10() } else { v };
     let mut chart = ChartBuilder::on(area)
-        .margin(16)
-        .x_label_area_size(56)
-        .y_label_area_size(90)
-        .build_cartesian_2d(x, y)
-        .map_err(e)?;
+        .margin(12)
+        .margin_right(22)
+        .x_label_area_size(52)
+        .y_label_area_size(78)
+        .build_cartesian_2d(xa, ya)
+        .map_err(err)?;
+    let log_note = |label: &str, log: bool| {
+        if log {
+            format!("{label}, log scale")
+        } else {
+            label.to_string()
+        }
+    };
     chart
         .configure_mesh()
-        .x_desc(&c.x_label)
-        .y_desc(&c.y_label)
-        .x_label_formatter(&|v| fmt_num(*v))
-        .y_label_formatter(&|v| fmt_num(*v))
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .light_line_style(RGBColor(235, 235, 235))
+        .x_desc(log_note(&c.x_label, xlog))
+        .y_desc(log_note(&c.y_label, ylog))
+        .x_label_formatter(&|v| tick_label(*v, xlog))
+        .y_label_formatter(&|v| tick_label(*v, ylog))
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .light_line_style(RGBColor(240, 240, 240))
         .draw()
-        .map_err(e)?;
-    for (i, s) in c.series.iter().enumerate() {
-        let col = color(i);
-        if c.lines {
-            chart
-                .draw_series(LineSeries::new(
-                    s.points.iter().copied(),
-                    col.stroke_width(2),
-                ))
-                .map_err(e)?;
+        .map_err(err)?;
+    let (ox, oy) = area.get_base_pixel();
+    for s in &c.series {
+        let col = style::algorithm_color(&s.algorithm);
+        let (marker, dash) = style::execution_style(&s.backend);
+        let pts: Vec<(f64, f64)> = s.points.iter().map(|&(x, y)| (tx(x), ty(y))).collect();
+        if c.lines && pts.len() > 1 {
+            draw_line(&mut chart, &pts, col.stroke_width(2), dash)?;
         }
-        chart
-            .draw_series(s.points.iter().map(|&p| Circle::new(p, 4, col.filled())))
-            .map_err(e)?;
+        for &p in &pts {
+            let (px, py) = chart.backend_coord(&p);
+            let size = if c.lines { 5 } else { 7 };
+            draw_marker(area, (px - ox, py - oy), marker, col, size)?;
+        }
     }
     if let Some(front) = &c.front {
-        chart
-            .draw_series(DashedLineSeries::new(
-                front.iter().copied(),
-                8,
-                5,
-                BLACK.stroke_width(1),
-            ))
-            .map_err(e)?;
+        let pts: Vec<(f64, f64)> = front.iter().map(|&(x, y)| (tx(x), ty(y))).collect();
+        draw_line(&mut chart, &pts, style::INK.stroke_width(1), Dash::Dashed)?;
+        for &p in &pts {
+            chart
+                .plotting_area()
+                .draw(&Circle::new(p, 9, style::INK.stroke_width(1)))
+                .map_err(err)?;
+        }
     }
     Ok(())
+}
+
+type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<TickAxis, TickAxis>>;
+
+fn draw_line<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    pts: &[(f64, f64)],
+    style: ShapeStyle,
+    dash: Dash,
+) -> DrawResult {
+    match dash {
+        Dash::Solid => chart
+            .draw_series(LineSeries::new(pts.iter().copied(), style))
+            .map(|_| ()),
+        Dash::Dashed => chart
+            .draw_series(DashedLineSeries::new(pts.iter().copied(), 9, 5, style))
+            .map(|_| ()),
+        Dash::Dotted => chart
+            .draw_series(DashedLineSeries::new(pts.iter().copied(), 2, 4, style))
+            .map(|_| ()),
+    }
+    .map_err(err)
+}
+
+/// A filled marker of radius `size` pixels centred at pixel `(x, y)` of `area`.
+fn draw_marker<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    (x, y): (i32, i32),
+    marker: Marker,
+    col: RGBColor,
+    size: i32,
+) -> DrawResult {
+    let fill = col.filled();
+    match marker {
+        Marker::Circle => area.draw(&Circle::new((x, y), size, fill)),
+        Marker::Square => area.draw(&Rectangle::new(
+            [(x - size + 1, y - size + 1), (x + size - 1, y + size - 1)],
+            fill,
+        )),
+        Marker::Triangle => area.draw(&Polygon::new(
+            vec![
+                (x, y - size - 1),
+                (x + size + 1, y + size),
+                (x - size - 1, y + size),
+            ],
+            fill,
+        )),
+        Marker::Diamond => area.draw(&Polygon::new(
+            vec![
+                (x, y - size - 1),
+                (x + size + 1, y),
+                (x, y + size + 1),
+                (x - size - 1, y),
+            ],
+            fill,
+        )),
+    }
+    .map_err(err)
 }
 
 fn phase_names(bars: &[Bar]) -> Vec<String> {
@@ -839,49 +1198,65 @@ fn phase_names(bars: &[Bar]) -> Vec<String> {
     names
 }
 
-fn draw_stacked<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    y_label: &str,
-    bars: &[Bar],
-    phases: &[String],
-) -> DrawResult {
-    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+/// The colour of the `i`-th phase: the algorithm's colour, lighter for later phases.
+fn phase_color(s: &Stacked, i: usize) -> RGBColor {
+    let n = phase_names(&s.bars).len().max(2) - 1;
+    style::tint(s.color, 0.65 * i as f64 / n as f64)
+}
+
+fn draw_stacked<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, s: &Stacked) -> DrawResult {
+    let bars = &s.bars;
+    let phases = phase_names(bars);
     let total = |b: &Bar| b.parts.iter().map(|p| p.1).sum::<f64>();
     let top = bars.iter().map(total).fold(0.0, f64::max);
-    let top = if top > 0.0 { top * 1.08 } else { 1.0 };
+    let (ya, _) = tick_axis(&[0.0, if top > 0.0 { top } else { 1.0 }], true);
+    let n = bars.len() as f64;
+    let xa = TickAxis {
+        range: -0.5..n - 0.5,
+        bold: vec![],
+        light: vec![],
+    };
     let mut chart = ChartBuilder::on(area)
-        .margin(16)
-        .x_label_area_size(80)
-        .y_label_area_size(90)
-        .build_cartesian_2d(-0.5..bars.len() as f64 - 0.5, 0.0..top)
-        .map_err(e)?;
+        .margin(12)
+        .x_label_area_size(58)
+        .y_label_area_size(78)
+        .build_cartesian_2d(xa, ya)
+        .map_err(err)?;
     chart
         .configure_mesh()
         .disable_x_mesh()
-        .x_labels(0)
-        .y_desc(y_label)
+        .y_desc(&s.y_label)
         .y_label_formatter(&|v| fmt_num(*v))
-        .label_style((FONT, 14))
-        .axis_desc_style((FONT, 16))
-        .light_line_style(RGBColor(235, 235, 235))
+        .label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .light_line_style(RGBColor(240, 240, 240))
         .draw()
-        .map_err(e)?;
+        .map_err(err)?;
     for (pi, phase) in phases.iter().enumerate() {
-        let col = color(pi);
+        let col = phase_color(s, pi);
         let rects = bars.iter().enumerate().filter_map(|(bi, b)| {
             let k = b.parts.iter().position(|p| p.0 == *phase)?;
             let below: f64 = b.parts[..k].iter().map(|p| p.1).sum();
             let x = bi as f64;
-            Some(Rectangle::new(
-                [(x - 0.3, below), (x + 0.3, below + b.parts[k].1)],
-                col.filled(),
-            ))
+            Some([(x - 0.32, below), (x + 0.32, below + b.parts[k].1)])
         });
-        chart.draw_series(rects).map_err(e)?;
+        let rects: Vec<[(f64, f64); 2]> = rects.collect();
+        chart
+            .draw_series(rects.iter().map(|c| Rectangle::new(*c, col.filled())))
+            .map_err(err)?;
+        // A white edge between stacked phases.
+        chart
+            .draw_series(
+                rects
+                    .iter()
+                    .map(|c| Rectangle::new(*c, WHITE.stroke_width(1))),
+            )
+            .map_err(err)?;
     }
-    // Bar names under the axis, on two lines (algorithm, backend) so long names do not collide.
+    // Bar names under the axis, on up to two lines so long names do not collide.
     let (ox, oy) = area.get_base_pixel();
-    let style = TextStyle::from((FONT, 14).into_font())
+    let style = TextStyle::from((FONT, 13).into_font())
         .color(&BLACK)
         .pos(Pos::new(HPos::Center, VPos::Top));
     for (bi, b) in bars.iter().enumerate() {
@@ -890,94 +1265,51 @@ fn draw_stacked<DB: DrawingBackend>(
         for (li, line) in b.name.splitn(2, " / ").enumerate() {
             area.draw(&Text::new(
                 line.to_string(),
-                (x, y + 10 + 20 * li as i32),
+                (x, y + 8 + 17 * li as i32),
                 style.clone(),
             ))
-            .map_err(e)?;
+            .map_err(err)?;
         }
     }
     Ok(())
 }
 
-/// A legend beside the plot: a line (or a square) and the name of each entry.
+/// A legend: per entry a swatch (line, marker or square in its colour) and its label.
 fn draw_legend<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
-    entries: &[(String, RGBColor, bool)],
+    entries: &[LegendEntry],
+    top: i32,
 ) -> DrawResult {
-    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-    let style = TextStyle::from((FONT, 15).into_font()).color(&BLACK);
-    for (i, (name, col, line)) in entries.iter().enumerate() {
-        let y = 40 + 24 * i as i32;
-        if *line {
-            area.draw(&PathElement::new(
-                vec![(8, y), (36, y)],
-                col.stroke_width(3),
+    let style = TextStyle::from((FONT, 14).into_font()).color(&BLACK);
+    for (i, e) in entries.iter().enumerate() {
+        let y = top + 22 * i as i32;
+        if e.square {
+            area.draw(&Rectangle::new(
+                [(14, y - 7), (28, y + 7)],
+                e.color.filled(),
             ))
-            .map_err(e)?;
-        } else {
-            area.draw(&Rectangle::new([(14, y - 7), (28, y + 7)], col.filled()))
-                .map_err(e)?;
+            .map_err(err)?;
         }
-        area.draw(&Text::new(name.clone(), (44, y - 8), style.clone()))
-            .map_err(e)?;
+        if let Some(d) = e.dash {
+            let s = e.color.stroke_width(2);
+            match d {
+                Dash::Solid => area.draw(&PathElement::new(vec![(6, y), (36, y)], s)),
+                Dash::Dashed => area
+                    .draw(&PathElement::new(vec![(6, y), (15, y)], s))
+                    .and(area.draw(&PathElement::new(vec![(20, y), (29, y)], s))),
+                Dash::Dotted => (0..6).try_for_each(|k| {
+                    area.draw(&PathElement::new(vec![(6 + 6 * k, y), (8 + 6 * k, y)], s))
+                }),
+            }
+            .map_err(err)?;
+        }
+        if let Some(m) = e.marker {
+            draw_marker(area, (21, y), m, e.color, 5)?;
+        }
+        area.draw(&Text::new(e.label.clone(), (44, y - 8), style.clone()))
+            .map_err(err)?;
     }
     Ok(())
-}
-
-/// Fonts tried in order when `SHADOWBENCH_FONT` is not set. On Debian, `fonts-dejavu-core`
-/// provides the first.
-pub const FONT_CANDIDATES: [&str; 6] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu-sans-fonts/DejaVuSans.ttf",
-    "/usr/share/fonts/truetype/liberation/LiberationSans-Regular.ttf",
-    "/usr/share/fonts/truetype/noto/NotoSans-Regular.ttf",
-];
-
-/// Registers the chart font once per process.
-fn ensure_font() -> Result<()> {
-    static FONT_READY: OnceLock<std::result::Result<(), String>> = OnceLock::new();
-    FONT_READY
-        .get_or_init(|| {
-            let path = find_font()?;
-            let bytes =
-                std::fs::read(&path).map_err(|e| format!("chart font {}: {e}", path.display()))?;
-            let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-            plotters::style::register_font(FONT, FontStyle::Normal, bytes).map_err(|_| {
-                format!(
-                    "chart font {}: not a TrueType/OpenType font",
-                    path.display()
-                )
-            })
-        })
-        .clone()
-        .map_err(Error::Other)
-}
-
-fn find_font() -> std::result::Result<PathBuf, String> {
-    if let Some(p) = std::env::var_os("SHADOWBENCH_FONT") {
-        let p = PathBuf::from(p);
-        return if p.is_file() {
-            Ok(p)
-        } else {
-            Err(format!(
-                "SHADOWBENCH_FONT={}: no such font file",
-                p.display()
-            ))
-        };
-    }
-    FONT_CANDIDATES
-        .iter()
-        .map(PathBuf::from)
-        .find(|p| p.is_file())
-        .ok_or_else(|| {
-            format!(
-                "no font for chart text: install one (Debian: apt-get install fonts-dejavu-core) \
-                 or set SHADOWBENCH_FONT to a .ttf file; looked in {}",
-                FONT_CANDIDATES.join(", ")
-            )
-        })
 }
 
 #[cfg(test)]
@@ -985,8 +1317,45 @@ mod tests {
     use super::*;
     use crate::report::testdata::record;
 
+    #[test]
+    fn figures_a_chart_cannot_show_are_left_out_naming_the_run_and_figure() {
+        assert!(plottable(0.0) && plottable(1e30) && plottable(-1e-30) && plottable(3.5));
+        for v in [1.7e308, 1e307, -1e31, 1e-31, 5e-324, f64::NAN, f64::INFINITY] {
+            assert!(!plottable(v), "{v}");
+        }
+        let mut runs: Vec<RunRecord> = (1..=3)
+            .map(|t| record("pcss", "cpu-model", t * 100, 32))
+            .collect();
+        runs[1].model_ms = Some(1.7e308);
+        runs[2].wall_ms = 1e307;
+        let (shown, warnings) = chartable(&runs);
+        assert_eq!(shown.len(), 2, "the run with an absurd wall time is left out whole");
+        assert_eq!(shown[1].model_ms, None);
+        assert_eq!(shown[0].model_ms, runs[0].model_ms);
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(warnings[0].contains(&runs[1].case_id()) && warnings[0].contains("model_ms"));
+        assert!(warnings[1].contains(&runs[2].case_id()) && warnings[1].contains("wall_ms"));
+        // Planning the shown runs terminates and draws only plottable values.
+        for spec in plan(&shown) {
+            for panel in &spec.panels {
+                if let Kind::Xy(c) = &panel.kind {
+                    for s in &c.series {
+                        assert!(s.points.iter().all(|&(x, y)| plottable(x) && plottable(y)));
+                    }
+                }
+            }
+        }
+    }
+
     fn files(specs: &[Spec]) -> Vec<String> {
         specs.iter().map(|s| s.file.clone()).collect()
+    }
+
+    fn xy(p: &Panel) -> &XyChart {
+        match &p.kind {
+            Kind::Xy(c) => c,
+            Kind::Stacked(_) => panic!("not an xy panel"),
+        }
     }
 
     #[test]
@@ -1034,33 +1403,165 @@ mod tests {
                 "{axis}: {names:?}"
             );
         }
-        // The triangle chart holds tile 32 fixed: three points per algorithm, in x order.
+        // The triangle chart holds tile 32 fixed: three points per algorithm, in x order, and
+        // says so in its case line.
         let tri = specs
             .iter()
             .find(|s| s.file == "model_ms_vs_triangles")
             .unwrap();
-        let Kind::Xy(c) = &tri.kind else { panic!() };
+        assert_eq!(tri.panels.len(), 1);
+        let c = xy(&tri.panels[0]);
         assert_eq!(c.series.len(), 2);
-        assert_eq!(c.series[0].name, "pcss / cpu-model");
-        let xs: Vec<f64> = c.series[0].points.iter().map(|p| p.0).collect();
+        // Registered order: hard_shadow_map before pcss.
+        assert_eq!(c.series[1].name, "pcss / cpu-model");
+        let xs: Vec<f64> = c.series[1].points.iter().map(|p| p.0).collect();
         assert_eq!(xs, [100.0, 1000.0, 10000.0]);
-        assert!(tri.caption.contains("tile size 32"), "{}", tri.caption);
+        assert!(tri.case.contains("tile 32"), "{}", tri.case);
+        assert!(!tri.case.contains("triangles"), "{}", tri.case);
         // The tile chart holds triangles at 100: tiles 16, 32 and 64.
         let tile = specs
             .iter()
             .find(|s| s.file == "memory_bytes_vs_tile_size")
             .unwrap();
-        let Kind::Xy(c) = &tile.kind else { panic!() };
-        let xs: Vec<f64> = c.series[1].points.iter().map(|p| p.0).collect();
+        let c = xy(&tile.panels[0]);
+        let hsm = c
+            .series
+            .iter()
+            .find(|s| s.algorithm == "hard_shadow_map")
+            .unwrap();
+        let xs: Vec<f64> = hsm.points.iter().map(|p| p.0).collect();
         assert_eq!(xs, [16.0, 32.0, 64.0]);
         let r = runs
             .iter()
             .find(|r| r.algorithm == "hard_shadow_map" && r.params.tile_size == 64)
             .unwrap();
         assert_eq!(
-            c.series[1].points[2].1,
+            hsm.points[2].1,
             r.counters.get("mem_read_bytes").unwrap() + r.counters.get("mem_write_bytes").unwrap()
         );
+    }
+
+    /// Nine algorithms on three executions along one axis, as `quick.json` has.
+    fn many() -> Vec<RunRecord> {
+        let algs: Vec<&str> = crate::algorithms::ALGORITHMS.iter().map(|a| a.id).collect();
+        let mut runs = Vec::new();
+        for t in [500, 2000, 8000] {
+            for a in &algs {
+                for b in ["cpu-native", "cpu-model", "wgpu"] {
+                    let mut r = record(a, b, t, 32);
+                    r.gpu_ms = (b == "wgpu").then_some(2.0);
+                    runs.push(r);
+                }
+            }
+        }
+        runs
+    }
+
+    #[test]
+    fn no_panel_holds_more_than_eight_series_and_each_panel_is_one_execution() {
+        let runs = many();
+        let specs = plan(&runs);
+        for s in &specs {
+            for p in &s.panels {
+                let names = p.series_names();
+                assert!(
+                    names.len() <= MAX_SERIES,
+                    "{} / {}: {names:?}",
+                    s.file,
+                    p.title
+                );
+                if let Kind::Xy(c) = &p.kind {
+                    let mut b: Vec<&str> = c.series.iter().map(|s| s.backend.as_str()).collect();
+                    b.dedup();
+                    assert_eq!(b.len(), 1, "{}: {b:?}", s.file);
+                }
+            }
+        }
+        // 9 algorithms on one execution: split in two panels; every series still drawn once.
+        let wall = specs
+            .iter()
+            .find(|s| s.file == "wall_ms_vs_triangles")
+            .unwrap();
+        let drawn: Vec<String> = wall.panels.iter().flat_map(|p| p.series_names()).collect();
+        let mut expect: Vec<String> = runs.iter().map(series_name).collect();
+        expect.sort();
+        expect.dedup();
+        let mut got = drawn.clone();
+        got.sort();
+        assert_eq!(got, expect);
+        assert_eq!(
+            wall.panels.len(),
+            6,
+            "{:?}",
+            wall.panels.iter().map(|p| &p.title).collect::<Vec<_>>()
+        );
+        // GPU time exists on wgpu only: one execution.
+        let gpu = specs
+            .iter()
+            .find(|s| s.file == "gpu_ms_vs_triangles")
+            .unwrap();
+        assert!(gpu.panels.iter().all(|p| p.title.starts_with("wgpu")));
+    }
+
+    #[test]
+    fn the_legend_lists_every_algorithm_and_execution_drawn() {
+        let specs = plan(&many());
+        for s in specs.iter().filter(|s| s.is_xy()) {
+            let legend: Vec<String> = s.legend().into_iter().map(|e| e.label).collect();
+            for p in &s.panels {
+                for se in &xy(p).series {
+                    assert!(
+                        legend.contains(&se.algorithm),
+                        "{}: {}",
+                        s.file,
+                        se.algorithm
+                    );
+                    assert!(legend.contains(&se.backend), "{}: {}", s.file, se.backend);
+                }
+                if xy(p).front.is_some() {
+                    assert!(legend.contains(&"Pareto front".to_string()));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn phases_at_the_base_point_get_a_panel_per_algorithm_and_a_bar_per_execution() {
+        let mut native = record("pcss", "cpu-native", 100, 32);
+        for p in &mut native.phases {
+            p.model_ms = None;
+        }
+        let runs = vec![
+            record("pcss", "cpu-model", 100, 32),
+            native,
+            record("pcss", "cpu-model", 200, 32),
+            record("hard_shadow_map", "cpu-model", 100, 32),
+            record("hard_shadow_map", "cpu-model", 100, 64),
+        ];
+        let specs = plan(&runs);
+        let model = specs.iter().find(|s| s.file == "phases_model_ms").unwrap();
+        // The base point: triangles 100 (3 of 5 runs), tile 32 (4 of 5).
+        assert!(model.case.contains("100 triangles") && model.case.contains("tile 32"));
+        let titles: Vec<&str> = model.panels.iter().map(|p| p.title.as_str()).collect();
+        assert_eq!(titles, ["hard_shadow_map", "pcss"]);
+        let Kind::Stacked(s) = &model.panels[1].kind else {
+            panic!()
+        };
+        let bars: Vec<&str> = s.bars.iter().map(|b| b.name.as_str()).collect();
+        // cpu-native has no modelled time.
+        assert_eq!(bars, ["cpu-model"]);
+        let expect: Vec<(String, f64)> = runs[0]
+            .phases
+            .iter()
+            .map(|p| (p.name.clone(), p.model_ms.unwrap()))
+            .collect();
+        assert_eq!(s.bars[0].parts, expect);
+        let wall = specs.iter().find(|s| s.file == "phases_wall_ms").unwrap();
+        let Kind::Stacked(s) = &wall.panels[1].kind else {
+            panic!()
+        };
+        assert_eq!(s.bars.len(), 2);
+        assert!(!specs.iter().any(|s| s.file == "phases_gpu_ms"));
     }
 
     #[test]
@@ -1091,10 +1592,10 @@ mod tests {
                 "phases_grid_wall_ms_dbuffer_cpu-model"
             ]
         );
-        let Kind::Stacked { bars, .. } = &grids[0].kind else {
+        let Kind::Stacked(s) = &grids[0].panels[0].kind else {
             panic!()
         };
-        let names: Vec<&str> = bars.iter().map(|b| b.name.as_str()).collect();
+        let names: Vec<&str> = s.bars.iter().map(|b| b.name.as_str()).collect();
         assert_eq!(
             names,
             [
@@ -1105,7 +1606,7 @@ mod tests {
             ]
         );
         assert_eq!(
-            bars[3].parts,
+            s.bars[3].parts,
             [("construct".to_string(), 5.76), ("soft".to_string(), 6.0)]
         );
         assert!(grids[0]
@@ -1169,85 +1670,29 @@ mod tests {
     }
 
     #[test]
-    fn values_a_chart_cannot_show_are_left_out_naming_the_run_and_figure() {
-        assert!(plottable(0.0) && plottable(1e30) && plottable(-1e-30) && plottable(3.5));
-        for v in [
-            1.7e308,
-            1e307,
-            -1e31,
-            1e-31,
-            5e-324,
-            f64::NAN,
-            f64::INFINITY,
-        ] {
-            assert!(!plottable(v), "{v}");
-        }
-        let mut runs: Vec<RunRecord> = (1..=4)
-            .map(|t| record("pcss", "cpu-model", t * 100, 32))
-            .collect();
-        runs[1].model_ms = Some(1.7e308);
-        runs[2].model_ms = Some(1e307);
-        let specs = plan(&runs);
-        let spec = specs
-            .iter()
-            .find(|s| s.file == "model_ms_vs_triangles")
-            .unwrap();
-        assert_eq!(spec.left_out.len(), 2, "{:?}", spec.left_out);
-        for (i, w) in [(1, "1.7e308"), (2, "1e307")] {
-            assert!(
-                spec.left_out.iter().any(|l| l.contains(&runs[i].case_id())
-                    && l.contains("model_ms")
-                    && l.contains(w)),
-                "{:?}",
-                spec.left_out
-            );
-        }
-        let Kind::Xy(c) = &spec.kind else { panic!() };
-        assert_eq!(c.series[0].points.len(), 2);
-        // Every chart draws, in bounded time (the unchecked values made the log axis loop).
-        let (tx, rx) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            for s in &specs {
-                render_svg(s).unwrap();
-            }
-            tx.send(()).unwrap();
-        });
-        rx.recv_timeout(std::time::Duration::from_secs(120))
-            .expect("charts drawn");
-    }
-
-    #[test]
-    fn log_axes_only_for_positive_values_spanning_a_decade() {
+    fn log_axes_only_for_positive_values_spanning_a_decade_with_ticks_at_decades() {
         assert!(wants_log(&[100.0, 1000.0, 10000.0]));
         assert!(!wants_log(&[16.0, 32.0, 64.0]));
         assert!(!wants_log(&[0.0, 10.0, 1000.0]));
+        let (a, log) = tick_axis(&[100.0, 1000.0, 10000.0], false);
+        assert!(log);
+        let labels: Vec<String> = a.bold.iter().map(|v| tick_label(*v, true)).collect();
+        // Two decades: decades and 2×, 5× between.
+        assert_eq!(
+            labels,
+            ["100", "200", "500", "1000", "2000", "5000", "10000"]
+        );
+        let (a, _) = tick_axis(&[1e-6, 1e3], false);
+        let labels: Vec<String> = a.bold.iter().map(|v| tick_label(*v, true)).collect();
+        assert_eq!(labels, ["1e-6", "1e-4", "0.01", "1", "100"]);
+        // Linear: round steps from zero.
+        let (a, log) = tick_axis(&[16.0, 32.0, 64.0], true);
+        assert!(!log);
+        assert_eq!(a.bold, [0.0, 20.0, 40.0, 60.0]);
     }
 
     #[test]
-    fn phase_bars_stack_each_series_phases() {
-        let runs = vec![
-            record("pcss", "cpu-model", 100, 32),
-            record("pcss", "cpu-model", 200, 32),
-            record("hard_shadow_map", "cpu-model", 100, 32),
-        ];
-        let specs = plan(&runs);
-        let model = specs.iter().find(|s| s.file == "phases_model_ms").unwrap();
-        let Kind::Stacked { bars, .. } = &model.kind else {
-            panic!()
-        };
-        assert_eq!(bars.len(), 2);
-        let expect: Vec<(String, f64)> = runs[0]
-            .phases
-            .iter()
-            .map(|p| (p.name.clone(), p.model_ms.unwrap()))
-            .collect();
-        assert_eq!(bars[0].parts, expect);
-        assert!(specs.iter().any(|s| s.file == "phases_wall_ms"));
-        assert!(!specs.iter().any(|s| s.file == "phases_gpu_ms"));
-    }
-
-    #[test]
-    fn rendered_charts_have_text_and_data() {
+    fn rendered_charts_use_the_algorithm_colours_and_name_every_series() {
         let runs: Vec<RunRecord> = [100, 1000, 10000]
             .into_iter()
             .flat_map(|t| {
@@ -1261,31 +1706,34 @@ mod tests {
         let specs = plan(&runs);
         let spec = specs
             .iter()
-            .find(|s| s.file == "model_ms_vs_triangles")
+            .find(|s| s.file == "wall_ms_vs_triangles")
             .unwrap();
+        assert_eq!(spec.panels.len(), 2);
         let w = render(spec, dir.path()).unwrap();
-        let img = image::open(dir.path().join("model_ms_vs_triangles.png"))
+        let img = image::open(dir.path().join("wall_ms_vs_triangles.png"))
             .unwrap()
             .to_rgb8();
         assert_eq!(img.dimensions(), spec.size());
-        // Each series colour appears in the picture.
-        for i in 0..2 {
-            let c = color(i);
+        for alg in ["pcss", "dbuffer"] {
+            let c = style::algorithm_color(alg);
             assert!(
-                img.pixels().any(|p| p.0 == [c.0, c.1, c.2]),
-                "series {i} not drawn"
+                img.pixels().filter(|p| p.0 == [c.0, c.1, c.2]).count() > 50,
+                "{alg} not drawn in its colour"
             );
         }
-        let svg = std::fs::read_to_string(dir.path().join("model_ms_vs_triangles.svg")).unwrap();
+        let svg = std::fs::read_to_string(dir.path().join("wall_ms_vs_triangles.svg")).unwrap();
         for text in [
-            "pcss / cpu-model",
-            "dbuffer / wgpu",
-            "scene triangles",
-            "modelled time",
+            "pcss",
+            "dbuffer",
+            "cpu-model",
+            "wgpu",
+            "scene triangles (count), log scale",
+            "wall time (ms",
+            "tile 32",
         ] {
             assert!(svg.contains(text), "{text} missing from the SVG");
         }
-        assert_eq!(w.png, "charts/model_ms_vs_triangles.png");
+        assert_eq!(w.png, "charts/wall_ms_vs_triangles.png");
         // The legend is rendered text: dark pixels in the legend column.
         let (width, _) = spec.size();
         let dark = img

@@ -147,6 +147,8 @@ pub struct Comparison {
     pub dropped: BTreeMap<String, usize>,
     /// Figure names only in the current results, with how many runs.
     pub added: BTreeMap<String, usize>,
+    /// The scenario names (baseline, current) when they differ.
+    pub scenarios_differ: Option<(String, String)>,
 }
 
 impl Comparison {
@@ -161,6 +163,13 @@ impl Comparison {
     /// The table of what moved, and the verdict.
     pub fn render(&self) -> String {
         let mut s = String::new();
+        if let Some((old, new)) = &self.scenarios_differ {
+            let _ = writeln!(
+                s,
+                "note: different scenarios: baseline '{old}', current '{new}'; runs are \
+                 matched by their case id only"
+            );
+        }
         if !self.changes.is_empty() {
             let rows: Vec<[String; 6]> = self
                 .changes
@@ -291,6 +300,8 @@ pub fn compare(
         runs: Vec::new(),
         dropped: BTreeMap::new(),
         added: BTreeMap::new(),
+        scenarios_differ: (baseline.1.scenario != current.1.scenario)
+            .then(|| (baseline.1.scenario.clone(), current.1.scenario.clone())),
     };
     for (case, o) in &old {
         let Some(n) = new.get(case) else {
@@ -397,6 +408,24 @@ mod tests {
         assert_eq!(c.figures_compared, expect);
         assert_eq!(deterministic_figures(&b.runs[3]).len(), 0);
         assert!(c.render().starts_with("PASS"), "{}", c.render());
+    }
+
+    #[test]
+    fn files_of_different_scenarios_say_so_in_the_first_line() {
+        let b = baseline();
+        let mut cur = baseline();
+        cur.scenario = "quick".into();
+        let c = run(&b, &cur);
+        let text = c.render();
+        let first = text.lines().next().unwrap();
+        assert!(
+            first.contains("different scenarios")
+                && first.contains("'ci'")
+                && first.contains("'quick'"),
+            "{text}"
+        );
+        // The same scenario: no such line.
+        assert!(!run(&b, &b).render().contains("different scenarios"));
     }
 
     #[test]

@@ -2,7 +2,6 @@
 //! table (failures included), every chart, and per scene each run's visibility buffer beside the
 //! reference and the error heat map. All links are relative, so the folder opens from disk.
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -11,7 +10,8 @@ use percent_encoding::{utf8_percent_encode, AsciiSet, CONTROLS};
 
 use super::charts::{self, Written};
 use super::claims::{self, ScenarioRuns};
-use super::fmt_num;
+use super::summary::{self, Summary};
+use super::{fmt_num, style};
 use crate::harness::output::ResultsFile;
 use crate::record::RunRecord;
 
@@ -35,13 +35,25 @@ table{border-collapse:collapse;font-size:13px;margin-bottom:1.5em}\
 th,td{border:1px solid #ccc;padding:3px 7px;text-align:right}\
 th{background:#f0f0f0}td.t{text-align:left}\
 tr.fail td{background:#fde8e8}td.status-fail{color:#b00;font-weight:bold;text-align:left}\
-figure{display:inline-block;margin:0 1em 1.5em 0;vertical-align:top;max-width:1000px}\
+figure{display:block;margin:0 0 2em 0;max-width:1800px}\
 figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:13px;color:#555}\
-.gallery td{text-align:center;vertical-align:top}.gallery img{image-rendering:pixelated;width:288px;border:1px solid #bbb}.gallery th{text-align:center}\
-.none{color:#999}";
+.gallery td{text-align:center;vertical-align:top;padding:2px}.gallery img{image-rendering:pixelated;width:160px;border:1px solid #bbb;\
+background:repeating-conic-gradient(#28303a 0% 25%,#343c48 0% 50%) 50%/12px 12px}.gallery th{text-align:center}.gallery td.t{text-align:left;white-space:nowrap}\
+details.case{margin:0 0 1em 0}details.case>summary{cursor:pointer;margin:.4em 0}\
+.none{color:#999}nav{background:#f7f7f7;border:1px solid #ddd;padding:.5em 1em;max-width:1200px}nav li{margin:.15em 0}\
+.sw{display:inline-block;width:.9em;height:.9em;margin-right:.4em;vertical-align:middle;border-radius:2px}\
+td.pareto{font-weight:bold}dl{margin:0;text-align:left}dt{font-weight:bold}dd{margin:0 0 .3em 1em;max-width:40em}\
+figure img{max-width:100%}";
 
-/// The page for `results`, whose run images are under `out/images/<case_id>/`.
-pub fn page(out: &Path, results: &ResultsFile, charts: &[Written]) -> String {
+/// The page for `results`, whose run images are under `out/images/<case_id>/`: a contents
+/// list, then the summary at the base point (a table and a quality-vs-cost chart per
+/// execution), the paper claims, every other chart, the images and every run.
+pub fn page(
+    out: &Path,
+    results: &ResultsFile,
+    charts: &[Written],
+    summary: Option<&Summary>,
+) -> String {
     let runs = &results.runs;
     let failed = runs.iter().filter(|r| r.failure.is_some()).count();
     let mut h = String::new();
@@ -50,40 +62,172 @@ pub fn page(out: &Path, results: &ResultsFile, charts: &[Written]) -> String {
         h,
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\
          <title>{}</title><style>{STYLE}</style></head><body>\n<h1>{}</h1>\n\
-         <p>{} runs, {} failed. Data: <code>results.json</code>, <code>results.csv</code>.</p>\n",
+         <p>{} runs, {} failed. Data: <a href=\"results.json\">results.json</a>, \
+         <a href=\"results.csv\">results.csv</a>{}.</p>\n",
         text(&title),
         text(&title),
         runs.len(),
-        failed
+        failed,
+        if summary.is_some() {
+            ", <a href=\"summary.csv\">summary.csv</a>, <a href=\"summary.tex\">summary.tex</a> \
+             (LaTeX, booktabs)"
+        } else {
+            ""
+        }
     );
-    h.push_str(&execution_table(runs));
+    let (summary_charts, other_charts): (Vec<&Written>, Vec<&Written>) = charts
+        .iter()
+        .partition(|c| c.file.starts_with("quality_vs_cost_"));
+    // Contents.
+    h.push_str("<nav><b>Contents</b><ol>");
+    if summary.is_some() {
+        h.push_str("<li><a href=\"#summary\">Summary at the base point</a><ul>");
+        for e in summary.iter().flat_map(|s| &s.executions) {
+            let _ = write!(
+                h,
+                "<li><a href=\"#summary-{id}\">{}</a></li>",
+                text(&e.backend),
+                id = attr(&e.backend)
+            );
+        }
+        h.push_str("</ul></li>");
+    }
+    if !results.claims.is_empty() {
+        h.push_str("<li><a href=\"#claims\">Paper claims</a></li>");
+    }
+    h.push_str("<li><a href=\"#charts\">Charts</a><ul>");
+    // One line per group (against an axis, per phase, per run of a series).
+    let mut groups: Vec<(String, Vec<(&str, String)>)> = Vec::new();
+    for c in &other_charts {
+        let (group, name) = match c.title.split_once(" vs. ") {
+            Some((m, axis)) => (format!("against {axis}"), m.to_string()),
+            None => match c.title.split_once(", every run of ") {
+                Some((t, series)) => (format!("{t}, every run"), series.to_string()),
+                None => ("at the base point".to_string(), c.title.clone()),
+            },
+        };
+        match groups.iter_mut().find(|g| g.0 == group) {
+            Some(g) => g.1.push((&c.file, name)),
+            None => groups.push((group, vec![(&c.file, name)])),
+        }
+    }
+    for (group, links) in groups {
+        let links: Vec<String> = links
+            .iter()
+            .map(|(f, n)| format!("<a href=\"#chart-{}\">{}</a>", attr(f), text(n)))
+            .collect();
+        let _ = write!(h, "<li>{}: {}</li>", text(&group), links.join(" · "));
+    }
+    h.push_str(
+        "</ul></li><li><a href=\"#images\">Images</a></li>\
+         <li><a href=\"#runs\">Every run</a></li></ol></nav>\n",
+    );
+    if let Some(s) = summary {
+        h.push_str(&summary_section(s, &summary_charts));
+    }
     if !results.claims.is_empty() {
         let all = [ScenarioRuns {
             scenario: &results.scenario,
             runs,
         }];
         let outcomes = claims::evaluate(&results.scenario, &results.claims, &all);
-        h.push_str("<h2>Paper claims</h2>\n");
+        h.push_str("<h2 id=\"claims\">Paper claims</h2>\n");
         h.push_str(&claims_table(&outcomes, false));
     }
-    h.push_str(&summary_table(runs));
-    h.push_str("<h2>Charts</h2>\n");
-    if charts.is_empty() {
-        h.push_str("<p class=\"none\">No chart: the runs vary along no sweep axis and carry no phases or quality metrics.</p>\n");
+    h.push_str("<h2 id=\"charts\">Charts</h2>\n");
+    if other_charts.is_empty() {
+        h.push_str("<p class=\"none\">No chart: the runs vary along no sweep axis and carry no phases.</p>\n");
     }
-    for c in charts {
-        let _ = writeln!(
-            h,
-            "<figure><a href=\"{svg}\"><img src=\"{png}\" alt=\"{alt}\"></a>\
-             <figcaption>{caption} <a href=\"{svg}\">SVG</a></figcaption></figure>",
-            svg = attr(&url(&c.svg)),
-            png = attr(&url(&c.png)),
-            alt = attr(&c.title),
-            caption = text(&c.caption),
-        );
+    for c in other_charts {
+        h.push_str(&figure(c));
     }
     h.push_str(&gallery(out, runs));
+    h.push_str(&runs_table(runs));
     h.push_str("</body></html>\n");
+    h
+}
+
+/// A chart with its title, case and caption, anchored as `chart-<file>`.
+fn figure(c: &Written) -> String {
+    format!(
+        "<figure id=\"chart-{id}\"><a href=\"{svg}\"><img src=\"{png}\" alt=\"{alt}\"></a>\
+         <figcaption><b>{title}</b> ({case}). {caption} <a href=\"{svg}\">SVG</a></figcaption></figure>\n",
+        id = attr(&c.file),
+        svg = attr(&url(&c.svg)),
+        png = attr(&url(&c.png)),
+        alt = attr(&c.title),
+        title = text(&c.title),
+        case = text(&c.case),
+        caption = text(&c.caption),
+    )
+}
+
+/// The summary: per execution, a table sorted by quality with the Pareto-optimal costs in bold,
+/// then that execution's quality-vs-cost chart.
+fn summary_section(s: &Summary, charts: &[&Written]) -> String {
+    let mut h = format!(
+        "<h2 id=\"summary\">Summary at the base point</h2>\n<p>{}. Per execution, every \
+         algorithm sorted by its shadow error (best first); a cost in <b>bold ★</b> is on the \
+         Pareto front of that cost: no other algorithm on the same execution is cheaper and at \
+         least as accurate. Costs of different executions are not compared.</p>\n",
+        text(&s.case)
+    );
+    for e in &s.executions {
+        let costs: Vec<usize> = (0..summary::COSTS.len())
+            .filter(|&c| e.rows.iter().any(|r| r.costs[c].is_some()))
+            .collect();
+        let _ = write!(
+            h,
+            "<h3 id=\"summary-{}\">{}</h3>\n<table class=\"summary\"><tr><th>algorithm</th>\
+             <th>mae_shadow</th>",
+            attr(&e.backend),
+            text(&e.backend)
+        );
+        if s.has_restricted {
+            let _ = write!(h, "<th>{}</th>", summary::RESTRICTED);
+        }
+        for &c in &costs {
+            let _ = write!(h, "<th>{}</th>", text(summary::COSTS[c].label));
+        }
+        h.push_str("<th>Pareto-optimal on</th></tr>\n");
+        let opt = |v: Option<f64>| v.map(fmt_num).unwrap_or_else(|| "–".into());
+        for r in &e.rows {
+            let _ = write!(
+                h,
+                "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td><td>{}</td>",
+                style::hex(style::algorithm_color(&r.algorithm)),
+                text(&r.algorithm),
+                opt(r.mae_shadow)
+            );
+            if s.has_restricted {
+                let _ = write!(h, "<td>{}</td>", opt(r.restricted));
+            }
+            for &c in &costs {
+                if r.pareto[c] {
+                    let _ = write!(h, "<td class=\"pareto\">{} ★</td>", opt(r.costs[c]));
+                } else {
+                    let _ = write!(h, "<td>{}</td>", opt(r.costs[c]));
+                }
+            }
+            let on = summary::pareto_names(r);
+            let _ = writeln!(
+                h,
+                "<td class=\"t\">{}</td></tr>",
+                if on.is_empty() {
+                    "–".to_string()
+                } else {
+                    on.join(", ")
+                }
+            );
+        }
+        h.push_str("</table>\n");
+        if let Some(c) = charts
+            .iter()
+            .find(|c| c.file == format!("quality_vs_cost_{}", e.backend))
+        {
+            h.push_str(&figure(c));
+        }
+    }
     h
 }
 
@@ -167,41 +311,9 @@ fn url(path: &str) -> String {
         .join("/")
 }
 
-/// Where the runs ran: every key of the runs' `execution` maps with its distinct values.
-fn execution_table(runs: &[RunRecord]) -> String {
-    let mut keys: BTreeMap<&str, Vec<String>> = BTreeMap::new();
-    for r in runs {
-        for (k, v) in &r.execution {
-            let v = match v {
-                serde_json::Value::String(s) => s.clone(),
-                other => other.to_string(),
-            };
-            let vals = keys.entry(k).or_default();
-            if !vals.contains(&v) {
-                vals.push(v);
-            }
-        }
-    }
-    let mut h = String::from("<h2>Execution</h2>\n");
-    if keys.is_empty() {
-        h.push_str("<p class=\"none\">The runs record no execution details.</p>\n");
-        return h;
-    }
-    h.push_str("<table><tr><th>key</th><th>values</th></tr>\n");
-    for (k, vals) in keys {
-        let _ = writeln!(
-            h,
-            "<tr><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
-            text(k),
-            text(&vals.join(", "))
-        );
-    }
-    h.push_str("</table>\n");
-    h
-}
-
-fn summary_table(runs: &[RunRecord]) -> String {
-    let mut h = String::from("<h2>Runs</h2>\n<table><tr>");
+/// Every run, failures included, with its own execution details.
+fn runs_table(runs: &[RunRecord]) -> String {
+    let mut h = String::from("<h2 id=\"runs\">Every run</h2>\n<table><tr>");
     for c in [
         "algorithm",
         "backend",
@@ -221,6 +333,8 @@ fn summary_table(runs: &[RunRecord]) -> String {
         "memory bytes",
         "mae_shadow",
         "status",
+        "execution",
+        "case id (image folder)",
     ] {
         let _ = write!(h, "<th>{c}</th>");
     }
@@ -261,77 +375,202 @@ fn summary_table(runs: &[RunRecord]) -> String {
             let _ = write!(h, "<td>{}</td>", text(&v));
         }
         h.push_str(&status);
-        h.push_str("</tr>\n");
+        h.push_str(&execution_cell(r));
+        let case = r.case_id();
+        let _ = writeln!(
+            h,
+            "<td class=\"t\"><a href=\"{}\">{}</a></td></tr>",
+            attr(&url(&format!("images/{case}/"))),
+            text(&case)
+        );
     }
     h.push_str("</table>\n");
     h
 }
 
-/// Per scene, one row per run: its visibility buffer, the reference and the error heat map,
-/// each only where the file exists.
+/// Where one run ran (its `execution` map), folded.
+fn execution_cell(r: &RunRecord) -> String {
+    if r.execution.is_empty() {
+        return "<td class=\"none\">–</td>".into();
+    }
+    let mut h = format!(
+        "<td class=\"t\"><details><summary>{} entries</summary><dl>",
+        r.execution.len()
+    );
+    for (k, v) in &r.execution {
+        let v = match v {
+            serde_json::Value::String(s) => s.clone(),
+            other => other.to_string(),
+        };
+        let _ = write!(h, "<dt>{}</dt><dd>{}</dd>", text(k), text(&v));
+    }
+    h.push_str("</dl></details></td>");
+    h
+}
+
+/// Per case (scene and parameters), one grid: the reference once, then a row per algorithm and
+/// per execution its shaded view, its visibility (background transparent) and its error heat
+/// map, each only where the file exists. The base point's grid comes first and open; the others
+/// are folded.
 fn gallery(out: &Path, runs: &[RunRecord]) -> String {
-    let mut h = String::from("<h2>Images</h2>\n");
-    let mut scenes: Vec<&str> = Vec::new();
+    let mut h = String::from(
+        "<h2 id=\"images\">Images</h2>\n<p>Per case, every algorithm × execution: the \
+         <i>shaded</i> view (visibility × a Lambertian term, so occluders stand out), the \
+         <i>visibility</i> (black: no light, white: fully lit; pixels that see no surface are \
+         transparent, in <code>mask.npy</code> they are 0) and the <i>error</i> against the \
+         reference (black 0, red, yellow ≥ 0.5; background blue-grey). The difference of any two \
+         runs: <code>shadowbench diff images/A images/B</code>.</p>\n",
+    );
+    let ok: Vec<&RunRecord> = runs.iter().collect();
+    let base = summary::base_case(&ok).map(|b| b.0);
+    let mut cases: Vec<String> = Vec::new();
     for r in runs {
-        if !scenes.contains(&r.scene.as_str()) {
-            scenes.push(&r.scene);
+        let k = summary::case_key(r);
+        if !cases.contains(&k) {
+            cases.push(k);
         }
     }
-    if scenes.is_empty() {
+    if let Some(b) = &base {
+        if let Some(i) = cases.iter().position(|k| k == b) {
+            let k = cases.remove(i);
+            cases.insert(0, k);
+        }
+    }
+    if cases.is_empty() {
         h.push_str("<p class=\"none\">No runs.</p>\n");
     }
-    for scene in scenes {
-        // Under a textured light, the light received per channel gets its own column.
-        let rgb = runs.iter().filter(|r| r.scene == scene).any(|r| {
+    let img = |rel: &str, alt: &str| -> Option<String> {
+        out.join(rel).is_file().then(|| {
+            format!(
+                "<a href=\"{u}\"><img src=\"{u}\" alt=\"{}\" title=\"{}\"></a>",
+                attr(alt),
+                attr(rel),
+                u = attr(&url(rel))
+            )
+        })
+    };
+    for (ci, key) in cases.iter().enumerate() {
+        let mut at: Vec<&RunRecord> = runs
+            .iter()
+            .filter(|r| summary::case_key(r) == *key)
+            .collect();
+        at.sort_by_key(|r| {
+            (
+                style::algorithm_rank(&r.algorithm),
+                style::execution_rank(&r.backend),
+            )
+        });
+        let mut backends: Vec<&str> = at.iter().map(|r| r.backend.as_str()).collect();
+        backends.sort_by_key(|b| style::execution_rank(b));
+        backends.dedup();
+        let mut algs: Vec<&str> = at.iter().map(|r| r.algorithm.as_str()).collect();
+        algs.dedup();
+        let rgb = at.iter().any(|r| {
             out.join(format!("images/{}/visibility_rgb.png", r.case_id()))
                 .is_file()
         });
+        let files: Vec<(&str, &str)> = {
+            let mut f = vec![
+                ("shaded.png", "shaded"),
+                ("visibility.png", "visibility"),
+                ("error.png", "error"),
+            ];
+            if rgb {
+                f.push(("visibility_rgb.png", "light received (rgb)"));
+            }
+            f
+        };
+        let title = charts::describe_case(at[0], None);
+        let is_base = base.as_ref() == Some(key);
         let _ = writeln!(
             h,
-            "<h3>{}</h3>\n<table class=\"gallery\"><tr><th>run</th><th>visibility</th>\
-             <th>reference</th><th>error (black 0, yellow ≥ 0.5)</th>{}</tr>",
-            text(scene),
-            if rgb {
-                "<th>light received (rgb)</th>"
-            } else {
-                ""
-            }
+            "<details class=\"case\" id=\"case-{ci}\"{}><summary><b>{}{}</b></summary>",
+            if is_base { " open" } else { "" },
+            if is_base { "base point: " } else { "" },
+            text(&title)
         );
-        let files: &[&str] = if rgb {
-            &[
-                "visibility.png",
-                "reference.png",
-                "error.png",
-                "visibility_rgb.png",
-            ]
-        } else {
-            &["visibility.png", "reference.png", "error.png"]
-        };
-        for r in runs.iter().filter(|r| r.scene == scene) {
-            let case = r.case_id();
+        // The reference, once: from the reference run, or the reference copy of any run.
+        let reference = at
+            .iter()
+            .find(|r| r.algorithm == "reference")
+            .and_then(|r| {
+                let d = format!("images/{}", r.case_id());
+                Some((
+                    img(&format!("{d}/shaded.png"), "reference shaded"),
+                    img(&format!("{d}/visibility.png"), "reference")?,
+                ))
+            })
+            .or_else(|| {
+                at.iter().find_map(|r| {
+                    let d = format!("images/{}", r.case_id());
+                    Some((
+                        img(&format!("{d}/reference_shaded.png"), "reference shaded"),
+                        img(&format!("{d}/reference.png"), "reference")?,
+                    ))
+                })
+            });
+        if let Some((shaded, vis)) = reference {
+            let _ = writeln!(
+                h,
+                "<table class=\"gallery\"><tr><th>reference</th><th>shaded</th><th>visibility</th></tr>\
+                 <tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>reference</td>\
+                 <td>{}</td><td>{}</td></tr></table>",
+                style::hex(style::REFERENCE),
+                shaded.unwrap_or_else(|| "–".into()),
+                vis
+            );
+        }
+        h.push_str("<table class=\"gallery\"><tr><th rowspan=\"2\">algorithm</th>");
+        for b in &backends {
+            let _ = write!(h, "<th colspan=\"{}\">{}</th>", files.len(), text(b));
+        }
+        h.push_str("</tr><tr>");
+        for _ in &backends {
+            for (_, label) in &files {
+                let _ = write!(h, "<th>{}</th>", text(label));
+            }
+        }
+        h.push_str("</tr>\n");
+        for alg in algs.iter().filter(|a| **a != "reference") {
             let _ = write!(
                 h,
-                "<tr><td class=\"t\"><b>{}</b><br>{}</td>",
-                text(&charts::series_name(r)),
-                text(&case)
+                "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td>",
+                style::hex(style::algorithm_color(alg)),
+                text(alg)
             );
-            for file in files {
-                let rel = format!("images/{case}/{file}");
-                if out.join(&rel).is_file() {
-                    let _ = write!(
-                        h,
-                        "<td><img src=\"{}\" alt=\"{} {}\"></td>",
-                        attr(&url(&rel)),
-                        attr(&case),
-                        attr(file)
-                    );
-                } else {
-                    h.push_str("<td class=\"none\">–</td>");
+            for b in &backends {
+                match at.iter().find(|r| r.algorithm == *alg && r.backend == *b) {
+                    Some(r) if r.failure.is_some() => {
+                        let _ = write!(
+                            h,
+                            "<td colspan=\"{}\" class=\"status-fail\">FAILED: {}</td>",
+                            files.len(),
+                            text(r.failure.as_deref().unwrap_or_default())
+                        );
+                    }
+                    Some(r) => {
+                        for (f, label) in &files {
+                            let rel = format!("images/{}/{f}", r.case_id());
+                            match img(&rel, &format!("{alg} on {b}: {label}")) {
+                                Some(i) => {
+                                    let _ = write!(h, "<td>{i}</td>");
+                                }
+                                None => h.push_str("<td class=\"none\">–</td>"),
+                            }
+                        }
+                    }
+                    None => {
+                        let _ = write!(
+                            h,
+                            "<td colspan=\"{}\" class=\"none\">no such execution</td>",
+                            files.len()
+                        );
+                    }
                 }
             }
             h.push_str("</tr>\n");
         }
-        h.push_str("</table>\n");
+        h.push_str("</table></details>\n");
     }
     h
 }
@@ -367,10 +606,10 @@ mod tests {
         let img = dir.path().join("images").join(r.case_id());
         std::fs::create_dir_all(&img).unwrap();
         std::fs::write(img.join("visibility.png"), b"png").unwrap();
-        let plain = page(dir.path(), &results, &[]);
+        let plain = page(dir.path(), &results, &[], None);
         assert!(!plain.contains("light received"), "{plain}");
         std::fs::write(img.join("visibility_rgb.png"), b"png").unwrap();
-        let textured = page(dir.path(), &results, &[]);
+        let textured = page(dir.path(), &results, &[], None);
         assert!(textured.contains("light received (rgb)"), "{textured}");
         let rgb = format!("images/{}/visibility_rgb.png", r.case_id());
         assert!(sources(&textured).contains(&rgb));
@@ -393,12 +632,14 @@ mod tests {
             claims: vec![],
         };
         let charts = [Written {
+            file: "a b".into(),
+            case: "case".into(),
             png: "charts/a b.png".into(),
             svg: "charts/a b.svg".into(),
             title: "t".into(),
             caption: "c".into(),
         }];
-        let page = page(dir.path(), &results, &charts);
+        let page = page(dir.path(), &results, &charts, None);
         assert!(page.contains("shadowbench: ci &amp; more"));
         assert!(page.contains(&ok.case_id()) && page.contains(&bad.case_id()));
         // The failure is visible, escaped.

@@ -8,7 +8,10 @@
 pub mod charts;
 pub mod claims;
 pub mod compare;
+pub mod font;
 pub mod html;
+pub mod style;
+pub mod summary;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -42,27 +45,33 @@ pub struct Report {
     pub charts: Vec<charts::Written>,
 }
 
-/// Writes the charts (`charts/*.png`, `charts/*.svg`) and `index.html` into `out`. The images
+/// Writes the charts (`charts/*.png`, `charts/*.svg`), the summary at the base point
+/// (`summary.csv`, `summary.tex`) and `index.html` into `out`. The images
 /// of each run are expected under `out/images/<case_id>/` (see [`import_images`]); the page
 /// shows only the ones that exist there.
 pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
     let chart_dir = out.join("charts");
     std::fs::create_dir_all(&chart_dir).map_err(|e| Error::io(&chart_dir, e))?;
     let mut written = Vec::new();
-    for mut spec in charts::plan(&results.runs) {
-        if !spec.left_out.is_empty() {
-            for w in &spec.left_out {
-                eprintln!("warning: chart {}: {w}", spec.file);
-            }
-            spec.caption.push_str(&format!(
-                " Left out, outside the range a chart can show: {}.",
-                spec.left_out.join("; ")
-            ));
-        }
+    let (chartable, left_out) = charts::chartable(&results.runs);
+    for w in &left_out {
+        eprintln!("warning: {w}");
+    }
+    for spec in charts::plan(&chartable) {
         written.push(charts::render(&spec, &chart_dir)?);
     }
+    let ok: Vec<&RunRecord> = chartable
+        .iter()
+        .filter(|r| r.failure.is_none())
+        .collect();
+    let summary = summary::Summary::of(&ok);
+    if let Some(s) = &summary {
+        crate::visibility::write_atomic(&out.join("summary.csv"), s.csv().as_bytes())?;
+        let tex = s.latex(&results.scenario);
+        crate::visibility::write_atomic(&out.join("summary.tex"), tex.as_bytes())?;
+    }
     let index = out.join("index.html");
-    let page = html::page(out, results, &written);
+    let page = html::page(out, results, &written, summary.as_ref());
     crate::visibility::write_atomic(&index, page.as_bytes())?;
     Ok(Report {
         index,

@@ -1,0 +1,168 @@
+//! The visual encoding shared by every chart and the HTML report: one colour per algorithm,
+//! one marker and line style per execution.
+//!
+//! Colours are Tableau 10 (Stone, Tableau Software, 2016), a qualitative palette whose hues stay
+//! apart on white; its yellow and grey are used only past the eighth algorithm. The reference
+//! (ground truth) is dark grey. Colours follow the algorithm's place in
+//! [`crate::algorithms::ALGORITHMS`], so an algorithm has the same colour in every chart of
+//! every report, whatever subset of algorithms a run selected.
+
+use plotters::style::RGBColor;
+
+use crate::algorithms::ALGORITHMS;
+
+/// Tableau 10 without its yellow and grey, in the palette's order.
+const PALETTE: [RGBColor; 8] = [
+    RGBColor(0x4e, 0x79, 0xa7), // blue
+    RGBColor(0xf2, 0x8e, 0x2b), // orange
+    RGBColor(0xe1, 0x57, 0x59), // red
+    RGBColor(0x76, 0xb7, 0xb2), // teal
+    RGBColor(0x59, 0xa1, 0x4f), // green
+    RGBColor(0xb0, 0x7a, 0xa1), // purple
+    RGBColor(0xff, 0x9d, 0xa7), // pink
+    RGBColor(0x9c, 0x75, 0x5f), // brown
+];
+
+/// Used after [`PALETTE`]: Tableau 10's yellow and grey.
+const EXTRA: [RGBColor; 2] = [RGBColor(0xed, 0xc9, 0x48), RGBColor(0xba, 0xb0, 0xac)];
+
+/// The reference's colour.
+pub const REFERENCE: RGBColor = RGBColor(0x4d, 0x4d, 0x4d);
+
+/// Colour of the Pareto front and of axes.
+pub const INK: RGBColor = RGBColor(0, 0, 0);
+
+/// The colour of `algorithm`: by its place among the registered algorithms (reference aside);
+/// an unknown name (from an older results file) gets one from its name's bytes.
+pub fn algorithm_color(algorithm: &str) -> RGBColor {
+    if algorithm == "reference" {
+        return REFERENCE;
+    }
+    let index = ALGORITHMS
+        .iter()
+        .filter(|a| a.id != "reference")
+        .position(|a| a.id == algorithm)
+        .unwrap_or_else(|| {
+            ALGORITHMS.len()
+                + algorithm
+                    .bytes()
+                    .fold(0usize, |h, b| h.wrapping_mul(31) + b as usize)
+        });
+    let all = PALETTE.len() + EXTRA.len();
+    let i = index % all;
+    if i < PALETTE.len() {
+        PALETTE[i]
+    } else {
+        EXTRA[i - PALETTE.len()]
+    }
+}
+
+/// `c` as `#rrggbb`, for HTML.
+pub fn hex(c: RGBColor) -> String {
+    format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
+}
+
+/// `c` mixed with white: `t` = 0 is `c`, 1 is white.
+pub fn tint(c: RGBColor, t: f64) -> RGBColor {
+    let m = |v: u8| (v as f64 + (255.0 - v as f64) * t).round() as u8;
+    RGBColor(m(c.0), m(c.1), m(c.2))
+}
+
+/// A point marker.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Marker {
+    Circle,
+    Square,
+    Triangle,
+    Diamond,
+}
+
+/// A line style.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dash {
+    Solid,
+    Dashed,
+    Dotted,
+}
+
+/// The marker and line style of an execution: cpu-native ● solid, cpu-model ■ dashed,
+/// wgpu ▲ dotted, anything else ◆ solid.
+pub fn execution_style(backend: &str) -> (Marker, Dash) {
+    match backend {
+        "cpu-native" => (Marker::Circle, Dash::Solid),
+        "cpu-model" => (Marker::Square, Dash::Dashed),
+        "wgpu" => (Marker::Triangle, Dash::Dotted),
+        _ => (Marker::Diamond, Dash::Solid),
+    }
+}
+
+/// Order of executions in panels and tables: as [`crate::algorithms::Backend::ALL`], then
+/// unknown names alphabetically.
+pub fn execution_rank(backend: &str) -> (usize, String) {
+    let known = crate::algorithms::Backend::ALL
+        .iter()
+        .position(|b| b.name() == backend)
+        .unwrap_or(usize::MAX);
+    (known, backend.to_string())
+}
+
+/// Order of algorithms in legends and tables: the reference first, then as registered.
+pub fn algorithm_rank(algorithm: &str) -> (usize, String) {
+    let known = ALGORITHMS
+        .iter()
+        .position(|a| a.id == algorithm)
+        .unwrap_or(usize::MAX);
+    (known, algorithm.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Squared distance in RGB.
+    fn dist(a: RGBColor, b: RGBColor) -> i32 {
+        let d = |x: u8, y: u8| (x as i32 - y as i32).pow(2);
+        d(a.0, b.0) + d(a.1, b.1) + d(a.2, b.2)
+    }
+
+    #[test]
+    fn every_registered_algorithm_has_its_own_colour_far_from_the_others_and_from_white() {
+        let colors: Vec<RGBColor> = ALGORITHMS.iter().map(|a| algorithm_color(a.id)).collect();
+        for (i, a) in colors.iter().enumerate() {
+            // Not near white (the page) or the light grey of the grid.
+            assert!(dist(*a, RGBColor(255, 255, 255)) > 60 * 60, "{i}: {a:?}");
+            for b in &colors[i + 1..] {
+                // At least ~50 apart in RGB: no two algorithms share a colour.
+                assert!(dist(*a, *b) > 50 * 50, "{a:?} vs {b:?}");
+            }
+        }
+        assert_eq!(algorithm_color("reference"), REFERENCE);
+        // Stable: the same name gives the same colour.
+        assert_eq!(algorithm_color("pcss"), algorithm_color("pcss"));
+        assert_eq!(
+            algorithm_color("not-registered"),
+            algorithm_color("not-registered")
+        );
+    }
+
+    #[test]
+    fn executions_differ_in_marker_and_line() {
+        let styles: Vec<_> = ["cpu-native", "cpu-model", "wgpu"]
+            .iter()
+            .map(|b| execution_style(b))
+            .collect();
+        for (i, a) in styles.iter().enumerate() {
+            for b in &styles[i + 1..] {
+                assert!(a.0 != b.0 && a.1 != b.1, "{a:?} vs {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn tint_goes_from_the_colour_to_white() {
+        let c = RGBColor(0x4e, 0x79, 0xa7);
+        assert_eq!(tint(c, 0.0), c);
+        assert_eq!(tint(c, 1.0), RGBColor(255, 255, 255));
+        assert_eq!(hex(c), "#4e79a7");
+    }
+}
