@@ -95,7 +95,14 @@ for rel in svgs:
     for e in root.iter():
         tag = e.tag.split("}")[-1]
         if tag == "text":
-            texts.append((num(e.get("x")), num(e.get("y")), "".join(e.itertext()).strip()))
+            # Labels: left-aligned, unrotated text (tick labels and axis titles are centred,
+            # right-aligned or rotated), at their vertical centre (y is the top with dy 0.76em).
+            if e.get("text-anchor", "start") != "start" or e.get("transform"):
+                continue
+            size = num(e.get("font-size")) or 12.0
+            y = num(e.get("y"))
+            centre = y + 0.5 * size if e.get("dy") == "0.76em" else y - 0.35 * size
+            texts.append((num(e.get("x")), centre, "".join(e.itertext()).strip()))
             continue
         colour = None
         for attr in ("fill", "stroke"):
@@ -125,7 +132,7 @@ for rel in svgs:
         if x1 - x0 > 40 or y1 - y0 > 20:
             return False
         cy = (y0 + y1) / 2
-        return any(0 <= tx - x1 <= 30 and abs(ty - cy) <= 16 and t for tx, ty, t in texts)
+        return any(0 <= tx - x1 <= 30 and abs(ty - cy) <= 10 and t for tx, ty, t in texts)
     drawn = {c for c, _ in shapes}
     legend = {c for c, b in shapes if labelled(b)}
     missing = sorted(drawn - legend)

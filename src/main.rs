@@ -796,47 +796,49 @@ fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> 
     Ok(!c.regressed())
 }
 
-/// Gives the process a private `XDG_RUNTIME_DIR` when it has none (or one that is not an
-/// absolute path to a folder), as in containers and CI: the Vulkan loader and Mesa's window-system
-/// code otherwise print "XDG_RUNTIME_DIR is invalid or not set" while the GPU is probed, which
-/// reads as if it came from shadowbench. The folder (mode 0700) is under the system's temporary
-/// folder and is removed when the process ends normally; nothing is written into it.
-fn private_runtime_dir() {
-    let valid = std::env::var_os("XDG_RUNTIME_DIR")
-        .map(PathBuf::from)
-        .is_some_and(|p| p.is_absolute() && p.is_dir());
-    if valid {
-        return;
-    }
-    let dir = std::env::temp_dir().join(format!("shadowbench-runtime-{}", std::process::id()));
-    let mut builder = std::fs::DirBuilder::new();
-    #[cfg(unix)]
-    std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
-    if builder.create(&dir).is_ok() {
+/// A private `XDG_RUNTIME_DIR` for the process when it has none (or one that is not an absolute
+/// path to a folder), as in containers and CI: the Vulkan loader and Mesa's window-system code
+/// otherwise print "XDG_RUNTIME_DIR is invalid or not set" while the GPU is probed, which reads
+/// as if it came from shadowbench. The folder (mode 0700, under the system's temporary folder,
+/// nothing written into it) is removed when this guard drops, on return or panic.
+struct RuntimeDir(Option<PathBuf>);
+
+impl RuntimeDir {
+    fn ensure() -> RuntimeDir {
+        let valid = std::env::var_os("XDG_RUNTIME_DIR")
+            .map(PathBuf::from)
+            .is_some_and(|p| p.is_absolute() && p.is_dir());
+        if valid {
+            return RuntimeDir(None);
+        }
+        let dir = std::env::temp_dir().join(format!("shadowbench-runtime-{}", std::process::id()));
+        let mut builder = std::fs::DirBuilder::new();
+        #[cfg(unix)]
+        std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
+        if builder.create(&dir).is_err() {
+            return RuntimeDir(None);
+        }
         // Single-threaded here: main has not started any thread yet.
         std::env::set_var("XDG_RUNTIME_DIR", &dir);
-        RUNTIME_DIR.with(|d| *d.borrow_mut() = Some(dir));
+        RuntimeDir(Some(dir))
     }
 }
 
-thread_local! {
-    /// The private runtime folder [`private_runtime_dir`] made, removed at exit.
-    static RUNTIME_DIR: std::cell::RefCell<Option<PathBuf>> = const { std::cell::RefCell::new(None) };
+impl Drop for RuntimeDir {
+    fn drop(&mut self) {
+        if let Some(dir) = self.0.take() {
+            let _ = std::fs::remove_dir_all(dir);
+        }
+    }
 }
 
 fn main() -> ExitCode {
-    let code = real_main();
-    RUNTIME_DIR.with(|d| {
-        if let Some(dir) = d.borrow_mut().take() {
-            let _ = std::fs::remove_dir_all(dir);
-        }
-    });
-    code
-}
-
-fn real_main() -> ExitCode {
-    private_runtime_dir();
     let cli = Cli::parse();
+    // Only the subcommands that probe the GPU; after parsing, since --help exits directly.
+    let _runtime = match cli.command {
+        Command::List { .. } | Command::Render(_) | Command::Run(_) => RuntimeDir::ensure(),
+        _ => RuntimeDir(None),
+    };
     let adapter = match &cli.command {
         Command::List { adapter, .. } => adapter.adapter.clone(),
         Command::Render(a) => a.adapter.adapter.clone(),

@@ -650,13 +650,15 @@ pub fn progress_line(done: usize, total: usize, elapsed: Duration, r: &RunRecord
     )
 }
 
-/// Three significant digits.
+/// Three significant digits, at most 8 characters.
 fn short(v: f64) -> String {
     if !v.is_finite() {
         return v.to_string();
     }
     let a = v.abs();
-    if a >= 100.0 || a == 0.0 {
+    if a >= 1e5 || (a < 1e-3 && a > 0.0) {
+        format!("{v:.2e}")
+    } else if a >= 100.0 || a == 0.0 {
         format!("{v:.0}")
     } else if a >= 10.0 {
         format!("{v:.1}")
@@ -813,4 +815,72 @@ pub fn write_frame_files(
     }
     let json = serde_json::to_vec_pretty(record).expect("records serialize");
     crate::visibility::write_atomic(&dir.join("run.json"), &json)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::report::testdata::record;
+
+    #[test]
+    fn the_end_summary_has_a_row_per_algorithm_and_execution_within_100_columns() {
+        let mut runs = Vec::new();
+        for t in [500, 2000, 8000] {
+            for a in algorithms::ALGORITHMS {
+                for b in Backend::ALL {
+                    let mut r = record(a.id, b.name(), t, 32);
+                    // Wide figures: the columns must still fit.
+                    r.wall_ms = 1000.0 * t as f64;
+                    r.model_ms = Some(0.000123 * t as f64);
+                    r.gpu_ms = Some(98765.4);
+                    runs.push(r);
+                }
+            }
+        }
+        runs[1].failure = Some("out of memory".into());
+        let text = grouped_summary(&runs);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines.len(),
+            1 + algorithms::ALGORITHMS.len() * Backend::ALL.len()
+        );
+        for l in &lines {
+            assert!(
+                l.chars().count() <= 100,
+                "{} columns: {l}",
+                l.chars().count()
+            );
+        }
+        // The failed run counts in its group, and only there.
+        let r = &runs[1];
+        let row = lines
+            .iter()
+            .find(|l| l.starts_with(&format!("{:<18} {:<10}", r.algorithm, r.backend)))
+            .unwrap();
+        let cols: Vec<&str> = row.split_whitespace().collect();
+        assert_eq!((cols[2], cols[3]), ("3", "1"), "{row}");
+        // A range from the smallest to the largest wall time of the group's successful runs.
+        let first = lines[1];
+        assert!(first.contains(" 5.00e5-8.00e6 "), "{first}");
+    }
+
+    #[test]
+    fn a_progress_line_names_the_run_its_case_and_the_time_left() {
+        let mut r = record("pcss", "cpu-model", 2000, 32);
+        r.params.light_size = 0.6;
+        let l = progress_line(10, 40, Duration::from_secs(75), &r);
+        // 75 s for 10 runs: 30 runs left take 225 s.
+        assert!(l.starts_with("[10/40 1:15 ETA 3:45] pcss"), "{l}");
+        assert!(
+            l.contains("cpu-model") && l.contains("2000 tris, light 0.6, map 512"),
+            "{l}"
+        );
+        assert!(l.contains("mae_shadow 0.0500"), "{l}");
+        r.failure = Some("no adapter\nmore".into());
+        let l = progress_line(40, 40, Duration::from_secs(3700), &r);
+        assert!(
+            l.contains("1:01:40 ETA 0:00") && l.ends_with("FAILED: no adapter"),
+            "{l}"
+        );
+    }
 }
