@@ -3,6 +3,10 @@
 //! Used by the ground-truth reference (shadow rays) and by the eye pass (primary rays). The
 //! any-hit answer of a shadow ray depends only on the triangle tests, never on the tree's shape,
 //! so results are identical whatever the build's thread count.
+//!
+//! The triangle test is the one coverage rule ([`coverage`]), not obvhs's Möller–Trumbore test,
+//! which is not watertight (a ray through an edge shared by two triangles can miss both: the eye
+//! pass then sees through a closed mesh and shadow rays leak light through it).
 
 use std::time::Duration;
 
@@ -12,6 +16,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 
+use super::coverage;
 use super::mesh::FlatMesh;
 
 pub struct SceneBvh {
@@ -75,7 +80,7 @@ impl SceneBvh {
         let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
         !self
             .bvh
-            .ray_traverse_miss(ray, |r, id| self.triangles[id].intersect(r))
+            .ray_traverse_miss(ray, |r, id| intersect(&self.triangles[id], r))
     }
 
     /// The closest hit along a ray, if any.
@@ -86,10 +91,29 @@ impl SceneBvh {
         let ray = Ray::new_inf(Vec3A::from(origin), Vec3A::from(dir));
         let mut hit = RayHit::none();
         self.bvh
-            .ray_traverse(ray, &mut hit, |r, id| self.triangles[id].intersect(r))
+            .ray_traverse(ray, &mut hit, |r, id| intersect(&self.triangles[id], r))
             .then(|| Hit {
                 t: hit.t,
                 triangle: self.bvh.primitive_indices[hit.primitive_id as usize],
             })
+    }
+}
+
+/// Distance along `ray` to `tri` within `[tmin, tmax]`, or infinity: whether the ray crosses
+/// the triangle is decided by the one coverage rule ([`coverage::line_crosses`]), so a ray
+/// through an edge or vertex shared by triangles of a closed mesh hits exactly one of them.
+fn intersect(tri: &Triangle, ray: &Ray) -> f32 {
+    let (a, b, c) = (Vec3::from(tri.v0), Vec3::from(tri.v1), Vec3::from(tri.v2));
+    let (o, d) = (Vec3::from(ray.origin), Vec3::from(ray.direction));
+    let n = (b - a).cross(c - a);
+    let nd = n.dot(d);
+    if nd == 0.0 || !coverage::line_crosses(o, d, n, &[(a, b), (b, c), (c, a)]) {
+        return f32::INFINITY;
+    }
+    let t = n.dot(a - o) / nd;
+    if t >= ray.tmin && t <= ray.tmax {
+        t
+    } else {
+        f32::INFINITY
     }
 }

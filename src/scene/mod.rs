@@ -4,6 +4,7 @@
 pub mod adjacency;
 pub mod bvh;
 pub mod camera;
+pub mod coverage;
 pub mod generators;
 pub mod light;
 pub mod light_texture;
