@@ -21,7 +21,7 @@ use crate::scene::Bounds;
 pub const DEPTH_BYTES: u64 = 4;
 
 /// The eye rays of a frame: one per pixel, through the visible surface point moved off its
-/// surface by the frame's epsilon (the same point the reference shades).
+/// surface (`GBuffer::shading_point`, the same point the reference shades).
 pub struct EyeRays {
     pub width: u32,
     pub height: u32,
@@ -61,7 +61,7 @@ impl EyeRays {
         let mut point = Vec::with_capacity(g.len());
         for i in 0..g.len() {
             if g.is_hit(i) {
-                let p = g.position[i] + g.normal[i] * frame.epsilon;
+                let p = g.shading_point(i);
                 let d = p - cam.eye;
                 dir.push(d.normalize());
                 depth.push(d.length());

@@ -348,6 +348,50 @@ pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
     if frame.scene.light_texture.is_some() {
         check_light_texture(id, &ctx.options)?;
     }
+    let fallback = zfail_fallback(id, frame, ctx);
+    let ctx = fallback.as_ref().map_or(ctx, |(c, _)| c);
+    let mut out = dispatch(id, backend, frame, ctx)?;
+    let edges = frame.occluder_edges;
+    out.counters
+        .set("occluders.boundary_edges", edges.boundary as f64);
+    out.counters
+        .set("occluders.non_manifold_edges", edges.non_manifold as f64);
+    out.warnings.extend(edges.warning());
+    out.warnings.extend(frame.precision_warning.clone());
+    out.warnings.extend(fallback.map(|(_, w)| w));
+    Ok(out)
+}
+
+/// z-fail counting (`counting: "z_fail"` of `soft_shadow_volume` and `accum_hard`) closes each
+/// shadow volume with caps and is only right for closed 2-manifold occluders: on an open or
+/// non-manifold mesh the volumes leak and streaks cross the image. Such runs fall back to z-pass
+/// (from the eye's count, right wherever the eye is outside the shadow); returns the options
+/// they run with and the run's warning naming the algorithm, the option and the open edges.
+fn zfail_fallback(id: &str, frame: &Frame, ctx: &ExecContext) -> Option<(ExecContext, String)> {
+    let edges = frame.occluder_edges;
+    if ![soft_shadow_volume::ID, accum_hard::ID].contains(&id) || edges.open() == 0 {
+        return None;
+    }
+    let options = ctx.options.get(id)?.as_object()?;
+    if options.get("counting")?.as_str()? != "z_fail" {
+        return None;
+    }
+    let mut ctx = ctx.clone();
+    if let Some(serde_json::Value::Object(o)) = ctx.options.get_mut(id) {
+        o.insert("counting".into(), serde_json::json!("z_pass"));
+    }
+    let warning = format!(
+        "{id}: options.{id}.counting \"z_fail\" needs closed occluders, but they have {} open \
+         edges ({} boundary, {} non-manifold): counted with \"z_pass\" instead",
+        edges.open(),
+        edges.boundary,
+        edges.non_manifold
+    );
+    Some((ctx, warning))
+}
+
+/// Runs algorithm `id` (registered, with a `backend` execution) on `backend` for `frame`.
+fn dispatch(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     if backend == Backend::Wgpu {
         return crate::gpu::guarded_run(ctx.deadline, |gpu| match id {
             hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),

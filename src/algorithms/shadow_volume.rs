@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 use super::eye_raster::{raster_pass, Block, EyeBuffer, EyeRays, ScreenRect, TilePass};
 use crate::model::{Machine, Mask, Probe, LANES};
 use crate::scene::adjacency::SilhouetteEdge;
-use crate::scene::{Bounds, Mesh};
+use crate::scene::{coverage, Bounds, Mesh};
 
 /// How a hard shadow-volume pass counts (option `counting`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -73,7 +73,10 @@ impl ShadowQuad {
         }
     }
 
-    /// Distance along `o + t·d` to the quad, if the ray meets it.
+    /// Distance along `o + t·d` to the quad, if the ray meets it. Coverage follows the one
+    /// tie rule ([`coverage::line_crosses`]) over the quad's boundary lines `l → a`, `b → l` and
+    /// `b → a` (the quad `a`, far `a`, far `b`, `b` wound around `normal`), so a ray through the
+    /// line from the light through a vertex shared by two quads crosses exactly one of them.
     pub fn ray_hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
         let n = self.normal;
         let nd = n.dot(d);
@@ -81,12 +84,8 @@ impl ShadowQuad {
             return None;
         }
         let t = n.dot(self.light - o) / nd;
-        let y = o + d * t;
-        let l = self.light;
-        let inside = (self.a - l).cross(y - l).dot(n) >= 0.0
-            && (y - l).cross(self.b - l).dot(n) >= 0.0
-            && (self.b - self.a).cross(y - self.a).dot(n) <= 0.0;
-        (t > 0.0 && inside).then_some(t)
+        let (l, a, b) = (self.light, self.a, self.b);
+        (t > 0.0 && coverage::line_crosses(o, d, n, &[(l, a), (b, l), (b, a)])).then_some(t)
     }
 
     /// Corners of the quad cut at distance `reach` (the scene size) beyond its edge.
@@ -135,21 +134,17 @@ pub fn eye_count(occluders: &Mesh, light: Vec3, eye: Vec3) -> i32 {
         .count() as i32
 }
 
-/// Möller–Trumbore for the segment `o + t·d`, `t ∈ (0, 1)`.
+/// Whether the segment `o + t·d`, `t ∈ (0, 1)`, crosses triangle `a b c` under the one tie rule
+/// ([`coverage::line_crosses`]), so that a segment through an edge shared by two front caps
+/// counts one volume.
 fn segment_hits_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
-    let (e1, e2) = (b - a, c - a);
-    let p = d.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < 1e-12 {
+    let n = (b - a).cross(c - a);
+    let nd = n.dot(d);
+    if nd == 0.0 || !coverage::line_crosses(o, d, n, &[(a, b), (b, c), (c, a)]) {
         return false;
     }
-    let inv = 1.0 / det;
-    let s = o - a;
-    let u = s.dot(p) * inv;
-    let q = s.cross(e1);
-    let v = d.dot(q) * inv;
-    let t = e2.dot(q) * inv;
-    u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0 && t < 1.0
+    let t = n.dot(a - o) / nd;
+    t > 0.0 && t < 1.0
 }
 
 /// Vector instructions per block of a shadow quad: the ray–plane intersection (two 3-term dots,
@@ -174,8 +169,10 @@ pub struct VolumeFace {
 }
 
 impl VolumeFace {
-    /// Distance along `o + t·d` to the face, if the ray meets it (edges included, as
-    /// [`ShadowQuad::ray_hit`]).
+    /// Distance along `o + t·d` to the face, if the ray meets it, under the one tie rule
+    /// ([`coverage::line_crosses`], as [`ShadowQuad::ray_hit`]): the faces of a closed volume
+    /// share their corners exactly, so a ray through an edge or corner crosses the volume's
+    /// boundary once per entry or exit.
     pub fn ray_hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
         let n = self.normal;
         let nd = n.dot(d);
@@ -184,10 +181,9 @@ impl VolumeFace {
         }
         let c = &self.corners;
         let t = n.dot(c[0] - o) / nd;
-        let y = o + d * t;
         let k = self.sides as usize;
-        let inside = (0..k).all(|i| (c[(i + 1) % k] - c[i]).cross(y - c[i]).dot(n) >= 0.0);
-        (t > 0.0 && inside).then_some(t)
+        let edges: [(Vec3, Vec3); 4] = std::array::from_fn(|i| (c[i % k], c[(i + 1) % k]));
+        (t > 0.0 && coverage::line_crosses(o, d, n, &edges[..k])).then_some(t)
     }
 
     /// +1 on the outer side of the face's plane, −1 on the inner side.

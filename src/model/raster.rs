@@ -23,6 +23,7 @@ use glam::{Mat4, Vec3, Vec4};
 use super::buffer::{Buffer, Memory};
 use super::simd::{Lanes, Mask, Probe, LANES};
 use super::{Machine, TaskKernel};
+use crate::scene::coverage;
 
 /// Side of a block in pixels: a 4×4 block is one 16-lane vector.
 pub const BLOCK: u32 = 4;
@@ -375,7 +376,9 @@ impl Setup {
             // E_k(q_k) = sign · cross(q_k − p, r − p) = |area| > 0.
             a[k] = -sign * (r[1] - p[1]);
             b[k] = sign * (r[0] - p[0]);
-            top_left[k] = a[k] > 0.0 || (a[k] == 0.0 && b[k] > 0.0);
+            // The one tie rule (`scene::coverage`) in screen space: the perturbation of the
+            // pixel centre by (ε, ε²) decides an edge value of exactly 0 (the top-left rule).
+            top_left[k] = coverage::lex_positive([a[k], b[k], 0.0]);
         }
         let grow = if coverage == Coverage::Conservative {
             1.0
@@ -442,7 +445,9 @@ impl Setup {
 }
 
 /// Sutherland–Hodgman clip of a clip-space triangle against the near plane z ≥ 0; returns the
-/// resulting polygon (0, 3 or 4 vertices).
+/// resulting polygon (0, 3 or 4 vertices). The crossing of an edge is interpolated from its
+/// kept endpoint whichever way the triangle runs along it, so two triangles sharing a clipped
+/// edge get the same new vertex and stay watertight.
 fn clip_near(v: [Vec4; 3]) -> Vec<Vec4> {
     let mut out = Vec::with_capacity(4);
     for i in 0..3 {
@@ -451,8 +456,9 @@ fn clip_near(v: [Vec4; 3]) -> Vec<Vec4> {
             out.push(p);
         }
         if (p.z >= 0.0) != (q.z >= 0.0) {
-            let t = p.z / (p.z - q.z);
-            out.push(p + (q - p) * t);
+            let (inside, outside) = if p.z >= 0.0 { (p, q) } else { (q, p) };
+            let t = inside.z / (inside.z - outside.z);
+            out.push(inside + (outside - inside) * t);
         }
     }
     out

@@ -3,6 +3,10 @@
 //! Used by the ground-truth reference (shadow rays) and by the eye pass (primary rays). The
 //! any-hit answer of a shadow ray depends only on the triangle tests, never on the tree's shape,
 //! so results are identical whatever the build's thread count.
+//!
+//! The triangle test is the one coverage rule ([`coverage`]), not obvhs's Möller–Trumbore test,
+//! which is not watertight (a ray through an edge shared by two triangles can miss both: the eye
+//! pass then sees through a closed mesh and shadow rays leak light through it).
 
 use std::time::Duration;
 
@@ -12,12 +16,20 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
 
+use super::coverage;
 use super::mesh::FlatMesh;
 
+/// The BVH holds the scene in local coordinates `(p − origin) · scale`: centred on its bounds
+/// and scaled by a power of two to a diagonal in [1, 2), so that the tree's build and traversal
+/// (quantized child boxes, fixed tolerances) see a well-conditioned scene whatever its offset
+/// and scale. A vertex maps to one local point for every triangle using it (the mesh stays
+/// watertight); the scaling is exact, the shift rounds within the coordinates' own precision.
 pub struct SceneBvh {
     bvh: CwBvh,
-    /// Triangles in the BVH's leaf order, so traversal indexes them directly.
+    /// Triangles in the BVH's leaf order, so traversal indexes them directly (local coordinates).
     triangles: Vec<Triangle>,
+    origin: Vec3,
+    scale: f32,
 }
 
 /// A primary-ray hit.
@@ -29,13 +41,24 @@ pub struct Hit {
 
 impl SceneBvh {
     pub fn build(flat: &FlatMesh) -> SceneBvh {
+        let bounds = flat.mesh.bounds();
+        let diagonal = bounds.diagonal();
+        let (origin, scale) = if diagonal.is_finite() && diagonal > 0.0 {
+            (
+                bounds.center(),
+                2f32.powi(-(diagonal.log2().floor() as i32)),
+            )
+        } else {
+            (Vec3::ZERO, 1.0)
+        };
+        let local = |p: Vec3| (p - origin) * scale;
         let triangles: Vec<Triangle> = (0..flat.mesh.triangles.len())
             .map(|t| {
                 let [a, b, c] = flat.mesh.triangle(t);
                 Triangle {
-                    v0: a.into(),
-                    v1: b.into(),
-                    v2: c.into(),
+                    v0: local(a).into(),
+                    v1: local(b).into(),
+                    v2: local(c).into(),
                 }
             })
             .collect();
@@ -55,7 +78,17 @@ impl SceneBvh {
             .iter()
             .map(|&i| triangles[i as usize])
             .collect();
-        SceneBvh { bvh, triangles }
+        SceneBvh {
+            bvh,
+            triangles,
+            origin,
+            scale,
+        }
+    }
+
+    /// `p` in the BVH's local coordinates.
+    fn local(&self, p: Vec3) -> Vec3 {
+        (p - self.origin) * self.scale
     }
 
     pub fn triangle_count(&self) -> usize {
@@ -67,6 +100,7 @@ impl SceneBvh {
         if self.triangles.is_empty() {
             return false;
         }
+        let (from, to) = (self.local(from), self.local(to));
         let d = to - from;
         let len = d.length();
         if len <= 0.0 {
@@ -75,7 +109,7 @@ impl SceneBvh {
         let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
         !self
             .bvh
-            .ray_traverse_miss(ray, |r, id| self.triangles[id].intersect(r))
+            .ray_traverse_miss(ray, |r, id| intersect(&self.triangles[id], r))
     }
 
     /// The closest hit along a ray, if any.
@@ -83,13 +117,32 @@ impl SceneBvh {
         if self.triangles.is_empty() {
             return None;
         }
-        let ray = Ray::new_inf(Vec3A::from(origin), Vec3A::from(dir));
+        let ray = Ray::new_inf(Vec3A::from(self.local(origin)), Vec3A::from(dir));
         let mut hit = RayHit::none();
         self.bvh
-            .ray_traverse(ray, &mut hit, |r, id| self.triangles[id].intersect(r))
+            .ray_traverse(ray, &mut hit, |r, id| intersect(&self.triangles[id], r))
             .then(|| Hit {
-                t: hit.t,
+                t: hit.t / self.scale,
                 triangle: self.bvh.primitive_indices[hit.primitive_id as usize],
             })
+    }
+}
+
+/// Distance along `ray` to `tri` within `[tmin, tmax]`, or infinity: whether the ray crosses
+/// the triangle is decided by the one coverage rule ([`coverage::line_crosses`]), so a ray
+/// through an edge or vertex shared by triangles of a closed mesh hits exactly one of them.
+fn intersect(tri: &Triangle, ray: &Ray) -> f32 {
+    let (a, b, c) = (Vec3::from(tri.v0), Vec3::from(tri.v1), Vec3::from(tri.v2));
+    let (o, d) = (Vec3::from(ray.origin), Vec3::from(ray.direction));
+    let n = (b - a).cross(c - a);
+    let nd = n.dot(d);
+    if nd == 0.0 || !coverage::line_crosses(o, d, n, &[(a, b), (b, c), (c, a)]) {
+        return f32::INFINITY;
+    }
+    let t = n.dot(a - o) / nd;
+    if t >= ray.tmin && t <= ray.tmax {
+        t
+    } else {
+        f32::INFINITY
     }
 }

@@ -5,6 +5,7 @@
 pub mod adjacency;
 pub mod bvh;
 pub mod camera;
+pub mod coverage;
 pub mod export;
 pub mod generators;
 pub mod gltf;

@@ -3,8 +3,8 @@
 //!
 //! The light is divided into k×k strata (N = k² samples, 256 by default, 1024 for paper runs),
 //! each sampled once at a jittered position; a shadow ray from the surface point (moved off the
-//! surface by the frame's epsilon along the eye-facing normal) to the sample either reaches it or
-//! not. Jitter is a pure function of (seed, pixel, sample), so the image is identical for any
+//! surface robustly along the eye-facing normal, `GBuffer::shading_point`) to the sample either
+//! reaches it or not. Jitter is a pure function of (seed, pixel, sample), so the image is identical for any
 //! host thread count.
 //!
 //! A textured light ([`crate::scene::light_texture`]) weights each sample by the texture's
@@ -96,7 +96,7 @@ pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) 
             if !g.is_hit(i) {
                 return (1.0, unoccluded);
             }
-            let p = g.position[i] + g.normal[i] * frame.epsilon;
+            let p = g.shading_point(i);
             let stream = mix64(seed ^ i as u64);
             match texture {
                 Some(t) => {

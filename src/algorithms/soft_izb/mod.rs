@@ -22,6 +22,7 @@ use super::shadow_map::LightView;
 use crate::error::InputError;
 use crate::frame::Frame;
 use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
+use crate::scene::coverage;
 
 pub const ID: &str = "soft_izb";
 
@@ -143,6 +144,14 @@ pub fn in_front(view: &LightView, c: Vec4) -> bool {
     c.w > NEAR_CLIP * view.far
 }
 
+/// Where the clip-space segment `a b` (one end in front of `w_min`, one not) crosses
+/// `w = w_min`, interpolated from the end in front whichever way the segment runs, so that the
+/// triangles and edges sharing a clipped edge get the same point (and stay watertight).
+fn near_crossing(w_min: f32, a: Vec4, b: Vec4) -> Vec4 {
+    let (inside, outside) = if a.w > w_min { (a, b) } else { (b, a) };
+    inside + (outside - inside) * ((w_min - inside.w) / (outside.w - inside.w))
+}
+
 /// Clips a polygon in clip space to the part in front of the light (Sutherland–Hodgman against
 /// one plane) and projects it.
 pub fn clip_and_project(view: &LightView, poly: &[Vec4]) -> Vec<LightPoint> {
@@ -154,8 +163,7 @@ pub fn clip_and_project(view: &LightView, poly: &[Vec4]) -> Vec<LightPoint> {
             out.push(light_point(a));
         }
         if (a.w > w_min) != (b.w > w_min) {
-            let t = (w_min - a.w) / (b.w - a.w);
-            out.push(light_point(a + (b - a) * t));
+            out.push(light_point(near_crossing(w_min, a, b)));
         }
     }
     out
@@ -165,7 +173,7 @@ pub fn clip_and_project(view: &LightView, poly: &[Vec4]) -> Vec<LightPoint> {
 /// when it lies wholly behind.
 pub fn clip_segment(view: &LightView, a: Vec4, b: Vec4) -> Option<(LightPoint, LightPoint)> {
     let w_min = NEAR_CLIP * view.far;
-    let cut = |p: Vec4, q: Vec4| p + (q - p) * ((w_min - p.w) / (q.w - p.w));
+    let cut = |p: Vec4, q: Vec4| near_crossing(w_min, p, q);
     match (a.w > w_min, b.w > w_min) {
         (true, true) => Some((light_point(a), light_point(b))),
         (true, false) => Some((light_point(a), light_point(cut(a, b)))),
@@ -268,10 +276,13 @@ impl ProjectedEdge {
         let s0 = (-foot / r).clamp(-half_chord, half_chord);
         let s1 = ((len - foot) / r).clamp(-half_chord, half_chord);
         let area = circular_segment_area(d, s0, s1);
-        if side >= 0.0 {
-            area
-        } else {
+        // The sign rule decides "inside" as the umbra test does (the surface lies on the side
+        // of b → a that a positive face covers), ties included, so that a sample on an interior
+        // edge gets opposite signs from its two faces.
+        if coverage::edge_covers_2d(p.uv, self.b.uv, self.a.uv) {
             -area
+        } else {
+            area
         }
     }
 }
@@ -450,13 +461,13 @@ impl LightTriangle {
     }
 
     /// Irregular rasterization: whether the triangle covers the sample position `p` exactly,
-    /// and its `1/z` there.
+    /// and its `1/z` there. Samples on an edge or a vertex shared with other occluding triangles
+    /// are covered by exactly one of them (the one tie rule, [`coverage::triangle_covers_2d`]).
     pub fn covers(&self, p: Vec2) -> Option<f32> {
         let [a, b, c] = self.v;
-        let w0 = (c.uv - b.uv).perp_dot(p - b.uv) / self.area2;
-        let w1 = (a.uv - c.uv).perp_dot(p - c.uv) / self.area2;
-        let w2 = 1.0 - w0 - w1;
-        (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0).then_some(w0 * a.inv_z + w1 * b.inv_z + w2 * c.inv_z)
+        let e = coverage::triangle_covers_2d(p, [a.uv, b.uv, c.uv])?;
+        let w = e.map(|e| e / self.area2);
+        Some(w[0] * a.inv_z + w[1] * b.inv_z + w[2] * c.inv_z)
     }
 }
 

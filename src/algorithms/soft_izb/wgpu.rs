@@ -104,7 +104,8 @@ const STATS: usize = 11;
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct Params {
     view_proj: [f32; 16],
-    epsilon: f32,
+    /// Unused; keeps the layout of the WGSL's uniform.
+    pad: f32,
     w_min: f32,
     r_uv: f32,
     pixels: u32,
@@ -149,7 +150,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOu
     };
     let params = Params {
         view_proj: view.view_proj.to_cols_array(),
-        epsilon: frame.epsilon,
+        pad: 0.0,
         w_min: NEAR_CLIP * view.far,
         r_uv: light_radius_uv(&view, light.size()),
         pixels: frame.gbuffer.len() as u32,
@@ -292,7 +293,7 @@ impl<'g> Passes<'g> {
                 [p.x.to_bits(), p.y.to_bits(), p.z.to_bits(), g.triangle[i]]
             })
             .collect();
-        let normals: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
+        let offsets: Vec<[f32; 4]> = g.offset.iter().map(|n| n.extend(0.0).to_array()).collect();
         let triangles: Vec<[u32; 11]> = occ
             .triangles
             .iter()
@@ -321,7 +322,7 @@ impl<'g> Passes<'g> {
                 bytemuck::cast_slice(&positions),
                 storage,
             ),
-            init("gbuffer normals", bytemuck::cast_slice(&normals), storage),
+            init("gbuffer offsets", bytemuck::cast_slice(&offsets), storage),
             gpu.storage_buffer("light-view points", POINT_BYTES * pixels, storage),
             gpu.storage_buffer("bins", WORD * (grid.bins() as u64 + 2), storage),
             gpu.storage_buffer("cell counts", WORD * cells, storage),
@@ -383,7 +384,9 @@ impl<'g> Passes<'g> {
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("soft_izb/wgpu.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(WGSL.into()),
+            source: wgpu::ShaderSource::Wgsl(
+                format!("{WGSL}\n{}", crate::scene::coverage::WGSL).into(),
+            ),
         });
         let pipeline = |entry: &str, instrument: bool| {
             gpu.instrumented_compute_pipeline(&pipeline_layout, &module, entry, instrument)
@@ -590,7 +593,7 @@ impl<'g> Passes<'g> {
         k.set("mem.izb_grid.bytes", w * (cells + 1.0));
         k.set("mem.izb_samples.bytes", SAMPLE_BYTES as f64 * n);
         k.set("atomics", 5.0 * n);
-        // project: gbuffer read (normals of hit pixels), points written; count and insert read
+        // project: gbuffer read (offsets of hit pixels), points written; count and insert read
         // the points, count writes the cell; the scan reads the counts twice and writes starts
         // and cursors; insert scatters the records and clears their accumulators.
         let gbuffer = GBUFFER_BYTES as f64 * (pixels + hits);

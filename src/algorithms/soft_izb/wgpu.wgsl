@@ -10,8 +10,8 @@
 
 struct Params {
     view_proj: mat4x4<f32>,
-    // Frame::epsilon: receivers are lifted along their normal before projection.
-    epsilon: f32,
+    // Unused; keeps the uniform's layout.
+    pad: f32,
     // NEAR_CLIP * far: clip w at or below this has no image-plane position (`in_front`).
     w_min: f32,
     // light_radius_uv: the light's radius in uv at unit depth.
@@ -89,7 +89,8 @@ override INSTRUMENT: bool = false;
 @group(0) @binding(0) var<uniform> P: Params;
 // GBuffer: position bits with the flat triangle index in w (0xffffffff: no surface).
 @group(0) @binding(1) var<storage, read> positions: array<vec4<u32>>;
-@group(0) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+// GBuffer::offset: from the position to the shading point (`GBuffer::shading_point`).
+@group(0) @binding(2) var<storage, read> offsets: array<vec4<f32>>;
 // Per pixel: uv and 1/z bits, and in w its cell (NONE: no light-view position).
 @group(0) @binding(3) var<storage, read_write> points: array<vec4<u32>>;
 // [0]: 1/z bits of the nearest receiver (atomicMax), [1]: of the farthest (atomicMin), then per
@@ -361,10 +362,10 @@ fn penumbral_occlusion(e: Edge, p: vec2<f32>, p_inv_z: f32) -> f32 {
     let s0 = clamp(-foot / r, -half_chord, half_chord);
     let s1 = clamp((len - foot) / r, -half_chord, half_chord);
     let area = circular_segment_area(d, s0, s1);
-    if (side >= 0.0) {
-        return area;
+    if (cov_edge_covers_2d(p, vec2<f32>(e.bu, e.bv), a)) {
+        return -area;
     }
-    return -area;
+    return area;
 }
 
 // combined_visibility (§2.4, eq. 4, C = 0 of §5.2).
@@ -406,7 +407,7 @@ fn project(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: 
     if (g.w == NONE) {
         return;
     }
-    let q = bitcast<vec3<f32>>(g.xyz) + normals[i].xyz * P.epsilon;
+    let q = bitcast<vec3<f32>>(g.xyz) + offsets[i].xyz;
     let m = P.view_proj;
     let c = m[0] * q.x + m[1] * q.y + m[2] * q.z + m[3];
     if (!(c.w > P.w_min)) {
@@ -598,11 +599,10 @@ fn umbra(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: ve
             }
             // LightTriangle::covers
             let p = vec2<f32>(smp.u, smp.v);
-            let w0 = perp_dot(c - b, p - b) / tri.area2;
-            let w1 = perp_dot(a - c, p - c) / tri.area2;
-            let w2 = 1.0 - w0 - w1;
-            if (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0) {
-                let inv_z = w0 * tri.z0 + w1 * tri.z1 + w2 * tri.z2;
+            let e = cov_triangle_covers_2d(p, a, b, c);
+            if (e.w != 0.0) {
+                let w = e.xyz / tri.area2;
+                let inv_z = w.x * tri.z0 + w.y * tri.z1 + w.z * tri.z2;
                 if (inv_z > smp.inv_z) {
                     atomicAdd(&occlusion[2u * s], 1u);
                     hits += 1u;

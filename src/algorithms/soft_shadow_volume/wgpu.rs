@@ -542,7 +542,9 @@ impl<'g> Passes<'g> {
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("soft_shadow_volume/wgpu.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(WGSL.into()),
+            source: wgpu::ShaderSource::Wgsl(
+                format!("{WGSL}\n{}", crate::scene::coverage::WGSL).into(),
+            ),
         });
         let pipeline = |entry: &str, instrument: bool| {
             gpu.instrumented_compute_pipeline(&pipeline_layout, &module, entry, instrument)

@@ -137,11 +137,12 @@ fn quad_hit(q: Quad, o: vec3f, d: vec3f) -> f32 {
     }
     let l = q.light.xyz;
     let t = dot(n, l - o) / nd;
-    let y = o + d * t;
     let a = q.a.xyz;
     let b = q.b.xyz;
-    let inside = dot(cross(a - l, y - l), n) >= 0.0 && dot(cross(y - l, b - l), n) >= 0.0
-        && dot(cross(b - a, y - a), n) <= 0.0;
+    // coverage::line_crosses over the boundary lines l → a, b → l, b → a.
+    let s = dot(d, n);
+    let inside = s != 0.0 && cov_edge_covers_oriented(o, d, l, a, s)
+        && cov_edge_covers_oriented(o, d, b, l, s) && cov_edge_covers_oriented(o, d, b, a, s);
     if t > 0.0 && inside {
         return t;
     }
@@ -166,13 +167,14 @@ fn face_hit(k: u32, o: vec3f, d: vec3f) -> f32 {
         return -1.0;
     }
     let t = dot(n, planes[6u * k].xyz - o) / nd;
-    let y = o + d * t;
     let sides = u32(planes[6u * k + 1u].w);
-    var inside = true;
+    // coverage::line_crosses over the face's edges.
+    let s = dot(d, n);
+    var inside = s != 0.0;
     for (var j = 0u; j < sides; j++) {
         let a = planes[6u * k + j].xyz;
         let b = planes[6u * k + (j + 1u) % sides].xyz;
-        inside = inside && dot(cross(b - a, y - a), n) >= 0.0;
+        inside = inside && cov_edge_covers_oriented(o, d, a, b, s);
     }
     if t > 0.0 && inside {
         return t;
