@@ -32,9 +32,7 @@ fn run(id: &str, f: &Frame) -> VisibilityBuffer {
 
 /// A file's mesh as the only object of a framed scene (as `render --scene FILE` makes it).
 fn framed_file(path: &Path) -> Frame {
-    let mesh = load_mesh(path, None)
-        .unwrap_or_else(|e| panic!("{e}"))
-        .mesh;
+    let mesh = load_mesh(path, None).unwrap_or_else(|e| panic!("{e}")).mesh;
     let (scene, _) = framed_scene(
         vec![Object {
             name: "file".into(),
@@ -216,7 +214,10 @@ fn tinyobjloader_corpus() {
     assert_eq!(cornell.mesh.triangles.len(), fan_count);
     assert_eq!(fan_count, 36);
     for (file, want) in [
-        ("invalid-relative-vertex-index.obj", "line 1: relative vertex index -4"),
+        (
+            "invalid-relative-vertex-index.obj",
+            "line 1: relative vertex index -4",
+        ),
         ("issue-140-zero-face-idx.obj", "vertex index 0"),
         ("test-nan.obj", "line 14: vertex coordinate '1.#IND'"),
         ("issue-356-leading-spaces-newmtl.obj", "no triangles"),
@@ -428,14 +429,22 @@ fn gltf_and_ply_shadow_like_the_same_obj() {
         let mut put = |b4: [u8; 4]| bytes.extend_from_slice(&b4);
         for v in &ply_v {
             for c in v.to_array() {
-                put(if big { c.to_be_bytes() } else { c.to_le_bytes() });
+                put(if big {
+                    c.to_be_bytes()
+                } else {
+                    c.to_le_bytes()
+                });
             }
         }
         for f in &ply_f {
             bytes.push(3);
             for i in f {
                 let i = *i as i32;
-                bytes.extend_from_slice(&if big { i.to_be_bytes() } else { i.to_le_bytes() });
+                bytes.extend_from_slice(&if big {
+                    i.to_be_bytes()
+                } else {
+                    i.to_le_bytes()
+                });
             }
         }
         std::fs::write(dir.path().join(name), bytes).unwrap();
@@ -445,7 +454,11 @@ fn gltf_and_ply_shadow_like_the_same_obj() {
     let reference = run("reference", &want);
     let gltf_file = load_mesh(&dir.path().join("scene.gltf"), None).unwrap();
     assert_eq!(gltf_file.warnings.len(), 1, "{:?}", gltf_file.warnings);
-    assert!(gltf_file.warnings[0].contains("Lines"), "{:?}", gltf_file.warnings);
+    assert!(
+        gltf_file.warnings[0].contains("Lines"),
+        "{:?}",
+        gltf_file.warnings
+    );
     for file in ["scene.gltf", "ascii.ply", "le.ply", "be.ply"] {
         let got = framed_file(&dir.path().join(file));
         assert_eq!(
@@ -546,7 +559,10 @@ fn huge_coordinates_are_an_input_error() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("near-max.obj") && stderr.contains("3.000e38"), "{stderr}");
+    assert!(
+        stderr.contains("near-max.obj") && stderr.contains("3.000e38"),
+        "{stderr}"
+    );
 }
 
 /// `render --scene FILE` prints what it added around the mesh, and run.json carries it with the

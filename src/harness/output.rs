@@ -136,7 +136,9 @@ pub fn csv(records: &[RunRecord]) -> String {
         s.push(',');
         s.push_str(c);
     }
-    s.push_str(",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,images,warnings,failure\n");
+    s.push_str(
+        ",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,images,warnings,failure\n",
+    );
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for r in records {
         let p = &r.params;

@@ -1320,7 +1320,15 @@ mod tests {
     #[test]
     fn figures_a_chart_cannot_show_are_left_out_naming_the_run_and_figure() {
         assert!(plottable(0.0) && plottable(1e30) && plottable(-1e-30) && plottable(3.5));
-        for v in [1.7e308, 1e307, -1e31, 1e-31, 5e-324, f64::NAN, f64::INFINITY] {
+        for v in [
+            1.7e308,
+            1e307,
+            -1e31,
+            1e-31,
+            5e-324,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
             assert!(!plottable(v), "{v}");
         }
         let mut runs: Vec<RunRecord> = (1..=3)
@@ -1329,7 +1337,11 @@ mod tests {
         runs[1].model_ms = Some(1.7e308);
         runs[2].wall_ms = 1e307;
         let (shown, warnings) = chartable(&runs);
-        assert_eq!(shown.len(), 2, "the run with an absurd wall time is left out whole");
+        assert_eq!(
+            shown.len(),
+            2,
+            "the run with an absurd wall time is left out whole"
+        );
         assert_eq!(shown[1].model_ms, None);
         assert_eq!(shown[0].model_ms, runs[0].model_ms);
         assert_eq!(warnings.len(), 2, "{warnings:?}");

@@ -60,10 +60,7 @@ pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
     for spec in charts::plan(&chartable) {
         written.push(charts::render(&spec, &chart_dir)?);
     }
-    let ok: Vec<&RunRecord> = chartable
-        .iter()
-        .filter(|r| r.failure.is_none())
-        .collect();
+    let ok: Vec<&RunRecord> = chartable.iter().filter(|r| r.failure.is_none()).collect();
     let summary = summary::Summary::of(&ok);
     if let Some(s) = &summary {
         crate::visibility::write_atomic(&out.join("summary.csv"), s.csv().as_bytes())?;

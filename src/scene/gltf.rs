@@ -226,7 +226,7 @@ fn primitive(
             .map(|i| [indices[i], indices[i + 1], indices[0]])
             .collect(),
         _ => {
-            if indices.len() % 3 != 0 {
+            if !indices.len().is_multiple_of(3) {
                 return Err(format!(
                     "{what}: {} indices do not make whole triangles",
                     indices.len()

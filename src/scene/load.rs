@@ -117,7 +117,10 @@ pub fn check_extent(objects: &[Object]) -> Result<(), ExtentFault> {
             continue;
         }
         let reach = b.min.abs().max(b.max.abs()).max_element();
-        if !(reach <= MAX_COORDINATE) {
+        if !matches!(
+            reach.partial_cmp(&MAX_COORDINATE),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        ) {
             return Err(ExtentFault {
                 object: i,
                 message: format!(
@@ -137,7 +140,10 @@ pub fn check_extent(objects: &[Object]) -> Result<(), ExtentFault> {
         return Ok(());
     }
     let extent = scene.diagonal();
-    if !(extent >= MIN_EXTENT) {
+    if !matches!(
+        extent.partial_cmp(&MIN_EXTENT),
+        Some(std::cmp::Ordering::Greater | std::cmp::Ordering::Equal)
+    ) {
         return Err(ExtentFault {
             object: farthest.0,
             message: format!(
@@ -199,7 +205,10 @@ mod tests {
         ];
         let e = check_extent(&huge).unwrap_err();
         assert_eq!(e.object, 1);
-        assert!(e.message.contains("'big'") && e.message.contains("1.000e20"), "{e:?}");
+        assert!(
+            e.message.contains("'big'") && e.message.contains("1.000e20"),
+            "{e:?}"
+        );
         let tiny = [object("dust", Mat4::from_scale(Vec3::splat(1e-14)))];
         assert!(check_extent(&tiny).unwrap_err().message.contains("below"));
         // A 1-unit cube at 1e5: f32 spacing there is 2^-7 ≈ 0.0078 > 1.7/1024.

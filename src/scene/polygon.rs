@@ -75,11 +75,11 @@ pub fn triangulate(positions: &[Vec3], poly: &[u32]) -> Result<Vec<[u32; 3]>, Po
         .map(|q| far.cross(*q - p[0]).length())
         .fold(0.0, f64::max);
     let scale = far.length_squared();
-    if !(off_line > scale * 1e-12) {
+    if off_line.partial_cmp(&(scale * 1e-12)) != Some(std::cmp::Ordering::Greater) {
         return Err(PolygonFault::Degenerate);
     }
     // Loops of opposite orientation that cancel (a symmetric figure eight): no net area.
-    if !(normal.length() > scale * 1e-12) {
+    if normal.length().partial_cmp(&(scale * 1e-12)) != Some(std::cmp::Ordering::Greater) {
         return Err(PolygonFault::SelfIntersecting {
             deviation: f64::INFINITY,
         });
@@ -92,7 +92,12 @@ pub fn triangulate(positions: &[Vec3], poly: &[u32]) -> Result<Vec<[u32; 3]>, Po
     let mut out: Vec<u32> = Vec::new();
     Earcut::new().earcut(flat.iter().copied(), &[] as &[u32], &mut out);
     let deviation = earcut::deviation(flat.iter().copied(), &[] as &[u32], &out);
-    if out.is_empty() || !(deviation <= MAX_DEVIATION) {
+    if out.is_empty()
+        || !matches!(
+            deviation.partial_cmp(&MAX_DEVIATION),
+            Some(std::cmp::Ordering::Less | std::cmp::Ordering::Equal)
+        )
+    {
         return Err(PolygonFault::SelfIntersecting { deviation });
     }
     Ok(out
