@@ -796,49 +796,48 @@ fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> 
     Ok(!c.regressed())
 }
 
-/// A private `XDG_RUNTIME_DIR` for the process when it has none (or one that is not an absolute
-/// path to a folder), as in containers and CI: the Vulkan loader and Mesa's window-system code
-/// otherwise print "XDG_RUNTIME_DIR is invalid or not set" while the GPU is probed, which reads
-/// as if it came from shadowbench. The folder (mode 0700, under the system's temporary folder,
-/// nothing written into it) is removed when this guard drops, on return or panic.
-struct RuntimeDir(Option<PathBuf>);
-
-impl RuntimeDir {
-    fn ensure() -> RuntimeDir {
-        let valid = std::env::var_os("XDG_RUNTIME_DIR")
-            .map(PathBuf::from)
-            .is_some_and(|p| p.is_absolute() && p.is_dir());
-        if valid {
-            return RuntimeDir(None);
-        }
-        let dir = std::env::temp_dir().join(format!("shadowbench-runtime-{}", std::process::id()));
-        let mut builder = std::fs::DirBuilder::new();
-        #[cfg(unix)]
-        std::os::unix::fs::DirBuilderExt::mode(&mut builder, 0o700);
-        if builder.create(&dir).is_err() {
-            return RuntimeDir(None);
-        }
-        // Single-threaded here: main has not started any thread yet.
+/// Gives the process a private `XDG_RUNTIME_DIR` when it has none (or one that is not an
+/// absolute path to a folder), as in containers and CI: the Vulkan loader and Mesa's
+/// window-system code otherwise print "XDG_RUNTIME_DIR is invalid or not set" while the GPU is
+/// probed, which reads as if it came from shadowbench. The folder is
+/// `<temp>/shadowbench-runtime-<uid>`, mode 0700, owned by the user, made once and reused by
+/// every later process (so an interrupted run leaves nothing new behind); nothing is written
+/// into it. Where it cannot be made safely (not ours, open to others), nothing is set.
+#[cfg(unix)]
+fn private_runtime_dir() {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt, PermissionsExt};
+    let valid = std::env::var_os("XDG_RUNTIME_DIR")
+        .map(PathBuf::from)
+        .is_some_and(|p| p.is_absolute() && p.is_dir());
+    if valid {
+        return;
+    }
+    // Our user id: the owner of this process's /proc entry (Linux).
+    let Ok(uid) = std::fs::metadata("/proc/self").map(|m| m.uid()) else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("shadowbench-runtime-{uid}"));
+    let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+    let safe = std::fs::symlink_metadata(&dir)
+        .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.permissions().mode() & 0o077 == 0);
+    if safe {
+        // Single-threaded here: no thread has been started yet.
         std::env::set_var("XDG_RUNTIME_DIR", &dir);
-        RuntimeDir(Some(dir))
     }
 }
 
-impl Drop for RuntimeDir {
-    fn drop(&mut self) {
-        if let Some(dir) = self.0.take() {
-            let _ = std::fs::remove_dir_all(dir);
-        }
-    }
-}
+#[cfg(not(unix))]
+fn private_runtime_dir() {}
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    // Only the subcommands that probe the GPU; after parsing, since --help exits directly.
-    let _runtime = match cli.command {
-        Command::List { .. } | Command::Render(_) | Command::Run(_) => RuntimeDir::ensure(),
-        _ => RuntimeDir(None),
-    };
+    // Only the subcommands that probe the GPU.
+    if matches!(
+        cli.command,
+        Command::List { .. } | Command::Render(_) | Command::Run(_)
+    ) {
+        private_runtime_dir();
+    }
     let adapter = match &cli.command {
         Command::List { adapter, .. } => adapter.adapter.clone(),
         Command::Render(a) => a.adapter.adapter.clone(),
