@@ -248,7 +248,7 @@ pub fn precision_warning(scene: &Scene) -> Option<String> {
     let spacing = coordinate_spacing(scene);
     let diagonal = scene.bounds().diagonal();
     let offset = OFFSET_ULPS * spacing;
-    (offset > PRECISION_LIMIT * diagonal || !(diagonal > 0.0)).then(|| {
+    (offset > PRECISION_LIMIT * diagonal).then(|| {
         format!(
             "f32 cannot hold this scene: its coordinates are spaced {spacing:.3e} apart, so \
              surfaces are offset by up to {offset:.3e}, {:.2}% of the scene's diagonal \

@@ -214,11 +214,11 @@ impl TaskKernel for Project<'_> {
             let pos = self.position.load_run(p, i, n);
             self.normal.load_run(p, i, n);
             p.vector(PROJECT_OPS, hit);
-            for l in 0..n {
+            for (l, &pos) in pos.iter().enumerate().take(n) {
                 let point = hit.get(l).then(|| {
                     // The shading point (position + offset, `GBuffer::shading_point`); the
                     // modelled loads of position and normal stand for its two vectors.
-                    let c = clip_coords(self.view, pos[l] + self.frame.gbuffer.offset[i + l]);
+                    let c = clip_coords(self.view, pos + self.frame.gbuffer.offset[i + l]);
                     in_front(self.view, c).then(|| light_point(c))
                 });
                 let point = point.flatten();
