@@ -173,19 +173,6 @@ impl Frame {
         }
     }
 
-    /// Pixels whose surface belongs to a receiver-only object (receives, does not occlude).
-    pub fn receiver_only_mask(&self) -> Vec<bool> {
-        let g = &self.gbuffer;
-        (0..g.len())
-            .map(|i| {
-                g.is_hit(i) && {
-                    let r = self.flat.role_of(g.triangle[i] as usize);
-                    r.receiver && !r.occluder
-                }
-            })
-            .collect()
-    }
-
     pub fn width(&self) -> u32 {
         self.params.image[0]
     }
@@ -261,9 +248,7 @@ pub fn precision_warning(scene: &Scene) -> Option<String> {
     let spacing = coordinate_spacing(scene);
     let diagonal = scene.bounds().diagonal();
     let offset = OFFSET_ULPS * spacing;
-    (offset > PRECISION_LIMIT * diagonal
-        || diagonal.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
-    .then(|| {
+    (offset > PRECISION_LIMIT * diagonal).then(|| {
         format!(
             "f32 cannot hold this scene: its coordinates are spaced {spacing:.3e} apart, so \
              surfaces are offset by up to {offset:.3e}, {:.2}% of the scene's diagonal \

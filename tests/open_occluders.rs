@@ -3,30 +3,42 @@
 //! `soft_shadow_volume` and `accum_hard`), right only for closed occluders, falls back to z-pass
 //! on them with a warning naming the algorithm, the option and the open edges.
 
-#[allow(dead_code)] // this binary uses the shared scene builders, not the degenerate list
-mod common;
-
-use common::{camera, frame_of, object, sphere_light};
 use glam::Vec3;
 use shadowbench::algorithms::{Backend, ExecContext, ALGORITHMS};
 use shadowbench::frame::Frame;
+use shadowbench::frame::RunParams;
 use shadowbench::harness::{light_as, run_one};
 use shadowbench::scene::generators::primitives;
-use shadowbench::scene::Mesh;
+use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
 
 /// A ground plane (a receiver only, so its open border does not count) and `occluder` above
 /// it.
 fn scene(occluder: Mesh) -> Frame {
-    let ground = shadowbench::scene::Object {
-        name: "ground".into(),
-        mesh: primitives::plane(4.0, 4),
-        role: shadowbench::scene::Role::RECEIVER,
+    let object = |name: &str, mesh: Mesh, role: Role| Object {
+        name: name.into(),
+        mesh,
+        role,
     };
-    frame_of(
-        vec![ground, object(occluder)],
-        sphere_light(Vec3::new(0.3, 5.0, 0.2), 0.5),
-        camera(),
-    )
+    let scene = Scene {
+        name: "occluders".into(),
+        objects: vec![
+            object("ground", primitives::plane(4.0, 4), Role::RECEIVER),
+            object("occluder", occluder, Role::BOTH),
+        ],
+        camera: Camera {
+            eye: Vec3::new(0.0, 4.0, 6.0),
+            target: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 50.0,
+        },
+        light: Light::Sphere {
+            center: Vec3::new(0.3, 5.0, 0.2),
+            radius: 0.5,
+        },
+        light_texture: None,
+    };
+    let params = RunParams::of_scene(&scene, [24, 18], 64, 16);
+    Frame::new(scene, params)
 }
 
 /// An open square plate of two triangles: 4 boundary edges.

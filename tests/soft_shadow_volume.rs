@@ -13,7 +13,7 @@ use shadowbench::scene::{Light, Scene};
 mod gpu_check;
 mod pentagon;
 use gpu_check::have_gpu;
-use pentagon::{planar_polygon_scene, rect_light};
+use pentagon::{closed_polygon_scene, planar_polygon_scene, rect_light};
 
 const SSV: &str = "soft_shadow_volume";
 
@@ -264,12 +264,13 @@ fn bad_options_are_errors_that_name_the_field() {
 
 /// z-fail counting over capped volumes (Paper II §5) draws the z-pass image (whose count starts
 /// at the eye's own count), both with the eye outside every shadow volume and with the eye in
-/// the umbra under the pentagon, where z-pass from 0 would light the whole shadow (the hard
-/// counts themselves are checked against an independent count in `shadow_volume`'s unit
-/// tests). Fill differs: z-fail rasterizes the caps and the fragments behind the surfaces.
+/// the umbra under the pentagon (a closed slab: z-fail needs closed occluders), where z-pass
+/// from 0 would light the whole shadow (the hard counts themselves are checked against an
+/// independent count in `shadow_volume`'s unit tests). Fill differs: z-fail rasterizes the caps
+/// and the fragments behind the surfaces.
 #[test]
 fn zfail_draws_the_zpass_image_with_the_eye_outside_and_inside_the_umbra() {
-    let scene = planar_polygon_scene(rect_light());
+    let scene = closed_polygon_scene(rect_light());
     let mut inside = scene.clone();
     inside.camera.eye = Vec3::new(0.2, 1.0, 0.1);
     inside.camera.target = Vec3::new(3.0, 0.0, 2.0);
@@ -538,15 +539,15 @@ fn wgpu_without_occluders_is_fully_lit_like_the_cpu_model() {
     }
 }
 
-/// z-fail on wgpu with the eye in the umbra under the pentagon: the cpu-model's z-fail image
-/// and fragment counts (within the flips `wgpu_agrees_with_the_cpu_model` allows), and the
-/// z-pass image.
+/// z-fail on wgpu with the eye in the umbra under the pentagon (a closed slab): the
+/// cpu-model's z-fail image and fragment counts (within the flips
+/// `wgpu_agrees_with_the_cpu_model` allows), and the z-pass image.
 #[test]
 fn wgpu_zfail_with_the_eye_in_the_umbra_agrees_with_the_cpu_model() {
     if !have_gpu() {
         return;
     }
-    let mut scene = planar_polygon_scene(rect_light());
+    let mut scene = closed_polygon_scene(rect_light());
     scene.camera.eye = Vec3::new(0.2, 1.0, 0.1);
     scene.camera.target = Vec3::new(3.0, 0.0, 2.0);
     let frame = Frame::new(scene.clone(), params(&scene));

@@ -372,8 +372,22 @@ fn zfail_fallback(id: &str, frame: &Frame, ctx: &ExecContext) -> Option<(ExecCon
     if ![soft_shadow_volume::ID, accum_hard::ID].contains(&id) || edges.open() == 0 {
         return None;
     }
-    let options = ctx.options.get(id)?.as_object()?;
-    if options.get("counting")?.as_str()? != "z_fail" {
+    // Options the algorithm itself refuses are left for it to report.
+    let counting = match id {
+        soft_shadow_volume::ID => {
+            let o: soft_shadow_volume::SoftShadowVolumeOptions =
+                shadow_map::parse_options(id, &ctx.options).ok()?;
+            o.validate().ok()?;
+            o.counting
+        }
+        _ => {
+            let o: accum_hard::AccumHardOptions =
+                shadow_map::parse_options(id, &ctx.options).ok()?;
+            o.strata_side().ok()?;
+            o.counting
+        }
+    };
+    if counting != shadow_volume::Counting::ZFail {
         return None;
     }
     let mut ctx = ctx.clone();

@@ -20,7 +20,12 @@
 //!   has no far plane for z-fail (as with Everitt and Kilgard's infinite far plane): a fragment
 //!   counts from the ray's entry into the scene bounds on, the dark cap lies beyond the bounds.
 //!   Open occluder surfaces are capped by their light-facing triangles only, as [`eye_count`]
-//!   counts them; an open surface facing away from the light gets no cap.
+//!   counts them; an open surface facing away from the light gets no cap, so its volume leaks:
+//!   runs on occluders with boundary or non-manifold edges count with z-pass instead, with a
+//!   warning (`algorithms::run`).
+//!
+//! Coverage of quads and faces (and of the eye count's triangles) follows the one tie rule of
+//! [`coverage`]: a ray through an edge or corner shared by two faces crosses exactly one.
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};

@@ -40,6 +40,31 @@ pub fn planar_polygon_scene(light: Light) -> Scene {
     }
 }
 
+/// The pentagon of [`planar_polygon_scene`] made a closed slab 0.05 thick (its outline and top
+/// unchanged), for z-fail counting, which needs closed occluders.
+pub fn closed_polygon_scene(light: Light) -> Scene {
+    let mut scene = planar_polygon_scene(light);
+    let pentagon = scene.objects.last_mut().expect("the pentagon");
+    let m = &mut pentagon.mesh;
+    let n = m.positions.len() as u32;
+    let below: Vec<Vec3> = m
+        .positions
+        .iter()
+        .map(|p| *p - Vec3::new(0.0, 0.05, 0.0))
+        .collect();
+    m.positions.extend(below);
+    let top = m.triangles.clone();
+    for [a, b, c] in top {
+        m.triangles.push([a + n, c + n, b + n]);
+    }
+    for k in 0..5u32 {
+        let (a, b) = (1 + k, 1 + (k + 1) % 5);
+        m.triangles.push([a, b, b + n]);
+        m.triangles.push([a, b + n, a + n]);
+    }
+    scene
+}
+
 pub fn rect_light() -> Light {
     Light::Rect {
         center: Vec3::new(0.4, 6.0, 0.2),

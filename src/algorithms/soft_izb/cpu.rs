@@ -17,7 +17,7 @@ use super::{
     ProjectedEdge, SoftIzbOptions,
 };
 use crate::algorithms::hard_shadow_map::cpu::{machine, output};
-use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
+use crate::algorithms::shadow_map::LightView;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
@@ -214,11 +214,11 @@ impl TaskKernel for Project<'_> {
             let pos = self.position.load_run(p, i, n);
             self.normal.load_run(p, i, n);
             p.vector(PROJECT_OPS, hit);
-            for (l, &pl) in pos.iter().enumerate().take(n) {
+            for (l, &pos) in pos.iter().enumerate().take(n) {
                 let point = hit.get(l).then(|| {
                     // The shading point (position + offset, `GBuffer::shading_point`); the
                     // modelled loads of position and normal stand for its two vectors.
-                    let c = clip_coords(self.view, pl + self.frame.gbuffer.offset[i + l]);
+                    let c = clip_coords(self.view, pos + self.frame.gbuffer.offset[i + l]);
                     in_front(self.view, c).then(|| light_point(c))
                 });
                 let point = point.flatten();
@@ -1068,8 +1068,7 @@ pub fn render(
 ) -> Result<FrameOutput> {
     let light = frame.scene.light;
     super::check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
-    let views = LightViews::fit(frame, &light, frame.params.map_resolution, ViewFit::Single);
-    let view = *views.single();
+    let view = LightView::new(&light, frame.scene.bounds(), frame.params.map_resolution);
     let r_uv = light_radius_uv(&view, light.size());
 
     let mut m = machine(backend, frame, ctx);
@@ -1094,7 +1093,6 @@ pub fn render(
         data,
     };
     let mut out = output(m, visibility);
-    views.record(&mut out);
     if outside > 0 {
         out.warnings.push(format!(
             "{outside} receiver points lie at or behind the light's view plane and are taken              as lit"
