@@ -13,7 +13,7 @@ use shadowbench::scene::load::load_mesh;
 use shadowbench::scene::{export, Object, Role, Scene};
 use shadowbench::visibility::VisibilityBuffer;
 
-const IMAGE: [u32; 2] = [48, 36];
+const IMAGE: [u32; 2] = [64, 48];
 
 fn frame(scene: Scene) -> Frame {
     let params = RunParams::of_scene(&scene, IMAGE, 64, 16);
@@ -32,9 +32,7 @@ fn run(id: &str, f: &Frame) -> VisibilityBuffer {
 
 /// A file's mesh as the only object of a framed scene (as `render --scene FILE` makes it).
 fn framed_file(path: &Path) -> Frame {
-    let mesh = load_mesh(path, None)
-        .unwrap_or_else(|e| panic!("{e}"))
-        .mesh;
+    let mesh = load_mesh(path, None).unwrap_or_else(|e| panic!("{e}")).mesh;
     let (scene, _) = framed_scene(
         vec![Object {
             name: "file".into(),
@@ -70,18 +68,45 @@ fn concave_face_plate_renders_as_the_hand_split_plate() {
         ),
     )
     .unwrap();
-    let (a, b) = (framed_file(&concave), framed_file(&split));
-    assert_eq!(a.scene.camera, b.scene.camera, "same bounds, same framing");
+    // Looking down at the floor under the plate, the light above the notch: the U's shadow,
+    // notch included, fills much of the image.
+    let scene_of = |path: &Path| {
+        let mesh = load_mesh(path, None).unwrap().mesh;
+        frame(Scene {
+            name: "plate".into(),
+            objects: vec![Object {
+                name: "plate".into(),
+                mesh,
+                role: Role::BOTH,
+            }],
+            camera: shadowbench::scene::Camera {
+                eye: Vec3::new(1.5, 6.0, -7.0),
+                target: Vec3::new(1.5, 0.0, -1.0),
+                up: Vec3::Y,
+                fov_y_deg: 40.0,
+            },
+            light: shadowbench::scene::Light::Sphere {
+                center: Vec3::new(1.5, 5.0, -1.5),
+                radius: 0.3,
+            },
+            light_texture: None,
+        })
+    };
+    let (a, b) = (scene_of(&concave), scene_of(&split));
     let (ra, rb) = (run("reference", &a), run("reference", &b));
     let mask = a.gbuffer.mask();
     let m = shadowbench::metrics::compare(&ra, &rb, &mask);
-    assert!(m.mae < 1e-3 && m.max < 0.2, "reference differs: {m:?}");
-    // The notch casts no shadow: somewhere in view the visibility is not the fanned plate's.
-    assert!(m.shadow_pixels > 0);
+    println!("reference, concave against split: {m:?}");
+    assert!(m.shadow_pixels > 150, "the shadow is in view: {m:?}");
+    assert!(
+        m.mae < 1e-4 && m.frac_over_0_1 < 1e-3,
+        "reference differs: {m:?}"
+    );
     // Soft shadow volumes (whose silhouettes a fan's backward triangles corrupted) agree too.
     let (sa, sb) = (run("soft_shadow_volume", &a), run("soft_shadow_volume", &b));
     let m = shadowbench::metrics::compare(&sa, &rb, &mask);
     let m_split = shadowbench::metrics::compare(&sb, &rb, &mask);
+    println!("soft_shadow_volume: concave {m:?}, split {m_split:?}");
     assert!(
         m.mae_shadow < m_split.mae_shadow + 0.01,
         "concave {m:?} vs split {m_split:?}"
@@ -216,7 +241,10 @@ fn tinyobjloader_corpus() {
     assert_eq!(cornell.mesh.triangles.len(), fan_count);
     assert_eq!(fan_count, 36);
     for (file, want) in [
-        ("invalid-relative-vertex-index.obj", "line 1: relative vertex index -4"),
+        (
+            "invalid-relative-vertex-index.obj",
+            "line 1: relative vertex index -4",
+        ),
         ("issue-140-zero-face-idx.obj", "vertex index 0"),
         ("test-nan.obj", "line 14: vertex coordinate '1.#IND'"),
         ("issue-356-leading-spaces-newmtl.obj", "no triangles"),
@@ -428,14 +456,22 @@ fn gltf_and_ply_shadow_like_the_same_obj() {
         let mut put = |b4: [u8; 4]| bytes.extend_from_slice(&b4);
         for v in &ply_v {
             for c in v.to_array() {
-                put(if big { c.to_be_bytes() } else { c.to_le_bytes() });
+                put(if big {
+                    c.to_be_bytes()
+                } else {
+                    c.to_le_bytes()
+                });
             }
         }
         for f in &ply_f {
             bytes.push(3);
             for i in f {
                 let i = *i as i32;
-                bytes.extend_from_slice(&if big { i.to_be_bytes() } else { i.to_le_bytes() });
+                bytes.extend_from_slice(&if big {
+                    i.to_be_bytes()
+                } else {
+                    i.to_le_bytes()
+                });
             }
         }
         std::fs::write(dir.path().join(name), bytes).unwrap();
@@ -445,7 +481,11 @@ fn gltf_and_ply_shadow_like_the_same_obj() {
     let reference = run("reference", &want);
     let gltf_file = load_mesh(&dir.path().join("scene.gltf"), None).unwrap();
     assert_eq!(gltf_file.warnings.len(), 1, "{:?}", gltf_file.warnings);
-    assert!(gltf_file.warnings[0].contains("Lines"), "{:?}", gltf_file.warnings);
+    assert!(
+        gltf_file.warnings[0].contains("Lines"),
+        "{:?}",
+        gltf_file.warnings
+    );
     for file in ["scene.gltf", "ascii.ply", "le.ply", "be.ply"] {
         let got = framed_file(&dir.path().join(file));
         assert_eq!(
@@ -546,7 +586,10 @@ fn huge_coordinates_are_an_input_error() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("near-max.obj") && stderr.contains("3.000e38"), "{stderr}");
+    assert!(
+        stderr.contains("near-max.obj") && stderr.contains("3.000e38"),
+        "{stderr}"
+    );
 }
 
 /// `render --scene FILE` prints what it added around the mesh, and run.json carries it with the

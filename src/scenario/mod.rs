@@ -384,24 +384,24 @@ impl Loaded {
         let mut objects = Vec::new();
         let mut warnings = Vec::new();
         for (i, o) in scenario.scene.objects.iter().flatten().enumerate() {
-            let MeshFile {
-                mesh,
-                warnings: w,
-            } = load::load_mesh(&base.join(&o.obj), o.part.as_deref()).map_err(|e| {
-                InputError {
+            let MeshFile { mesh, warnings: w } =
+                load::load_mesh(&base.join(&o.obj), o.part.as_deref()).map_err(|e| InputError {
                     file: Some(path.to_path_buf()),
                     field: Some(format!("$.scene.objects[{i}].obj")),
                     message: e.to_string(),
-                }
-            })?;
+                })?;
             warnings.extend(w);
             objects.push(Object {
-                name: o.name.clone().or_else(|| o.part.clone()).unwrap_or_else(|| {
-                    o.obj
-                        .file_stem()
-                        .map(|s| s.to_string_lossy().into_owned())
-                        .unwrap_or_default()
-                }),
+                name: o
+                    .name
+                    .clone()
+                    .or_else(|| o.part.clone())
+                    .unwrap_or_else(|| {
+                        o.obj
+                            .file_stem()
+                            .map(|s| s.to_string_lossy().into_owned())
+                            .unwrap_or_default()
+                    }),
                 mesh: mesh.transformed(object_transform(o)),
                 role: Role {
                     occluder: o.occluder.unwrap_or(true),
@@ -414,7 +414,11 @@ impl Loaded {
             field: Some(format!("$.scene.objects[{}]", f.object)),
             message: format!(
                 "{} after its transform: {}",
-                scenario.scene.objects.as_ref().expect("objects were loaded")[f.object]
+                scenario
+                    .scene
+                    .objects
+                    .as_ref()
+                    .expect("objects were loaded")[f.object]
                     .obj
                     .display(),
                 f.message
@@ -612,8 +616,8 @@ pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> (Scene, Framing) 
         size: d * 1.5,
     });
     if let Some(g) = plane {
-        let mesh = generators::primitives::plane(g.size, 16)
-            .transformed(Mat4::from_translation(g.center));
+        let mesh =
+            generators::primitives::plane(g.size, 16).transformed(Mat4::from_translation(g.center));
         objects.insert(
             0,
             Object {
@@ -746,7 +750,8 @@ pub fn export_scenario(
             "the scene's light has a texture, which an exported scenario cannot carry",
         ));
     }
-    let same_dir = mesh.parent().unwrap_or(Path::new("")) == scenario.parent().unwrap_or(Path::new(""));
+    let same_dir =
+        mesh.parent().unwrap_or(Path::new("")) == scenario.parent().unwrap_or(Path::new(""));
     let file = if same_dir {
         PathBuf::from(mesh.file_name().unwrap_or_default())
     } else {

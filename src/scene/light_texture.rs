@@ -465,7 +465,11 @@ mod tests {
             for &b in bytes {
                 c ^= u32::from(b);
                 for _ in 0..8 {
-                    c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+                    c = if c & 1 != 0 {
+                        0xEDB8_8320 ^ (c >> 1)
+                    } else {
+                        c >> 1
+                    };
                 }
             }
             !c
@@ -476,7 +480,11 @@ mod tests {
         ihdr.extend_from_slice(&[8, 2, 0, 0, 0]); // 8-bit RGB, deflate, no filter, no interlace
         let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
         // IHDR, then an IDAT with an empty zlib stream (far too little data), then IEND.
-        for chunk in [ihdr, b"IDAT\x78\x9c\x03\x00\x00\x00\x00\x01".to_vec(), b"IEND".to_vec()] {
+        for chunk in [
+            ihdr,
+            b"IDAT\x78\x9c\x03\x00\x00\x00\x00\x01".to_vec(),
+            b"IEND".to_vec(),
+        ] {
             png.extend_from_slice(&(chunk.len() as u32 - 4).to_be_bytes());
             png.extend_from_slice(&chunk);
             png.extend_from_slice(&crc32(&chunk).to_be_bytes());

@@ -200,7 +200,10 @@ mod tests {
         ];
         let e = check_extent(&huge).unwrap_err();
         assert_eq!(e.object, 1);
-        assert!(e.message.contains("'big'") && e.message.contains("1.000e20"), "{e:?}");
+        assert!(
+            e.message.contains("'big'") && e.message.contains("1.000e20"),
+            "{e:?}"
+        );
         let tiny = [object("dust", Mat4::from_scale(Vec3::splat(1e-14)))];
         assert!(check_extent(&tiny).unwrap_err().message.contains("below"));
         // A 1-unit cube at 1e5: f32 spacing there is 2^-7 ≈ 0.0078 > 1.7/1024.

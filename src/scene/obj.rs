@@ -120,16 +120,16 @@ pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshF
                 let mut xyz = [0.0f32; 3];
                 for (k, c) in xyz.iter_mut().enumerate() {
                     let word = w.next().ok_or_else(|| {
-                        at(
-                            n,
-                            format!("vertex needs three coordinates x y z, got {k}"),
-                        )
+                        at(n, format!("vertex needs three coordinates x y z, got {k}"))
                     })?;
                     *c = std::str::from_utf8(word)
                         .ok()
                         .and_then(|s| s.parse::<f32>().ok())
                         .ok_or_else(|| {
-                            at(n, format!("vertex coordinate '{}' is not a number", lossy(word)))
+                            at(
+                                n,
+                                format!("vertex coordinate '{}' is not a number", lossy(word)),
+                            )
                         })?;
                 }
                 positions.push(Vec3::from(xyz));
@@ -142,18 +142,23 @@ pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshF
                 for word in w {
                     let mut parts = word.split(|&b| b == b'/');
                     let v = parts.next().unwrap_or_default();
-                    let resolve = |part: &[u8], what: &str, count: usize| -> Result<usize, InputError> {
+                    let resolve = |part: &[u8],
+                                   what: &str,
+                                   count: usize|
+                     -> Result<usize, InputError> {
                         let k: i64 = std::str::from_utf8(part)
                             .ok()
                             .and_then(|s| s.parse().ok())
                             .ok_or_else(|| {
-                                at(n, format!("{what} index '{}' is not an integer", lossy(part)))
+                                at(
+                                    n,
+                                    format!("{what} index '{}' is not an integer", lossy(part)),
+                                )
                             })?;
                         match k {
                             0 => Err(at(n, format!("{what} index 0 (OBJ indices start at 1)"))),
-                            k if k > 0 => usize::try_from(k - 1).map_err(|_| {
-                                at(n, format!("{what} index {k} is out of range"))
-                            }),
+                            k if k > 0 => usize::try_from(k - 1)
+                                .map_err(|_| at(n, format!("{what} index {k} is out of range"))),
                             k => count.checked_sub(k.unsigned_abs() as usize).ok_or_else(|| {
                                 at(
                                     n,
@@ -416,7 +421,11 @@ mod tests {
         let m = parse(b"v 0 0 0 0.1\nv 2 0 0 0.5\nv 0 2 0 1 0 0\nf 1 2 3\n").unwrap();
         assert_eq!(
             m.mesh.positions,
-            vec![Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0)]
+            vec![
+                Vec3::ZERO,
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(0.0, 2.0, 0.0)
+            ]
         );
         assert!((diagonal(&m.mesh) - 8f32.sqrt()).abs() < 1e-6);
     }
@@ -441,13 +450,25 @@ mod tests {
     fn errors_name_the_line() {
         for (text, want) in [
             (&b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n"[..], "line 4"),
-            (b"v 0 0 0\nv 1 0 0\nf 1 2\n", "line 3: a face needs at least 3"),
-            (b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "line 4: vertex index 0"),
+            (
+                b"v 0 0 0\nv 1 0 0\nf 1 2\n",
+                "line 3: a face needs at least 3",
+            ),
+            (
+                b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+                "line 4: vertex index 0",
+            ),
             (b"v 0 0\n", "line 1: vertex needs three"),
             (b"v 0 0 x\xff\n", "line 1: vertex coordinate"),
             (b"f -4 -3 -2", "line 1: relative vertex index -4"),
-            (b"vt 0 0\nv 0 0 0\nf 1/-1 1/-1 1/-2", "line 3: relative texture"),
-            (b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "line 1: vertex 1 is not finite"),
+            (
+                b"vt 0 0\nv 0 0 0\nf 1/-1 1/-1 1/-2",
+                "line 3: relative texture",
+            ),
+            (
+                b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+                "line 1: vertex 1 is not finite",
+            ),
             (
                 b"v 0 0 0\nv 1 1 0\nv 1 0 0\nv 0 1 0\nf 1 2 3 4\n",
                 "line 5: polygon of 4 vertices intersects itself",
@@ -462,10 +483,8 @@ mod tests {
 
     #[test]
     fn skipped_and_dropped_elements_are_warned() {
-        let m = parse(
-            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nl 1 2\np 1\nf 1 2 4 2\n",
-        )
-        .unwrap();
+        let m =
+            parse(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nf 1 2 3\nl 1 2\np 1\nf 1 2 4 2\n").unwrap();
         assert_eq!(m.mesh.triangles.len(), 1);
         assert_eq!(m.warnings.len(), 2, "{:?}", m.warnings);
         assert!(m.warnings[0].contains("dropped 1 polygon with no area (line 8)"));

@@ -63,9 +63,10 @@ pub fn load_ply(path: &Path) -> Result<MeshFile, InputError> {
     for (k, v) in vertices.iter().enumerate() {
         let mut c = [0.0f32; 3];
         for (axis, name) in ["x", "y", "z"].iter().enumerate() {
-            let value = v.get(*name).and_then(scalar).ok_or_else(|| {
-                err(format!("vertex {k}: no numeric property '{name}'"))
-            })?;
+            let value = v
+                .get(*name)
+                .and_then(scalar)
+                .ok_or_else(|| err(format!("vertex {k}: no numeric property '{name}'")))?;
             c[axis] = value as f32;
         }
         let p = Vec3::from(c);
