@@ -13,7 +13,7 @@ use shadowbench::scene::load::load_mesh;
 use shadowbench::scene::{export, Object, Role, Scene};
 use shadowbench::visibility::VisibilityBuffer;
 
-const IMAGE: [u32; 2] = [48, 36];
+const IMAGE: [u32; 2] = [64, 48];
 
 fn frame(scene: Scene) -> Frame {
     let params = RunParams::of_scene(&scene, IMAGE, 64, 16);
@@ -68,18 +68,45 @@ fn concave_face_plate_renders_as_the_hand_split_plate() {
         ),
     )
     .unwrap();
-    let (a, b) = (framed_file(&concave), framed_file(&split));
-    assert_eq!(a.scene.camera, b.scene.camera, "same bounds, same framing");
+    // Looking down at the floor under the plate, the light above the notch: the U's shadow,
+    // notch included, fills much of the image.
+    let scene_of = |path: &Path| {
+        let mesh = load_mesh(path, None).unwrap().mesh;
+        frame(Scene {
+            name: "plate".into(),
+            objects: vec![Object {
+                name: "plate".into(),
+                mesh,
+                role: Role::BOTH,
+            }],
+            camera: shadowbench::scene::Camera {
+                eye: Vec3::new(1.5, 6.0, -7.0),
+                target: Vec3::new(1.5, 0.0, -1.0),
+                up: Vec3::Y,
+                fov_y_deg: 40.0,
+            },
+            light: shadowbench::scene::Light::Sphere {
+                center: Vec3::new(1.5, 5.0, -1.5),
+                radius: 0.3,
+            },
+            light_texture: None,
+        })
+    };
+    let (a, b) = (scene_of(&concave), scene_of(&split));
     let (ra, rb) = (run("reference", &a), run("reference", &b));
     let mask = a.gbuffer.mask();
     let m = shadowbench::metrics::compare(&ra, &rb, &mask);
-    assert!(m.mae < 1e-3 && m.max < 0.2, "reference differs: {m:?}");
-    // The notch casts no shadow: somewhere in view the visibility is not the fanned plate's.
-    assert!(m.shadow_pixels > 0);
+    println!("reference, concave against split: {m:?}");
+    assert!(m.shadow_pixels > 150, "the shadow is in view: {m:?}");
+    assert!(
+        m.mae < 1e-4 && m.frac_over_0_1 < 1e-3,
+        "reference differs: {m:?}"
+    );
     // Soft shadow volumes (whose silhouettes a fan's backward triangles corrupted) agree too.
     let (sa, sb) = (run("soft_shadow_volume", &a), run("soft_shadow_volume", &b));
     let m = shadowbench::metrics::compare(&sa, &rb, &mask);
     let m_split = shadowbench::metrics::compare(&sb, &rb, &mask);
+    println!("soft_shadow_volume: concave {m:?}, split {m_split:?}");
     assert!(
         m.mae_shadow < m_split.mae_shadow + 0.01,
         "concave {m:?} vs split {m_split:?}"
