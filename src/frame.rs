@@ -173,6 +173,19 @@ impl Frame {
         }
     }
 
+    /// Pixels whose surface belongs to a receiver-only object (receives, does not occlude).
+    pub fn receiver_only_mask(&self) -> Vec<bool> {
+        let g = &self.gbuffer;
+        (0..g.len())
+            .map(|i| {
+                g.is_hit(i) && {
+                    let r = self.flat.role_of(g.triangle[i] as usize);
+                    r.receiver && !r.occluder
+                }
+            })
+            .collect()
+    }
+
     pub fn width(&self) -> u32 {
         self.params.image[0]
     }

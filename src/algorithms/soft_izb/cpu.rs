@@ -17,7 +17,7 @@ use super::{
     ProjectedEdge, SoftIzbOptions,
 };
 use crate::algorithms::hard_shadow_map::cpu::{machine, output};
-use crate::algorithms::shadow_map::LightView;
+use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
@@ -1068,7 +1068,8 @@ pub fn render(
 ) -> Result<FrameOutput> {
     let light = frame.scene.light;
     super::check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
-    let view = LightView::new(&light, frame.scene.bounds(), frame.params.map_resolution);
+    let views = LightViews::fit(frame, &light, frame.params.map_resolution, ViewFit::Single);
+    let view = *views.single();
     let r_uv = light_radius_uv(&view, light.size());
 
     let mut m = machine(backend, frame, ctx);
@@ -1093,6 +1094,7 @@ pub fn render(
         data,
     };
     let mut out = output(m, visibility);
+    views.record(&mut out);
     if outside > 0 {
         out.warnings.push(format!(
             "{outside} receiver points lie at or behind the light's view plane and are taken              as lit"
