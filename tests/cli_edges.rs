@@ -149,10 +149,29 @@ fn render_warns_when_it_converts_the_light() {
 
 #[test]
 fn compare_of_different_scenarios_says_so_first() {
+    // One real run, filed under two scenario names (a baseline with no runs is refused).
     let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path());
+    let out = dir.path().join("out");
+    let o = shadowbench(&[
+        "run",
+        &s,
+        "--only",
+        "hard_shadow_map",
+        "--backend",
+        "cpu-model",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
     let file = |name: &str| {
+        let mut v = results.clone();
+        v["scenario"] = serde_json::json!(name);
         let p = dir.path().join(format!("{name}.json"));
-        std::fs::write(&p, format!(r#"{{"scenario": "{name}", "runs": []}}"#)).unwrap();
+        std::fs::write(&p, v.to_string()).unwrap();
         p.to_str().unwrap().to_string()
     };
     let (a, b) = (file("ci"), file("quick"));

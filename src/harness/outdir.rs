@@ -19,11 +19,31 @@ use crate::error::{Error, InputError, Result};
 /// Name of the lock file inside the output folder.
 pub const LOCK_FILE: &str = ".shadowbench.lock";
 
-/// The held lock on an output folder; dropping it releases the lock.
+/// The held lock on an output folder; dropping it releases the lock. A folder the lock
+/// created that holds nothing but the lock file when it is dropped (the command failed before
+/// writing anything) is removed, so a refused command leaves no trace.
 #[derive(Debug)]
 pub struct OutLock {
     _file: File,
     pub dir: PathBuf,
+    created: bool,
+}
+
+impl Drop for OutLock {
+    fn drop(&mut self) {
+        if !self.created {
+            return;
+        }
+        let only_lock = std::fs::read_dir(&self.dir).is_ok_and(|entries| {
+            entries
+                .filter_map(|e| e.ok())
+                .all(|e| e.file_name() == LOCK_FILE)
+        });
+        if only_lock {
+            let _ = std::fs::remove_file(self.dir.join(LOCK_FILE));
+            let _ = std::fs::remove_dir(&self.dir);
+        }
+    }
 }
 
 /// Creates `out` (an input error naming `field` and the folder when it cannot be created: a
@@ -31,6 +51,7 @@ pub struct OutLock {
 /// holds the lock, refuses with an input error that says who holds it. Then removes the
 /// temporary files of processes that no longer run ([`remove_orphaned_temps`]).
 pub fn lock(field: &str, out: &Path) -> Result<OutLock> {
+    let created = !out.exists();
     std::fs::create_dir_all(out).map_err(|e| {
         InputError::new(
             field,
@@ -85,6 +106,7 @@ pub fn lock(field: &str, out: &Path) -> Result<OutLock> {
     Ok(OutLock {
         _file: file,
         dir: out.to_path_buf(),
+        created,
     })
 }
 
