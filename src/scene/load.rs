@@ -30,6 +30,11 @@ pub fn mesh_extension(path: &Path) -> Option<String> {
 /// Errors: a missing or unreadable file, an unknown extension, malformed content (naming the
 /// line, accessor or element), or no triangles.
 pub fn load_mesh(path: &Path, part: Option<&str>) -> Result<MeshFile, InputError> {
+    // A folder, a device or a link loop is named as such before its extension is judged (a
+    // missing file of an unknown format is an unknown format).
+    if mesh_extension(path).is_some() || std::fs::symlink_metadata(path).is_ok() {
+        crate::util::input::open(path, "mesh file")?;
+    }
     match mesh_extension(path).as_deref() {
         Some("obj") => super::obj::load_obj(path, part),
         Some("gltf" | "glb") => super::gltf::load_gltf(path, part),
