@@ -372,15 +372,7 @@ fn render(a: RenderArgs) -> Result<()> {
     if let Some(v) = a.light_size {
         check::light_size("--light-size", v)?;
     }
-    if let Some(v) = a.triangles {
-        check::triangles("--triangles", v)?;
-    }
-    if let Some(v) = a.occluder_height {
-        check::occluder_height("--occluder-height", v)?;
-    }
-    if let Some(v) = a.occluder_offset {
-        check::occluder_offset("--occluder-offset", v)?;
-    }
+    check_generator_args(a.triangles, a.occluder_height, a.occluder_offset)?;
     let machine = MachineConfig::resolve("--machine", &a.machine, Path::new("."))?;
     if let Some(c) = a.cores {
         check::cores("--cores", c)?;
@@ -462,16 +454,26 @@ fn render(a: RenderArgs) -> Result<()> {
     }
 }
 
-fn scene_export(a: ExportArgs) -> Result<()> {
-    if let Some(v) = a.triangles {
+/// The generator flags `render` and `scene export` share, checked as a scenario's would be.
+fn check_generator_args(
+    triangles: Option<u32>,
+    occluder_height: Option<f32>,
+    occluder_offset: Option<f32>,
+) -> std::result::Result<(), InputError> {
+    if let Some(v) = triangles {
         check::triangles("--triangles", v)?;
     }
-    if let Some(v) = a.occluder_height {
+    if let Some(v) = occluder_height {
         check::occluder_height("--occluder-height", v)?;
     }
-    if let Some(v) = a.occluder_offset {
+    if let Some(v) = occluder_offset {
         check::occluder_offset("--occluder-offset", v)?;
     }
+    Ok(())
+}
+
+fn scene_export(a: ExportArgs) -> Result<()> {
+    check_generator_args(a.triangles, a.occluder_height, a.occluder_offset)?;
     let (scene, notes) = scenario::scene_from_arg(
         &a.scene,
         GeneratorParams {
