@@ -16,6 +16,7 @@
 pub mod buffer;
 pub mod cache;
 pub mod config;
+pub mod host;
 pub mod raster;
 pub mod simd;
 pub mod timing;
@@ -33,7 +34,7 @@ pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
 
 use crate::algorithms::Backend;
 use crate::record::{Counters, Phase};
-use cache::{CacheStats, CoreCaches};
+use cache::{CacheStats, CoreCaches, SharedCache};
 use timing::{CoreWork, StepTime};
 
 /// A step's work: task `t` of a step, generic over the probe so that the same code is the
@@ -173,17 +174,6 @@ impl Probe for ModelProbe<'_> {
     }
 }
 
-fn cache_delta(after: CacheStats, before: CacheStats) -> CacheStats {
-    CacheStats {
-        l1_hits: after.l1_hits - before.l1_hits,
-        l1_misses: after.l1_misses - before.l1_misses,
-        l2_hits: after.l2_hits - before.l2_hits,
-        l2_misses: after.l2_misses - before.l2_misses,
-        dram_read_lines: after.dram_read_lines - before.dram_read_lines,
-        dram_write_lines: after.dram_write_lines - before.dram_write_lines,
-    }
-}
-
 /// One phase while it is being recorded.
 struct PhaseRecord {
     name: String,
@@ -207,6 +197,9 @@ pub struct Machine {
     single_core: bool,
     /// The caches of that core on `cpu-model`, created on first use.
     single_core_caches: Option<CoreCaches>,
+    /// The last-level cache all cores share, on `cpu-model` machines that have one (an L3);
+    /// the single core's L2 traffic goes through it too.
+    shared: Option<SharedCache>,
     /// The run's budget, checked before every task of a step.
     deadline: Deadline,
 }
@@ -219,10 +212,12 @@ impl Machine {
                 .map(|_| CoreCaches::new(&config))
                 .collect()
         });
+        let shared = cores.is_some().then(|| SharedCache::new(&config)).flatten();
         Machine {
             config,
             memory: Memory::default(),
             cores,
+            shared,
             phases: Vec::new(),
             current: 0,
             single_core: false,
@@ -354,12 +349,12 @@ impl Machine {
             ),
         };
         let lists = timing::schedule(weights, cores.len());
+        let before: Vec<CacheStats> = cores.iter().map(|c| c.stats).collect();
         type CoreResult<O> = (CoreWork, Vec<BufferStats>, Vec<(usize, O)>);
-        let per_core: Vec<CoreResult<K::Out>> = cores
+        let mut per_core: Vec<CoreResult<K::Out>> = cores
             .par_iter_mut()
             .zip(lists.into_par_iter())
             .map(|(caches, list)| {
-                let before = caches.stats;
                 let mut probe = ModelProbe::new(config, caches);
                 let outs: Vec<(usize, K::Out)> = list
                     .into_iter()
@@ -369,11 +364,17 @@ impl Machine {
                         (t, kernel.run(&mut probe, t))
                     })
                     .collect();
-                let mut work = probe.work();
-                work.cache = cache_delta(work.cache, before);
-                (work, probe.buffers, outs)
+                (probe.work(), probe.buffers, outs)
             })
             .collect();
+        // The cores' L2 traffic through the shared level, in a fixed order; then each core's
+        // cache figures are what changed during the step.
+        if let Some(l3) = self.shared.as_mut() {
+            l3.replay(&mut cores.iter_mut().collect::<Vec<_>>());
+        }
+        for ((work, _, _), (caches, before)) in per_core.iter_mut().zip(cores.iter().zip(&before)) {
+            work.cache = caches.stats.since(before);
+        }
         let mut outs: Vec<Option<K::Out>> = (0..weights.len()).map(|_| None).collect();
         let mut works = Vec::with_capacity(per_core.len());
         let mut buffers: Vec<BufferStats> = Vec::new();
@@ -443,6 +444,10 @@ impl Machine {
         ] {
             c.add(k, v as f64);
         }
+        if self.config.l3.is_some() {
+            c.add("cache.l3_hits", total.cache.l3_hits as f64);
+            c.add("cache.l3_misses", total.cache.l3_misses as f64);
+        }
         c.add("dram_read_bytes", total.cache.dram_read_lines as f64 * line);
         c.add(
             "dram_write_bytes",
@@ -481,18 +486,18 @@ impl Machine {
         self.close_phase();
         let line = f64::from(self.config.line_bytes);
         if let Some(cores) = self.cores.as_mut() {
-            let cores: Vec<&mut CoreCaches> = cores
+            let mut cores: Vec<&mut CoreCaches> = cores
                 .iter_mut()
                 .chain(&mut self.single_core_caches)
                 .collect();
             let before: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
-            let after: u64 = cores
-                .into_iter()
-                .map(|c| {
-                    c.flush();
-                    c.stats.dram_write_lines
-                })
-                .sum();
+            for c in cores.iter_mut() {
+                c.flush();
+            }
+            if let Some(l3) = self.shared.as_mut() {
+                l3.flush(&mut cores);
+            }
+            let after: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
             if let Some(p) = self.phases.last_mut() {
                 p.counters
                     .add("dram_write_bytes", (after - before) as f64 * line);
