@@ -53,8 +53,17 @@ pub struct OpCosts {
     /// unit accesses one line per cycle (Seiler et al. 2008 §4.1), so a gather whose 16 lanes
     /// fall into one line costs one cycle and into 16 lines sixteen.
     pub gather_line: f64,
+    /// Issue cycles of a gather or scatter instruction besides its lines: a CPU without a
+    /// line-wise gather unit loads each lane on its own, whatever lines they share (0, absent
+    /// from the JSON, on Larrabee).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub gather: f64,
     /// Cycles of an atomic read-modify-write in L2 (an assumption: an L2 round trip).
     pub atomic: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// A modelled many-core SIMD machine (004 §3.1, Figure 5).
@@ -137,6 +146,7 @@ impl MachineConfig {
                 scalar: 1.0,
                 vector_memory: 1.0,
                 gather_line: 1.0,
+                gather: 0.0,
                 atomic: 20.0,
             },
             l3: None,
@@ -333,6 +343,7 @@ impl MachineConfig {
             ("costs.scalar", k.scalar),
             ("costs.vector_memory", k.vector_memory),
             ("costs.gather_line", k.gather_line),
+            ("costs.gather", k.gather),
             ("costs.atomic", k.atomic),
         ] {
             non_negative(name, v)?;

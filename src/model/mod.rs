@@ -15,6 +15,7 @@
 
 pub mod buffer;
 pub mod cache;
+pub mod calibrate;
 pub mod config;
 pub mod host;
 pub mod raster;

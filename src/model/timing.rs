@@ -25,14 +25,15 @@ pub struct CoreWork {
 }
 
 impl CoreWork {
-    /// Cycles the core's issue pipe is busy:
-    /// `vector·c_v + scalar·c_s + lines(load/store)·c_m + lines(gather/scatter)·c_g + atomics·c_a`.
+    /// Cycles the core's issue pipe is busy: `vector·c_v + scalar·c_s + lines(load/store)·c_m
+    /// + lines(gather/scatter)·c_gl + (gathers + scatters)·c_g + atomics·c_a`.
     pub fn issue_cycles(&self, m: &MachineConfig) -> f64 {
         let k = &m.costs;
         self.vector_ops as f64 * k.vector
             + self.scalar_ops as f64 * k.scalar
             + self.access_lines as f64 * k.vector_memory
             + (self.gather_lines + self.scatter_lines) as f64 * k.gather_line
+            + (self.gathers + self.scatters) as f64 * k.gather
             + self.atomics as f64 * k.atomic
     }
 
