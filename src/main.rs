@@ -36,6 +36,9 @@ enum Command {
         /// Folder of scenario files to list.
         #[arg(long, default_value = "scenarios")]
         scenarios: PathBuf,
+        /// Print only the counter glossary: each counter's meaning, unit and executions.
+        #[arg(long)]
+        counters: bool,
     },
     /// Render one frame: DIR/visibility.png, DIR/visibility.npy, DIR/run.json.
     Render(RenderArgs),
@@ -188,8 +191,10 @@ fn list(scenarios: &std::path::Path) {
     }
     println!("machines (--machine, scenario `machine`; or a machine .json file):");
     for name in model::config::PRESETS {
-        let m = MachineConfig::preset(name).expect("listed presets exist");
-        println!("  {:<14} {}", name, m.describe());
+        match MachineConfig::preset(name).expect("listed presets exist") {
+            Ok(m) => println!("  {:<14} {}", name, m.describe()),
+            Err(why) => println!("  {name:<14} unavailable: {why}"),
+        }
     }
     println!("scenes:");
     for g in generators::GENERATORS {
@@ -278,7 +283,11 @@ fn render(a: RenderArgs) -> Result<()> {
     let reference = if a.no_reference || a.algorithm == "reference" {
         None
     } else {
-        Some(ReferenceCache::new(None, a.samples, seed).get_or_compute(&frame)?)
+        Some(
+            ReferenceCache::new(None, a.samples, seed)
+                .get_or_compute(&frame)?
+                .0,
+        )
     };
     let (record, out) = harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
     harness::write_frame_files(
@@ -470,8 +479,15 @@ fn main() -> ExitCode {
         }
     }
     let result = match cli.command {
-        Command::List { scenarios } => {
-            list(&scenarios);
+        Command::List {
+            scenarios,
+            counters,
+        } => {
+            if counters {
+                print!("{}", shadowbench::counters::glossary());
+            } else {
+                list(&scenarios);
+            }
             Ok(())
         }
         Command::Render(a) => render(a),

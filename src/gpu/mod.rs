@@ -185,7 +185,7 @@ impl Gpu {
     }
 
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
-    /// this took on the host.
+    /// this took on the host (also kept for [`timing`]'s check of the passes' GPU times).
     pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
         let start = std::time::Instant::now();
         let mut encoder = self
@@ -196,7 +196,10 @@ impl Gpu {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-        Ok(start.elapsed().as_secs_f64() * 1e3)
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        // What the timestamps of this submission's passes are checked against.
+        timing::submitted(ms);
+        Ok(ms)
     }
 
     /// Why the device was lost, or `None` while it is usable.
@@ -405,7 +408,13 @@ fn acquire() -> std::result::Result<Gpu, String> {
 /// captured, turning them into an error instead of a panic. A device lost during the run fails
 /// it with the driver's reason, whatever `f` returned, since its buffers cannot be trusted; the
 /// next call acquires a new device. [`fault`] injections happen here.
+///
+/// Runs are serialised process-wide (one at a time on the shared device), so that the host
+/// time of each submission, which [`timing`] checks GPU times against, is the run's own and
+/// not time spent waiting behind another thread's work.
 pub fn guarded_run<T>(f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
+    static ONE_RUN: Mutex<()> = Mutex::new(());
+    let _running = ONE_RUN.lock().unwrap_or_else(|e| e.into_inner());
     let gpu = gpu()?;
     let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);

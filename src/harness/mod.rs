@@ -89,8 +89,11 @@ pub fn run_one(
             record.gpu_ms = out.gpu_ms;
             record.execution.extend(out.execution.clone());
             record.warnings = out.warnings.clone();
+            check_gpu_time(&mut record);
             if let Some(r) = reference.filter(|_| algorithm != "reference") {
-                record.error = Some(metrics::compare(&out.visibility, r, &frame.gbuffer.mask()));
+                let e = metrics::compare(&out.visibility, r, &frame.gbuffer.mask());
+                record.warnings.extend(e.warnings());
+                record.error = Some(e);
             }
             (record, Some(out))
         }
@@ -98,6 +101,30 @@ pub fn run_one(
             record.failure = Some(e.to_string());
             (record, None)
         }
+    }
+}
+
+/// A run's GPU time cannot exceed its wall time: such a reading is moved to
+/// `execution.gpu_ms_invalid` with a warning, so it is never charted, claimed or compared (the
+/// wgpu executions already check each submission, `gpu::timing`; this is the last guard).
+fn check_gpu_time(record: &mut RunRecord) {
+    let Some(gpu_ms) = record.gpu_ms.filter(|g| !(*g <= record.wall_ms)) else {
+        return;
+    };
+    let reason = format!(
+        "GPU time {gpu_ms:.3} ms exceeds the run's wall time {:.3} ms",
+        record.wall_ms
+    );
+    record.execution.insert(
+        "gpu_ms_invalid".into(),
+        serde_json::json!({ "reading_ms": gpu_ms, "run_wall_ms": record.wall_ms, "reason": reason }),
+    );
+    record.warnings.push(format!(
+        "gpu_ms invalid, left out of charts, claims and comparisons: {reason}"
+    ));
+    record.gpu_ms = None;
+    for p in &mut record.phases {
+        p.gpu_ms = None;
     }
 }
 
@@ -238,12 +265,17 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             bar.inc(1);
             continue;
         }
-        let reference = if s.reference.enabled {
-            Some(refs.get_or_compute(frame)?)
+        let (reference, cache_warnings) = if s.reference.enabled {
+            let (r, w) = refs.get_or_compute(frame)?;
+            for w in &w {
+                bar.suspend(|| eprintln!("warning: {w}"));
+            }
+            (Some(r), w)
         } else {
-            None
+            (None, vec![])
         };
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
+        record.warnings.extend(cache_warnings);
         if kind != scene.light.kind() {
             record.warnings.push(format!(
                 "light converted from {} to {} (same centre and size) for this algorithm",
@@ -297,7 +329,9 @@ pub fn summary_table(records: &[RunRecord]) -> String {
             opt(r.gpu_ms),
             match (&r.failure, &r.error) {
                 (Some(_), _) => "FAILED".to_string(),
-                (None, Some(e)) => format!("{:.4}", e.mae_shadow),
+                (None, Some(e)) => e
+                    .mae_shadow
+                    .map_or_else(|| "-".into(), |v| format!("{v:.4}")),
                 _ => "-".into(),
             }
         ));
@@ -330,4 +364,37 @@ pub fn write_frame_files(
     }
     let json = serde_json::to_vec_pretty(record).expect("records serialize");
     crate::visibility::write_atomic(&dir.join("run.json"), &json)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_gpu_time_above_the_wall_time_is_recorded_invalid_not_kept() {
+        let scene = crate::scene::generators::find("sphere-on-plane")
+            .unwrap()
+            .build(&Default::default());
+        let params = crate::frame::RunParams::of_scene(&scene, [8, 6], 64, 16);
+        let mut r = RunRecord::new("pcss", Backend::Wgpu, &scene, params);
+        r.wall_ms = 10.0;
+        r.gpu_ms = Some(4.0);
+        check_gpu_time(&mut r);
+        assert_eq!(r.gpu_ms, Some(4.0));
+        r.gpu_ms = Some(25.0);
+        r.phases.push(crate::record::Phase {
+            name: "eye_lookup".into(),
+            gpu_ms: Some(25.0),
+            ..Default::default()
+        });
+        check_gpu_time(&mut r);
+        assert_eq!(r.gpu_ms, None);
+        assert_eq!(r.phases[0].gpu_ms, None);
+        assert_eq!(r.execution["gpu_ms_invalid"]["reading_ms"], 25.0);
+        assert!(
+            r.warnings[0].contains("exceeds the run's wall time"),
+            "{:?}",
+            r.warnings
+        );
+    }
 }

@@ -28,9 +28,28 @@ pub struct ResultsFile {
 impl ResultsFile {
     pub fn read(path: &Path) -> Result<ResultsFile> {
         let text = std::fs::read_to_string(path).map_err(|e| crate::error::Error::io(path, e))?;
-        serde_json::from_str(&text).map_err(|e| {
-            crate::error::InputError::file(path, format!("not a results file: {e}")).into()
-        })
+        let file: ResultsFile = serde_json::from_str(&text).map_err(|e| {
+            crate::error::Error::from(crate::error::InputError::file(
+                path,
+                format!("not a results file: {e}"),
+            ))
+        })?;
+        Ok(file.upgraded())
+    }
+
+    /// The file with the counters of records written by older versions under their current
+    /// names ([`crate::counters::current_name`]) and the derived figures computed again
+    /// ([`crate::counters::derive`]), so old and new results chart and compare alike.
+    pub fn upgraded(mut self) -> ResultsFile {
+        for r in &mut self.runs {
+            crate::counters::upgrade(&r.backend, &mut r.counters);
+            crate::counters::derive(&mut r.counters);
+            for p in &mut r.phases {
+                crate::counters::upgrade(&r.backend, &mut p.counters);
+                crate::counters::derive(&mut p.counters);
+            }
+        }
+        self
     }
 }
 
@@ -75,7 +94,17 @@ pub fn write_results(out: &Path, file: &ResultsFile) -> Result<()> {
     write_atomic(&out.join("results.csv"), csv(&file.runs).as_bytes())
 }
 
-const CSV_COUNTERS: [&str; 4] = ["fill", "overdraw", "mem_read_bytes", "mem_write_bytes"];
+/// The counters `results.csv` has a column for: one kind of figure per column (modelled and
+/// estimated memory traffic apart, [`crate::counters`]).
+const CSV_COUNTERS: [&str; 7] = [
+    "fill",
+    "overdraw",
+    "overdraw_ratio",
+    "mem_model.read_bytes",
+    "mem_model.write_bytes",
+    "mem_est.read_bytes",
+    "mem_est.write_bytes",
+];
 
 /// One row per run with the headline columns; every counter stays in results.json.
 pub fn csv(records: &[RunRecord]) -> String {
@@ -110,17 +139,12 @@ pub fn csv(records: &[RunRecord]) -> String {
         ];
         row.extend(CSV_COUNTERS.iter().map(|c| opt(r.counters.get(c))));
         let e = r.error.as_ref();
-        row.extend([
-            opt(e.map(|e| e.mae)),
-            opt(e.map(|e| e.rmse)),
-            opt(e.map(|e| e.max)),
-            opt(e.map(|e| e.mae_shadow)),
-            opt(e.map(|e| e.frac_over_0_1)),
-            r.failure
-                .as_ref()
-                .map(|f| format!("\"{}\"", f.replace('"', "'")))
-                .unwrap_or_default(),
-        ]);
+        row.extend((0..5).map(|i| opt(e.and_then(|e| e.named()[i].1))));
+        row.extend([r
+            .failure
+            .as_ref()
+            .map(|f| format!("\"{}\"", f.replace('"', "'")))
+            .unwrap_or_default()]);
         s.push_str(&row.join(","));
         s.push('\n');
     }

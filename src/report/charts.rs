@@ -104,22 +104,18 @@ pub struct Metric {
     pub value: fn(&RunRecord) -> Option<f64>,
 }
 
-/// Memory traffic: bytes read plus bytes written, when the run counts either.
-pub fn memory_bytes(r: &RunRecord) -> Option<f64> {
+/// Memory traffic of one kind, `mem_model` (modelled) or `mem_est` (estimated): bytes read plus
+/// bytes written, when the run counts either. The two kinds are never added or charted together
+/// ([`crate::counters`]).
+pub fn memory_bytes(r: &RunRecord, kind: &str) -> Option<f64> {
     let (rd, wr) = (
-        r.counters.get("mem_read_bytes"),
-        r.counters.get("mem_write_bytes"),
+        r.counters.get(&format!("{kind}.read_bytes")),
+        r.counters.get(&format!("{kind}.write_bytes")),
     );
     (rd.is_some() || wr.is_some()).then(|| rd.unwrap_or(0.0) + wr.unwrap_or(0.0))
 }
 
-/// Overdraw as a fraction of fill, when the run counts both and fill is positive.
-pub fn overdraw_ratio(r: &RunRecord) -> Option<f64> {
-    let fill = r.counters.get("fill").filter(|f| *f > 0.0)?;
-    Some(r.counters.get("overdraw")? / fill)
-}
-
-pub const METRICS: [Metric; 7] = [
+pub const METRICS: [Metric; 8] = [
     Metric {
         id: "wall_ms",
         label: "wall time (ms, measured on the host)",
@@ -136,9 +132,14 @@ pub const METRICS: [Metric; 7] = [
         value: |r| r.model_ms,
     },
     Metric {
-        id: "memory_bytes",
-        label: "memory traffic (bytes read + written)",
-        value: memory_bytes,
+        id: "modelled_memory_bytes",
+        label: "modelled memory traffic (bytes read + written, cpu-model)",
+        value: |r| memory_bytes(r, "mem_model"),
+    },
+    Metric {
+        id: "estimated_memory_bytes",
+        label: "estimated memory traffic (bytes read + written, from sizes and counts)",
+        value: |r| memory_bytes(r, "mem_est"),
     },
     Metric {
         id: "fill",
@@ -148,13 +149,13 @@ pub const METRICS: [Metric; 7] = [
     Metric {
         id: "overdraw_ratio",
         label: "overdraw ratio (overdraw / fill)",
-        value: overdraw_ratio,
+        value: |r| r.counters.get("overdraw_ratio"),
     },
     // Error against a sweep axis, as paper 002 plots it (Figures 17-20).
     Metric {
         id: "mae_shadow",
         label: "error: mean absolute error in shadow (mae_shadow)",
-        value: |r| r.error.as_ref().map(|e| e.mae_shadow),
+        value: |r| r.error.as_ref().and_then(|e| e.mae_shadow),
     },
 ];
 
@@ -266,7 +267,7 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
     }
     for (id, label) in TIMES {
         let series = collect_series(&ok, |r| {
-            Some((run_time(r, id)?, r.error.as_ref()?.mae_shadow))
+            Some((run_time(r, id)?, r.error.as_ref()?.mae_shadow?))
         });
         if series.is_empty() {
             continue;
@@ -918,7 +919,7 @@ mod tests {
             for m in [
                 "wall_ms",
                 "model_ms",
-                "memory_bytes",
+                "modelled_memory_bytes",
                 "fill",
                 "overdraw_ratio",
                 "mae_shadow",
@@ -958,7 +959,7 @@ mod tests {
         // The tile chart holds triangles at 100: tiles 16, 32 and 64.
         let tile = specs
             .iter()
-            .find(|s| s.file == "memory_bytes_vs_tile_size")
+            .find(|s| s.file == "modelled_memory_bytes_vs_tile_size")
             .unwrap();
         let Kind::Xy(c) = &tile.kind else { panic!() };
         let xs: Vec<f64> = c.series[1].points.iter().map(|p| p.0).collect();
@@ -969,7 +970,8 @@ mod tests {
             .unwrap();
         assert_eq!(
             c.series[1].points[2].1,
-            r.counters.get("mem_read_bytes").unwrap() + r.counters.get("mem_write_bytes").unwrap()
+            r.counters.get("mem_model.read_bytes").unwrap()
+                + r.counters.get("mem_model.write_bytes").unwrap()
         );
     }
 
@@ -1043,7 +1045,8 @@ mod tests {
             "{names:?}"
         );
         for m in [
-            "memory_bytes",
+            "modelled_memory_bytes",
+            "estimated_memory_bytes",
             "fill",
             "overdraw_ratio",
             "model_ms",

@@ -22,7 +22,8 @@ use crate::record::RunRecord;
 pub fn read_results(path: &Path) -> Result<ResultsFile, InputError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| InputError::file(path, format!("cannot read results: {e}")))?;
-    serde_json::from_str(&text)
+    serde_json::from_str::<ResultsFile>(&text)
+        .map(ResultsFile::upgraded)
         .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))
 }
 
@@ -214,8 +215,9 @@ pub(crate) mod testdata {
         let mut counters = Counters::default();
         counters.set("fill", 1000.0 + triangles as f64);
         counters.set("overdraw", 250.0);
-        counters.set("mem_read_bytes", 4096.0 * tile as f64);
-        counters.set("mem_write_bytes", 1024.0);
+        counters.set("mem_model.read_bytes", 4096.0 * tile as f64);
+        counters.set("mem_model.write_bytes", 1024.0);
+        counters.set("overdraw_ratio", 250.0 / (1000.0 + triangles as f64));
         RunRecord {
             algorithm: algorithm.into(),
             backend: backend.into(),
@@ -250,11 +252,11 @@ pub(crate) mod testdata {
             model_ms: Some(1.0 + triangles as f64 / 100.0),
             gpu_ms: None,
             error: Some(ErrorMetrics {
-                mae: 0.01,
-                rmse: 0.02,
-                max: 0.5,
-                mae_shadow: 0.05,
-                frac_over_0_1: 0.01,
+                mae: Some(0.01),
+                rmse: Some(0.02),
+                max: Some(0.5),
+                mae_shadow: Some(0.05),
+                frac_over_0_1: Some(0.01),
                 pixels: 6912,
                 shadow_pixels: 800,
             }),
