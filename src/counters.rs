@@ -120,8 +120,8 @@ pub const COUNTERS: &[Counter] = &[
     c(
         "bin_entries",
         "entries",
-        All,
-        "primitive references written into screen or grid bins",
+        CpuAndBinningWgpu,
+        "primitive references written into screen, tile or grid bins",
     ),
     c(
         "cache.l1_hits",
@@ -498,6 +498,12 @@ pub const COUNTERS: &[Counter] = &[
         "hard shadow quads uploaded per light sample",
     ),
     c(
+        "shadow_rays",
+        "rays",
+        Cpu,
+        "shadow rays the reference casts (pixels that see a surface × light samples)",
+    ),
+    c(
         "silhouette.edges",
         "edges",
         All,
@@ -612,6 +618,12 @@ pub const COUNTERS: &[Counter] = &[
         "16-wide vector instructions",
     ),
     c(
+        "volume_caps",
+        "faces",
+        All,
+        "light and dark caps of z-fail volumes (001 III)",
+    ),
+    c(
         "volumes.closing_triangles",
         "triangles",
         All,
@@ -652,12 +664,6 @@ pub const COUNTERS: &[Counter] = &[
         "planes",
         All,
         "trim planes at convex corners of the umbra (003)",
-    ),
-    c(
-        "volume_caps",
-        "faces",
-        All,
-        "light and dark caps of z-fail volumes (001 III)",
     ),
     c(
         "wedge_culled_fragments",

@@ -46,7 +46,7 @@ fn penumbra_map(backend: Backend, f: &Frame) -> FrameOutput {
 }
 
 fn reference(f: &Frame) -> VisibilityBuffer {
-    ReferenceCache::new(None, 64, 1).get_or_compute(f).unwrap()
+    ReferenceCache::new(None, 64, 1).get_or_compute(f).unwrap().0
 }
 
 /// Pixels that see a surface with visibility in `range`.

@@ -150,7 +150,7 @@ fn executions_agree_and_counters_do_not_depend_on_host_threads() {
     assert!(get(0, "step.transfer.model_ms") > 0.0);
     assert!(get(1, "ssm.micro_patches") > 0.0);
     assert!(get(1, "fill") > get(1, "overdraw") && get(1, "overdraw") > 0.0);
-    assert!(get(1, "mem.soft_shadow_map.color.write_bytes") > 0.0);
+    assert!(get(1, "mem_model.soft_shadow_map.color.write_bytes") > 0.0);
     for (i, &v) in a.visibility.data.iter().enumerate() {
         assert!(v.is_finite() && (0.0..=1.0).contains(&v), "{v}");
         if !f.gbuffer.is_hit(i) {

@@ -20,7 +20,7 @@
 //! cost nothing).
 //!
 //! **The guard.** Every reading is checked against the host's wall time of the submission that
-//! held the passes (encode, submit, wait; [`super::Gpu::submit`]): the GPU cannot have worked
+//! held the passes (from submission to completion; [`super::Gpu::submit`]): the GPU cannot have worked
 //! longer than the host waited ([`ABOVE_SLACK`]), and on a submission that kept the host
 //! waiting for long a reading of a small fraction of it cannot be the passes' execution
 //! ([`BELOW_FRACTION`], [`BELOW_MIN_GAP_MS`]). A reading that fails either is recorded as

@@ -108,7 +108,7 @@ pub fn run_one(
 /// `execution.gpu_ms_invalid` with a warning, so it is never charted, claimed or compared (the
 /// wgpu executions already check each submission, `gpu::timing`; this is the last guard).
 fn check_gpu_time(record: &mut RunRecord) {
-    let Some(gpu_ms) = record.gpu_ms.filter(|g| !(*g <= record.wall_ms)) else {
+    let Some(gpu_ms) = record.gpu_ms.filter(|g| g.is_nan() || *g > record.wall_ms) else {
         return;
     };
     let reason = format!(
