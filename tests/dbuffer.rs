@@ -92,7 +92,10 @@ fn run(id: &str, backend: Backend, f: &Frame) -> FrameOutput {
 }
 
 fn reference(f: &Frame) -> VisibilityBuffer {
-    ReferenceCache::new(None, 256, 1).get_or_compute(f).unwrap().0
+    ReferenceCache::new(None, 256, 1)
+        .get_or_compute(f)
+        .unwrap()
+        .0
 }
 
 /// 0 umbra (v < 0.05), 2 lit (v > 0.95), 1 penumbra.

@@ -46,7 +46,10 @@ fn penumbra_map(backend: Backend, f: &Frame) -> FrameOutput {
 }
 
 fn reference(f: &Frame) -> VisibilityBuffer {
-    ReferenceCache::new(None, 64, 1).get_or_compute(f).unwrap().0
+    ReferenceCache::new(None, 64, 1)
+        .get_or_compute(f)
+        .unwrap()
+        .0
 }
 
 /// Pixels that see a surface with visibility in `range`.
@@ -145,8 +148,8 @@ fn the_model_counts_the_passes_of_the_paper() {
     assert!(get("fill") > 0.0);
     assert!(get("overdraw") > 0.0 && get("overdraw") < get("fill"));
     assert_eq!(get("overdraw"), get("raster.discarded"));
-    assert!(get("mem.penumbra_map.color.write_bytes") > 0.0);
-    assert!(get("mem.shadow_map.depth.read_bytes") > 0.0);
+    assert!(get("mem_model.penumbra_map.color.write_bytes") > 0.0);
+    assert!(get("mem_model.shadow_map.depth.read_bytes") > 0.0);
     let sil = &model.phases[1].counters;
     assert!(sil.get("silhouette.edges").unwrap() >= 3.0);
     assert!(model.phases[1].model_ms.unwrap() > 0.0);

@@ -525,9 +525,15 @@ fn a_pass_timed_three_times_in_one_process_reads_its_own_time_each_time() {
     scene.light = scene.light.with_size(0.3);
     let params = RunParams::of_scene(&scene, [160, 120], 256, 32);
     let f = Frame::new(scene, params);
+    // A first run compiles the shaders (llvmpipe compiles at first dispatch): it is not the
+    // reading under test. Then a render pass binds a framebuffer, which is what made later
+    // compute-pass timestamps read ~0 ms.
+    run("soft_shadow_volume", &f);
     run("hard_shadow_map", &f);
     let runs: Vec<FrameOutput> = (0..3).map(|_| run("soft_shadow_volume", &f)).collect();
-    let soft: Vec<f64> = runs
+    // Per run: the soft phase's GPU time and the host time of its submission (the phase's wall
+    // time: encode, submit, wait).
+    let soft: Vec<(f64, f64)> = runs
         .iter()
         .map(|o| {
             assert!(
@@ -538,24 +544,26 @@ fn a_pass_timed_three_times_in_one_process_reads_its_own_time_each_time() {
             );
             let p = o.phases.iter().find(|p| p.name == "soft").unwrap();
             let g = p.gpu_ms.expect("a valid GPU time");
-            // The soft phase's wall time is its submission's host time (encode, submit, wait):
-            // the GPU time is within it and, on a CPU adapter, most of it.
             assert!(
                 g <= p.wall_ms * 1.02 + 0.5,
                 "gpu {g} ms > host {} ms",
                 p.wall_ms
             );
-            if gpu.info.device_type == wgpu::DeviceType::Cpu {
-                assert!(g >= 0.25 * p.wall_ms, "gpu {g} ms, host {} ms", p.wall_ms);
-            }
-            g
+            (g, p.wall_ms)
         })
         .collect();
-    for g in &soft[1..] {
-        assert!(
-            *g <= 2.0 * soft[0] && *g >= soft[0] / 2.0,
-            "soft pass GPU times {soft:?}"
-        );
+    if gpu.info.device_type == wgpu::DeviceType::Cpu {
+        // On a CPU adapter the pass is most of its submission, in every run alike: the share
+        // of runs 2 and 3 within 2× of run 1's (shares, not times, so that a loaded machine
+        // slowing one run as a whole does not count). The fault read a share of ~0.0005.
+        let share: Vec<f64> = soft.iter().map(|(g, h)| g / h).collect();
+        for s in &share {
+            assert!(*s >= 0.25, "GPU/host shares {share:?} of {soft:?}");
+            assert!(
+                *s <= 2.0 * share[0] && *s >= share[0] / 2.0,
+                "GPU/host shares {share:?}"
+            );
+        }
     }
     let how = runs[0].execution["gpu_time"].as_str().unwrap();
     if gpu.queries.timestamp_inside_passes {

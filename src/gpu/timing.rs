@@ -43,9 +43,12 @@ pub const ABOVE_SLACK: f64 = 0.02;
 /// ... plus this many milliseconds.
 pub const ABOVE_SLACK_MS: f64 = 0.5;
 /// A reading below this fraction of its submission's host time is implausible ...
-pub const BELOW_FRACTION: f64 = 0.1;
-/// ... when the host waited at least this many milliseconds more than the reading.
-pub const BELOW_MIN_GAP_MS: f64 = 10.0;
+pub const BELOW_FRACTION: f64 = 0.02;
+/// ... when the host waited at least this many milliseconds more than the reading. Both are
+/// loose on purpose: a short pass in a submission the host was slow to hand over (a debug
+/// build, a loaded machine) must not be flagged; the fault they catch reads 0.02–1 ms for
+/// passes of hundreds of milliseconds.
+pub const BELOW_MIN_GAP_MS: f64 = 50.0;
 
 thread_local! {
     /// Submissions made by [`Gpu::submit`] on this thread so far.
@@ -462,6 +465,7 @@ mod tests {
         assert!(implausible(5.05, 5.0).is_none());
         // A short pass in a short submission: submission overhead dominates, still plausible.
         assert!(implausible(0.01, 2.0).is_none());
+        assert!(implausible(0.75, 21.0).is_none());
         assert!(implausible(f64::NAN, 2.0).is_some());
     }
 
