@@ -133,12 +133,12 @@ pub const METRICS: [Metric; 8] = [
     },
     Metric {
         id: "modelled_memory_bytes",
-        label: "modelled memory traffic (bytes read + written, cpu-model)",
+        label: "modelled memory traffic (bytes, cpu-model)",
         value: |r| memory_bytes(r, "mem_model"),
     },
     Metric {
         id: "estimated_memory_bytes",
-        label: "estimated memory traffic (bytes read + written, from sizes and counts)",
+        label: "estimated memory traffic (bytes)",
         value: |r| memory_bytes(r, "mem_est"),
     },
     Metric {
