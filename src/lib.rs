@@ -26,10 +26,11 @@
 //! let truth = algorithms::run("reference", Backend::CpuNative, &frame, &ctx).unwrap();
 //! let error = metrics::compare(&pcss.visibility, &truth.visibility, &frame.gbuffer.mask());
 //! assert!(pcss.model_ms.unwrap() > 0.0);
-//! assert!(error.mae < 0.1);
+//! assert!(error.mae.unwrap() < 0.1);
 //! ```
 
 pub mod algorithms;
+pub mod counters;
 pub mod error;
 pub mod frame;
 pub mod gpu;

@@ -60,6 +60,9 @@ enum Command {
         machine: Option<String>,
         #[command(flatten)]
         adapter: AdapterArg,
+        /// Print only the counter glossary: each counter's meaning, unit and executions.
+        #[arg(long)]
+        counters: bool,
     },
     /// Render one frame: DIR/visibility.png, DIR/visibility.npy, DIR/run.json.
     Render(RenderArgs),
@@ -358,8 +361,10 @@ fn list(scenarios: &std::path::Path) {
     }
     println!("machines (--machine, scenario `machine`; or a machine .json file):");
     for name in model::config::PRESETS {
-        let m = MachineConfig::preset(name).expect("listed presets exist");
-        println!("  {:<14} {}", name, m.describe());
+        match MachineConfig::preset(name).expect("listed presets exist") {
+            Ok(m) => println!("  {:<14} {}", name, m.describe()),
+            Err(why) => println!("  {name:<14} unavailable: {why}"),
+        }
     }
     println!("scenes:");
     for g in generators::GENERATORS {
@@ -474,7 +479,11 @@ fn render(a: RenderArgs) -> Result<()> {
     let reference = if a.no_reference || a.algorithm == "reference" {
         None
     } else {
-        Some(ReferenceCache::new(None, a.samples, seed).get_or_compute(&frame)?)
+        Some(
+            ReferenceCache::new(None, a.samples, seed)
+                .get_or_compute(&frame)?
+                .0,
+        )
     };
     let (mut record, out) =
         harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
@@ -842,7 +851,7 @@ fn calibrate(out: PathBuf, quick: bool) -> Result<()> {
             InputError::new("--out", format!("'{}' is not a .json file", out.display())).into(),
         );
     }
-    let base = MachineConfig::host();
+    let base = MachineConfig::resolve("host", "host", Path::new("."))?;
     let settings = if quick {
         model::calibrate::Settings {
             scale: 0.1,
@@ -920,7 +929,7 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     let machine = match machine {
         Some(m) => m,
         None => {
-            let base = MachineConfig::host();
+            let base = MachineConfig::resolve("--machine", "host", Path::new("."))?;
             println!("calibrating {} ({})", base.name, base.describe());
             let (m, _) =
                 model::calibrate::calibrate(&base, model::calibrate::Settings::default(), |line| {
@@ -1024,6 +1033,10 @@ fn main() -> ExitCode {
         Command::List {
             machine: Some(m), ..
         } => list_machine(&m),
+        Command::List { counters: true, .. } => {
+            print!("{}", shadowbench::counters::glossary());
+            Ok(())
+        }
         Command::List { scenarios, .. } => {
             list(&scenarios);
             Ok(())

@@ -96,3 +96,59 @@ fn every_algorithm_is_deterministic_across_host_threads() {
         }
     }
 }
+
+/// Every counter name of every record (and phase) is in the glossary (`shadowbench::counters`)
+/// and recorded by that execution; every record that counts fill and overdraw carries the
+/// derived `overdraw_ratio` = overdraw / fill.
+fn check_counter_names(record: &shadowbench::record::RunRecord) {
+    let all = std::iter::once(&record.counters).chain(record.phases.iter().map(|p| &p.counters));
+    for c in all {
+        for name in c.0.keys() {
+            let entry = shadowbench::counters::find(name).unwrap_or_else(|| {
+                panic!(
+                    "{} {}: counter '{name}' is not in the glossary",
+                    record.algorithm, record.backend
+                )
+            });
+            assert!(
+                entry.recorded.on(&record.backend),
+                "{} {}: '{name}' is documented as recorded by {:?} only",
+                record.algorithm,
+                record.backend,
+                entry.recorded
+            );
+        }
+        if let (Some(fill), Some(overdraw)) = (c.get("fill"), c.get("overdraw")) {
+            if fill > 0.0 {
+                assert_eq!(
+                    c.get("overdraw_ratio"),
+                    Some(overdraw / fill),
+                    "{} {}",
+                    record.algorithm,
+                    record.backend
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn every_cpu_counter_is_in_the_glossary_and_derived_figures_are_everywhere() {
+    let scene = generators::find("sphere-on-plane")
+        .unwrap()
+        .build(&GeneratorParams::default());
+    let params = RunParams::of_scene(&scene, [32, 24], 64, 16);
+    let frame = Frame::new(scene, params);
+    let ctx = ExecContext {
+        reference_samples: 4,
+        ..Default::default()
+    };
+    for info in ALGORITHMS {
+        let frame = for_algorithm(&frame, info.id);
+        for backend in cpu_backends(info.backends) {
+            let (record, _) = run_one(&frame, info.id, backend, &ctx, None);
+            assert!(record.failure.is_none(), "{:?}", record.failure);
+            check_counter_names(&record);
+        }
+    }
+}

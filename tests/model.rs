@@ -41,13 +41,18 @@ fn render(id: &str, backend: Backend, frame: &Frame) -> FrameOutput {
 }
 
 fn mae(a: &FrameOutput, b: &FrameOutput, frame: &Frame) -> f64 {
-    metrics::compare(&a.visibility, &b.visibility, &frame.gbuffer.mask()).mae
+    metrics::compare(&a.visibility, &b.visibility, &frame.gbuffer.mask())
+        .mae
+        .unwrap()
 }
 
 #[test]
 fn hard_shadow_map_matches_the_reference_at_a_small_light() {
     let f = frame(0.05, 32);
-    let reference = ReferenceCache::new(None, 64, 1).get_or_compute(&f).unwrap();
+    let reference = ReferenceCache::new(None, 64, 1)
+        .get_or_compute(&f)
+        .unwrap()
+        .0;
     let ctx = ExecContext::default();
     let (record, out) = run_one(
         &f,
@@ -59,7 +64,7 @@ fn hard_shadow_map_matches_the_reference_at_a_small_light() {
     let out = out.expect("the run succeeds");
     // Over every pixel that sees a surface, averted ones (facing away from the light) included.
     let e = record.error.expect("error against the reference");
-    assert!(e.mae < 0.02, "mae {}", e.mae);
+    assert!(e.mae.unwrap() < 0.02, "mae {:?}", e.mae.unwrap());
     // The sphere casts a shadow at all: some receivers are dark in both images.
     let dark = out.visibility.data.iter().filter(|&&v| v == 0.0).count();
     assert!(dark > 20, "{dark} shadowed pixels");
@@ -77,7 +82,10 @@ fn hard_shadow_map_matches_the_reference_at_a_small_light() {
 #[test]
 fn pcss_is_closer_to_the_reference_than_the_hard_shadow_at_a_large_light() {
     let f = frame(0.8, 32);
-    let reference = ReferenceCache::new(None, 64, 1).get_or_compute(&f).unwrap();
+    let reference = ReferenceCache::new(None, 64, 1)
+        .get_or_compute(&f)
+        .unwrap()
+        .0;
     let ctx = ExecContext::default();
     let err = |id| {
         run_one(&f, id, Backend::CpuModel, &ctx, Some(&reference))
@@ -85,6 +93,7 @@ fn pcss_is_closer_to_the_reference_than_the_hard_shadow_at_a_large_light() {
             .error
             .unwrap()
             .mae_shadow
+            .unwrap()
     };
     let (pcss, hard) = (err("pcss"), err("hard_shadow_map"));
     assert!(pcss < hard, "pcss {pcss} vs hard {hard}");
@@ -277,4 +286,54 @@ fn bad_pcss_options_name_the_field() {
         Some("$.options.pcss.pcf_samples"),
         "{e}"
     );
+}
+
+/// `--machine host` takes its clock from the operating system, not from timing: two processes
+/// rendering the same frame model the same time (issue: a clock measured per process under
+/// load gave model_ms up to 5× apart).
+#[test]
+fn two_processes_on_the_host_preset_model_the_same_time() {
+    if shadowbench::model::config::host_clock().is_err() {
+        eprintln!("skipped: this OS states no CPU frequency (the host preset is refused)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let runs: Vec<serde_json::Value> = (0..2)
+        .map(|i| {
+            let out = dir.path().join(format!("r{i}"));
+            let status = std::process::Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+                .args([
+                    "render",
+                    "--algorithm",
+                    "pcss",
+                    "--backend",
+                    "cpu-model",
+                    "--machine",
+                    "host",
+                    "--image",
+                    "48x36",
+                    "--map-resolution",
+                    "64",
+                    "--no-reference",
+                    "--out",
+                ])
+                .arg(&out)
+                .status()
+                .unwrap();
+            assert!(status.success());
+            serde_json::from_slice(&std::fs::read(out.join("run.json")).unwrap()).unwrap()
+        })
+        .collect();
+    let model_ms = |r: &serde_json::Value| r["model_ms"].as_f64().unwrap();
+    assert!(model_ms(&runs[0]) > 0.0);
+    assert_eq!(model_ms(&runs[0]), model_ms(&runs[1]));
+    for r in &runs {
+        assert_eq!(r["execution"]["machine"], "host");
+        assert!(
+            r["execution"]["clock_source"].is_string(),
+            "{}",
+            r["execution"]
+        );
+    }
+    assert_eq!(runs[0]["execution"], runs[1]["execution"]);
 }

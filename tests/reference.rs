@@ -6,6 +6,7 @@ use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scene::bvh::SceneBvh;
 use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::{Light, Mesh, Object, Role, Scene};
+use shadowbench::visibility::VisibilityBuffer;
 
 /// Fraction of a disc of radius `r` lying beyond a chord at signed distance `d` from its centre:
 /// the circular-segment area over the disc area.
@@ -101,4 +102,115 @@ fn reference_is_bit_identical_across_thread_counts() {
     assert!(a.data.iter().any(|&v| v > 0.0 && v < 1.0), "and penumbra");
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&a.data), bits(&b.data));
+}
+
+/// Runs a one-case pcss sweep on cpu-model into `out`, with its reference cache in `cache`.
+fn cached_sweep(
+    out: &std::path::Path,
+    cache: &std::path::Path,
+) -> Vec<shadowbench::record::RunRecord> {
+    let text = r#"{"name": "cache", "scene": {"generator": "sphere-on-plane"},
+        "algorithms": ["pcss"], "backends": ["cpu-model"],
+        "params": {"image": [40, 30], "map_resolution": 64, "triangles": 200,
+                   "light_size": 0.4},
+        "reference": {"samples": 16}}"#;
+    let loaded =
+        shadowbench::scenario::Loaded::from_str(text, std::path::Path::new("c.json")).unwrap();
+    shadowbench::harness::run_scenario(
+        &loaded,
+        &shadowbench::harness::RunOptions {
+            out: out.to_path_buf(),
+            only: None,
+            backends: None,
+            cache_dir: Some(cache.to_path_buf()),
+            memory_limit: shadowbench::harness::limits::default_limit(),
+            machine: None,
+            shard: None,
+            max_cases: shadowbench::scenario::MAX_CASES,
+            run_timeout: None,
+            verbosity: shadowbench::harness::Verbosity::Quiet,
+        },
+    )
+    .unwrap()
+    .runs
+}
+
+/// A cached reference that was replaced (a valid array of the right shape holding 5.0 or NaN,
+/// with or without a matching checksum) is recomputed with a warning, and the run's metrics
+/// are those of a fresh run; never 4.13 or NaN.
+#[test]
+fn a_corrupted_reference_cache_is_recomputed_with_a_warning() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cache = tmp.path().join("cache");
+    let fresh = cached_sweep(&tmp.path().join("fresh"), &cache);
+    let fresh_error = fresh[0].error.expect("metrics against the reference");
+    assert!(fresh[0]
+        .warnings
+        .iter()
+        .all(|w| !w.contains("reference cache")));
+    let npy = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.extension().is_some_and(|e| e == "npy"))
+        .expect("the reference was cached");
+    let sidecar = npy.with_extension("json");
+    let good = VisibilityBuffer::read_npy(&npy).unwrap();
+    // A second sweep reads the cache and agrees, without a warning.
+    let again = cached_sweep(&tmp.path().join("again"), &cache);
+    assert_eq!(again[0].error, Some(fresh_error));
+    assert!(again[0]
+        .warnings
+        .iter()
+        .all(|w| !w.contains("reference cache")));
+    for (what, value, fix_checksum) in [
+        ("5.0, stale checksum", 5.0f32, false),
+        ("NaN, stale checksum", f32::NAN, false),
+        ("5.0, matching checksum", 5.0, true),
+        ("NaN, matching checksum", f32::NAN, true),
+    ] {
+        let bad = VisibilityBuffer {
+            data: vec![value; good.data.len()],
+            ..good.clone()
+        };
+        bad.write_npy(&npy).unwrap();
+        if fix_checksum {
+            let mut entry: serde_json::Value =
+                serde_json::from_slice(&std::fs::read(&sidecar).unwrap()).unwrap();
+            let crc = crc32fast::hash(&std::fs::read(&npy).unwrap());
+            entry["crc32"] = serde_json::json!(format!("{crc:08x}"));
+            std::fs::write(&sidecar, entry.to_string()).unwrap();
+        }
+        let runs = cached_sweep(&tmp.path().join("corrupt"), &cache);
+        let r = &runs[0];
+        assert!(r.failure.is_none(), "{what}: {:?}", r.failure);
+        assert!(
+            r.warnings
+                .iter()
+                .any(|w| w.contains("reference cache") && w.contains("recomputed")),
+            "{what}: {:?}",
+            r.warnings
+        );
+        assert_eq!(r.error, Some(fresh_error), "{what}");
+        // The cache holds the recomputed image again, and it verifies.
+        assert_eq!(VisibilityBuffer::read_npy(&npy).unwrap(), good, "{what}");
+        let csv = std::fs::read_to_string(tmp.path().join("corrupt/results.csv")).unwrap();
+        // No figure is NaN (the warnings column may name the NaN it found).
+        assert!(
+            !csv.split([',', '\n'])
+                .any(|f| f.eq_ignore_ascii_case("nan")),
+            "{what}: {csv}"
+        );
+    }
+    // A sidecar for other settings (another sample count) is not trusted either.
+    let mut entry: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&sidecar).unwrap()).unwrap();
+    entry["samples"] = serde_json::json!(1024);
+    std::fs::write(&sidecar, entry.to_string()).unwrap();
+    let runs = cached_sweep(&tmp.path().join("other"), &cache);
+    assert!(
+        runs[0].warnings.iter().any(|w| w.contains("samples")),
+        "{:?}",
+        runs[0].warnings
+    );
+    assert_eq!(runs[0].error, Some(fresh_error));
 }

@@ -230,25 +230,29 @@ fn the_model_execution_renders_the_native_image() {
             assert_eq!(native.counters.get(k), model.counters.get(k), "{name}: {k}");
         }
         let c = |k: &str| model.counters.get(k).unwrap_or(0.0);
-        assert!(c("mem_read_bytes") > 0.0 && c("mem_write_bytes") > 0.0);
+        assert!(c("mem_model.read_bytes") > 0.0 && c("mem_model.write_bytes") > 0.0);
         // Every stored sample is scattered once and takes an atomic cursor in `construct`.
         let construct = model.phases.iter().find(|p| p.name == "construct").unwrap();
         let samples = construct.counters.get("samples").unwrap();
         assert!(samples > 0.0);
         assert_eq!(construct.counters.get("atomics"), Some(3.0 * samples));
         assert_eq!(
-            construct.counters.get("mem.izb_samples.write_bytes"),
+            construct.counters.get("mem_model.izb_samples.write_bytes"),
             Some(20.0 * samples)
         );
         // The umbra and penumbra tests gather one 20-byte record per sample they test.
         let hard = model.phases.iter().find(|p| p.name == "hard").unwrap();
         assert!(
-            hard.counters.get("mem.izb_samples.read_bytes").unwrap()
+            hard.counters
+                .get("mem_model.izb_samples.read_bytes")
+                .unwrap()
                 >= 20.0 * hard.counters.get("hard_tests").unwrap()
         );
         let soft = model.phases.iter().find(|p| p.name == "soft").unwrap();
         assert!(
-            soft.counters.get("mem.izb_samples.read_bytes").unwrap()
+            soft.counters
+                .get("mem_model.izb_samples.read_bytes")
+                .unwrap()
                 >= 20.0 * soft.counters.get("fill").unwrap()
         );
     }
@@ -321,7 +325,7 @@ const EXACT: [&str; 13] = [
     "quad_fragments",
     "wedge_culled_fragments",
     "fill",
-    "mem.izb_grid.bytes",
+    "izb_grid_bytes",
 ];
 
 #[test]
@@ -344,8 +348,8 @@ fn wgpu_agrees_with_the_cpu_model() {
             // Same formulas in f32; they differ by the GPU's acos and square root and by the
             // fixed-point accumulation (at most 2^-21 per edge), far below 1e-3 on average,
             // and no pixel may move by more than 0.1.
-            assert!(e.mae < 1e-3, "{name} {o}: {e:?}");
-            assert_eq!(e.frac_over_0_1, 0.0, "{name} {o}: {e:?}");
+            assert!(e.mae.unwrap() < 1e-3, "{name} {o}: {e:?}");
+            assert_eq!(e.frac_over_0_1.unwrap(), 0.0, "{name} {o}: {e:?}");
             assert!(
                 e.shadow_pixels > 50,
                 "{name} {o}: no shadow to compare: {e:?}"
@@ -422,7 +426,11 @@ fn wgpu_handles_degenerate_scenes_as_the_cpu_model_does() {
             &model.visibility,
             &frame.gbuffer.mask(),
         );
-        assert!(e.mae < 1e-3 && e.frac_over_0_1 == 0.0, "{name}: {e:?}");
+        // Over no surface pixel there is no metric (absent, not 0).
+        assert!(
+            e.pixels == 0 || (e.mae.unwrap() < 1e-3 && e.frac_over_0_1.unwrap() == 0.0),
+            "{name}: {e:?}"
+        );
         assert_eq!(
             gpu.counters.get("samples"),
             model.counters.get("samples"),

@@ -70,19 +70,23 @@ fn planar_polygon_matches_the_reference_with_exact_clipping_and_the_4d_texture()
         eprintln!("{:?}: exact {exact:?}\ntexture {texture:?}", light.kind());
         assert!(exact.shadow_pixels > 200, "the shadow must be on screen");
         // Over all surface pixels, and (stricter) over the pixels in shadow in either image.
-        assert!(exact.mae <= 0.02, "{:?} exact: {exact:?}", light.kind());
         assert!(
-            exact.mae_shadow <= 0.02,
+            exact.mae.unwrap() <= 0.02,
             "{:?} exact: {exact:?}",
             light.kind()
         );
         assert!(
-            texture.mae <= 0.03,
+            exact.mae_shadow.unwrap() <= 0.02,
+            "{:?} exact: {exact:?}",
+            light.kind()
+        );
+        assert!(
+            texture.mae.unwrap() <= 0.03,
             "{:?} texture: {texture:?}",
             light.kind()
         );
         assert!(
-            texture.mae_shadow <= 0.03,
+            texture.mae_shadow.unwrap() <= 0.03,
             "{:?} texture: {texture:?}",
             light.kind()
         );
@@ -104,8 +108,11 @@ fn accumulated_hard_shadows_converge_to_the_reference() {
         &run(&frame, "accum_hard", serde_json::Value::Null),
         &reference,
     );
-    assert!(e256.mae < 0.01, "{e256:?}");
-    assert!(e256.mae_shadow < e16.mae_shadow, "{e256:?} vs {e16:?}");
+    assert!(e256.mae.unwrap() < 0.01, "{e256:?}");
+    assert!(
+        e256.mae_shadow.unwrap() < e16.mae_shadow.unwrap(),
+        "{e256:?} vs {e16:?}"
+    );
 }
 
 #[test]
@@ -132,7 +139,7 @@ fn culling_tighter_wedges_and_split_precision_change_cost_not_the_image() {
         ("split12", &split, 2e-3),
     ] {
         let e = compare(&other.visibility, &base.visibility, &mask);
-        assert!(e.max <= tol, "{name}: {e:?}");
+        assert!(e.max.unwrap() <= tol, "{name}: {e:?}");
     }
     // IV §4.4: culling runs the shader only inside the wedge halves.
     assert!(counter(&base, "shader_invocations") < counter(&no_cull, "shader_invocations"));
@@ -149,7 +156,10 @@ fn culling_tighter_wedges_and_split_precision_change_cost_not_the_image() {
     };
     assert!(soft_fill(&base) < soft_fill(&loose));
     // The split V-buffer moves its hard pass to an 8-bit stencil.
-    assert!(counter(&split, "mem.stencil.write_bytes") > counter(&base, "mem.stencil.write_bytes"));
+    assert!(
+        counter(&split, "mem_est.stencil.write_bytes")
+            > counter(&base, "mem_est.stencil.write_bytes")
+    );
 }
 
 #[test]
@@ -160,8 +170,8 @@ fn accumulation_bandwidth_grows_with_the_sample_count() {
         ["depth", "stencil", "vbuffer"]
             .iter()
             .map(|b| {
-                counter(o, &format!("mem.{b}.read_bytes"))
-                    + counter(o, &format!("mem.{b}.write_bytes"))
+                counter(o, &format!("mem_est.{b}.read_bytes"))
+                    + counter(o, &format!("mem_est.{b}.write_bytes"))
             })
             .sum::<f64>()
     };
@@ -295,14 +305,17 @@ fn zfail_draws_the_zpass_image_with_the_eye_outside_and_inside_the_umbra() {
             let e = compare(&b.visibility, &a.visibility, &frame.gbuffer.mask());
             eprintln!(
                 "{name} {id} {base}: z-fail vs z-pass mae {:.2e} max {:.3}; fill {} vs {}",
-                e.mae,
-                e.max,
+                e.mae.unwrap(),
+                e.max.unwrap(),
                 counter(&b, "fill"),
                 counter(&a, "fill")
             );
             assert!(e.shadow_pixels > 100, "{name} {id}: no shadow on screen");
-            assert!(e.mae <= 1e-4, "{name} {id} {base}: {e:?}");
-            assert!(e.frac_over_0_1 <= 0.002, "{name} {id} {base}: {e:?}");
+            assert!(e.mae.unwrap() <= 1e-4, "{name} {id} {base}: {e:?}");
+            assert!(
+                e.frac_over_0_1.unwrap() <= 0.002,
+                "{name} {id} {base}: {e:?}"
+            );
             assert_ne!(counter(&a, "fill"), counter(&b, "fill"));
             assert!(counter(&b, "volume_caps") > 0.0);
             assert_eq!(counter(&a, "volume_caps"), 0.0);
@@ -311,14 +324,15 @@ fn zfail_draws_the_zpass_image_with_the_eye_outside_and_inside_the_umbra() {
 }
 
 /// The counters both executions keep: tallied per fragment on `cpu-native`, counted by the
-/// model's probe per access on `cpu-model`.
+/// model's probe per access on `cpu-model`. Memory traffic (`mem.` here) is an estimate on
+/// `cpu-native` (`mem_est.*`) and modelled on `cpu-model` (`mem_model.*`): the same bytes.
 const SHARED_COUNTERS: [&str; 14] = [
     "fill",
     "overdraw",
     "shader_invocations",
     "culled_fragments",
-    "mem_read_bytes",
-    "mem_write_bytes",
+    "mem.read_bytes",
+    "mem.write_bytes",
     "mem.depth.read_bytes",
     "mem.vbuffer.read_bytes",
     "mem.vbuffer.write_bytes",
@@ -365,7 +379,14 @@ fn cpu_model_draws_the_native_image_and_its_probe_counts_the_native_tallies() {
         assert!(native.model_ms.is_none());
         assert!(model.model_ms.unwrap() > 0.0, "{id} {opts}");
         for c in SHARED_COUNTERS {
-            assert_eq!(counter(&native, c), counter(&model, c), "{id} {opts}: {c}");
+            let (n, m) = match c.strip_prefix("mem.") {
+                Some(k) => (
+                    counter(&native, &format!("mem_est.{k}")),
+                    counter(&model, &format!("mem_model.{k}")),
+                ),
+                None => (counter(&native, c), counter(&model, c)),
+            };
+            assert_eq!(n, m, "{id} {opts}: {c}");
         }
         assert!(counter(&model, "vector_ops") > 0.0);
         let names: Vec<&str> = model.phases.iter().map(|p| p.name.as_str()).collect();
@@ -475,16 +496,16 @@ fn wgpu_agrees_with_the_cpu_model() {
         eprintln!(
             "{name} {:?} {options}: mae {:.2e}, frac>0.1 {:.4}, max {:.3}",
             frame.scene.light.kind(),
-            e.mae,
-            e.frac_over_0_1,
-            e.max
+            e.mae.unwrap(),
+            e.frac_over_0_1.unwrap(),
+            e.max.unwrap()
         );
         assert!(
             e.shadow_pixels > 100,
             "{name}: the shadow must be on screen"
         );
-        assert!(e.mae <= 1e-3, "{name} {options}: {e:?}");
-        assert!(e.frac_over_0_1 <= 0.005, "{name} {options}: {e:?}");
+        assert!(e.mae.unwrap() <= 1e-3, "{name} {options}: {e:?}");
+        assert!(e.frac_over_0_1.unwrap() <= 0.005, "{name} {options}: {e:?}");
         for c in ["silhouette_edges", "wedges", "wedges_degenerate"] {
             assert_eq!(
                 counter(&gpu, c),
@@ -559,8 +580,8 @@ fn wgpu_zfail_with_the_eye_in_the_umbra_agrees_with_the_cpu_model() {
         let e = compare(&gpu.visibility, &other.visibility, &frame.gbuffer.mask());
         eprintln!("vs {what}: {e:?}");
         assert!(e.shadow_pixels > 100);
-        assert!(e.mae <= 1e-3, "{what}: {e:?}");
-        assert!(e.frac_over_0_1 <= 0.005, "{what}: {e:?}");
+        assert!(e.mae.unwrap() <= 1e-3, "{what}: {e:?}");
+        assert!(e.frac_over_0_1.unwrap() <= 0.005, "{what}: {e:?}");
     }
     for c in ["fill", "overdraw", "volume_caps"] {
         let (g, m) = (counter(&gpu, c), counter(&model, c));

@@ -49,7 +49,7 @@ fn wgpu_agrees_with_the_cpu_model() {
             let e = metrics::compare(&gpu.visibility, &model.visibility, &f.gbuffer.mask());
             // The same formulas in f32 on both; only depth values rounded differently by the
             // two rasterizers can flip a tap.
-            assert!(e.mae < 0.01, "{name} {id}: {e:?}");
+            assert!(e.mae.unwrap() < 0.01, "{name} {id}: {e:?}");
             // Fill: fragments of the light raster. Both sample triangles at texel centres with
             // top-left rules; allow 1% for edges that pass exactly through a texel centre.
             let (fg, fm) = (
@@ -77,8 +77,8 @@ fn hard_shadow_map_matches_the_reference_of_a_tiny_light() {
         let e = metrics::compare(&out.visibility, &reference, &f.gbuffer.mask());
         // A point-like light makes the reference a hard shadow too; they can differ only where
         // a shadow edge crosses a map texel, a thin band of pixels.
-        assert!(e.mae < 0.01, "{name}: {e:?}");
-        assert!(e.frac_over_0_1 < 0.02, "{name}: {e:?}");
+        assert!(e.mae.unwrap() < 0.01, "{name}: {e:?}");
+        assert!(e.frac_over_0_1.unwrap() < 0.02, "{name}: {e:?}");
         assert!(
             e.shadow_pixels > 50,
             "{name}: the scene must show a shadow: {e:?}"
@@ -95,8 +95,8 @@ fn pcss_approaches_the_reference_of_a_small_light() {
     let out = run("pcss", &f);
     let reference = algorithms::reference::render(&f, 64, 1).visibility;
     let e = metrics::compare(&out.visibility, &reference, &f.gbuffer.mask());
-    assert!(e.mae < 0.01, "{e:?}");
-    assert!(e.mae_shadow < 0.1, "{e:?}");
+    assert!(e.mae.unwrap() < 0.01, "{e:?}");
+    assert!(e.mae_shadow.unwrap() < 0.1, "{e:?}");
 }
 
 #[test]
@@ -355,13 +355,16 @@ fn soft_shadow_map_on_wgpu_agrees_with_the_cpu_model() {
             };
             eprintln!(
                 "{name} {options}: mae {:.2e} max {:.2e}; splat fill wgpu {} model {}; total {}",
-                e.mae,
-                e.max,
+                e.mae.unwrap(),
+                e.max.unwrap(),
                 splat_fill(&gpu),
                 splat_fill(&model),
                 fill(&model)
             );
-            assert!(e.mae < 1e-3 && e.max < 0.05, "{name} {options}: {e:?}");
+            assert!(
+                e.mae.unwrap() < 1e-3 && e.max.unwrap() < 0.05,
+                "{name} {options}: {e:?}"
+            );
             // The same extents cover the same texels: fill agrees up to edge-rule ties.
             let (a, b) = (splat_fill(&gpu), splat_fill(&model));
             assert!(
@@ -395,7 +398,10 @@ fn dbuffer_on_wgpu_agrees_with_the_cpu_model() {
         // the volumes ending inside the far plane so both rasterizers cover the same texels;
         // only depths rounded differently by the two rasterizers can move a texel's nearest
         // volume surface. Measured: mae ≈ 1.5e-5, max ≈ 0.004, fill and overdraw equal.
-        assert!(e.mae < 1e-3 && e.max < 0.05, "{name}: {e:?}");
+        assert!(
+            e.mae.unwrap() < 1e-3 && e.max.unwrap() < 0.05,
+            "{name}: {e:?}"
+        );
         assert!(fm > 0.0, "{name}: the model rasterized no volume");
         assert!(
             (fg - fm).abs() <= 0.01 * fm,
@@ -463,23 +469,31 @@ fn accum_hard_on_wgpu_agrees_with_the_cpu_model() {
         let e = metrics::compare(&gpu.visibility, &model.visibility, &f.gbuffer.mask());
         eprintln!("{name} {counting}: {e:?}");
         assert!(e.shadow_pixels > 50, "{name}: no shadow on screen");
-        assert!(e.mae <= 1e-3, "{name} {counting}: {e:?}");
-        assert!(e.max <= 0.0625 + 1e-6, "{name} {counting}: {e:?}");
+        assert!(e.mae.unwrap() <= 1e-3, "{name} {counting}: {e:?}");
+        assert!(e.max.unwrap() <= 0.0625 + 1e-6, "{name} {counting}: {e:?}");
         let c = |o: &FrameOutput, k: &str| o.counters.get(k).unwrap_or(0.0);
         assert_eq!(c(&gpu, "silhouette_edges"), c(&model, "silhouette_edges"));
         assert_eq!(c(&gpu, "volume_caps"), c(&model, "volume_caps"));
         for k in [
             "fill",
             "overdraw",
-            "mem_read_bytes",
-            "mem_write_bytes",
+            "mem.read_bytes",
+            "mem.write_bytes",
             "mem.depth.read_bytes",
             "mem.stencil.read_bytes",
             "mem.stencil.write_bytes",
             "mem.accumulation.read_bytes",
             "mem.accumulation.write_bytes",
         ] {
-            let (g, m) = (c(&gpu, k), c(&model, k));
+            // The wgpu estimate (mem_est.*) against the cpu-model's modelled traffic
+            // (mem_model.*) of the same stencil and accumulation buffers.
+            let (g, m) = match k.strip_prefix("mem.") {
+                Some(k) => (
+                    c(&gpu, &format!("mem_est.{k}")),
+                    c(&model, &format!("mem_model.{k}")),
+                ),
+                None => (c(&gpu, k), c(&model, k)),
+            };
             eprintln!("  {k}: wgpu {g}, cpu-model {m}");
             assert!(m > 0.0, "{name}: {k}");
             assert!(
@@ -489,5 +503,266 @@ fn accum_hard_on_wgpu_agrees_with_the_cpu_model() {
         }
         let phases: Vec<&str> = gpu.phases.iter().map(|p| p.name.as_str()).collect();
         assert_eq!(phases, ["hard", "accumulate"]);
+    }
+}
+
+/// The issue's sweep in small: once a render pass has run in the process (`hard_shadow_map`'s
+/// light raster), the same compute passes of `soft_shadow_volume` timed three times read the
+/// same GPU time, of the order of the host's time for them, never a hundredth of it.
+#[test]
+fn a_pass_timed_three_times_in_one_process_reads_its_own_time_each_time() {
+    if !have_gpu() {
+        return;
+    }
+    let gpu = shadowbench::gpu::gpu().unwrap();
+    if !gpu.queries.timestamp {
+        return;
+    }
+    // The issue's frame: the quick scenario's sphere at light size 0.3, 160×120.
+    let mut scene = generators::find("sphere-on-plane")
+        .unwrap()
+        .build(&GeneratorParams::default());
+    scene.light = scene.light.with_size(0.3);
+    let params = RunParams::of_scene(&scene, [160, 120], 256, 32);
+    let f = Frame::new(scene, params);
+    // A first run compiles the shaders (llvmpipe compiles at first dispatch): it is not the
+    // reading under test. Then a render pass binds a framebuffer, which is what made later
+    // compute-pass timestamps read ~0 ms.
+    run("soft_shadow_volume", &f);
+    run("hard_shadow_map", &f);
+    let runs: Vec<FrameOutput> = (0..3).map(|_| run("soft_shadow_volume", &f)).collect();
+    // Per run: the soft phase's GPU time and the host time of its submission (the phase's wall
+    // time: encode, submit, wait).
+    let soft: Vec<(f64, f64)> = runs
+        .iter()
+        .map(|o| {
+            assert!(
+                !o.execution.contains_key("gpu_ms_invalid"),
+                "{:?} {:?}",
+                o.execution,
+                o.warnings
+            );
+            let p = o.phases.iter().find(|p| p.name == "soft").unwrap();
+            let g = p.gpu_ms.expect("a valid GPU time");
+            assert!(
+                g <= p.wall_ms * 1.02 + 0.5,
+                "gpu {g} ms > host {} ms",
+                p.wall_ms
+            );
+            (g, p.wall_ms)
+        })
+        .collect();
+    if gpu.info.device_type == wgpu::DeviceType::Cpu {
+        // On a CPU adapter the pass is most of its submission, in every run alike: the share
+        // of runs 2 and 3 within 2× of run 1's (shares, not times, so that a loaded machine
+        // slowing one run as a whole does not count). The fault read a share of ~0.0005.
+        let share: Vec<f64> = soft.iter().map(|(g, h)| g / h).collect();
+        for s in &share {
+            assert!(*s >= 0.25, "GPU/host shares {share:?} of {soft:?}");
+            assert!(
+                *s <= 2.0 * share[0] && *s >= share[0] / 2.0,
+                "GPU/host shares {share:?}"
+            );
+        }
+    }
+    let how = runs[0].execution["gpu_time"].as_str().unwrap();
+    if gpu.queries.timestamp_inside_passes {
+        assert!(how.starts_with("timestamps inside passes"), "{how}");
+    } else {
+        assert!(how.starts_with("timestamps around passes"), "{how}");
+    }
+}
+
+/// The cause on Mesa's lavapipe, and the guard: after a render pass, timestamps written around
+/// a long compute pass read a tiny fraction of it (llvmpipe queues them to its next flush); the
+/// guard records that reading as invalid. Timestamps written inside the pass, each flushed by
+/// a second write, read the pass's time. On any adapter, a reading the guard lets through is
+/// within the submission's host time.
+#[test]
+fn timestamps_around_a_compute_pass_after_a_render_pass_are_caught_on_lavapipe() {
+    use shadowbench::gpu::timing::{self, PassTimer, Placement};
+    if !have_gpu() {
+        return;
+    }
+    shadowbench::gpu::guarded_run(Default::default(), |gpu| {
+        if !gpu.queries.timestamp_inside_passes {
+            return Ok(());
+        }
+        let module = gpu
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("busy"),
+                source: wgpu::ShaderSource::Wgsl(BUSY_WGSL.into()),
+            });
+        let pipeline = gpu
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("busy"),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        let out = gpu.storage_buffer("busy out", 4 * 64 * 256, wgpu::BufferUsages::empty());
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: out.as_entire_binding(),
+            }],
+        });
+        // A render pass binds a framebuffer, as hard_shadow_map's light raster does.
+        let depth = gpu.map_texture(
+            "depth",
+            64,
+            wgpu::TextureFormat::Depth32Float,
+            wgpu::TextureUsages::empty(),
+        );
+        let view = depth.create_view(&Default::default());
+        gpu.submit(|e| {
+            timing::render_pass(
+                e,
+                wgpu::RenderPassDescriptor {
+                    label: Some("clear"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                },
+                None,
+            );
+        })?;
+        let lavapipe = gpu.info.driver == "llvmpipe";
+        for placement in [Placement::AroundPasses, Placement::InsidePasses] {
+            for _ in 0..3 {
+                let timer = PassTimer::with_placement(gpu, 1, placement);
+                let host_ms = gpu.submit(|e| {
+                    {
+                        let mut pass = timing::compute_pass(e, "busy", Some((&timer, 0)));
+                        pass.set_pipeline(&pipeline);
+                        pass.set_bind_group(0, &group, &[]);
+                        pass.dispatch_workgroups(256, 1, 1);
+                    }
+                    timer.resolve(e);
+                })?;
+                let t = timer.read(gpu)?;
+                let raw = timer.raw_ms(gpu)?[0];
+                eprintln!("{placement:?}: raw {raw:.3} ms, host {host_ms:.3} ms, {t:?}");
+                if let Some(ms) = &t.ms {
+                    assert!(ms[0] <= host_ms * 1.02 + 0.5);
+                }
+                if lavapipe && host_ms > 50.0 {
+                    match placement {
+                        Placement::AroundPasses => {
+                            assert!(raw < host_ms / 10.0, "raw {raw}, host {host_ms}");
+                            assert!(t.ms.is_none() && t.invalid.is_some(), "{t:?}");
+                        }
+                        Placement::InsidePasses => {
+                            let ms = t.ms.expect("a valid reading")[0];
+                            assert!(ms >= 0.5 * host_ms, "{ms} ms of {host_ms} ms");
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    })
+    .unwrap();
+}
+
+/// A compute shader that keeps a CPU adapter busy for some tens of milliseconds.
+const BUSY_WGSL: &str = "
+@group(0) @binding(0) var<storage, read_write> out: array<u32>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    var x = id.x;
+    for (var i = 0u; i < 20000u; i++) {
+        x = x * 1664525u + 1013904223u;
+    }
+    out[id.x] = x;
+}
+";
+
+/// For every algorithm, the cpu-model and wgpu records carry the same counter names, except
+/// those the glossary documents as recorded by one of them only; every wgpu counter is in the
+/// glossary; `overdraw_ratio` is wherever fill and overdraw are.
+#[test]
+fn cpu_model_and_wgpu_records_carry_the_same_counters() {
+    use shadowbench::counters::{find, Recorded};
+    use std::collections::BTreeSet;
+    if !have_gpu() {
+        return;
+    }
+    let scene = generators::find("sphere-on-plane")
+        .unwrap()
+        .build(&GeneratorParams::default());
+    let params = RunParams::of_scene(&scene, [32, 24], 64, 16);
+    let base = Frame::new(scene, params);
+    let ctx = ExecContext::default();
+    for info in algorithms::ALGORITHMS
+        .iter()
+        .filter(|a| a.backends.contains(&Backend::Wgpu))
+    {
+        let mut scene = base.scene.clone();
+        let kind = info.light_for(scene.light.kind());
+        scene.light = light_as(scene.light, kind, scene.bounds().center());
+        let f = Frame::new(scene, base.params.clone());
+        let names = |backend: Backend| -> BTreeSet<String> {
+            let (r, _) = shadowbench::harness::run_one(&f, info.id, backend, &ctx, None);
+            assert!(
+                r.failure.is_none(),
+                "{} {backend}: {:?}",
+                info.id,
+                r.failure
+            );
+            check_names(&r);
+            r.counters
+                .0
+                .keys()
+                .filter(|n| find(n).is_some_and(|c| c.recorded == Recorded::All))
+                .cloned()
+                .collect()
+        };
+        let (model, wgpu) = (names(Backend::CpuModel), names(Backend::Wgpu));
+        assert_eq!(
+            model.symmetric_difference(&wgpu).collect::<Vec<_>>(),
+            Vec::<&String>::new(),
+            "{}: cpu-model and wgpu counters differ",
+            info.id
+        );
+    }
+}
+
+/// Every counter of `record` is in the glossary and recorded by its execution; `overdraw_ratio`
+/// is overdraw / fill wherever both are counted.
+fn check_names(record: &shadowbench::record::RunRecord) {
+    let all = std::iter::once(&record.counters).chain(record.phases.iter().map(|p| &p.counters));
+    for c in all {
+        for name in c.0.keys() {
+            let entry = shadowbench::counters::find(name)
+                .unwrap_or_else(|| panic!("{}: '{name}' not in the glossary", record.algorithm));
+            assert!(
+                entry.recorded.on(&record.backend),
+                "{} {}: '{name}' documented for {:?}",
+                record.algorithm,
+                record.backend,
+                entry.recorded
+            );
+        }
+        if let (Some(fill), Some(overdraw)) = (c.get("fill"), c.get("overdraw")) {
+            if fill > 0.0 {
+                assert_eq!(c.get("overdraw_ratio"), Some(overdraw / fill));
+            }
+        }
     }
 }

@@ -332,8 +332,20 @@ pub struct FrameOutput {
     pub rgb: Option<RgbBuffer>,
 }
 
-/// Runs algorithm `id` on `backend` for `frame`.
+/// Runs algorithm `id` on `backend` for `frame`. The derived figures of the counters
+/// (`overdraw_ratio`, `simd_utilization`: [`crate::counters::derive`]) are computed here, for
+/// the run and each phase, the same way for every algorithm and execution.
 pub fn run(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
+    let mut out = execute(id, backend, frame, ctx)?;
+    crate::counters::derive(&mut out.counters);
+    for p in &mut out.phases {
+        crate::counters::derive(&mut p.counters);
+    }
+    Ok(out)
+}
+
+/// Runs algorithm `id`'s `backend` execution.
+fn execute(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
     let info = find(id).map_err(Error::Unsupported)?;
     if !info.backends.contains(&backend) {
         return Err(Error::Unsupported(format!(

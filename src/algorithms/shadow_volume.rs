@@ -495,8 +495,8 @@ fn collect<F: CountedFace>(
 /// `cpu-native`, where no probe counts them; on `cpu-model` the probe counts every access.
 pub fn mem_read(m: &mut Machine, buffer: &str, bytes: u64) {
     if !m.is_model() {
-        m.count(&format!("mem.{buffer}.read_bytes"), bytes as f64);
-        m.count("mem_read_bytes", bytes as f64);
+        m.count(&format!("mem_est.{buffer}.read_bytes"), bytes as f64);
+        m.count("mem_est.read_bytes", bytes as f64);
     }
 }
 
@@ -504,8 +504,8 @@ pub fn mem_read(m: &mut Machine, buffer: &str, bytes: u64) {
 /// `cpu-native`, as [`mem_read`].
 pub fn mem_write(m: &mut Machine, buffer: &str, bytes: u64) {
     if !m.is_model() {
-        m.count(&format!("mem.{buffer}.write_bytes"), bytes as f64);
-        m.count("mem_write_bytes", bytes as f64);
+        m.count(&format!("mem_est.{buffer}.write_bytes"), bytes as f64);
+        m.count("mem_est.write_bytes", bytes as f64);
     }
 }
 

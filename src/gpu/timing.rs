@@ -1,26 +1,152 @@
-//! GPU time per pass from timestamp queries written at the beginning and end of each pass.
+//! GPU time per pass from timestamp queries, checked against the host's time of the same
+//! submission.
+//!
+//! **Where the timestamps go.** With `TIMESTAMP_QUERY_INSIDE_PASSES` each pass writes its
+//! timestamps itself, twice at each end: right after it begins (`start`, then a second write)
+//! and right before it ends (`end`, then a second write); the pass's time is `end − start`.
+//! Without that feature the pass's own beginning- and end-of-pass writes are used ("around
+//! passes").
+//!
+//! Why twice: Mesa's lavapipe (llvmpipe) does not take a timestamp when the command executes.
+//! It flushes the rasterizer and then queues the query into the rasterizer's next scene, whose
+//! threads write the time when that scene is flushed, i.e. at the *next* timestamp (or the end
+//! of the command buffer). Only while no framebuffer has been bound (zero tiles) does it write
+//! the time at once. Compute dispatches, however, run when they are executed. So once any
+//! render pass has run on the device (e.g. `hard_shadow_map`'s light raster), a compute pass
+//! timed around its dispatch reads both its timestamps *after* the dispatch: 0.2 ms for a
+//! 400 ms pass, while the first runs of a process read right. A second write right after each
+//! timestamp flushes it at once, so `start` is taken before the dispatch and `end` right after
+//! it, on lavapipe and on any driver that takes timestamps at once (where the extra writes
+//! cost nothing).
+//!
+//! **The guard.** Every reading is checked against the host's wall time of the submission that
+//! held the passes (from submission to completion; [`super::Gpu::submit`]): the GPU cannot have worked
+//! longer than the host waited ([`ABOVE_SLACK`]), and on a submission that kept the host
+//! waiting for long a reading of a small fraction of it cannot be the passes' execution
+//! ([`BELOW_FRACTION`], [`BELOW_MIN_GAP_MS`]). A reading that fails either is recorded as
+//! invalid (`execution.gpu_ms_invalid`) with a warning, and the run's `gpu_ms` stays absent:
+//! never charted, claimed or compared. Every record says how its GPU time was obtained
+//! (`execution.gpu_time`, [`Placement::describe`]).
+
+use std::cell::{Cell, RefCell};
+use std::collections::BTreeMap;
+use std::ops::{Deref, DerefMut};
+use std::sync::Mutex;
 
 use crate::error::Result;
 
 use super::readback::{words, Staging};
 use super::Gpu;
 
-/// Timestamps around up to `passes` passes; absent when the adapter has no TIMESTAMP_QUERY.
+/// A reading may exceed its submission's host time by this fraction (clock domains drift)...
+pub const ABOVE_SLACK: f64 = 0.02;
+/// ... plus this many milliseconds.
+pub const ABOVE_SLACK_MS: f64 = 0.5;
+/// A reading below this fraction of its submission's host time is implausible ...
+pub const BELOW_FRACTION: f64 = 0.02;
+/// ... when the host waited at least this many milliseconds more than the reading. Both are
+/// loose on purpose: a short pass in a submission the host was slow to hand over (a debug
+/// build, a loaded machine) must not be flagged; the fault they catch reads 0.02–1 ms for
+/// passes of hundreds of milliseconds.
+pub const BELOW_MIN_GAP_MS: f64 = 50.0;
+
+thread_local! {
+    /// Submissions made by [`Gpu::submit`] on this thread so far.
+    static SUBMITTED: Cell<u64> = const { Cell::new(0) };
+    /// Host milliseconds of this thread's recent submissions, by submission number.
+    static HOST_MS: RefCell<BTreeMap<u64, f64>> = const { RefCell::new(BTreeMap::new()) };
+}
+
+/// How many submissions' host times are kept per thread (far more than any run makes).
+const KEPT: u64 = 1 << 16;
+
+/// The number the next submission on this thread gets.
+fn next_submission() -> u64 {
+    SUBMITTED.with(Cell::get)
+}
+
+/// Records the host time of the submission just made on this thread (by [`Gpu::submit`]).
+pub(super) fn submitted(host_ms: f64) {
+    let n = SUBMITTED.with(|c| {
+        let n = c.get();
+        c.set(n + 1);
+        n
+    });
+    HOST_MS.with(|m| {
+        let mut m = m.borrow_mut();
+        m.insert(n, host_ms);
+        if n >= KEPT {
+            m.remove(&(n - KEPT));
+        }
+    });
+}
+
+fn host_ms_of(submission: u64) -> Option<f64> {
+    HOST_MS.with(|m| m.borrow().get(&submission).copied())
+}
+
+/// Where a timer's timestamps are written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Placement {
+    /// By the pass itself, twice at each end (`TIMESTAMP_QUERY_INSIDE_PASSES`).
+    InsidePasses,
+    /// The pass's beginning- and end-of-pass writes (`TIMESTAMP_QUERY` alone).
+    AroundPasses,
+}
+
+impl Placement {
+    /// The best placement `gpu` offers, or `None` without `TIMESTAMP_QUERY`.
+    pub fn best(gpu: &Gpu) -> Option<Placement> {
+        if gpu.queries.timestamp_inside_passes {
+            Some(Placement::InsidePasses)
+        } else if gpu.queries.timestamp {
+            Some(Placement::AroundPasses)
+        } else {
+            None
+        }
+    }
+
+    /// What `execution.gpu_time` says: how the GPU time was obtained.
+    pub fn describe(placement: Option<Placement>) -> &'static str {
+        match placement {
+            Some(Placement::InsidePasses) => {
+                "timestamps inside passes (two at each end, each flushed by the next)"
+            }
+            Some(Placement::AroundPasses) => "timestamps around passes (beginning and end of pass)",
+            None => "none (the adapter has no TIMESTAMP_QUERY)",
+        }
+    }
+
+    fn slots(self) -> u32 {
+        match self {
+            Placement::InsidePasses => 4,
+            Placement::AroundPasses => 2,
+        }
+    }
+}
+
+/// Timestamps of up to `passes` passes; absent when the adapter has no TIMESTAMP_QUERY.
 pub struct PassTimer {
     set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     staging: Staging,
     passes: u32,
+    placement: Placement,
+    /// The submission each pass was encoded in (see [`submitted`]), once it begins.
+    submission: Mutex<Vec<Option<u64>>>,
 }
 
 impl PassTimer {
+    /// A timer with the best placement the adapter offers ([`Placement::best`]).
     pub fn new(gpu: &Gpu, passes: u32) -> Option<PassTimer> {
-        if !gpu.queries.timestamp {
-            return None;
-        }
-        let count = 2 * passes;
+        Placement::best(gpu).map(|p| PassTimer::with_placement(gpu, passes, p))
+    }
+
+    /// A timer writing its timestamps as `placement` says (which the device must support).
+    pub fn with_placement(gpu: &Gpu, passes: u32, placement: Placement) -> PassTimer {
+        let count = placement.slots() * passes;
         let size = 8 * count as u64;
-        Some(PassTimer {
+        PassTimer {
             set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("pass timestamps"),
                 ty: wgpu::QueryType::Timestamp,
@@ -34,56 +160,323 @@ impl PassTimer {
             }),
             staging: Staging::new(gpu, "timestamp readback", size),
             passes,
-        })
-    }
-
-    /// Timestamp writes for a render pass `i`.
-    pub fn render(&self, i: u32) -> wgpu::RenderPassTimestampWrites<'_> {
-        wgpu::RenderPassTimestampWrites {
-            query_set: &self.set,
-            beginning_of_pass_write_index: Some(2 * i),
-            end_of_pass_write_index: Some(2 * i + 1),
+            placement,
+            submission: Mutex::new(vec![None; passes as usize]),
         }
     }
 
-    /// Timestamp writes for a compute pass `i`.
-    pub fn compute(&self, i: u32) -> wgpu::ComputePassTimestampWrites<'_> {
-        wgpu::ComputePassTimestampWrites {
-            query_set: &self.set,
-            beginning_of_pass_write_index: Some(2 * i),
-            end_of_pass_write_index: Some(2 * i + 1),
+    pub fn placement(&self) -> Placement {
+        self.placement
+    }
+
+    fn began(&self, i: u32) {
+        self.submission.lock().unwrap_or_else(|e| e.into_inner())[i as usize] =
+            Some(next_submission());
+    }
+
+    /// The (start, end) query indices of pass `i`.
+    fn ends(&self, i: u32) -> (u32, u32) {
+        let k = self.placement.slots() * i;
+        match self.placement {
+            Placement::InsidePasses => (k, k + 2),
+            Placement::AroundPasses => (k, k + 1),
         }
     }
 
     /// Records the resolve and the copy to the host (after all passes).
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        encoder.resolve_query_set(&self.set, 0..2 * self.passes, &self.resolve, 0);
+        let count = self.placement.slots() * self.passes;
+        encoder.resolve_query_set(&self.set, 0..count, &self.resolve, 0);
         self.staging.copy(encoder, &self.resolve);
     }
 
-    /// Milliseconds of each pass (after submission).
-    pub fn read_ms(&self, gpu: &Gpu) -> Result<Vec<f64>> {
+    /// The milliseconds of each pass as the timestamps say (after submission), unchecked.
+    pub fn raw_ms(&self, gpu: &Gpu) -> Result<Vec<f64>> {
         let ticks: Vec<u64> = words(&self.staging.read(gpu)?);
         let ns_per_tick = gpu.queue.get_timestamp_period() as f64;
-        Ok(ticks
-            .chunks_exact(2)
-            .map(|t| t[1].saturating_sub(t[0]) as f64 * ns_per_tick * 1e-6)
+        Ok((0..self.passes)
+            .map(|i| {
+                let (a, b) = self.ends(i);
+                ticks[b as usize].saturating_sub(ticks[a as usize]) as f64 * ns_per_tick * 1e-6
+            })
             .collect())
+    }
+
+    /// The milliseconds of each pass, checked against the host time of the submissions that
+    /// held them (see the module docs).
+    pub fn read(&self, gpu: &Gpu) -> Result<GpuTimes> {
+        let ms = self.raw_ms(gpu)?;
+        let submission = self
+            .submission
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone();
+        let mut per_submission: BTreeMap<u64, f64> = BTreeMap::new();
+        for (t, s) in ms.iter().zip(&submission) {
+            if let Some(s) = s {
+                *per_submission.entry(*s).or_default() += t;
+            }
+        }
+        let invalid = per_submission.iter().find_map(|(s, &reading)| {
+            let host = host_ms_of(*s)?;
+            implausible(reading, host).map(|reason| Invalid {
+                reading_ms: reading,
+                host_ms: host,
+                reason,
+            })
+        });
+        Ok(GpuTimes {
+            placement: Some(self.placement),
+            ms: if invalid.is_some() { None } else { Some(ms) },
+            invalid,
+        })
     }
 }
 
-/// The milliseconds per pass of `timer`, or `None` and a warning when the adapter has no
-/// TIMESTAMP_QUERY (no timer was made).
+/// Why `reading_ms` of GPU time cannot be true of a submission the host waited `host_ms` for,
+/// or `None` when it can.
+pub fn implausible(reading_ms: f64, host_ms: f64) -> Option<String> {
+    if !reading_ms.is_finite() {
+        return Some(format!("GPU time {reading_ms} is not finite"));
+    }
+    if reading_ms > host_ms * (1.0 + ABOVE_SLACK) + ABOVE_SLACK_MS {
+        return Some(format!(
+            "GPU time {reading_ms:.3} ms exceeds the {host_ms:.3} ms the host waited for the \
+             submission"
+        ));
+    }
+    if reading_ms < host_ms * BELOW_FRACTION && host_ms - reading_ms > BELOW_MIN_GAP_MS {
+        return Some(format!(
+            "GPU time {reading_ms:.3} ms is far below the {host_ms:.3} ms the submission took \
+             on the host"
+        ));
+    }
+    None
+}
+
+/// A reading that failed the guard.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Invalid {
+    /// The GPU time the timestamps gave for one submission's passes.
+    pub reading_ms: f64,
+    /// The host's wall time of that submission.
+    pub host_ms: f64,
+    pub reason: String,
+}
+
+/// The GPU times of a run's passes, how they were obtained, and whether they were trusted.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GpuTimes {
+    /// `None` without TIMESTAMP_QUERY.
+    pub placement: Option<Placement>,
+    /// Milliseconds per pass; `None` without timestamps or when the reading is invalid.
+    pub ms: Option<Vec<f64>>,
+    pub invalid: Option<Invalid>,
+}
+
+impl GpuTimes {
+    /// The times of a run without timestamps.
+    pub fn none() -> GpuTimes {
+        GpuTimes {
+            placement: None,
+            ms: None,
+            invalid: None,
+        }
+    }
+
+    /// The warning of a run whose GPU time is absent, if it is.
+    pub fn warning(&self) -> Option<String> {
+        match (&self.placement, &self.invalid) {
+            (None, _) => Some("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into()),
+            (Some(_), Some(i)) => Some(format!(
+                "gpu_ms invalid, left out of charts, claims and comparisons: {}",
+                i.reason
+            )),
+            (Some(_), None) => None,
+        }
+    }
+
+    /// Writes how the GPU time was obtained (`gpu_time`) and an invalid reading
+    /// (`gpu_ms_invalid`) into a record's `execution`.
+    pub fn record(&self, execution: &mut BTreeMap<String, serde_json::Value>) {
+        execution.insert(
+            "gpu_time".into(),
+            serde_json::json!(Placement::describe(self.placement)),
+        );
+        if let Some(i) = &self.invalid {
+            execution.insert(
+                "gpu_ms_invalid".into(),
+                serde_json::json!({
+                    "reading_ms": i.reading_ms,
+                    "submission_host_ms": i.host_ms,
+                    "reason": i.reason,
+                }),
+            );
+        }
+    }
+}
+
+/// The times of `timer`'s passes, checked ([`PassTimer::read`]), or none without a timer (no
+/// TIMESTAMP_QUERY); the warning of an absent time goes to `warnings`.
 pub fn read_ms_or_warn(
     gpu: &Gpu,
     timer: &Option<PassTimer>,
     warnings: &mut Vec<String>,
-) -> Result<Option<Vec<f64>>> {
-    match timer {
-        Some(t) => t.read_ms(gpu).map(Some),
-        None => {
-            warnings.push("adapter has no TIMESTAMP_QUERY: gpu_ms unavailable".into());
-            Ok(None)
+) -> Result<GpuTimes> {
+    let t = match timer {
+        Some(t) => t.read(gpu)?,
+        None => GpuTimes::none(),
+    };
+    warnings.extend(t.warning());
+    Ok(t)
+}
+
+/// A compute pass timed as pass `index` of a timer (when given): its timestamps are written
+/// when it begins and when it is dropped.
+pub struct TimedComputePass<'e> {
+    pass: wgpu::ComputePass<'e>,
+    end: Option<(&'e PassTimer, u32)>,
+}
+
+/// Begins a compute pass labelled `label`, timed as pass `index` of `timer` when given.
+pub fn compute_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    timer: Option<(&'e PassTimer, u32)>,
+) -> TimedComputePass<'e> {
+    let around = timer.filter(|(t, _)| t.placement == Placement::AroundPasses);
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: around.map(|(t, i)| {
+            let (a, b) = t.ends(i);
+            wgpu::ComputePassTimestampWrites {
+                query_set: &t.set,
+                beginning_of_pass_write_index: Some(a),
+                end_of_pass_write_index: Some(b),
+            }
+        }),
+    });
+    if let Some((t, i)) = timer {
+        t.began(i);
+        if t.placement == Placement::InsidePasses {
+            let (a, _) = t.ends(i);
+            pass.write_timestamp(&t.set, a);
+            pass.write_timestamp(&t.set, a + 1);
         }
+    }
+    TimedComputePass { pass, end: timer }
+}
+
+impl<'e> Deref for TimedComputePass<'e> {
+    type Target = wgpu::ComputePass<'e>;
+    fn deref(&self) -> &Self::Target {
+        &self.pass
+    }
+}
+
+impl DerefMut for TimedComputePass<'_> {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.pass
+    }
+}
+
+impl Drop for TimedComputePass<'_> {
+    fn drop(&mut self) {
+        if let Some((t, i)) = self.end {
+            if t.placement == Placement::InsidePasses {
+                let (_, b) = t.ends(i);
+                self.pass.write_timestamp(&t.set, b);
+                self.pass.write_timestamp(&t.set, b + 1);
+            }
+        }
+    }
+}
+
+/// A render pass timed as pass `index` of a timer (when given), as [`TimedComputePass`].
+pub struct TimedRenderPass<'e> {
+    pass: wgpu::RenderPass<'e>,
+    end: Option<(&'e PassTimer, u32)>,
+}
+
+/// Begins the render pass `desc` (whose `timestamp_writes` this sets), timed as pass `index`
+/// of `timer` when given.
+pub fn render_pass<'e: 'd, 'd>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    mut desc: wgpu::RenderPassDescriptor<'d>,
+    timer: Option<(&'e PassTimer, u32)>,
+) -> TimedRenderPass<'e> {
+    let around = timer.filter(|(t, _)| t.placement == Placement::AroundPasses);
+    desc.timestamp_writes = around.map(|(t, i)| {
+        let (a, b) = t.ends(i);
+        wgpu::RenderPassTimestampWrites {
+            query_set: &t.set,
+            beginning_of_pass_write_index: Some(a),
+            end_of_pass_write_index: Some(b),
+        }
+    });
+    let mut pass = encoder.begin_render_pass(&desc);
+    if let Some((t, i)) = timer {
+        t.began(i);
+        if t.placement == Placement::InsidePasses {
+            let (a, _) = t.ends(i);
+            pass.write_timestamp(&t.set, a);
+            pass.write_timestamp(&t.set, a + 1);
+        }
+    }
+    TimedRenderPass { pass, end: timer }
+}
+
+impl<'e> Deref for TimedRenderPass<'e> {
+    type Target = wgpu::RenderPass<'e>;
+    fn deref(&self) -> &Self::Target {
+        &self.pass
+    }
+}
+
+impl DerefMut for TimedRenderPass<'_> {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.pass
+    }
+}
+
+impl Drop for TimedRenderPass<'_> {
+    fn drop(&mut self) {
+        if let Some((t, i)) = self.end {
+            if t.placement == Placement::InsidePasses {
+                let (_, b) = t.ends(i);
+                self.pass.write_timestamp(&t.set, b);
+                self.pass.write_timestamp(&t.set, b + 1);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn readings_above_the_host_wait_or_far_below_a_long_one_are_implausible() {
+        // The issue's readings: 0.16 ms for a 400 ms submission.
+        assert!(implausible(0.16, 400.0).unwrap().contains("far below"));
+        assert!(implausible(197.0, 200.0).is_none());
+        // Longer than the host waited.
+        assert!(implausible(12.0, 5.0).unwrap().contains("exceeds"));
+        assert!(implausible(5.05, 5.0).is_none());
+        // A short pass in a short submission: submission overhead dominates, still plausible.
+        assert!(implausible(0.01, 2.0).is_none());
+        assert!(implausible(0.75, 21.0).is_none());
+        assert!(implausible(f64::NAN, 2.0).is_some());
+    }
+
+    #[test]
+    fn host_times_are_kept_per_submission_on_this_thread() {
+        let first = next_submission();
+        submitted(3.5);
+        submitted(7.0);
+        assert_eq!(next_submission(), first + 2);
+        assert_eq!(host_ms_of(first), Some(3.5));
+        assert_eq!(host_ms_of(first + 1), Some(7.0));
+        assert_eq!(host_ms_of(first + 2), None);
     }
 }

@@ -171,6 +171,7 @@ pub fn run_one(
             record.gpu_ms = out.gpu_ms;
             record.execution.extend(out.execution.clone());
             record.warnings = out.warnings.clone();
+            check_gpu_time(&mut record);
             if let Some(r) = reference.filter(|_| algorithm != "reference") {
                 let e = metrics::compare_with_receivers(
                     &out.visibility,
@@ -178,16 +179,8 @@ pub fn run_one(
                     &frame.gbuffer.mask(),
                     &frame.receiver_only_mask(),
                 );
-                if e.pixels == 0 {
-                    // An error over no pixel is no measurement: leave it out, say why.
-                    record.warnings.push(
-                        "no pixel of the image sees a surface: no quality metrics (they would \
-                         be over 0 pixels)"
-                            .into(),
-                    );
-                } else {
-                    record.error = Some(e);
-                }
+                record.warnings.extend(e.warnings());
+                record.error = Some(e);
                 if let Ok(info) = algorithms::find(algorithm) {
                     record.warnings.extend(limit_warnings(frame, info, r));
                 }
@@ -245,6 +238,30 @@ pub fn limit_warnings(
         }
     }
     warnings
+}
+
+/// A run's GPU time cannot exceed its wall time: such a reading is moved to
+/// `execution.gpu_ms_invalid` with a warning, so it is never charted, claimed or compared (the
+/// wgpu executions already check each submission, `gpu::timing`; this is the last guard).
+fn check_gpu_time(record: &mut RunRecord) {
+    let Some(gpu_ms) = record.gpu_ms.filter(|g| g.is_nan() || *g > record.wall_ms) else {
+        return;
+    };
+    let reason = format!(
+        "GPU time {gpu_ms:.3} ms exceeds the run's wall time {:.3} ms",
+        record.wall_ms
+    );
+    record.execution.insert(
+        "gpu_ms_invalid".into(),
+        serde_json::json!({ "reading_ms": gpu_ms, "run_wall_ms": record.wall_ms, "reason": reason }),
+    );
+    record.warnings.push(format!(
+        "gpu_ms invalid, left out of charts, claims and comparisons: {reason}"
+    ));
+    record.gpu_ms = None;
+    for p in &mut record.phases {
+        p.gpu_ms = None;
+    }
 }
 
 /// Options of `shadowbench run`.
@@ -476,14 +493,19 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             progress.skipped();
             continue;
         }
-        let reference = if s.reference.enabled {
-            Some(refs.get_or_compute(frame)?)
+        let (reference, cache_warnings) = if s.reference.enabled {
+            let (r, w) = refs.get_or_compute(frame)?;
+            for w in &w {
+                bar.suspend(|| eprintln!("warning: {w}"));
+            }
+            (Some(r), w)
         } else {
-            None
+            (None, vec![])
         };
         ctx.deadline = timeout.map_or(Deadline::default(), Deadline::after);
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
         loaded.notes.annotate(&mut record);
+        record.warnings.extend(cache_warnings);
         if kind != scene.light.kind() {
             record
                 .warnings
@@ -635,7 +657,10 @@ pub fn progress_line(done: usize, total: usize, elapsed: Duration, r: &RunRecord
     let p = &r.params;
     let outcome = match (&r.failure, &r.error) {
         (Some(f), _) => format!("FAILED: {}", f.lines().next().unwrap_or_default()),
-        (None, Some(e)) => format!("{} ms, mae_shadow {:.4}", short(r.wall_ms), e.mae_shadow),
+        (None, Some(e)) => match e.mae_shadow {
+            Some(m) => format!("{} ms, mae_shadow {m:.4}", short(r.wall_ms)),
+            None => format!("{} ms", short(r.wall_ms)),
+        },
         (None, None) => format!("{} ms", short(r.wall_ms)),
     };
     let width = total.to_string().len();
@@ -715,7 +740,7 @@ pub fn grouped_summary(records: &[RunRecord]) -> String {
         let ok: Vec<&&RunRecord> = runs.iter().filter(|r| r.failure.is_none()).collect();
         let mae: Vec<f64> = ok
             .iter()
-            .filter_map(|r| r.error.as_ref().map(|e| e.mae_shadow))
+            .filter_map(|r| r.error.as_ref().and_then(|e| e.mae_shadow))
             .collect();
         let mae = match mae.len() {
             0 => "-".to_string(),
@@ -777,7 +802,9 @@ pub fn summary_table(records: &[RunRecord]) -> String {
             opt(r.gpu_ms),
             match (&r.failure, &r.error) {
                 (Some(_), _) => "FAILED".to_string(),
-                (None, Some(e)) => format!("{:.4}", e.mae_shadow),
+                (None, Some(e)) => e
+                    .mae_shadow
+                    .map_or_else(|| "-".into(), |v| format!("{v:.4}")),
                 _ => "-".into(),
             }
         ));
@@ -882,6 +909,34 @@ mod tests {
         assert!(
             l.contains("1:01:40 ETA 0:00") && l.ends_with("FAILED: no adapter"),
             "{l}"
+        );
+    }
+
+    #[test]
+    fn a_gpu_time_above_the_wall_time_is_recorded_invalid_not_kept() {
+        let scene = crate::scene::generators::find("sphere-on-plane")
+            .unwrap()
+            .build(&Default::default());
+        let params = crate::frame::RunParams::of_scene(&scene, [8, 6], 64, 16);
+        let mut r = RunRecord::new("pcss", Backend::Wgpu, &scene, params);
+        r.wall_ms = 10.0;
+        r.gpu_ms = Some(4.0);
+        check_gpu_time(&mut r);
+        assert_eq!(r.gpu_ms, Some(4.0));
+        r.gpu_ms = Some(25.0);
+        r.phases.push(crate::record::Phase {
+            name: "eye_lookup".into(),
+            gpu_ms: Some(25.0),
+            ..Default::default()
+        });
+        check_gpu_time(&mut r);
+        assert_eq!(r.gpu_ms, None);
+        assert_eq!(r.phases[0].gpu_ms, None);
+        assert_eq!(r.execution["gpu_ms_invalid"]["reading_ms"], 25.0);
+        assert!(
+            r.warnings[0].contains("exceeds the run's wall time"),
+            "{:?}",
+            r.warnings
         );
     }
 }

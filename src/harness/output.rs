@@ -41,6 +41,21 @@ impl ResultsFile {
         }
         Ok(())
     }
+
+    /// The file with the counters of records written by older versions under their current
+    /// names ([`crate::counters::current_name`]) and the derived figures computed again
+    /// ([`crate::counters::derive`]), so old and new results chart and compare alike.
+    pub fn upgraded(mut self) -> ResultsFile {
+        for r in &mut self.runs {
+            crate::counters::upgrade(&r.backend, &mut r.counters);
+            crate::counters::derive(&mut r.counters);
+            for p in &mut r.phases {
+                crate::counters::upgrade(&r.backend, &mut p.counters);
+                crate::counters::derive(&mut p.counters);
+            }
+        }
+        self
+    }
 }
 
 impl ResultsWriter {
@@ -123,7 +138,17 @@ pub fn phases_csv(records: &[RunRecord]) -> String {
     s
 }
 
-const CSV_COUNTERS: [&str; 4] = ["fill", "overdraw", "mem_read_bytes", "mem_write_bytes"];
+/// The counters `results.csv` has a column for: one kind of figure per column (modelled and
+/// estimated memory traffic apart, [`crate::counters`]).
+const CSV_COUNTERS: [&str; 7] = [
+    "fill",
+    "overdraw",
+    "overdraw_ratio",
+    "mem_model.read_bytes",
+    "mem_model.write_bytes",
+    "mem_est.read_bytes",
+    "mem_est.write_bytes",
+];
 
 /// One row per run with the headline columns — the case id, the run's image folder (relative to
 /// the results, empty for a failed run) and its warnings included; every counter stays in
@@ -164,11 +189,11 @@ pub fn csv(records: &[RunRecord]) -> String {
         row.extend(CSV_COUNTERS.iter().map(|c| opt(r.counters.get(c))));
         let e = r.error.as_ref();
         row.extend([
-            opt(e.map(|e| e.mae)),
-            opt(e.map(|e| e.rmse)),
-            opt(e.map(|e| e.max)),
-            opt(e.map(|e| e.mae_shadow)),
-            opt(e.map(|e| e.frac_over_0_1)),
+            opt(e.and_then(|e| e.mae)),
+            opt(e.and_then(|e| e.rmse)),
+            opt(e.and_then(|e| e.max)),
+            opt(e.and_then(|e| e.mae_shadow)),
+            opt(e.and_then(|e| e.frac_over_0_1)),
             opt(e.and_then(|e| e.mae_shadow_receivers)),
             if r.failure.is_none() {
                 format!("images/{}", field(&r.case_id()))

@@ -33,6 +33,8 @@ pub struct Sweep {
     pub images: Vec<[u32; 2]>,
     pub map_resolution: u32,
     pub tile_size: u32,
+    /// Per-algorithm options (`options.<algorithm>` of a scenario).
+    pub options: std::collections::BTreeMap<String, serde_json::Value>,
     /// Timed `cpu-native` runs per case (after one warm-up run).
     pub repeats: usize,
 }
@@ -45,7 +47,8 @@ pub const IMAGES: [[u32; 2]; 2] = [[320, 240], [640, 480]];
 
 impl Default for Sweep {
     /// The fixed sweep: every algorithm with a CPU execution (not the reference) on
-    /// [`SCENES`] at [`IMAGES`], 512² maps, 32-pixel tiles, 3 timed runs.
+    /// [`SCENES`] at [`IMAGES`], 256² maps, 32-pixel tiles, `accum_hard` with 16 light samples
+    /// (as `scenarios/ci.json`), 3 timed runs: about 5 minutes on a 2-core machine.
     fn default() -> Self {
         Sweep {
             algorithms: algorithms::ALGORITHMS
@@ -59,8 +62,14 @@ impl Default for Sweep {
                 .collect(),
             scenes: SCENES.map(String::from).to_vec(),
             images: IMAGES.to_vec(),
-            map_resolution: 512,
+            map_resolution: 256,
             tile_size: 32,
+            options: [(
+                "accum_hard".to_string(),
+                serde_json::json!({ "samples": 16 }),
+            )]
+            .into_iter()
+            .collect(),
             repeats: 3,
         }
     }
@@ -190,6 +199,20 @@ pub struct Validation {
     pub failures: Vec<String>,
     /// Wall seconds the sweep took.
     pub seconds: f64,
+    /// The 1-minute load average of the host when the sweep started and ended (`/proc/loadavg`;
+    /// absent elsewhere): above the core count, other processes shared the cores and the
+    /// measured times are longer than the machine's own.
+    pub load_average: Option<[f64; 2]>,
+}
+
+/// The 1-minute load average (`/proc/loadavg`), where the OS states it.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
 }
 
 /// Runs `sweep` with `machine` as the cpu-model's machine; `progress` gets a line per case.
@@ -199,6 +222,7 @@ pub fn run(
     mut progress: impl FnMut(&str),
 ) -> Result<Validation> {
     let start = Instant::now();
+    let load_start = load_average();
     let mut runs = Vec::new();
     let mut phases = Vec::new();
     let mut failures = Vec::new();
@@ -223,7 +247,7 @@ pub fn run(
                 let params =
                     RunParams::of_scene(&scene, image, sweep.map_resolution, sweep.tile_size);
                 let frame = Frame::new(scene, params);
-                match case(&frame, alg, machine, sweep.repeats) {
+                match case(&frame, alg, machine, sweep) {
                     Ok((run, ps)) => {
                         progress(&format!(
                             "[{done}/{total}] {alg:<19} {scene_name:<16} {}x{}  modelled \
@@ -261,6 +285,7 @@ pub fn run(
         phases,
         failures,
         seconds: start.elapsed().as_secs_f64(),
+        load_average: load_start.zip(load_average()).map(|(a, b)| [a, b]),
     })
 }
 
@@ -269,10 +294,12 @@ fn case(
     frame: &Frame,
     alg: &str,
     machine: &MachineConfig,
-    repeats: usize,
+    sweep: &Sweep,
 ) -> Result<(Row, Vec<Row>)> {
+    let repeats = sweep.repeats;
     let ctx = ExecContext {
         machine: machine.clone(),
+        options: sweep.options.clone(),
         ..Default::default()
     };
     let model = algorithms::run(alg, Backend::CpuModel, frame, &ctx)?;
@@ -388,6 +415,12 @@ pub fn summary_text(v: &Validation) -> String {
     s += &line("all phases", &v.phases_agreement);
     for (a, agreement) in &v.per_algorithm {
         s += &line(a, agreement);
+    }
+    if let Some([a, b]) = v.load_average {
+        s += &format!(
+            "host load average {a:.2} at the start, {b:.2} at the end ({} cores)\n",
+            v.machine.cores * v.machine.threads_per_core
+        );
     }
     if !v.failures.is_empty() {
         s += &format!("{} cases failed:\n", v.failures.len());

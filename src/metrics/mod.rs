@@ -12,15 +12,24 @@ use crate::visibility::VisibilityBuffer;
 pub const SHADOW_THRESHOLD: f32 = 1.0 - 0.5 / 1024.0;
 
 /// Error of a result against the reference, over the pixels that see a surface.
+///
+/// A metric over zero pixels (no pixel sees a surface; for `mae_shadow`, no pixel is in
+/// shadow in either image) is absent (`None`, left out of `results.json`), never 0; so is one
+/// that is not finite. [`ErrorMetrics::warnings`] says which are absent and why.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ErrorMetrics {
-    pub mae: f64,
-    pub rmse: f64,
-    pub max: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mae: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rmse: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max: Option<f64>,
     /// Mean absolute error over pixels in umbra or penumbra in either image (paper 002 §5.2.1).
-    pub mae_shadow: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mae_shadow: Option<f64>,
     /// Fraction of pixels whose absolute error exceeds 0.1.
-    pub frac_over_0_1: f64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frac_over_0_1: Option<f64>,
     pub pixels: u64,
     pub shadow_pixels: u64,
     /// `mae_shadow` restricted to pixels on receiver-only surfaces (objects that receive and do
@@ -29,6 +38,41 @@ pub struct ErrorMetrics {
     /// shadow.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mae_shadow_receivers: Option<f64>,
+}
+
+impl ErrorMetrics {
+    /// The metrics by name, in the order `results.csv` lists them.
+    pub fn named(&self) -> [(&'static str, Option<f64>); 5] {
+        [
+            ("mae", self.mae),
+            ("rmse", self.rmse),
+            ("max", self.max),
+            ("mae_shadow", self.mae_shadow),
+            ("frac_over_0_1", self.frac_over_0_1),
+        ]
+    }
+
+    /// A warning for each absent metric, saying why it is absent.
+    pub fn warnings(&self) -> Vec<String> {
+        if self.pixels == 0 {
+            return vec![
+                "no pixel of the image sees a surface: no quality metrics (they would be \
+                 over 0 pixels)"
+                    .into(),
+            ];
+        }
+        self.named()
+            .into_iter()
+            .filter(|(_, v)| v.is_none())
+            .map(|(name, _)| {
+                let why = match (name, self.shadow_pixels) {
+                    ("mae_shadow", 0) => "no pixel is in shadow in either image",
+                    _ => "it is not finite",
+                };
+                format!("metric {name} absent: {why}")
+            })
+            .collect()
+    }
 }
 
 /// Compares `result` with `reference` over `mask` (pixels that see a surface).
@@ -52,20 +96,27 @@ pub fn compare(
         n += 1;
         sum += e;
         sq += e * e;
-        max = max.max(e);
+        // NaN-propagating, so a NaN pixel makes the maximum absent rather than ignored.
+        max = if max.is_nan() || e.is_nan() {
+            f64::NAN
+        } else {
+            max.max(e)
+        };
         over += u64::from(e > 0.1);
         if a < SHADOW_THRESHOLD || b < SHADOW_THRESHOLD {
             shadow_sum += e;
             shadow_n += 1;
         }
     }
-    let div = |s: f64, k: u64| if k == 0 { 0.0 } else { s / k as f64 };
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let mean = |s: f64, k: u64| (k > 0).then(|| s / k as f64).and_then(finite);
     ErrorMetrics {
-        mae: div(sum, n),
-        rmse: div(sq, n).sqrt(),
-        max,
-        mae_shadow: div(shadow_sum, shadow_n),
-        frac_over_0_1: div(over as f64, n),
+        mae: mean(sum, n),
+        rmse: mean(sq, n).map(f64::sqrt),
+        max: (n > 0).then_some(max).and_then(finite),
+        mae_shadow: mean(shadow_sum, shadow_n),
+        // A NaN pixel makes every mean absent; the fraction goes with them.
+        frac_over_0_1: mean(over as f64, n).filter(|_| sum.is_finite()),
         pixels: n,
         shadow_pixels: shadow_n,
         mae_shadow_receivers: None,
@@ -82,7 +133,7 @@ pub fn compare_with_receivers(
 ) -> ErrorMetrics {
     let restricted = compare(result, reference, receivers);
     ErrorMetrics {
-        mae_shadow_receivers: (restricted.shadow_pixels > 0).then_some(restricted.mae_shadow),
+        mae_shadow_receivers: restricted.mae_shadow,
         ..compare(result, reference, mask)
     }
 }
@@ -128,12 +179,46 @@ mod tests {
         let mask = [true, true, true, true, false];
         let m = compare(&result, &reference, &mask);
         assert_eq!(m.pixels, 4);
-        assert!((m.mae - 0.4 / 4.0).abs() < 1e-6);
-        assert!((m.rmse - (0.08f64 / 4.0).sqrt()).abs() < 1e-6);
-        assert!((m.max - 0.2).abs() < 1e-6);
+        assert!((m.mae.unwrap() - 0.4 / 4.0).abs() < 1e-6);
+        assert!((m.rmse.unwrap() - (0.08f64 / 4.0).sqrt()).abs() < 1e-6);
+        assert!((m.max.unwrap() - 0.2).abs() < 1e-6);
         // Pixels 1, 2, 3 are in shadow in one image or the other; pixel 0 is lit in both.
         assert_eq!(m.shadow_pixels, 3);
-        assert!((m.mae_shadow - 0.4 / 3.0).abs() < 1e-6);
-        assert!((m.frac_over_0_1 - 0.5).abs() < 1e-9);
+        assert!((m.mae_shadow.unwrap() - 0.4 / 3.0).abs() < 1e-6);
+        assert!((m.frac_over_0_1.unwrap() - 0.5).abs() < 1e-9);
+        assert!(m.warnings().is_empty());
+    }
+
+    #[test]
+    fn a_metric_over_zero_pixels_is_absent_with_a_warning_not_zero() {
+        // Lit everywhere in both images: nothing is in shadow, so mae_shadow has no pixels.
+        let lit = buf(vec![1.0, 1.0, 1.0]);
+        let m = compare(&lit, &lit, &[true, true, false]);
+        assert_eq!(m.mae, Some(0.0));
+        assert_eq!((m.shadow_pixels, m.mae_shadow), (0, None));
+        let w = m.warnings();
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("mae_shadow") && w[0].contains("no pixel is in shadow"));
+        // No pixel sees a surface: every metric is absent, one warning says why.
+        let m = compare(&lit, &lit, &[false; 3]);
+        assert_eq!(m.named().map(|(_, v)| v), [None; 5]);
+        let w = m.warnings();
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("0 pixels"), "{w:?}");
+        // Absent metrics are left out of the JSON, and read back as absent.
+        let json = serde_json::to_value(m).unwrap();
+        assert!(json.get("mae").is_none(), "{json}");
+        assert_eq!(serde_json::from_value::<ErrorMetrics>(json).unwrap(), m);
+    }
+
+    #[test]
+    fn a_nan_pixel_gives_absent_metrics_never_nan() {
+        let reference = buf(vec![f32::NAN, 0.5, 1.0]);
+        let result = buf(vec![0.5, 0.5, 1.0]);
+        let m = compare(&result, &reference, &[true; 3]);
+        for (name, v) in m.named() {
+            assert!(v.is_none(), "{name}: {v:?}");
+        }
+        assert!(m.warnings().iter().all(|w| w.contains("not finite")));
     }
 }

@@ -534,7 +534,7 @@ mod tests {
 
     #[test]
     fn calibration_writes_a_valid_machine_with_a_method_per_figure() {
-        let base = crate::model::MachineConfig::host();
+        let base = crate::model::host::machine(2.0);
         let mut lines = Vec::new();
         let (m, figures) = calibrate(
             &base,

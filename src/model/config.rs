@@ -8,7 +8,6 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
-use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};
 
@@ -87,6 +86,11 @@ pub struct MachineConfig {
     /// Cycles of a global barrier between phases (the sort-middle pipeline's synchronisation).
     pub barrier_cycles: f64,
     pub costs: OpCosts,
+    /// Where `clock_ghz` comes from, when it is not a stated figure (the `host` preset: the
+    /// operating system's CPU frequency source, see [`host_clock`]); recorded in each run's
+    /// `execution`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock_source: Option<String>,
     /// A last-level cache shared by all cores (the L3 of current CPUs), behind the per-core L2;
     /// `None` (the Larrabee presets): L2 misses go to DRAM.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -149,6 +153,7 @@ impl MachineConfig {
                 gather: 0.0,
                 atomic: 20.0,
             },
+            clock_source: None,
             l3: None,
             memory_parallelism: None,
             simd: None,
@@ -157,23 +162,27 @@ impl MachineConfig {
     }
 
     /// This machine as the operating system and the CPU state it ([`super::host::machine`]):
-    /// cores, hardware threads, SIMD, caches and a shared L3; costs and latencies are stated
-    /// assumptions until `shadowbench calibrate` measures them. The clock:
-    /// [`measured_clock_ghz`].
-    pub fn host() -> MachineConfig {
-        let mut m = super::host::machine(measured_clock_ghz());
-        m.sources.insert(
-            "clock_ghz".into(),
-            "timed dependent chain of integer operations (measured_clock_ghz)".into(),
-        );
-        m
+    /// cores, hardware threads, SIMD, caches and a shared L3, at the clock the operating system
+    /// states ([`host_clock`]); costs and latencies are stated assumptions until
+    /// `shadowbench calibrate` measures them. A pure function of the machine, so every process
+    /// on it models the same times.
+    ///
+    /// Errors: the operating system states no CPU frequency (the message says what was read).
+    pub fn host() -> Result<MachineConfig, String> {
+        let clock = host_clock()?;
+        let mut m = super::host::machine(clock.ghz);
+        m.sources.insert("clock_ghz".into(), clock.source.clone());
+        m.clock_source = Some(clock.source);
+        Ok(m)
     }
 
-    pub fn preset(name: &str) -> Option<MachineConfig> {
+    /// The preset `name`; `None` when there is no such preset. The `host` preset is an error
+    /// when the operating system states no CPU frequency ([`MachineConfig::host`]).
+    pub fn preset(name: &str) -> Option<Result<MachineConfig, String>> {
         match name {
-            "larrabee-24" => Some(MachineConfig::larrabee(24)),
-            "larrabee-32" => Some(MachineConfig::larrabee(32)),
-            "larrabee-48" => Some(MachineConfig::larrabee(48)),
+            "larrabee-24" => Some(Ok(MachineConfig::larrabee(24))),
+            "larrabee-32" => Some(Ok(MachineConfig::larrabee(32))),
+            "larrabee-48" => Some(Ok(MachineConfig::larrabee(48))),
             "host" => Some(MachineConfig::host()),
             _ => None,
         }
@@ -182,7 +191,7 @@ impl MachineConfig {
     /// A preset name or a path to a JSON configuration; `field` names the setting in errors.
     pub fn resolve(field: &str, arg: &str, base: &Path) -> Result<MachineConfig, InputError> {
         if let Some(m) = MachineConfig::preset(arg) {
-            return Ok(m);
+            return m.map_err(|why| InputError::new(field, format!("machine '{arg}': {why}")));
         }
         if arg.ends_with(".json") {
             let path = base.join(arg);
@@ -386,27 +395,73 @@ impl Default for MachineConfig {
     }
 }
 
-/// The host clock in GHz, measured once per process by timing a dependent chain of integer
-/// operations (shift, add, xor: three single-cycle operations per step on current x86 and Arm
-/// cores, which the compiler cannot shorten).
-pub fn measured_clock_ghz() -> f64 {
-    static CLOCK: OnceLock<f64> = OnceLock::new();
-    *CLOCK.get_or_init(|| {
-        const STEPS: u64 = 20_000_000;
-        let mut best = f64::INFINITY;
-        for _ in 0..3 {
-            let start = std::time::Instant::now();
-            let mut x = std::hint::black_box(0x1234_5678_9abc_def0u64);
-            for _ in 0..STEPS {
-                x = x.wrapping_add(x >> 7) ^ 0x9e37;
-            }
-            std::hint::black_box(x);
-            best = best.min(start.elapsed().as_secs_f64());
-        }
-        let ghz = 3.0 * STEPS as f64 / best / 1e9;
-        // Round to 0.01 GHz, so that small jitter does not change every modelled time.
-        (ghz * 100.0).round() / 100.0
-    })
+/// The host's CPU clock as the operating system states it, and where it was read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HostClock {
+    /// GHz, rounded to 0.01 GHz.
+    pub ghz: f64,
+    /// The file and field it was read from.
+    pub source: String,
+}
+
+const CPUFREQ: &str = "/sys/devices/system/cpu/cpu0/cpufreq";
+const CPUINFO: &str = "/proc/cpuinfo";
+
+/// The host clock from the operating system, never from timing (a measured clock depends on
+/// the load and on frequency scaling, so modelled times would differ between processes). The
+/// first of, in order:
+///
+/// 1. `/sys/devices/system/cpu/cpu0/cpufreq/base_frequency` (kHz): the nominal frequency
+///    (intel_pstate, amd-pstate);
+/// 2. the nominal frequency in the `model name` of `/proc/cpuinfo` (`... @ 2.50GHz`);
+/// 3. `/sys/devices/system/cpu/cpu0/cpufreq/cpuinfo_max_freq` (kHz): the maximum frequency;
+/// 4. the largest `cpu MHz` of `/proc/cpuinfo`: without a cpufreq driver (virtual machines)
+///    this is the constant clock the hypervisor states.
+///
+/// Errors: none of them is readable (the message lists what was tried).
+pub fn host_clock() -> Result<HostClock, String> {
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    let khz = |p: String| read(&p).and_then(|t| t.trim().parse::<f64>().ok());
+    let cpuinfo = read(CPUINFO).unwrap_or_default();
+    let found = khz(format!("{CPUFREQ}/base_frequency"))
+        .map(|k| (k / 1e6, format!("{CPUFREQ}/base_frequency")))
+        .or_else(|| nominal_ghz(&cpuinfo).map(|g| (g, format!("{CPUINFO} model name"))))
+        .or_else(|| {
+            khz(format!("{CPUFREQ}/cpuinfo_max_freq"))
+                .map(|k| (k / 1e6, format!("{CPUFREQ}/cpuinfo_max_freq")))
+        })
+        .or_else(|| cpu_mhz(&cpuinfo).map(|m| (m / 1e3, format!("{CPUINFO} cpu MHz (largest)"))));
+    match found {
+        Some((ghz, source)) if ghz.is_finite() && ghz > 0.0 => Ok(HostClock {
+            ghz: (ghz * 100.0).round() / 100.0,
+            source,
+        }),
+        _ => Err(format!(
+            "the operating system states no CPU frequency (tried {CPUFREQ}/base_frequency, \
+             the model name and cpu MHz in {CPUINFO}, {CPUFREQ}/cpuinfo_max_freq); give a \
+             machine .json file with clock_ghz instead"
+        )),
+    }
+}
+
+/// The nominal GHz in a `/proc/cpuinfo` `model name` line (`Intel(R) Xeon(R) ... @ 2.50GHz`).
+fn nominal_ghz(cpuinfo: &str) -> Option<f64> {
+    let name = cpuinfo
+        .lines()
+        .find(|l| l.starts_with("model name"))?
+        .split_once(':')?
+        .1;
+    let at = name.rsplit_once('@')?.1.trim();
+    at.strip_suffix("GHz")?.trim().parse().ok()
+}
+
+/// The largest `cpu MHz` of `/proc/cpuinfo`.
+fn cpu_mhz(cpuinfo: &str) -> Option<f64> {
+    cpuinfo
+        .lines()
+        .filter(|l| l.starts_with("cpu MHz"))
+        .filter_map(|l| l.split_once(':')?.1.trim().parse::<f64>().ok())
+        .reduce(f64::max)
 }
 
 #[cfg(test)]
@@ -416,7 +471,7 @@ mod tests {
     #[test]
     fn presets_are_valid_and_round_trip_through_json() {
         for name in PRESETS.iter().filter(|n| **n != "host") {
-            let m = MachineConfig::preset(name).unwrap();
+            let m = MachineConfig::preset(name).unwrap().unwrap();
             m.validate().unwrap();
             assert_eq!(&m.name, name);
             let json = serde_json::to_string(&m).unwrap();
@@ -446,5 +501,28 @@ mod tests {
         std::fs::write(&path, m.to_string()).unwrap();
         let e = MachineConfig::resolve("$.machine", "m.json", dir.path()).unwrap_err();
         assert_eq!(e.field.as_deref(), Some("$.clock_ghz"), "{e}");
+    }
+
+    #[test]
+    fn the_nominal_clock_is_read_from_the_model_name_and_cpu_mhz() {
+        let info = "processor\t: 0\nmodel name\t: Intel(R) Xeon(R) CPU E5-2680 v4 @ 2.40GHz\n\
+                    cpu MHz\t\t: 1199.953\nprocessor\t: 1\ncpu MHz\t\t: 3300.012\n";
+        assert_eq!(nominal_ghz(info), Some(2.4));
+        assert_eq!(cpu_mhz(info), Some(3300.012));
+        assert_eq!(nominal_ghz("model name\t: AMD EPYC\n"), None);
+        assert_eq!(cpu_mhz("model name\t: AMD EPYC\n"), None);
+    }
+
+    #[test]
+    fn the_host_clock_is_the_same_on_every_call() {
+        // Stated by the OS, not timed: repeated reads agree exactly (where the OS states one).
+        if let Ok(c) = host_clock() {
+            for _ in 0..5 {
+                assert_eq!(host_clock().unwrap(), c);
+            }
+            let m = MachineConfig::host().unwrap();
+            assert_eq!(m.clock_ghz, c.ghz);
+            assert_eq!(m.clock_source.as_deref(), Some(c.source.as_str()));
+        }
     }
 }

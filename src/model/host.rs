@@ -248,6 +248,7 @@ pub fn machine_from(cpu_dir: &Path, logical: u32, simd: Simd, clock_ghz: f64) ->
             gather: 0.0,
             atomic: 20.0,
         },
+        clock_source: None,
         l3,
         memory_parallelism: None,
         simd: Some(SimdConfig {

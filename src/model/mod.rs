@@ -459,12 +459,12 @@ impl Machine {
                 continue;
             }
             let n = self.memory.name(BufferId(i as u16));
-            c.add(&format!("mem.{n}.reads"), b.reads as f64);
-            c.add(&format!("mem.{n}.writes"), b.writes as f64);
-            c.add(&format!("mem.{n}.read_bytes"), b.read_bytes as f64);
-            c.add(&format!("mem.{n}.write_bytes"), b.write_bytes as f64);
-            c.add("mem_read_bytes", b.read_bytes as f64);
-            c.add("mem_write_bytes", b.write_bytes as f64);
+            c.add(&format!("mem_model.{n}.reads"), b.reads as f64);
+            c.add(&format!("mem_model.{n}.writes"), b.writes as f64);
+            c.add(&format!("mem_model.{n}.read_bytes"), b.read_bytes as f64);
+            c.add(&format!("mem_model.{n}.write_bytes"), b.write_bytes as f64);
+            c.add("mem_model.read_bytes", b.read_bytes as f64);
+            c.add("mem_model.write_bytes", b.write_bytes as f64);
         }
         c.set(&format!("step.{name}.model_ms"), time.ms(&self.config));
         c.set(
@@ -507,13 +507,12 @@ impl Machine {
         let model = self.is_model();
         let mut total = Counters::default();
         let mut phases = Vec::new();
-        for mut p in self.phases {
+        for p in self.phases {
             for (k, v) in &p.counters.0 {
                 if !k.starts_with("step.") {
                     total.add(k, *v);
                 }
             }
-            set_ratios(&mut p.counters);
             phases.push(Phase {
                 name: p.name,
                 wall_ms: p.wall_ms,
@@ -524,12 +523,14 @@ impl Machine {
         }
         let model_ms = model.then(|| phases.iter().filter_map(|p| p.model_ms).sum());
         let mut execution = BTreeMap::new();
-        set_ratios(&mut total);
         if model {
             let m = &self.config;
             execution.insert("machine".into(), serde_json::json!(m.name));
             execution.insert("machine_cores".into(), serde_json::json!(m.cores));
             execution.insert("clock_ghz".into(), serde_json::json!(m.clock_ghz));
+            if let Some(src) = &m.clock_source {
+                execution.insert("clock_source".into(), serde_json::json!(src));
+            }
             execution.insert(
                 "threads_per_core".into(),
                 serde_json::json!(m.threads_per_core),
@@ -540,21 +541,6 @@ impl Machine {
             counters: total,
             model_ms,
             execution,
-        }
-    }
-}
-
-/// Ratios derived from summed counters: `simd_utilization` (active lanes over lane slots of the
-/// vector instructions) and `overdraw_ratio` (overdraw over fill).
-fn set_ratios(c: &mut Counters) {
-    let ops = c.get("vector_ops").unwrap_or(0.0);
-    if ops > 0.0 {
-        let lanes = c.get("active_lanes").unwrap_or(0.0);
-        c.set("simd_utilization", lanes / (ops * LANES as f64));
-    }
-    if let (Some(o), Some(f)) = (c.get("overdraw"), c.get("fill")) {
-        if f > 0.0 {
-            c.set("overdraw_ratio", o / f);
         }
     }
 }

@@ -135,22 +135,18 @@ pub struct Metric {
     pub value: fn(&RunRecord) -> Option<f64>,
 }
 
-/// Memory traffic: bytes read plus bytes written, when the run counts either.
-pub fn memory_bytes(r: &RunRecord) -> Option<f64> {
+/// Memory traffic of one kind, `mem_model` (modelled) or `mem_est` (estimated): bytes read plus
+/// bytes written, when the run counts either. The two kinds are never added or charted together
+/// ([`crate::counters`]).
+pub fn memory_bytes(r: &RunRecord, kind: &str) -> Option<f64> {
     let (rd, wr) = (
-        r.counters.get("mem_read_bytes"),
-        r.counters.get("mem_write_bytes"),
+        r.counters.get(&format!("{kind}.read_bytes")),
+        r.counters.get(&format!("{kind}.write_bytes")),
     );
     (rd.is_some() || wr.is_some()).then(|| rd.unwrap_or(0.0) + wr.unwrap_or(0.0))
 }
 
-/// Overdraw as a fraction of fill, when the run counts both and fill is positive.
-pub fn overdraw_ratio(r: &RunRecord) -> Option<f64> {
-    let fill = r.counters.get("fill").filter(|f| *f > 0.0)?;
-    Some(r.counters.get("overdraw")? / fill)
-}
-
-pub const METRICS: [Metric; 7] = [
+pub const METRICS: [Metric; 8] = [
     Metric {
         id: "wall_ms",
         name: "wall time",
@@ -170,10 +166,16 @@ pub const METRICS: [Metric; 7] = [
         value: |r| r.model_ms,
     },
     Metric {
-        id: "memory_bytes",
-        name: "memory traffic",
-        label: "memory traffic (bytes read + written)",
-        value: memory_bytes,
+        id: "modelled_memory_bytes",
+        name: "modelled memory traffic",
+        label: "modelled memory traffic (bytes read + written, cpu-model)",
+        value: |r| memory_bytes(r, "mem_model"),
+    },
+    Metric {
+        id: "estimated_memory_bytes",
+        name: "estimated memory traffic",
+        label: "estimated memory traffic (bytes read + written)",
+        value: |r| memory_bytes(r, "mem_est"),
     },
     Metric {
         id: "fill",
@@ -185,14 +187,14 @@ pub const METRICS: [Metric; 7] = [
         id: "overdraw_ratio",
         name: "overdraw ratio",
         label: "overdraw ratio (overdraw / fill)",
-        value: overdraw_ratio,
+        value: |r| r.counters.get("overdraw_ratio"),
     },
     // Error against a sweep axis, as paper 002 plots it (Figures 17-20).
     Metric {
         id: "mae_shadow",
         name: "shadow error",
         label: "mean absolute error in shadow (mae_shadow, 0–1)",
-        value: |r| r.error.as_ref().map(|e| e.mae_shadow),
+        value: |r| r.error.as_ref().and_then(|e| e.mae_shadow),
     },
 ];
 
@@ -682,14 +684,8 @@ pub fn chartable(records: &[RunRecord]) -> (Vec<RunRecord>, Vec<String>) {
             keep(&format!("phase {} wall_ms", p.name), Some(p.wall_ms)).is_some()
         });
         if let Some(e) = &c.error {
-            let figures = [
-                ("mae", Some(e.mae)),
-                ("rmse", Some(e.rmse)),
-                ("max", Some(e.max)),
-                ("mae_shadow", Some(e.mae_shadow)),
-                ("frac_over_0_1", Some(e.frac_over_0_1)),
-                ("mae_shadow_receivers", e.mae_shadow_receivers),
-            ];
+            let mut figures = e.named().to_vec();
+            figures.push(("mae_shadow_receivers", e.mae_shadow_receivers));
             let bad = figures
                 .iter()
                 .filter(|(name, v)| keep(&format!("error.{name}"), *v).is_none() && v.is_some())
@@ -1389,7 +1385,7 @@ mod tests {
             for m in [
                 "wall_ms",
                 "model_ms",
-                "memory_bytes",
+                "modelled_memory_bytes",
                 "fill",
                 "overdraw_ratio",
                 "mae_shadow",
@@ -1433,7 +1429,7 @@ mod tests {
         // The tile chart holds triangles at 100: tiles 16, 32 and 64.
         let tile = specs
             .iter()
-            .find(|s| s.file == "memory_bytes_vs_tile_size")
+            .find(|s| s.file == "modelled_memory_bytes_vs_tile_size")
             .unwrap();
         let c = xy(&tile.panels[0]);
         let hsm = c
@@ -1449,7 +1445,8 @@ mod tests {
             .unwrap();
         assert_eq!(
             hsm.points[2].1,
-            r.counters.get("mem_read_bytes").unwrap() + r.counters.get("mem_write_bytes").unwrap()
+            r.counters.get("mem_model.read_bytes").unwrap()
+                + r.counters.get("mem_model.write_bytes").unwrap()
         );
     }
 
@@ -1646,7 +1643,8 @@ mod tests {
             "{names:?}"
         );
         for m in [
-            "memory_bytes",
+            "modelled_memory_bytes",
+            "estimated_memory_bytes",
             "fill",
             "overdraw_ratio",
             "model_ms",

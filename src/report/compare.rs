@@ -47,8 +47,10 @@ pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
         "cpu-native" => false,
         _ => return f,
     };
+    // Older results name memory traffic differently: compared under the current names.
+    let current = |k: &str| crate::counters::current_name(&r.backend, k).into_owned();
     for (k, v) in &r.counters.0 {
-        f.insert(format!("counters.{k}"), *v);
+        f.insert(format!("counters.{}", current(k)), *v);
     }
     if model {
         if let Some(v) = r.model_ms {
@@ -68,18 +70,14 @@ pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
             }
         }
         for (c, v) in &p.counters.0 {
-            f.insert(format!("{name}.{c}"), *v);
+            f.insert(format!("{name}.{}", current(c)), *v);
         }
     }
     if let Some(e) = &r.error {
-        for (k, v) in [
-            ("mae", e.mae),
-            ("rmse", e.rmse),
-            ("max", e.max),
-            ("mae_shadow", e.mae_shadow),
-            ("frac_over_0_1", e.frac_over_0_1),
-        ] {
-            f.insert(format!("error.{k}"), v);
+        for (k, v) in e.named() {
+            if let Some(v) = v {
+                f.insert(format!("error.{k}"), v);
+            }
         }
     }
     f
@@ -491,8 +489,9 @@ mod tests {
     fn improvements_pass_and_are_listed_as_better() {
         let b = baseline();
         let mut cur = baseline();
-        cur.runs[0].counters.set("mem_read_bytes", 1.0);
-        cur.runs[2].error.as_mut().unwrap().mae_shadow /= 2.0;
+        cur.runs[0].counters.set("mem_model.read_bytes", 1.0);
+        let e = cur.runs[2].error.as_mut().unwrap();
+        e.mae_shadow = e.mae_shadow.map(|v| v / 2.0);
         cur.runs[0].phases[1].model_ms = Some(0.1);
         let c = run(&b, &cur);
         assert!(!c.regressed(), "{}", c.render());
@@ -504,7 +503,7 @@ mod tests {
         assert_eq!(moved.len(), 3, "{moved:?}");
         assert!(moved.iter().all(|m| m.1 == Verdict::Better), "{moved:?}");
         for f in [
-            "counters.mem_read_bytes",
+            "counters.mem_model.read_bytes",
             "error.mae_shadow",
             "phase.soft.model_ms",
         ] {
@@ -534,12 +533,15 @@ mod tests {
     #[test]
     fn rates_of_good_outcomes_worsen_downwards() {
         let mut b = baseline();
-        b.runs[0].counters.set("simd_utilisation", 0.8);
+        b.runs[0].counters.set("simd_utilization", 0.8);
         let mut cur = b.clone();
-        cur.runs[0].counters.set("simd_utilisation", 0.7);
+        cur.runs[0].counters.set("simd_utilization", 0.7);
         let c = run(&b, &cur);
         assert!(c.regressed());
-        assert_eq!(c.changes[0].figure, "counters.simd_utilisation");
+        assert_eq!(c.changes[0].figure, "counters.simd_utilization");
+        // The name the model writes is in the glossary, as a rate of good outcomes.
+        assert!(crate::counters::find("simd_utilization").is_some());
+        assert!(higher_is_better("simd_utilization"));
     }
 
     #[test]

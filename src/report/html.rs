@@ -330,7 +330,8 @@ fn runs_table(runs: &[RunRecord]) -> String {
         "GPU ms",
         "fill",
         "overdraw / fill",
-        "memory bytes",
+        "modelled memory bytes",
+        "estimated memory bytes",
         "mae_shadow",
         "status",
         "execution",
@@ -368,9 +369,10 @@ fn runs_table(runs: &[RunRecord]) -> String {
             opt(r.model_ms),
             opt(r.gpu_ms),
             opt(r.counters.get("fill")),
-            opt(charts::overdraw_ratio(r)),
-            opt(charts::memory_bytes(r)),
-            opt(r.error.as_ref().map(|e| e.mae_shadow)),
+            opt(r.counters.get("overdraw_ratio")),
+            opt(charts::memory_bytes(r, "mem_model")),
+            opt(charts::memory_bytes(r, "mem_est")),
+            opt(r.error.as_ref().and_then(|e| e.mae_shadow)),
         ] {
             let _ = write!(h, "<td>{}</td>", text(&v));
         }

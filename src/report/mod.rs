@@ -30,13 +30,14 @@ pub fn read_results(path: &Path) -> Result<ResultsFile, InputError> {
 /// Parses and checks the text of a results file; `path` names it in errors. `report`,
 /// `compare` and `merge` all read through here, so they accept and refuse the same files: the
 /// `scenario` must be a plain name ([`crate::util::paths::check_name`]: it names a folder of
-/// `report`) and no run may appear twice ([`ResultsFile::check_unique_runs`]).
+/// `report`) and no run may appear twice ([`ResultsFile::check_unique_runs`]). Counters of older
+/// versions are read under their current names ([`ResultsFile::upgraded`]).
 pub fn parse_results(text: &str, path: &Path) -> Result<ResultsFile, InputError> {
     let file: ResultsFile = serde_json::from_str(text)
         .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))?;
     crate::util::paths::check_name("$.scenario", &file.scenario).map_err(|e| e.in_file(path))?;
     file.check_unique_runs().map_err(|e| e.in_file(path))?;
-    Ok(file)
+    Ok(file.upgraded())
 }
 
 /// What [`write_report`] produced, relative to the output folder.
@@ -239,8 +240,9 @@ pub(crate) mod testdata {
         let mut counters = Counters::default();
         counters.set("fill", 1000.0 + triangles as f64);
         counters.set("overdraw", 250.0);
-        counters.set("mem_read_bytes", 4096.0 * tile as f64);
-        counters.set("mem_write_bytes", 1024.0);
+        counters.set("mem_model.read_bytes", 4096.0 * tile as f64);
+        counters.set("mem_model.write_bytes", 1024.0);
+        counters.set("overdraw_ratio", 250.0 / (1000.0 + triangles as f64));
         RunRecord {
             algorithm: algorithm.into(),
             backend: backend.into(),
@@ -275,11 +277,11 @@ pub(crate) mod testdata {
             model_ms: Some(1.0 + triangles as f64 / 100.0),
             gpu_ms: None,
             error: Some(ErrorMetrics {
-                mae: 0.01,
-                rmse: 0.02,
-                max: 0.5,
-                mae_shadow: 0.05,
-                frac_over_0_1: 0.01,
+                mae: Some(0.01),
+                rmse: Some(0.02),
+                max: Some(0.5),
+                mae_shadow: Some(0.05),
+                frac_over_0_1: Some(0.01),
                 pixels: 6912,
                 shadow_pixels: 800,
                 mae_shadow_receivers: None,

@@ -88,7 +88,8 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
     let data: Vec<f32> = words(&staging.read(gpu)?);
     let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
     let mut warnings = Vec::new();
-    let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+    let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+    let gpu_ms = times.ms.clone();
     let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
     let tally = samples.replay(&uploads)?;
 
@@ -112,19 +113,19 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
     let depth_r = tally.fill * DEPTH_BYTES as f64;
     let stencil_w = (samples_f * pixels + tally.passed) * STENCIL_BYTES;
     let stencil_r = tally.passed * STENCIL_BYTES;
-    hard.add("mem.depth.read_bytes", depth_r);
-    hard.add("mem.stencil.read_bytes", stencil_r);
-    hard.add("mem.stencil.write_bytes", stencil_w);
-    hard.add("mem_read_bytes", depth_r + stencil_r);
-    hard.add("mem_write_bytes", stencil_w);
+    hard.add("mem_est.depth.read_bytes", depth_r);
+    hard.add("mem_est.stencil.read_bytes", stencil_r);
+    hard.add("mem_est.stencil.write_bytes", stencil_w);
+    hard.add("mem_est.read_bytes", depth_r + stencil_r);
+    hard.add("mem_est.write_bytes", stencil_w);
     let mut acc = Counters::default();
     let stencil_r = samples_f * pixels * STENCIL_BYTES;
     let accumulation = samples_f * pixels * ACCUMULATION_BYTES;
-    acc.add("mem.stencil.read_bytes", stencil_r);
-    acc.add("mem.accumulation.read_bytes", accumulation);
-    acc.add("mem.accumulation.write_bytes", accumulation);
-    acc.add("mem_read_bytes", stencil_r + accumulation);
-    acc.add("mem_write_bytes", accumulation);
+    acc.add("mem_est.stencil.read_bytes", stencil_r);
+    acc.add("mem_est.accumulation.read_bytes", accumulation);
+    acc.add("mem_est.accumulation.write_bytes", accumulation);
+    acc.add("mem_est.read_bytes", stencil_r + accumulation);
+    acc.add("mem_est.write_bytes", accumulation);
     if let Some(p) = &pipeline {
         for (j, st) in p.iter().enumerate() {
             if let Some(v) = st.get(COMPUTE_INVOCATIONS) {
@@ -154,6 +155,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
         });
     }
     let mut execution = gpu.execution();
+    times.record(&mut execution);
     execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
     execution.insert("samples".into(), serde_json::json!(n));
     execution.insert("counting".into(), serde_json::json!(opts.counting));

@@ -31,7 +31,7 @@ use crate::frame::Frame;
 use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats};
-use crate::gpu::timing::{read_ms_or_warn, PassTimer};
+use crate::gpu::timing::{self, read_ms_or_warn, PassTimer};
 use crate::gpu::{gbuffer_positions, resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::EdgeAdjacency;
@@ -489,21 +489,25 @@ impl<'g> Passes<'g> {
             },
         });
         let colors = [color];
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("dbuffer"),
-            color_attachments: if edge.is_some() { &colors } else { &[] },
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &depth.view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
+        let mut pass = timing::render_pass(
+            encoder,
+            wgpu::RenderPassDescriptor {
+                label: Some("dbuffer"),
+                color_attachments: if edge.is_some() { &colors } else { &[] },
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth.view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
                 }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: timer.map(|t| t.render(i)),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            },
+            timer.map(|t| (t, i)),
+        );
         if let Some(s) = stats {
             s.begin_render(&mut pass, i);
         }
@@ -567,10 +571,7 @@ impl<'g> Passes<'g> {
         timer: Option<&PassTimer>,
         stats: Option<&PassStats>,
     ) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("eye_lookup"),
-            timestamp_writes: timer.map(|t| t.compute(3)),
-        });
+        let mut pass = timing::compute_pass(encoder, "eye_lookup", timer.map(|t| (t, 3)));
         if let Some(s) = stats {
             s.begin_compute(&mut pass, 3);
         }
@@ -601,7 +602,8 @@ impl<'g> Passes<'g> {
         let readback_start = Instant::now();
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+        let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+        let gpu_ms = times.ms.clone();
         let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
 
         // The instrumented submission: same passes, counting with atomics.
@@ -656,13 +658,8 @@ impl<'g> Passes<'g> {
         for p in &phases {
             counters.merge(&p.counters);
         }
-        if fill > 0.0 {
-            counters.set(
-                "overdraw_ratio",
-                counters.get("overdraw").unwrap_or(0.0) / fill,
-            );
-        }
         let mut execution = gpu.execution();
+        times.record(&mut execution);
         execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
         execution.insert(
             "gpu_counters".into(),

@@ -36,7 +36,7 @@ use crate::frame::Frame;
 use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
-use crate::gpu::timing::PassTimer;
+use crate::gpu::timing::{self, PassTimer};
 use crate::gpu::{resolve_queries, Gpu};
 use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
@@ -278,21 +278,25 @@ impl<'g> PenumbraPasses<'g> {
         counting: bool,
         q: Queries,
     ) {
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("penumbra_map"),
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &self.penumbra_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
+        let mut pass = timing::render_pass(
+            encoder,
+            wgpu::RenderPassDescriptor {
+                label: Some("penumbra_map"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.penumbra_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
                 }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: q.timer.map(|t| t.render(q.index)),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            },
+            q.timed(),
+        );
         if let Some(s) = q.stats {
             s.begin_render(&mut pass, q.index);
         }
@@ -364,7 +368,8 @@ impl<'g> PenumbraPasses<'g> {
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
         let mut warnings = Vec::new();
-        let (gpu_ms, pipeline) = read_queries(gpu, &timer, &stats, &mut warnings)?;
+        let (times, pipeline) = read_queries(gpu, &timer, &stats, &mut warnings)?;
+        let gpu_ms = &times.ms;
 
         // The instrumented replay: the counters are cleared before each pass and copied after.
         let staging: Vec<Staging> = (0..3)
@@ -406,7 +411,7 @@ impl<'g> PenumbraPasses<'g> {
         let taps = f64::from(counts[2].extra_taps);
         eye.set("penumbra_map.taps", taps);
         eye.set("mem_est.penumbra_map.read_bytes", taps * DEPTH_TEXEL_BYTES);
-        eye.add("mem_read_bytes", taps * DEPTH_TEXEL_BYTES);
+        eye.add("mem_est.read_bytes", taps * DEPTH_TEXEL_BYTES);
         if let Some(stats) = &pipeline {
             shadow.merge(&stats[0]);
             penumbra.merge(&stats[1]);
@@ -419,7 +424,7 @@ impl<'g> PenumbraPasses<'g> {
             gpu_phase("penumbra_map", penumbra_wall, t(1), penumbra),
             gpu_phase("eye_lookup", lookup_wall, t(2), eye),
         ];
-        Ok(p.output(data, phases, readback_ms, warnings))
+        Ok(p.output(data, phases, readback_ms, warnings, &times))
     }
 
     /// `penumbra_map`: fill is every cone and sheet fragment, overdraw those discarded behind
@@ -457,10 +462,10 @@ impl<'g> PenumbraPasses<'g> {
         k.set("mem_est.penumbra_map.read_bytes", map_read);
         k.set("mem_est.penumbra_map.write_bytes", map_write);
         k.set(
-            "mem_read_bytes",
+            "mem_est.read_bytes",
             vertex_bytes + index_bytes + shadow_read + map_read,
         );
-        k.set("mem_write_bytes", map_write);
+        k.set("mem_est.write_bytes", map_write);
         k
     }
 }

@@ -26,7 +26,7 @@ use crate::frame::Frame;
 use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::PassStats;
-use crate::gpu::timing::PassTimer;
+use crate::gpu::timing::{self, GpuTimes, PassTimer};
 use crate::gpu::{gbuffer_positions, resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::Mesh;
@@ -103,12 +103,18 @@ pub(crate) struct Queries<'a> {
     pub index: u32,
 }
 
-impl Queries<'_> {
+impl<'a> Queries<'a> {
     pub const NONE: Queries<'static> = Queries {
         timer: None,
         stats: None,
         index: 0,
     };
+
+    /// The timer and this pass's index in it, for [`timing::compute_pass`] and
+    /// [`timing::render_pass`].
+    pub fn timed(&self) -> Option<(&'a PassTimer, u32)> {
+        self.timer.map(|t| (t, self.index))
+    }
 }
 
 /// Renders `frame` with the family's two passes and the algorithm's lookup, once per light view
@@ -155,18 +161,12 @@ pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> 
     Ok(out)
 }
 
-/// The counters of a run: those of its phases summed, with `overdraw_ratio`.
+/// The counters of a run: those of its phases summed (derived figures such as
+/// `overdraw_ratio` are added for every record by [`crate::counters::derive`]).
 fn sum_phases(phases: &[Phase]) -> Counters {
     let mut counters = Counters::default();
     for p in phases {
         counters.merge(&p.counters);
-    }
-    let fill = counters.get("fill").unwrap_or(0.0);
-    if fill > 0.0 {
-        counters.set(
-            "overdraw_ratio",
-            counters.get("overdraw").unwrap_or(0.0) / fill,
-        );
     }
     counters
 }
@@ -472,21 +472,25 @@ impl<'g> Passes<'g> {
         } else {
             &self.raster_timed
         };
-        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("light_raster"),
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &self.depth_view,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
+        let mut pass = timing::render_pass(
+            encoder,
+            wgpu::RenderPassDescriptor {
+                label: Some("light_raster"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
                 }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: q.timer.map(|t| t.render(q.index)),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            },
+            q.timed(),
+        );
         if let Some(s) = q.stats {
             s.begin_render(&mut pass, q.index);
         }
@@ -511,10 +515,7 @@ impl<'g> Passes<'g> {
         q: Queries,
         extra: Option<&wgpu::BindGroup>,
     ) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(label),
-            timestamp_writes: q.timer.map(|t| t.compute(q.index)),
-        });
+        let mut pass = timing::compute_pass(encoder, label, q.timed());
         if let Some(s) = q.stats {
             s.begin_compute(&mut pass, q.index);
         }
@@ -554,7 +555,8 @@ impl<'g> Passes<'g> {
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
         let mut warnings = Vec::new();
-        let (gpu_ms, pipeline) = read_queries(gpu, &timer, &stats, &mut warnings)?;
+        let (times, pipeline) = read_queries(gpu, &timer, &stats, &mut warnings)?;
+        let gpu_ms = &times.ms;
 
         // The instrumented submission: same passes, counting with atomics.
         let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());
@@ -602,21 +604,23 @@ impl<'g> Passes<'g> {
                 eye,
             ),
         ];
-        Ok(self.output(data, phases, readback_ms, warnings))
+        Ok(self.output(data, phases, readback_ms, warnings, &times))
     }
 
     /// The frame output of a run: the visibility read back, the phases and their counters
-    /// summed (with `overdraw_ratio`), the GPU time of all phases, the adapter.
+    /// summed, the GPU time of all phases, the adapter.
     pub fn output(
         &self,
         data: Vec<f32>,
         phases: Vec<Phase>,
         readback_ms: f64,
         warnings: Vec<String>,
+        times: &GpuTimes,
     ) -> FrameOutput {
         let counters = sum_phases(&phases);
         let gpu_ms = phases.iter().filter_map(|p| p.gpu_ms).reduce(|a, b| a + b);
         let mut execution = self.gpu.execution();
+        times.record(&mut execution);
         execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
         execution.insert(
             "gpu_counters".into(),
@@ -660,8 +664,8 @@ impl<'g> Passes<'g> {
         k.set("mem_est.occluder_indices.read_bytes", index_bytes);
         k.set("mem_est.shadow_map.read_bytes", map_read);
         k.set("mem_est.shadow_map.write_bytes", map_write);
-        k.set("mem_read_bytes", vertex_bytes + index_bytes + map_read);
-        k.set("mem_write_bytes", map_write);
+        k.set("mem_est.read_bytes", vertex_bytes + index_bytes + map_read);
+        k.set("mem_est.write_bytes", map_write);
         k
     }
 
@@ -681,8 +685,8 @@ impl<'g> Passes<'g> {
         k.set("mem_est.gbuffer.read_bytes", gbuffer);
         k.set("mem_est.shadow_map.read_bytes", map_read);
         k.set("mem_est.visibility.write_bytes", vis_write);
-        k.set("mem_read_bytes", gbuffer + map_read);
-        k.set("mem_write_bytes", vis_write);
+        k.set("mem_est.read_bytes", gbuffer + map_read);
+        k.set("mem_est.write_bytes", vis_write);
         k
     }
 }
@@ -711,9 +715,9 @@ pub(crate) fn read_queries(
     timer: &Option<PassTimer>,
     stats: &Option<PassStats>,
     warnings: &mut Vec<String>,
-) -> Result<(Option<Vec<f64>>, Option<Vec<Counters>>)> {
+) -> Result<(GpuTimes, Option<Vec<Counters>>)> {
     Ok((
-        crate::gpu::timing::read_ms_or_warn(gpu, timer, warnings)?,
+        timing::read_ms_or_warn(gpu, timer, warnings)?,
         crate::gpu::stats::read_or_warn(gpu, stats, warnings)?,
     ))
 }

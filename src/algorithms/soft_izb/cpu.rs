@@ -461,11 +461,8 @@ fn construct(
         }
     }
     m.count("samples", n as f64);
-    m.count("mem.izb_grid.bytes", 4.0 * (cells + 1) as f64);
-    m.count(
-        "mem.izb_samples.bytes",
-        (size_of::<Sample>() as u64 * n) as f64,
-    );
+    m.count("izb_grid_bytes", 4.0 * (cells + 1) as f64);
+    m.count("izb_samples_bytes", (size_of::<Sample>() as u64 * n) as f64);
     (
         Izb {
             grid,

@@ -55,7 +55,7 @@ use crate::frame::Frame;
 use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
-use crate::gpu::timing::{read_ms_or_warn, PassTimer};
+use crate::gpu::timing::{self, read_ms_or_warn, PassTimer};
 use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::visibility::VisibilityBuffer;
@@ -431,10 +431,7 @@ impl<'g> Passes<'g> {
     ) {
         let gpu = self.gpu;
         let p = &self.params;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(PHASES[i]),
-            timestamp_writes: timer.map(|t| t.compute(i as u32)),
-        });
+        let mut pass = timing::compute_pass(encoder, PHASES[i], timer.map(|t| (t, i as u32)));
         if let Some(s) = stats {
             s.begin_compute(&mut pass, i as u32);
         }
@@ -498,7 +495,8 @@ impl<'g> Passes<'g> {
         let data: Vec<f32> = words(&vis_staging.read(gpu)?);
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
         let samples = f64::from(words::<u32>(&samples_staging.read(gpu)?)[0]);
-        let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+        let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+        let gpu_ms = times.ms.clone();
         let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
 
         // The instrumented submission: same passes, counting with atomics.
@@ -542,13 +540,6 @@ impl<'g> Passes<'g> {
                 counters: c,
             });
         }
-        let fill = counters.get("fill").unwrap_or(0.0);
-        if fill > 0.0 {
-            counters.set(
-                "overdraw_ratio",
-                counters.get("overdraw").unwrap_or(0.0) / fill,
-            );
-        }
         let outside = hits - samples;
         if outside > 0.0 {
             warnings.push(format!(
@@ -557,6 +548,7 @@ impl<'g> Passes<'g> {
             ));
         }
         let mut execution = gpu.execution();
+        times.record(&mut execution);
         execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
         execution.insert(
             "gpu_counters".into(),
@@ -590,8 +582,8 @@ impl<'g> Passes<'g> {
         let w = WORD as f64;
         let mut k = Counters::default();
         k.set("samples", n);
-        k.set("mem.izb_grid.bytes", w * (cells + 1.0));
-        k.set("mem.izb_samples.bytes", SAMPLE_BYTES as f64 * n);
+        k.set("izb_grid_bytes", w * (cells + 1.0));
+        k.set("izb_samples_bytes", SAMPLE_BYTES as f64 * n);
         k.set("atomics", 5.0 * n);
         // project: gbuffer read (offsets of hit pixels), points written; count and insert read
         // the points, count writes the cell; the scan reads the counts twice and writes starts
@@ -610,9 +602,9 @@ impl<'g> Passes<'g> {
         k.set("mem_est.izb_grid.write_bytes", grid_write);
         k.set("mem_est.izb_samples.write_bytes", samples_write);
         k.set("mem_est.visibility.write_bytes", vis_write);
-        k.set("mem_read_bytes", gbuffer + points_read + grid_read);
+        k.set("mem_est.read_bytes", gbuffer + points_read + grid_read);
         k.set(
-            "mem_write_bytes",
+            "mem_est.write_bytes",
             points_write + grid_write + samples_write + vis_write,
         );
         k
@@ -639,8 +631,8 @@ impl<'g> Passes<'g> {
         k.set("mem_est.izb_grid.read_bytes", grid);
         k.set("mem_est.izb_samples.read_bytes", samples);
         k.set("mem_est.occlusion.write_bytes", w * hits);
-        k.set("mem_read_bytes", triangles + grid + samples + w * hits);
-        k.set("mem_write_bytes", w * hits);
+        k.set("mem_est.read_bytes", triangles + grid + samples + w * hits);
+        k.set("mem_est.write_bytes", w * hits);
         k
     }
 
@@ -674,8 +666,11 @@ impl<'g> Passes<'g> {
         k.set("mem_est.occlusion.read_bytes", occlusion_read);
         k.set("mem_est.occlusion.write_bytes", occlusion_write);
         k.set("mem_est.visibility.write_bytes", vis_write);
-        k.set("mem_read_bytes", edges + grid + samples + occlusion_read);
-        k.set("mem_write_bytes", occlusion_write + vis_write);
+        k.set(
+            "mem_est.read_bytes",
+            edges + grid + samples + occlusion_read,
+        );
+        k.set("mem_est.write_bytes", occlusion_write + vis_write);
         k
     }
 }

@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
-use crate::gpu::timing::{read_ms_or_warn, PassTimer};
+use crate::gpu::timing::{self, read_ms_or_warn, PassTimer};
 use crate::gpu::{gbuffer_positions, Gpu};
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
@@ -475,21 +475,25 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
                       group: &wgpu::BindGroup,
                       ib: &wgpu::Buffer,
                       count: usize| {
-        let mut pass = e.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("maps"),
-            color_attachments: &[],
-            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: target,
-                depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Store,
+        let mut pass = timing::render_pass(
+            e,
+            wgpu::RenderPassDescriptor {
+                label: Some("maps"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: target,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
                 }),
-                stencil_ops: None,
-            }),
-            timestamp_writes: timer.as_ref().map(|t| t.render(i as u32)),
-            occlusion_query_set: None,
-            multiview_mask: None,
-        });
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            },
+            timer.as_ref().map(|t| (t, i as u32)),
+        );
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &shared_group, &[]);
         pass.set_bind_group(1, group, &[]);
@@ -596,26 +600,29 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     let texel_instances = res.div_ceil(BLOCK).pow(2) * LANES as u32;
     let splat = |e: &mut wgpu::CommandEncoder, pipeline: &wgpu::RenderPipeline, timed: bool| {
         for k in 0..passes {
-            let mut pass = e.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("splat"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &ssm_views[k],
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: None,
-                timestamp_writes: if timed {
-                    timer.as_ref().map(|t| t.render((n_maps + k) as u32))
-                } else {
-                    None
+            let mut pass = timing::render_pass(
+                e,
+                wgpu::RenderPassDescriptor {
+                    label: Some("splat"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &ssm_views[k],
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    depth_stencil_attachment: None,
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
                 },
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+                timer
+                    .as_ref()
+                    .filter(|_| timed)
+                    .map(|t| (t, (n_maps + k) as u32)),
+            );
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &shared_group, &[]);
             pass.set_bind_group(1, &splat_groups[k], &[]);
@@ -632,10 +639,8 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     let vis_staging = Staging::new(gpu, "visibility readback", visibility.size());
     let project_wall = gpu.submit(|e| {
         {
-            let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("project"),
-                timestamp_writes: timer.as_ref().map(|t| t.compute(n_passes - 1)),
-            });
+            let mut pass =
+                timing::compute_pass(e, "project", timer.as_ref().map(|t| (t, n_passes - 1)));
             pass.set_pipeline(&project_pipeline);
             pass.set_bind_group(0, &shared_group, &[]);
             pass.set_bind_group(2, &project_group, &[]);
@@ -648,7 +653,8 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     })?;
     let data: Vec<f32> = words(&vis_staging.read(gpu)?);
     let mut warnings: Vec<String> = split.warning().into_iter().collect();
-    let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+    let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+    let gpu_ms = times.ms.clone();
 
     // The instrumented replay of `splat`.
     let counts_staging = Staging::new(gpu, "counts readback", counts.size());
@@ -712,10 +718,8 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     for p in &phases {
         counters.merge(&p.counters);
     }
-    if c.fragments > 0 {
-        counters.set("overdraw_ratio", f64::from(c.zero) / f64::from(c.fragments));
-    }
     let mut execution = gpu.execution();
+    times.record(&mut execution);
     execution.insert("transfer_ms".into(), serde_json::json!(transfer_ms));
     execution.insert(
         "ssm_format".into(),

@@ -60,7 +60,7 @@ use crate::frame::Frame;
 use crate::gpu::layout;
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
-use crate::gpu::timing::{read_ms_or_warn, PassTimer};
+use crate::gpu::timing::{self, read_ms_or_warn, PassTimer};
 use crate::gpu::{resolve_queries, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
@@ -772,10 +772,8 @@ impl<'g> Passes<'g> {
         queries: Option<(Option<&PassTimer>, Option<&PassStats>, u32)>,
     ) {
         let (timer, stats, index) = queries.unwrap_or((None, None, 0));
-        let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(if soft { "soft" } else { "hard" }),
-            timestamp_writes: timer.map(|t| t.compute(index)),
-        });
+        let label = if soft { "soft" } else { "hard" };
+        let mut pass = timing::compute_pass(e, label, timer.map(|t| (t, index)));
         if let Some(s) = stats {
             s.begin_compute(&mut pass, index);
         }
@@ -856,7 +854,8 @@ impl<'g> Passes<'g> {
             None => None,
         };
         let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let gpu_ms = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+        let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
+        let gpu_ms = times.ms.clone();
         let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
 
         // The instrumented replay: the same passes counting with atomics, per loop.
@@ -916,6 +915,7 @@ impl<'g> Passes<'g> {
             });
         }
         let mut execution = gpu.execution();
+        times.record(&mut execution);
         execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
         execution.insert(
             "gpu_counters".into(),
@@ -970,8 +970,8 @@ impl<'g> Passes<'g> {
         k.add("mem_est.quad_bins.read_bytes", bins);
         k.add("mem_est.depth.read_bytes", depth);
         k.add("mem_est.vbuffer.write_bytes", vbuffer);
-        k.add("mem_read_bytes", rays + quads + bins + depth);
-        k.add("mem_write_bytes", vbuffer);
+        k.add("mem_est.read_bytes", rays + quads + bins + depth);
+        k.add("mem_est.write_bytes", vbuffer);
     }
 
     /// `soft`: fill, overdraw, shader invocations, culled fragments and fragments inside wedges
@@ -1035,10 +1035,10 @@ impl<'g> Passes<'g> {
         k.add("mem_est.coverage_texture.read_bytes", texture_reads);
         k.add("mem_est.visibility.write_bytes", out);
         k.add(
-            "mem_read_bytes",
+            "mem_est.read_bytes",
             rays + prims + bins + quads + depth + stencil_r + vbuffer + counts + texture_reads,
         );
-        k.add("mem_write_bytes", stencil_w + vbuffer + out);
+        k.add("mem_est.write_bytes", stencil_w + vbuffer + out);
     }
 
     fn tiles(&self) -> u64 {
@@ -1146,10 +1146,7 @@ impl<'g> HardSamples<'g> {
         queries: Option<(Option<&PassTimer>, Option<&PassStats>, u32)>,
     ) {
         let (timer, stats, index) = queries.unwrap_or((None, None, 0));
-        let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("accumulate"),
-            timestamp_writes: timer.map(|t| t.compute(index)),
-        });
+        let mut pass = timing::compute_pass(e, "accumulate", timer.map(|t| (t, index)));
         if let Some(st) = stats {
             st.begin_compute(&mut pass, index);
         }
