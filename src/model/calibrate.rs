@@ -4,7 +4,8 @@
 //! state is measured by a kernel written in the algorithms' own idiom (16-lane arrays, masks,
 //! [`Buffer::gather`] through [`NoProbe`]), timed with the wall clock, and turned into cycles at
 //! the machine's clock (`clock_ghz`, which then cancels out of `model_ms`). Every figure is the
-//! median over repetitions and records its method in the machine's `sources`:
+//! fastest of several repetitions (other processes only add time) and records its method in
+//! the machine's `sources`:
 //!
 //! | figure | kernel |
 //! |---|---|
@@ -35,7 +36,8 @@ use crate::algorithms::Backend;
 use crate::util::hash::mix64;
 
 /// How long calibration runs: `scale` multiplies every kernel's iteration count (1 for the
-/// command, about 0.01 in tests), `repeats` is how many timings each median takes.
+/// command, about 0.01 in tests), `repeats` is how many timings each figure takes the fastest
+/// of.
 #[derive(Clone, Copy, Debug)]
 pub struct Settings {
     pub scale: f64,
@@ -45,8 +47,8 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Settings {
-            scale: 1.0,
-            repeats: 5,
+            scale: 0.5,
+            repeats: 11,
         }
     }
 }
@@ -69,30 +71,17 @@ pub struct Figure {
     pub method: String,
 }
 
-/// Median over `repeats` of the wall seconds of `f` divided by the units it reports doing.
+/// The least over `repeats` of the wall seconds of `f` divided by the units it reports doing:
+/// other processes on the host only ever add time, so the fastest repetition is the closest to
+/// the machine's own cost.
 fn seconds_per_unit(repeats: usize, mut f: impl FnMut() -> u64) -> f64 {
-    let mut t: Vec<f64> = (0..repeats.max(1))
+    (0..repeats.max(1))
         .map(|_| {
             let start = Instant::now();
             let units = f();
             start.elapsed().as_secs_f64() / units.max(1) as f64
         })
-        .collect();
-    median(&mut t)
-}
-
-/// The median of `v` (the mean of the middle two for an even count); NaN when empty.
-pub fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
+        .fold(f64::INFINITY, f64::min)
 }
 
 /// Counted vector instructions per iteration of [`vector_kernel`], by the kernels' convention
@@ -286,8 +275,8 @@ impl Chase {
     }
 }
 
-/// Nanoseconds per dependent load chasing through `bytes` (after a warm-up of `steps` loads or
-/// one lap, whichever is shorter).
+/// Nanoseconds per dependent load chasing through `bytes`, the fastest of `repeats` (after a
+/// warm-up of `steps` loads or one lap, whichever is shorter).
 pub fn chase_ns(bytes: usize, steps: usize, repeats: usize) -> f64 {
     let c = Chase::new(bytes);
     c.chase(c.lines().min(steps));
@@ -335,7 +324,7 @@ pub fn calibrate(
         "cycles/instruction",
         format!(
             "receiver-setup-like 16-lane kernel ({VECTOR_KERNEL_OPS} counted vector \
-             instructions per iteration), median of {r}"
+             instructions per iteration), fastest of {r}"
         ),
     );
     let sc = cycles(seconds_per_unit(r, || scalar_kernel(s.n(4_000_000))));
@@ -343,7 +332,7 @@ pub fn calibrate(
         "costs.scalar",
         sc,
         "cycles/instruction",
-        format!("4 independent integer add/shift/xor chains, median of {r}"),
+        format!("4 independent integer add/shift/xor chains, fastest of {r}"),
     );
     let vm = cycles(seconds_per_unit(r, || vector_memory_kernel(s.n(20_000))));
     m.costs.vector_memory = record(
@@ -352,7 +341,7 @@ pub fn calibrate(
         "cycles/line",
         format!(
             "16-lane load, multiply and store of whole lines of a 16 KiB array, per line \
-             accessed, median of {r}"
+             accessed, fastest of {r}"
         ),
     );
     let g1 = cycles(seconds_per_unit(r, || gather_kernel(s.n(2_000_000), 1)));
@@ -364,21 +353,21 @@ pub fn calibrate(
         "cycles/line",
         format!(
             "16-lane gathers from a 16 KiB table touching 16 lines ({g16:.2} cycles) and 1 line \
-             ({g1:.2}): the difference over 15 lines (at least 0), median of {r}"
+             ({g1:.2}): the difference over 15 lines (at least 0), fastest of {r}"
         ),
     );
     m.costs.gather = record(
         "costs.gather",
         (g1 - per_line).max(0.0),
         "cycles/instruction",
-        format!("the 1-line gather's cycles less one line's, median of {r}"),
+        format!("the 1-line gather's cycles less one line's, fastest of {r}"),
     );
     let at = cycles(seconds_per_unit(r, || atomic_kernel(s.n(4_000_000))));
     m.costs.atomic = record(
         "costs.atomic",
         at,
         "cycles/atomic",
-        format!("relaxed atomic adds on a 16 KiB array at hashed indices, median of {r}"),
+        format!("relaxed atomic adds on a 16 KiB array at hashed indices, fastest of {r}"),
     );
 
     // Load-to-use latency at each level: chase through half of its size (the L2's half is
@@ -391,7 +380,7 @@ pub fn calibrate(
         lat_l1,
         "cycles",
         format!(
-            "pointer chase over {} KiB (half the L1), median of {r}",
+            "pointer chase over {} KiB (half the L1), fastest of {r}",
             m.l1.size_bytes / 2048
         ),
     );
@@ -462,7 +451,7 @@ pub fn calibrate(
         bytes_per_s / 1e9,
         "GB/s",
         format!(
-            "all host threads summing {} MiB, median of {r}",
+            "all host threads summing {} MiB, fastest of {r}",
             dram_bytes >> 20
         ),
     );
@@ -483,7 +472,7 @@ pub fn calibrate(
         barrier,
         "cycles",
         format!(
-            "an empty cpu-native step of {} tasks (fork and join), median of {r}",
+            "an empty cpu-native step of {} tasks (fork and join), fastest of {r}",
             m.cores
         ),
     );
@@ -499,13 +488,6 @@ pub fn calibrate(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
-        assert!(median(&mut []).is_nan());
-    }
 
     #[test]
     fn the_chase_visits_every_line_once_per_lap() {

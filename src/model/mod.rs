@@ -180,6 +180,9 @@ struct PhaseRecord {
     name: String,
     start: Instant,
     wall_ms: f64,
+    /// The part of `wall_ms` spent inside [`Machine::run_step`] on `cpu-native`: the work the
+    /// model times, without the host-side work between steps.
+    steps_wall_ms: f64,
     model_ms: f64,
     counters: Counters,
 }
@@ -265,6 +268,7 @@ impl Machine {
                     name: name.to_string(),
                     start: Instant::now(),
                     wall_ms: 0.0,
+                    steps_wall_ms: 0.0,
                     model_ms: 0.0,
                     counters: Counters::default(),
                 });
@@ -323,28 +327,32 @@ impl Machine {
         kernel: &K,
         weights: &[u64],
     ) -> Vec<K::Out> {
-        let config = &self.config;
         let deadline = self.deadline;
-        let cores: &mut [CoreCaches] = match (self.cores.as_mut(), self.single_core) {
-            (None, false) => {
-                return (0..weights.len())
+        if !self.is_model() {
+            let start = Instant::now();
+            let outs = if self.single_core {
+                (0..weights.len())
+                    .map(|t| {
+                        deadline.check();
+                        kernel.run(&mut NoProbe, t)
+                    })
+                    .collect()
+            } else {
+                (0..weights.len())
                     .into_par_iter()
                     .map(|t| {
                         deadline.check();
                         kernel.run(&mut NoProbe, t)
                     })
-                    .collect();
-            }
-            (None, true) => {
-                return (0..weights.len())
-                    .map(|t| {
-                        deadline.check();
-                        kernel.run(&mut NoProbe, t)
-                    })
-                    .collect();
-            }
+                    .collect()
+            };
+            self.current().steps_wall_ms += start.elapsed().as_secs_f64() * 1e3;
+            return outs;
+        }
+        let config = &self.config;
+        let cores: &mut [CoreCaches] = match (self.cores.as_mut(), self.single_core) {
             (Some(cores), false) => cores,
-            (Some(_), true) => std::slice::from_mut(
+            _ => std::slice::from_mut(
                 self.single_core_caches
                     .get_or_insert_with(|| CoreCaches::new(config)),
             ),
@@ -507,7 +515,9 @@ impl Machine {
         let model = self.is_model();
         let mut total = Counters::default();
         let mut phases = Vec::new();
+        let mut steps_wall = Vec::new();
         for p in self.phases {
+            steps_wall.push((p.name.clone(), serde_json::json!(p.steps_wall_ms)));
             for (k, v) in &p.counters.0 {
                 if !k.starts_with("step.") {
                     total.add(k, *v);
@@ -523,6 +533,14 @@ impl Machine {
         }
         let model_ms = model.then(|| phases.iter().filter_map(|p| p.model_ms).sum());
         let mut execution = BTreeMap::new();
+        if !model {
+            execution.insert(
+                "steps_wall_ms".into(),
+                serde_json::json!(steps_wall
+                    .into_iter()
+                    .collect::<serde_json::Map<String, serde_json::Value>>()),
+            );
+        }
         if model {
             let m = &self.config;
             execution.insert("machine".into(), serde_json::json!(m.name));
