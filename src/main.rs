@@ -943,7 +943,12 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
         }
     };
     let v = validate::run(&sweep, &machine, |line| println!("{line}"))?;
-    let written = validate::write(&a.out, &v)?;
+    let mut written = validate::write(&a.out, &v)?;
+    written.extend(report::validation::chart(
+        &a.out,
+        "modelled_vs_measured",
+        &v,
+    )?);
     print!("{}", validate::summary_text(&v));
     println!(
         "{} runs, {} phases in {:.0} s; wrote {}",

@@ -509,7 +509,8 @@ pub fn summary_text(v: &Validation) -> String {
     s
 }
 
-/// The files `write` puts into the output folder.
+/// The files `validate-model` writes into its output folder: [`write`]'s and the chart
+/// (`crate::report::validation::chart`).
 pub const FILES: [&str; 6] = [
     "validation.json",
     "runs.csv",
@@ -519,15 +520,15 @@ pub const FILES: [&str; 6] = [
     "modelled_vs_measured.svg",
 ];
 
-/// Writes `validation.json`, `runs.csv`, `phases.csv`, `summary.txt` and the log-log chart
-/// (`modelled_vs_measured.png` / `.svg`) into `out`; returns their paths.
+/// Writes `validation.json`, `runs.csv`, `phases.csv` and `summary.txt` into `out`; returns
+/// their paths.
 pub fn write(out: &Path, v: &Validation) -> Result<Vec<PathBuf>> {
     let write = |name: &str, bytes: &[u8]| -> Result<PathBuf> {
         let path = out.join(name);
         crate::visibility::write_atomic(&path, bytes)?;
         Ok(path)
     };
-    let mut paths = vec![
+    Ok(vec![
         write(
             "validation.json",
             &serde_json::to_vec_pretty(v).expect("validation serializes"),
@@ -535,13 +536,7 @@ pub fn write(out: &Path, v: &Validation) -> Result<Vec<PathBuf>> {
         write("runs.csv", csv(&v.runs).as_bytes())?,
         write("phases.csv", csv(&v.phases).as_bytes())?,
         write("summary.txt", summary_text(v).as_bytes())?,
-    ];
-    paths.extend(crate::report::validation::chart(
-        out,
-        "modelled_vs_measured",
-        v,
-    )?);
-    Ok(paths)
+    ])
 }
 
 /// Parses `--images 320x240,640x480`.
