@@ -164,8 +164,11 @@ pub fn vector_memory_kernel(passes: usize) -> u64 {
     for _ in 0..passes {
         for (d, s) in dst.iter_mut().zip(src) {
             d.0 = std::array::from_fn(|l| s.0[l] * k);
+            // One line at a time, as the kernels access them: without this the compiler may
+            // vectorise across lines (transposing them with gathers), which is not a line
+            // access.
+            black_box(&mut *d);
         }
-        black_box(&mut *dst);
     }
     (passes * L1_LINES * 2) as u64
 }
