@@ -2,7 +2,7 @@
 //! give a result in [0, 1] or a clear failure (never a panic), and counters, modelled times
 //! and images do not depend on the host thread count.
 
-mod common;
+use super::common;
 
 use common::degenerate_scenes;
 use shadowbench::algorithms::{Backend, ExecContext, ALGORITHMS};

@@ -14,7 +14,7 @@ use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::LightKind;
 use shadowbench::visibility::VisibilityBuffer;
 
-mod gpu_check;
+use super::gpu_check;
 use gpu_check::have_gpu;
 
 /// The paper-000 stand-in scene, small: a lumpy blob over the ground.

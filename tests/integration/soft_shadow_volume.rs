@@ -10,8 +10,8 @@ use shadowbench::metrics::{compare, ErrorMetrics};
 use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::{Light, Scene};
 
-mod gpu_check;
-mod pentagon;
+use super::gpu_check;
+use super::pentagon;
 use gpu_check::have_gpu;
 use pentagon::{closed_polygon_scene, planar_polygon_scene, rect_light};
 

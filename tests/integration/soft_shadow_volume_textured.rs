@@ -16,8 +16,8 @@ use shadowbench::scene::generators::primitives;
 use shadowbench::scene::light_texture::LightTextureSpec;
 use shadowbench::scene::{Camera, Light, LightTexture, Mesh, Object, Role, Scene};
 
-mod gpu_check;
-mod pentagon;
+use super::gpu_check;
+use super::pentagon;
 use gpu_check::have_gpu;
 use pentagon::{planar_polygon_scene, rect_light};
 

@@ -14,7 +14,7 @@ use shadowbench::metrics;
 use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::{Light, LightKind};
 
-mod gpu_check;
+use super::gpu_check;
 use gpu_check::have_gpu;
 
 /// A 64×48 frame of generated scene `name`, its light changed by `light` and made a disc

@@ -1,7 +1,7 @@
 //! Degenerate geometry never crashes the scene pipeline and never puts NaN or a value outside
 //! [0, 1] into a visibility buffer. Property tests throw random triangle soups at it.
 
-mod common;
+use super::common;
 
 use common::{camera, degenerate_scenes, frame_of, object};
 use glam::Vec3;

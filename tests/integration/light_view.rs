@@ -18,7 +18,7 @@ use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::{obj, Camera, Light, Object, Role, Scene};
 use shadowbench::visibility::VisibilityBuffer;
 
-mod gpu_check;
+use super::gpu_check;
 use gpu_check::have_gpu;
 
 const IMAGE: [u32; 2] = [160, 120];

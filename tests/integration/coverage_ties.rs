@@ -9,7 +9,7 @@
 //! no pixel may be counted twice or missed: no fully lit pixel in an umbra, no black pixel in a
 //! penumbra — on cpu-native, cpu-model and wgpu.
 
-mod gpu_check;
+use super::gpu_check;
 
 use glam::Vec3;
 use gpu_check::have_gpu;

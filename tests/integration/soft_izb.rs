@@ -1,7 +1,7 @@
 //! Soft irregular shadow mapping (paper 004) against analytic visibility, the reference, and its
 //! own stated properties (conservative optimisations, §2.1 correctness without adjacency).
 
-mod common;
+use super::common;
 
 use glam::Vec3;
 use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
@@ -9,7 +9,7 @@ use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scene::generators::{self, primitives, GeneratorParams};
 use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
 
-mod gpu_check;
+use super::gpu_check;
 use gpu_check::have_gpu;
 
 fn params(scene: &Scene, image: [u32; 2]) -> RunParams {

@@ -42,7 +42,6 @@ pub fn planar_polygon_scene(light: Light) -> Scene {
 
 /// The pentagon of [`planar_polygon_scene`] made a closed slab 0.05 thick (its outline and top
 /// unchanged), for z-fail counting, which needs closed occluders.
-#[allow(dead_code)] // used by the soft_shadow_volume binary, not the textured one
 pub fn closed_polygon_scene(light: Light) -> Scene {
     let mut scene = planar_polygon_scene(light);
     let pentagon = scene.objects.last_mut().expect("the pentagon");
