@@ -185,3 +185,23 @@ fn compare_of_different_scenarios_says_so_first() {
         "{text}"
     );
 }
+
+/// Output into a pipe whose reader is gone (`shadowbench list | head`) ends the process by
+/// SIGPIPE, as other command-line tools do, never with a panic.
+#[cfg(unix)]
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    for args in [&["list"][..], &["list", "--counters"][..]] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+            .args(args)
+            .stdout(writer)
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert_eq!(o.status.signal(), Some(libc::SIGPIPE), "{args:?}: {err}");
+    }
+}
