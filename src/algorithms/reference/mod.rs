@@ -37,8 +37,9 @@ pub fn strata_side(samples: u32) -> Option<u32> {
 /// samples of stream `seed`.
 pub fn visible_fraction(bvh: &SceneBvh, light: &Light, p: Vec3, k: u32, seed: u64) -> f32 {
     let n = k * k;
-    let visible = (0..n)
-        .filter(|&i| !bvh.occluded(p, light.stratified_sample(p, i, k, seed)))
+    let visible = light
+        .stratified_samples(p, k, seed)
+        .filter(|&q| !bvh.occluded(p, q))
         .count();
     visible as f32 / n as f32
 }
@@ -57,9 +58,9 @@ pub fn received_light(
 ) -> ([f32; 3], f32) {
     let n = k * k;
     let (mut visible, mut all) = ([0.0f64; 3], [0.0f64; 3]);
-    for i in 0..n {
+    for (i, q) in (0..n).zip(light.stratified_samples(p, k, seed)) {
         let c = texture.at(light.stratified_coords(i, k, seed));
-        let lit = !bvh.occluded(p, light.stratified_sample(p, i, k, seed));
+        let lit = !bvh.occluded(p, q);
         for ch in 0..3 {
             all[ch] += f64::from(c[ch]);
             if lit {
