@@ -261,14 +261,21 @@ impl MachineConfig {
             ));
         }
         for (name, c) in [("l1", &self.l1), ("l2", &self.l2)] {
-            let sets = c.size_bytes / (self.line_bytes * c.ways.max(1));
-            if c.ways == 0 || c.ways > 64 || sets == 0 || !sets.is_power_of_two() {
+            if !(1..=64).contains(&c.ways) {
+                return Err(InputError::new(
+                    format!("$.{name}.ways"),
+                    format!("must be in 1..=64, got {}", c.ways),
+                ));
+            }
+            // line_bytes ≤ 1024 and ways ≤ 64 (checked above): the product fits in u32.
+            let sets = c.size_bytes / (self.line_bytes * c.ways);
+            if sets == 0 || !sets.is_power_of_two() {
                 return Err(InputError::new(
                     format!("$.{name}"),
                     format!(
-                        "size_bytes / (line_bytes × ways) must be a power-of-two set count with \
-                         ways in 1..=64, got {} bytes, {} ways",
-                        c.size_bytes, c.ways
+                        "size_bytes / (line_bytes × ways) must be a power-of-two set count, got \
+                         {} bytes / ({} × {} ways)",
+                        c.size_bytes, self.line_bytes, c.ways
                     ),
                 ));
             }
@@ -444,6 +451,33 @@ mod tests {
             let m = MachineConfig::host().unwrap();
             assert_eq!(m.clock_ghz, c.ghz);
             assert_eq!(m.clock_source.as_deref(), Some(c.source.as_str()));
+        }
+    }
+
+    /// Found by the `machine` fuzz target: line_bytes × ways overflowed u32 in validation (a
+    /// panic with overflow checks; without them 64 × 2^26 wrapped to 0 and the set count
+    /// divided by zero). A way count out of range is named with its value instead.
+    #[test]
+    fn a_way_count_whose_line_product_overflows_is_refused_with_its_value() {
+        let path = Path::new("m.json");
+        for (line_bytes, ways) in [
+            (64, 1u32 << 26),
+            (64, 100_000_000),
+            (1024, u32::MAX),
+            (64, 0),
+        ] {
+            for level in ["l1", "l2"] {
+                let mut m = serde_json::to_value(MachineConfig::larrabee(24)).unwrap();
+                m["line_bytes"] = serde_json::json!(line_bytes);
+                m[level]["ways"] = serde_json::json!(ways);
+                let e = MachineConfig::from_json(&m.to_string(), path).unwrap_err();
+                assert_eq!(e.file.as_deref(), Some(path), "{e}");
+                assert_eq!(e.field, Some(format!("$.{level}.ways")), "{e}");
+                assert!(
+                    e.message.contains(&format!("got {ways}")) && e.message.contains("1..=64"),
+                    "{e}"
+                );
+            }
         }
     }
 }
