@@ -596,23 +596,6 @@ fn project(
     vis
 }
 
-/// The soft shadow map itself (phases `maps` and `splat`), for tests and the wgpu parity check:
-/// the frame, and the SSM's occlusion per texel, row-major.
-pub fn ssm_texels(
-    backend: Backend,
-    frame: &Frame,
-    ctx: &ExecContext,
-    o: &SoftShadowMapOptions,
-) -> (LightFrame, Vec<f32>) {
-    let mut m = machine(backend, frame, ctx);
-    let split = Split::of(&frame.flat);
-    let maps = maps(&mut m, frame, &split, o);
-    let ssm = soft_shadow_map(&mut m, frame, &maps, o);
-    let n = maps.ssm.resolution;
-    let texels = (0..n * n).map(|k| ssm.get(k % n, k / n)).collect();
-    (maps.ssm, texels)
-}
-
 /// `soft_shadow_map` on a CPU execution.
 pub fn render(
     backend: Backend,
