@@ -573,6 +573,67 @@ impl Grid {
     }
 }
 
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct SoftIzb;
+
+impl crate::algorithms::Algorithm for SoftIzb {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "paper 004 (soft irregular shadow mapping), §2";
+    const SUMMARY: &'static str =
+        "eye samples in a light-space grid; umbra by irregular rasterization (depth \
+              complexity), penumbra quads per silhouette edge with analytic circular-segment \
+              occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)";
+    // §2.3 sizes the light's footprint in the light's image plane: the light it computes is
+    // the disc there (normal along its view axis), so a sphere is converted to that disc and
+    // the reference is computed for it.
+    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Disc];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] =
+        &[crate::algorithms::MethodLimit::OneMap];
+    type Options = SoftIzbOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        SoftIzbOptions::parse(options)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        cpu::memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::soft_izb(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        cpu::render(backend, frame, ctx, o)
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        let _ = ctx;
+        wgpu::render(gpu, frame, o)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
