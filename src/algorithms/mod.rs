@@ -20,8 +20,7 @@ pub mod work;
 
 use std::collections::BTreeMap;
 
-use serde::{Deserialize, Serialize};
-
+pub use crate::backend::Backend;
 use crate::error::{unknown_name, Error, InputError, Result};
 use crate::frame::{Frame, RunParams};
 use crate::model::MachineConfig;
@@ -29,43 +28,6 @@ use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
 use crate::util::deadline::Deadline;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
-
-/// Where an algorithm runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Backend {
-    /// The algorithm's kernels on the host, uninstrumented: honest host wall-clock time.
-    CpuNative,
-    /// The same kernels on the modelled many-core SIMD machine, counting and timing its work.
-    CpuModel,
-    /// Real GPU passes through wgpu.
-    Wgpu,
-}
-
-impl Backend {
-    pub const ALL: [Backend; 3] = [Backend::CpuNative, Backend::CpuModel, Backend::Wgpu];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Backend::CpuNative => "cpu-native",
-            Backend::CpuModel => "cpu-model",
-            Backend::Wgpu => "wgpu",
-        }
-    }
-
-    pub fn parse(s: &str) -> std::result::Result<Backend, String> {
-        Backend::ALL
-            .into_iter()
-            .find(|b| b.name() == s)
-            .ok_or_else(|| unknown_name("backend", s, &Backend::ALL.map(|b| b.name())))
-    }
-}
-
-impl std::fmt::Display for Backend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// Shadowing an algorithm's method does not compute: its paper's design, not a fault. Declared
 /// per algorithm ([`AlgorithmInfo::limits`]), listed in every record
