@@ -5,13 +5,13 @@
 
 pub mod accum_hard;
 pub mod dbuffer;
+pub mod exec;
 pub mod eye_raster;
 pub mod hard_shadow_map;
 pub mod pcss;
 pub mod penumbra_map;
 pub mod reference;
 pub mod shadow_map;
-pub mod shadow_map_wgpu;
 pub mod shadow_volume;
 pub mod soft_izb;
 pub mod soft_shadow_map;
@@ -218,6 +218,28 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
     AlgorithmInfo::of::<soft_shadow_map::SoftShadowMap>(),
     AlgorithmInfo::of::<dbuffer::Dbuffer>(),
 ];
+
+/// Reads `options.<id>` of a scenario into `T` (defaults when absent), naming the JSON path of
+/// a bad field.
+pub fn parse_options<T: serde::de::DeserializeOwned + Default>(
+    id: &str,
+    options: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Result<T, crate::error::InputError> {
+    match options.get(id) {
+        None => Ok(T::default()),
+        Some(v) => serde_path_to_error::deserialize(v).map_err(|e| {
+            let path = e.path().to_string();
+            crate::error::InputError::new(
+                if path == "." {
+                    format!("$.options.{id}")
+                } else {
+                    format!("$.options.{id}.{path}")
+                },
+                e.into_inner().to_string(),
+            )
+        }),
+    }
+}
 
 /// Reads `options.<id>` of an algorithm that takes no options.
 pub fn no_options(

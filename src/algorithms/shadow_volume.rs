@@ -537,7 +537,7 @@ pub fn mem_write(m: &mut Machine, buffer: &str, bytes: u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::algorithms::hard_shadow_map::cpu::machine;
+    use crate::algorithms::exec::machine;
     use crate::algorithms::{Backend, ExecContext};
     use crate::frame::{Frame, RunParams};
     use crate::scene::adjacency::EdgeAdjacency;

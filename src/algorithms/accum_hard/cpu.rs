@@ -3,8 +3,8 @@
 //! (phase `accumulate`), both as tile tasks of the machine.
 
 use super::AccumHardOptions;
+use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{tiles, Block, EyeBuffer, EyeRays, ScreenRect};
-use crate::algorithms::hard_shadow_map::cpu::{machine, output};
 use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, HardPass,
     ShadowQuad,

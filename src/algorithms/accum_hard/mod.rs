@@ -89,7 +89,7 @@ impl crate::algorithms::Algorithm for AccumHard {
     fn options(
         options: &std::collections::BTreeMap<String, serde_json::Value>,
     ) -> Result<Self::Options, crate::error::InputError> {
-        let o: AccumHardOptions = super::shadow_map::parse_options(ID, options)?;
+        let o: AccumHardOptions = super::parse_options(ID, options)?;
         o.strata_side()?;
         Ok(o)
     }

@@ -48,7 +48,8 @@ use std::collections::BTreeMap;
 
 use glam::Vec3;
 
-use super::shadow_map::{map_bytes, parse_options, Bias};
+use super::parse_options;
+use super::shadow_map::{map_bytes, Bias};
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::scene::Light;

@@ -23,7 +23,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
-use crate::algorithms::hard_shadow_map::cpu::machine;
+use crate::algorithms::exec::machine;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};

@@ -1,8 +1,8 @@
 //! `hard_shadow_map` as GPU passes: the family's light raster, then the hard test of
 //! `wgpu.wgsl` in the eye lookup.
 
+use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
 use crate::algorithms::shadow_map::HardShadowOptions;
-use crate::algorithms::shadow_map_wgpu::{self, Lookup};
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;

@@ -11,7 +11,8 @@ pub mod wgpu;
 
 use std::collections::BTreeMap;
 
-use super::shadow_map::{parse_options, PcssOptions};
+use super::parse_options;
+use super::shadow_map::PcssOptions;
 use crate::error::InputError;
 
 pub const ID: &str = "pcss";

@@ -1,8 +1,8 @@
 //! `pcss` as GPU passes: the family's light raster, then the blocker search and PCF of
 //! `wgpu.wgsl` in the eye lookup.
 
+use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
 use crate::algorithms::shadow_map::PcssOptions;
-use crate::algorithms::shadow_map_wgpu::{self, Lookup};
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;

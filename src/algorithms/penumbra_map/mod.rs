@@ -25,7 +25,8 @@ use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
 
-use super::shadow_map::{self, map_bytes, parse_options, Bias, LightView};
+use super::parse_options;
+use super::shadow_map::{self, map_bytes, Bias, LightView};
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};

@@ -25,10 +25,11 @@ use wgpu::util::DeviceExt;
 use super::{
     shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry, Silhouettes,
 };
-use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
-use crate::algorithms::shadow_map_wgpu::{
-    self, gpu_phase, read_queries, Counts, Lookup, Passes, Queries, DEPTH_TEXEL_BYTES,
+use crate::algorithms::shadow_map::wgpu::{
+    self as shadow_map_wgpu, gpu_phase, read_queries, Counts, Lookup, Passes, Queries,
+    DEPTH_TEXEL_BYTES,
 };
+use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -41,7 +42,7 @@ use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
 
 const PENUMBRA_WGSL: &str = include_str!("wgpu.wgsl");
-const LIGHT_RASTER_WGSL: &str = include_str!("../shadow_map_wgpu/light_raster.wgsl");
+const LIGHT_RASTER_WGSL: &str = include_str!("../shadow_map/light_raster.wgsl");
 
 /// Bytes of one penumbra vertex: light-view position and `Z_v`.
 const VERTEX_BYTES: f64 = 16.0;

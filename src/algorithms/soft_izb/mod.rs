@@ -79,7 +79,7 @@ impl SoftIzbOptions {
     pub fn parse(
         options: &std::collections::BTreeMap<String, serde_json::Value>,
     ) -> Result<SoftIzbOptions, InputError> {
-        let o: SoftIzbOptions = super::shadow_map::parse_options(ID, options)?;
+        let o: SoftIzbOptions = super::parse_options(ID, options)?;
         if !(1..=64).contains(&o.depth_slices) {
             return Err(InputError::new(
                 format!("$.options.{ID}.depth_slices"),

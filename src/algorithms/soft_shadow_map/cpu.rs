@@ -9,7 +9,7 @@ use super::{
     bias_at, occlusion, penumbra_extent, visibility, LightFrame, MicroPatch, SoftShadowMapOptions,
     Split, MAX_HALF_ANGLE_DEG,
 };
-use crate::algorithms::hard_shadow_map::cpu::machine;
+use crate::algorithms::exec::machine;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{
@@ -608,7 +608,7 @@ pub fn render(
     let maps = maps(&mut m, frame, &split, o);
     let ssm = soft_shadow_map(&mut m, frame, &maps, o);
     let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
-    let mut out = crate::algorithms::hard_shadow_map::cpu::output(m, vis);
+    let mut out = crate::algorithms::exec::output(m, vis);
     out.warnings.extend(split.warning());
     record_receivers_outside(frame, &split, &mut out);
     out

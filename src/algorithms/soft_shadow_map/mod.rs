@@ -39,7 +39,7 @@ use std::collections::BTreeMap;
 
 use glam::{Mat4, Vec2, Vec3};
 
-use super::shadow_map::parse_options;
+use super::parse_options;
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::model::raster::Blend;

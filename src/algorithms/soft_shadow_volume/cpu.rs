@@ -12,10 +12,10 @@ use super::{
     exact_coverage, overlap_coverage, silhouette_loops, split12, split_light, CoverageMethod,
     CoverageTexture, Emitter, EmitterShape, SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
 };
+use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{
     raster_pass, Block, ConvexVolume, EyeBuffer, EyeRays, ScreenRect, TilePass, DEPTH_BYTES,
 };
-use crate::algorithms::hard_shadow_map::cpu::{machine, output};
 use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
 };

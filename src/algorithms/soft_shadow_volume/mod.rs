@@ -790,7 +790,7 @@ impl crate::algorithms::Algorithm for SoftShadowVolume {
     fn options(
         options: &std::collections::BTreeMap<String, serde_json::Value>,
     ) -> Result<Self::Options, crate::error::InputError> {
-        let o: SoftShadowVolumeOptions = super::shadow_map::parse_options(ID, options)?;
+        let o: SoftShadowVolumeOptions = super::parse_options(ID, options)?;
         o.validate()?;
         Ok(o)
     }

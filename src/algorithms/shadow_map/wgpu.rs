@@ -19,8 +19,8 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use super::shadow_map::{Bias, FaceView, LightViews, ViewFit};
-use super::FrameOutput;
+use super::{Bias, FaceView, LightViews, ViewFit};
+use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::layout;
