@@ -684,3 +684,46 @@ impl<'g> Passes<'g> {
         })
     }
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        assert_wgsl_layout!(
+            WGSL,
+            "Light",
+            DbufferUniform {
+                view_proj,
+                eye,
+                radius,
+                n_view,
+                near,
+                disc_n,
+                far,
+                tan_half_fov,
+                resolution,
+                bias_constant,
+                bias_slope,
+                falloff,
+                width,
+                height,
+                pad
+            }
+        );
+        assert_wgsl_layout!(
+            WGSL,
+            "Counts",
+            Counts {
+                scene_fragments,
+                umbra_fragments,
+                penumbra_fragments,
+                umbra_covered,
+                penumbra_covered,
+                pad
+            }
+        );
+    }
+}

@@ -484,3 +484,15 @@ fn silhouette_counters(s: &Silhouettes) -> Counters {
     );
     k
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        let source = format!("{LIGHT_RASTER_WGSL}\n{PENUMBRA_WGSL}");
+        assert_wgsl_layout!(source, "PenumbraView", PenumbraView { proj });
+    }
+}

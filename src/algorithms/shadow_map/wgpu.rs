@@ -721,3 +721,54 @@ pub(crate) fn read_queries(
         crate::gpu::stats::read_or_warn(gpu, stats, warnings)?,
     ))
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    /// `LightUniform` and `Counts` against both WGSL files of the family (the eye lookup as
+    /// `hard_shadow_map` completes it).
+    #[test]
+    fn uniforms_match_wgsl() {
+        let eye_lookup = format!(
+            "{EYE_LOOKUP_WGSL}\n{}",
+            include_str!("../hard_shadow_map/wgpu.wgsl")
+        );
+        for source in [LIGHT_RASTER_WGSL.to_string(), eye_lookup] {
+            assert_wgsl_layout!(
+                source,
+                "Light",
+                LightUniform {
+                    view_proj,
+                    eye,
+                    radius,
+                    near,
+                    far,
+                    tan_half_fov,
+                    resolution,
+                    bias_constant,
+                    bias_slope,
+                    blocker_samples,
+                    pcf_samples,
+                    width,
+                    height,
+                    face,
+                    pad
+                }
+            );
+            assert_wgsl_layout!(
+                source,
+                "Counts",
+                Counts {
+                    fragments,
+                    covered,
+                    taps,
+                    wasted_taps,
+                    discarded,
+                    extra_taps
+                }
+            );
+        }
+    }
+}

@@ -1181,3 +1181,40 @@ impl<'g> HardSamples<'g> {
         })
     }
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        let source = format!("{WGSL}\n{}", crate::scene::coverage::WGSL);
+        assert_wgsl_layout!(
+            source,
+            "Params",
+            Params {
+                center,
+                half_u,
+                half_v,
+                eye,
+                width,
+                height,
+                tiles_x,
+                eye_count,
+                vbuffer,
+                coverage,
+                texture_n,
+                first_loop,
+                last_loop,
+                first_light,
+                last_light,
+                sub_lights,
+                counting,
+                channels,
+                pad,
+                mean
+            }
+        );
+    }
+}
