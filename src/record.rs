@@ -85,7 +85,7 @@ impl RunRecord {
     /// A record for `algorithm` on `backend` in `scene`, before it ran.
     pub fn new(
         algorithm: &str,
-        backend: crate::algorithms::Backend,
+        backend: crate::backend::Backend,
         scene: &crate::scene::Scene,
         params: RunParams,
     ) -> RunRecord {

@@ -31,7 +31,7 @@ pub use config::MachineConfig;
 use crate::util::deadline::Deadline;
 pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
 
-use crate::algorithms::Backend;
+use crate::backend::Backend;
 use crate::record::{Counters, Phase};
 use cache::{CacheStats, CoreCaches};
 use timing::{CoreWork, StepTime};

@@ -24,6 +24,8 @@ use crate::util::deadline::Deadline;
 use crate::util::hash::mix64;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
+pub const ID: &str = "reference";
+
 pub const DEFAULT_SAMPLES: u32 = 256;
 pub const PAPER_SAMPLES: u32 = 1024;
 
@@ -139,5 +141,61 @@ pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) 
         execution: [("samples".to_string(), serde_json::json!(k * k))].into(),
         warnings: vec![],
         rgb,
+    }
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct Reference;
+
+impl crate::algorithms::Algorithm for Reference {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "ground truth";
+    const SUMMARY: &'static str =
+        "visible fraction of the light by stratified sampling and BVH ray casting";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[
+        crate::scene::LightKind::Sphere,
+        crate::scene::LightKind::Disc,
+        crate::scene::LightKind::Rect,
+    ];
+    const BACKENDS: &'static [crate::algorithms::Backend] =
+        &[crate::algorithms::Backend::CpuNative];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
+    type Options = ();
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        crate::algorithms::no_options(Self::ID, options)
+    }
+
+    fn light_texture(_: &()) -> Result<(), crate::error::InputError> {
+        Ok(())
+    }
+
+    fn memory_estimate(_: &crate::frame::RunParams) -> u64 {
+        0
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::reference(extent, p, ctx)
+    }
+
+    /// Both CPU executions run the uninstrumented ray caster (it has only `cpu-native`).
+    fn cpu(
+        _: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        _: &(),
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        Ok(render_until(
+            frame,
+            ctx.reference_samples,
+            ctx.seed,
+            ctx.deadline,
+        ))
     }
 }

@@ -1,7 +1,7 @@
 // Phase `eye_lookup`: one invocation per eye pixel reads the shared gbuffer (world position
 // with a hit flag in w, eye-facing normal), projects the point into the light's shadow map and
 // calls `visibility_at`, which each algorithm defines in its own WGSL file appended to this one.
-// Every function here mirrors the Rust function of src/algorithms/shadow_map.rs named beside it.
+// Every function here mirrors the Rust function of src/algorithms/shadow_map/mod.rs named beside it.
 
 struct Light {
     view_proj: mat4x4<f32>,

@@ -5,11 +5,32 @@
 //! Maps hold NDC depth in [0, 1] from a perspective projection at the light centre, which is
 //! what a GPU depth buffer holds and what a rasterizer interpolates linearly in screen space;
 //! [`LightView::linear_depth`] turns it back into distance along the view axis for the PCSS math.
+//!
+//! The family's passes: [`cpu`] (the light raster on the modelled rasterizer and the eye pass
+//! generic over a [`cpu::Lookup`]) and [`wgpu`] (the same two passes on the GPU, each algorithm
+//! appending its `visibility_at` in WGSL).
+
+pub mod cpu;
+pub mod wgpu;
 
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
 use crate::scene::camera::{look_at, perspective};
 use crate::scene::{Light, Mesh};
+
+/// The texel of the map that holds `uv` (nearest), or `None` outside the map, where nothing
+/// was rasterized and the receiver counts as lit.
+pub fn texel(view: &LightView, uv: Vec2) -> Option<(u32, u32)> {
+    let r = view.resolution as f32;
+    let (x, y) = ((uv.x * r).floor(), (uv.y * r).floor());
+    (x >= 0.0 && y >= 0.0 && x < r && y < r).then_some((x as u32, y as u32))
+}
+
+/// The shadow test: a receiver at linear depth `z` is lit when no occluder in the map lies
+/// nearer the light than `z − bias` (`map_ndc` is the map's stored NDC depth).
+pub fn lit(view: &LightView, map_ndc: f32, z: f32, bias: f32) -> bool {
+    z - bias <= view.linear_depth(map_ndc)
+}
 
 /// Largest half-angle of one light frustum (one perspective map cannot see a hemisphere).
 pub const MAX_HALF_FOV_DEG: f32 = 80.0;
@@ -607,28 +628,6 @@ impl Default for PcssOptions {
             pcf_samples: default_pcf_samples(),
             bias: Bias::default(),
         }
-    }
-}
-
-/// Reads `options.<id>` of a scenario into `T` (defaults when absent), naming the JSON path of
-/// a bad field.
-pub fn parse_options<T: serde::de::DeserializeOwned + Default>(
-    id: &str,
-    options: &std::collections::BTreeMap<String, serde_json::Value>,
-) -> Result<T, crate::error::InputError> {
-    match options.get(id) {
-        None => Ok(T::default()),
-        Some(v) => serde_path_to_error::deserialize(v).map_err(|e| {
-            let path = e.path().to_string();
-            crate::error::InputError::new(
-                if path == "." {
-                    format!("$.options.{id}")
-                } else {
-                    format!("$.options.{id}.{path}")
-                },
-                e.into_inner().to_string(),
-            )
-        }),
     }
 }
 

@@ -1,5 +1,5 @@
 // Phase `light_raster`: the depth-only shadow map of every triangle of the scene from the light
-// centre (`LightView` in src/algorithms/shadow_map.rs). The depth attachment (Depth32Float,
+// centre (`LightView` in src/algorithms/shadow_map/mod.rs). The depth attachment (Depth32Float,
 // cleared to 1, compare Less) holds NDC depth, the same value `LightView::project` returns.
 
 // The uniform block shared with eye_lookup.wgsl; layout matches `LightUniform` in mod.rs.

@@ -19,8 +19,8 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use super::shadow_map::{Bias, FaceView, LightViews, ViewFit};
-use super::FrameOutput;
+use super::{Bias, FaceView, LightViews, ViewFit};
+use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::layout;
@@ -720,4 +720,55 @@ pub(crate) fn read_queries(
         timing::read_ms_or_warn(gpu, timer, warnings)?,
         crate::gpu::stats::read_or_warn(gpu, stats, warnings)?,
     ))
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    /// `LightUniform` and `Counts` against both WGSL files of the family (the eye lookup as
+    /// `hard_shadow_map` completes it).
+    #[test]
+    fn uniforms_match_wgsl() {
+        let eye_lookup = format!(
+            "{EYE_LOOKUP_WGSL}\n{}",
+            include_str!("../hard_shadow_map/wgpu.wgsl")
+        );
+        for source in [LIGHT_RASTER_WGSL.to_string(), eye_lookup] {
+            assert_wgsl_layout!(
+                source,
+                "Light",
+                LightUniform {
+                    view_proj,
+                    eye,
+                    radius,
+                    near,
+                    far,
+                    tan_half_fov,
+                    resolution,
+                    bias_constant,
+                    bias_slope,
+                    blocker_samples,
+                    pcf_samples,
+                    width,
+                    height,
+                    face,
+                    pad
+                }
+            );
+            assert_wgsl_layout!(
+                source,
+                "Counts",
+                Counts {
+                    fragments,
+                    covered,
+                    taps,
+                    wasted_taps,
+                    discarded,
+                    extra_taps
+                }
+            );
+        }
+    }
 }
