@@ -103,6 +103,23 @@ enum Command {
         #[command(subcommand)]
         command: SceneCommand,
     },
+    /// Measure this machine's costs with small kernels (vector arithmetic, scalar chains, line
+    /// loads and stores, gathers, atomics, pointer-chasing latency per cache level, memory
+    /// parallelism, DRAM bandwidth, the fork-join barrier) and write the `host` machine with
+    /// them as a machine .json file for --machine (every figure's method in `sources`).
+    Calibrate {
+        /// The machine .json file to write.
+        #[arg(long, value_name = "FILE")]
+        out: PathBuf,
+        /// Fewer and shorter kernel runs (seconds instead of tens of seconds; noisier figures).
+        #[arg(long)]
+        quick: bool,
+    },
+    /// Run a fixed sweep (every CPU algorithm, 3 scenes, 2 image sizes) on cpu-native and on
+    /// cpu-model with the calibrated host machine, and write per run and per phase the modelled
+    /// and measured times, their ratio, the agreement (geometric mean ratio, mean absolute
+    /// percentage error, Spearman's ρ) and a log-log chart into DIR.
+    ValidateModel(ValidateArgs),
     /// Compare the deterministic figures of two results files; exit 1 on a regression.
     Compare {
         /// The results.json to compare against.
@@ -199,6 +216,33 @@ struct RunArgs {
     verbose: bool,
     #[command(flatten)]
     adapter: AdapterArg,
+}
+
+#[derive(clap::Args)]
+struct ValidateArgs {
+    /// Folder for validation.json, runs.csv, phases.csv, summary.txt, the chart and
+    /// machine.json.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// The cpu-model's machine: a machine .json file (from `calibrate`) or a preset (default:
+    /// calibrate now, written to DIR/machine.json).
+    #[arg(long)]
+    machine: Option<String>,
+    /// Only these algorithms (comma-separated; default: every algorithm with both CPU
+    /// executions).
+    #[arg(long, value_delimiter = ',', value_name = "ALGORITHM",
+          value_parser = clap::builder::PossibleValuesParser::new(algorithm_ids()))]
+    only: Option<Vec<String>>,
+    /// Scenes (comma-separated built-in names; default: sphere-on-plane, torus-on-plane,
+    /// blob-on-plane).
+    #[arg(long, value_delimiter = ',', value_name = "SCENE")]
+    scenes: Option<Vec<String>>,
+    /// Image sizes (comma-separated WxH; default: 320x240,640x480).
+    #[arg(long, value_delimiter = ',', value_name = "WxH")]
+    images: Option<Vec<String>>,
+    /// Timed cpu-native runs per case, after one warm-up run (the median is used).
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
 }
 
 #[derive(clap::Args)]
@@ -798,6 +842,128 @@ fn diff(a: PathBuf, b: PathBuf, out: PathBuf) -> Result<()> {
     Ok(())
 }
 
+fn calibrate(out: PathBuf, quick: bool) -> Result<()> {
+    if out
+        .extension()
+        .is_none_or(|e| !e.eq_ignore_ascii_case("json"))
+    {
+        return Err(
+            InputError::new("--out", format!("'{}' is not a .json file", out.display())).into(),
+        );
+    }
+    let base = MachineConfig::resolve("host", "host", Path::new("."))?;
+    let settings = if quick {
+        model::calibrate::Settings {
+            scale: 0.1,
+            repeats: 3,
+        }
+    } else {
+        model::calibrate::Settings::default()
+    };
+    println!("calibrating {} ({})", base.name, base.describe());
+    let start = std::time::Instant::now();
+    let (machine, _) = model::calibrate::calibrate(&base, settings, |line| println!("{line}"));
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let text = serde_json::to_vec_pretty(&machine).expect("machine configs serialize");
+    shadowbench::visibility::write_atomic(&out, &text)?;
+    println!(
+        "wrote {} in {:.1} s (use it with --machine {})",
+        out.display(),
+        start.elapsed().as_secs_f64(),
+        out.display()
+    );
+    Ok(())
+}
+
+fn validate_model(a: ValidateArgs) -> Result<()> {
+    use shadowbench::harness::validate;
+    let mut sweep = validate::Sweep::default();
+    if let Some(only) = a.only {
+        if only.iter().any(|x| x == "reference") {
+            return Err(InputError::new(
+                "--only",
+                "the reference has no cpu-model execution to validate",
+            )
+            .into());
+        }
+        sweep.algorithms = only;
+    }
+    if let Some(scenes) = a.scenes {
+        for s in &scenes {
+            if generators::find(s).is_none() {
+                return Err(InputError::new(
+                    "--scenes",
+                    shadowbench::error::unknown_name(
+                        "scene",
+                        s,
+                        &generators::GENERATORS
+                            .iter()
+                            .map(|g| g.name)
+                            .collect::<Vec<_>>(),
+                    ),
+                )
+                .into());
+            }
+        }
+        sweep.scenes = scenes;
+    }
+    if let Some(images) = a.images {
+        sweep.images = validate::parse_images("--images", &images)?;
+    }
+    if !(1..=100).contains(&a.repeats) {
+        return Err(InputError::new(
+            "--repeats",
+            format!("must be in 1..=100, got {}", a.repeats),
+        )
+        .into());
+    }
+    sweep.repeats = a.repeats;
+    let machine = a
+        .machine
+        .as_deref()
+        .map(|m| MachineConfig::resolve("--machine", m, Path::new(".")))
+        .transpose()?;
+    let _lock = harness::outdir::lock("--out", &a.out)?;
+    let machine = match machine {
+        Some(m) => m,
+        None => {
+            let base = MachineConfig::resolve("--machine", "host", Path::new("."))?;
+            println!("calibrating {} ({})", base.name, base.describe());
+            let (m, _) =
+                model::calibrate::calibrate(&base, model::calibrate::Settings::default(), |line| {
+                    println!("{line}")
+                });
+            let path = a.out.join("machine.json");
+            let text = serde_json::to_vec_pretty(&m).expect("machine configs serialize");
+            shadowbench::visibility::write_atomic(&path, &text)?;
+            println!("wrote {}", path.display());
+            m
+        }
+    };
+    let v = validate::run(&sweep, &machine, |line| println!("{line}"))?;
+    let mut written = validate::write(&a.out, &v)?;
+    written.extend(report::validation::chart(
+        &a.out,
+        "modelled_vs_measured",
+        &v,
+    )?);
+    print!("{}", validate::summary_text(&v));
+    println!(
+        "{} runs, {} phases in {:.0} s; wrote {}",
+        v.runs.len(),
+        v.phases.len(),
+        v.seconds,
+        written
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
 /// Prints what moved; `Ok(true)` when the gate passes.
 fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> {
     let old = report::read_results(&baseline)?;
@@ -897,6 +1063,8 @@ fn main() -> ExitCode {
             command: SceneCommand::Export(a),
         } => scene_export(a),
         Command::Diff { a, b, out } => diff(a, b, out),
+        Command::Calibrate { out, quick } => calibrate(out, quick),
+        Command::ValidateModel(a) => validate_model(a),
         Command::Compare {
             baseline,
             current,

@@ -4,7 +4,7 @@
 use crate::algorithms::{AlgorithmInfo, Backend};
 use crate::error::{Error, Result};
 use crate::frame::RunParams;
-use crate::model::cache::CoreCaches;
+use crate::model::cache::{CoreCaches, SharedCache};
 use crate::model::MachineConfig;
 
 /// Physical memory from /proc/meminfo, when readable.
@@ -30,14 +30,14 @@ pub fn frame_bytes(p: &RunParams) -> u64 {
 
 /// Bytes of the modelled caches of a `cpu-model` run on `machine` (0 on other backends): every
 /// core's L1 and L2 partition plus the one core of single-core steps
-/// ([`crate::model::Machine::set_single_core`]), all allocated when the run starts. The run's
-/// `cores` overrides the machine's.
+/// ([`crate::model::Machine::set_single_core`]), and the shared L3 where the machine has one,
+/// all allocated when the run starts. The run's `cores` overrides the machine's.
 pub fn model_bytes(backend: Backend, machine: &MachineConfig, p: &RunParams) -> u64 {
     if backend != Backend::CpuModel {
         return 0;
     }
     let cores = p.cores.unwrap_or(machine.cores) as u64;
-    (cores + 1) * CoreCaches::bytes(machine)
+    (cores + 1) * CoreCaches::bytes(machine) + SharedCache::bytes(machine)
 }
 
 /// Refuses a run on `backend` whose estimated working set (the frame, the algorithm's buffers

@@ -6,6 +6,7 @@ pub mod limits;
 pub mod outdir;
 pub mod output;
 pub mod shard;
+pub mod validate;
 
 use std::collections::BTreeMap;
 use std::io::IsTerminal;

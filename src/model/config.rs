@@ -6,21 +6,35 @@
 //! 004 §3) are used where they exist; the rest are stated assumptions typical of an in-order
 //! x86 core of that generation, so that a user can change them in a JSON file and see the effect.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
 use crate::error::{unknown_name, InputError};
 
-/// One cache level of a core.
+/// One cache level.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct CacheConfig {
-    /// Capacity in bytes (per core; for L2, the core's partition of the shared L2).
+    /// Capacity in bytes: per core for L1 and L2 (for Larrabee's L2, the core's partition of the
+    /// shared L2); the whole chip's for the shared L3.
     pub size_bytes: u32,
     pub ways: u32,
-    /// Cycles from a miss in the level above to data from this level.
+    /// Cycles from a miss in the level above to data from this level (the latency this level
+    /// adds, not the load-to-use latency from the core).
     pub latency_cycles: f64,
+}
+
+/// The vector unit the kernels' 16 lanes run on, on a real machine (informational: its costs
+/// are in [`OpCosts`]).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimdConfig {
+    /// The widest f32 instruction set found (`avx512f`, `avx2`, `avx`, `sse2`, `neon`, `none`).
+    pub isa: String,
+    /// f32 lanes of one register of that set.
+    pub f32_lanes: u32,
 }
 
 /// Cycle costs of the operations the kernels count.
@@ -38,8 +52,17 @@ pub struct OpCosts {
     /// unit accesses one line per cycle (Seiler et al. 2008 §4.1), so a gather whose 16 lanes
     /// fall into one line costs one cycle and into 16 lines sixteen.
     pub gather_line: f64,
+    /// Issue cycles of a gather or scatter instruction besides its lines: a CPU without a
+    /// line-wise gather unit loads each lane on its own, whatever lines they share (0, absent
+    /// from the JSON, on Larrabee).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub gather: f64,
     /// Cycles of an atomic read-modify-write in L2 (an assumption: an L2 round trip).
     pub atomic: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// A modelled many-core SIMD machine (004 §3.1, Figure 5).
@@ -68,6 +91,22 @@ pub struct MachineConfig {
     /// `execution`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub clock_source: Option<String>,
+    /// A last-level cache shared by all cores (the L3 of current CPUs), behind the per-core L2;
+    /// `None` (the Larrabee presets): L2 misses go to DRAM.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub l3: Option<CacheConfig>,
+    /// Memory-level parallelism of one hardware thread: how many of its cache misses overlap
+    /// (an out-of-order core keeps several in flight; an in-order core waits for each). Stall
+    /// cycles are divided by it. `None`: 1, every miss waits alone (Larrabee's in-order cores).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub memory_parallelism: Option<f64>,
+    /// The host's vector unit, for machines describing a real CPU.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simd: Option<SimdConfig>,
+    /// How each figure was obtained, by field (`"l2.size_bytes"`: the sysfs file it was read
+    /// from, `"costs.vector"`: the calibration kernel that measured it, or `assumption: ...`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub sources: BTreeMap<String, String>,
 }
 
 /// The presets, by name.
@@ -111,28 +150,30 @@ impl MachineConfig {
                 scalar: 1.0,
                 vector_memory: 1.0,
                 gather_line: 1.0,
+                gather: 0.0,
                 atomic: 20.0,
             },
             clock_source: None,
+            l3: None,
+            memory_parallelism: None,
+            simd: None,
+            sources: BTreeMap::new(),
         }
     }
 
-    /// This machine modelled as if it were the Larrabee-style design: its core count and the
-    /// clock its operating system states ([`host_clock`]), with the Larrabee caches and costs.
-    /// A pure function of the machine, so every process on it models the same times.
+    /// This machine as the operating system and the CPU state it ([`super::host::machine`]):
+    /// cores, hardware threads, SIMD, caches and a shared L3, at the clock the operating system
+    /// states ([`host_clock`]); costs and latencies are stated assumptions until
+    /// `shadowbench calibrate` measures them. A pure function of the machine, so every process
+    /// on it models the same times.
     ///
     /// Errors: the operating system states no CPU frequency (the message says what was read).
     pub fn host() -> Result<MachineConfig, String> {
-        let cores = std::thread::available_parallelism()
-            .map(|n| n.get() as u32)
-            .unwrap_or(1);
         let clock = host_clock()?;
-        Ok(MachineConfig {
-            name: "host".into(),
-            clock_ghz: clock.ghz,
-            clock_source: Some(clock.source),
-            ..MachineConfig::larrabee(cores)
-        })
+        let mut m = super::host::machine(clock.ghz);
+        m.sources.insert("clock_ghz".into(), clock.source.clone());
+        m.clock_source = Some(clock.source);
+        Ok(m)
     }
 
     /// The preset `name`; `None` when there is no such preset. The `host` preset is an error
@@ -200,8 +241,14 @@ impl MachineConfig {
         }
     }
 
+    /// Sets of cache level `c` (`size / (line × ways)`; any count ≥ 1, a power of two or not).
     pub fn sets(&self, c: &CacheConfig) -> u32 {
         c.size_bytes / (self.line_bytes * c.ways)
+    }
+
+    /// The memory-level parallelism stalls are divided by (1 when not stated).
+    pub fn mlp(&self) -> f64 {
+        self.memory_parallelism.unwrap_or(1.0)
     }
 
     /// DRAM bytes the chip moves per cycle.
@@ -260,26 +307,46 @@ impl MachineConfig {
                 ),
             ));
         }
-        for (name, c) in [("l1", &self.l1), ("l2", &self.l2)] {
+        let levels = [("l1", &self.l1), ("l2", &self.l2)]
+            .into_iter()
+            .chain(self.l3.as_ref().map(|c| ("l3", c)));
+        for (name, c) in levels {
             if !(1..=64).contains(&c.ways) {
                 return Err(InputError::new(
                     format!("$.{name}.ways"),
                     format!("must be in 1..=64, got {}", c.ways),
                 ));
             }
-            // line_bytes ≤ 1024 and ways ≤ 64 (checked above): the product fits in u32.
-            let sets = c.size_bytes / (self.line_bytes * c.ways);
-            if sets == 0 || !sets.is_power_of_two() {
+            let line_ways = u64::from(self.line_bytes) * u64::from(c.ways);
+            let whole = u64::from(c.size_bytes) % line_ways == 0;
+            let sets = u64::from(c.size_bytes) / line_ways;
+            if sets == 0 || !whole {
                 return Err(InputError::new(
                     format!("$.{name}"),
                     format!(
-                        "size_bytes / (line_bytes × ways) must be a power-of-two set count, got \
-                         {} bytes / ({} × {} ways)",
-                        c.size_bytes, self.line_bytes, c.ways
+                        "size_bytes must be a whole number ≥ 1 of sets of line_bytes × ways; got \
+                         {} bytes, {} ways, {}-byte lines",
+                        c.size_bytes, c.ways, self.line_bytes
                     ),
                 ));
             }
             non_negative(&format!("{name}.latency_cycles"), c.latency_cycles)?;
+        }
+        if let Some(p) = self.memory_parallelism {
+            if !(p.is_finite() && (1.0..=64.0).contains(&p)) {
+                return Err(InputError::new(
+                    "$.memory_parallelism",
+                    format!("must be a number in 1..=64, got {p}"),
+                ));
+            }
+        }
+        if let Some(s) = &self.simd {
+            if !(1..=64).contains(&s.f32_lanes) {
+                return Err(InputError::new(
+                    "$.simd.f32_lanes",
+                    format!("must be in 1..=64, got {}", s.f32_lanes),
+                ));
+            }
         }
         positive("clock_ghz", self.clock_ghz)?;
         positive("dram_gb_per_s", self.dram_gb_per_s)?;
@@ -291,6 +358,7 @@ impl MachineConfig {
             ("costs.scalar", k.scalar),
             ("costs.vector_memory", k.vector_memory),
             ("costs.gather_line", k.gather_line),
+            ("costs.gather", k.gather),
             ("costs.atomic", k.atomic),
         ] {
             non_negative(name, v)?;
@@ -300,9 +368,19 @@ impl MachineConfig {
 
     /// A one-line description for `shadowbench list`.
     pub fn describe(&self) -> String {
+        let simd = self
+            .simd
+            .as_ref()
+            .map(|s| format!(" ({} × {} f32)", s.isa, s.f32_lanes))
+            .unwrap_or_default();
+        let l3 = self
+            .l3
+            .as_ref()
+            .map(|c| format!(", L3 {} KiB shared", c.size_bytes / 1024))
+            .unwrap_or_default();
         format!(
-            "{} cores × {} threads @ {:.2} GHz, {} lanes, L1 {} KiB {}-way, L2 {} KiB/core, \
-             {}-byte lines, DRAM {} GB/s",
+            "{} cores × {} threads @ {:.2} GHz, {} lanes{simd}, L1 {} KiB {}-way, L2 {} KiB/core\
+             {l3}, {}-byte lines, DRAM {} GB/s",
             self.cores,
             self.threads_per_core,
             self.clock_ghz,

@@ -15,7 +15,9 @@
 
 pub mod buffer;
 pub mod cache;
+pub mod calibrate;
 pub mod config;
+pub mod host;
 pub mod raster;
 pub mod simd;
 pub mod timing;
@@ -33,7 +35,7 @@ pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
 
 use crate::backend::Backend;
 use crate::record::{Counters, Phase};
-use cache::{CacheStats, CoreCaches};
+use cache::{CacheStats, CoreCaches, SharedCache};
 use timing::{CoreWork, StepTime};
 
 /// A step's work: task `t` of a step, generic over the probe so that the same code is the
@@ -173,22 +175,14 @@ impl Probe for ModelProbe<'_> {
     }
 }
 
-fn cache_delta(after: CacheStats, before: CacheStats) -> CacheStats {
-    CacheStats {
-        l1_hits: after.l1_hits - before.l1_hits,
-        l1_misses: after.l1_misses - before.l1_misses,
-        l2_hits: after.l2_hits - before.l2_hits,
-        l2_misses: after.l2_misses - before.l2_misses,
-        dram_read_lines: after.dram_read_lines - before.dram_read_lines,
-        dram_write_lines: after.dram_write_lines - before.dram_write_lines,
-    }
-}
-
 /// One phase while it is being recorded.
 struct PhaseRecord {
     name: String,
     start: Instant,
     wall_ms: f64,
+    /// The part of `wall_ms` spent inside [`Machine::run_step`] on `cpu-native`: the work the
+    /// model times, without the host-side work between steps.
+    steps_wall_ms: f64,
     model_ms: f64,
     counters: Counters,
 }
@@ -207,6 +201,9 @@ pub struct Machine {
     single_core: bool,
     /// The caches of that core on `cpu-model`, created on first use.
     single_core_caches: Option<CoreCaches>,
+    /// The last-level cache all cores share, on `cpu-model` machines that have one (an L3);
+    /// the single core's L2 traffic goes through it too.
+    shared: Option<SharedCache>,
     /// The run's budget, checked before every task of a step.
     deadline: Deadline,
 }
@@ -219,10 +216,12 @@ impl Machine {
                 .map(|_| CoreCaches::new(&config))
                 .collect()
         });
+        let shared = cores.is_some().then(|| SharedCache::new(&config)).flatten();
         Machine {
             config,
             memory: Memory::default(),
             cores,
+            shared,
             phases: Vec::new(),
             current: 0,
             single_core: false,
@@ -269,6 +268,7 @@ impl Machine {
                     name: name.to_string(),
                     start: Instant::now(),
                     wall_ms: 0.0,
+                    steps_wall_ms: 0.0,
                     model_ms: 0.0,
                     counters: Counters::default(),
                 });
@@ -327,39 +327,43 @@ impl Machine {
         kernel: &K,
         weights: &[u64],
     ) -> Vec<K::Out> {
-        let config = &self.config;
         let deadline = self.deadline;
-        let cores: &mut [CoreCaches] = match (self.cores.as_mut(), self.single_core) {
-            (None, false) => {
-                return (0..weights.len())
+        if !self.is_model() {
+            let start = Instant::now();
+            let outs = if self.single_core {
+                (0..weights.len())
+                    .map(|t| {
+                        deadline.check();
+                        kernel.run(&mut NoProbe, t)
+                    })
+                    .collect()
+            } else {
+                (0..weights.len())
                     .into_par_iter()
                     .map(|t| {
                         deadline.check();
                         kernel.run(&mut NoProbe, t)
                     })
-                    .collect();
-            }
-            (None, true) => {
-                return (0..weights.len())
-                    .map(|t| {
-                        deadline.check();
-                        kernel.run(&mut NoProbe, t)
-                    })
-                    .collect();
-            }
+                    .collect()
+            };
+            self.current().steps_wall_ms += start.elapsed().as_secs_f64() * 1e3;
+            return outs;
+        }
+        let config = &self.config;
+        let cores: &mut [CoreCaches] = match (self.cores.as_mut(), self.single_core) {
             (Some(cores), false) => cores,
-            (Some(_), true) => std::slice::from_mut(
+            _ => std::slice::from_mut(
                 self.single_core_caches
                     .get_or_insert_with(|| CoreCaches::new(config)),
             ),
         };
         let lists = timing::schedule(weights, cores.len());
+        let before: Vec<CacheStats> = cores.iter().map(|c| c.stats).collect();
         type CoreResult<O> = (CoreWork, Vec<BufferStats>, Vec<(usize, O)>);
-        let per_core: Vec<CoreResult<K::Out>> = cores
+        let mut per_core: Vec<CoreResult<K::Out>> = cores
             .par_iter_mut()
             .zip(lists.into_par_iter())
             .map(|(caches, list)| {
-                let before = caches.stats;
                 let mut probe = ModelProbe::new(config, caches);
                 let outs: Vec<(usize, K::Out)> = list
                     .into_iter()
@@ -369,11 +373,17 @@ impl Machine {
                         (t, kernel.run(&mut probe, t))
                     })
                     .collect();
-                let mut work = probe.work();
-                work.cache = cache_delta(work.cache, before);
-                (work, probe.buffers, outs)
+                (probe.work(), probe.buffers, outs)
             })
             .collect();
+        // The cores' L2 traffic through the shared level, in a fixed order; then each core's
+        // cache figures are what changed during the step.
+        if let Some(l3) = self.shared.as_mut() {
+            l3.replay(&mut cores.iter_mut().collect::<Vec<_>>());
+        }
+        for ((work, _, _), (caches, before)) in per_core.iter_mut().zip(cores.iter().zip(&before)) {
+            work.cache = caches.stats.since(before);
+        }
         let mut outs: Vec<Option<K::Out>> = (0..weights.len()).map(|_| None).collect();
         let mut works = Vec::with_capacity(per_core.len());
         let mut buffers: Vec<BufferStats> = Vec::new();
@@ -443,6 +453,10 @@ impl Machine {
         ] {
             c.add(k, v as f64);
         }
+        if self.config.l3.is_some() {
+            c.add("cache.l3_hits", total.cache.l3_hits as f64);
+            c.add("cache.l3_misses", total.cache.l3_misses as f64);
+        }
         c.add("dram_read_bytes", total.cache.dram_read_lines as f64 * line);
         c.add(
             "dram_write_bytes",
@@ -481,18 +495,18 @@ impl Machine {
         self.close_phase();
         let line = f64::from(self.config.line_bytes);
         if let Some(cores) = self.cores.as_mut() {
-            let cores: Vec<&mut CoreCaches> = cores
+            let mut cores: Vec<&mut CoreCaches> = cores
                 .iter_mut()
                 .chain(&mut self.single_core_caches)
                 .collect();
             let before: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
-            let after: u64 = cores
-                .into_iter()
-                .map(|c| {
-                    c.flush();
-                    c.stats.dram_write_lines
-                })
-                .sum();
+            for c in cores.iter_mut() {
+                c.flush();
+            }
+            if let Some(l3) = self.shared.as_mut() {
+                l3.flush(&mut cores);
+            }
+            let after: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
             if let Some(p) = self.phases.last_mut() {
                 p.counters
                     .add("dram_write_bytes", (after - before) as f64 * line);
@@ -501,7 +515,9 @@ impl Machine {
         let model = self.is_model();
         let mut total = Counters::default();
         let mut phases = Vec::new();
+        let mut steps_wall = Vec::new();
         for p in self.phases {
+            steps_wall.push((p.name.clone(), serde_json::json!(p.steps_wall_ms)));
             for (k, v) in &p.counters.0 {
                 if !k.starts_with("step.") {
                     total.add(k, *v);
@@ -517,6 +533,14 @@ impl Machine {
         }
         let model_ms = model.then(|| phases.iter().filter_map(|p| p.model_ms).sum());
         let mut execution = BTreeMap::new();
+        if !model {
+            execution.insert(
+                "steps_wall_ms".into(),
+                serde_json::json!(steps_wall
+                    .into_iter()
+                    .collect::<serde_json::Map<String, serde_json::Value>>()),
+            );
+        }
         if model {
             let m = &self.config;
             execution.insert("machine".into(), serde_json::json!(m.name));

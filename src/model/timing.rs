@@ -25,23 +25,35 @@ pub struct CoreWork {
 }
 
 impl CoreWork {
-    /// Cycles the core's issue pipe is busy:
-    /// `vector·c_v + scalar·c_s + lines(load/store)·c_m + lines(gather/scatter)·c_g + atomics·c_a`.
+    /// Cycles the core's issue pipe is busy: `vector·c_v + scalar·c_s + lines(load/store)·c_m
+    /// + lines(gather/scatter)·c_gl + (gathers + scatters)·c_g + atomics·c_a`.
     pub fn issue_cycles(&self, m: &MachineConfig) -> f64 {
         let k = &m.costs;
         self.vector_ops as f64 * k.vector
             + self.scalar_ops as f64 * k.scalar
             + self.access_lines as f64 * k.vector_memory
             + (self.gather_lines + self.scatter_lines) as f64 * k.gather_line
+            + (self.gathers + self.scatters) as f64 * k.gather
             + self.atomics as f64 * k.atomic
     }
 
-    /// Cycles its threads wait on memory: `l2_hits·L2 + l2_misses·(L2 + DRAM)` (an L1 hit costs
-    /// no more than its issue cycle).
+    /// Cycles its threads wait on memory (an L1 hit costs no more than its issue cycle), over
+    /// the memory-level parallelism `mlp` (1 unless the machine states it):
+    /// without an L3 `(l2_hits·L2 + l2_misses·(L2 + DRAM)) / mlp`; with a shared L3
+    /// `(l2_hits·L2 + l3_hits·(L2 + L3) + l3_misses·(L2 + L3 + DRAM)) / mlp`.
     pub fn stall_cycles(&self, m: &MachineConfig) -> f64 {
         let c = &self.cache;
-        c.l2_hits as f64 * m.l2.latency_cycles
-            + c.l2_misses as f64 * (m.l2.latency_cycles + m.dram_latency_cycles)
+        let l2 = m.l2.latency_cycles;
+        let stall = match &m.l3 {
+            None => c.l2_hits as f64 * l2 + c.l2_misses as f64 * (l2 + m.dram_latency_cycles),
+            Some(l3) => {
+                let l3 = l2 + l3.latency_cycles;
+                c.l2_hits as f64 * l2
+                    + c.l3_hits as f64 * l3
+                    + c.l3_misses as f64 * (l3 + m.dram_latency_cycles)
+            }
+        };
+        stall / m.mlp()
     }
 
     /// Cycles of the core: `max(issue, (issue + stall) / T)`. With T hardware threads the core
@@ -65,13 +77,7 @@ impl CoreWork {
         self.scatters += o.scatters;
         self.scatter_lines += o.scatter_lines;
         self.atomics += o.atomics;
-        let (c, d) = (&mut self.cache, &o.cache);
-        c.l1_hits += d.l1_hits;
-        c.l1_misses += d.l1_misses;
-        c.l2_hits += d.l2_hits;
-        c.l2_misses += d.l2_misses;
-        c.dram_read_lines += d.dram_read_lines;
-        c.dram_write_lines += d.dram_write_lines;
+        self.cache.add(&o.cache);
     }
 }
 
@@ -159,6 +165,35 @@ mod tests {
         assert_eq!(w.cycles(&m), (100.0 + 300.0) / 4.0);
         m.threads_per_core = 16;
         assert_eq!(w.cycles(&m), 100.0);
+    }
+
+    #[test]
+    fn an_l3_and_memory_parallelism_shorten_the_stalls() {
+        let mut m = MachineConfig::larrabee(1);
+        m.threads_per_core = 1;
+        let w = CoreWork {
+            vector_ops: 100,
+            cache: CacheStats {
+                l2_hits: 10,
+                l2_misses: 30,
+                l3_hits: 20,
+                l3_misses: 10,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        // Without an L3 every L2 miss goes to DRAM: 10·10 + 30·(10 + 200).
+        assert_eq!(w.cycles(&m), 100.0 + 100.0 + 30.0 * 210.0);
+        m.l3 = Some(crate::model::config::CacheConfig {
+            size_bytes: 1 << 20,
+            ways: 16,
+            latency_cycles: 40.0,
+        });
+        // 10·10 + 20·(10 + 40) + 10·(10 + 40 + 200).
+        let stall = 100.0 + 1000.0 + 2500.0;
+        assert_eq!(w.cycles(&m), 100.0 + stall);
+        m.memory_parallelism = Some(4.0);
+        assert_eq!(w.cycles(&m), 100.0 + stall / 4.0);
     }
 
     #[test]

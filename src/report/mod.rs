@@ -12,6 +12,7 @@ pub mod font;
 pub mod html;
 pub mod style;
 pub mod summary;
+pub mod validation;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -155,6 +155,51 @@ fn counters_and_model_times_do_not_depend_on_host_threads() {
     assert!(a.counters.get("cache.l1_hits").unwrap() > 0.0);
 }
 
+/// A machine with a shared L3 (the host's kind): the cores' L2 traffic goes through it after
+/// each step in a fixed order, so its counters and times too are the same for any host thread
+/// count; its hits are L2 misses that did not go to DRAM.
+#[test]
+fn a_shared_l3_is_deterministic_and_serves_l2_misses() {
+    let f = frame(0.5, 16);
+    let mut machine = shadowbench::model::host::machine_from(
+        std::path::Path::new("/nonexistent"),
+        4,
+        shadowbench::model::host::simd(),
+        2.0,
+    );
+    machine.l2.size_bytes = 16 * 1024;
+    machine.l3 = Some(shadowbench::model::config::CacheConfig {
+        size_bytes: 4 << 20,
+        ways: 16,
+        latency_cycles: 30.0,
+    });
+    let ctx = ExecContext {
+        machine,
+        ..Default::default()
+    };
+    let in_pool = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| algorithms::run("pcss", Backend::CpuModel, &f, &ctx).unwrap())
+    };
+    let (a, b) = (in_pool(1), in_pool(3));
+    assert_eq!(a.counters, b.counters);
+    assert_eq!(a.model_ms, b.model_ms);
+    let c = |k: &str| a.counters.get(k).unwrap_or(0.0);
+    assert!(c("cache.l3_hits") > 0.0, "{:?}", a.counters);
+    assert_eq!(
+        c("cache.l3_hits") + c("cache.l3_misses"),
+        c("cache.l2_misses")
+    );
+    // DRAM reads are the L3's misses, not the L2's.
+    assert_eq!(c("dram_read_bytes"), c("cache.l3_misses") * 64.0);
+    // The same frame on the Larrabee machine has no L3 counters at all.
+    let l = render("pcss", Backend::CpuModel, &f);
+    assert!(l.counters.get("cache.l3_hits").is_none());
+}
+
 #[test]
 fn more_modelled_cores_take_less_modelled_time() {
     let f = |cores| {

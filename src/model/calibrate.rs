@@ -1,0 +1,560 @@
+//! Calibration: the host's cost table measured with small kernels (`shadowbench calibrate`).
+//!
+//! Each figure of [`MachineConfig`] that a timing model needs and the operating system cannot
+//! state is measured by a kernel written in the algorithms' own idiom (16-lane arrays, masks,
+//! [`Buffer::gather`] through [`NoProbe`]), timed with the wall clock, and turned into cycles at
+//! the machine's clock (`clock_ghz`, which then cancels out of `model_ms`). Every figure is the
+//! fastest of several repetitions (other processes only add time) and records its method in
+//! the machine's `sources`:
+//!
+//! | figure | kernel |
+//! |---|---|
+//! | `costs.vector` | a receiver-setup-like sequence of 16-lane operations (transform, reciprocal, floor, compares, selects) per counted vector instruction |
+//! | `costs.scalar` | four interleaved integer updates |
+//! | `costs.vector_memory` | 16-lane loads and stores of whole lines of an L1-resident array |
+//! | `costs.gather`, `costs.gather_line` | 16-lane gathers from an L1-resident table touching 1 and 16 lines: the cost per gather and per extra line |
+//! | `costs.atomic` | atomic adds on an L1-resident array |
+//! | `l1`, `l2`, `l3.latency_cycles`, `dram_latency_cycles` | pointer chasing over a random cycle of lines (page by page) in a buffer of half of each level's size (and 4× the last level's for DRAM): the load-to-use latency per level, differences between levels |
+//! | `memory_parallelism` | independent loads of random lines from the same buffer as the last cache level's chase: its latency over their time per load |
+//! | `dram_gb_per_s` | every core summing its share of the DRAM-sized buffer |
+//! | `barrier_cycles` | an empty step of [`Machine::run_step`] on `cpu-native` (the host's fork-join) |
+//!
+//! What the kernels cannot see: how the algorithms' own code compiles (a counted vector
+//! instruction of a kernel that does not vectorise costs more than the calibration kernel's),
+//! work outside the counted steps, page faults of new buffers, frequency changes.
+
+use std::hint::black_box;
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::Instant;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::config::MachineConfig;
+use super::{Lanes, Machine, Mask, Memory, NoProbe, Probe, TaskKernel, LANES};
+use crate::algorithms::Backend;
+use crate::util::hash::mix64;
+
+/// How long calibration runs: `scale` multiplies every kernel's iteration count (1 for the
+/// command, about 0.01 in tests), `repeats` is how many timings each figure takes the fastest
+/// of.
+#[derive(Clone, Copy, Debug)]
+pub struct Settings {
+    pub scale: f64,
+    pub repeats: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            scale: 0.5,
+            repeats: 11,
+        }
+    }
+}
+
+impl Settings {
+    /// `base` iterations scaled, at least 1.
+    fn n(&self, base: usize) -> usize {
+        ((base as f64 * self.scale).ceil() as usize).max(1)
+    }
+}
+
+/// One measured figure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Figure {
+    /// The machine field it sets (`costs.vector`, `l2.latency_cycles`, ...).
+    pub field: String,
+    pub value: f64,
+    pub unit: &'static str,
+    /// What was measured and how.
+    pub method: String,
+}
+
+/// The least over `repeats` of the wall seconds of `f` divided by the units it reports doing:
+/// other processes on the host only ever add time, so the fastest repetition is the closest to
+/// the machine's own cost.
+fn seconds_per_unit(repeats: usize, mut f: impl FnMut() -> u64) -> f64 {
+    (0..repeats.max(1))
+        .map(|_| {
+            let start = Instant::now();
+            let units = f();
+            start.elapsed().as_secs_f64() / units.max(1) as f64
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Counted vector instructions per iteration of [`vector_kernel`], by the kernels' convention
+/// (a multiply-add, a compare, a select, a floor, a reciprocal: one each): the 4-row transform
+/// (4 × 3 multiply-adds), a reciprocal, the two screen coordinates (2 × (multiply-add,
+/// multiply)), two texel floors (2 × (multiply, floor)), the range test (2 compares, an and),
+/// the depth (multiply, select), a min, the position step (3 adds).
+pub const VECTOR_KERNEL_OPS: u64 = 12 + 1 + 4 + 4 + 3 + 2 + 1 + 3;
+
+/// A receiver-setup-like sequence of 16-lane operations, `iters` times; returns the counted
+/// vector instructions.
+pub fn vector_kernel(iters: usize) -> u64 {
+    let m: [f32; 16] = black_box(std::array::from_fn(|i| 0.1 + i as f32 * 0.05));
+    let mut p: Lanes<Vec3> =
+        std::array::from_fn(|l| Vec3::new(l as f32 * 0.1, 1.0 + l as f32 * 0.05, 2.0));
+    let mut acc = [f32::MAX; LANES];
+    for _ in 0..iters {
+        let row = |r: usize, p: &Lanes<Vec3>| -> Lanes<f32> {
+            std::array::from_fn(|l| {
+                m[r] * p[l].x + m[4 + r] * p[l].y + m[8 + r] * p[l].z + m[12 + r]
+            })
+        };
+        let (x, y, z, w) = (row(0, &p), row(1, &p), row(2, &p), row(3, &p));
+        let rw: Lanes<f32> = std::array::from_fn(|l| 1.0 / w[l]);
+        let u: Lanes<f32> = std::array::from_fn(|l| x[l] * rw[l] * 0.5 + 0.5);
+        let v: Lanes<f32> = std::array::from_fn(|l| y[l] * rw[l] * 0.5 + 0.5);
+        let tx: Lanes<f32> = std::array::from_fn(|l| (u[l] * 512.0).floor());
+        let ty: Lanes<f32> = std::array::from_fn(|l| (v[l] * 512.0).floor());
+        let inside = Mask::from_fn(|l| tx[l] >= 0.0 && ty[l] < 512.0);
+        let d: Lanes<f32> = std::array::from_fn(|l| if inside.get(l) { z[l] * rw[l] } else { 1.0 });
+        acc = std::array::from_fn(|l| acc[l].min(d[l]));
+        p = std::array::from_fn(|l| p[l] + Vec3::splat(1e-3));
+    }
+    black_box(acc);
+    iters as u64 * VECTOR_KERNEL_OPS
+}
+
+/// Counted scalar instructions per iteration of [`scalar_kernel`]: four updates of two
+/// operations each, and the loop's increment and compare-branch.
+pub const SCALAR_KERNEL_OPS: u64 = 4 * 2 + 2;
+
+/// Four interleaved integer updates (xor-add, rotate-xor, shift-add, add-xor), each depending
+/// on the previous ones as setup code does (so they neither vectorise nor run as four free
+/// chains), `iters` times; returns the counted scalar instructions.
+pub fn scalar_kernel(iters: usize) -> u64 {
+    let [mut a, mut b, mut c, mut d]: [u64; 4] = black_box([1, 2, 3, 4]);
+    for i in 0..iters as u64 {
+        a = a.wrapping_add(b ^ i);
+        b = b.rotate_left(5) ^ d;
+        c = c.wrapping_add(a >> 3);
+        d ^= c.wrapping_add(i);
+    }
+    black_box((a, b, c, d));
+    iters as u64 * SCALAR_KERNEL_OPS
+}
+
+/// Lines of the L1-resident arrays of the memory kernels (16 KiB each).
+const L1_LINES: usize = 256;
+
+/// One 64-byte-aligned line of 16 f32 (the model's contiguous one-line access).
+#[derive(Clone, Copy)]
+#[repr(align(64))]
+struct Line(Lanes<f32>);
+
+/// Lines between the source and the destination array of [`vector_memory_kernel`], so that a
+/// store and the loads that follow it never share their address bits below 4 KiB (which would
+/// make the core wait for the store: 4K aliasing, a property of the layout, not of the cost).
+const GAP_LINES: usize = 8;
+
+/// 16-lane loads and stores of whole aligned lines: `passes` times over an L1-resident array,
+/// each line loaded, scaled and stored to a second one; returns the lines accessed (loads +
+/// stores).
+pub fn vector_memory_kernel(passes: usize) -> u64 {
+    let mut lines: Vec<Line> = (0..2 * L1_LINES + GAP_LINES)
+        .map(|i| Line(std::array::from_fn(|l| (i * LANES + l) as f32)))
+        .collect();
+    let (src, dst) = lines.split_at_mut(L1_LINES + GAP_LINES);
+    let src = &src[..L1_LINES];
+    let k = black_box(1.0001f32);
+    for _ in 0..passes {
+        for (d, s) in dst.iter_mut().zip(src) {
+            d.0 = std::array::from_fn(|l| s.0[l] * k);
+            // One line at a time, as the kernels access them: without this the compiler may
+            // vectorise across lines (transposing them with gathers), which is not a line
+            // access.
+            black_box(&mut *d);
+        }
+    }
+    (passes * L1_LINES * 2) as u64
+}
+
+/// Gathers from an L1-resident table of 4096 f32 through [`Buffer::gather`], each touching
+/// `lines` distinct lines (1: the 16 lanes in one line; 16: one lane per line); returns the
+/// gathers done.
+pub fn gather_kernel(gathers: usize, lines: usize) -> u64 {
+    let mut memory = Memory::default();
+    let table = memory.buffer("table", (0..4096).map(|i| i as f32).collect::<Vec<_>>());
+    let per_line = LANES / lines.clamp(1, LANES);
+    // 256 index vectors, cycled.
+    let idx: Vec<Lanes<u32>> = (0..256u64)
+        .map(|g| {
+            let base = (mix64(g) % 256) as u32;
+            std::array::from_fn(|l| {
+                let line = (base + (l / per_line) as u32 * 17) % 256;
+                line * 16 + (l % per_line) as u32
+            })
+        })
+        .collect();
+    let mut acc = [0f32; LANES];
+    for g in 0..gathers {
+        let v = table.gather(&mut NoProbe, &idx[g % idx.len()], Mask::ALL);
+        acc = std::array::from_fn(|l| acc[l] + v[l]);
+    }
+    black_box(acc);
+    gathers as u64
+}
+
+/// Atomic adds on an L1-resident array of 4096 counters at scattered indices; returns the
+/// atomics done.
+pub fn atomic_kernel(n: usize) -> u64 {
+    let counters: Vec<AtomicU32> = (0..4096).map(|_| AtomicU32::new(0)).collect();
+    for i in 0..n as u64 {
+        counters[(mix64(i) & 4095) as usize].fetch_add(1, Ordering::Relaxed);
+    }
+    black_box(&counters);
+    n as u64
+}
+
+/// A buffer of `bytes / 64` lines whose first word holds the index of the next line to visit,
+/// in one cycle through all of them: 4 KiB pages in a random order, the 64 lines of each page
+/// in a random order (fixed seeds). Each load is a new line, unpredictable to a prefetcher,
+/// while the translation of a page serves 64 loads: the latency of the caches, not of page
+/// walks (the algorithms' accesses are page-local too: tiles, blocks, rows).
+pub struct Chase {
+    words: Vec<u64>,
+}
+
+/// u64 words per 64-byte line.
+const WORDS: usize = 8;
+/// 64-byte lines per 4 KiB page.
+const PAGE_LINES: usize = 64;
+
+/// `0..n` in a random order (Fisher–Yates with the counter-based hash, `seed`).
+fn shuffled(n: usize, seed: u64) -> Vec<usize> {
+    let mut v: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        let j = (mix64(seed ^ mix64(i as u64)) % (i as u64 + 1)) as usize;
+        v.swap(i, j);
+    }
+    v
+}
+
+impl Chase {
+    pub fn new(bytes: usize) -> Chase {
+        let pages = (bytes / (64 * PAGE_LINES)).max(1);
+        let lines = pages * PAGE_LINES;
+        let within = |p: usize| shuffled(PAGE_LINES, 0x5eed ^ p as u64);
+        let order: Vec<usize> = shuffled(pages, 1)
+            .into_iter()
+            .flat_map(|p| within(p).into_iter().map(move |l| p * PAGE_LINES + l))
+            .collect();
+        let mut words = vec![0u64; lines * WORDS];
+        for i in 0..lines {
+            words[order[i] * WORDS] = (order[(i + 1) % lines] * WORDS) as u64;
+        }
+        Chase { words }
+    }
+
+    pub fn lines(&self) -> usize {
+        self.words.len() / WORDS
+    }
+
+    /// `steps` dependent loads, each to the line the previous one named; returns the steps.
+    pub fn chase(&self, steps: usize) -> u64 {
+        let mut i = 0usize;
+        for _ in 0..steps {
+            i = self.words[i] as usize;
+        }
+        black_box(i);
+        steps as u64
+    }
+
+    /// `n` independent loads of random lines (the addresses do not depend on loaded data, so
+    /// an out-of-order core overlaps them); returns the loads.
+    pub fn independent(&self, n: usize) -> u64 {
+        let lines = self.lines() as u64;
+        let mut sum = 0u64;
+        for i in 0..n as u64 {
+            sum = sum.wrapping_add(self.words[(mix64(i) % lines) as usize * WORDS]);
+        }
+        black_box(sum);
+        n as u64
+    }
+
+    /// Every core sums a contiguous share of the buffer, `passes` times; returns the bytes read.
+    pub fn stream(&self, passes: usize) -> u64 {
+        for _ in 0..passes {
+            let s: u64 = self
+                .words
+                .par_chunks(1 << 16)
+                .map(|c| c.iter().fold(0u64, |a, &w| a.wrapping_add(w)))
+                .sum();
+            black_box(s);
+        }
+        (passes * self.words.len() * 8) as u64
+    }
+}
+
+/// Nanoseconds per dependent load chasing through `bytes`, the fastest of `repeats` (after a
+/// warm-up of `steps` loads or one lap, whichever is shorter).
+pub fn chase_ns(bytes: usize, steps: usize, repeats: usize) -> f64 {
+    let c = Chase::new(bytes);
+    c.chase(c.lines().min(steps));
+    seconds_per_unit(repeats, || c.chase(steps)) * 1e9
+}
+
+/// A task that does nothing: the step's cost is the executor's fork and join.
+struct Empty;
+
+impl TaskKernel for Empty {
+    type Out = ();
+    fn run<P: Probe>(&self, _: &mut P, _: usize) {}
+}
+
+/// Measures the host's costs; `base` (the `host` preset) gives the clock, the cores and the
+/// cache sizes the kernels are sized by. Returns the calibrated machine (named
+/// `host-calibrated`, every measured figure's method in `sources`) and the figures in the order
+/// they were measured; `progress` gets one line per figure.
+pub fn calibrate(
+    base: &MachineConfig,
+    s: Settings,
+    mut progress: impl FnMut(&str),
+) -> (MachineConfig, Vec<Figure>) {
+    let ghz = base.clock_ghz;
+    let cycles = |seconds: f64| seconds * ghz * 1e9;
+    let r = s.repeats;
+    let mut figures: Vec<Figure> = Vec::new();
+    let mut record = |field: &str, value: f64, unit: &'static str, method: String| {
+        progress(&format!("  {field:<22} {value:>10.3} {unit:<18} {method}"));
+        figures.push(Figure {
+            field: field.into(),
+            value,
+            unit,
+            method,
+        });
+        value
+    };
+    let mut m = base.clone();
+    m.name = "host-calibrated".into();
+
+    let v = cycles(seconds_per_unit(r, || vector_kernel(s.n(400_000))));
+    m.costs.vector = record(
+        "costs.vector",
+        v,
+        "cycles/instruction",
+        format!(
+            "receiver-setup-like 16-lane kernel ({VECTOR_KERNEL_OPS} counted vector \
+             instructions per iteration), fastest of {r}"
+        ),
+    );
+    let sc = cycles(seconds_per_unit(r, || scalar_kernel(s.n(4_000_000))));
+    m.costs.scalar = record(
+        "costs.scalar",
+        sc,
+        "cycles/instruction",
+        format!("4 independent integer add/shift/xor chains, fastest of {r}"),
+    );
+    let vm = cycles(seconds_per_unit(r, || vector_memory_kernel(s.n(20_000))));
+    m.costs.vector_memory = record(
+        "costs.vector_memory",
+        vm,
+        "cycles/line",
+        format!(
+            "16-lane load, multiply and store of whole aligned lines of a 16 KiB array, per \
+             line accessed, fastest of {r}"
+        ),
+    );
+    let g1 = cycles(seconds_per_unit(r, || gather_kernel(s.n(2_000_000), 1)));
+    let g16 = cycles(seconds_per_unit(r, || gather_kernel(s.n(2_000_000), 16)));
+    let per_line = ((g16 - g1) / 15.0).max(0.0);
+    m.costs.gather_line = record(
+        "costs.gather_line",
+        per_line,
+        "cycles/line",
+        format!(
+            "16-lane gathers from a 16 KiB table touching 16 lines ({g16:.2} cycles) and 1 line \
+             ({g1:.2}): the difference over 15 lines (at least 0), fastest of {r}"
+        ),
+    );
+    m.costs.gather = record(
+        "costs.gather",
+        (g1 - per_line).max(0.0),
+        "cycles/instruction",
+        format!("the 1-line gather's cycles less one line's, fastest of {r}"),
+    );
+    let at = cycles(seconds_per_unit(r, || atomic_kernel(s.n(4_000_000))));
+    m.costs.atomic = record(
+        "costs.atomic",
+        at,
+        "cycles/atomic",
+        format!("relaxed atomic adds on a 16 KiB array at hashed indices, fastest of {r}"),
+    );
+
+    // Load-to-use latency at each level: chase through half of its size (the L2's half is
+    // well above the L1; the L3's above the L2 on current CPUs).
+    let steps = |base_steps: usize| s.n(base_steps);
+    let lat_l1 = cycles(chase_ns(m.l1.size_bytes as usize / 2, steps(4_000_000), r) * 1e-9);
+    let lat_l2 = cycles(chase_ns(m.l2.size_bytes as usize / 2, steps(2_000_000), r) * 1e-9);
+    m.l1.latency_cycles = record(
+        "l1.latency_cycles",
+        lat_l1,
+        "cycles",
+        format!(
+            "pointer chase over {} KiB (half the L1), fastest of {r}",
+            m.l1.size_bytes / 2048
+        ),
+    );
+    m.l2.latency_cycles = record(
+        "l2.latency_cycles",
+        (lat_l2 - lat_l1).max(0.0),
+        "cycles",
+        format!(
+            "pointer chase over {} KiB (half the L2): {lat_l2:.1} cycles, less the L1's",
+            m.l2.size_bytes / 2048
+        ),
+    );
+    let last_size =
+        m.l3.as_ref()
+            .map_or(m.l2.size_bytes as usize * m.cores as usize, |c| {
+                c.size_bytes as usize
+            });
+    let mut lat_last = lat_l2;
+    let mut mlp_buffer = None;
+    if let Some(l3) = m.l3.as_mut() {
+        let bytes = l3.size_bytes as usize / 2;
+        let chase = Chase::new(bytes);
+        chase.chase(chase.lines().min(steps(4_000_000)));
+        let lat = cycles(seconds_per_unit(r, || chase.chase(steps(1_000_000))));
+        lat_last = lat;
+        l3.latency_cycles = record(
+            "l3.latency_cycles",
+            (lat - lat_l2).max(0.0),
+            "cycles",
+            format!(
+                "pointer chase over {} KiB (half the L3): {lat:.1} cycles, less the L2's",
+                bytes / 1024
+            ),
+        );
+        mlp_buffer = Some((chase, lat, "L3"));
+    }
+    let dram_bytes = (4 * last_size).max(64 << 20);
+    let dram = Chase::new(dram_bytes);
+    dram.chase(dram.lines().min(steps(4_000_000)));
+    let lat_dram = cycles(seconds_per_unit(r, || dram.chase(steps(500_000))));
+    m.dram_latency_cycles = record(
+        "dram_latency_cycles",
+        (lat_dram - lat_last).max(0.0),
+        "cycles",
+        format!(
+            "pointer chase over {} MiB (4× the last cache level): {lat_dram:.1} cycles, less \
+             the last level's",
+            dram_bytes >> 20
+        ),
+    );
+    let (buffer, lat, level) = match &mlp_buffer {
+        Some((c, lat, level)) => (c, *lat, *level),
+        None => (&dram, lat_dram, "DRAM"),
+    };
+    let independent = cycles(seconds_per_unit(r, || buffer.independent(steps(1_000_000))));
+    m.memory_parallelism = Some(record(
+        "memory_parallelism",
+        (lat / independent).clamp(1.0, 64.0),
+        "loads in flight",
+        format!(
+            "the {level} chase's {lat:.1} cycles per load over {independent:.1} cycles per \
+             independent load of a random line of the same buffer (clamped to 1..=64)"
+        ),
+    ));
+    let bytes_per_s = 1.0 / seconds_per_unit(r, || dram.stream(s.n(8)));
+    m.dram_gb_per_s = record(
+        "dram_gb_per_s",
+        bytes_per_s / 1e9,
+        "GB/s",
+        format!(
+            "all host threads summing {} MiB, fastest of {r}",
+            dram_bytes >> 20
+        ),
+    );
+    drop(dram);
+
+    let mut machine = Machine::new(Backend::CpuNative, m.clone());
+    machine.phase("barrier");
+    let weights = vec![1u64; m.cores as usize];
+    let barrier = cycles(seconds_per_unit(r, || {
+        let n = s.n(20_000);
+        for _ in 0..n {
+            machine.run_step("empty", &Empty, &weights);
+        }
+        n as u64
+    }));
+    m.barrier_cycles = record(
+        "barrier_cycles",
+        barrier,
+        "cycles",
+        format!(
+            "an empty cpu-native step of {} tasks (fork and join), fastest of {r}",
+            m.cores
+        ),
+    );
+    for f in &figures {
+        m.sources.insert(
+            f.field.clone(),
+            format!("measured by shadowbench calibrate: {}", f.method),
+        );
+    }
+    (m, figures)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_chase_visits_every_line_once_per_lap() {
+        let c = Chase::new(64 * PAGE_LINES * 5);
+        let mut seen = vec![false; c.lines()];
+        let mut i = 0usize;
+        for _ in 0..c.lines() {
+            let line = i / WORDS;
+            assert!(!seen[line], "line {line} visited twice");
+            seen[line] = true;
+            i = c.words[i] as usize;
+        }
+        assert!(seen.iter().all(|&s| s));
+        assert_eq!(i, 0, "one lap returns to the start");
+    }
+
+    #[test]
+    fn the_chase_latency_rises_past_the_caches() {
+        // 16 KiB fits every L1 of the last twenty years; 256 MiB fits no cache: each load of
+        // the large chase goes to DRAM (≥ 40 ns on any current machine), the small one's
+        // to L1 (≤ 5 ns).
+        let small = chase_ns(16 << 10, 200_000, 3);
+        let large = chase_ns(256 << 20, 100_000, 3);
+        assert!(large > 4.0 * small, "{small} ns vs {large} ns");
+    }
+
+    #[test]
+    fn calibration_writes_a_valid_machine_with_a_method_per_figure() {
+        let base = crate::model::host::machine(2.0);
+        let mut lines = Vec::new();
+        let (m, figures) = calibrate(
+            &base,
+            Settings {
+                scale: 0.002,
+                repeats: 1,
+            },
+            |l| lines.push(l.to_string()),
+        );
+        m.validate().unwrap();
+        assert_eq!(lines.len(), figures.len());
+        for f in &figures {
+            assert!(f.value.is_finite() && f.value >= 0.0, "{f:?}");
+            assert!(m.sources[&f.field].starts_with("measured"), "{f:?}");
+        }
+        // The same sizes as the host: only costs and latencies change.
+        assert_eq!(
+            (m.l1.size_bytes, m.l2.size_bytes),
+            (base.l1.size_bytes, base.l2.size_bytes)
+        );
+        let json = serde_json::to_string(&m).unwrap();
+        let back =
+            crate::model::MachineConfig::from_json(&json, std::path::Path::new("m.json")).unwrap();
+        assert_eq!(back, m);
+    }
+}

@@ -1,0 +1,193 @@
+//! The host as a modelled machine: `calibrate` writes a machine file that `--machine` takes, and
+//! `validate-model` compares the cpu-model with cpu-native on a tiny sweep, its modelled times
+//! being those `render` gives for the same runs. Settings are tiny so CI stays fast.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn shadowbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+#[test]
+fn calibrate_writes_a_machine_that_render_accepts() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("machine.json");
+    let f = file.to_str().unwrap();
+    let o = shadowbench(&["calibrate", "--quick", "--out", f]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let out = text(&o.stdout);
+    // One progress line per figure, each naming the field it measured.
+    for field in [
+        "costs.vector",
+        "costs.gather",
+        "costs.atomic",
+        "l2.latency_cycles",
+        "dram_latency_cycles",
+        "memory_parallelism",
+        "dram_gb_per_s",
+        "barrier_cycles",
+    ] {
+        assert!(out.contains(field), "{field} missing from:\n{out}");
+    }
+    let m = json(&file);
+    assert_eq!(m["name"], "host-calibrated");
+    let sources = m["sources"].as_object().unwrap();
+    for k in [
+        "costs.vector",
+        "costs.scalar",
+        "l1.latency_cycles",
+        "barrier_cycles",
+    ] {
+        assert!(
+            sources[k].as_str().unwrap().starts_with("measured"),
+            "{k}: {}",
+            sources[k]
+        );
+    }
+    // The sizes are the host preset's (read from the OS), only costs are measured.
+    let o = shadowbench(&["list", "--machine", "host"]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let host: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for k in [
+        "cores",
+        "threads_per_core",
+        "line_bytes",
+        "simd",
+        "clock_ghz",
+    ] {
+        assert_eq!(m[k], host[k], "{k}");
+    }
+    for k in ["l1", "l2", "l3"] {
+        assert_eq!(m[k]["size_bytes"], host[k]["size_bytes"], "{k}");
+        assert_eq!(m[k]["ways"], host[k]["ways"], "{k}");
+    }
+    let render = dir.path().join("r");
+    let o = shadowbench(&[
+        "render",
+        "--algorithm",
+        "hard_shadow_map",
+        "--backend",
+        "cpu-model",
+        "--machine",
+        f,
+        "--image",
+        "32x24",
+        "--map-resolution",
+        "64",
+        "--no-reference",
+        "--out",
+        render.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let r = json(&render.join("run.json"));
+    assert_eq!(r["execution"]["machine"], "host-calibrated");
+    assert!(r["model_ms"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn validate_model_agrees_with_render_on_its_modelled_times() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("v");
+    let o = shadowbench(&[
+        "validate-model",
+        "--machine",
+        "larrabee-24",
+        "--only",
+        "hard_shadow_map,pcss",
+        "--scenes",
+        "plate-on-plane",
+        "--images",
+        "32x24",
+        "--repeats",
+        "1",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    for f in shadowbench::harness::validate::FILES {
+        assert!(out.join(f).is_file(), "{f} not written");
+    }
+    let v = json(&out.join("validation.json"));
+    let runs = v["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    assert_eq!(v["runs_agreement"]["n"], 2);
+    let csv = std::fs::read_to_string(out.join("runs.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    let phases = std::fs::read_to_string(out.join("phases.csv")).unwrap();
+    // Both algorithms have a light pass and an eye pass.
+    assert_eq!(phases.lines().count(), 1 + 4, "{phases}");
+    for r in runs {
+        let (m, t) = (
+            r["modelled_ms"].as_f64().unwrap(),
+            r["measured_ms"].as_f64().unwrap(),
+        );
+        assert!(t > 0.0 && (r["ratio"].as_f64().unwrap() - m / t).abs() < 1e-9 * m / t);
+        // The same case through `render`: the same modelled time.
+        let alg = r["algorithm"].as_str().unwrap();
+        let dir_r = dir.path().join(alg);
+        let o = shadowbench(&[
+            "render",
+            "--algorithm",
+            alg,
+            "--scene",
+            "plate-on-plane",
+            "--backend",
+            "cpu-model",
+            "--machine",
+            "larrabee-24",
+            "--image",
+            "32x24",
+            "--map-resolution",
+            "256",
+            "--tile-size",
+            "32",
+            "--no-reference",
+            "--out",
+            dir_r.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let rendered = json(&dir_r.join("run.json"));
+        assert_eq!(rendered["model_ms"].as_f64().unwrap(), m, "{alg}");
+    }
+}
+
+#[test]
+fn validate_model_refuses_bad_sweep_settings_naming_the_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("v");
+    for (flag, value) in [
+        ("--images", "0x24"),
+        ("--images", "big"),
+        ("--scenes", "no-such-scene"),
+        ("--repeats", "0"),
+        ("--machine", "larabee-24"),
+    ] {
+        let o = shadowbench(&[
+            "validate-model",
+            flag,
+            value,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{flag} {value}: {}",
+            text(&o.stderr)
+        );
+        assert!(text(&o.stderr).contains(flag), "{}", text(&o.stderr));
+        assert!(!out.exists(), "{flag} {value}: output folder written");
+    }
+}
