@@ -256,7 +256,7 @@ pub fn coordinate_spacing(scene: &Scene) -> f32 {
 /// off their own surface ([`OFFSET_ULPS`] units in the last place of the largest coordinate)
 /// exceeds [`PRECISION_LIMIT`] of the scene's diagonal (4 times the scene-relative offset), the
 /// shadow terminator on curved surfaces, contact shadows and small features move by more than
-/// the ground truth can vouch for (`tests/precision.rs` measures it).
+/// the ground truth can vouch for (`tests/integration/precision.rs` measures it).
 pub fn precision_warning(scene: &Scene) -> Option<String> {
     let spacing = coordinate_spacing(scene);
     let diagonal = scene.bounds().diagonal();

@@ -30,6 +30,7 @@
 //! ```
 
 pub mod algorithms;
+pub mod backend;
 pub mod counters;
 pub mod error;
 pub mod frame;

@@ -1007,6 +1007,15 @@ fn private_runtime_dir() {
 fn private_runtime_dir() {}
 
 fn main() -> ExitCode {
+    // Rust ignores SIGPIPE, which turns output into a closed pipe (`shadowbench list | head`)
+    // into a panic in `println!`; the default action ends the process quietly instead, as other
+    // command-line tools do. Results files are written atomically, so nothing is left half
+    // written.
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to SIG_DFL at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     // Only the subcommands that probe the GPU.
     if matches!(

@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::frame::RunParams;
 use crate::metrics::ErrorMetrics;
 
-/// Named counters (`fill`, `overdraw`, `mem_read_bytes`, `mem.<buffer>.read_bytes`, ...).
+/// Named counters (`fill`, `overdraw`, `mem_model.read_bytes`, `mem_est.<buffer>.read_bytes`, ...; see [`crate::counters`]).
 /// Sorted by name so files and comparisons are stable.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(transparent)]
@@ -85,7 +85,7 @@ impl RunRecord {
     /// A record for `algorithm` on `backend` in `scene`, before it ran.
     pub fn new(
         algorithm: &str,
-        backend: crate::algorithms::Backend,
+        backend: crate::backend::Backend,
         scene: &crate::scene::Scene,
         params: RunParams,
     ) -> RunRecord {

@@ -5,13 +5,13 @@
 
 pub mod accum_hard;
 pub mod dbuffer;
+pub mod exec;
 pub mod eye_raster;
 pub mod hard_shadow_map;
 pub mod pcss;
 pub mod penumbra_map;
 pub mod reference;
 pub mod shadow_map;
-pub mod shadow_map_wgpu;
 pub mod shadow_volume;
 pub mod soft_izb;
 pub mod soft_shadow_map;
@@ -20,8 +20,7 @@ pub mod work;
 
 use std::collections::BTreeMap;
 
-use serde::{Deserialize, Serialize};
-
+pub use crate::backend::Backend;
 use crate::error::{unknown_name, Error, InputError, Result};
 use crate::frame::{Frame, RunParams};
 use crate::model::MachineConfig;
@@ -29,43 +28,6 @@ use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
 use crate::util::deadline::Deadline;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
-
-/// Where an algorithm runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Backend {
-    /// The algorithm's kernels on the host, uninstrumented: honest host wall-clock time.
-    CpuNative,
-    /// The same kernels on the modelled many-core SIMD machine, counting and timing its work.
-    CpuModel,
-    /// Real GPU passes through wgpu.
-    Wgpu,
-}
-
-impl Backend {
-    pub const ALL: [Backend; 3] = [Backend::CpuNative, Backend::CpuModel, Backend::Wgpu];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Backend::CpuNative => "cpu-native",
-            Backend::CpuModel => "cpu-model",
-            Backend::Wgpu => "wgpu",
-        }
-    }
-
-    pub fn parse(s: &str) -> std::result::Result<Backend, String> {
-        Backend::ALL
-            .into_iter()
-            .find(|b| b.name() == s)
-            .ok_or_else(|| unknown_name("backend", s, &Backend::ALL.map(|b| b.name())))
-    }
-}
-
-impl std::fmt::Display for Backend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// Shadowing an algorithm's method does not compute: its paper's design, not a fault. Declared
 /// per algorithm ([`AlgorithmInfo::limits`]), listed in every record
@@ -102,7 +64,75 @@ impl MethodLimit {
     }
 }
 
-/// A registered algorithm.
+/// One algorithm as the registry runs it: its description, its typed options (parsed and
+/// validated once per run, by [`Algorithm::options`]), and one entry per execution. An
+/// algorithm implements this in its folder's `mod.rs`; [`ALGORITHMS`] lists it with
+/// [`AlgorithmInfo::of`], the only place an algorithm is added.
+pub trait Algorithm {
+    /// Its name in scenarios, records and charts (`options.<ID>` holds its options).
+    const ID: &'static str;
+    /// Paper and section it implements.
+    const SOURCE: &'static str;
+    const SUMMARY: &'static str;
+    /// Light kinds it handles; another kind is converted to the first of these (same size).
+    const LIGHTS: &'static [LightKind];
+    /// Its executions; the registry refuses the others before anything runs.
+    const BACKENDS: &'static [Backend];
+    /// The shadowing its method does not compute.
+    const LIMITS: &'static [MethodLimit];
+    /// Its options, `options.<ID>` of a scenario.
+    type Options;
+    /// Reads and validates `options.<ID>` (defaults when absent); a bad value names its JSON
+    /// path.
+    fn options(
+        options: &BTreeMap<String, serde_json::Value>,
+    ) -> std::result::Result<Self::Options, InputError>;
+    /// Whether these options honour a textured light (`$.light.texture`). By default refused:
+    /// the algorithm would treat the light as uniform white, which is silently wrong.
+    fn light_texture(_: &Self::Options) -> std::result::Result<(), InputError> {
+        Err(InputError::new(
+            "$.light.texture",
+            format!(
+                "algorithm '{id}' cannot honour a textured light (only reference and {} with \
+                 coverage \"texture\" do); drop '{id}' from the algorithms or the texture",
+                soft_shadow_volume::ID,
+                id = Self::ID
+            ),
+        ))
+    }
+    /// Adapts the options to the frame before a run, with the run's warning when it does (the
+    /// z-fail fallback of the shadow-volume family on open occluders). By default unchanged.
+    fn prepare(_: &Frame, _: &mut Self::Options) -> Option<String> {
+        None
+    }
+    /// Bytes of its own buffers for a run, estimated before anything is allocated.
+    fn memory_estimate(p: &RunParams) -> u64;
+    /// Estimated fill of a run ([`work`]), made before anything runs.
+    fn work_estimate(extent: &work::SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64;
+    /// The `cpu-native` / `cpu-model` execution (`backend` picks the machine's probe).
+    fn cpu(
+        backend: Backend,
+        frame: &Frame,
+        ctx: &ExecContext,
+        o: &Self::Options,
+    ) -> Result<FrameOutput>;
+    /// The `wgpu` execution, run inside [`crate::gpu::guarded_run`]; only called when
+    /// [`Algorithm::BACKENDS`] lists [`Backend::Wgpu`].
+    fn wgpu(
+        _gpu: &crate::gpu::Gpu,
+        _frame: &Frame,
+        _ctx: &ExecContext,
+        _o: &Self::Options,
+    ) -> Result<FrameOutput> {
+        Err(Error::Unsupported(format!(
+            "algorithm '{}' has no wgpu execution",
+            Self::ID
+        )))
+    }
+}
+
+/// A registered algorithm: an [`Algorithm`] with its typed options erased, so the registry is
+/// one list.
 pub struct AlgorithmInfo {
     pub id: &'static str,
     /// Paper and section it implements.
@@ -120,11 +150,34 @@ pub struct AlgorithmInfo {
     /// Checks `options.<id>` of a scenario before any work starts.
     pub check_options:
         fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
+    /// Checks that `options.<id>` honour a textured light ([`Algorithm::light_texture`]).
+    pub check_light_texture:
+        fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
     /// The shadowing its method does not compute.
     pub limits: &'static [MethodLimit],
+    /// Parses the options once, adapts them to the frame ([`Algorithm::prepare`], whose
+    /// warning it returns) and runs the `backend` execution.
+    run: fn(Backend, &Frame, &ExecContext) -> Result<Prepared>,
 }
 
 impl AlgorithmInfo {
+    /// The registry entry of algorithm `A`.
+    pub const fn of<A: Algorithm>() -> AlgorithmInfo {
+        AlgorithmInfo {
+            id: A::ID,
+            source: A::SOURCE,
+            summary: A::SUMMARY,
+            lights: A::LIGHTS,
+            backends: A::BACKENDS,
+            memory_estimate: A::memory_estimate,
+            work_estimate: A::work_estimate,
+            check_options: |o| A::options(o).map(|_| ()),
+            check_light_texture: |o| A::light_texture(&A::options(o)?),
+            limits: A::LIMITS,
+            run: run_typed::<A>,
+        }
+    }
+
     /// The light kind this algorithm runs with when the scene's light is `kind`.
     pub fn light_for(&self, kind: LightKind) -> LightKind {
         if self.lights.contains(&kind) {
@@ -135,117 +188,60 @@ impl AlgorithmInfo {
     }
 }
 
+/// A run's output and the warning of [`Algorithm::prepare`], if it changed the options.
+type Prepared = (FrameOutput, Option<String>);
+
+/// [`AlgorithmInfo::run`] of algorithm `A`.
+fn run_typed<A: Algorithm>(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Prepared> {
+    let mut o = A::options(&ctx.options)?;
+    if frame.scene.light_texture.is_some() {
+        A::light_texture(&o)?;
+    }
+    let warning = A::prepare(frame, &mut o);
+    let out = match backend {
+        Backend::Wgpu => crate::gpu::guarded_run(ctx.deadline, |gpu| A::wgpu(gpu, frame, ctx, &o)),
+        Backend::CpuNative | Backend::CpuModel => A::cpu(backend, frame, ctx, &o),
+    }?;
+    Ok((out, warning))
+}
+
+/// Every algorithm, in the order of listings and chart colours. Adding an algorithm: its folder
+/// (an [`Algorithm`] in its `mod.rs`) and one line here.
 pub const ALGORITHMS: &[AlgorithmInfo] = &[
-    AlgorithmInfo {
-        id: "reference",
-        source: "ground truth",
-        summary: "visible fraction of the light by stratified sampling and BVH ray casting",
-        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative],
-        memory_estimate: |_| 0,
-        work_estimate: work::reference,
-        check_options: |o| no_options("reference", o),
-        limits: &[],
-    },
-    AlgorithmInfo {
-        id: hard_shadow_map::ID,
-        source: "baseline (Williams 1978)",
-        summary: "shadow map from the light centre with slope-scaled bias",
-        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: shadow_map::memory_estimate,
-        work_estimate: work::hard_shadow_map,
-        check_options: hard_shadow_map::check_options,
-        limits: &[MethodLimit::NoPenumbra],
-    },
-    AlgorithmInfo {
-        id: pcss::ID,
-        source: "Fernando 2005, cited in 004 Table 2",
-        summary: "blocker search + variable-width percentage-closer filter",
-        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: shadow_map::memory_estimate,
-        work_estimate: work::pcss,
-        check_options: pcss::check_options,
-        limits: &[],
-    },
-    AlgorithmInfo {
-        id: soft_izb::ID,
-        source: "paper 004 (soft irregular shadow mapping), §2",
-        summary: "eye samples in a light-space grid; umbra by irregular rasterization (depth \
-              complexity), penumbra quads per silhouette edge with analytic circular-segment \
-              occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)",
-        // §2.3 sizes the light's footprint in the light's image plane: the light it computes is
-        // the disc there (normal along its view axis), so a sphere is converted to that disc and
-        // the reference is computed for it.
-        lights: &[LightKind::Disc],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: soft_izb::cpu::memory_estimate,
-        work_estimate: work::soft_izb,
-        check_options: |o| soft_izb::SoftIzbOptions::parse(o).map(|_| ()),
-        limits: &[MethodLimit::OneMap],
-    },
-    AlgorithmInfo {
-        id: accum_hard::ID,
-        source: "001 §1.3, Paper III §5",
-        summary: "average of N hard shadow-volume shadows from N light samples",
-        lights: &[LightKind::Sphere, LightKind::Disc, LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: accum_hard::memory_estimate,
-        work_estimate: work::accum_hard,
-        check_options: accum_hard::check_options,
-        limits: &[],
-    },
-    AlgorithmInfo {
-        id: soft_shadow_volume::ID,
-        source: "001 Papers III and IV",
-        summary: "hard shadow quads plus penumbra wedges adding or subtracting light coverage",
-        lights: &[LightKind::Rect, LightKind::Sphere],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: soft_shadow_volume::memory_estimate,
-        work_estimate: work::soft_shadow_volume,
-        check_options: soft_shadow_volume::check_options,
-        limits: &[],
-    },
-    AlgorithmInfo {
-        id: penumbra_map::ID,
-        source: "000 §3-§4 (Wyman and Hansen 2003)",
-        summary: "shadow map + penumbra map of cones and sheets on the light-centre silhouette",
-        lights: &[LightKind::Sphere],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: penumbra_map::memory_estimate,
-        work_estimate: work::penumbra_map,
-        check_options: penumbra_map::check_options,
-        limits: &[MethodLimit::OuterPenumbraOnly, MethodLimit::OneMap],
-    },
-    AlgorithmInfo {
-        id: soft_shadow_map::ID,
-        source: "002 §3-§4 (Atty et al. 2006)",
-        summary: "occluder map as micro-patches; penumbra-extent quads add each patch's hidden \
-              fraction of the light (interval product) into a soft shadow map; one or two \
-              passes, FP32 or FP16 accumulation",
-        lights: &[LightKind::Rect],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: soft_shadow_map::memory_estimate,
-        work_estimate: work::soft_shadow_map,
-        check_options: soft_shadow_map::check_options,
-        limits: &[MethodLimit::NoOccluderShadowing, MethodLimit::OneMap],
-    },
-    AlgorithmInfo {
-        id: dbuffer::ID,
-        source: "003 §2-§4 (umbra and penumbra volumes, D-buffer)",
-        summary: "umbra/penumbra volumes of the area silhouettes (p_near/p_far) drawn from the \
-              light centre into a D-buffer of distances; t by eq. 3, V(t) = 3t^2 - 2t^3",
-        lights: &[LightKind::Disc],
-        backends: &[Backend::CpuNative, Backend::CpuModel, Backend::Wgpu],
-        memory_estimate: dbuffer::memory_estimate,
-        work_estimate: work::dbuffer,
-        check_options: dbuffer::check_options,
-        limits: &[MethodLimit::OneMap],
-    },
+    AlgorithmInfo::of::<reference::Reference>(),
+    AlgorithmInfo::of::<hard_shadow_map::HardShadowMap>(),
+    AlgorithmInfo::of::<pcss::Pcss>(),
+    AlgorithmInfo::of::<soft_izb::SoftIzb>(),
+    AlgorithmInfo::of::<accum_hard::AccumHard>(),
+    AlgorithmInfo::of::<soft_shadow_volume::SoftShadowVolume>(),
+    AlgorithmInfo::of::<penumbra_map::PenumbraMap>(),
+    AlgorithmInfo::of::<soft_shadow_map::SoftShadowMap>(),
+    AlgorithmInfo::of::<dbuffer::Dbuffer>(),
 ];
 
-/// `check_options` of an algorithm that takes no options.
+/// Reads `options.<id>` of a scenario into `T` (defaults when absent), naming the JSON path of
+/// a bad field.
+pub fn parse_options<T: serde::de::DeserializeOwned + Default>(
+    id: &str,
+    options: &std::collections::BTreeMap<String, serde_json::Value>,
+) -> Result<T, crate::error::InputError> {
+    match options.get(id) {
+        None => Ok(T::default()),
+        Some(v) => serde_path_to_error::deserialize(v).map_err(|e| {
+            let path = e.path().to_string();
+            crate::error::InputError::new(
+                if path == "." {
+                    format!("$.options.{id}")
+                } else {
+                    format!("$.options.{id}.{path}")
+                },
+                e.into_inner().to_string(),
+            )
+        }),
+    }
+}
+
+/// Reads `options.<id>` of an algorithm that takes no options.
 pub fn no_options(
     id: &str,
     options: &BTreeMap<String, serde_json::Value>,
@@ -259,26 +255,16 @@ pub fn no_options(
     }
 }
 
-/// Whether algorithm `id` with `options` honours a textured light (`$.light.texture`): the
-/// reference weights each light sample by the texture, `soft_shadow_volume` with the 4D coverage
-/// texture weights its texels (Paper III §3.3). Every other algorithm would treat the light as
-/// uniform white, so it is refused rather than silently wrong.
+/// Whether algorithm `id` with `options` honours a textured light (`$.light.texture`)
+/// ([`Algorithm::light_texture`]: the reference weights each light sample by the texture,
+/// `soft_shadow_volume` with the 4D coverage texture weights its texels, Paper III §3.3; every
+/// other algorithm refuses).
 pub fn check_light_texture(
     id: &str,
     options: &BTreeMap<String, serde_json::Value>,
 ) -> std::result::Result<(), InputError> {
-    match id {
-        "reference" => Ok(()),
-        soft_shadow_volume::ID => soft_shadow_volume::check_light_texture(options),
-        _ => Err(InputError::new(
-            "$.light.texture",
-            format!(
-                "algorithm '{id}' cannot honour a textured light (only reference and {} with \
-                 coverage \"texture\" do); drop '{id}' from the algorithms or the texture",
-                soft_shadow_volume::ID
-            ),
-        )),
-    }
+    let info = find(id).map_err(|e| InputError::new("$.algorithms", e))?;
+    (info.check_light_texture)(options)
 }
 
 /// The registered algorithm `id`, or an error suggesting the closest name.
@@ -357,12 +343,7 @@ fn execute(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
                 .join(", ")
         )));
     }
-    if frame.scene.light_texture.is_some() {
-        check_light_texture(id, &ctx.options)?;
-    }
-    let fallback = zfail_fallback(id, frame, ctx);
-    let ctx = fallback.as_ref().map_or(ctx, |(c, _)| c);
-    let mut out = dispatch(id, backend, frame, ctx)?;
+    let (mut out, fallback) = (info.run)(backend, frame, ctx)?;
     let edges = frame.occluder_edges;
     out.counters
         .set("occluders.boundary_edges", edges.boundary as f64);
@@ -370,112 +351,6 @@ fn execute(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Resu
         .set("occluders.non_manifold_edges", edges.non_manifold as f64);
     out.warnings.extend(edges.warning());
     out.warnings.extend(frame.precision_warning.clone());
-    out.warnings.extend(fallback.map(|(_, w)| w));
+    out.warnings.extend(fallback);
     Ok(out)
-}
-
-/// z-fail counting (`counting: "z_fail"` of `soft_shadow_volume` and `accum_hard`) closes each
-/// shadow volume with caps and is only right for closed 2-manifold occluders: on an open or
-/// non-manifold mesh the volumes leak and streaks cross the image. Such runs fall back to z-pass
-/// (from the eye's count, right wherever the eye is outside the shadow); returns the options
-/// they run with and the run's warning naming the algorithm, the option and the open edges.
-fn zfail_fallback(id: &str, frame: &Frame, ctx: &ExecContext) -> Option<(ExecContext, String)> {
-    let edges = frame.occluder_edges;
-    if ![soft_shadow_volume::ID, accum_hard::ID].contains(&id) || edges.open() == 0 {
-        return None;
-    }
-    // Options the algorithm itself refuses are left for it to report.
-    let counting = match id {
-        soft_shadow_volume::ID => {
-            let o: soft_shadow_volume::SoftShadowVolumeOptions =
-                shadow_map::parse_options(id, &ctx.options).ok()?;
-            o.validate().ok()?;
-            o.counting
-        }
-        _ => {
-            let o: accum_hard::AccumHardOptions =
-                shadow_map::parse_options(id, &ctx.options).ok()?;
-            o.strata_side().ok()?;
-            o.counting
-        }
-    };
-    if counting != shadow_volume::Counting::ZFail {
-        return None;
-    }
-    let mut ctx = ctx.clone();
-    if let Some(serde_json::Value::Object(o)) = ctx.options.get_mut(id) {
-        o.insert("counting".into(), serde_json::json!("z_pass"));
-    }
-    let warning = format!(
-        "{id}: options.{id}.counting \"z_fail\" needs closed occluders, but they have {} open \
-         edges ({} boundary, {} non-manifold): counted with \"z_pass\" instead",
-        edges.open(),
-        edges.boundary,
-        edges.non_manifold
-    );
-    Some((ctx, warning))
-}
-
-/// Runs algorithm `id` (registered, with a `backend` execution) on `backend` for `frame`.
-fn dispatch(id: &str, backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    if backend == Backend::Wgpu {
-        return crate::gpu::guarded_run(ctx.deadline, |gpu| match id {
-            hard_shadow_map::ID => hard_shadow_map::wgpu::render(gpu, frame, ctx),
-            pcss::ID => pcss::wgpu::render(gpu, frame, ctx),
-            penumbra_map::ID => penumbra_map::wgpu::render(gpu, frame, ctx),
-            dbuffer::ID => dbuffer::wgpu::render(gpu, frame, ctx, dbuffer::options(&ctx.options)?),
-            soft_shadow_map::ID => soft_shadow_map::wgpu::render(
-                gpu,
-                frame,
-                &soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options)?,
-            ),
-            soft_shadow_volume::ID => soft_shadow_volume::wgpu::render(gpu, frame, ctx),
-            accum_hard::ID => accum_hard::wgpu::render(gpu, frame, ctx),
-            soft_izb::ID => {
-                soft_izb::wgpu::render(gpu, frame, &soft_izb::SoftIzbOptions::parse(&ctx.options)?)
-            }
-            _ => unreachable!("registered wgpu execution without a dispatch arm: {id}"),
-        });
-    }
-    match id {
-        "reference" => Ok(reference::render_until(
-            frame,
-            ctx.reference_samples,
-            ctx.seed,
-            ctx.deadline,
-        )),
-        hard_shadow_map::ID => {
-            let o: shadow_map::HardShadowOptions = shadow_map::parse_options(id, &ctx.options)?;
-            Ok(hard_shadow_map::cpu::render(backend, frame, ctx, o.bias))
-        }
-        pcss::ID => Ok(pcss::cpu::render(
-            backend,
-            frame,
-            ctx,
-            pcss::options(&ctx.options)?,
-        )),
-        soft_izb::ID => {
-            let opts = soft_izb::SoftIzbOptions::parse(&ctx.options)?;
-            soft_izb::cpu::render(backend, frame, ctx, &opts)
-        }
-        accum_hard::ID => accum_hard::cpu::render(backend, frame, ctx),
-        soft_shadow_volume::ID => soft_shadow_volume::cpu::render(backend, frame, ctx),
-        penumbra_map::ID => Ok(penumbra_map::cpu::render(
-            backend,
-            frame,
-            ctx,
-            penumbra_map::options(&ctx.options)?,
-        )),
-        soft_shadow_map::ID => {
-            let o = soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options)?;
-            Ok(soft_shadow_map::cpu::render(backend, frame, ctx, &o))
-        }
-        dbuffer::ID => Ok(dbuffer::cpu::render(
-            backend,
-            frame,
-            ctx,
-            dbuffer::options(&ctx.options)?,
-        )),
-        _ => unreachable!("registered algorithm without a dispatch arm: {id}"),
-    }
 }

@@ -125,6 +125,31 @@ pub struct HardPass {
     pub caps: u64,
 }
 
+/// z-fail counting closes each shadow volume with caps and is only right for closed
+/// 2-manifold occluders: on an open or non-manifold mesh the volumes leak and streaks cross the
+/// image. Such runs of algorithm `id` (`soft_shadow_volume`, `accum_hard`) fall back to z-pass
+/// (from the eye's count, right wherever the eye is outside the shadow): sets `counting` to
+/// [`Counting::ZPass`] and returns the run's warning naming the algorithm, the option and the
+/// open edges; `None` (unchanged) for closed occluders or z-pass.
+pub fn zfail_fallback(
+    id: &str,
+    frame: &crate::frame::Frame,
+    counting: &mut Counting,
+) -> Option<String> {
+    let edges = frame.occluder_edges;
+    if *counting != Counting::ZFail || edges.open() == 0 {
+        return None;
+    }
+    *counting = Counting::ZPass;
+    Some(format!(
+        "{id}: options.{id}.counting \"z_fail\" needs closed occluders, but they have {} open \
+         edges ({} boundary, {} non-manifold): counted with \"z_pass\" instead",
+        edges.open(),
+        edges.boundary,
+        edges.non_manifold
+    ))
+}
+
 /// The eye's shadow-volume count for light point `light`: the light-facing triangles of
 /// `occluders` crossed by the segment from the light to `eye` (each the front cap of its
 /// volume).
@@ -512,7 +537,7 @@ pub fn mem_write(m: &mut Machine, buffer: &str, bytes: u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::algorithms::hard_shadow_map::cpu::machine;
+    use crate::algorithms::exec::machine;
     use crate::algorithms::{Backend, ExecContext};
     use crate::frame::{Frame, RunParams};
     use crate::scene::adjacency::EdgeAdjacency;

@@ -77,12 +77,9 @@ pub fn pcss(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
 /// Accumulated hard shadows: per light sample, a shadow-volume pass over the image (about two
 /// volume faces per pixel) and the accumulation.
 pub fn accum_hard(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
-    let n = super::shadow_map::parse_options::<accum_hard::AccumHardOptions>(
-        accum_hard::ID,
-        &ctx.options,
-    )
-    .unwrap_or_default()
-    .samples;
+    let n = super::parse_options::<accum_hard::AccumHardOptions>(accum_hard::ID, &ctx.options)
+        .unwrap_or_default()
+        .samples;
     f64::from(n) * pixels(p) * 3.0
 }
 

@@ -17,6 +17,8 @@ pub mod layout;
 pub mod readback;
 pub mod stats;
 pub mod timing;
+#[cfg(test)]
+pub(crate) mod wgsl_layout;
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};

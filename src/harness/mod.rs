@@ -172,7 +172,7 @@ pub fn run_one(
             record.execution.extend(out.execution.clone());
             record.warnings = out.warnings.clone();
             check_gpu_time(&mut record);
-            if let Some(r) = reference.filter(|_| algorithm != "reference") {
+            if let Some(r) = reference.filter(|_| algorithm != crate::algorithms::reference::ID) {
                 let e = metrics::compare_with_receivers(
                     &out.visibility,
                     r,
@@ -835,7 +835,8 @@ pub fn write_frame_files(
         v.write_npy(&dir.join("visibility.npy"))?;
         images::write_mask_npy(&mask, v.width, v.height, &dir.join("mask.npy"))?;
         images::write_shaded(v, frame, &dir.join("shaded.png"))?;
-        if let Some(r) = reference.filter(|_| record.algorithm != "reference") {
+        if let Some(r) = reference.filter(|_| record.algorithm != crate::algorithms::reference::ID)
+        {
             images::write_masked_png(r, &mask, &dir.join("reference.png"))?;
             images::write_shaded(r, frame, &dir.join("reference_shaded.png"))?;
             metrics::write_error_heatmap(v, r, &mask, &dir.join("error.png"))?;

@@ -311,15 +311,21 @@ impl MachineConfig {
             .into_iter()
             .chain(self.l3.as_ref().map(|c| ("l3", c)));
         for (name, c) in levels {
-            let line_ways = u64::from(self.line_bytes) * u64::from(c.ways.max(1));
+            if !(1..=64).contains(&c.ways) {
+                return Err(InputError::new(
+                    format!("$.{name}.ways"),
+                    format!("must be in 1..=64, got {}", c.ways),
+                ));
+            }
+            let line_ways = u64::from(self.line_bytes) * u64::from(c.ways);
             let whole = u64::from(c.size_bytes) % line_ways == 0;
             let sets = u64::from(c.size_bytes) / line_ways;
-            if c.ways == 0 || c.ways > 64 || sets == 0 || !whole {
+            if sets == 0 || !whole {
                 return Err(InputError::new(
                     format!("$.{name}"),
                     format!(
-                        "size_bytes must be a whole number ≥ 1 of sets of line_bytes × ways, \
-                         with ways in 1..=64; got {} bytes, {} ways, {}-byte lines",
+                        "size_bytes must be a whole number ≥ 1 of sets of line_bytes × ways; got \
+                         {} bytes, {} ways, {}-byte lines",
                         c.size_bytes, c.ways, self.line_bytes
                     ),
                 ));
@@ -528,6 +534,33 @@ mod tests {
             let m = MachineConfig::host().unwrap();
             assert_eq!(m.clock_ghz, c.ghz);
             assert_eq!(m.clock_source.as_deref(), Some(c.source.as_str()));
+        }
+    }
+
+    /// Found by the `machine` fuzz target: line_bytes × ways overflowed u32 in validation (a
+    /// panic with overflow checks; without them 64 × 2^26 wrapped to 0 and the set count
+    /// divided by zero). A way count out of range is named with its value instead.
+    #[test]
+    fn a_way_count_whose_line_product_overflows_is_refused_with_its_value() {
+        let path = Path::new("m.json");
+        for (line_bytes, ways) in [
+            (64, 1u32 << 26),
+            (64, 100_000_000),
+            (1024, u32::MAX),
+            (64, 0),
+        ] {
+            for level in ["l1", "l2"] {
+                let mut m = serde_json::to_value(MachineConfig::larrabee(24)).unwrap();
+                m["line_bytes"] = serde_json::json!(line_bytes);
+                m[level]["ways"] = serde_json::json!(ways);
+                let e = MachineConfig::from_json(&m.to_string(), path).unwrap_err();
+                assert_eq!(e.file.as_deref(), Some(path), "{e}");
+                assert_eq!(e.field, Some(format!("$.{level}.ways")), "{e}");
+                assert!(
+                    e.message.contains(&format!("got {ways}")) && e.message.contains("1..=64"),
+                    "{e}"
+                );
+            }
         }
     }
 }

@@ -33,7 +33,7 @@ pub use config::MachineConfig;
 use crate::util::deadline::Deadline;
 pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
 
-use crate::algorithms::Backend;
+use crate::backend::Backend;
 use crate::record::{Counters, Phase};
 use cache::{CacheStats, CoreCaches, SharedCache};
 use timing::{CoreWork, StepTime};

@@ -719,7 +719,10 @@ pub fn wants_log(values: &[f64]) -> bool {
     min > 0.0 && max / min >= 10.0
 }
 
-/// Draws `spec` into `dir` as `<file>.png` and `<file>.svg`.
+/// Draws `spec` into `dir` as `<file>.png` ([`draw_rgb`]) and `<file>.svg` ([`draw_svg`]).
+///
+/// Errors: the chart font cannot be loaded ([`super::font::ensure`]), the chart library fails
+/// to draw, or a file cannot be written; each names the file.
 pub fn render(spec: &Spec, dir: &Path) -> Result<Written> {
     super::font::ensure()?;
     let size = spec.size();
@@ -727,21 +730,13 @@ pub fn render(spec: &Spec, dir: &Path) -> Result<Written> {
     let svg = dir.join(format!("{}.svg", spec.file));
     let fail =
         |path: &Path, e: String| Error::Other(format!("{}: drawing chart: {e}", path.display()));
-    let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
-        draw(&root, spec).map_err(|e| fail(&png, e))?;
-        root.present().map_err(|e| fail(&png, e.to_string()))?;
-    }
+    let buf = draw_rgb(spec).map_err(|e| fail(&png, e))?;
     image::RgbImage::from_raw(size.0, size.1, buf)
         .expect("buffer sized to the image")
         .save(&png)
         .map_err(|e| fail(&png, e.to_string()))?;
-    {
-        let root = SVGBackend::new(&svg, size).into_drawing_area();
-        draw(&root, spec).map_err(|e| fail(&svg, e))?;
-        root.present().map_err(|e| fail(&svg, e.to_string()))?;
-    }
+    let text = draw_svg(spec).map_err(|e| fail(&svg, e))?;
+    std::fs::write(&svg, text).map_err(|e| Error::io(&svg, e))?;
     Ok(Written {
         file: spec.file.clone(),
         png: format!("charts/{}.png", spec.file),
@@ -750,6 +745,36 @@ pub fn render(spec: &Spec, dir: &Path) -> Result<Written> {
         case: spec.case.clone(),
         caption: spec.caption.clone(),
     })
+}
+
+/// Draws `spec` in memory: RGB pixels, row by row, 3 bytes a pixel, [`Spec::size`] pixels
+/// (what [`render`] saves as PNG). The chart font must be registered first
+/// ([`super::font::ensure`]); without it text is drawn with whatever plotters finds.
+///
+/// Errors: the chart library's message when it fails to draw.
+pub fn draw_rgb(spec: &Spec) -> std::result::Result<Vec<u8>, String> {
+    let size = spec.size();
+    let mut buf = vec![255u8; size.0 as usize * size.1 as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, size).into_drawing_area();
+        draw(&root, spec)?;
+        root.present().map_err(err)?;
+    }
+    Ok(buf)
+}
+
+/// Draws `spec` in memory as an SVG document of [`Spec::size`] pixels (what [`render`] saves
+/// as SVG); the font as for [`draw_rgb`].
+///
+/// Errors: the chart library's message when it fails to draw.
+pub fn draw_svg(spec: &Spec) -> std::result::Result<String, String> {
+    let mut text = String::new();
+    {
+        let root = SVGBackend::with_string(&mut text, spec.size()).into_drawing_area();
+        draw(&root, spec)?;
+        root.present().map_err(err)?;
+    }
+    Ok(text)
 }
 
 /// Height of the title block.

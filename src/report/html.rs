@@ -494,7 +494,7 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
         // The reference, once: from the reference run, or the reference copy of any run.
         let reference = at
             .iter()
-            .find(|r| r.algorithm == "reference")
+            .find(|r| r.algorithm == crate::algorithms::reference::ID)
             .and_then(|r| {
                 let d = format!("images/{}", r.case_id());
                 Some((
@@ -533,7 +533,10 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
             }
         }
         h.push_str("</tr>\n");
-        for alg in algs.iter().filter(|a| **a != "reference") {
+        for alg in algs
+            .iter()
+            .filter(|a| **a != crate::algorithms::reference::ID)
+        {
             let _ = write!(
                 h,
                 "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td>",

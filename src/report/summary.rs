@@ -165,7 +165,7 @@ impl Summary {
         let at: Vec<&RunRecord> = ok
             .iter()
             .copied()
-            .filter(|r| r.failure.is_none() && r.algorithm != "reference")
+            .filter(|r| r.failure.is_none() && r.algorithm != crate::algorithms::reference::ID)
             .filter(|r| case_key(r) == key)
             .collect();
         let mut backends: Vec<String> = at.iter().map(|r| r.backend.clone()).collect();

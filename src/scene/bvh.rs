@@ -136,11 +136,14 @@ fn intersect(tri: &Triangle, ray: &Ray) -> f32 {
     let (o, d) = (Vec3::from(ray.origin), Vec3::from(ray.direction));
     let n = (b - a).cross(c - a);
     let nd = n.dot(d);
-    if nd == 0.0 || !coverage::line_crosses(o, d, n, &[(a, b), (b, c), (c, a)]) {
+    if nd == 0.0 {
         return f32::INFINITY;
     }
+    // The plane's distance first: most candidates of a shadow ray are rejected by it, before
+    // the three edge functions of the coverage rule.
     let t = n.dot(a - o) / nd;
-    if t >= ray.tmin && t <= ray.tmax {
+    if t >= ray.tmin && t <= ray.tmax && coverage::line_crosses(o, d, n, &[(a, b), (b, c), (c, a)])
+    {
         t
     } else {
         f32::INFINITY

@@ -131,6 +131,17 @@ impl Light {
         c + u * d.x + v * d.y
     }
 
+    /// All `k`×`k` samples of [`Light::stratified_sample`] seen from `p`, in order, with the
+    /// emitter's frame computed once (the same points, bit for bit).
+    pub fn stratified_samples(&self, p: Vec3, k: u32, seed: u64) -> impl Iterator<Item = Vec3> {
+        let (c, u, v) = self.emitter_frame(p);
+        let light = *self;
+        (0..k * k).map(move |i| {
+            let d = light.stratified_coords(i, k, seed);
+            c + u * d.x + v * d.y
+        })
+    }
+
     /// [`Self::stratified_sample`] in light coordinates: units of the half-axes from the centre
     /// (`[−1, 1]²` for a rectangle, the unit disc otherwise), where a light texture is indexed.
     pub fn stratified_coords(&self, i: u32, k: u32, seed: u64) -> Vec2 {

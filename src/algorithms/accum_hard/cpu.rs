@@ -2,10 +2,9 @@
 //! shadow-volume pass into the stencil (phase `hard`) and the accumulation of its lit pixels
 //! (phase `accumulate`), both as tile tasks of the machine.
 
-use super::{AccumHardOptions, ID};
+use super::AccumHardOptions;
+use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{tiles, Block, EyeBuffer, EyeRays, ScreenRect};
-use crate::algorithms::hard_shadow_map::cpu::{machine, output};
-use crate::algorithms::shadow_map::parse_options;
 use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, HardPass,
     ShadowQuad,
@@ -65,8 +64,12 @@ impl TaskKernel for Accumulate<'_> {
     }
 }
 
-pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    let opts: AccumHardOptions = parse_options(ID, &ctx.options)?;
+pub fn render(
+    backend: Backend,
+    frame: &Frame,
+    ctx: &ExecContext,
+    opts: &AccumHardOptions,
+) -> Result<FrameOutput> {
     let k = opts.strata_side()?;
     let mut m = machine(backend, frame, ctx);
     let rays = EyeRays::new(frame);

@@ -60,16 +60,71 @@ impl AccumHardOptions {
     }
 }
 
-pub fn check_options(
-    options: &std::collections::BTreeMap<String, serde_json::Value>,
-) -> Result<(), InputError> {
-    super::shadow_map::parse_options::<AccumHardOptions>(ID, options)?
-        .strata_side()
-        .map(|_| ())
-}
-
 /// Bytes of the eye-sized buffers (stencil and the f32 accumulation buffer), estimated before
 /// anything is allocated, for the harness's memory limit.
 pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
     u64::from(p.image[0]) * u64::from(p.image[1]) * (1 + 4)
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct AccumHard;
+
+impl crate::algorithms::Algorithm for AccumHard {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "001 §1.3, Paper III §5";
+    const SUMMARY: &'static str = "average of N hard shadow-volume shadows from N light samples";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[
+        crate::scene::LightKind::Sphere,
+        crate::scene::LightKind::Disc,
+        crate::scene::LightKind::Rect,
+    ];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
+    type Options = AccumHardOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        let o: AccumHardOptions = super::parse_options(ID, options)?;
+        o.strata_side()?;
+        Ok(o)
+    }
+
+    fn prepare(frame: &crate::frame::Frame, o: &mut AccumHardOptions) -> Option<String> {
+        super::shadow_volume::zfail_fallback(ID, frame, &mut o.counting)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::accum_hard(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        cpu::render(backend, frame, ctx, o)
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        wgpu::render(gpu, frame, ctx, o)
+    }
 }

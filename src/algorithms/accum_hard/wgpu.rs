@@ -16,9 +16,8 @@
 
 use std::time::Instant;
 
-use super::{AccumHardOptions, ID};
+use super::AccumHardOptions;
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
-use crate::algorithms::shadow_map::parse_options;
 use crate::algorithms::shadow_volume::{eye_count, Counting, ShadowQuad};
 use crate::algorithms::soft_shadow_volume::wgpu::{check_limits, HardSamples};
 use crate::algorithms::{ExecContext, FrameOutput};
@@ -37,8 +36,12 @@ const STENCIL_BYTES: f64 = 1.0;
 const ACCUMULATION_BYTES: f64 = 2.0;
 
 /// `accum_hard` on wgpu.
-pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    let opts: AccumHardOptions = parse_options(ID, &ctx.options)?;
+pub fn render(
+    gpu: &Gpu,
+    frame: &Frame,
+    ctx: &ExecContext,
+    opts: &AccumHardOptions,
+) -> Result<FrameOutput> {
     let k = opts.strata_side()?;
     let n = k * k;
     check_limits(gpu, frame)?;

@@ -26,11 +26,11 @@ use super::{
     centre_behind, classify, edge_distance, extrude, extrusion_points, front_fraction, rim_arc,
     t_penumbra, t_umbra, visibility, DbufferOptions, Disc, Facing, VolumeBuild,
 };
-use crate::algorithms::hard_shadow_map::cpu::{
-    eye_lookup, machine, output, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
-    COMPARE_OPS,
+use crate::algorithms::exec::{machine, output};
+use crate::algorithms::shadow_map::cpu::{
+    eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
-use crate::algorithms::hard_shadow_map::lit;
+use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;

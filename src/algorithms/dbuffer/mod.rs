@@ -48,7 +48,8 @@ use std::collections::BTreeMap;
 
 use glam::Vec3;
 
-use super::shadow_map::{map_bytes, parse_options, Bias};
+use super::parse_options;
+use super::shadow_map::{map_bytes, Bias};
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::scene::Light;
@@ -175,10 +176,6 @@ pub fn options(
     let o: DbufferOptions = parse_options(ID, options)?;
     o.validate()?;
     Ok(o)
-}
-
-pub fn check_options(o: &BTreeMap<String, serde_json::Value>) -> Result<(), InputError> {
-    options(o).map(|_| ())
 }
 
 /// The D-buffer's channels: the scene's depth (`|cx_o|`), the umbra volume's depth and edge
@@ -449,6 +446,62 @@ pub fn visibility(t: f32, falloff: Falloff) -> f32 {
     match falloff {
         Falloff::Smoothstep => t * t * (3.0 - 2.0 * t),
         Falloff::Sqrt => t.sqrt(),
+    }
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct Dbuffer;
+
+impl crate::algorithms::Algorithm for Dbuffer {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "003 §2-§4 (umbra and penumbra volumes, D-buffer)";
+    const SUMMARY: &'static str =
+        "umbra/penumbra volumes of the area silhouettes (p_near/p_far) drawn from the \
+              light centre into a D-buffer of distances; t by eq. 3, V(t) = 3t^2 - 2t^3";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Disc];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] =
+        &[crate::algorithms::MethodLimit::OneMap];
+    type Options = DbufferOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        self::options(options)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::dbuffer(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        Ok(cpu::render(backend, frame, ctx, *o))
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        wgpu::render(gpu, frame, ctx, *o)
     }
 }
 

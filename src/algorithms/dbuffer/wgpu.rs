@@ -23,7 +23,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
-use crate::algorithms::hard_shadow_map::cpu::machine;
+use crate::algorithms::exec::machine;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
@@ -682,5 +682,48 @@ impl<'g> Passes<'g> {
             warnings,
             rgb: None,
         })
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        assert_wgsl_layout!(
+            WGSL,
+            "Light",
+            DbufferUniform {
+                view_proj,
+                eye,
+                radius,
+                n_view,
+                near,
+                disc_n,
+                far,
+                tan_half_fov,
+                resolution,
+                bias_constant,
+                bias_slope,
+                falloff,
+                width,
+                height,
+                pad
+            }
+        );
+        assert_wgsl_layout!(
+            WGSL,
+            "Counts",
+            Counts {
+                scene_fragments,
+                umbra_fragments,
+                penumbra_fragments,
+                umbra_covered,
+                penumbra_covered,
+                pad
+            }
+        );
     }
 }

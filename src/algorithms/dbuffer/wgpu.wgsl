@@ -215,7 +215,7 @@ fn visibility_at(uv: vec2<f32>, z: f32, bias: f32) -> f32 {
     return falloff(ray_t(uv, select(z, z - bias, behind), behind, ndc, z_e));
 }
 
-// Phase `eye_lookup` (hard_shadow_map::cpu::eye_lookup with DLookup): a surface facing away
+// Phase `eye_lookup` (shadow_map::cpu::eye_lookup with DLookup): a surface facing away
 // from c sees the part of the disc in front of its plane, any other is looked up and scaled by
 // that part.
 @compute @workgroup_size(8, 8)

@@ -1,16 +1,14 @@
 //! `hard_shadow_map` as GPU passes: the family's light raster, then the hard test of
 //! `wgpu.wgsl` in the eye lookup.
 
-use super::ID;
-use crate::algorithms::shadow_map::{parse_options, HardShadowOptions};
-use crate::algorithms::shadow_map_wgpu::{self, Lookup};
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
+use crate::algorithms::shadow_map::HardShadowOptions;
+use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Gpu;
 
-pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    let options: HardShadowOptions = parse_options(ID, &ctx.options)?;
+pub fn render(gpu: &Gpu, frame: &Frame, options: &HardShadowOptions) -> Result<FrameOutput> {
     shadow_map_wgpu::render(
         gpu,
         frame,

@@ -1,5 +1,5 @@
 // hard_shadow_map, phase `eye_lookup`: the classic shadow-map test. Appended to
-// src/algorithms/shadow_map_wgpu/eye_lookup.wgsl, whose functions it uses.
+// src/algorithms/shadow_map/eye_lookup.wgsl, whose functions it uses.
 
 // `hard_shadow_map::lit`: the point at linear depth `z_r` is shadowed when the nearest
 // occluder in its texel lies in front of it by more than the slope-scaled bias (`Bias::at`).

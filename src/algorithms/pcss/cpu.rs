@@ -3,10 +3,10 @@
 
 use glam::Vec2;
 
-use crate::algorithms::hard_shadow_map::cpu::{
+use crate::algorithms::shadow_map::cpu::{
     render_views, tap, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
-use crate::algorithms::hard_shadow_map::lit;
+use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{
     pcss_filter_radius_uv, pcss_search_radius_uv, vogel_disk, PcssOptions,
 };

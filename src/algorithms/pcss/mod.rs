@@ -11,7 +11,8 @@ pub mod wgpu;
 
 use std::collections::BTreeMap;
 
-use super::shadow_map::{parse_options, PcssOptions};
+use super::parse_options;
+use super::shadow_map::PcssOptions;
 use crate::error::InputError;
 
 pub const ID: &str = "pcss";
@@ -22,6 +23,60 @@ pub fn options(options: &BTreeMap<String, serde_json::Value>) -> Result<PcssOpti
     Ok(o)
 }
 
-pub fn check_options(o: &BTreeMap<String, serde_json::Value>) -> Result<(), InputError> {
-    options(o).map(|_| ())
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct Pcss;
+
+impl crate::algorithms::Algorithm for Pcss {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "Fernando 2005, cited in 004 Table 2";
+    const SUMMARY: &'static str = "blocker search + variable-width percentage-closer filter";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[
+        crate::scene::LightKind::Sphere,
+        crate::scene::LightKind::Disc,
+        crate::scene::LightKind::Rect,
+    ];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
+    type Options = PcssOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        self::options(options)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        crate::algorithms::shadow_map::memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::pcss(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        Ok(cpu::render(backend, frame, ctx, *o))
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        let _ = ctx;
+        wgpu::render(gpu, frame, o)
+    }
 }

@@ -1,14 +1,14 @@
 //! `pcss` as GPU passes: the family's light raster, then the blocker search and PCF of
 //! `wgpu.wgsl` in the eye lookup.
 
-use crate::algorithms::shadow_map_wgpu::{self, Lookup};
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
+use crate::algorithms::shadow_map::PcssOptions;
+use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Gpu;
 
-pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    let options = super::options(&ctx.options)?;
+pub fn render(gpu: &Gpu, frame: &Frame, options: &PcssOptions) -> Result<FrameOutput> {
     shadow_map_wgpu::render(
         gpu,
         frame,

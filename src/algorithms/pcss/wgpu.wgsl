@@ -1,5 +1,5 @@
 // pcss, phase `eye_lookup`: percentage-closer soft shadows (Fernando 2005). Appended to
-// src/algorithms/shadow_map_wgpu/eye_lookup.wgsl, whose functions it uses.
+// src/algorithms/shadow_map/eye_lookup.wgsl, whose functions it uses.
 
 fn visibility_at(uv: vec2<f32>, z_r: f32, bias: f32) -> f32 {
     // Step 1: blocker search over `blocker_samples` Vogel-disk taps within

@@ -15,11 +15,11 @@ use super::{
     cone_size, intensity, shadow_geometry, sheet_size, PenumbraGeometry, PenumbraMapOptions,
     Silhouettes,
 };
-use crate::algorithms::hard_shadow_map::cpu::{
-    eye_lookup, machine, output, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
-    COMPARE_OPS,
+use crate::algorithms::exec::{machine, output};
+use crate::algorithms::shadow_map::cpu::{
+    eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
-use crate::algorithms::hard_shadow_map::lit;
+use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;

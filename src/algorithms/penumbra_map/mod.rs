@@ -25,7 +25,8 @@ use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
 
-use super::shadow_map::{self, map_bytes, parse_options, Bias, LightView};
+use super::parse_options;
+use super::shadow_map::{self, map_bytes, Bias, LightView};
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
@@ -121,10 +122,6 @@ pub fn options(
     let o: PenumbraMapOptions = parse_options(ID, options)?;
     o.validate()?;
     Ok(o)
-}
-
-pub fn check_options(o: &BTreeMap<String, serde_json::Value>) -> Result<(), InputError> {
-    options(o).map(|_| ())
 }
 
 /// The algorithm's own buffers: the shadow-map family's (the shadow map, the gbuffer copies
@@ -433,6 +430,64 @@ impl PenumbraGeometry {
             self.triangles.push([n0, n1, f1]);
             self.triangles.push([n0, f1, f0]);
         }
+    }
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct PenumbraMap;
+
+impl crate::algorithms::Algorithm for PenumbraMap {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "000 §3-§4 (Wyman and Hansen 2003)";
+    const SUMMARY: &'static str =
+        "shadow map + penumbra map of cones and sheets on the light-centre silhouette";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Sphere];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[
+        crate::algorithms::MethodLimit::OuterPenumbraOnly,
+        crate::algorithms::MethodLimit::OneMap,
+    ];
+    type Options = PenumbraMapOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        self::options(options)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::penumbra_map(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        Ok(cpu::render(backend, frame, ctx, *o))
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        let _ = ctx;
+        wgpu::render(gpu, frame, o)
     }
 }
 

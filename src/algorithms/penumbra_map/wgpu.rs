@@ -23,14 +23,14 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
 use super::{
-    options, shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry,
-    Silhouettes,
+    shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry, Silhouettes,
+};
+use crate::algorithms::shadow_map::wgpu::{
+    self as shadow_map_wgpu, gpu_phase, read_queries, Counts, Lookup, Passes, Queries,
+    DEPTH_TEXEL_BYTES,
 };
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
-use crate::algorithms::shadow_map_wgpu::{
-    self, gpu_phase, read_queries, Counts, Lookup, Passes, Queries, DEPTH_TEXEL_BYTES,
-};
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::layout;
@@ -42,25 +42,24 @@ use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
 
 const PENUMBRA_WGSL: &str = include_str!("wgpu.wgsl");
-const LIGHT_RASTER_WGSL: &str = include_str!("../shadow_map_wgpu/light_raster.wgsl");
+const LIGHT_RASTER_WGSL: &str = include_str!("../shadow_map/light_raster.wgsl");
 
 /// Bytes of one penumbra vertex: light-view position and `Z_v`.
 const VERTEX_BYTES: f64 = 16.0;
 const INDEX_BYTES: f64 = 4.0;
 
 /// `penumbra_map` on wgpu.
-pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    let o = options(&ctx.options)?;
+pub fn render(gpu: &Gpu, frame: &Frame, o: &PenumbraMapOptions) -> Result<FrameOutput> {
     shadow_map_wgpu::check_limits(gpu, frame)?;
-    let geometry = shadow_geometry(frame, &o);
+    let geometry = shadow_geometry(frame, o);
     let views = LightViews::fit(
         frame,
         &frame.scene.light,
         frame.params.map_resolution,
         ViewFit::Single,
     );
-    let mut out = PenumbraPasses::new(gpu, frame, &o, &geometry, &views.views[0])
-        .run(frame, &geometry, &o)?;
+    let mut out =
+        PenumbraPasses::new(gpu, frame, o, &geometry, &views.views[0]).run(frame, &geometry, o)?;
     views.record(&mut out);
     Ok(out)
 }
@@ -484,4 +483,16 @@ fn silhouette_counters(s: &Silhouettes) -> Counters {
         f64::from(s.max_edges_per_vertex()),
     );
     k
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        let source = format!("{LIGHT_RASTER_WGSL}\n{PENUMBRA_WGSL}");
+        assert_wgsl_layout!(source, "PenumbraView", PenumbraView { proj });
+    }
 }

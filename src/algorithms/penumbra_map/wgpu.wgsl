@@ -1,7 +1,7 @@
 // penumbra_map, phase `penumbra_map` (paper 000 §3-§4): the cones and sheets, built on the CPU
 // in light-view space (`PenumbraGeometry` in mod.rs, the same triangles the cpu executions
 // draw), rasterized into the penumbra map. Appended to
-// src/algorithms/shadow_map_wgpu/light_raster.wgsl for its `Light` uniform and counters.
+// src/algorithms/shadow_map/light_raster.wgsl for its `Light` uniform and counters.
 //
 // "Darkest wins" (§4) is the paper's own device: the intensity is written as the fragment's
 // depth into a Depth32Float target cleared to 1.0 with the depth test Less ("we store the

@@ -1,7 +1,7 @@
 // penumbra_map, phase `eye_lookup` (§3: "a comparison with the depth in the shadow map
 // determines if the pixel is completely shadowed. If not fully shadowed, a lookup into the
 // penumbra map gives an approximation of the light reaching the surface"). Appended to
-// src/algorithms/shadow_map_wgpu/eye_lookup.wgsl, whose functions it uses; mirrors
+// src/algorithms/shadow_map/eye_lookup.wgsl, whose functions it uses; mirrors
 // `PenumbraLookup` in cpu.rs.
 
 // The penumbra map: intensity in [0, 1] per shadow-map texel (same view and resolution).

@@ -24,6 +24,8 @@ use crate::util::deadline::Deadline;
 use crate::util::hash::mix64;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
+pub const ID: &str = "reference";
+
 pub const DEFAULT_SAMPLES: u32 = 256;
 pub const PAPER_SAMPLES: u32 = 1024;
 
@@ -37,8 +39,9 @@ pub fn strata_side(samples: u32) -> Option<u32> {
 /// samples of stream `seed`.
 pub fn visible_fraction(bvh: &SceneBvh, light: &Light, p: Vec3, k: u32, seed: u64) -> f32 {
     let n = k * k;
-    let visible = (0..n)
-        .filter(|&i| !bvh.occluded(p, light.stratified_sample(p, i, k, seed)))
+    let visible = light
+        .stratified_samples(p, k, seed)
+        .filter(|&q| !bvh.occluded(p, q))
         .count();
     visible as f32 / n as f32
 }
@@ -57,9 +60,9 @@ pub fn received_light(
 ) -> ([f32; 3], f32) {
     let n = k * k;
     let (mut visible, mut all) = ([0.0f64; 3], [0.0f64; 3]);
-    for i in 0..n {
+    for (i, q) in (0..n).zip(light.stratified_samples(p, k, seed)) {
         let c = texture.at(light.stratified_coords(i, k, seed));
-        let lit = !bvh.occluded(p, light.stratified_sample(p, i, k, seed));
+        let lit = !bvh.occluded(p, q);
         for ch in 0..3 {
             all[ch] += f64::from(c[ch]);
             if lit {
@@ -138,5 +141,61 @@ pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) 
         execution: [("samples".to_string(), serde_json::json!(k * k))].into(),
         warnings: vec![],
         rgb,
+    }
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct Reference;
+
+impl crate::algorithms::Algorithm for Reference {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "ground truth";
+    const SUMMARY: &'static str =
+        "visible fraction of the light by stratified sampling and BVH ray casting";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[
+        crate::scene::LightKind::Sphere,
+        crate::scene::LightKind::Disc,
+        crate::scene::LightKind::Rect,
+    ];
+    const BACKENDS: &'static [crate::algorithms::Backend] =
+        &[crate::algorithms::Backend::CpuNative];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
+    type Options = ();
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        crate::algorithms::no_options(Self::ID, options)
+    }
+
+    fn light_texture(_: &()) -> Result<(), crate::error::InputError> {
+        Ok(())
+    }
+
+    fn memory_estimate(_: &crate::frame::RunParams) -> u64 {
+        0
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::reference(extent, p, ctx)
+    }
+
+    /// Both CPU executions run the uninstrumented ray caster (it has only `cpu-native`).
+    fn cpu(
+        _: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        _: &(),
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        Ok(render_until(
+            frame,
+            ctx.reference_samples,
+            ctx.seed,
+            ctx.deadline,
+        ))
     }
 }

@@ -16,7 +16,7 @@ use super::{
     quad_half_width, wedge_entry_inv_z, Grid, LightPoint, LightTriangle, Occluders, PenumbraQuad,
     ProjectedEdge, SoftIzbOptions,
 };
-use crate::algorithms::hard_shadow_map::cpu::{machine, output};
+use crate::algorithms::exec::{machine, output};
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;

@@ -79,7 +79,7 @@ impl SoftIzbOptions {
     pub fn parse(
         options: &std::collections::BTreeMap<String, serde_json::Value>,
     ) -> Result<SoftIzbOptions, InputError> {
-        let o: SoftIzbOptions = super::shadow_map::parse_options(ID, options)?;
+        let o: SoftIzbOptions = super::parse_options(ID, options)?;
         if !(1..=64).contains(&o.depth_slices) {
             return Err(InputError::new(
                 format!("$.options.{ID}.depth_slices"),
@@ -570,6 +570,67 @@ impl Grid {
     pub fn bin_rect(&self, b: usize) -> (Vec2, Vec2) {
         let ((x0, y0), (x1, y1)) = self.bin_columns(b);
         (self.column_rect(x0, y0).0, self.column_rect(x1, y1).1)
+    }
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct SoftIzb;
+
+impl crate::algorithms::Algorithm for SoftIzb {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "paper 004 (soft irregular shadow mapping), §2";
+    const SUMMARY: &'static str =
+        "eye samples in a light-space grid; umbra by irregular rasterization (depth \
+              complexity), penumbra quads per silhouette edge with analytic circular-segment \
+              occlusion (eq. 3), per-bin width and wedge/column culling (§2.5)";
+    // §2.3 sizes the light's footprint in the light's image plane: the light it computes is
+    // the disc there (normal along its view axis), so a sphere is converted to that disc and
+    // the reference is computed for it.
+    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Disc];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] =
+        &[crate::algorithms::MethodLimit::OneMap];
+    type Options = SoftIzbOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        SoftIzbOptions::parse(options)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        cpu::memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::soft_izb(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        cpu::render(backend, frame, ctx, o)
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        let _ = ctx;
+        wgpu::render(gpu, frame, o)
     }
 }
 

@@ -674,3 +674,37 @@ impl<'g> Passes<'g> {
         k
     }
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        let source = format!("{WGSL}\n{}", crate::scene::coverage::WGSL);
+        assert_wgsl_layout!(
+            source,
+            "Params",
+            Params {
+                view_proj,
+                pad,
+                w_min,
+                r_uv,
+                pixels,
+                res,
+                slices,
+                bin,
+                bins_x,
+                cells_per_bin,
+                cells,
+                triangles,
+                edges,
+                per_bin_width,
+                wedge_column_cull,
+                scan_blocks,
+                occlusion_scale
+            }
+        );
+    }
+}

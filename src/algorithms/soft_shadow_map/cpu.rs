@@ -9,7 +9,7 @@ use super::{
     bias_at, occlusion, penumbra_extent, visibility, LightFrame, MicroPatch, SoftShadowMapOptions,
     Split, MAX_HALF_ANGLE_DEG,
 };
-use crate::algorithms::hard_shadow_map::cpu::machine;
+use crate::algorithms::exec::machine;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{
@@ -596,23 +596,6 @@ fn project(
     vis
 }
 
-/// The soft shadow map itself (phases `maps` and `splat`), for tests and the wgpu parity check:
-/// the frame, and the SSM's occlusion per texel, row-major.
-pub fn ssm_texels(
-    backend: Backend,
-    frame: &Frame,
-    ctx: &ExecContext,
-    o: &SoftShadowMapOptions,
-) -> (LightFrame, Vec<f32>) {
-    let mut m = machine(backend, frame, ctx);
-    let split = Split::of(&frame.flat);
-    let maps = maps(&mut m, frame, &split, o);
-    let ssm = soft_shadow_map(&mut m, frame, &maps, o);
-    let n = maps.ssm.resolution;
-    let texels = (0..n * n).map(|k| ssm.get(k % n, k / n)).collect();
-    (maps.ssm, texels)
-}
-
 /// `soft_shadow_map` on a CPU execution.
 pub fn render(
     backend: Backend,
@@ -625,7 +608,7 @@ pub fn render(
     let maps = maps(&mut m, frame, &split, o);
     let ssm = soft_shadow_map(&mut m, frame, &maps, o);
     let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
-    let mut out = crate::algorithms::hard_shadow_map::cpu::output(m, vis);
+    let mut out = crate::algorithms::exec::output(m, vis);
     out.warnings.extend(split.warning());
     record_receivers_outside(frame, &split, &mut out);
     out

@@ -39,7 +39,7 @@ use std::collections::BTreeMap;
 
 use glam::{Mat4, Vec2, Vec3};
 
-use super::shadow_map::parse_options;
+use super::parse_options;
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::model::raster::Blend;
@@ -148,10 +148,6 @@ impl SoftShadowMapOptions {
         }
         Ok(())
     }
-}
-
-pub fn check_options(o: &BTreeMap<String, serde_json::Value>) -> Result<(), InputError> {
-    SoftShadowMapOptions::parse(o).map(|_| ())
 }
 
 /// Bytes of the algorithm's own buffers for the largest configuration (two passes): two
@@ -515,6 +511,66 @@ impl Split {
 /// Visibility from an SSM occlusion value.
 pub fn visibility(occluded: f32) -> f32 {
     1.0 - occluded.clamp(0.0, 1.0)
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct SoftShadowMap;
+
+impl crate::algorithms::Algorithm for SoftShadowMap {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "002 §3-§4 (Atty et al. 2006)";
+    const SUMMARY: &'static str =
+        "occluder map as micro-patches; penumbra-extent quads add each patch's hidden \
+              fraction of the light (interval product) into a soft shadow map; one or two \
+              passes, FP32 or FP16 accumulation";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Rect];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[
+        crate::algorithms::MethodLimit::NoOccluderShadowing,
+        crate::algorithms::MethodLimit::OneMap,
+    ];
+    type Options = SoftShadowMapOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        SoftShadowMapOptions::parse(options)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::soft_shadow_map(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        Ok(cpu::render(backend, frame, ctx, o))
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        let _ = ctx;
+        wgpu::render(gpu, frame, o)
+    }
 }
 
 #[cfg(test)]

@@ -750,3 +750,29 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
     super::cpu::record_receivers_outside(frame, &split, &mut out);
     Ok(out)
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    /// `SsmUniform` and `Counts`; `Instance` is a vertex buffer read through vertex attributes
+    /// (no WGSL struct), and `MicroPatch` is never uploaded as a struct.
+    #[test]
+    fn uniforms_match_wgsl() {
+        assert_wgsl_layout!(WGSL, "Ssm", SsmUniform {
+            occ_view_proj, ssm_view_proj, center, resolution, e_u, width, e_v, height, normal,
+            bias_texels, occ_window, ssm_window, half as "half_size", near, far
+        });
+        assert_wgsl_layout!(
+            WGSL,
+            "Counts",
+            Counts {
+                fragments,
+                zero,
+                patches,
+                pad
+            }
+        );
+    }
+}

@@ -12,11 +12,10 @@ use super::{
     exact_coverage, overlap_coverage, silhouette_loops, split12, split_light, CoverageMethod,
     CoverageTexture, Emitter, EmitterShape, SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
 };
+use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{
     raster_pass, Block, ConvexVolume, EyeBuffer, EyeRays, ScreenRect, TilePass, DEPTH_BYTES,
 };
-use crate::algorithms::hard_shadow_map::cpu::{machine, output};
-use crate::algorithms::shadow_map::parse_options;
 use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
 };
@@ -189,12 +188,12 @@ struct Setup {
     stencil: EyeBuffer,
 }
 
-pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
-    opts.validate()?;
-    if frame.scene.light_texture.is_some() {
-        super::check_light_texture(&ctx.options)?;
-    }
+pub fn render(
+    backend: Backend,
+    frame: &Frame,
+    ctx: &ExecContext,
+    opts: &SoftShadowVolumeOptions,
+) -> Result<FrameOutput> {
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
         Error::Unsupported(format!(
@@ -239,7 +238,7 @@ pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Result<Fram
         rays,
         texture,
         mean: light_texture.map(LightTexture::mean),
-        opts,
+        opts: *opts,
         tile: frame.params.tile_size.max(1),
         vbuffer,
         stencil,

@@ -724,20 +724,11 @@ impl SoftShadowVolumeOptions {
     }
 }
 
-pub fn check_options(
-    options: &std::collections::BTreeMap<String, serde_json::Value>,
-) -> Result<(), InputError> {
-    super::shadow_map::parse_options::<SoftShadowVolumeOptions>(ID, options)?.validate()
-}
-
 /// A textured light needs the 4D coverage texture (Paper III §3.3: it is what makes textured
 /// lights possible) in the f32 V-buffer (III §4.1: "one float per r, g, and b"; the 8-bit
 /// version holds intensity only), one silhouette loop and one light: the overlap approximation
 /// and light splitting are not built for textured lights.
-pub fn check_light_texture(
-    options: &std::collections::BTreeMap<String, serde_json::Value>,
-) -> Result<(), InputError> {
-    let o = super::shadow_map::parse_options::<SoftShadowVolumeOptions>(ID, options)?;
+pub fn check_light_texture(o: &SoftShadowVolumeOptions) -> Result<(), InputError> {
     let refuse = |field: &str, got: String, why: &str| {
         Err(InputError::new(
             format!("$.options.{ID}.{field}"),
@@ -774,6 +765,74 @@ pub fn check_light_texture(
         );
     }
     Ok(())
+}
+
+/// The registry's entry points ([`crate::algorithms::Algorithm`]).
+pub struct SoftShadowVolume;
+
+impl crate::algorithms::Algorithm for SoftShadowVolume {
+    const ID: &'static str = ID;
+    const SOURCE: &'static str = "001 Papers III and IV";
+    const SUMMARY: &'static str =
+        "hard shadow quads plus penumbra wedges adding or subtracting light coverage";
+    const LIGHTS: &'static [crate::scene::LightKind] = &[
+        crate::scene::LightKind::Rect,
+        crate::scene::LightKind::Sphere,
+    ];
+    const BACKENDS: &'static [crate::algorithms::Backend] = &[
+        crate::algorithms::Backend::CpuNative,
+        crate::algorithms::Backend::CpuModel,
+        crate::algorithms::Backend::Wgpu,
+    ];
+    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
+    type Options = SoftShadowVolumeOptions;
+
+    fn options(
+        options: &std::collections::BTreeMap<String, serde_json::Value>,
+    ) -> Result<Self::Options, crate::error::InputError> {
+        let o: SoftShadowVolumeOptions = super::parse_options(ID, options)?;
+        o.validate()?;
+        Ok(o)
+    }
+
+    fn light_texture(o: &SoftShadowVolumeOptions) -> Result<(), crate::error::InputError> {
+        check_light_texture(o)
+    }
+
+    fn prepare(frame: &crate::frame::Frame, o: &mut SoftShadowVolumeOptions) -> Option<String> {
+        super::shadow_volume::zfail_fallback(ID, frame, &mut o.counting)
+    }
+
+    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
+        memory_estimate(p)
+    }
+
+    fn work_estimate(
+        extent: &crate::algorithms::work::SceneExtent,
+        p: &crate::frame::RunParams,
+        ctx: &crate::algorithms::ExecContext,
+    ) -> f64 {
+        crate::algorithms::work::soft_shadow_volume(extent, p, ctx)
+    }
+
+    fn cpu(
+        backend: crate::algorithms::Backend,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        cpu::render(backend, frame, ctx, o)
+    }
+
+    fn wgpu(
+        gpu: &crate::gpu::Gpu,
+        frame: &crate::frame::Frame,
+        ctx: &crate::algorithms::ExecContext,
+        o: &Self::Options,
+    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+        let _ = ctx;
+        wgpu::render(gpu, frame, o)
+    }
 }
 
 #[cfg(test)]

@@ -50,11 +50,10 @@ use super::{
     SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
 };
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect, DEPTH_BYTES};
-use crate::algorithms::shadow_map::parse_options;
 use crate::algorithms::shadow_volume::{
     eye_count, face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad, VolumeFace,
 };
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::layout;
@@ -133,12 +132,7 @@ struct Params {
 }
 
 /// `soft_shadow_volume` on wgpu.
-pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput> {
-    let opts: SoftShadowVolumeOptions = parse_options(ID, &ctx.options)?;
-    opts.validate()?;
-    if frame.scene.light_texture.is_some() {
-        super::check_light_texture(&ctx.options)?;
-    }
+pub fn render(gpu: &Gpu, frame: &Frame, opts: &SoftShadowVolumeOptions) -> Result<FrameOutput> {
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
         Error::Unsupported(format!(
@@ -158,7 +152,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, ctx: &ExecContext) -> Result<FrameOutput
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
     let setup_ms = start.elapsed().as_secs_f64() * 1e3;
-    let passes = Passes::new(gpu, &rays, &opts, frame_res, occluders.clone());
+    let passes = Passes::new(gpu, &rays, opts, frame_res, occluders.clone());
 
     let mut runs = Vec::new();
     let mut warnings = Vec::new();
@@ -1185,5 +1179,42 @@ impl<'g> HardSamples<'g> {
             passed: stat(Stat::HardPassed),
             tests: stat(Stat::HardTests),
         })
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+    use crate::gpu::wgsl_layout::assert_wgsl_layout;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        let source = format!("{WGSL}\n{}", crate::scene::coverage::WGSL);
+        assert_wgsl_layout!(
+            source,
+            "Params",
+            Params {
+                center,
+                half_u,
+                half_v,
+                eye,
+                width,
+                height,
+                tiles_x,
+                eye_count,
+                vbuffer,
+                coverage,
+                texture_n,
+                first_loop,
+                last_loop,
+                first_light,
+                last_light,
+                sub_lights,
+                counting,
+                channels,
+                pad,
+                mean
+            }
+        );
     }
 }

@@ -1,0 +1,309 @@
+//! The shadow-map family's passes on the CPU executions (`cpu-native`, `cpu-model`): the light
+//! pass on the sort-middle rasterizer, and the eye pass in 16-lane blocks. The eye pass is
+//! generic over a [`Lookup`] (`hard_shadow_map`'s hard test, `pcss`, `penumbra_map`,
+//! `dbuffer`), which reuse the light pass and the receiver setup unchanged.
+
+use glam::{Vec2, Vec3};
+
+use super::texel;
+use super::{Bias, FaceView, LightView, LightViews, ViewFit};
+use crate::algorithms::exec::{machine, output};
+use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::frame::Frame;
+use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
+use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::scene::Mesh;
+use crate::visibility::VisibilityBuffer;
+
+/// A rasterized shadow map and the view it was rasterized from.
+pub struct ShadowMap {
+    pub view: LightView,
+    /// Which receivers the map shades (a single frustum, or one cube face).
+    pub face: FaceView,
+    pub map: Surface,
+}
+
+/// Phase `light_raster` (`light_raster[+x]` per cube face): NDC depth of every triangle that
+/// meets `face`'s frustum, nearest kept.
+pub fn light_raster(m: &mut Machine, frame: &Frame, face: &FaceView) -> ShadowMap {
+    m.phase(&face.phase("light_raster"));
+    raster_shadow_map(m, frame, face, &face.view.casters(&frame.flat.mesh))
+}
+
+/// The light pass in the current phase: `mesh` (the scene's triangles that meet the view, or a
+/// stand-in for them) rasterized from the light centre into `face`'s view, nearest NDC depth
+/// kept (the first pass of the penumbra map too).
+pub fn raster_shadow_map(
+    m: &mut Machine,
+    frame: &Frame,
+    face: &FaceView,
+    mesh: &Mesh,
+) -> ShadowMap {
+    let res = frame.params.map_resolution;
+    let view = face.view;
+    let positions = m.memory.buffer("vertices", mesh.positions.clone());
+    let triangles = m.memory.buffer("indices", mesh.triangles.clone());
+    let target = Target {
+        width: res,
+        height: res,
+        tile: frame.params.tile_size,
+    };
+    let geometry = Geometry {
+        positions: &positions,
+        triangles: &triangles,
+        view_proj: view.view_proj,
+    };
+    let out = raster::draw(
+        m,
+        "shadow_map",
+        target,
+        Pipeline::DEPTH_ONLY,
+        &geometry,
+        &DepthOnly,
+    );
+    let map = out.depth.expect("a depth-only pipeline has depth");
+    // Overdraw: fragments that did not end up in the map (failed the depth test or were
+    // overwritten by a nearer one).
+    let kept = map.buf.data.iter().filter(|&&d| d < 1.0).count() as f64;
+    let overdraw = m.counter("fill") - kept;
+    m.count("overdraw", overdraw);
+    ShadowMap {
+        view,
+        face: *face,
+        map,
+    }
+}
+
+/// Eye samples of one 16-lane block in light space.
+pub struct Receivers {
+    /// Lanes with a surface in front of the light that faces it; the others are lit, or
+    /// averted.
+    pub mask: Mask,
+    /// Lanes whose surface faces away from the light centre (n·l ≤ 0): the surface itself hides
+    /// the light from a point light, so they are in shadow whatever the map holds (a bias large
+    /// enough for grazing angles would otherwise light them). With
+    /// [`Lookup::AVERTED_IN_SHADOW`] false they are in `mask` too.
+    pub averted: Mask,
+    /// World position and unit normal of the surface.
+    pub position: Lanes<Vec3>,
+    pub normal: Lanes<Vec3>,
+    pub uv: Lanes<Vec2>,
+    /// Linear depth from the light.
+    pub z: Lanes<f32>,
+    pub bias: Lanes<f32>,
+}
+
+/// Vector instructions of the receiver setup per block: the light-view transform (3 rows × 4
+/// multiply-adds, a reciprocal, 2 multiply-adds to uv), the direction to the light (3
+/// subtracts, a 3-term dot, a reciprocal square root, a 3-term dot with the normal), and the
+/// slope-scaled bias (clamp, multiply, subtract, square root, divide, min, 2 multiply-adds).
+const RECEIVER_OPS: u32 = 15 + 9 + 8;
+/// Per shadow-map tap: uv offset (2 multiply-adds), texel coordinates (2 multiplies, 2 floors,
+/// 4 range compares, 2 mask ands), block-linear index (2 shifts, 2 ands, 3 multiply-adds).
+pub const TAP_OPS: u32 = 2 + 10 + 7;
+/// The depth comparison: linear depth of the tap (subtract, multiply, divide), compare, select.
+pub const COMPARE_OPS: u32 = 5;
+
+/// What the eye pass computes from a block's receivers and the map.
+pub trait Lookup: Sync {
+    /// Whether surfaces facing away from the light centre are in shadow without a lookup (the
+    /// point-light rule); an area-light lookup that judges them itself sets this to false.
+    const AVERTED_IN_SHADOW: bool = true;
+    /// Visibility of the active lanes of `r` (the others are ignored).
+    fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32>;
+}
+
+/// Element indices of the map texels holding `uv` on `mask`'s lanes, and the lanes inside the
+/// map (the address part of a tap; any map of the same size and layout shares them).
+pub fn texel_indices<P: Probe>(
+    p: &mut P,
+    map: &ShadowMap,
+    uv: &Lanes<Vec2>,
+    mask: Mask,
+) -> (Lanes<u32>, Mask) {
+    p.vector(TAP_OPS, mask);
+    let mut idx = [0u32; LANES];
+    let inside = mask.and(Mask::from_fn(|l| match texel(&map.view, uv[l]) {
+        Some((x, y)) => {
+            idx[l] = map.map.index(x, y) as u32;
+            true
+        }
+        None => false,
+    }));
+    (idx, inside)
+}
+
+/// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the map.
+pub fn tap<P: Probe>(
+    p: &mut P,
+    map: &ShadowMap,
+    uv: &Lanes<Vec2>,
+    mask: Mask,
+) -> (Lanes<f32>, Mask) {
+    let (idx, inside) = texel_indices(p, map, uv, mask);
+    (map.map.buf.gather(p, &idx, inside), inside)
+}
+
+struct EyePass<'a, L> {
+    frame: &'a Frame,
+    map: &'a ShadowMap,
+    light: Vec3,
+    bias: Bias,
+    lookup: &'a L,
+    tiles: Target,
+    position: Buffer<Vec3>,
+    normal: Buffer<Vec3>,
+    visibility: Buffer<f32>,
+}
+
+impl<L: Lookup> EyePass<'_, L> {
+    /// The receivers of the 4×4 block at pixel (x0, y0).
+    fn receivers<P: Probe>(&self, p: &mut P, x0: u32, y0: u32) -> Receivers {
+        let g = &self.frame.gbuffer;
+        let (w, h) = (g.width, g.height);
+        let mut r = Receivers {
+            mask: Mask::NONE,
+            averted: Mask::NONE,
+            position: [Vec3::ZERO; LANES],
+            normal: [Vec3::ZERO; LANES],
+            uv: [Vec2::ZERO; LANES],
+            z: [0.0; LANES],
+            bias: [0.0; LANES],
+        };
+        for row in 0..BLOCK {
+            let y = y0 + row;
+            if y >= h {
+                break;
+            }
+            let n = (w - x0).min(BLOCK) as usize;
+            let i = (y * w + x0) as usize;
+            let pos = self.position.load_run(p, i, n);
+            let nrm = self.normal.load_run(p, i, n);
+            for c in 0..n {
+                let lane = (row * BLOCK) as usize + c;
+                if !g.is_hit(i + c) || !self.map.face.owns(pos[c]) {
+                    continue;
+                }
+                let Some((uv, _, z)) = self.map.view.project(pos[c]) else {
+                    continue;
+                };
+                let n_dot_l = nrm[c].dot((self.light - pos[c]).normalize_or_zero());
+                if n_dot_l <= 0.0 {
+                    r.averted.0 |= 1 << lane;
+                    if L::AVERTED_IN_SHADOW {
+                        continue;
+                    }
+                }
+                r.mask.0 |= 1 << lane;
+                r.position[lane] = pos[c];
+                r.normal[lane] = nrm[c];
+                r.uv[lane] = uv;
+                r.z[lane] = z;
+                r.bias[lane] = self.bias.at(&self.map.view, z, n_dot_l);
+            }
+        }
+        p.vector(RECEIVER_OPS, r.mask);
+        r
+    }
+}
+
+impl<L: Lookup> TaskKernel for EyePass<'_, L> {
+    /// (pixel index, visibility) of the tile's pixels that see a surface.
+    type Out = Vec<(u32, f32)>;
+
+    fn run<P: Probe>(&self, p: &mut P, tile: usize) -> Self::Out {
+        let t = self.tiles.tile_rect(tile);
+        let w = self.tiles.width;
+        let mut out = Vec::new();
+        for y0 in (t.y0..t.y1).step_by(BLOCK as usize) {
+            for x0 in (t.x0..t.x1).step_by(BLOCK as usize) {
+                p.scalar(2);
+                let r = self.receivers(p, x0, y0);
+                let v = if r.mask.any() {
+                    self.lookup.visibility(p, self.map, &r)
+                } else {
+                    [1.0; LANES]
+                };
+                for row in 0..BLOCK.min(t.y1 - y0) {
+                    let n = BLOCK.min(t.x1 - x0);
+                    let i = ((y0 + row) * w + x0) as usize;
+                    self.visibility.record_store(p, i, n as usize);
+                    for c in 0..n {
+                        let lane = (row * BLOCK + c) as usize;
+                        if r.mask.get(lane) {
+                            out.push((i as u32 + c, v[lane].clamp(0.0, 1.0)));
+                        } else if r.averted.get(lane) {
+                            out.push((i as u32 + c, 0.0));
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Phase `eye_lookup` (`eye_lookup[+x]` per cube face): visibility of every eye pixel the map's
+/// view shades ([`FaceView::owns`]), one eye tile per task. Pixels that see no surface, that
+/// another face shades, or whose surface the light view does not contain, are lit.
+pub fn eye_lookup<L: Lookup>(
+    m: &mut Machine,
+    frame: &Frame,
+    map: &ShadowMap,
+    bias: Bias,
+    lookup: &L,
+) -> VisibilityBuffer {
+    m.phase(&map.face.phase("eye_lookup"));
+    let g = &frame.gbuffer;
+    let tiles = Target {
+        width: g.width,
+        height: g.height,
+        tile: frame.params.tile_size,
+    };
+    let pass = EyePass {
+        frame,
+        map,
+        light: frame.scene.light.center(),
+        bias,
+        lookup,
+        tiles,
+        position: m.memory.buffer("gbuffer.position", g.position.clone()),
+        normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
+        visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
+    };
+    let weights = tiles.tile_weights(|i| g.is_hit(i) && map.face.owns(g.position[i]));
+    let outs = m.run_step("lookup", &pass, &weights);
+    let mut vis = VisibilityBuffer::lit(g.width, g.height);
+    for (i, v) in outs.into_iter().flatten() {
+        vis.data[i as usize] = v;
+    }
+    vis
+}
+
+/// The shadow-map family's frame on a CPU execution with `lookup`: the light views of the frame
+/// ([`ViewFit::CubeWhenWide`]), then per view its light pass and its eye pass, each pixel taken
+/// from the view that shades it.
+pub fn render_views<L: Lookup>(
+    backend: Backend,
+    frame: &Frame,
+    ctx: &ExecContext,
+    bias: Bias,
+    lookup: &L,
+) -> FrameOutput {
+    let mut m = machine(backend, frame, ctx);
+    let views = LightViews::fit(
+        frame,
+        &frame.scene.light,
+        frame.params.map_resolution,
+        ViewFit::CubeWhenWide,
+    );
+    let mut vis = VisibilityBuffer::lit(frame.width(), frame.height());
+    for face in &views.views {
+        let map = light_raster(&mut m, frame, face);
+        let part = eye_lookup(&mut m, frame, &map, bias, lookup);
+        face.take_owned(frame, &part, &mut vis);
+    }
+    let mut out = output(m, vis);
+    views.record(&mut out);
+    out
+}

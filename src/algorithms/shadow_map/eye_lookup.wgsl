@@ -1,0 +1,165 @@
+// Phase `eye_lookup`: one invocation per eye pixel reads the shared gbuffer (world position
+// with a hit flag in w, eye-facing normal), projects the point into the light's shadow map and
+// calls `visibility_at`, which each algorithm defines in its own WGSL file appended to this one.
+// Every function here mirrors the Rust function of src/algorithms/shadow_map/mod.rs named beside it.
+
+struct Light {
+    view_proj: mat4x4<f32>,
+    eye: vec3<f32>,
+    radius: f32,
+    near: f32,
+    far: f32,
+    tan_half_fov: f32,
+    resolution: u32,
+    bias_constant: f32,
+    bias_slope: f32,
+    blocker_samples: u32,
+    pcf_samples: u32,
+    width: u32,
+    height: u32,
+    // FaceView::face_code: the cube face whose receivers this view shades, 6 for all.
+    face: u32,
+    pad: u32,
+}
+
+struct Counts {
+    fragments: atomic<u32>,
+    covered: atomic<u32>,
+    taps: atomic<u32>,
+    wasted_taps: atomic<u32>,
+    discarded: atomic<u32>,
+    extra_taps: atomic<u32>,
+}
+
+// Depth of a tap outside the map: beyond every receiver.
+const FAR_AWAY: f32 = 3.4e38;
+
+// True in the instrumented pipeline: count shadow-map taps and wasted work with atomics.
+override INSTRUMENT: bool = false;
+
+@group(0) @binding(0) var<uniform> light: Light;
+@group(0) @binding(1) var<storage, read_write> counts: Counts;
+@group(1) @binding(0) var shadow_map: texture_depth_2d;
+@group(1) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(1) @binding(2) var<storage, read> normals: array<vec4<f32>>;
+@group(1) @binding(3) var<storage, read_write> visibility: array<f32>;
+
+// LightView::project: (u, v) with v down, NDC depth, and clip w (linear depth); w <= 0 means
+// behind the light.
+fn project(p: vec3<f32>) -> vec4<f32> {
+    let c = light.view_proj * vec4<f32>(p, 1.0);
+    let ndc = c.xyz / c.w;
+    return vec4<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5, ndc.z, c.w);
+}
+
+// shadow_map::cube_face
+fn cube_face(d: vec3<f32>) -> u32 {
+    let a = abs(d);
+    if a.x >= a.y && a.x >= a.z {
+        return select(0u, 1u, d.x < 0.0);
+    }
+    if a.y >= a.z {
+        return select(2u, 3u, d.y < 0.0);
+    }
+    return select(4u, 5u, d.z < 0.0);
+}
+
+// FaceView::owns
+fn owns(p: vec3<f32>) -> bool {
+    return light.face == 6u || cube_face(p - light.eye) == light.face;
+}
+
+// LightView::linear_depth
+fn linear_depth(ndc: f32) -> f32 {
+    return light.near * light.far / (light.far - ndc * (light.far - light.near));
+}
+
+// LightView::texel_world
+fn texel_world(z: f32) -> f32 {
+    return 2.0 * z * light.tan_half_fov / f32(light.resolution);
+}
+
+// LightView::world_to_uv
+fn world_to_uv(w: f32, z: f32) -> f32 {
+    return w / (2.0 * z * light.tan_half_fov);
+}
+
+// Bias::at
+fn bias_at(z: f32, n_dot_l: f32) -> f32 {
+    let c = clamp(n_dot_l, 1e-4, 1.0);
+    let t = min(sqrt(1.0 - c * c) / c, 10.0);
+    return texel_world(z) * (light.bias_constant + light.bias_slope * t);
+}
+
+// vogel_disk
+fn vogel_disk(i: u32, n: u32) -> vec2<f32> {
+    let golden_angle = 2.3999633;
+    let r = sqrt((f32(i) + 0.5) / f32(n));
+    let theta = f32(i) * golden_angle;
+    return vec2<f32>(cos(theta), sin(theta)) * r;
+}
+
+// pcss_search_radius_uv
+fn pcss_search_radius_uv(z_r: f32) -> f32 {
+    return world_to_uv(light.radius, light.near) * max(z_r - light.near, 0.0) / z_r;
+}
+
+// pcss_penumbra_radius
+fn pcss_penumbra_radius(z_r: f32, z_b: f32) -> f32 {
+    return light.radius * max(z_r - z_b, 0.0) / z_b;
+}
+
+// pcss_filter_radius_uv
+fn pcss_filter_radius_uv(z_r: f32, z_b: f32) -> f32 {
+    return world_to_uv(pcss_penumbra_radius(z_r, z_b), z_r);
+}
+
+// One shadow-map tap: the linear depth of the nearest occluder in the texel holding `uv`
+// (`hard_shadow_map::texel`: the nearest texel). Outside the map nothing was rasterized: the
+// depth is "infinitely far", so the tap is lit and no blocker (`hard_shadow_map::lit`).
+fn occluder_depth(uv: vec2<f32>) -> f32 {
+    if INSTRUMENT {
+        atomicAdd(&counts.taps, 1u);
+    }
+    let r = f32(light.resolution);
+    let t = floor(uv * r);
+    if any(t < vec2<f32>(0.0)) || any(t >= vec2<f32>(r)) {
+        return FAR_AWAY;
+    }
+    return linear_depth(textureLoad(shadow_map, vec2<u32>(t), 0));
+}
+
+@compute @workgroup_size(8, 8)
+fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= light.width || id.y >= light.height {
+        return;
+    }
+    let i = id.y * light.width + id.x;
+    let pos = positions[i];
+    var v = 1.0;
+    if pos.w != 0.0 && owns(pos.xyz) {
+        let m = project(pos.xyz);
+        if m.w > 0.0 {
+            let n_dot_l = dot(normals[i].xyz, normalize(light.eye - pos.xyz));
+            // Receivers::averted: a surface facing away from the light centre is in shadow.
+            if n_dot_l <= 0.0 {
+                v = 0.0;
+            } else {
+                v = visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l));
+            }
+        }
+    }
+    visibility[i] = v;
+}
+
+// Instrumented mode only: texels the light raster covered (depth below the clear value), the
+// fragments of the light raster that contributed.
+@compute @workgroup_size(8, 8)
+fn count_covered(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= light.resolution || id.y >= light.resolution {
+        return;
+    }
+    if textureLoad(shadow_map, id.xy, 0) < 1.0 {
+        atomicAdd(&counts.covered, 1u);
+    }
+}

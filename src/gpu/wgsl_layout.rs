@@ -1,0 +1,119 @@
+//! Checks that a `#[repr(C)]` struct uploaded to the GPU has the layout of the WGSL struct it
+//! mirrors: the WGSL source is parsed with naga (the shader compiler wgpu itself uses) and
+//! the struct's size and every member's byte offset compared with the Rust struct's
+//! (`size_of`, `offset_of!`). A field reordered, added, removed or retyped on one side
+//! changes an offset or the size and fails the check. Padding members (`pad…`) are left to
+//! the size check on both sides. Test-only.
+
+/// Compares WGSL struct `wgsl_name` of `source` with a Rust struct of `size` bytes whose named
+/// fields lie at `fields` (name, byte offset), in declaration order. Returns every mismatch.
+pub(crate) fn mismatches(
+    source: &str,
+    wgsl_name: &str,
+    size: usize,
+    fields: &[(&str, usize)],
+) -> Vec<String> {
+    let module = match naga::front::wgsl::parse_str(source) {
+        Ok(m) => m,
+        Err(e) => return vec![format!("WGSL does not parse: {}", e.emit_to_string(source))],
+    };
+    let Some((members, span)) = module.types.iter().find_map(|(_, t)| match &t.inner {
+        naga::TypeInner::Struct { members, span } if t.name.as_deref() == Some(wgsl_name) => {
+            Some((members, *span))
+        }
+        _ => None,
+    }) else {
+        return vec![format!("no WGSL struct {wgsl_name}")];
+    };
+    let mut out = Vec::new();
+    if span as usize != size {
+        out.push(format!("{wgsl_name}: WGSL size {span}, Rust size {size}"));
+    }
+    for m in members {
+        let name = m.name.as_deref().unwrap_or("?");
+        if name.starts_with("pad") {
+            continue;
+        }
+        match fields.iter().find(|(f, _)| *f == name) {
+            None => out.push(format!("{wgsl_name}.{name}: no Rust field of that name")),
+            Some(&(_, offset)) if offset != m.offset as usize => out.push(format!(
+                "{wgsl_name}.{name}: WGSL offset {}, Rust offset {offset}",
+                m.offset
+            )),
+            Some(_) => {}
+        }
+    }
+    for (f, _) in fields {
+        if !f.starts_with("pad") && !members.iter().any(|m| m.name.as_deref() == Some(f)) {
+            out.push(format!("{wgsl_name}: Rust field {f} is not in WGSL"));
+        }
+    }
+    out
+}
+
+/// Asserts that Rust struct `$ty` has the layout of WGSL struct `$wgsl_name` in `$source`:
+/// every field is listed (`field`, or `field as "wgsl_name"` where the names differ).
+macro_rules! assert_wgsl_layout {
+    ($source:expr, $wgsl_name:literal, $ty:ty { $($field:ident $(as $wgsl_field:literal)?),* $(,)? }) => {{
+        let found = $crate::gpu::wgsl_layout::mismatches(
+            &$source,
+            $wgsl_name,
+            std::mem::size_of::<$ty>(),
+            &[$(($crate::gpu::wgsl_layout::wgsl_field!($field $($wgsl_field)?), std::mem::offset_of!($ty, $field))),*],
+        );
+        assert!(found.is_empty(), "{}", found.join("\n"));
+    }};
+}
+pub(crate) use assert_wgsl_layout;
+
+/// The WGSL name of a Rust field in [`assert_wgsl_layout`]: its own, or the one given.
+macro_rules! wgsl_field {
+    ($field:ident) => {
+        stringify!($field)
+    };
+    ($field:ident $wgsl_field:literal) => {
+        $wgsl_field
+    };
+}
+pub(crate) use wgsl_field;
+
+#[cfg(test)]
+mod tests {
+    #[repr(C)]
+    struct Pair {
+        a: [f32; 3],
+        b: u32,
+        c: [f32; 4],
+    }
+
+    const WGSL: &str = "struct Pair { a: vec3<f32>, b: u32, c: vec4<f32> }";
+
+    #[test]
+    fn a_matching_struct_passes() {
+        assert_wgsl_layout!(WGSL, "Pair", Pair { a, b, c });
+    }
+
+    /// The check fails when a field is reordered on either side, renamed, or missing.
+    #[test]
+    fn reordered_fields_are_caught() {
+        let size = std::mem::size_of::<Pair>();
+        let rust = [
+            ("a", std::mem::offset_of!(Pair, a)),
+            ("b", std::mem::offset_of!(Pair, b)),
+            ("c", std::mem::offset_of!(Pair, c)),
+        ];
+        assert!(super::mismatches(WGSL, "Pair", size, &rust).is_empty());
+        // WGSL reordered: b first moves a to the next 16-byte boundary.
+        let reordered = "struct Pair { b: u32, a: vec3<f32>, c: vec4<f32> }";
+        let found = super::mismatches(reordered, "Pair", size, &rust);
+        assert!(found.iter().any(|m| m.contains("Pair.a")), "{found:?}");
+        // Rust reordered (the offsets of a struct declared b, a, c).
+        let swapped = [("b", 0), ("a", 4), ("c", 16)];
+        let found = super::mismatches(WGSL, "Pair", size, &swapped);
+        assert!(found.iter().any(|m| m.contains("Pair.b")), "{found:?}");
+        // A Rust field WGSL does not have, and a WGSL struct that is not there.
+        let extra = [("a", 0), ("b", 12), ("c", 16), ("d", 32)];
+        assert!(!super::mismatches(WGSL, "Pair", 36, &extra).is_empty());
+        assert!(!super::mismatches(WGSL, "Other", size, &rust).is_empty());
+    }
+}

@@ -1,0 +1,207 @@
+//! The command line at its edges: a selection that selects nothing, an impossible `render`,
+//! a light converted for an algorithm, and `compare` across scenarios each say so, with exit
+//! code 2 for input errors and nothing written.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+const SCENARIO: &str = r#"{
+  "name": "edges",
+  "scene": { "generator": "sphere-on-plane" },
+  "algorithms": ["reference", "hard_shadow_map"],
+  "backends": ["cpu-native", "cpu-model"],
+  "params": { "image": [24, 18], "map_resolution": 32, "tile_size": 8, "triangles": 200 },
+  "reference": { "samples": 4 }
+}"#;
+
+fn shadowbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn scenario(dir: &Path) -> String {
+    let p = dir.join("edges.json");
+    std::fs::write(&p, SCENARIO).unwrap();
+    p.to_str().unwrap().to_string()
+}
+
+#[test]
+fn a_run_selecting_nothing_says_so_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path());
+    let out = dir.path().join("out");
+    let out_s = out.to_str().unwrap();
+    // The scenario has no pcss; and no wgpu execution.
+    for args in [
+        vec!["run", &s, "--only", "pcss", "--out", out_s],
+        vec![
+            "run",
+            &s,
+            "--only",
+            "hard_shadow_map",
+            "--backend",
+            "wgpu",
+            "--out",
+            out_s,
+        ],
+        // reference has only cpu-native.
+        vec![
+            "run",
+            &s,
+            "--only",
+            "reference",
+            "--backend",
+            "cpu-model",
+            "--out",
+            out_s,
+        ],
+    ] {
+        let o = shadowbench(&args);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+        assert!(e.contains("no run selected"), "{args:?}: {e}");
+        assert!(
+            e.contains("edges.json") && e.contains("hard_shadow_map"),
+            "{e}"
+        );
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+        assert!(!stdout(&o).contains("results in"), "{}", stdout(&o));
+    }
+}
+
+#[test]
+fn an_impossible_render_is_an_input_error_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r");
+    let o = shadowbench(&[
+        "render",
+        "--algorithm",
+        "reference",
+        "--backend",
+        "wgpu",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("--backend") && e.contains("'reference'") && e.contains("cpu-native"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn render_warns_when_it_converts_the_light() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r");
+    // sphere-on-plane has a sphere light; dbuffer takes a disc.
+    let o = shadowbench(&[
+        "render",
+        "--algorithm",
+        "dbuffer",
+        "--backend",
+        "cpu-native",
+        "--image",
+        "32x24",
+        "--map-resolution",
+        "64",
+        "--no-reference",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("warning: light converted from sphere to disc"),
+        "{e}"
+    );
+    let run: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
+    let w = run["warnings"].to_string();
+    assert!(w.contains("light converted from sphere to disc"), "{w}");
+    // Without a conversion, no warning.
+    let o = shadowbench(&[
+        "render",
+        "--algorithm",
+        "pcss",
+        "--image",
+        "32x24",
+        "--map-resolution",
+        "64",
+        "--no-reference",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success());
+    assert!(!stderr(&o).contains("light converted"), "{}", stderr(&o));
+}
+
+#[test]
+fn compare_of_different_scenarios_says_so_first() {
+    // One real run, filed under two scenario names (a baseline with no runs is refused).
+    let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path());
+    let out = dir.path().join("out");
+    let o = shadowbench(&[
+        "run",
+        &s,
+        "--only",
+        "hard_shadow_map",
+        "--backend",
+        "cpu-model",
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let results: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let file = |name: &str| {
+        let mut v = results.clone();
+        v["scenario"] = serde_json::json!(name);
+        let p = dir.path().join(format!("{name}.json"));
+        std::fs::write(&p, v.to_string()).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let (a, b) = (file("ci"), file("quick"));
+    let o = shadowbench(&["compare", &a, &b]);
+    let text = stdout(&o);
+    let first = text.lines().next().unwrap_or_default();
+    assert!(
+        first.contains("different scenarios")
+            && first.contains("'ci'")
+            && first.contains("'quick'"),
+        "{text}"
+    );
+}
+
+/// Output into a pipe whose reader is gone (`shadowbench list | head`) ends the process by
+/// SIGPIPE, as other command-line tools do, never with a panic.
+#[cfg(unix)]
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    for args in [&["list"][..], &["list", "--counters"][..]] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let o = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+            .args(args)
+            .stdout(writer)
+            .output()
+            .unwrap();
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert_eq!(o.status.signal(), Some(libc::SIGPIPE), "{args:?}: {err}");
+    }
+}
