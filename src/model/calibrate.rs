@@ -347,7 +347,7 @@ pub fn calibrate(
         "costs.scalar",
         sc,
         "cycles/instruction",
-        format!("4 independent integer add/shift/xor chains, fastest of {r}"),
+        format!("4 interleaved integer updates (add, xor, rotate, shift), fastest of {r}"),
     );
     let vm = cycles(seconds_per_unit(r, || vector_memory_kernel(s.n(20_000))));
     m.costs.vector_memory = record(

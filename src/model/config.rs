@@ -389,7 +389,12 @@ impl MachineConfig {
             self.l1.ways,
             self.l2.size_bytes / 1024,
             self.line_bytes,
-            self.dram_gb_per_s
+            // Stated figures as written (128), measured ones to 0.1 GB/s.
+            if self.dram_gb_per_s.fract() == 0.0 {
+                format!("{}", self.dram_gb_per_s)
+            } else {
+                format!("{:.1}", self.dram_gb_per_s)
+            }
         )
     }
 }

@@ -130,6 +130,8 @@ fn panel<DB: DrawingBackend>(
         .configure_mesh()
         .x_desc("measured: cpu-native wall ms (median), log scale")
         .y_desc("modelled: cpu-model ms, log scale")
+        .x_label_formatter(&|v| format!("{v}"))
+        .y_label_formatter(&|v| format!("{v}"))
         .label_style((FONT, 12))
         .axis_desc_style((FONT, 13))
         .bold_line_style(RGBColor(215, 215, 215))

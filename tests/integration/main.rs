@@ -10,6 +10,7 @@ mod dbuffer;
 mod degenerate;
 mod every_algorithm;
 mod gpu_check;
+mod host_model;
 mod interrupt;
 mod light_definition;
 mod light_view;
