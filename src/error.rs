@@ -30,6 +30,37 @@ impl InputError {
         }
     }
 
+    /// Checks that `value`, the field at JSON path `field`, lies in `range`; the error reads
+    /// "must be in lo..=hi, got value".
+    pub fn check_range<T: PartialOrd + fmt::Display>(
+        field: impl Into<String>,
+        value: T,
+        range: std::ops::RangeInclusive<T>,
+    ) -> Result<(), InputError> {
+        if range.contains(&value) {
+            return Ok(());
+        }
+        Err(InputError::new(
+            field,
+            format!(
+                "must be in {}..={}, got {value}",
+                range.start(),
+                range.end()
+            ),
+        ))
+    }
+
+    /// Checks that `value`, the field at JSON path `field`, is a finite number ≥ 0.
+    pub fn check_non_negative(field: impl Into<String>, value: f32) -> Result<(), InputError> {
+        if value.is_finite() && value >= 0.0 {
+            return Ok(());
+        }
+        Err(InputError::new(
+            field,
+            format!("must be a finite number >= 0, got {value}"),
+        ))
+    }
+
     pub fn in_file(mut self, file: &Path) -> InputError {
         if self.file.is_none() {
             self.file = Some(file.to_path_buf());

@@ -64,6 +64,61 @@ impl MethodLimit {
     }
 }
 
+/// The `cpu-native` / `cpu-model` entry of an algorithm whose options are `O`: `backend` picks
+/// the machine's probe (uninstrumented, or the modelled machine of `ctx.machine`).
+pub type CpuEntry<O> = fn(Backend, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
+
+/// The `wgpu` entry of an algorithm whose options are `O`, run inside
+/// [`crate::gpu::guarded_run`].
+pub type WgpuEntry<O> = fn(&crate::gpu::Gpu, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
+
+/// The estimated fill of a run of an algorithm whose options are `O` ([`work`]), made before
+/// anything runs.
+pub type WorkEstimate<O> = fn(&work::SceneExtent, &RunParams, &ExecContext, &O) -> f64;
+
+/// The typed options of an algorithm (`options.<ID>` of a scenario): read with serde (defaults
+/// when absent), then [`AlgorithmOptions::validate`]d once per run.
+pub trait AlgorithmOptions: serde::de::DeserializeOwned + Default {
+    /// Checks what serde cannot (ranges, combinations); an error names the field's JSON path
+    /// (`$.options.<ID>.<field>`) and its value. By default every value serde reads is valid.
+    fn validate(&self) -> std::result::Result<(), InputError> {
+        Ok(())
+    }
+}
+
+/// An algorithm without options: `options.<ID>` must be absent.
+impl AlgorithmOptions for () {}
+
+/// How close an algorithm's `wgpu` image and counters are to its `cpu-model` ones on the same
+/// frame and options, as the registry-driven parity tests check them. Both executions compute
+/// the same formulas in f32 from the same host geometry; what differs is the rasterizer (fixed
+/// point and barycentric depth on the model, the driver's plane equations on a GPU), the GPU's
+/// transcendental functions and the order of blending, so images differ in their last bits
+/// and a fragment exactly on a triangle edge or a depth test can change hands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WgpuParity {
+    /// Largest mean absolute difference of visibility over the pixels that see geometry.
+    pub mae: f64,
+    /// Largest fraction of those pixels whose visibility differs by more than 0.1.
+    pub frac_over_0_1: f64,
+    /// Counters equal on both executions: integer counts of host geometry or of the same
+    /// binned work.
+    pub exact: &'static [&'static str],
+    /// Counters within 1% of each other: fragment counts of two rasterizers whose edge rules
+    /// agree except for edges that pass exactly through a sample.
+    pub within_1_percent: &'static [&'static str],
+}
+
+impl WgpuParity {
+    /// The same formulas in f32 on both: MAE under 1e-3, at most 0.5% of the pixels over 0.1.
+    pub const SAME_FORMULAS: WgpuParity = WgpuParity {
+        mae: 1e-3,
+        frac_over_0_1: 0.005,
+        exact: &[],
+        within_1_percent: &[],
+    };
+}
+
 /// One algorithm as the registry runs it: its description, its typed options (parsed and
 /// validated once per run, by [`Algorithm::options`]), and one entry per execution. An
 /// algorithm implements this in its folder's `mod.rs`; [`ALGORITHMS`] lists it with
@@ -75,18 +130,41 @@ pub trait Algorithm {
     const SOURCE: &'static str;
     const SUMMARY: &'static str;
     /// Light kinds it handles; another kind is converted to the first of these (same size).
-    const LIGHTS: &'static [LightKind];
-    /// Its executions; the registry refuses the others before anything runs.
-    const BACKENDS: &'static [Backend];
-    /// The shadowing its method does not compute.
-    const LIMITS: &'static [MethodLimit];
+    /// By default every kind.
+    const LIGHTS: &'static [LightKind] = &LightKind::ALL;
+    /// The shadowing its method does not compute. By default none.
+    const LIMITS: &'static [MethodLimit] = &[];
     /// Its options, `options.<ID>` of a scenario.
-    type Options;
+    type Options: AlgorithmOptions;
+    /// Bytes of its own buffers for a run, estimated before anything is allocated.
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64;
+    /// Estimated fill of a run ([`work`]), made before anything runs.
+    const WORK_ESTIMATE: WorkEstimate<Self::Options>;
+    /// The `cpu-native` / `cpu-model` execution.
+    const CPU: CpuEntry<Self::Options>;
+    /// The `wgpu` execution, if it has one (by default none).
+    const WGPU: Option<WgpuEntry<Self::Options>> = None;
+    /// Its executions; the registry refuses the others before anything runs. By default both
+    /// CPU executions, and `wgpu` when [`Algorithm::WGPU`] is given.
+    const BACKENDS: &'static [Backend] = if Self::WGPU.is_some() {
+        &Backend::ALL
+    } else {
+        &[Backend::CpuNative, Backend::CpuModel]
+    };
+    /// Option sets (`options.<ID>` as JSON) that the registry-driven parity tests run besides
+    /// the defaults: the switches that change which kernels run.
+    const OPTION_SETS: &'static [&'static str] = &[];
+    /// How close its `wgpu` execution is to its `cpu-model` execution ([`WgpuParity`]).
+    const WGPU_PARITY: WgpuParity = WgpuParity::SAME_FORMULAS;
     /// Reads and validates `options.<ID>` (defaults when absent); a bad value names its JSON
     /// path.
     fn options(
         options: &BTreeMap<String, serde_json::Value>,
-    ) -> std::result::Result<Self::Options, InputError>;
+    ) -> std::result::Result<Self::Options, InputError> {
+        let o: Self::Options = parse_options(Self::ID, options)?;
+        o.validate()?;
+        Ok(o)
+    }
     /// Whether these options honour a textured light (`$.light.texture`). By default refused:
     /// the algorithm would treat the light as uniform white, which is silently wrong.
     fn light_texture(_: &Self::Options) -> std::result::Result<(), InputError> {
@@ -104,30 +182,6 @@ pub trait Algorithm {
     /// z-fail fallback of the shadow-volume family on open occluders). By default unchanged.
     fn prepare(_: &Frame, _: &mut Self::Options) -> Option<String> {
         None
-    }
-    /// Bytes of its own buffers for a run, estimated before anything is allocated.
-    fn memory_estimate(p: &RunParams) -> u64;
-    /// Estimated fill of a run ([`work`]), made before anything runs.
-    fn work_estimate(extent: &work::SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64;
-    /// The `cpu-native` / `cpu-model` execution (`backend` picks the machine's probe).
-    fn cpu(
-        backend: Backend,
-        frame: &Frame,
-        ctx: &ExecContext,
-        o: &Self::Options,
-    ) -> Result<FrameOutput>;
-    /// The `wgpu` execution, run inside [`crate::gpu::guarded_run`]; only called when
-    /// [`Algorithm::BACKENDS`] lists [`Backend::Wgpu`].
-    fn wgpu(
-        _gpu: &crate::gpu::Gpu,
-        _frame: &Frame,
-        _ctx: &ExecContext,
-        _o: &Self::Options,
-    ) -> Result<FrameOutput> {
-        Err(Error::Unsupported(format!(
-            "algorithm '{}' has no wgpu execution",
-            Self::ID
-        )))
     }
 }
 
@@ -155,6 +209,10 @@ pub struct AlgorithmInfo {
         fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
     /// The shadowing its method does not compute.
     pub limits: &'static [MethodLimit],
+    /// Option sets the parity tests run besides the defaults ([`Algorithm::OPTION_SETS`]).
+    pub option_sets: &'static [&'static str],
+    /// How close its wgpu execution is to its cpu-model execution ([`Algorithm::WGPU_PARITY`]).
+    pub wgpu_parity: WgpuParity,
     /// Parses the options once, adapts them to the frame ([`Algorithm::prepare`], whose
     /// warning it returns) and runs the `backend` execution.
     run: fn(Backend, &Frame, &ExecContext) -> Result<Prepared>,
@@ -169,11 +227,16 @@ impl AlgorithmInfo {
             summary: A::SUMMARY,
             lights: A::LIGHTS,
             backends: A::BACKENDS,
-            memory_estimate: A::memory_estimate,
-            work_estimate: A::work_estimate,
+            memory_estimate: A::MEMORY_ESTIMATE,
+            work_estimate: |extent, p, ctx| {
+                let o = A::options(&ctx.options).unwrap_or_default();
+                (A::WORK_ESTIMATE)(extent, p, ctx, &o)
+            },
             check_options: |o| A::options(o).map(|_| ()),
             check_light_texture: |o| A::light_texture(&A::options(o)?),
             limits: A::LIMITS,
+            option_sets: A::OPTION_SETS,
+            wgpu_parity: A::WGPU_PARITY,
             run: run_typed::<A>,
         }
     }
@@ -198,9 +261,15 @@ fn run_typed<A: Algorithm>(backend: Backend, frame: &Frame, ctx: &ExecContext) -
         A::light_texture(&o)?;
     }
     let warning = A::prepare(frame, &mut o);
-    let out = match backend {
-        Backend::Wgpu => crate::gpu::guarded_run(ctx.deadline, |gpu| A::wgpu(gpu, frame, ctx, &o)),
-        Backend::CpuNative | Backend::CpuModel => A::cpu(backend, frame, ctx, &o),
+    let out = match (backend, A::WGPU) {
+        (Backend::Wgpu, Some(wgpu)) => {
+            crate::gpu::guarded_run(ctx.deadline, |gpu| wgpu(gpu, frame, ctx, &o))
+        }
+        (Backend::Wgpu, None) => Err(Error::Unsupported(format!(
+            "algorithm '{}' has no wgpu execution",
+            A::ID
+        ))),
+        (Backend::CpuNative | Backend::CpuModel, _) => (A::CPU)(backend, frame, ctx, &o),
     }?;
     Ok((out, warning))
 }

@@ -13,7 +13,15 @@
 
 use glam::Vec3;
 
-use super::{accum_hard, ExecContext};
+use super::accum_hard::AccumHardOptions;
+use super::dbuffer::DbufferOptions;
+use super::hard_shadow_map::HardShadowOptions;
+use super::pcss::PcssOptions;
+use super::penumbra_map::PenumbraMapOptions;
+use super::soft_izb::SoftIzbOptions;
+use super::soft_shadow_map::SoftShadowMapOptions;
+use super::soft_shadow_volume::SoftShadowVolumeOptions;
+use super::ExecContext;
 use crate::frame::RunParams;
 use crate::scene::{Light, Scene};
 
@@ -59,36 +67,41 @@ fn texels(p: &RunParams) -> f64 {
 }
 
 /// The ground truth: one shadow ray per pixel and light sample.
-pub fn reference(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
+pub fn reference(_: &SceneExtent, p: &RunParams, ctx: &ExecContext, _: &()) -> f64 {
     pixels(p) * f64::from(ctx.reference_samples)
 }
 
 /// A shadow map: the map's texels once, and one lookup per pixel.
-pub fn hard_shadow_map(_: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+pub fn hard_shadow_map(
+    _: &SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &HardShadowOptions,
+) -> f64 {
     texels(p) + pixels(p)
 }
 
 /// PCSS: the shadow map, then per pixel the blocker-search and filter taps.
-pub fn pcss(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
-    let o = super::pcss::options(&ctx.options).unwrap_or_default();
+pub fn pcss(_: &SceneExtent, p: &RunParams, _: &ExecContext, o: &PcssOptions) -> f64 {
     texels(p) + pixels(p) * f64::from(o.blocker_samples + o.pcf_samples)
 }
 
 /// Accumulated hard shadows: per light sample, a shadow-volume pass over the image (about two
 /// volume faces per pixel) and the accumulation.
-pub fn accum_hard(_: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
-    let n = super::parse_options::<accum_hard::AccumHardOptions>(accum_hard::ID, &ctx.options)
-        .unwrap_or_default()
-        .samples;
-    f64::from(n) * pixels(p) * 3.0
+pub fn accum_hard(_: &SceneExtent, p: &RunParams, _: &ExecContext, o: &AccumHardOptions) -> f64 {
+    f64::from(o.samples) * pixels(p) * 3.0
 }
 
 /// Penumbra-extent rectangles of every micro-patch (002 §3.3): up to one micro-patch per
 /// occluder-map texel, about a quarter of the map covered by occluders, each extent the patch
 /// plus the penumbra wide; the second pass of two-pass maps doubles it.
-pub fn soft_shadow_map(scene: &SceneExtent, p: &RunParams, ctx: &ExecContext) -> f64 {
-    let passes =
-        super::soft_shadow_map::SoftShadowMapOptions::parse(&ctx.options).map_or(1, |o| o.passes);
+pub fn soft_shadow_map(
+    scene: &SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    o: &SoftShadowMapOptions,
+) -> f64 {
+    let passes = o.passes;
     let extent = 1.0 + penumbra_texels(scene, p.map_resolution);
     f64::from(passes) * texels(p) * (2.0 + 0.25 * extent * extent)
 }
@@ -100,24 +113,34 @@ fn outline(scene: &SceneExtent, resolution: u32) -> f64 {
 }
 
 /// Penumbra map: the shadow map, then cones and sheets along the silhouette into the map.
-pub fn penumbra_map(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+pub fn penumbra_map(
+    scene: &SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &PenumbraMapOptions,
+) -> f64 {
     2.0 * texels(p) + outline(scene, p.map_resolution) + pixels(p)
 }
 
 /// Soft shadow volumes: hard shadow quads and penumbra wedges over the image, per pixel they
 /// cover.
-pub fn soft_shadow_volume(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+pub fn soft_shadow_volume(
+    scene: &SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &SoftShadowVolumeOptions,
+) -> f64 {
     2.0 * pixels(p) + outline(scene, p.image[0].max(p.image[1]))
 }
 
 /// D-buffer: umbra and penumbra volumes over the image, then one evaluation per pixel.
-pub fn dbuffer(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+pub fn dbuffer(scene: &SceneExtent, p: &RunParams, _: &ExecContext, _: &DbufferOptions) -> f64 {
     2.0 * pixels(p) + 2.0 * outline(scene, p.image[0].max(p.image[1]))
 }
 
 /// Soft irregular shadow mapping: the eye samples into the light-space grid, the umbra by
 /// irregular rasterization, and the penumbra quads along the silhouette in the grid.
-pub fn soft_izb(scene: &SceneExtent, p: &RunParams, _: &ExecContext) -> f64 {
+pub fn soft_izb(scene: &SceneExtent, p: &RunParams, _: &ExecContext, _: &SoftIzbOptions) -> f64 {
     3.0 * pixels(p) + outline(scene, p.map_resolution)
 }
 
@@ -157,10 +180,10 @@ mod tests {
 
     #[test]
     fn soft_shadow_map_work_grows_with_the_fourth_power_of_the_map_at_a_wide_light() {
-        let ctx = ExecContext::default();
+        let (ctx, o) = (ExecContext::default(), SoftShadowMapOptions::default());
         let wide = scene(1.5);
-        let r =
-            soft_shadow_map(&wide, &params(512), &ctx) / soft_shadow_map(&wide, &params(128), &ctx);
+        let r = soft_shadow_map(&wide, &params(512), &ctx, &o)
+            / soft_shadow_map(&wide, &params(128), &ctx, &o);
         // texels × extent²: 4² × about 4² once the penumbra dominates the extent.
         assert!(r > 100.0 && r < 300.0, "{r}");
     }

@@ -36,6 +36,11 @@ pub enum LightKind {
     Rect,
 }
 
+impl LightKind {
+    /// Every kind, in the order of listings.
+    pub const ALL: [LightKind; 3] = [LightKind::Sphere, LightKind::Disc, LightKind::Rect];
+}
+
 impl std::fmt::Display for LightKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {

@@ -152,34 +152,3 @@ fn every_cpu_counter_is_in_the_glossary_and_derived_figures_are_everywhere() {
         }
     }
 }
-
-/// The registry-driven parity of the two CPU executions: for every registered algorithm with
-/// both, on two scenes, `cpu-native` and `cpu-model` run the same kernel (only the probe
-/// differs), so their images must be identical, bit for bit.
-#[test]
-fn cpu_native_and_cpu_model_images_are_identical_for_every_algorithm() {
-    let ctx = ExecContext {
-        reference_samples: 4,
-        ..Default::default()
-    };
-    for generator in ["torus-on-plane", "sphere-on-plane"] {
-        let scene = generators::find(generator)
-            .unwrap()
-            .build(&GeneratorParams::default());
-        let params = RunParams::of_scene(&scene, [40, 30], 128, 16);
-        let base = Frame::new(scene, params);
-        for info in ALGORITHMS.iter().filter(|a| {
-            a.backends.contains(&Backend::CpuNative) && a.backends.contains(&Backend::CpuModel)
-        }) {
-            let frame = for_algorithm(&base, info.id);
-            let run = |b| shadowbench::algorithms::run(info.id, b, &frame, &ctx).unwrap();
-            let native = run(Backend::CpuNative);
-            let model = run(Backend::CpuModel);
-            assert_eq!(
-                native.visibility.data, model.visibility.data,
-                "{} on {generator}: cpu-native and cpu-model images differ",
-                info.id
-            );
-        }
-    }
-}

@@ -22,6 +22,7 @@ mod pentagon;
 mod penumbra_map;
 mod precision;
 mod reference;
+mod registry;
 mod robustness;
 mod scenario_errors;
 mod scene_files;

@@ -366,7 +366,8 @@ fn with_options(options: serde_json::Value) -> ExecContext {
 
 #[test]
 fn a_simplified_shadow_mesh_keeps_the_shadow() {
-    use shadowbench::algorithms::penumbra_map::{options, shadow_geometry};
+    use shadowbench::algorithms::penumbra_map::{shadow_geometry, PenumbraMap};
+    use shadowbench::algorithms::Algorithm;
     // §5: "we could get equivalent quality shadows with simplified models, as soft shadows
     // effectively blur detail". An 18K-triangle blob casts its shadow from 2K triangles.
     let mut scene = generators::find("blob-on-plane")
@@ -383,7 +384,7 @@ fn a_simplified_shadow_mesh_keeps_the_shadow() {
     let full = penumbra_map(Backend::CpuNative, &f);
     let target = 2_000;
     let ctx = with_options(serde_json::json!({ "shadow_mesh_triangles": target }));
-    let g = shadow_geometry(&f, &options(&ctx.options).unwrap());
+    let g = shadow_geometry(&f, &PenumbraMap::options(&ctx.options).unwrap());
     let (n, before) = (
         g.occluders.triangles.len(),
         f.scene.occluders().triangles.len(),

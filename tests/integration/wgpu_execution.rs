@@ -120,7 +120,7 @@ fn eye_lookup_taps_follow_from_the_sample_counts() {
     // PCSS: every hit pixel searches for blockers; those that find one filter as well, so the
     // taps beyond the search are a whole number of filters, and penumbra pixels exist.
     let out = run("pcss", &f);
-    let o = shadowbench::algorithms::shadow_map::PcssOptions::default();
+    let o = shadowbench::algorithms::pcss::PcssOptions::default();
     let extra = taps(&out) - hits * f64::from(o.blocker_samples);
     let filters = extra / f64::from(o.pcf_samples);
     assert!(

@@ -14,31 +14,27 @@ pub mod wgpu;
 use serde::{Deserialize, Serialize};
 
 pub use super::shadow_volume::Counting;
+use crate::algorithms::{work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WorkEstimate};
 use crate::error::InputError;
+use crate::frame::{Frame, RunParams};
 
 pub const ID: &str = "accum_hard";
 
 /// Options of `accum_hard` (scenario `options.accum_hard`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct AccumHardOptions {
     /// N, the number of light samples: a perfect square in 16..=1024.
-    #[serde(default = "default_samples")]
     pub samples: u32,
     /// The hard passes' counting: z-pass from the eye's count, or z-fail over capped volumes
     /// ([`Counting`]).
-    #[serde(default)]
     pub counting: Counting,
-}
-
-fn default_samples() -> u32 {
-    256
 }
 
 impl Default for AccumHardOptions {
     fn default() -> Self {
         AccumHardOptions {
-            samples: default_samples(),
+            samples: 256,
             counting: Counting::ZPass,
         }
     }
@@ -60,6 +56,12 @@ impl AccumHardOptions {
     }
 }
 
+impl AlgorithmOptions for AccumHardOptions {
+    fn validate(&self) -> Result<(), InputError> {
+        self.strata_side().map(drop)
+    }
+}
+
 /// Bytes of the eye-sized buffers (stencil and the f32 accumulation buffer), estimated before
 /// anything is allocated, for the harness's memory limit.
 pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
@@ -69,62 +71,18 @@ pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct AccumHard;
 
-impl crate::algorithms::Algorithm for AccumHard {
+impl Algorithm for AccumHard {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "001 §1.3, Paper III §5";
     const SUMMARY: &'static str = "average of N hard shadow-volume shadows from N light samples";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[
-        crate::scene::LightKind::Sphere,
-        crate::scene::LightKind::Disc,
-        crate::scene::LightKind::Rect,
-    ];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
     type Options = AccumHardOptions;
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::accum_hard;
+    const OPTION_SETS: &'static [&'static str] = &[r#"{"samples": 16, "counting": "z_fail"}"#];
+    const CPU: CpuEntry<AccumHardOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<AccumHardOptions>> = Some(wgpu::render);
 
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        let o: AccumHardOptions = super::parse_options(ID, options)?;
-        o.strata_side()?;
-        Ok(o)
-    }
-
-    fn prepare(frame: &crate::frame::Frame, o: &mut AccumHardOptions) -> Option<String> {
+    fn prepare(frame: &Frame, o: &mut AccumHardOptions) -> Option<String> {
         super::shadow_volume::zfail_fallback(ID, frame, &mut o.counting)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::accum_hard(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        cpu::render(backend, frame, ctx, o)
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        wgpu::render(gpu, frame, ctx, o)
     }
 }

@@ -33,6 +33,7 @@ use crate::algorithms::shadow_map::cpu::{
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
     self, Blend, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface,
@@ -955,8 +956,8 @@ pub fn render(
     backend: Backend,
     frame: &Frame,
     ctx: &ExecContext,
-    o: DbufferOptions,
-) -> FrameOutput {
+    o: &DbufferOptions,
+) -> Result<FrameOutput> {
     let mut m = machine(backend, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
@@ -966,13 +967,13 @@ pub fn render(
         frame.params.map_resolution,
         ViewFit::Single,
     );
-    let v = build_volumes(&mut m, frame, &adj, disc, views.single(), &o);
+    let v = build_volumes(&mut m, frame, &adj, disc, views.single(), o);
     let d = dbuffer(&mut m, frame, &views.views[0], &v);
     let lookup = DLookup {
         d: &d,
         disc,
         n_view: d.scene.view.view.transform_vector3(disc.n),
-        o,
+        o: *o,
     };
     let vis = eye_lookup(&mut m, frame, &d.scene, o.bias, &lookup);
     let mut out = output(m, vis);
@@ -981,5 +982,5 @@ pub fn render(
         serde_json::json!(o.volume_build.describe()),
     );
     views.record(&mut out);
-    out
+    Ok(out)
 }

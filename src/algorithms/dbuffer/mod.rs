@@ -44,15 +44,16 @@
 pub mod cpu;
 pub mod wgpu;
 
-use std::collections::BTreeMap;
-
 use glam::Vec3;
 
-use super::parse_options;
 use super::shadow_map::{map_bytes, Bias};
+use crate::algorithms::{
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+};
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::scene::Light;
+use crate::scene::LightKind;
 
 pub const ID: &str = "dbuffer";
 
@@ -115,67 +116,35 @@ impl VolumeBuild {
 
 /// Options of `dbuffer` (scenario `options.dbuffer`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct DbufferOptions {
-    #[serde(default)]
     pub falloff: Falloff,
     /// Triangles closing the penumbra volume between two penumbra quads that meet at a vertex
     /// (§2.1: "extrude more triangles using interpolation between p_p").
-    #[serde(default = "default_closing_segments")]
     pub closing_segments: u32,
     /// Bias of the test "x lies behind the scene surface seen from c" (the shadow-map test).
-    #[serde(default)]
     pub bias: Bias,
     /// Where the volumes are built ([`VolumeBuild`]).
-    #[serde(default)]
     pub volume_build: VolumeBuild,
-}
-
-fn default_closing_segments() -> u32 {
-    4
 }
 
 impl Default for DbufferOptions {
     fn default() -> Self {
         DbufferOptions {
             falloff: Falloff::default(),
-            closing_segments: default_closing_segments(),
+            closing_segments: 4,
             bias: Bias::default(),
             volume_build: VolumeBuild::default(),
         }
     }
 }
 
-impl DbufferOptions {
-    pub fn validate(&self) -> Result<(), InputError> {
-        let field = |name: &str| format!("$.options.{ID}.{name}");
-        if !(1..=64).contains(&self.closing_segments) {
-            return Err(InputError::new(
-                field("closing_segments"),
-                format!("must be in 1..=64, got {}", self.closing_segments),
-            ));
-        }
-        for (name, v) in [
-            ("bias.constant", self.bias.constant),
-            ("bias.slope", self.bias.slope),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(InputError::new(
-                    field(name),
-                    format!("must be a finite number >= 0, got {v}"),
-                ));
-            }
-        }
-        Ok(())
+impl AlgorithmOptions for DbufferOptions {
+    fn validate(&self) -> Result<(), InputError> {
+        let field = format!("$.options.{ID}.closing_segments");
+        InputError::check_range(field, self.closing_segments, 1..=64)?;
+        self.bias.validate(ID)
     }
-}
-
-pub fn options(
-    options: &BTreeMap<String, serde_json::Value>,
-) -> Result<DbufferOptions, InputError> {
-    let o: DbufferOptions = parse_options(ID, options)?;
-    o.validate()?;
-    Ok(o)
 }
 
 /// The D-buffer's channels: the scene's depth (`|cx_o|`), the umbra volume's depth and edge
@@ -452,57 +421,21 @@ pub fn visibility(t: f32, falloff: Falloff) -> f32 {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct Dbuffer;
 
-impl crate::algorithms::Algorithm for Dbuffer {
+impl Algorithm for Dbuffer {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "003 §2-§4 (umbra and penumbra volumes, D-buffer)";
     const SUMMARY: &'static str =
         "umbra/penumbra volumes of the area silhouettes (p_near/p_far) drawn from the \
               light centre into a D-buffer of distances; t by eq. 3, V(t) = 3t^2 - 2t^3";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Disc];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] =
-        &[crate::algorithms::MethodLimit::OneMap];
+    const LIGHTS: &'static [LightKind] = &[LightKind::Disc];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::OneMap];
     type Options = DbufferOptions;
-
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        self::options(options)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::dbuffer(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        Ok(cpu::render(backend, frame, ctx, *o))
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        wgpu::render(gpu, frame, ctx, *o)
-    }
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::dbuffer;
+    const OPTION_SETS: &'static [&'static str] =
+        &[r#"{"falloff": "sqrt", "closing_segments": 1, "volume_build": "single_core"}"#];
+    const CPU: CpuEntry<DbufferOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<DbufferOptions>> = Some(wgpu::render);
 }
 
 #[cfg(test)]
@@ -651,17 +584,17 @@ mod tests {
 
     #[test]
     fn options_are_validated_with_their_path() {
-        let mut o = BTreeMap::new();
+        let mut o = std::collections::BTreeMap::new();
         o.insert(ID.to_string(), serde_json::json!({"falloff": "linear"}));
-        let e = options(&o).unwrap_err().to_string();
+        let e = Dbuffer::options(&o).unwrap_err().to_string();
         assert!(e.contains("$.options.dbuffer.falloff"), "{e}");
         o.insert(ID.to_string(), serde_json::json!({"closing_segments": 0}));
-        let e = options(&o).unwrap_err().to_string();
+        let e = Dbuffer::options(&o).unwrap_err().to_string();
         assert!(e.contains("closing_segments") && e.contains("got 0"), "{e}");
         o.insert(ID.to_string(), serde_json::json!({"falloff": "sqrt"}));
-        assert_eq!(options(&o).unwrap().falloff, Falloff::Sqrt);
+        assert_eq!(Dbuffer::options(&o).unwrap().falloff, Falloff::Sqrt);
         o.insert(ID.to_string(), serde_json::json!({"volume_build": "gpu"}));
-        let e = options(&o).unwrap_err().to_string();
+        let e = Dbuffer::options(&o).unwrap_err().to_string();
         assert!(
             e.contains("$.options.dbuffer.volume_build") && e.contains("gpu"),
             "{e}"
@@ -670,9 +603,14 @@ mod tests {
             ID.to_string(),
             serde_json::json!({"volume_build": "single_core"}),
         );
-        assert_eq!(options(&o).unwrap().volume_build, VolumeBuild::SingleCore);
         assert_eq!(
-            options(&BTreeMap::new()).unwrap().volume_build,
+            Dbuffer::options(&o).unwrap().volume_build,
+            VolumeBuild::SingleCore
+        );
+        assert_eq!(
+            Dbuffer::options(&std::collections::BTreeMap::new())
+                .unwrap()
+                .volume_build,
             VolumeBuild::Parallel
         );
     }

@@ -83,8 +83,9 @@ pub fn render(
     gpu: &Gpu,
     frame: &Frame,
     ctx: &ExecContext,
-    o: DbufferOptions,
+    o: &DbufferOptions,
 ) -> Result<FrameOutput> {
+    let o = *o;
     let res = frame.params.map_resolution;
     if res > gpu.limits.max_texture_dimension_2d {
         return Err(Error::Resource(format!(

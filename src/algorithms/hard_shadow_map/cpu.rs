@@ -3,11 +3,13 @@
 //!
 //! [`shadow_map::cpu`]: crate::algorithms::shadow_map::cpu
 
+use super::HardShadowOptions;
 use crate::algorithms::shadow_map::cpu::{
     render_views, tap, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
-use crate::algorithms::shadow_map::{lit, Bias};
+use crate::algorithms::shadow_map::lit;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Lanes, Probe};
 
@@ -29,6 +31,11 @@ impl Lookup for HardLookup {
 }
 
 /// `hard_shadow_map` on a CPU execution.
-pub fn render(backend: Backend, frame: &Frame, ctx: &ExecContext, bias: Bias) -> FrameOutput {
-    render_views(backend, frame, ctx, bias, &HardLookup)
+pub fn render(
+    backend: Backend,
+    frame: &Frame,
+    ctx: &ExecContext,
+    o: &HardShadowOptions,
+) -> Result<FrameOutput> {
+    Ok(render_views(backend, frame, ctx, o.bias, &HardLookup))
 }

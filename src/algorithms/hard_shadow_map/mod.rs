@@ -8,66 +8,43 @@
 pub mod cpu;
 pub mod wgpu;
 
-use super::parse_options;
-use super::shadow_map::HardShadowOptions;
+use serde::{Deserialize, Serialize};
+
+use crate::algorithms::shadow_map::{self, Bias};
+use crate::algorithms::{
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+};
+use crate::error::InputError;
+use crate::frame::RunParams;
 
 pub const ID: &str = "hard_shadow_map";
+
+/// Options of `hard_shadow_map` (scenario `options.hard_shadow_map`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HardShadowOptions {
+    #[serde(default)]
+    pub bias: Bias,
+}
+
+impl AlgorithmOptions for HardShadowOptions {
+    fn validate(&self) -> Result<(), InputError> {
+        self.bias.validate(ID)
+    }
+}
 
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct HardShadowMap;
 
-impl crate::algorithms::Algorithm for HardShadowMap {
+impl Algorithm for HardShadowMap {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "baseline (Williams 1978)";
     const SUMMARY: &'static str = "shadow map from the light centre with slope-scaled bias";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[
-        crate::scene::LightKind::Sphere,
-        crate::scene::LightKind::Disc,
-        crate::scene::LightKind::Rect,
-    ];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] =
-        &[crate::algorithms::MethodLimit::NoPenumbra];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::NoPenumbra];
     type Options = HardShadowOptions;
-
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        parse_options(ID, options)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        crate::algorithms::shadow_map::memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::hard_shadow_map(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        Ok(cpu::render(backend, frame, ctx, o.bias))
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
-    }
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = shadow_map::memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::hard_shadow_map;
+    const OPTION_SETS: &'static [&'static str] = &[r#"{"bias": {"constant": 0.5, "slope": 3.0}}"#];
+    const CPU: CpuEntry<HardShadowOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<HardShadowOptions>> = Some(wgpu::render);
 }

@@ -3,14 +3,14 @@
 
 use glam::Vec2;
 
+use super::PcssOptions;
 use crate::algorithms::shadow_map::cpu::{
     render_views, tap, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
 use crate::algorithms::shadow_map::lit;
-use crate::algorithms::shadow_map::{
-    pcss_filter_radius_uv, pcss_search_radius_uv, vogel_disk, PcssOptions,
-};
+use crate::algorithms::shadow_map::{pcss_filter_radius_uv, pcss_search_radius_uv, vogel_disk};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Lanes, Mask, Probe, LANES};
 
@@ -86,11 +86,11 @@ pub fn render(
     backend: Backend,
     frame: &Frame,
     ctx: &ExecContext,
-    options: PcssOptions,
-) -> FrameOutput {
+    options: &PcssOptions,
+) -> Result<FrameOutput> {
     let lookup = PcssLookup {
-        options,
+        options: *options,
         light_radius: frame.scene.light.size(),
     };
-    render_views(backend, frame, ctx, options.bias, &lookup)
+    Ok(render_views(backend, frame, ctx, options.bias, &lookup))
 }

@@ -9,74 +9,56 @@
 pub mod cpu;
 pub mod wgpu;
 
-use std::collections::BTreeMap;
-
-use super::parse_options;
-use super::shadow_map::PcssOptions;
 use crate::error::InputError;
+use serde::{Deserialize, Serialize};
+
+use crate::algorithms::shadow_map::{self, Bias};
+use crate::algorithms::{work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WorkEstimate};
+use crate::frame::RunParams;
 
 pub const ID: &str = "pcss";
 
-pub fn options(options: &BTreeMap<String, serde_json::Value>) -> Result<PcssOptions, InputError> {
-    let o: PcssOptions = parse_options(ID, options)?;
-    o.validate(ID)?;
-    Ok(o)
+/// Options of `pcss` (scenario `options.pcss`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PcssOptions {
+    /// Shadow-map taps of the blocker search (step 1).
+    pub blocker_samples: u32,
+    /// Shadow-map taps of the percentage-closer filter (step 3).
+    pub pcf_samples: u32,
+    pub bias: Bias,
+}
+
+impl Default for PcssOptions {
+    fn default() -> Self {
+        PcssOptions {
+            blocker_samples: 16,
+            pcf_samples: 32,
+            bias: Bias::default(),
+        }
+    }
+}
+
+impl AlgorithmOptions for PcssOptions {
+    fn validate(&self) -> Result<(), InputError> {
+        let field = |name: &str| format!("$.options.{ID}.{name}");
+        InputError::check_range(field("blocker_samples"), self.blocker_samples, 1..=1024)?;
+        InputError::check_range(field("pcf_samples"), self.pcf_samples, 1..=1024)?;
+        self.bias.validate(ID)
+    }
 }
 
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct Pcss;
 
-impl crate::algorithms::Algorithm for Pcss {
+impl Algorithm for Pcss {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "Fernando 2005, cited in 004 Table 2";
     const SUMMARY: &'static str = "blocker search + variable-width percentage-closer filter";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[
-        crate::scene::LightKind::Sphere,
-        crate::scene::LightKind::Disc,
-        crate::scene::LightKind::Rect,
-    ];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
     type Options = PcssOptions;
-
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        self::options(options)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        crate::algorithms::shadow_map::memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::pcss(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        Ok(cpu::render(backend, frame, ctx, *o))
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
-    }
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = shadow_map::memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::pcss;
+    const OPTION_SETS: &'static [&'static str] = &[r#"{"blocker_samples": 4, "pcf_samples": 8}"#];
+    const CPU: CpuEntry<PcssOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<PcssOptions>> = Some(wgpu::render);
 }

@@ -1,14 +1,20 @@
 //! `pcss` as GPU passes: the family's light raster, then the blocker search and PCF of
 //! `wgpu.wgsl` in the eye lookup.
 
+use super::PcssOptions;
 use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
-use crate::algorithms::shadow_map::PcssOptions;
+use crate::algorithms::ExecContext;
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Gpu;
 
-pub fn render(gpu: &Gpu, frame: &Frame, options: &PcssOptions) -> Result<FrameOutput> {
+pub fn render(
+    gpu: &Gpu,
+    frame: &Frame,
+    _: &ExecContext,
+    options: &PcssOptions,
+) -> Result<FrameOutput> {
     shadow_map_wgpu::render(
         gpu,
         frame,

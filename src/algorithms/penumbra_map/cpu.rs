@@ -22,6 +22,7 @@ use crate::algorithms::shadow_map::cpu::{
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
     self, Blend, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface,
@@ -448,10 +449,10 @@ pub fn render(
     backend: Backend,
     frame: &Frame,
     ctx: &ExecContext,
-    o: PenumbraMapOptions,
-) -> FrameOutput {
+    o: &PenumbraMapOptions,
+) -> Result<FrameOutput> {
     let mut m = machine(backend, frame, ctx);
-    let geometry = shadow_geometry(frame, &o);
+    let geometry = shadow_geometry(frame, o);
     let views = LightViews::fit(
         frame,
         &frame.scene.light,
@@ -469,13 +470,13 @@ pub fn render(
     let light = frame.scene.light.center();
     let light_radius = frame.scene.light.size();
     let adj = EdgeAdjacency::build(&geometry.occluders);
-    let s = silhouettes(&mut m, &adj, &shadow.view, light, light_radius, &o);
-    let penumbra = penumbra_map(&mut m, frame, &shadow, &s, light_radius, &o);
+    let s = silhouettes(&mut m, &adj, &shadow.view, light, light_radius, o);
+    let penumbra = penumbra_map(&mut m, frame, &shadow, &s, light_radius, o);
     let lookup = PenumbraLookup {
         penumbra: &penumbra,
     };
     let vis = eye_lookup(&mut m, frame, &shadow, o.bias, &lookup);
     let mut out = output(m, vis);
     views.record(&mut out);
-    out
+    Ok(out)
 }

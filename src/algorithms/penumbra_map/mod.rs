@@ -21,16 +21,18 @@ pub mod cpu;
 pub mod wgpu;
 
 use std::borrow::Cow;
-use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
 
-use super::parse_options;
 use super::shadow_map::{self, map_bytes, Bias, LightView};
+use crate::algorithms::{
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+};
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::simplify::simplify;
+use crate::scene::LightKind;
 use crate::scene::Mesh;
 
 pub const ID: &str = "penumbra_map";
@@ -42,86 +44,46 @@ pub const SHEET_PLANARITY: f32 = 0.02;
 
 /// Options of `penumbra_map` (scenario `options.penumbra_map`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct PenumbraMapOptions {
     /// Triangles of each cone (§3: "we subdivide each cone into a number of triangles").
-    #[serde(default = "default_cone_segments")]
     pub cone_segments: u32,
     /// Most strips a strongly non-planar sheet is split into.
-    #[serde(default = "default_max_sheet_strips")]
     pub max_sheet_strips: u32,
     /// Bias of the umbra test in the final lookup (§5: "we reduce them by adding a larger bias").
-    #[serde(default)]
     pub bias: Bias,
     /// Target triangle count of the occluders the shadows are generated from (§5: "we used
     /// 10,000 polygons to generate shadows for the bunny"): each occluder object is simplified
     /// to its share of this count for the shadow map, the silhouettes and the penumbra map;
     /// the eye still sees the full meshes. Absent: the full meshes.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub shadow_mesh_triangles: Option<u32>,
-}
-
-fn default_cone_segments() -> u32 {
-    16
-}
-
-fn default_max_sheet_strips() -> u32 {
-    8
 }
 
 impl Default for PenumbraMapOptions {
     fn default() -> Self {
         PenumbraMapOptions {
-            cone_segments: default_cone_segments(),
-            max_sheet_strips: default_max_sheet_strips(),
+            cone_segments: 16,
+            max_sheet_strips: 8,
             bias: Bias::default(),
             shadow_mesh_triangles: None,
         }
     }
 }
 
-impl PenumbraMapOptions {
-    pub fn validate(&self) -> Result<(), InputError> {
+impl AlgorithmOptions for PenumbraMapOptions {
+    fn validate(&self) -> Result<(), InputError> {
         let field = |name: &str| format!("$.options.{ID}.{name}");
-        if !(3..=256).contains(&self.cone_segments) {
-            return Err(InputError::new(
-                field("cone_segments"),
-                format!("must be in 3..=256, got {}", self.cone_segments),
-            ));
-        }
-        if !(1..=64).contains(&self.max_sheet_strips) {
-            return Err(InputError::new(
-                field("max_sheet_strips"),
-                format!("must be in 1..=64, got {}", self.max_sheet_strips),
-            ));
-        }
+        InputError::check_range(field("cone_segments"), self.cone_segments, 3..=256)?;
+        InputError::check_range(field("max_sheet_strips"), self.max_sheet_strips, 1..=64)?;
         if self.shadow_mesh_triangles == Some(0) {
             return Err(InputError::new(
                 field("shadow_mesh_triangles"),
                 "must be a positive integer (a target triangle count), got 0",
             ));
         }
-        for (name, v) in [
-            ("bias.constant", self.bias.constant),
-            ("bias.slope", self.bias.slope),
-        ] {
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(InputError::new(
-                    field(name),
-                    format!("must be a finite number >= 0, got {v}"),
-                ));
-            }
-        }
-        Ok(())
+        self.bias.validate(ID)
     }
-}
-
-pub fn options(
-    options: &BTreeMap<String, serde_json::Value>,
-) -> Result<PenumbraMapOptions, InputError> {
-    let o: PenumbraMapOptions = parse_options(ID, options)?;
-    o.validate()?;
-    Ok(o)
 }
 
 /// The algorithm's own buffers: the shadow-map family's (the shadow map, the gbuffer copies
@@ -436,59 +398,22 @@ impl PenumbraGeometry {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct PenumbraMap;
 
-impl crate::algorithms::Algorithm for PenumbraMap {
+impl Algorithm for PenumbraMap {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "000 §3-§4 (Wyman and Hansen 2003)";
     const SUMMARY: &'static str =
         "shadow map + penumbra map of cones and sheets on the light-centre silhouette";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Sphere];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[
-        crate::algorithms::MethodLimit::OuterPenumbraOnly,
-        crate::algorithms::MethodLimit::OneMap,
-    ];
+    const LIGHTS: &'static [LightKind] = &[LightKind::Sphere];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::OuterPenumbraOnly, MethodLimit::OneMap];
     type Options = PenumbraMapOptions;
-
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        self::options(options)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::penumbra_map(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        Ok(cpu::render(backend, frame, ctx, *o))
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
-    }
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::penumbra_map;
+    const OPTION_SETS: &'static [&'static str] = &[
+        r#"{"cone_segments": 5, "max_sheet_strips": 1}"#,
+        r#"{"shadow_mesh_triangles": 300}"#,
+    ];
+    const CPU: CpuEntry<PenumbraMapOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<PenumbraMapOptions>> = Some(wgpu::render);
 }
 
 #[cfg(test)]

@@ -30,6 +30,7 @@ use crate::algorithms::shadow_map::wgpu::{
     DEPTH_TEXEL_BYTES,
 };
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
+use crate::algorithms::ExecContext;
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -49,7 +50,12 @@ const VERTEX_BYTES: f64 = 16.0;
 const INDEX_BYTES: f64 = 4.0;
 
 /// `penumbra_map` on wgpu.
-pub fn render(gpu: &Gpu, frame: &Frame, o: &PenumbraMapOptions) -> Result<FrameOutput> {
+pub fn render(
+    gpu: &Gpu,
+    frame: &Frame,
+    _: &ExecContext,
+    o: &PenumbraMapOptions,
+) -> Result<FrameOutput> {
     shadow_map_wgpu::check_limits(gpu, frame)?;
     let geometry = shadow_geometry(frame, o);
     let views = LightViews::fit(

@@ -16,13 +16,17 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::FrameOutput;
+use crate::algorithms::{no_options, work, Algorithm, Backend, CpuEntry, WorkEstimate};
+use crate::error::InputError;
 use crate::frame::Frame;
+use crate::frame::RunParams;
 use crate::record::{Counters, Phase};
 use crate::scene::bvh::SceneBvh;
 use crate::scene::{Light, LightTexture};
 use crate::util::deadline::Deadline;
 use crate::util::hash::mix64;
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
+use std::collections::BTreeMap;
 
 pub const ID: &str = "reference";
 
@@ -147,55 +151,30 @@ pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) 
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct Reference;
 
-impl crate::algorithms::Algorithm for Reference {
+impl Algorithm for Reference {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "ground truth";
     const SUMMARY: &'static str =
         "visible fraction of the light by stratified sampling and BVH ray casting";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[
-        crate::scene::LightKind::Sphere,
-        crate::scene::LightKind::Disc,
-        crate::scene::LightKind::Rect,
-    ];
-    const BACKENDS: &'static [crate::algorithms::Backend] =
-        &[crate::algorithms::Backend::CpuNative];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
+    const BACKENDS: &'static [Backend] = &[Backend::CpuNative];
     type Options = ();
-
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        crate::algorithms::no_options(Self::ID, options)
-    }
-
-    fn light_texture(_: &()) -> Result<(), crate::error::InputError> {
-        Ok(())
-    }
-
-    fn memory_estimate(_: &crate::frame::RunParams) -> u64 {
-        0
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::reference(extent, p, ctx)
-    }
-
-    /// Both CPU executions run the uninstrumented ray caster (it has only `cpu-native`).
-    fn cpu(
-        _: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        _: &(),
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = |_| 0;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::reference;
+    /// The uninstrumented ray caster (the reference has only `cpu-native`).
+    const CPU: CpuEntry<()> = |_, frame, ctx, _| {
         Ok(render_until(
             frame,
             ctx.reference_samples,
             ctx.seed,
             ctx.deadline,
         ))
+    };
+
+    fn options(options: &BTreeMap<String, serde_json::Value>) -> Result<(), InputError> {
+        no_options(Self::ID, options)
+    }
+
+    fn light_texture(_: &()) -> Result<(), InputError> {
+        Ok(())
     }
 }

@@ -476,6 +476,14 @@ impl Default for Bias {
 }
 
 impl Bias {
+    /// Checks both terms are finite and ≥ 0; `id` names the algorithm whose options hold it
+    /// (`$.options.<id>.bias.*`).
+    pub fn validate(&self, id: &str) -> Result<(), crate::error::InputError> {
+        let field = |name: &str| format!("$.options.{id}.bias.{name}");
+        crate::error::InputError::check_non_negative(field("constant"), self.constant)?;
+        crate::error::InputError::check_non_negative(field("slope"), self.slope)
+    }
+
     pub fn at(&self, view: &LightView, z: f32, n_dot_l: f32) -> f32 {
         let c = n_dot_l.clamp(1e-4, 1.0);
         let tan = ((1.0 - c * c).sqrt() / c).min(10.0);
@@ -508,6 +516,12 @@ pub fn pcss_penumbra_radius(light_radius: f32, z_r: f32, z_b: f32) -> f32 {
 /// PCSS step 3: the filter radius in uv at the receiver depth.
 pub fn pcss_filter_radius_uv(view: &LightView, light_radius: f32, z_r: f32, z_b: f32) -> f32 {
     view.world_to_uv(pcss_penumbra_radius(light_radius, z_r, z_b), z_r)
+}
+
+/// Bytes of one f32 depth map at the run's map resolution (the memory estimate of the
+/// shadow-map family before anything is allocated).
+pub fn map_bytes(p: &crate::frame::RunParams) -> u64 {
+    p.map_resolution as u64 * p.map_resolution as u64 * 4
 }
 
 #[cfg(test)]
@@ -589,67 +603,4 @@ mod tests {
         assert!((0..n).all(|i| vogel_disk(i, n).length() <= 1.0));
         assert!(mean.length() < 0.1);
     }
-}
-
-/// Options of `hard_shadow_map` (scenario `options.hard_shadow_map`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct HardShadowOptions {
-    #[serde(default)]
-    pub bias: Bias,
-}
-
-/// Options of `pcss` (scenario `options.pcss`).
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct PcssOptions {
-    /// Shadow-map taps of the blocker search (step 1).
-    #[serde(default = "default_blocker_samples")]
-    pub blocker_samples: u32,
-    /// Shadow-map taps of the percentage-closer filter (step 3).
-    #[serde(default = "default_pcf_samples")]
-    pub pcf_samples: u32,
-    #[serde(default)]
-    pub bias: Bias,
-}
-
-fn default_blocker_samples() -> u32 {
-    16
-}
-
-fn default_pcf_samples() -> u32 {
-    32
-}
-
-impl Default for PcssOptions {
-    fn default() -> Self {
-        PcssOptions {
-            blocker_samples: default_blocker_samples(),
-            pcf_samples: default_pcf_samples(),
-            bias: Bias::default(),
-        }
-    }
-}
-
-impl PcssOptions {
-    pub fn validate(&self, id: &str) -> Result<(), crate::error::InputError> {
-        for (name, v) in [
-            ("blocker_samples", self.blocker_samples),
-            ("pcf_samples", self.pcf_samples),
-        ] {
-            if !(1..=1024).contains(&v) {
-                return Err(crate::error::InputError::new(
-                    format!("$.options.{id}.{name}"),
-                    format!("must be in 1..=1024, got {v}"),
-                ));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// Bytes of one f32 depth map at the run's map resolution (the memory estimate of the
-/// shadow-map family before anything is allocated).
-pub fn map_bytes(p: &crate::frame::RunParams) -> u64 {
-    p.map_resolution as u64 * p.map_resolution as u64 * 4
 }

@@ -19,30 +19,31 @@ use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 use serde::{Deserialize, Serialize};
 
 use super::shadow_map::LightView;
+use crate::algorithms::{
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+};
 use crate::error::InputError;
 use crate::frame::Frame;
+use crate::frame::RunParams;
 use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
 use crate::scene::coverage;
+use crate::scene::LightKind;
 
 pub const ID: &str = "soft_izb";
 
 /// Options of `soft_izb` (scenario `options.soft_izb`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct SoftIzbOptions {
     /// §2.5, first optimisation: recompute each penumbra quad's width per bin from that bin's
     /// maximum receiver depth, dropping the quad from bins it no longer overlaps.
-    #[serde(default = "yes")]
     pub per_bin_width: bool,
     /// §2.5, second optimisation: per quad fragment, evaluate eq. 3 only for samples at and
     /// behind the depth where the edge's wedge enters the grid column.
-    #[serde(default = "yes")]
     pub wedge_column_cull: bool,
     /// Depth slices of the perspective grid (Figure 3), uniform in `1/z`.
-    #[serde(default = "default_depth_slices")]
     pub depth_slices: u32,
     /// Where penumbra edges come from (§2.1).
-    #[serde(default)]
     pub silhouettes: SilhouetteSource,
 }
 
@@ -56,37 +57,21 @@ pub enum SilhouetteSource {
     AllEdges,
 }
 
-fn yes() -> bool {
-    true
-}
-
-fn default_depth_slices() -> u32 {
-    8
-}
-
 impl Default for SoftIzbOptions {
     fn default() -> Self {
         SoftIzbOptions {
             per_bin_width: true,
             wedge_column_cull: true,
-            depth_slices: default_depth_slices(),
+            depth_slices: 8,
             silhouettes: SilhouetteSource::default(),
         }
     }
 }
 
-impl SoftIzbOptions {
-    pub fn parse(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<SoftIzbOptions, InputError> {
-        let o: SoftIzbOptions = super::parse_options(ID, options)?;
-        if !(1..=64).contains(&o.depth_slices) {
-            return Err(InputError::new(
-                format!("$.options.{ID}.depth_slices"),
-                format!("must be in 1..=64, got {}", o.depth_slices),
-            ));
-        }
-        Ok(o)
+impl AlgorithmOptions for SoftIzbOptions {
+    fn validate(&self) -> Result<(), InputError> {
+        let field = format!("$.options.{ID}.depth_slices");
+        InputError::check_range(field, self.depth_slices, 1..=64)
     }
 }
 
@@ -576,7 +561,7 @@ impl Grid {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct SoftIzb;
 
-impl crate::algorithms::Algorithm for SoftIzb {
+impl Algorithm for SoftIzb {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "paper 004 (soft irregular shadow mapping), §2";
     const SUMMARY: &'static str =
@@ -586,52 +571,17 @@ impl crate::algorithms::Algorithm for SoftIzb {
     // §2.3 sizes the light's footprint in the light's image plane: the light it computes is
     // the disc there (normal along its view axis), so a sphere is converted to that disc and
     // the reference is computed for it.
-    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Disc];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] =
-        &[crate::algorithms::MethodLimit::OneMap];
+    const LIGHTS: &'static [LightKind] = &[LightKind::Disc];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::OneMap];
     type Options = SoftIzbOptions;
-
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        SoftIzbOptions::parse(options)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        cpu::memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::soft_izb(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        cpu::render(backend, frame, ctx, o)
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
-    }
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = cpu::memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_izb;
+    const OPTION_SETS: &'static [&'static str] = &[
+        r#"{"per_bin_width": false, "wedge_column_cull": false}"#,
+        r#"{"silhouettes": "all_edges", "depth_slices": 2}"#,
+    ];
+    const CPU: CpuEntry<SoftIzbOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<SoftIzbOptions>> = Some(wgpu::render);
 }
 
 #[cfg(test)]
@@ -802,10 +752,10 @@ mod tests {
     fn options_are_checked_with_their_path() {
         let mut o = std::collections::BTreeMap::new();
         o.insert(ID.to_string(), serde_json::json!({"depth_slices": 0}));
-        let e = SoftIzbOptions::parse(&o).unwrap_err();
+        let e = SoftIzb::options(&o).unwrap_err();
         assert_eq!(e.field.as_deref(), Some("$.options.soft_izb.depth_slices"));
         o.insert(ID.to_string(), serde_json::json!({"per_bin_width": "no"}));
-        let e = SoftIzbOptions::parse(&o).unwrap_err();
+        let e = SoftIzb::options(&o).unwrap_err();
         assert_eq!(e.field.as_deref(), Some("$.options.soft_izb.per_bin_width"));
     }
 }

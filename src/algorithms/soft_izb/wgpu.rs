@@ -49,6 +49,7 @@ use super::{
     OCCLUSION_SCALE,
 };
 use crate::algorithms::shadow_map::{LightViews, ViewFit};
+use crate::algorithms::ExecContext;
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -124,7 +125,12 @@ struct Params {
 }
 
 /// `soft_izb` on the GPU.
-pub fn render(gpu: &Gpu, frame: &Frame, opts: &SoftIzbOptions) -> Result<FrameOutput> {
+pub fn render(
+    gpu: &Gpu,
+    frame: &Frame,
+    _: &ExecContext,
+    opts: &SoftIzbOptions,
+) -> Result<FrameOutput> {
     check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
     let start = Instant::now();
     let light = frame.scene.light;

@@ -11,6 +11,7 @@ use super::{
 };
 use crate::algorithms::exec::machine;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
     self, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target,
@@ -602,7 +603,7 @@ pub fn render(
     frame: &Frame,
     ctx: &ExecContext,
     o: &SoftShadowMapOptions,
-) -> FrameOutput {
+) -> Result<FrameOutput> {
     let mut m = machine(backend, frame, ctx);
     let split = Split::of(&frame.flat);
     let maps = maps(&mut m, frame, &split, o);
@@ -611,5 +612,5 @@ pub fn render(
     let mut out = crate::algorithms::exec::output(m, vis);
     out.warnings.extend(split.warning());
     record_receivers_outside(frame, &split, &mut out);
-    out
+    Ok(out)
 }

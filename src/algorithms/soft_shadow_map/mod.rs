@@ -35,14 +35,15 @@
 pub mod cpu;
 pub mod wgpu;
 
-use std::collections::BTreeMap;
-
 use glam::{Mat4, Vec2, Vec3};
 
-use super::parse_options;
+use crate::algorithms::{
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+};
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::model::raster::Blend;
+use crate::scene::LightKind;
 use crate::scene::{Bounds, FlatMesh, Light};
 
 pub const ID: &str = "soft_shadow_map";
@@ -65,72 +66,40 @@ pub enum Precision {
 
 /// Options of `soft_shadow_map` (scenario `options.soft_shadow_map`).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct SoftShadowMapOptions {
     /// 1: one occluder map (nearest surfaces); 2: nearest and back faces merged by max (§3.5).
-    #[serde(default = "default_passes")]
     pub passes: u32,
-    #[serde(default)]
     pub precision: Precision,
     /// The paper's pipeline (§4.1): the occluder map is read back to the host, which generates
     /// the penumbra extents. Counted as `transfer.bytes` and, on cpu-model, as modelled time at
     /// `transfer_gb_per_s`. `false` is the GPU-only variant of §4.3 (extents generated on the
     /// device from the occluder map).
-    #[serde(default = "default_true")]
     pub occluder_map_transfer: bool,
     /// Bandwidth of the device-to-host link for the transfer, GB/s. Default 1 GB/s: an
     /// assumption, the order of the readback rates of the paper's PCIe-era hardware.
-    #[serde(default = "default_transfer_gb_per_s")]
     pub transfer_gb_per_s: f64,
     /// A micro-patch shadows a receiver only when it lies nearer the light by more than this many
     /// map texels (at the receiver's depth).
-    #[serde(default = "default_bias_texels")]
     pub bias_texels: f32,
-}
-
-fn default_passes() -> u32 {
-    1
-}
-
-fn default_true() -> bool {
-    true
-}
-
-fn default_transfer_gb_per_s() -> f64 {
-    1.0
-}
-
-fn default_bias_texels() -> f32 {
-    1.5
 }
 
 impl Default for SoftShadowMapOptions {
     fn default() -> Self {
         SoftShadowMapOptions {
-            passes: default_passes(),
+            passes: 1,
             precision: Precision::default(),
             occluder_map_transfer: true,
-            transfer_gb_per_s: default_transfer_gb_per_s(),
-            bias_texels: default_bias_texels(),
+            transfer_gb_per_s: 1.0,
+            bias_texels: 1.5,
         }
     }
 }
 
-impl SoftShadowMapOptions {
-    pub fn parse(options: &BTreeMap<String, serde_json::Value>) -> Result<Self, InputError> {
-        let o: SoftShadowMapOptions = parse_options(ID, options)?;
-        o.validate()?;
-        Ok(o)
-    }
-
-    pub fn validate(&self) -> Result<(), InputError> {
+impl AlgorithmOptions for SoftShadowMapOptions {
+    fn validate(&self) -> Result<(), InputError> {
         let field = |name: &str| format!("$.options.{ID}.{name}");
-        if !(1..=2).contains(&self.passes) {
-            return Err(InputError::new(
-                field("passes"),
-                format!("must be 1 or 2, got {}", self.passes),
-            ));
-        }
+        InputError::check_range(field("passes"), self.passes, 1..=2)?;
         if !(self.transfer_gb_per_s.is_finite() && self.transfer_gb_per_s > 0.0) {
             return Err(InputError::new(
                 field("transfer_gb_per_s"),
@@ -140,13 +109,7 @@ impl SoftShadowMapOptions {
                 ),
             ));
         }
-        if !(self.bias_texels.is_finite() && self.bias_texels >= 0.0) {
-            return Err(InputError::new(
-                field("bias_texels"),
-                format!("must be a finite number >= 0, got {}", self.bias_texels),
-            ));
-        }
-        Ok(())
+        InputError::check_non_negative(field("bias_texels"), self.bias_texels)
     }
 }
 
@@ -516,61 +479,24 @@ pub fn visibility(occluded: f32) -> f32 {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct SoftShadowMap;
 
-impl crate::algorithms::Algorithm for SoftShadowMap {
+impl Algorithm for SoftShadowMap {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "002 §3-§4 (Atty et al. 2006)";
     const SUMMARY: &'static str =
         "occluder map as micro-patches; penumbra-extent quads add each patch's hidden \
               fraction of the light (interval product) into a soft shadow map; one or two \
               passes, FP32 or FP16 accumulation";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[crate::scene::LightKind::Rect];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[
-        crate::algorithms::MethodLimit::NoOccluderShadowing,
-        crate::algorithms::MethodLimit::OneMap,
-    ];
+    const LIGHTS: &'static [LightKind] = &[LightKind::Rect];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::NoOccluderShadowing, MethodLimit::OneMap];
     type Options = SoftShadowMapOptions;
-
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        SoftShadowMapOptions::parse(options)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::soft_shadow_map(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        Ok(cpu::render(backend, frame, ctx, o))
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
-    }
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_shadow_map;
+    const OPTION_SETS: &'static [&'static str] = &[
+        r#"{"passes": 2, "occluder_map_transfer": false}"#,
+        r#"{"precision": "fp16"}"#,
+    ];
+    const CPU: CpuEntry<SoftShadowMapOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<SoftShadowMapOptions>> = Some(wgpu::render);
 }
 
 #[cfg(test)]

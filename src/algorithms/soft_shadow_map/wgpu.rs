@@ -23,6 +23,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::cpu::{extent_quad, micro_patch};
 use super::{LightFrame, Precision, SoftShadowMapOptions, Split};
+use crate::algorithms::ExecContext;
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -83,7 +84,12 @@ fn window(f: &LightFrame) -> [f32; 4] {
     [f.x0, f.x1, f.y0, f.y1]
 }
 
-pub fn render(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput> {
+pub fn render(
+    gpu: &Gpu,
+    frame: &Frame,
+    _: &ExecContext,
+    o: &SoftShadowMapOptions,
+) -> Result<FrameOutput> {
     if o.precision == Precision::Fp32 && !gpu.float32_blendable {
         return Err(Error::Unsupported(format!(
             "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use precision fp16",

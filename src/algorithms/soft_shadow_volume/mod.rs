@@ -33,8 +33,11 @@ use serde::{Deserialize, Serialize};
 
 use super::eye_raster::ConvexVolume;
 pub use super::shadow_volume::Counting;
+use crate::algorithms::{work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WorkEstimate};
 use crate::error::InputError;
+use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::SilhouetteEdge;
+use crate::scene::LightKind;
 use crate::scene::{Light, LightTexture};
 
 /// The shape of the emitter in light coordinates.
@@ -637,52 +640,35 @@ pub enum VBufferPrecision {
     Split12,
 }
 
+/// n of the default 4D coverage texture (III §3.3: 32×32 sub-textures of 32×32 texels).
+pub const DEFAULT_TEXTURE_N: u32 = 32;
+
 /// Options of `soft_shadow_volume` (scenario `options.soft_shadow_volume`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct SoftShadowVolumeOptions {
-    #[serde(default)]
     pub coverage: CoverageMethod,
     /// n of the n×n sub-textures of n×n texels (III §3.3).
-    #[serde(default = "default_texture_n")]
     pub texture_n: u32,
     /// Tighter wedges for rectangular lights (IV §4.1); off: wedges around the light's
     /// bounding sphere (III §3.1).
-    #[serde(default = "yes")]
     pub tighter_wedges: bool,
     /// Wedge-half culling with depth and stencil tests (IV §4.4).
-    #[serde(default = "yes")]
     pub wedge_culling: bool,
-    #[serde(default)]
     pub vbuffer: VBufferPrecision,
     /// Per silhouette loop V-buffers merged by eq. 1 (IV §5.1).
-    #[serde(default)]
     pub overlap_approximation: bool,
     /// Split a rectangular light into k×k sub-lights (IV §5.2); 1 = no splitting.
-    #[serde(default = "one")]
     pub light_split: u32,
     /// Pass 1's counting (III §3.2.1 with z-pass, Paper II §5 z-fail with capped volumes).
-    #[serde(default)]
     pub counting: Counting,
-}
-
-fn default_texture_n() -> u32 {
-    32
-}
-
-fn yes() -> bool {
-    true
-}
-
-fn one() -> u32 {
-    1
 }
 
 impl Default for SoftShadowVolumeOptions {
     fn default() -> Self {
         SoftShadowVolumeOptions {
             coverage: CoverageMethod::default(),
-            texture_n: default_texture_n(),
+            texture_n: DEFAULT_TEXTURE_N,
             tighter_wedges: true,
             wedge_culling: true,
             vbuffer: VBufferPrecision::default(),
@@ -695,29 +681,16 @@ impl Default for SoftShadowVolumeOptions {
 
 pub const ID: &str = "soft_shadow_volume";
 
-impl SoftShadowVolumeOptions {
-    pub fn validate(&self) -> Result<(), InputError> {
-        if !(2..=64).contains(&self.texture_n) {
-            return Err(InputError::new(
-                format!("$.options.{ID}.texture_n"),
-                format!("must be in 2..=64, got {}", self.texture_n),
-            ));
-        }
-        if !(1..=3).contains(&self.light_split) {
-            return Err(InputError::new(
-                format!("$.options.{ID}.light_split"),
-                format!(
-                    "must be 1, 2 or 3 (k×k sub-lights), got {}",
-                    self.light_split
-                ),
-            ));
-        }
+impl AlgorithmOptions for SoftShadowVolumeOptions {
+    fn validate(&self) -> Result<(), InputError> {
+        let field = |name: &str| format!("$.options.{ID}.{name}");
+        InputError::check_range(field("texture_n"), self.texture_n, 2..=64)?;
+        InputError::check_range(field("light_split"), self.light_split, 1..=3)?;
         if self.counting == Counting::ZFail && self.overlap_approximation {
             return Err(InputError::new(
-                format!("$.options.{ID}.counting"),
+                field("counting"),
                 "\"z_fail\" cannot be combined with overlap_approximation: the caps of each \
-                 silhouette loop's volume are not built"
-                    .to_string(),
+                 silhouette loop's volume are not built",
             ));
         }
         Ok(())
@@ -770,68 +743,30 @@ pub fn check_light_texture(o: &SoftShadowVolumeOptions) -> Result<(), InputError
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct SoftShadowVolume;
 
-impl crate::algorithms::Algorithm for SoftShadowVolume {
+impl Algorithm for SoftShadowVolume {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "001 Papers III and IV";
     const SUMMARY: &'static str =
         "hard shadow quads plus penumbra wedges adding or subtracting light coverage";
-    const LIGHTS: &'static [crate::scene::LightKind] = &[
-        crate::scene::LightKind::Rect,
-        crate::scene::LightKind::Sphere,
-    ];
-    const BACKENDS: &'static [crate::algorithms::Backend] = &[
-        crate::algorithms::Backend::CpuNative,
-        crate::algorithms::Backend::CpuModel,
-        crate::algorithms::Backend::Wgpu,
-    ];
-    const LIMITS: &'static [crate::algorithms::MethodLimit] = &[];
+    const LIGHTS: &'static [LightKind] = &[LightKind::Rect, LightKind::Sphere];
     type Options = SoftShadowVolumeOptions;
+    const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_shadow_volume;
+    const OPTION_SETS: &'static [&'static str] = &[
+        r#"{"coverage": "texture", "vbuffer": "split12"}"#,
+        r#"{"wedge_culling": false, "tighter_wedges": false}"#,
+        r#"{"light_split": 2, "overlap_approximation": true}"#,
+        r#"{"counting": "z_fail"}"#,
+    ];
+    const CPU: CpuEntry<SoftShadowVolumeOptions> = cpu::render;
+    const WGPU: Option<WgpuEntry<SoftShadowVolumeOptions>> = Some(wgpu::render);
 
-    fn options(
-        options: &std::collections::BTreeMap<String, serde_json::Value>,
-    ) -> Result<Self::Options, crate::error::InputError> {
-        let o: SoftShadowVolumeOptions = super::parse_options(ID, options)?;
-        o.validate()?;
-        Ok(o)
-    }
-
-    fn light_texture(o: &SoftShadowVolumeOptions) -> Result<(), crate::error::InputError> {
+    fn light_texture(o: &SoftShadowVolumeOptions) -> Result<(), InputError> {
         check_light_texture(o)
     }
 
-    fn prepare(frame: &crate::frame::Frame, o: &mut SoftShadowVolumeOptions) -> Option<String> {
+    fn prepare(frame: &Frame, o: &mut SoftShadowVolumeOptions) -> Option<String> {
         super::shadow_volume::zfail_fallback(ID, frame, &mut o.counting)
-    }
-
-    fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-        memory_estimate(p)
-    }
-
-    fn work_estimate(
-        extent: &crate::algorithms::work::SceneExtent,
-        p: &crate::frame::RunParams,
-        ctx: &crate::algorithms::ExecContext,
-    ) -> f64 {
-        crate::algorithms::work::soft_shadow_volume(extent, p, ctx)
-    }
-
-    fn cpu(
-        backend: crate::algorithms::Backend,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        cpu::render(backend, frame, ctx, o)
-    }
-
-    fn wgpu(
-        gpu: &crate::gpu::Gpu,
-        frame: &crate::frame::Frame,
-        ctx: &crate::algorithms::ExecContext,
-        o: &Self::Options,
-    ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
     }
 }
 
@@ -845,6 +780,6 @@ mod tests;
 /// run's parameters.
 pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
     let pixels = u64::from(p.image[0]) * u64::from(p.image[1]);
-    let n = u64::from(default_texture_n());
+    let n = u64::from(DEFAULT_TEXTURE_N);
     pixels * (4 + 1 + 4) + n.pow(4)
 }

@@ -53,6 +53,7 @@ use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect, DEPTH_BYT
 use crate::algorithms::shadow_volume::{
     eye_count, face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad, VolumeFace,
 };
+use crate::algorithms::ExecContext;
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -132,7 +133,12 @@ struct Params {
 }
 
 /// `soft_shadow_volume` on wgpu.
-pub fn render(gpu: &Gpu, frame: &Frame, opts: &SoftShadowVolumeOptions) -> Result<FrameOutput> {
+pub fn render(
+    gpu: &Gpu,
+    frame: &Frame,
+    _: &ExecContext,
+    opts: &SoftShadowVolumeOptions,
+) -> Result<FrameOutput> {
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
         Error::Unsupported(format!(

@@ -1,0 +1,125 @@
+//! The registry-driven parity checks: every registered algorithm, on its default options and
+//! on each of its option sets ([`Algorithm::OPTION_SETS`]), on two generated scenes.
+//! `cpu-native` and `cpu-model` run the same kernels (only the probe differs), so their images
+//! are identical bit for bit; `wgpu` computes the same formulas through a GPU pipeline, so its
+//! image and counters are within the algorithm's stated [`WgpuParity`] of `cpu-model`.
+//!
+//! [`Algorithm::OPTION_SETS`]: shadowbench::algorithms::Algorithm::OPTION_SETS
+//! [`WgpuParity`]: shadowbench::algorithms::WgpuParity
+
+use shadowbench::algorithms::{self, AlgorithmInfo, Backend, ExecContext, FrameOutput, ALGORITHMS};
+use shadowbench::frame::{Frame, RunParams};
+use shadowbench::harness::light_as;
+use shadowbench::metrics;
+use shadowbench::scene::generators::{self, GeneratorParams};
+
+use super::gpu_check::have_gpu;
+
+const SCENES: [&str; 2] = ["sphere-on-plane", "torus-on-plane"];
+
+/// A 48×36 frame of generated scene `name` (map 128², tiles 16) with its light converted to
+/// the first kind `info` handles, so every option set (light splitting needs a rectangle)
+/// applies.
+fn frame(name: &str, info: &AlgorithmInfo) -> Frame {
+    let mut scene = generators::find(name)
+        .unwrap()
+        .build(&GeneratorParams::default());
+    scene.light = light_as(scene.light, info.lights[0], scene.bounds().center());
+    let params = RunParams::of_scene(&scene, [48, 36], 128, 16);
+    Frame::new(scene, params)
+}
+
+/// The default options and every option set of `info`, as execution contexts.
+fn option_sets(info: &AlgorithmInfo) -> Vec<(String, ExecContext)> {
+    let mut sets = vec![("{}".to_string(), ExecContext::default())];
+    for json in info.option_sets {
+        let mut ctx = ExecContext::default();
+        let value: serde_json::Value = serde_json::from_str(json)
+            .unwrap_or_else(|e| panic!("{}: option set {json}: {e}", info.id));
+        ctx.options.insert(info.id.to_string(), value);
+        (info.check_options)(&ctx.options)
+            .unwrap_or_else(|e| panic!("{}: option set {json}: {e}", info.id));
+        sets.push((json.to_string(), ctx));
+    }
+    for (_, ctx) in &mut sets {
+        ctx.reference_samples = 4;
+    }
+    sets
+}
+
+fn run(info: &AlgorithmInfo, backend: Backend, frame: &Frame, ctx: &ExecContext) -> FrameOutput {
+    algorithms::run(info.id, backend, frame, ctx)
+        .unwrap_or_else(|e| panic!("{} on {backend}: {e}", info.id))
+}
+
+#[test]
+fn cpu_native_and_cpu_model_images_are_identical_for_every_algorithm_and_option_set() {
+    for info in ALGORITHMS.iter().filter(|a| {
+        a.backends.contains(&Backend::CpuNative) && a.backends.contains(&Backend::CpuModel)
+    }) {
+        for name in SCENES {
+            let frame = frame(name, info);
+            for (options, ctx) in option_sets(info) {
+                let native = run(info, Backend::CpuNative, &frame, &ctx);
+                let model = run(info, Backend::CpuModel, &frame, &ctx);
+                assert!(
+                    native.visibility.data == model.visibility.data,
+                    "{} {options} on {name}: cpu-native and cpu-model images differ",
+                    info.id
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn wgpu_is_within_its_stated_parity_of_the_cpu_model_for_every_algorithm_and_option_set() {
+    if !have_gpu() {
+        return;
+    }
+    for info in ALGORITHMS
+        .iter()
+        .filter(|a| a.backends.contains(&Backend::Wgpu))
+    {
+        let parity = info.wgpu_parity;
+        for name in SCENES {
+            let frame = frame(name, info);
+            let mask = frame.gbuffer.mask();
+            for (options, ctx) in option_sets(info) {
+                let what = format!("{} {options} on {name}", info.id);
+                let gpu = run(info, Backend::Wgpu, &frame, &ctx);
+                let model = run(info, Backend::CpuModel, &frame, &ctx);
+                gpu.visibility.check_range().unwrap();
+                let e = metrics::compare(&gpu.visibility, &model.visibility, &mask);
+                let (mae, over) = (e.mae.unwrap(), e.frac_over_0_1.unwrap());
+                eprintln!("{what}: mae {mae:.2e}, frac>0.1 {over:.4}");
+                for (k, &g) in &gpu.counters.0 {
+                    if let Some(m) = model.counters.get(k) {
+                        if g != m {
+                            eprintln!("  {k}: wgpu {g}, cpu-model {m}");
+                        }
+                    }
+                }
+                assert!(e.shadow_pixels > 20, "{what}: no shadow on screen: {e:?}");
+                assert!(mae <= parity.mae, "{what}: {e:?}");
+                assert!(over <= parity.frac_over_0_1, "{what}: {e:?}");
+                let counter = |o: &FrameOutput, k: &str| {
+                    o.counters
+                        .get(k)
+                        .unwrap_or_else(|| panic!("{what}: no counter {k}"))
+                };
+                for k in parity.exact {
+                    let (g, m) = (counter(&gpu, k), counter(&model, k));
+                    assert_eq!(g, m, "{what}: {k} {g} on wgpu, {m} on cpu-model");
+                }
+                for k in parity.within_1_percent {
+                    let (g, m) = (counter(&gpu, k), counter(&model, k));
+                    assert!(
+                        (g - m).abs() <= 0.01 * m,
+                        "{what}: {k} {g} on wgpu, {m} on cpu-model"
+                    );
+                }
+            }
+        }
+    }
+}
