@@ -765,6 +765,9 @@ pub fn glossary() -> String {
     s
 }
 
+/// The names of the derived figures ([`derive`]).
+pub const DERIVED: [&str; 2] = ["overdraw_ratio", "simd_utilization"];
+
 /// The derived figures, computed from the counters of one record or phase:
 /// `overdraw_ratio = overdraw / fill` (where both are counted and fill > 0) and
 /// `simd_utilization = active_lanes / (vector_ops × 16)` (where vector_ops > 0). Applied to

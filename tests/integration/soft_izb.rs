@@ -307,27 +307,6 @@ fn run_with(backend: Backend, frame: &Frame, options: &serde_json::Value) -> Fra
     algorithms::run("soft_izb", backend, frame, &ctx).unwrap()
 }
 
-/// Counters that are functions of the occluders, the grid and the cells the samples fall in:
-/// the same f32 operations in the same order on both executions, and integer counts on both
-/// (atomics on the GPU), so they agree exactly. A sample projected one ulp across a column or
-/// slice boundary by a GPU that fuses multiply-adds would move these by a few units; llvmpipe
-/// does not.
-const EXACT: [&str; 13] = [
-    "samples",
-    "occluder_triangles",
-    "silhouette_edges",
-    "hard_columns",
-    "hard_tests",
-    "hard_hits",
-    "bin_entries",
-    "penumbra_quads",
-    "bin_culled_quads",
-    "quad_fragments",
-    "wedge_culled_fragments",
-    "fill",
-    "izb_grid_bytes",
-];
-
 #[test]
 fn wgpu_agrees_with_the_cpu_model() {
     if !have_gpu() {
@@ -354,20 +333,11 @@ fn wgpu_agrees_with_the_cpu_model() {
                 e.shadow_pixels > 50,
                 "{name} {o}: no shadow to compare: {e:?}"
             );
+            // Counters: the registry's parity test (registry.rs, SoftIzb::WGPU_PARITY).
             let c = |out: &FrameOutput, k: &str| out.counters.get(k).unwrap_or(f64::NAN);
-            for k in EXACT {
-                assert_eq!(c(&gpu, k), c(&model, k), "{name} {o}: {k}");
-            }
             assert!(
                 c(&gpu, "fill") > 0.0 && c(&gpu, "hard_hits") > 0.0,
                 "{name} {o}"
-            );
-            // Overdraw is fill whose eq. 3 returned exactly 0: a sample whose footprint just
-            // touches an edge can return a tiny value on one execution and 0 on the other.
-            let (og, om) = (c(&gpu, "overdraw"), c(&model, "overdraw"));
-            assert!(
-                (og - om).abs() <= 0.005 * c(&model, "fill") + 1.0,
-                "{name} {o}: overdraw {og} on wgpu, {om} on cpu-model"
             );
             // Phases as on the CPU, each timed on the GPU where the adapter can.
             let names: Vec<&str> = gpu.phases.iter().map(|p| p.name.as_str()).collect();

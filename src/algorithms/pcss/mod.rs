@@ -13,7 +13,9 @@ use crate::error::InputError;
 use serde::{Deserialize, Serialize};
 
 use crate::algorithms::shadow_map::{self, Bias};
-use crate::algorithms::{work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WorkEstimate};
+use crate::algorithms::{
+    work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WgpuParity, WorkEstimate,
+};
 use crate::frame::RunParams;
 
 pub const ID: &str = "pcss";
@@ -59,6 +61,11 @@ impl Algorithm for Pcss {
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = shadow_map::memory_estimate;
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::pcss;
     const OPTION_SETS: &'static [&'static str] = &[r#"{"blocker_samples": 4, "pcf_samples": 8}"#];
+    /// Fragment counts differ where the light raster as in hard_shadow_map.
+    const WGPU_PARITY: WgpuParity = WgpuParity {
+        differ: &[("fill", Some(0.02)), ("overdraw", Some(0.02))],
+        ..WgpuParity::SAME_FORMULAS
+    };
     const CPU: CpuEntry<PcssOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<PcssOptions>> = Some(wgpu::render);
 }

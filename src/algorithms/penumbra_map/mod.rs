@@ -26,7 +26,7 @@ use glam::{Vec2, Vec3};
 
 use super::shadow_map::{self, map_bytes, Bias, LightView};
 use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
 };
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
@@ -412,6 +412,11 @@ impl Algorithm for PenumbraMap {
         r#"{"cone_segments": 5, "max_sheet_strips": 1}"#,
         r#"{"shadow_mesh_triangles": 300}"#,
     ];
+    /// Fragment counts differ where the light raster as in hard_shadow_map, and the cones' and sheets' fragments (measured: 68 of 5,796 on torus-on-plane).
+    const WGPU_PARITY: WgpuParity = WgpuParity {
+        differ: &[("fill", Some(0.02)), ("overdraw", Some(0.02))],
+        ..WgpuParity::SAME_FORMULAS
+    };
     const CPU: CpuEntry<PenumbraMapOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<PenumbraMapOptions>> = Some(wgpu::render);
 }

@@ -38,7 +38,7 @@ pub mod wgpu;
 use glam::{Mat4, Vec2, Vec3};
 
 use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
 };
 use crate::error::InputError;
 use crate::frame::RunParams;
@@ -495,6 +495,11 @@ impl Algorithm for SoftShadowMap {
         r#"{"passes": 2, "occluder_map_transfer": false}"#,
         r#"{"precision": "fp16"}"#,
     ];
+    /// Fragment counts differ where the occluder map and the penumbra-extent quads through two rasterizers (measured: fill 2.6% apart on torus-on-plane, map 128²).
+    const WGPU_PARITY: WgpuParity = WgpuParity {
+        differ: &[("fill", Some(0.03)), ("overdraw", Some(0.03))],
+        ..WgpuParity::SAME_FORMULAS
+    };
     const CPU: CpuEntry<SoftShadowMapOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<SoftShadowMapOptions>> = Some(wgpu::render);
 }
