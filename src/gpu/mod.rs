@@ -12,7 +12,7 @@
 //! [`fault`] injects such faults on purpose, for the robustness tests.
 
 pub mod fault;
-pub mod layout;
+pub mod pass;
 
 pub mod readback;
 pub mod stats;
@@ -162,29 +162,6 @@ impl Gpu {
                 | usage,
             view_formats: &[],
         })
-    }
-
-    /// The compute pipeline of `entry` in `module`, with the WGSL override `INSTRUMENT` 1 for
-    /// the instrumented replay (fragments counted with atomics) or 0 for the timed run.
-    pub fn instrumented_compute_pipeline(
-        &self,
-        layout: &wgpu::PipelineLayout,
-        module: &wgpu::ShaderModule,
-        entry: &str,
-        instrument: bool,
-    ) -> wgpu::ComputePipeline {
-        self.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(layout),
-                module,
-                entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
-                    ..Default::default()
-                },
-                cache: None,
-            })
     }
 
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds

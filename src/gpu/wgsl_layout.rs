@@ -51,15 +51,27 @@ pub(crate) fn mismatches(
     out
 }
 
-/// Asserts that Rust struct `$ty` has the layout of WGSL struct `$wgsl_name` in `$source`:
-/// every field is listed (`field`, or `field as "wgsl_name"` where the names differ).
-macro_rules! assert_wgsl_layout {
-    ($source:expr, $wgsl_name:literal, $ty:ty { $($field:ident $(as $wgsl_field:literal)?),* $(,)? }) => {{
-        let found = $crate::gpu::wgsl_layout::mismatches(
+/// The mismatches between Rust struct `$ty` and WGSL struct `$wgsl_name` in `$source`
+/// ([`mismatches`]): every field is listed (`field`, or `field as "wgsl_name"` where the names
+/// differ).
+macro_rules! wgsl_layout_mismatches {
+    ($source:expr, $wgsl_name:literal, $ty:ty { $($field:ident $(as $wgsl_field:literal)?),* $(,)? }) => {
+        $crate::gpu::wgsl_layout::mismatches(
             &$source,
             $wgsl_name,
             std::mem::size_of::<$ty>(),
             &[$(($crate::gpu::wgsl_layout::wgsl_field!($field $($wgsl_field)?), std::mem::offset_of!($ty, $field))),*],
+        )
+    };
+}
+pub(crate) use wgsl_layout_mismatches;
+
+/// Asserts that Rust struct `$ty` has the layout of WGSL struct `$wgsl_name` in `$source`, as
+/// [`wgsl_layout_mismatches`] lists the fields.
+macro_rules! assert_wgsl_layout {
+    ($source:expr, $wgsl_name:literal, $ty:ty { $($field:ident $(as $wgsl_field:literal)?),* $(,)? }) => {{
+        let found = $crate::gpu::wgsl_layout::wgsl_layout_mismatches!(
+            $source, $wgsl_name, $ty { $($field $(as $wgsl_field)?),* }
         );
         assert!(found.is_empty(), "{}", found.join("\n"));
     }};

@@ -501,7 +501,7 @@ impl crate::algorithms::Algorithm for Dbuffer {
         ctx: &crate::algorithms::ExecContext,
         o: &Self::Options,
     ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        wgpu::render(gpu, frame, ctx, *o)
+        wgpu::render(gpu, frame, ctx, o)
     }
 }
 

@@ -67,7 +67,6 @@ impl crate::algorithms::Algorithm for HardShadowMap {
         ctx: &crate::algorithms::ExecContext,
         o: &Self::Options,
     ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
+        wgpu::render(gpu, frame, ctx, o)
     }
 }

@@ -3,20 +3,22 @@
 
 use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
 use crate::algorithms::shadow_map::PcssOptions;
-use crate::algorithms::FrameOutput;
+use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Gpu;
 
-pub fn render(gpu: &Gpu, frame: &Frame, options: &PcssOptions) -> Result<FrameOutput> {
-    shadow_map_wgpu::render(
-        gpu,
-        frame,
-        &Lookup {
-            wgsl: include_str!("wgpu.wgsl"),
-            bias: options.bias,
-            blocker_samples: options.blocker_samples,
-            pcf_samples: options.pcf_samples,
-        },
-    )
+/// `pcss` on wgpu (`ctx` unused: the passes need nothing of the run's context).
+pub fn render(
+    gpu: &Gpu,
+    frame: &Frame,
+    _ctx: &ExecContext,
+    o: &PcssOptions,
+) -> Result<FrameOutput> {
+    let lookup = Lookup {
+        blocker_samples: o.blocker_samples,
+        pcf_samples: o.pcf_samples,
+        ..Lookup::new(include_str!("wgpu.wgsl"), o.bias)
+    };
+    shadow_map_wgpu::render(gpu, frame, &lookup)
 }

@@ -486,8 +486,7 @@ impl crate::algorithms::Algorithm for PenumbraMap {
         ctx: &crate::algorithms::ExecContext,
         o: &Self::Options,
     ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
+        wgpu::render(gpu, frame, ctx, o)
     }
 }
 

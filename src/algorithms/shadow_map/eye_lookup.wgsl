@@ -3,42 +3,12 @@
 // calls `visibility_at`, which each algorithm defines in its own WGSL file appended to this one.
 // Every function here mirrors the Rust function of src/algorithms/shadow_map/mod.rs named beside it.
 
-struct Light {
-    view_proj: mat4x4<f32>,
-    eye: vec3<f32>,
-    radius: f32,
-    near: f32,
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    blocker_samples: u32,
-    pcf_samples: u32,
-    width: u32,
-    height: u32,
-    // FaceView::face_code: the cube face whose receivers this view shades, 6 for all.
-    face: u32,
-    pad: u32,
-}
-
-struct Counts {
-    fragments: atomic<u32>,
-    covered: atomic<u32>,
-    taps: atomic<u32>,
-    wasted_taps: atomic<u32>,
-    discarded: atomic<u32>,
-    extra_taps: atomic<u32>,
-}
-
 // Depth of a tap outside the map: beyond every receiver.
 const FAR_AWAY: f32 = 3.4e38;
 
 // True in the instrumented pipeline: count shadow-map taps and wasted work with atomics.
 override INSTRUMENT: bool = false;
 
-@group(0) @binding(0) var<uniform> light: Light;
-@group(0) @binding(1) var<storage, read_write> counts: Counts;
 @group(1) @binding(0) var shadow_map: texture_depth_2d;
 @group(1) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(1) @binding(2) var<storage, read> normals: array<vec4<f32>>;

@@ -568,8 +568,7 @@ impl crate::algorithms::Algorithm for SoftShadowMap {
         ctx: &crate::algorithms::ExecContext,
         o: &Self::Options,
     ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
+        wgpu::render(gpu, frame, ctx, o)
     }
 }
 

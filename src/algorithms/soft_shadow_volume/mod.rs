@@ -830,8 +830,7 @@ impl crate::algorithms::Algorithm for SoftShadowVolume {
         ctx: &crate::algorithms::ExecContext,
         o: &Self::Options,
     ) -> crate::error::Result<crate::algorithms::FrameOutput> {
-        let _ = ctx;
-        wgpu::render(gpu, frame, o)
+        wgpu::render(gpu, frame, ctx, o)
     }
 }
 
