@@ -30,6 +30,10 @@ use crate::error::{Error, Result};
 use crate::frame::GBuffer;
 use crate::util::deadline::Deadline;
 
+/// What [`Gpu::upload`] makes of empty data: bytes enough for one record of any kind the
+/// passes read.
+pub const EMPTY_BYTES: usize = 128;
+
 /// Environment variable naming the adapter to use (substring of its name).
 pub const ADAPTER_ENV: &str = "SHADOWBENCH_ADAPTER";
 
@@ -99,23 +103,22 @@ pub struct Gpu {
 }
 
 impl Gpu {
-    /// A buffer holding `contents`. Zero-sized buffers cannot be bound, so empty contents become
-    /// `empty_bytes` zero bytes (at least one record of what the shader reads from it).
-    pub fn buffer_init(
+    /// A buffer holding `data`. Zero-sized buffers cannot be bound, so empty data becomes
+    /// [`EMPTY_BYTES`] zero bytes (at least one record of any kind a shader reads from it).
+    pub fn upload<T: bytemuck::Pod>(
         &self,
         label: &str,
-        contents: &[u8],
-        empty_bytes: usize,
+        data: &[T],
         usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        let padded = vec![0u8; empty_bytes];
+        let bytes: &[u8] = bytemuck::cast_slice(data);
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
-                contents: if contents.is_empty() {
-                    &padded
+                contents: if bytes.is_empty() {
+                    &[0; EMPTY_BYTES]
                 } else {
-                    contents
+                    bytes
                 },
                 usage,
             })

@@ -25,6 +25,52 @@ use super::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use super::timing::{self, read_ms_or_warn, GpuTimes, PassTimer};
 use super::{resolve_queries, Gpu};
 
+/// Declares a `#[repr(C)]` struct the GPU reads (a uniform or storage buffer) once, for both
+/// sides: the Rust struct (`Pod`, every field public) and, as `NAME::WGSL`, the WGSL `struct`
+/// declaration that the shaders using it are joined with ([`Program::new`]). Each field names
+/// its Rust type and its WGSL type (`field: [f32; 3] => "vec3<f32>"`); the WGSL struct is called
+/// as given after `as`. Whether WGSL lays the fields out where Rust does (alignment: a `vec3`
+/// takes 16 bytes unless a scalar follows it) is checked by `NAME::layout_mismatches` (tests
+/// only), which parses the shader source as a pipeline joins it with naga
+/// ([`crate::gpu::wgsl_layout`]).
+macro_rules! gpu_struct {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident as $wgsl:literal {
+            $($(#[doc = $doc:literal])* $field:ident: $rty:ty => $wty:literal,)*
+        }
+    ) => {
+        $(#[$meta])*
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+        $vis struct $name {
+            $($(#[doc = $doc])* pub $field: $rty,)*
+        }
+
+        impl $name {
+            /// The WGSL declaration of this struct.
+            pub const WGSL: &'static str = concat!(
+                "struct ", $wgsl, " {\n",
+                $("    ", stringify!($field), ": ", $wty, ",\n",)*
+                "}\n"
+            );
+
+            /// How the WGSL struct in `source` (a shader as a pipeline joins it) differs in
+            /// size or field offsets from this struct; empty when they agree.
+            #[cfg(test)]
+            pub fn layout_mismatches(source: &str) -> Vec<String> {
+                $crate::gpu::wgsl_layout::mismatches(
+                    source,
+                    $wgsl,
+                    std::mem::size_of::<Self>(),
+                    &[$((stringify!($field), std::mem::offset_of!(Self, $field))),*],
+                )
+            }
+        }
+    };
+}
+pub(crate) use gpu_struct;
+
 /// The kind of one binding of a bind group; a group is a list of them, binding `i` at index
 /// `i`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -65,7 +65,8 @@ fn sample_params(
         sub_lights: samples,
         counting: u32::from(counting == Counting::ZFail),
         channels: 1,
-        pad: [0; 2],
+        pad1: 0,
+        pad2: 0,
         mean: [1.0; 4],
     }
 }

@@ -17,8 +17,6 @@
 //! instrumented submission counts the volume fragments (`fill`) and the D-buffer texels they
 //! left covered (`fill − covered = overdraw`) with WGSL atomics, as the shadow-map family does.
 
-use bytemuck::{Pod, Zeroable};
-
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
 use crate::algorithms::exec::machine;
@@ -27,8 +25,8 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster, Statistics,
-    Step, Timed,
+    gpu_struct, replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster,
+    Statistics, Step, Timed,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{gbuffer_positions, Gpu};
@@ -41,38 +39,45 @@ const WORKGROUP: u32 = 8;
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 const EDGE: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 
-/// The `Light` uniform of `wgpu.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct DbufferUniform {
-    view_proj: [f32; 16],
-    eye: [f32; 3],
-    radius: f32,
-    n_view: [f32; 3],
-    near: f32,
-    disc_n: [f32; 3],
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    falloff: u32,
-    width: u32,
-    height: u32,
-    pad: u32,
+gpu_struct! {
+    /// The light view and the method's parameters (group 0, binding 0 of every pass).
+    struct DbufferUniform as "Light" {
+        view_proj: [f32; 16] => "mat4x4<f32>",
+        /// The light centre c (`LightView::eye`) and the disc radius.
+        eye: [f32; 3] => "vec3<f32>",
+        radius: f32 => "f32",
+        /// n_c in light-view space.
+        n_view: [f32; 3] => "vec3<f32>",
+        near: f32 => "f32",
+        /// n_c in world space.
+        disc_n: [f32; 3] => "vec3<f32>",
+        far: f32 => "f32",
+        tan_half_fov: f32 => "f32",
+        resolution: u32 => "u32",
+        bias_constant: f32 => "f32",
+        bias_slope: f32 => "f32",
+        /// 0: 3t² − 2t³ (eq. 4), 1: √t (§6.2).
+        falloff: u32 => "u32",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        pad: u32 => "u32",
+    }
 }
 
-/// The `Counts` storage buffer of the instrumented mode.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct Counts {
-    scene_fragments: u32,
-    umbra_fragments: u32,
-    penumbra_fragments: u32,
-    umbra_covered: u32,
-    penumbra_covered: u32,
-    pad: u32,
+gpu_struct! {
+    /// The counters of the instrumented replay (group 0, binding 1).
+    struct Counts as "Counts" {
+        scene_fragments: u32 => "atomic<u32>",
+        umbra_fragments: u32 => "atomic<u32>",
+        penumbra_fragments: u32 => "atomic<u32>",
+        umbra_covered: u32 => "atomic<u32>",
+        penumbra_covered: u32 => "atomic<u32>",
+        pad: u32 => "u32",
+    }
 }
+
+/// The shader as the pipelines join it.
+const SOURCES: [&str; 3] = [DbufferUniform::WGSL, Counts::WGSL, WGSL];
 
 /// `dbuffer` on wgpu.
 pub fn render(
@@ -133,6 +138,52 @@ struct Pipelines {
     lookup: wgpu::ComputePipeline,
 }
 
+impl Pipelines {
+    /// The timed and counting pipelines of every pass, and the replay's `count_covered`, from
+    /// the shared, scene-depth and lookup group layouts.
+    fn new(
+        gpu: &Gpu,
+        [shared, scene, lookup]: [&Layout; 3],
+    ) -> ([Pipelines; 2], wgpu::ComputePipeline) {
+        let program =
+            |groups: &[Option<&Layout>]| Program::new(gpu, "dbuffer/wgpu.wgsl", &SOURCES, groups);
+        let scene_program = program(&[Some(shared)]);
+        let volume_program = program(&[Some(shared), Some(scene)]);
+        let compute_program = program(&[Some(shared), Some(lookup)]);
+        let scene_attrs = wgpu::vertex_attr_array![0 => Float32x3];
+        let volume_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
+        let vertex = wgpu::VertexStepMode::Vertex;
+        let pipelines = [false, true].map(|instrument| {
+            let scene = Raster {
+                vs: "vs_scene",
+                fs: "fs_scene",
+                vertex: Some((12, vertex, &scene_attrs)),
+                instrument: Some(instrument),
+                ..Raster::default()
+            };
+            let volume = |fs| Raster {
+                vs: "vs_volume",
+                fs,
+                vertex: Some((16, vertex, &volume_attrs)),
+                color: Some(wgpu::ColorTargetState {
+                    format: EDGE,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::RED,
+                }),
+                ..scene.clone()
+            };
+            Pipelines {
+                scene: scene_program.render(gpu, &scene),
+                umbra: volume_program.render(gpu, &volume("fs_umbra")),
+                penumbra: volume_program.render(gpu, &volume("fs_penumbra")),
+                lookup: compute_program.compute(gpu, "eye_lookup", Some(instrument)),
+            }
+        });
+        let count_covered = compute_program.compute(gpu, "count_covered", Some(true));
+        (pipelines, count_covered)
+    }
+}
+
 struct Passes<'g> {
     gpu: &'g Gpu,
     width: u32,
@@ -186,14 +237,12 @@ impl<'g> Passes<'g> {
             pad: 0,
         };
         use wgpu::BufferUsages as B;
-        let init =
-            |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 16, usage);
-        let uniform_buf = init("dbuffer uniform", bytemuck::bytes_of(&uniform), B::UNIFORM);
+        let uniform_buf = gpu.upload("dbuffer uniform", &[uniform], B::UNIFORM);
         let mesh = |label: &str, vertices: Vec<f32>, tris: &[[u32; 3]]| {
             let indices: Vec<u32> = tris.iter().flatten().copied().collect();
             Mesh {
-                vertices: init(label, bytemuck::cast_slice(&vertices), B::VERTEX),
-                indices: init(label, bytemuck::cast_slice(&indices), B::INDEX),
+                vertices: gpu.upload(label, &vertices, B::VERTEX),
+                indices: gpu.upload(label, &indices, B::INDEX),
                 count: indices.len() as u32,
             }
         };
@@ -215,20 +264,16 @@ impl<'g> Passes<'g> {
         ];
         let g = &frame.gbuffer;
         let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-        let gpos = init(
-            "gbuffer positions",
-            bytemuck::cast_slice(&gbuffer_positions(g)),
-            B::STORAGE,
-        );
-        let gnrm = init("gbuffer normals", bytemuck::cast_slice(&gnrm), B::STORAGE);
+        let gpos = gpu.upload("gbuffer positions", &gbuffer_positions(g), B::STORAGE);
+        let gnrm = gpu.upload("gbuffer normals", &gnrm, B::STORAGE);
         let visibility = gpu.storage_buffer(
             "visibility",
             4 * u64::from(width) * u64::from(height),
             B::COPY_SRC,
         );
-        let counts = init(
+        let counts = gpu.upload(
             "instrumentation counts",
-            bytemuck::bytes_of(&Counts::default()),
+            &[Counts::default()],
             B::STORAGE | B::COPY_SRC | B::COPY_DST,
         );
         let depth = ["scene", "umbra", "penumbra"]
@@ -269,40 +314,8 @@ impl<'g> Passes<'g> {
                 visibility.as_entire_binding(),
             ],
         );
-        let program =
-            |groups: &[Option<&Layout>]| Program::new(gpu, "dbuffer/wgpu.wgsl", &[WGSL], groups);
-        let scene_program = program(&[Some(&shared_layout)]);
-        let volume_program = program(&[Some(&shared_layout), Some(&scene_layout)]);
-        let compute_program = program(&[Some(&shared_layout), Some(&lookup_layout)]);
-        let scene_attrs = wgpu::vertex_attr_array![0 => Float32x3];
-        let volume_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
-        let vertex = wgpu::VertexStepMode::Vertex;
-        let pipelines = [false, true].map(|instrument| {
-            let scene = Raster {
-                vs: "vs_scene",
-                fs: "fs_scene",
-                vertex: Some((12, vertex, &scene_attrs)),
-                instrument: Some(instrument),
-                ..Raster::default()
-            };
-            let volume = |fs| Raster {
-                vs: "vs_volume",
-                fs,
-                vertex: Some((16, vertex, &volume_attrs)),
-                color: Some(wgpu::ColorTargetState {
-                    format: EDGE,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::RED,
-                }),
-                ..scene.clone()
-            };
-            Pipelines {
-                scene: scene_program.render(gpu, &scene),
-                umbra: volume_program.render(gpu, &volume("fs_umbra")),
-                penumbra: volume_program.render(gpu, &volume("fs_penumbra")),
-                lookup: compute_program.compute(gpu, "eye_lookup", Some(instrument)),
-            }
-        });
+        let (pipelines, count_covered) =
+            Pipelines::new(gpu, [&shared_layout, &scene_layout, &lookup_layout]);
         Passes {
             gpu,
             width,
@@ -317,7 +330,7 @@ impl<'g> Passes<'g> {
             scene_group,
             lookup_group,
             pipelines,
-            count_covered: compute_program.compute(gpu, "count_covered", Some(true)),
+            count_covered,
         }
     }
 
@@ -390,42 +403,14 @@ impl<'g> Passes<'g> {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     #[test]
     fn uniforms_match_wgsl() {
-        assert_wgsl_layout!(
-            WGSL,
-            "Light",
-            DbufferUniform {
-                view_proj,
-                eye,
-                radius,
-                n_view,
-                near,
-                disc_n,
-                far,
-                tan_half_fov,
-                resolution,
-                bias_constant,
-                bias_slope,
-                falloff,
-                width,
-                height,
-                pad
-            }
+        let source = SOURCES.join("\n");
+        assert_eq!(
+            DbufferUniform::layout_mismatches(&source),
+            Vec::<String>::new()
         );
-        assert_wgsl_layout!(
-            WGSL,
-            "Counts",
-            Counts {
-                scene_fragments,
-                umbra_fragments,
-                penumbra_fragments,
-                umbra_covered,
-                penumbra_covered,
-                pad
-            }
-        );
+        assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
     }
 }

@@ -2,38 +2,8 @@
 // depth, the umbra volume, the penumbra volume) and the eye lookup. Every function mirrors the
 // Rust function of src/algorithms/dbuffer/ named beside it.
 
-// Layout matches `DbufferUniform` in wgpu.rs.
-struct Light {
-    view_proj: mat4x4<f32>,
-    // The light centre c (LightView::eye) and the disc radius.
-    eye: vec3<f32>,
-    radius: f32,
-    // n_c in light-view space.
-    n_view: vec3<f32>,
-    near: f32,
-    // n_c in world space.
-    disc_n: vec3<f32>,
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    // 0: 3t² − 2t³ (eq. 4), 1: √t (§6.2).
-    falloff: u32,
-    width: u32,
-    height: u32,
-    pad0: u32,
-}
-
-// Instrumented-mode counters, layout matches `Counts` in wgpu.rs.
-struct Counts {
-    scene_fragments: atomic<u32>,
-    umbra_fragments: atomic<u32>,
-    penumbra_fragments: atomic<u32>,
-    umbra_covered: atomic<u32>,
-    penumbra_covered: atomic<u32>,
-    pad: u32,
-}
+// The structs `Light` (`DbufferUniform`) and `Counts` are declared in wgpu.rs and joined before
+// this file.
 
 // True in the instrumented pipelines: count fragments and covered texels with atomics.
 override INSTRUMENT: bool = false;

@@ -17,22 +17,20 @@
 //! `penumbra_map` phase's wall time. The edge adjacency of the occluders is per-model
 //! preprocessing, built before the first phase, as is the optional simplified mesh.
 
-use bytemuck::{Pod, Zeroable};
-
 use super::{
     shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry, Silhouettes,
 };
 use crate::algorithms::shadow_map::wgpu::{
     self as shadow_map_wgpu, Counts, Lookup, Passes, DEPTH_TEXEL_BYTES, LIGHT_RASTER_WGSL, NOTE,
-    PRELUDE_WGSL,
+    PRELUDE,
 };
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    replay, view as view_resource, Bind, Draw, Layout, Pass, Program, Raster, Statistics, Step,
-    Timed,
+    gpu_struct, replay, view as view_resource, Bind, Draw, Layout, Pass, Program, Raster,
+    Statistics, Step, Timed,
 };
 use crate::gpu::readback::words;
 use crate::gpu::Gpu;
@@ -66,11 +64,21 @@ pub fn render(
     Ok(out)
 }
 
-/// The penumbra pass's uniform: the light view's projection.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct PenumbraView {
-    proj: [f32; 16],
+gpu_struct! {
+    /// The penumbra pass's uniform: the light view's projection (`LightView::proj`); the cones
+    /// and sheets are already in its view space.
+    struct PenumbraView as "PenumbraView" {
+        proj: [f32; 16] => "mat4x4<f32>",
+    }
+}
+
+/// The penumbra pass's shader as its pipeline joins it.
+fn sources() -> Vec<&'static str> {
+    [
+        &PRELUDE[..],
+        &[LIGHT_RASTER_WGSL, PenumbraView::WGSL, PENUMBRA_WGSL],
+    ]
+    .concat()
 }
 
 /// The cones and sheets on the GPU.
@@ -116,14 +124,10 @@ impl<'g> PenumbraPasses<'g> {
         let lookup_group =
             lookup_layout.group(gpu, "penumbra lookup", &[view_resource(&penumbra_view)]);
         // Group 1 of the penumbra pass: the projection and the shadow map.
-        let uniform = gpu.buffer_init(
-            "penumbra view",
-            bytemuck::bytes_of(&PenumbraView {
-                proj: view.proj.to_cols_array(),
-            }),
-            4,
-            wgpu::BufferUsages::UNIFORM,
-        );
+        let proj = PenumbraView {
+            proj: view.proj.to_cols_array(),
+        };
+        let uniform = gpu.upload("penumbra view", &[proj], wgpu::BufferUsages::UNIFORM);
         let penumbra_layout = Layout::new(
             gpu,
             "penumbra pass",
@@ -141,7 +145,7 @@ impl<'g> PenumbraPasses<'g> {
         let program = Program::new(
             gpu,
             "penumbra_map/wgpu.wgsl",
-            &[PRELUDE_WGSL, LIGHT_RASTER_WGSL, PENUMBRA_WGSL],
+            &sources(),
             &[Some(&passes.shared_layout), Some(&penumbra_layout)],
         );
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
@@ -181,20 +185,10 @@ impl<'g> PenumbraPasses<'g> {
             .map(|(p, a)| p.extend(a.x).to_array())
             .collect();
         let indices: Vec<u32> = g.triangles.iter().flatten().copied().collect();
-        let init = |label: &str, contents: &[u8], usage| {
-            self.passes.gpu.buffer_init(label, contents, 16, usage)
-        };
+        let gpu = self.passes.gpu;
         Cones {
-            vertices: init(
-                "penumbra vertices",
-                bytemuck::cast_slice(&vertices),
-                wgpu::BufferUsages::VERTEX,
-            ),
-            indices: init(
-                "penumbra indices",
-                bytemuck::cast_slice(&indices),
-                wgpu::BufferUsages::INDEX,
-            ),
+            vertices: gpu.upload("penumbra vertices", &vertices, wgpu::BufferUsages::VERTEX),
+            indices: gpu.upload("penumbra indices", &indices, wgpu::BufferUsages::INDEX),
             vertex_count: vertices.len() as u32,
             index_count: indices.len() as u32,
         }
@@ -344,11 +338,13 @@ fn silhouette_counters(s: &Silhouettes) -> Counters {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     #[test]
     fn uniforms_match_wgsl() {
-        let source = [PRELUDE_WGSL, LIGHT_RASTER_WGSL, PENUMBRA_WGSL].join("\n");
-        assert_wgsl_layout!(source, "PenumbraView", PenumbraView { proj });
+        let source = sources().join("\n");
+        assert_eq!(
+            PenumbraView::layout_mismatches(&source),
+            Vec::<String>::new()
+        );
     }
 }

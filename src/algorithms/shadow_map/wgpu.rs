@@ -15,15 +15,13 @@
 //! fragment; those that did not end up in the map), and the shadow-map taps of the lookup. Memory traffic is estimated from formats and
 //! those counts (`mem_est.<buffer>.*`): a GPU does not report it.
 
-use bytemuck::{Pod, Zeroable};
-
 use super::{Bias, FaceView, LightViews, ViewFit};
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster, Statistics,
-    Step, Timed,
+    gpu_struct, replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster,
+    Statistics, Step, Timed,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{gbuffer_positions, Gpu};
@@ -35,8 +33,8 @@ const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
 const VERTEX: wgpu::BufferUsages = wgpu::BufferUsages::VERTEX;
 const INDEX: wgpu::BufferUsages = wgpu::BufferUsages::INDEX;
 
-/// The family's WGSL prelude (`Light`, `Counts`, group 0), joined before each of its shaders.
-pub(crate) const PRELUDE_WGSL: &str = include_str!("light.wgsl");
+/// Group 0 of the family's passes (after the structs of [`PRELUDE`]).
+const PRELUDE_WGSL: &str = include_str!("light.wgsl");
 pub(crate) const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
 pub(crate) const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
 
@@ -72,44 +70,48 @@ impl<'a> Lookup<'a> {
     }
 }
 
-/// The `Light` uniform of both WGSL files.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct LightUniform {
-    view_proj: [f32; 16],
-    eye: [f32; 3],
-    radius: f32,
-    near: f32,
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    blocker_samples: u32,
-    pcf_samples: u32,
-    width: u32,
-    height: u32,
-    /// The cube face whose receivers this view shades ([`FaceView::face_code`]; 6: all).
-    face: u32,
-    pad: u32,
+gpu_struct! {
+    /// The light view of a pass (group 0, binding 0 of every pass).
+    struct LightUniform as "Light" {
+        view_proj: [f32; 16] => "mat4x4<f32>",
+        eye: [f32; 3] => "vec3<f32>",
+        radius: f32 => "f32",
+        near: f32 => "f32",
+        far: f32 => "f32",
+        tan_half_fov: f32 => "f32",
+        resolution: u32 => "u32",
+        bias_constant: f32 => "f32",
+        bias_slope: f32 => "f32",
+        blocker_samples: u32 => "u32",
+        pcf_samples: u32 => "u32",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        /// The cube face whose receivers this view shades ([`FaceView::face_code`]; 6: all).
+        face: u32 => "u32",
+        pad: u32 => "u32",
+    }
 }
 
-/// The `Counts` storage buffer of the instrumented mode.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub(crate) struct Counts {
-    /// Fragments rasterized.
-    pub fragments: u32,
-    /// Shadow-map texels covered.
-    pub covered: u32,
-    /// Shadow-map taps of the lookup.
-    pub taps: u32,
-    pub wasted_taps: u32,
-    /// Fragments a fragment program discarded (penumbra map).
-    pub discarded: u32,
-    /// Taps of a second map in the lookup (penumbra map).
-    pub extra_taps: u32,
+gpu_struct! {
+    /// The counters of the instrumented replay (group 0, binding 1).
+    pub(crate) struct Counts as "Counts" {
+        /// Fragments rasterized.
+        fragments: u32 => "atomic<u32>",
+        /// Shadow-map texels covered.
+        covered: u32 => "atomic<u32>",
+        /// Shadow-map taps of the lookup.
+        taps: u32 => "atomic<u32>",
+        wasted_taps: u32 => "atomic<u32>",
+        /// Fragments a fragment program discarded (penumbra map).
+        discarded: u32 => "atomic<u32>",
+        /// Taps of a second map in the lookup (penumbra map).
+        extra_taps: u32 => "atomic<u32>",
+    }
 }
+
+/// The family's WGSL prelude, joined before each of its shaders: the `Light` and `Counts`
+/// structs and group 0 (`light.wgsl`).
+pub(crate) const PRELUDE: [&str; 3] = [LightUniform::WGSL, Counts::WGSL, PRELUDE_WGSL];
 
 /// Renders `frame` with the family's two passes and the algorithm's lookup, once per light view
 /// ([`ViewFit::CubeWhenWide`]: one frustum, or the faces of a cube map, each pixel from the
@@ -245,35 +247,26 @@ impl<'g> Passes<'g> {
             face: face.face_code(),
             pad: 0,
         };
-        let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 4, usage);
-        let uniform_buf = init("light uniform", bytemuck::bytes_of(&uniform), UNIFORM);
+        let uniform_buf = gpu.upload("light uniform", &[uniform], UNIFORM);
         // Every triangle of the scene can cast a shadow into the map (receivers shadow each
         // other too), indexed as in `occluders`, as the cpu executions draw it.
         let positions: Vec<[f32; 3]> = occluders.positions.iter().map(|p| p.to_array()).collect();
         let index_list: Vec<u32> = occluders.triangles.iter().flatten().copied().collect();
-        let vertices = init(
-            "occluder vertices",
-            bytemuck::cast_slice(&positions),
-            VERTEX,
-        );
-        let indices = init("occluder indices", bytemuck::cast_slice(&index_list), INDEX);
+        let vertices = gpu.upload("occluder vertices", &positions, VERTEX);
+        let indices = gpu.upload("occluder indices", &index_list, INDEX);
         // The gbuffer: position with the hit flag in w, and the eye-facing normal.
         let g = &frame.gbuffer;
         let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-        let positions_buf = init(
-            "gbuffer positions",
-            bytemuck::cast_slice(&gbuffer_positions(g)),
-            STORAGE,
-        );
-        let normals_buf = init("gbuffer normals", bytemuck::cast_slice(&gnrm), STORAGE);
+        let positions_buf = gpu.upload("gbuffer positions", &gbuffer_positions(g), STORAGE);
+        let normals_buf = gpu.upload("gbuffer normals", &gnrm, STORAGE);
         let visibility = gpu.storage_buffer(
             "visibility",
             4 * u64::from(width) * u64::from(height),
             wgpu::BufferUsages::COPY_SRC,
         );
-        let counts = init(
+        let counts = gpu.upload(
             "instrumentation counts",
-            bytemuck::bytes_of(&Counts::default()),
+            &[Counts::default()],
             STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
         let depth = gpu.map_texture(
@@ -313,13 +306,13 @@ impl<'g> Passes<'g> {
         let raster = Program::new(
             gpu,
             "light_raster.wgsl",
-            &[PRELUDE_WGSL, LIGHT_RASTER_WGSL],
+            &[&PRELUDE[..], &[LIGHT_RASTER_WGSL]].concat(),
             &[Some(&shared_layout)],
         );
         let eye = Program::new(
             gpu,
             "eye_lookup.wgsl",
-            &[PRELUDE_WGSL, EYE_LOOKUP_WGSL, lookup.wgsl],
+            &[&PRELUDE[..], &[EYE_LOOKUP_WGSL, lookup.wgsl]].concat(),
             &[Some(&shared_layout), Some(&lookup_layout), extra],
         );
         let attributes = wgpu::vertex_attr_array![0 => Float32x3];
@@ -484,89 +477,36 @@ pub(crate) const NOTE: &str =
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     /// `LightUniform` and `Counts` against the family's shaders as their pipelines join them
     /// (the eye lookup as `hard_shadow_map` completes it).
     #[test]
     fn uniforms_match_wgsl() {
-        let eye_lookup = [
-            PRELUDE_WGSL,
-            EYE_LOOKUP_WGSL,
-            include_str!("../hard_shadow_map/wgpu.wgsl"),
-        ]
-        .join("\n");
-        let light_raster = [PRELUDE_WGSL, LIGHT_RASTER_WGSL].join("\n");
-        for source in [light_raster, eye_lookup] {
-            assert_wgsl_layout!(
-                source,
-                "Light",
-                LightUniform {
-                    view_proj,
-                    eye,
-                    radius,
-                    near,
-                    far,
-                    tan_half_fov,
-                    resolution,
-                    bias_constant,
-                    bias_slope,
-                    blocker_samples,
-                    pcf_samples,
-                    width,
-                    height,
-                    face,
-                    pad
-                }
+        let hard = include_str!("../hard_shadow_map/wgpu.wgsl");
+        for rest in [vec![LIGHT_RASTER_WGSL], vec![EYE_LOOKUP_WGSL, hard]] {
+            let source = [&PRELUDE[..], &rest].concat().join("\n");
+            assert_eq!(
+                LightUniform::layout_mismatches(&source),
+                Vec::<String>::new()
             );
-            assert_wgsl_layout!(
-                source,
-                "Counts",
-                Counts {
-                    fragments,
-                    covered,
-                    taps,
-                    wasted_taps,
-                    discarded,
-                    extra_taps
-                }
-            );
+            assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
         }
     }
 
-    /// The check catches a field reordered on one side: the family's prelude with `near` and
-    /// `far` swapped no longer matches `LightUniform`, and names both fields.
+    /// The check catches a field reordered on one side: the WGSL with `near` and `far` swapped
+    /// no longer matches `LightUniform`, and both fields are named.
     #[test]
     fn a_reordered_wgsl_field_is_rejected() {
-        let swapped = PRELUDE_WGSL.replace(
+        let swapped = LightUniform::WGSL.replace(
             "    near: f32,\n    far: f32,",
             "    far: f32,\n    near: f32,",
         );
         assert_ne!(
-            swapped, PRELUDE_WGSL,
-            "the prelude declares near before far"
-        );
-        let found = crate::gpu::wgsl_layout::wgsl_layout_mismatches!(
             swapped,
-            "Light",
-            LightUniform {
-                view_proj,
-                eye,
-                radius,
-                near,
-                far,
-                tan_half_fov,
-                resolution,
-                bias_constant,
-                bias_slope,
-                blocker_samples,
-                pcf_samples,
-                width,
-                height,
-                face,
-                pad
-            }
+            LightUniform::WGSL,
+            "the struct declares near before far"
         );
+        let found = LightUniform::layout_mismatches(&swapped);
         assert!(
             found.iter().any(|m| m.starts_with("Light.near")),
             "{found:?}"
@@ -575,5 +515,9 @@ mod layout_tests {
             found.iter().any(|m| m.starts_with("Light.far")),
             "{found:?}"
         );
+        // A Rust field the WGSL lacks (a field removed on the WGSL side).
+        let removed = LightUniform::WGSL.replace("    face: u32,\n", "");
+        let found = LightUniform::layout_mismatches(&removed);
+        assert!(found.iter().any(|m| m.contains("face")), "{found:?}");
     }
 }

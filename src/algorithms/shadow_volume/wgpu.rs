@@ -13,16 +13,15 @@
 //!
 //! The counters of the instrumented replay are 64-bit slots of one buffer ([`Stat`]).
 
-use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
 use super::{face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad, VolumeFace};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::gpu::pass::{replay, slot64, tiles, Bind, Layout, Pass, Program, Step};
+use crate::gpu::pass::{gpu_struct, replay, slot64, tiles, Bind, Layout, Pass, Program, Step};
 use crate::gpu::readback::words;
-use crate::gpu::Gpu;
+use crate::gpu::{Gpu, EMPTY_BYTES};
 use crate::scene::Mesh;
 
 /// The family's WGSL: parameters, bindings, the hard pass, the accumulation.
@@ -40,8 +39,6 @@ pub(crate) const FACE_BYTES: u64 = 96;
 pub(crate) const PRIM_BYTES: u64 = 32;
 pub(crate) const PLANE_BYTES: u64 = 16;
 pub(crate) const WORD: u64 = 4;
-/// What an empty upload is padded to: a record of any kind the passes read.
-pub(crate) const RECORD_BYTES: usize = 128;
 /// Bytes per pixel of the V-buffer (f32, or one rgba8 buffer of the split pair) and of the
 /// stencil the wedge-half culling of IV §4.4 uses on a rasterizer.
 pub(crate) const VBUFFER_BYTES: u64 = 4;
@@ -63,32 +60,45 @@ pub(crate) enum Stat {
 
 pub(crate) const STATS: u64 = 9;
 
-/// The `Params` uniform of the WGSL.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-pub(crate) struct Params {
-    pub center: [f32; 4],
-    pub half_u: [f32; 4],
-    pub half_v: [f32; 4],
-    pub eye: [f32; 4],
-    pub width: u32,
-    pub height: u32,
-    pub tiles_x: u32,
-    pub eye_count: i32,
-    pub vbuffer: u32,
-    pub coverage: u32,
-    pub texture_n: u32,
-    pub first_loop: u32,
-    pub last_loop: u32,
-    pub first_light: u32,
-    pub last_light: u32,
-    pub sub_lights: u32,
-    /// 0: z-pass, 1: z-fail over the capped volumes.
-    pub counting: u32,
-    pub channels: u32,
-    pub pad: [u32; 2],
-    /// Mean colour of a textured light (`channels` = 3).
-    pub mean: [f32; 4],
+gpu_struct! {
+    /// The parameters of one pass (binding 0).
+    pub(crate) struct Params as "Params" {
+        /// Light centre; w: emitter shape (0 square, 1 disc).
+        center: [f32; 4] => "vec4f",
+        /// Half-axes for rect and disc lights (constant); w: light kind (0 rect, 1 sphere,
+        /// 2 disc).
+        half_u: [f32; 4] => "vec4f",
+        /// w: sphere radius.
+        half_v: [f32; 4] => "vec4f",
+        /// The eye position.
+        eye: [f32; 4] => "vec4f",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        tiles_x: u32 => "u32",
+        eye_count: i32 => "i32",
+        /// 0: f32 V-buffer, 1: split 12-bit rgba8 pair (IV §4.3).
+        vbuffer: u32 => "u32",
+        /// 0: exact clipping, 1: 4D texture.
+        coverage: u32 => "u32",
+        texture_n: u32 => "u32",
+        /// 1 when this is the first silhouette loop of its sub-light.
+        first_loop: u32 => "u32",
+        /// 1 when this is the last loop of its sub-light; then the sub-light's visibility is
+        /// added.
+        last_loop: u32 => "u32",
+        /// 1 for the first sub-light, 1 for the last (then the final clamp runs).
+        first_light: u32 => "u32",
+        last_light: u32 => "u32",
+        sub_lights: u32 => "u32",
+        /// 0: z-pass from `eye_count`, 1: z-fail over the capped volumes' faces in `planes`.
+        counting: u32 => "u32",
+        /// 3 for a textured light (RGB coverage texture, one f32 per channel), else 1.
+        channels: u32 => "u32",
+        pad1: u32 => "u32",
+        pad2: u32 => "u32",
+        /// The textured light's mean colour (`LightTexture::mean`).
+        mean: [f32; 4] => "vec4f",
+    }
 }
 
 /// Checks the frame against the adapter's limits for the passes of algorithm `id`.
@@ -166,18 +176,8 @@ impl FrameResources {
         let pixels = rays.len() as u64;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         FrameResources {
-            rays: gpu.buffer_init(
-                "eye rays",
-                bytemuck::cast_slice(&records),
-                RECORD_BYTES,
-                storage,
-            ),
-            texels: gpu.buffer_init(
-                "coverage texture",
-                bytemuck::cast_slice(&packed),
-                RECORD_BYTES,
-                storage,
-            ),
+            rays: gpu.upload("eye rays", &records, storage),
+            texels: gpu.upload("coverage texture", &packed, storage),
             counts: gpu.storage_buffer("hard counts", WORD * pixels, copy),
             covered: gpu.storage_buffer("covered", WORD * pixels, copy),
             visibility: gpu.storage_buffer("visibility", WORD * pixels, copy),
@@ -328,7 +328,7 @@ impl<'g> VolumePasses<'g> {
             })
             .collect();
         let layout = Layout::new(gpu, "shadow volumes", wgpu::ShaderStages::COMPUTE, &binds);
-        let sources = [WGSL, wgsl, crate::scene::coverage::WGSL];
+        let sources = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL];
         let program = Program::new(gpu, "shadow_volume/wgpu.wgsl", &sources, &[Some(&layout)]);
         VolumePasses {
             hard: program.compute_pair(gpu, "hard"),
@@ -402,33 +402,21 @@ impl<'g> VolumePasses<'g> {
             None => bins(rays, &footprints, |_, _| true),
             Some(f) => bins(rays, &face_footprints(rays, f), |_, _| true),
         };
-        let params = gpu.buffer_init(
+        let params = gpu.upload(
             "ssv params",
-            bytemuck::bytes_of(params),
-            RECORD_BYTES,
+            std::slice::from_ref(params),
             wgpu::BufferUsages::UNIFORM,
         );
-        let quads_buf = gpu.buffer_init(
-            "shadow quads",
-            bytemuck::cast_slice(&records),
-            RECORD_BYTES,
-            storage,
+        let quads_buf = gpu.upload("shadow quads", &records, storage);
+        let bins_buf = gpu.upload("quad bins", &quad_bins, storage);
+        let none = gpu.storage_buffer(
+            "no primitives",
+            EMPTY_BYTES as u64,
+            wgpu::BufferUsages::empty(),
         );
-        let bins_buf = gpu.buffer_init(
-            "quad bins",
-            bytemuck::cast_slice(&quad_bins),
-            RECORD_BYTES,
-            storage,
-        );
-        let none = gpu.storage_buffer("no primitives", 128, wgpu::BufferUsages::empty());
         let faces_buf = faces.as_ref().map(|f| {
             let records = face_records(rays, f);
-            gpu.buffer_init(
-                "volume faces",
-                bytemuck::cast_slice(&records),
-                RECORD_BYTES,
-                storage,
-            )
+            gpu.upload("volume faces", &records, storage)
         });
         let group = self.group(
             &params,
@@ -484,38 +472,15 @@ impl<'g> VolumePasses<'g> {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
-    /// `Params` against the family's WGSL as `accum_hard`'s pipelines join it (alone, with the
-    /// coverage rule); `soft_shadow_volume`'s join is checked beside its pass.
+    /// `Params` against the family's WGSL as the pipelines join it: alone (`accum_hard`) and
+    /// with `soft_shadow_volume`'s soft pass.
     #[test]
     fn uniforms_match_wgsl() {
-        let source = [WGSL, "", crate::scene::coverage::WGSL].join("\n");
-        assert_wgsl_layout!(
-            source,
-            "Params",
-            Params {
-                center,
-                half_u,
-                half_v,
-                eye,
-                width,
-                height,
-                tiles_x,
-                eye_count,
-                vbuffer,
-                coverage,
-                texture_n,
-                first_loop,
-                last_loop,
-                first_light,
-                last_light,
-                sub_lights,
-                counting,
-                channels,
-                pad,
-                mean
-            }
-        );
+        let soft = include_str!("../soft_shadow_volume/wgpu.wgsl");
+        for wgsl in ["", soft] {
+            let source = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL].join("\n");
+            assert_eq!(Params::layout_mismatches(&source), Vec::<String>::new());
+        }
     }
 }

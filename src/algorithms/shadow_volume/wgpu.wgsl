@@ -9,41 +9,7 @@ override INSTRUMENT: u32 = 0u;
 
 const TILE: u32 = 8u;
 
-struct Params {
-    // Light centre; w: emitter shape (0 square, 1 disc).
-    center: vec4f,
-    // Half-axes for rect and disc lights (constant); w: light kind (0 rect, 1 sphere, 2 disc).
-    half_u: vec4f,
-    // w: sphere radius.
-    half_v: vec4f,
-    // The eye position.
-    eye: vec4f,
-    width: u32,
-    height: u32,
-    tiles_x: u32,
-    eye_count: i32,
-    // 0: f32 V-buffer, 1: split 12-bit rgba8 pair (IV §4.3).
-    vbuffer: u32,
-    // 0: exact clipping, 1: 4D texture.
-    coverage: u32,
-    texture_n: u32,
-    // 1 when this is the first silhouette loop of its sub-light.
-    first_loop: u32,
-    // 1 when this is the last loop of its sub-light; then the sub-light's visibility is added.
-    last_loop: u32,
-    // 1 for the first sub-light, 1 for the last (then the final clamp runs).
-    first_light: u32,
-    last_light: u32,
-    sub_lights: u32,
-    // 0: z-pass from `eye_count`, 1: z-fail over the capped volumes' faces in `planes`.
-    counting: u32,
-    // 3 for a textured light (RGB coverage texture, one f32 per channel), else 1.
-    channels: u32,
-    pad1: u32,
-    pad2: u32,
-    // The textured light's mean colour (`LightTexture::mean`).
-    mean: vec4f,
-}
+// The parameters `Params` are declared in wgpu.rs and joined before this file.
 
 // `EyeRays` of one pixel: dir.xyz, depth (f32::MAX without a surface); point.xyz, bounds t0;
 // x: bounds t1, y: 1 when the pixel has a surface.

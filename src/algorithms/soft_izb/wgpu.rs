@@ -42,8 +42,6 @@
 
 use std::time::Instant;
 
-use bytemuck::{Pod, Zeroable};
-
 use super::{
     check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, NEAR_CLIP,
     OCCLUSION_SCALE,
@@ -53,7 +51,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    replay, slot64, Bind, Layout, Pass, Program, Statistics, Step, Timed, Work,
+    gpu_struct, replay, slot64, Bind, Layout, Pass, Program, Statistics, Step, Timed, Work,
 };
 use crate::gpu::readback::words;
 use crate::gpu::Gpu;
@@ -98,29 +96,39 @@ enum Stat {
 
 const STATS: usize = 11;
 
-/// The `Params` uniform of the WGSL.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct Params {
-    view_proj: [f32; 16],
-    /// Unused; keeps the layout of the WGSL's uniform.
-    pad: f32,
-    w_min: f32,
-    r_uv: f32,
-    pixels: u32,
-    res: u32,
-    slices: u32,
-    bin: u32,
-    bins_x: u32,
-    cells_per_bin: u32,
-    cells: u32,
-    triangles: u32,
-    edges: u32,
-    per_bin_width: u32,
-    wedge_column_cull: u32,
-    scan_blocks: u32,
-    occlusion_scale: f32,
+gpu_struct! {
+    /// The frame's parameters (binding 0); constants come from the host so that they are
+    /// defined once, in Rust.
+    struct Params as "Params" {
+        view_proj: [f32; 16] => "mat4x4<f32>",
+        /// Unused; keeps the uniform's layout.
+        pad: f32 => "f32",
+        /// NEAR_CLIP * far: clip w at or below this has no image-plane position (`in_front`).
+        w_min: f32 => "f32",
+        /// `light_radius_uv`: the light's radius in uv at unit depth.
+        r_uv: f32 => "f32",
+        pixels: u32 => "u32",
+        /// The grid (Figure 3).
+        res: u32 => "u32",
+        slices: u32 => "u32",
+        bin: u32 => "u32",
+        bins_x: u32 => "u32",
+        cells_per_bin: u32 => "u32",
+        cells: u32 => "u32",
+        triangles: u32 => "u32",
+        edges: u32 => "u32",
+        /// `SoftIzbOptions` (§2.5), as 0/1.
+        per_bin_width: u32 => "u32",
+        wedge_column_cull: u32 => "u32",
+        scan_blocks: u32 => "u32",
+        /// `OCCLUSION_SCALE`: fixed-point scale of the penumbral occlusion accumulated with
+        /// atomics.
+        occlusion_scale: f32 => "f32",
+    }
 }
+
+/// The shader as the pipelines join it.
+const SOURCES: [&str; 3] = [Params::WGSL, WGSL, crate::scene::coverage::WGSL];
 
 /// `soft_izb` on the GPU (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
@@ -282,13 +290,8 @@ impl<'g> Passes<'g> {
     fn new(gpu: &'g Gpu, frame: &Frame, occ: &Occluders, grid: &Grid, params: Params) -> Self {
         let g = &frame.gbuffer;
         let pixels = g.len() as u64;
-        let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 4, usage);
         let storage = wgpu::BufferUsages::STORAGE;
-        let uniform = init(
-            "soft_izb params",
-            bytemuck::bytes_of(&params),
-            wgpu::BufferUsages::UNIFORM,
-        );
+        let uniform = gpu.upload("soft_izb params", &[params], wgpu::BufferUsages::UNIFORM);
         // The gbuffer: position bits with the receiver's flat triangle (u32::MAX for none) in w.
         let positions: Vec<[u32; 4]> = (0..g.len())
             .map(|i| {
@@ -320,12 +323,8 @@ impl<'g> Passes<'g> {
         let cells = u64::from(params.cells);
         let copy_src = wgpu::BufferUsages::COPY_SRC;
         let buffers = [
-            init(
-                "gbuffer positions",
-                bytemuck::cast_slice(&positions),
-                storage,
-            ),
-            init("gbuffer offsets", bytemuck::cast_slice(&offsets), storage),
+            gpu.upload("gbuffer positions", &positions, storage),
+            gpu.upload("gbuffer offsets", &offsets, storage),
             gpu.storage_buffer("light-view points", POINT_BYTES * pixels, storage),
             gpu.storage_buffer("bins", WORD * (grid.bins() as u64 + 2), storage),
             gpu.storage_buffer("cell counts", WORD * cells, storage),
@@ -337,8 +336,8 @@ impl<'g> Passes<'g> {
             gpu.storage_buffer("izb_samples", SAMPLE_BYTES * pixels, storage),
             gpu.storage_buffer("occlusion", 2 * WORD * pixels, storage),
             gpu.storage_buffer("visibility", WORD * pixels, copy_src),
-            init("light triangles", bytemuck::cast_slice(&triangles), storage),
-            init("penumbra edges", bytemuck::cast_slice(&edges), storage),
+            gpu.upload("light triangles", &triangles, storage),
+            gpu.upload("penumbra edges", &edges, storage),
             gpu.storage_buffer(
                 "statistics",
                 2 * WORD * STATS as u64,
@@ -358,8 +357,7 @@ impl<'g> Passes<'g> {
             .map(|b| b.as_entire_binding())
             .collect();
         let group = layout.group(gpu, "soft_izb", &resources);
-        let sources = [WGSL, crate::scene::coverage::WGSL];
-        let program = Program::new(gpu, "soft_izb/wgpu.wgsl", &sources, &[Some(&layout)]);
+        let program = Program::new(gpu, "soft_izb/wgpu.wgsl", &SOURCES, &[Some(&layout)]);
         let pipeline =
             |entry: &str, instrument: bool| program.compute(gpu, entry, Some(instrument));
         let construct = [
@@ -565,33 +563,10 @@ impl<'g> Passes<'g> {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     #[test]
     fn uniforms_match_wgsl() {
-        let source = format!("{WGSL}\n{}", crate::scene::coverage::WGSL);
-        assert_wgsl_layout!(
-            source,
-            "Params",
-            Params {
-                view_proj,
-                pad,
-                w_min,
-                r_uv,
-                pixels,
-                res,
-                slices,
-                bin,
-                bins_x,
-                cells_per_bin,
-                cells,
-                triangles,
-                edges,
-                per_bin_width,
-                wedge_column_cull,
-                scan_blocks,
-                occlusion_scale
-            }
-        );
+        let source = SOURCES.join("\n");
+        assert_eq!(Params::layout_mismatches(&source), Vec::<String>::new());
     }
 }

@@ -27,7 +27,8 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    replay, tiles, view, Bind::*, Draw, Layout, Pass, Program, Raster, Statistics, Step, Timed,
+    gpu_struct, replay, tiles, view, Bind::*, Draw, Layout, Pass, Program, Raster, Statistics,
+    Step, Timed,
 };
 use crate::gpu::readback::{words, Staging};
 use crate::gpu::{gbuffer_positions, Gpu};
@@ -38,26 +39,40 @@ use crate::record::Counters;
 const WGSL: &str = include_str!("wgpu.wgsl");
 const WORKGROUP: u32 = 8;
 
-/// The `Ssm` uniform of wgpu.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct SsmUniform {
-    occ_view_proj: [f32; 16],
-    ssm_view_proj: [f32; 16],
-    center: [f32; 3],
-    resolution: u32,
-    e_u: [f32; 3],
-    width: u32,
-    e_v: [f32; 3],
-    height: u32,
-    normal: [f32; 3],
-    bias_texels: f32,
-    occ_window: [f32; 4],
-    ssm_window: [f32; 4],
-    half_size: [f32; 2],
-    near: f32,
-    far: f32,
+gpu_struct! {
+    /// The frames of the maps (group 0, binding 0 of every pass).
+    struct SsmUniform as "Ssm" {
+        occ_view_proj: [f32; 16] => "mat4x4<f32>",
+        ssm_view_proj: [f32; 16] => "mat4x4<f32>",
+        center: [f32; 3] => "vec3<f32>",
+        resolution: u32 => "u32",
+        e_u: [f32; 3] => "vec3<f32>",
+        width: u32 => "u32",
+        e_v: [f32; 3] => "vec3<f32>",
+        height: u32 => "u32",
+        normal: [f32; 3] => "vec3<f32>",
+        bias_texels: f32 => "f32",
+        /// x0, x1, y0, y1 of each frame's tan window.
+        occ_window: [f32; 4] => "vec4<f32>",
+        ssm_window: [f32; 4] => "vec4<f32>",
+        half_size: [f32; 2] => "vec2<f32>",
+        near: f32 => "f32",
+        far: f32 => "f32",
+    }
 }
+
+gpu_struct! {
+    /// The counters of the instrumented replay (group 0, binding 1).
+    struct Counts as "Counts" {
+        fragments: u32 => "atomic<u32>",
+        zero: u32 => "atomic<u32>",
+        patches: u32 => "atomic<u32>",
+        pad: u32 => "u32",
+    }
+}
+
+/// The shader as the pipelines join it.
+const SOURCES: [&str; 3] = [SsmUniform::WGSL, Counts::WGSL, WGSL];
 
 /// One micro-patch of the transfer path: the patch and its extent in NDC (lo, hi).
 #[repr(C)]
@@ -67,16 +82,6 @@ struct Instance {
     hi: [f32; 2],
     z_o: f32,
     extent: [f32; 4],
-}
-
-/// The `Counts` storage buffer of the instrumented replay.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct Counts {
-    fragments: u32,
-    zero: u32,
-    patches: u32,
-    pad: u32,
 }
 
 fn window(f: &LightFrame) -> [f32; 4] {
@@ -163,21 +168,51 @@ struct Pipelines {
     count_patches: wgpu::ComputePipeline,
 }
 
-/// A square map of `res`² texels per pass (`passes` of them, the second labelled "back").
+/// Square maps of `res`² texels, one per pass (the second labelled "back"), and their views.
 fn maps(
     gpu: &Gpu,
     label: &str,
-    passes: u32,
-    res: u32,
+    (passes, res): (u32, u32),
     format: wgpu::TextureFormat,
     usage: wgpu::TextureUsages,
-) -> Vec<wgpu::Texture> {
-    (0..passes)
+) -> (Vec<wgpu::Texture>, Vec<wgpu::TextureView>) {
+    let textures: Vec<_> = (0..passes)
         .map(|k| {
             let back = format!("{label} back");
             gpu.map_texture(if k == 0 { label } else { &back }, res, format, usage)
         })
-        .collect()
+        .collect();
+    let views = textures
+        .iter()
+        .map(|t| t.create_view(&Default::default()))
+        .collect();
+    (textures, views)
+}
+
+/// The uniform of the frames `occ` (occluder map) and `ssm` (soft shadow map).
+fn uniform(
+    frame: &Frame,
+    o: &SoftShadowMapOptions,
+    occ: &LightFrame,
+    ssm: &LightFrame,
+) -> SsmUniform {
+    SsmUniform {
+        occ_view_proj: occ.view_proj.to_cols_array(),
+        ssm_view_proj: ssm.view_proj.to_cols_array(),
+        center: ssm.center.to_array(),
+        resolution: frame.params.map_resolution,
+        e_u: ssm.e_u.to_array(),
+        width: frame.width(),
+        e_v: ssm.e_v.to_array(),
+        height: frame.height(),
+        normal: ssm.normal.to_array(),
+        bias_texels: o.bias_texels,
+        occ_window: window(occ),
+        ssm_window: window(ssm),
+        half_size: ssm.half.to_array(),
+        near: ssm.near,
+        far: ssm.far,
+    }
 }
 
 impl<'g> Ssm<'g> {
@@ -186,30 +221,12 @@ impl<'g> Ssm<'g> {
         let (width, height) = (frame.width(), frame.height());
         let (occ, ssm) = LightFrame::new(&frame.scene.light, frame.scene.bounds(), res)
             .focused(split.occluder_bounds);
-        let uniform = SsmUniform {
-            occ_view_proj: occ.view_proj.to_cols_array(),
-            ssm_view_proj: ssm.view_proj.to_cols_array(),
-            center: ssm.center.to_array(),
-            resolution: res,
-            e_u: ssm.e_u.to_array(),
-            width,
-            e_v: ssm.e_v.to_array(),
-            height,
-            normal: ssm.normal.to_array(),
-            bias_texels: o.bias_texels,
-            occ_window: window(&occ),
-            ssm_window: window(&ssm),
-            half_size: ssm.half.to_array(),
-            near: ssm.near,
-            far: ssm.far,
-        };
+        let uniform = uniform(frame, o, &occ, &ssm);
         use wgpu::BufferUsages as B;
-        let init =
-            |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 64, usage);
-        let uniform_buf = init("ssm uniform", bytemuck::bytes_of(&uniform), B::UNIFORM);
-        let counts = init(
+        let uniform_buf = gpu.upload("ssm uniform", &[uniform], B::UNIFORM);
+        let counts = gpu.upload(
             "ssm counts",
-            bytemuck::bytes_of(&Counts::default()),
+            &[Counts::default()],
             B::STORAGE | B::COPY_SRC | B::COPY_DST,
         );
         let positions: Vec<[f32; 3]> = frame
@@ -219,7 +236,7 @@ impl<'g> Ssm<'g> {
             .iter()
             .map(|p| p.to_array())
             .collect();
-        let vertices = init("vertices", bytemuck::cast_slice(&positions), B::VERTEX);
+        let vertices = gpu.upload("vertices", &positions, B::VERTEX);
         // The gbuffer: position with the hit flag, normal with the receives flag.
         let g = &frame.gbuffer;
         let gnrm: Vec<[f32; 4]> = (0..g.len())
@@ -230,12 +247,8 @@ impl<'g> Ssm<'g> {
                 g.normal[i].extend(f32::from(u8::from(receives))).to_array()
             })
             .collect();
-        let gpos_buf = init(
-            "gbuffer positions",
-            bytemuck::cast_slice(&gbuffer_positions(g)),
-            B::STORAGE,
-        );
-        let gnrm_buf = init("gbuffer normals", bytemuck::cast_slice(&gnrm), B::STORAGE);
+        let gpos_buf = gpu.upload("gbuffer positions", &gbuffer_positions(g), B::STORAGE);
+        let gnrm_buf = gpu.upload("gbuffer normals", &gnrm, B::STORAGE);
         let visibility = gpu.storage_buffer(
             "visibility",
             4 * u64::from(width) * u64::from(height),
@@ -244,37 +257,17 @@ impl<'g> Ssm<'g> {
 
         // The occluder maps are read back for the paper's transfer to the CPU.
         let depth_format = wgpu::TextureFormat::Depth32Float;
-        let occ_maps = maps(
-            gpu,
-            "occluder map",
-            o.passes,
-            res,
-            depth_format,
-            wgpu::TextureUsages::COPY_SRC,
-        );
-        let receiver_map = gpu.map_texture(
-            "receiver map",
-            res,
-            depth_format,
-            wgpu::TextureUsages::empty(),
-        );
+        const COPY_SRC: wgpu::TextureUsages = wgpu::TextureUsages::COPY_SRC;
+        const NONE: wgpu::TextureUsages = wgpu::TextureUsages::empty();
+        let sized = (o.passes, res);
+        let (occ_maps, occ_views) = maps(gpu, "occluder map", sized, depth_format, COPY_SRC);
+        let (_, receiver) = maps(gpu, "receiver map", (1, res), depth_format, NONE);
         let ssm_format = match o.precision {
             Precision::Fp32 => wgpu::TextureFormat::R32Float,
             Precision::Fp16 => wgpu::TextureFormat::R16Float,
         };
-        let ssm_maps = maps(
-            gpu,
-            "soft shadow map",
-            o.passes,
-            res,
-            ssm_format,
-            wgpu::TextureUsages::empty(),
-        );
-        let make_view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let occ_views: Vec<_> = occ_maps.iter().map(make_view).collect();
-        let receiver_view = make_view(&receiver_map);
-        let ssm_views: Vec<_> = ssm_maps.iter().map(make_view).collect();
-
+        let (_, ssm_views) = maps(gpu, "soft shadow map", sized, ssm_format, NONE);
+        let receiver_view = receiver.into_iter().next().expect("one map");
         use wgpu::ShaderStages as S;
         let all = S::VERTEX | S::FRAGMENT | S::COMPUTE;
         let shared_layout = Layout::new(gpu, "ssm shared", all, &[Uniform, ReadWrite]);
@@ -293,13 +286,9 @@ impl<'g> Ssm<'g> {
         );
         let depth = |triangles: &[[u32; 3]], m: glam::Mat4| {
             let list: Vec<u32> = triangles.iter().flatten().copied().collect();
-            let b = init(
-                "map view",
-                bytemuck::cast_slice(&m.to_cols_array()),
-                B::UNIFORM,
-            );
+            let b = gpu.upload("map view", &m.to_cols_array(), B::UNIFORM);
             Depth {
-                indices: init("indices", bytemuck::cast_slice(&list), B::INDEX),
+                indices: gpu.upload("indices", &list, B::INDEX),
                 count: list.len() as u32,
                 group: map_layout.group(gpu, "map view", &[b.as_entire_binding()]),
             }
@@ -446,12 +435,7 @@ impl<'g> Ssm<'g> {
                 }
             }
             patches += inst.len() as u64;
-            let buf = gpu.buffer_init(
-                "patches",
-                bytemuck::cast_slice(&inst),
-                64,
-                wgpu::BufferUsages::VERTEX,
-            );
+            let buf = gpu.upload("patches", &inst, wgpu::BufferUsages::VERTEX);
             bufs.push((buf, inst.len() as u32));
         }
         Ok(Transfer {
@@ -566,10 +550,10 @@ impl Pipelines {
         [shared, map, splat, project]: [&Layout; 4],
     ) -> Pipelines {
         let label = "soft_shadow_map/wgpu.wgsl";
-        let depth_program = Program::new(gpu, label, &[WGSL], &[Some(shared), Some(map)]);
-        let splat_program = Program::new(gpu, label, &[WGSL], &[Some(shared), Some(splat)]);
+        let depth_program = Program::new(gpu, label, &SOURCES, &[Some(shared), Some(map)]);
+        let splat_program = Program::new(gpu, label, &SOURCES, &[Some(shared), Some(splat)]);
         let project_program =
-            Program::new(gpu, label, &[WGSL], &[Some(shared), None, Some(project)]);
+            Program::new(gpu, label, &SOURCES, &[Some(shared), None, Some(project)]);
         let position = wgpu::vertex_attr_array![0 => Float32x3];
         let depth = |cull| {
             depth_program.render(
@@ -632,42 +616,13 @@ impl Pipelines {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     /// `SsmUniform` and `Counts`; `Instance` is a vertex buffer read through vertex attributes
     /// (no WGSL struct), and `MicroPatch` is never uploaded as a struct.
     #[test]
     fn uniforms_match_wgsl() {
-        assert_wgsl_layout!(
-            WGSL,
-            "Ssm",
-            SsmUniform {
-                occ_view_proj,
-                ssm_view_proj,
-                center,
-                resolution,
-                e_u,
-                width,
-                e_v,
-                height,
-                normal,
-                bias_texels,
-                occ_window,
-                ssm_window,
-                half_size,
-                near,
-                far
-            }
-        );
-        assert_wgsl_layout!(
-            WGSL,
-            "Counts",
-            Counts {
-                fragments,
-                zero,
-                patches,
-                pad
-            }
-        );
+        let source = SOURCES.join("\n");
+        assert_eq!(SsmUniform::layout_mismatches(&source), Vec::<String>::new());
+        assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
     }
 }

