@@ -20,6 +20,7 @@
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
 use crate::algorithms::exec::machine;
+use crate::algorithms::shadow_map::wgpu::LIGHT_VIEW_WGSL;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
@@ -77,7 +78,7 @@ gpu_struct! {
 }
 
 /// The shader as the pipelines join it.
-const SOURCES: [&str; 3] = [DbufferUniform::WGSL, Counts::WGSL, WGSL];
+const SOURCES: [&str; 4] = [DbufferUniform::WGSL, Counts::WGSL, LIGHT_VIEW_WGSL, WGSL];
 
 /// `dbuffer` on wgpu.
 pub fn render(

@@ -33,6 +33,9 @@ const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
 const VERTEX: wgpu::BufferUsages = wgpu::BufferUsages::VERTEX;
 const INDEX: wgpu::BufferUsages = wgpu::BufferUsages::INDEX;
 
+/// The light-view helpers (`project`, `linear_depth`, `texel_world`, `bias_at`) of the eye
+/// lookup and of dbuffer, joined after their `Light` struct.
+pub(crate) const LIGHT_VIEW_WGSL: &str = include_str!("light_view.wgsl");
 /// Group 0 of the family's passes (after the structs of [`PRELUDE`]).
 const PRELUDE_WGSL: &str = include_str!("light.wgsl");
 pub(crate) const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
@@ -312,7 +315,11 @@ impl<'g> Passes<'g> {
         let eye = Program::new(
             gpu,
             "eye_lookup.wgsl",
-            &[&PRELUDE[..], &[EYE_LOOKUP_WGSL, lookup.wgsl]].concat(),
+            &[
+                &PRELUDE[..],
+                &[LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, lookup.wgsl],
+            ]
+            .concat(),
             &[Some(&shared_layout), Some(&lookup_layout), extra],
         );
         let attributes = wgpu::vertex_attr_array![0 => Float32x3];
@@ -483,7 +490,10 @@ mod layout_tests {
     #[test]
     fn uniforms_match_wgsl() {
         let hard = include_str!("../hard_shadow_map/wgpu.wgsl");
-        for rest in [vec![LIGHT_RASTER_WGSL], vec![EYE_LOOKUP_WGSL, hard]] {
+        for rest in [
+            vec![LIGHT_RASTER_WGSL],
+            vec![LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, hard],
+        ] {
             let source = [&PRELUDE[..], &rest].concat().join("\n");
             assert_eq!(
                 LightUniform::layout_mismatches(&source),
