@@ -12,7 +12,7 @@
 //! [`fault`] injects such faults on purpose, for the robustness tests.
 
 pub mod fault;
-pub mod layout;
+pub mod pass;
 
 pub mod readback;
 pub mod stats;
@@ -29,6 +29,10 @@ use wgpu::util::DeviceExt;
 use crate::error::{Error, Result};
 use crate::frame::GBuffer;
 use crate::util::deadline::Deadline;
+
+/// What [`Gpu::upload`] makes of empty data: bytes enough for one record of any kind the
+/// passes read.
+pub const EMPTY_BYTES: usize = 128;
 
 /// Environment variable naming the adapter to use (substring of its name).
 pub const ADAPTER_ENV: &str = "SHADOWBENCH_ADAPTER";
@@ -99,23 +103,22 @@ pub struct Gpu {
 }
 
 impl Gpu {
-    /// A buffer holding `contents`. Zero-sized buffers cannot be bound, so empty contents become
-    /// `empty_bytes` zero bytes (at least one record of what the shader reads from it).
-    pub fn buffer_init(
+    /// A buffer holding `data`. Zero-sized buffers cannot be bound, so empty data becomes
+    /// [`EMPTY_BYTES`] zero bytes (at least one record of any kind a shader reads from it).
+    pub fn upload<T: bytemuck::Pod>(
         &self,
         label: &str,
-        contents: &[u8],
-        empty_bytes: usize,
+        data: &[T],
         usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        let padded = vec![0u8; empty_bytes];
+        let bytes: &[u8] = bytemuck::cast_slice(data);
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
-                contents: if contents.is_empty() {
-                    &padded
+                contents: if bytes.is_empty() {
+                    &[0; EMPTY_BYTES]
                 } else {
-                    contents
+                    bytes
                 },
                 usage,
             })
@@ -162,29 +165,6 @@ impl Gpu {
                 | usage,
             view_formats: &[],
         })
-    }
-
-    /// The compute pipeline of `entry` in `module`, with the WGSL override `INSTRUMENT` 1 for
-    /// the instrumented replay (fragments counted with atomics) or 0 for the timed run.
-    pub fn instrumented_compute_pipeline(
-        &self,
-        layout: &wgpu::PipelineLayout,
-        module: &wgpu::ShaderModule,
-        entry: &str,
-        instrument: bool,
-    ) -> wgpu::ComputePipeline {
-        self.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(layout),
-                module,
-                entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("INSTRUMENT", f64::from(u8::from(instrument)))],
-                    ..Default::default()
-                },
-                cache: None,
-            })
     }
 
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds

@@ -331,11 +331,56 @@ pub fn read_ms_or_warn(
     Ok(t)
 }
 
-/// A compute pass timed as pass `index` of a timer (when given): its timestamps are written
-/// when it begins and when it is dropped.
-pub struct TimedComputePass<'e> {
-    pass: wgpu::ComputePass<'e>,
+/// A pass that can write timestamps itself (`TIMESTAMP_QUERY_INSIDE_PASSES`).
+pub trait WriteTimestamp {
+    fn write(&mut self, set: &wgpu::QuerySet, index: u32);
+}
+
+impl WriteTimestamp for wgpu::ComputePass<'_> {
+    fn write(&mut self, set: &wgpu::QuerySet, index: u32) {
+        self.write_timestamp(set, index);
+    }
+}
+
+impl WriteTimestamp for wgpu::RenderPass<'_> {
+    fn write(&mut self, set: &wgpu::QuerySet, index: u32) {
+        self.write_timestamp(set, index);
+    }
+}
+
+/// A pass timed as pass `index` of a timer (when given): inside passes its timestamps are
+/// written when it begins and when it is dropped; around passes, by the pass's own
+/// beginning- and end-of-pass writes.
+pub struct TimedPass<'e, P: WriteTimestamp> {
+    pass: P,
     end: Option<(&'e PassTimer, u32)>,
+}
+
+/// A timed compute pass ([`compute_pass`]).
+pub type TimedComputePass<'e> = TimedPass<'e, wgpu::ComputePass<'e>>;
+/// A timed render pass ([`render_pass`]).
+pub type TimedRenderPass<'e> = TimedPass<'e, wgpu::RenderPass<'e>>;
+
+impl<'e, P: WriteTimestamp> TimedPass<'e, P> {
+    /// The query set and (beginning, end) indices of a timer's pass written around it.
+    fn around(timer: Option<(&'e PassTimer, u32)>) -> Option<(&'e wgpu::QuerySet, u32, u32)> {
+        let (t, i) = timer.filter(|(t, _)| t.placement == Placement::AroundPasses)?;
+        let (a, b) = t.ends(i);
+        Some((&t.set, a, b))
+    }
+
+    /// Wraps a pass just begun: writes its start timestamps inside it, where they go there.
+    fn begin(mut pass: P, timer: Option<(&'e PassTimer, u32)>) -> Self {
+        if let Some((t, i)) = timer {
+            t.began(i);
+            if t.placement == Placement::InsidePasses {
+                let (a, _) = t.ends(i);
+                pass.write(&t.set, a);
+                pass.write(&t.set, a + 1);
+            }
+        }
+        TimedPass { pass, end: timer }
+    }
 }
 
 /// Begins a compute pass labelled `label`, timed as pass `index` of `timer` when given.
@@ -344,58 +389,17 @@ pub fn compute_pass<'e>(
     label: &str,
     timer: Option<(&'e PassTimer, u32)>,
 ) -> TimedComputePass<'e> {
-    let around = timer.filter(|(t, _)| t.placement == Placement::AroundPasses);
-    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+    let pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some(label),
-        timestamp_writes: around.map(|(t, i)| {
-            let (a, b) = t.ends(i);
+        timestamp_writes: TimedPass::<wgpu::ComputePass>::around(timer).map(|(query_set, a, b)| {
             wgpu::ComputePassTimestampWrites {
-                query_set: &t.set,
+                query_set,
                 beginning_of_pass_write_index: Some(a),
                 end_of_pass_write_index: Some(b),
             }
         }),
     });
-    if let Some((t, i)) = timer {
-        t.began(i);
-        if t.placement == Placement::InsidePasses {
-            let (a, _) = t.ends(i);
-            pass.write_timestamp(&t.set, a);
-            pass.write_timestamp(&t.set, a + 1);
-        }
-    }
-    TimedComputePass { pass, end: timer }
-}
-
-impl<'e> Deref for TimedComputePass<'e> {
-    type Target = wgpu::ComputePass<'e>;
-    fn deref(&self) -> &Self::Target {
-        &self.pass
-    }
-}
-
-impl DerefMut for TimedComputePass<'_> {
-    fn deref_mut(&mut self) -> &mut Self::Target {
-        &mut self.pass
-    }
-}
-
-impl Drop for TimedComputePass<'_> {
-    fn drop(&mut self) {
-        if let Some((t, i)) = self.end {
-            if t.placement == Placement::InsidePasses {
-                let (_, b) = t.ends(i);
-                self.pass.write_timestamp(&t.set, b);
-                self.pass.write_timestamp(&t.set, b + 1);
-            }
-        }
-    }
-}
-
-/// A render pass timed as pass `index` of a timer (when given), as [`TimedComputePass`].
-pub struct TimedRenderPass<'e> {
-    pass: wgpu::RenderPass<'e>,
-    end: Option<(&'e PassTimer, u32)>,
+    TimedPass::begin(pass, timer)
 }
 
 /// Begins the render pass `desc` (whose `timestamp_writes` this sets), timed as pass `index`
@@ -405,47 +409,37 @@ pub fn render_pass<'e: 'd, 'd>(
     mut desc: wgpu::RenderPassDescriptor<'d>,
     timer: Option<(&'e PassTimer, u32)>,
 ) -> TimedRenderPass<'e> {
-    let around = timer.filter(|(t, _)| t.placement == Placement::AroundPasses);
-    desc.timestamp_writes = around.map(|(t, i)| {
-        let (a, b) = t.ends(i);
-        wgpu::RenderPassTimestampWrites {
-            query_set: &t.set,
-            beginning_of_pass_write_index: Some(a),
-            end_of_pass_write_index: Some(b),
-        }
-    });
-    let mut pass = encoder.begin_render_pass(&desc);
-    if let Some((t, i)) = timer {
-        t.began(i);
-        if t.placement == Placement::InsidePasses {
-            let (a, _) = t.ends(i);
-            pass.write_timestamp(&t.set, a);
-            pass.write_timestamp(&t.set, a + 1);
-        }
-    }
-    TimedRenderPass { pass, end: timer }
+    desc.timestamp_writes =
+        TimedPass::<wgpu::RenderPass>::around(timer).map(|(query_set, a, b)| {
+            wgpu::RenderPassTimestampWrites {
+                query_set,
+                beginning_of_pass_write_index: Some(a),
+                end_of_pass_write_index: Some(b),
+            }
+        });
+    TimedPass::begin(encoder.begin_render_pass(&desc), timer)
 }
 
-impl<'e> Deref for TimedRenderPass<'e> {
-    type Target = wgpu::RenderPass<'e>;
-    fn deref(&self) -> &Self::Target {
+impl<P: WriteTimestamp> Deref for TimedPass<'_, P> {
+    type Target = P;
+    fn deref(&self) -> &P {
         &self.pass
     }
 }
 
-impl DerefMut for TimedRenderPass<'_> {
-    fn deref_mut(&mut self) -> &mut Self::Target {
+impl<P: WriteTimestamp> DerefMut for TimedPass<'_, P> {
+    fn deref_mut(&mut self) -> &mut P {
         &mut self.pass
     }
 }
 
-impl Drop for TimedRenderPass<'_> {
+impl<P: WriteTimestamp> Drop for TimedPass<'_, P> {
     fn drop(&mut self) {
         if let Some((t, i)) = self.end {
             if t.placement == Placement::InsidePasses {
                 let (_, b) = t.ends(i);
-                self.pass.write_timestamp(&t.set, b);
-                self.pass.write_timestamp(&t.set, b + 1);
+                self.pass.write(&t.set, b);
+                self.pass.write(&t.set, b + 1);
             }
         }
     }

@@ -3,7 +3,9 @@
 //! the struct's size and every member's byte offset compared with the Rust struct's
 //! (`size_of`, `offset_of!`). A field reordered, added, removed or retyped on one side
 //! changes an offset or the size and fails the check. Padding members (`pad…`) are left to
-//! the size check on both sides. Test-only.
+//! the size check on both sides. Test-only: every struct declared with
+//! [`crate::gpu::pass::gpu_struct`] gets its `layout_mismatches` from here, which each
+//! execution's layout test calls on its shader as the pipelines join it.
 
 /// Compares WGSL struct `wgsl_name` of `source` with a Rust struct of `size` bytes whose named
 /// fields lie at `fields` (name, byte offset), in declaration order. Returns every mismatch.
@@ -51,32 +53,6 @@ pub(crate) fn mismatches(
     out
 }
 
-/// Asserts that Rust struct `$ty` has the layout of WGSL struct `$wgsl_name` in `$source`:
-/// every field is listed (`field`, or `field as "wgsl_name"` where the names differ).
-macro_rules! assert_wgsl_layout {
-    ($source:expr, $wgsl_name:literal, $ty:ty { $($field:ident $(as $wgsl_field:literal)?),* $(,)? }) => {{
-        let found = $crate::gpu::wgsl_layout::mismatches(
-            &$source,
-            $wgsl_name,
-            std::mem::size_of::<$ty>(),
-            &[$(($crate::gpu::wgsl_layout::wgsl_field!($field $($wgsl_field)?), std::mem::offset_of!($ty, $field))),*],
-        );
-        assert!(found.is_empty(), "{}", found.join("\n"));
-    }};
-}
-pub(crate) use assert_wgsl_layout;
-
-/// The WGSL name of a Rust field in [`assert_wgsl_layout`]: its own, or the one given.
-macro_rules! wgsl_field {
-    ($field:ident) => {
-        stringify!($field)
-    };
-    ($field:ident $wgsl_field:literal) => {
-        $wgsl_field
-    };
-}
-pub(crate) use wgsl_field;
-
 #[cfg(test)]
 mod tests {
     #[repr(C)]
@@ -90,7 +66,13 @@ mod tests {
 
     #[test]
     fn a_matching_struct_passes() {
-        assert_wgsl_layout!(WGSL, "Pair", Pair { a, b, c });
+        let rust = [
+            ("a", std::mem::offset_of!(Pair, a)),
+            ("b", std::mem::offset_of!(Pair, b)),
+            ("c", std::mem::offset_of!(Pair, c)),
+        ];
+        let found = super::mismatches(WGSL, "Pair", std::mem::size_of::<Pair>(), &rust);
+        assert!(found.is_empty(), "{found:?}");
     }
 
     /// The check fails when a field is reordered on either side, renamed, or missing.

@@ -17,66 +17,68 @@
 //! instrumented submission counts the volume fragments (`fill`) and the D-buffer texels they
 //! left covered (`fill − covered = overdraw`) with WGSL atomics, as the shadow-map family does.
 
-use std::time::Instant;
-
-use bytemuck::{Pod, Zeroable};
-
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff};
 use crate::algorithms::exec::machine;
+use crate::algorithms::shadow_map::wgpu::LIGHT_VIEW_WGSL;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::gpu::layout;
-use crate::gpu::readback::{words, Staging};
-use crate::gpu::stats::{read_or_warn, PassStats};
-use crate::gpu::timing::{self, read_ms_or_warn, PassTimer};
-use crate::gpu::{gbuffer_positions, resolve_queries, Gpu};
-use crate::record::{Counters, Phase};
+use crate::gpu::pass::{
+    gpu_struct, replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster,
+    Statistics, Step, Timed,
+};
+use crate::gpu::readback::words;
+use crate::gpu::{gbuffer_positions, Gpu};
+use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
-use crate::visibility::VisibilityBuffer;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
 /// Side of the square compute workgroups (`@workgroup_size(8, 8)`).
 const WORKGROUP: u32 = 8;
-/// GPU passes of the timed submission: scene depth, umbra volume, penumbra volume, eye lookup.
-const PASSES: u32 = 4;
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 const EDGE: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
 
-/// The `Light` uniform of `wgpu.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct DbufferUniform {
-    view_proj: [f32; 16],
-    eye: [f32; 3],
-    radius: f32,
-    n_view: [f32; 3],
-    near: f32,
-    disc_n: [f32; 3],
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    falloff: u32,
-    width: u32,
-    height: u32,
-    pad: u32,
+gpu_struct! {
+    /// The light view and the method's parameters (group 0, binding 0 of every pass).
+    struct DbufferUniform as "Light" {
+        view_proj: [f32; 16] => "mat4x4<f32>",
+        /// The light centre c (`LightView::eye`) and the disc radius.
+        eye: [f32; 3] => "vec3<f32>",
+        radius: f32 => "f32",
+        /// n_c in light-view space.
+        n_view: [f32; 3] => "vec3<f32>",
+        near: f32 => "f32",
+        /// n_c in world space.
+        disc_n: [f32; 3] => "vec3<f32>",
+        far: f32 => "f32",
+        tan_half_fov: f32 => "f32",
+        resolution: u32 => "u32",
+        bias_constant: f32 => "f32",
+        bias_slope: f32 => "f32",
+        /// 0: 3t² − 2t³ (eq. 4), 1: √t (§6.2).
+        falloff: u32 => "u32",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        pad: u32 => "u32",
+    }
 }
 
-/// The `Counts` storage buffer of the instrumented mode.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct Counts {
-    scene_fragments: u32,
-    umbra_fragments: u32,
-    penumbra_fragments: u32,
-    umbra_covered: u32,
-    penumbra_covered: u32,
-    pad: u32,
+gpu_struct! {
+    /// The counters of the instrumented replay (group 0, binding 1).
+    struct Counts as "Counts" {
+        scene_fragments: u32 => "atomic<u32>",
+        umbra_fragments: u32 => "atomic<u32>",
+        penumbra_fragments: u32 => "atomic<u32>",
+        umbra_covered: u32 => "atomic<u32>",
+        penumbra_covered: u32 => "atomic<u32>",
+        pad: u32 => "u32",
+    }
 }
+
+/// The shader as the pipelines join it.
+const SOURCES: [&str; 4] = [DbufferUniform::WGSL, Counts::WGSL, LIGHT_VIEW_WGSL, WGSL];
 
 /// `dbuffer` on wgpu.
 pub fn render(
@@ -85,7 +87,6 @@ pub fn render(
     ctx: &ExecContext,
     o: &DbufferOptions,
 ) -> Result<FrameOutput> {
-    let o = *o;
     let res = frame.params.map_resolution;
     if res > gpu.limits.max_texture_dimension_2d {
         return Err(Error::Resource(format!(
@@ -100,9 +101,9 @@ pub fn render(
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
     let views = LightViews::fit(frame, &frame.scene.light, res, ViewFit::Single);
     let view = *views.single();
-    let v = build_volumes(&mut m, frame, &adj, disc, &view, &o);
+    let v = build_volumes(&mut m, frame, &adj, disc, &view, o);
     let host = m.finish();
-    let mut out = Passes::new(gpu, frame, &view, disc, &v.umbra, &v.penumbra, &o).run(frame)?;
+    let mut out = Passes::new(gpu, frame, &view, disc, &v.umbra, &v.penumbra, o).run(frame)?;
     out.execution.insert(
         "volume_build".into(),
         serde_json::json!(o.volume_build.describe()),
@@ -117,44 +118,20 @@ pub fn render(
     Ok(out)
 }
 
-struct Target {
-    view: wgpu::TextureView,
+/// A map of the D-buffer, drawn into and read by the lookup.
+fn target(gpu: &Gpu, label: &str, res: u32, format: wgpu::TextureFormat) -> wgpu::TextureView {
+    gpu.map_texture(label, res, format, wgpu::TextureUsages::empty())
+        .create_view(&Default::default())
 }
 
-fn texture(gpu: &Gpu, label: &str, res: u32, format: wgpu::TextureFormat) -> Target {
-    let t = gpu.map_texture(label, res, format, wgpu::TextureUsages::empty());
-    Target {
-        view: t.create_view(&Default::default()),
-    }
-}
-
-fn texture_entry(
-    binding: u32,
-    stage: wgpu::ShaderStages,
-    depth: bool,
-) -> wgpu::BindGroupLayoutEntry {
-    let sample_type = if depth {
-        wgpu::TextureSampleType::Depth
-    } else {
-        wgpu::TextureSampleType::Float { filterable: false }
-    };
-    layout::texture(binding, stage, sample_type)
-}
-
-fn tex(binding: u32, t: &Target) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: wgpu::BindingResource::TextureView(&t.view),
-    }
-}
-
-/// A volume's vertex buffer (position and edge depth) and index buffer.
+/// A mesh drawn into the D-buffer: its vertex buffer, index buffer and index count.
 struct Mesh {
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     count: u32,
 }
 
+/// The pipelines of the scene, umbra, penumbra and lookup passes, timed or counting.
 struct Pipelines {
     scene: wgpu::RenderPipeline,
     umbra: wgpu::RenderPipeline,
@@ -162,26 +139,69 @@ struct Pipelines {
     lookup: wgpu::ComputePipeline,
 }
 
+impl Pipelines {
+    /// The timed and counting pipelines of every pass, and the replay's `count_covered`, from
+    /// the shared, scene-depth and lookup group layouts.
+    fn new(
+        gpu: &Gpu,
+        [shared, scene, lookup]: [&Layout; 3],
+    ) -> ([Pipelines; 2], wgpu::ComputePipeline) {
+        let program =
+            |groups: &[Option<&Layout>]| Program::new(gpu, "dbuffer/wgpu.wgsl", &SOURCES, groups);
+        let scene_program = program(&[Some(shared)]);
+        let volume_program = program(&[Some(shared), Some(scene)]);
+        let compute_program = program(&[Some(shared), Some(lookup)]);
+        let scene_attrs = wgpu::vertex_attr_array![0 => Float32x3];
+        let volume_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
+        let vertex = wgpu::VertexStepMode::Vertex;
+        let pipelines = [false, true].map(|instrument| {
+            let scene = Raster {
+                vs: "vs_scene",
+                fs: "fs_scene",
+                vertex: Some((12, vertex, &scene_attrs)),
+                instrument: Some(instrument),
+                ..Raster::default()
+            };
+            let volume = |fs| Raster {
+                vs: "vs_volume",
+                fs,
+                vertex: Some((16, vertex, &volume_attrs)),
+                color: Some(wgpu::ColorTargetState {
+                    format: EDGE,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::RED,
+                }),
+                ..scene.clone()
+            };
+            Pipelines {
+                scene: scene_program.render(gpu, &scene),
+                umbra: volume_program.render(gpu, &volume("fs_umbra")),
+                penumbra: volume_program.render(gpu, &volume("fs_penumbra")),
+                lookup: compute_program.compute(gpu, "eye_lookup", Some(instrument)),
+            }
+        });
+        let count_covered = compute_program.compute(gpu, "count_covered", Some(true));
+        (pipelines, count_covered)
+    }
+}
+
 struct Passes<'g> {
     gpu: &'g Gpu,
     width: u32,
     height: u32,
     resolution: u32,
-    scene_mesh: Mesh,
-    umbra_mesh: Mesh,
-    penumbra_mesh: Mesh,
-    scene_depth: Target,
-    umbra_depth: Target,
-    umbra_edge: Target,
-    penumbra_depth: Target,
-    penumbra_edge: Target,
+    /// Scene, umbra volume, penumbra volume.
+    meshes: [Mesh; 3],
+    /// Depth targets (scene, umbra, penumbra) and edge targets (umbra, penumbra).
+    depth: [wgpu::TextureView; 3],
+    edge: [wgpu::TextureView; 2],
     visibility: wgpu::Buffer,
     counts: wgpu::Buffer,
     shared_group: wgpu::BindGroup,
     scene_group: wgpu::BindGroup,
     lookup_group: wgpu::BindGroup,
-    timed: Pipelines,
-    counting: Pipelines,
+    /// Timed and counting pipelines.
+    pipelines: [Pipelines; 2],
     count_covered: wgpu::ComputePipeline,
 }
 
@@ -195,7 +215,6 @@ impl<'g> Passes<'g> {
         penumbra: &VolumeMesh,
         o: &DbufferOptions,
     ) -> Passes<'g> {
-        let device = &gpu.device;
         let (width, height) = (frame.width(), frame.height());
         let resolution = view.resolution;
         let uniform = DbufferUniform {
@@ -218,35 +237,16 @@ impl<'g> Passes<'g> {
             height,
             pad: 0,
         };
-        let init =
-            |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 16, usage);
-        let uniform_buf = init(
-            "dbuffer uniform",
-            bytemuck::bytes_of(&uniform),
-            wgpu::BufferUsages::UNIFORM,
-        );
+        use wgpu::BufferUsages as B;
+        let uniform_buf = gpu.upload("dbuffer uniform", &[uniform], B::UNIFORM);
         let mesh = |label: &str, vertices: Vec<f32>, tris: &[[u32; 3]]| {
             let indices: Vec<u32> = tris.iter().flatten().copied().collect();
             Mesh {
-                vertices: init(
-                    label,
-                    bytemuck::cast_slice(&vertices),
-                    wgpu::BufferUsages::VERTEX,
-                ),
-                indices: init(
-                    label,
-                    bytemuck::cast_slice(&indices),
-                    wgpu::BufferUsages::INDEX,
-                ),
+                vertices: gpu.upload(label, &vertices, B::VERTEX),
+                indices: gpu.upload(label, &indices, B::INDEX),
                 count: indices.len() as u32,
             }
         };
-        let flat = &frame.flat.mesh;
-        let scene_mesh = mesh(
-            "scene",
-            flat.positions.iter().flat_map(|p| p.to_array()).collect(),
-            &flat.triangles,
-        );
         let volume = |label: &str, v: &VolumeMesh| {
             let data: Vec<f32> = v
                 .positions
@@ -256,367 +256,135 @@ impl<'g> Passes<'g> {
                 .collect();
             mesh(label, data, &v.triangles)
         };
-        let umbra_mesh = volume("umbra volume", umbra);
-        let penumbra_mesh = volume("penumbra volume", penumbra);
-
+        let flat = &frame.flat.mesh;
+        let positions = flat.positions.iter().flat_map(|p| p.to_array()).collect();
+        let meshes = [
+            mesh("scene", positions, &flat.triangles),
+            volume("umbra volume", umbra),
+            volume("penumbra volume", penumbra),
+        ];
         let g = &frame.gbuffer;
-        let gpos = gbuffer_positions(g);
         let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-        let positions_buf = init(
-            "gbuffer positions",
-            bytemuck::cast_slice(&gpos),
-            wgpu::BufferUsages::STORAGE,
+        let gpos = gpu.upload("gbuffer positions", &gbuffer_positions(g), B::STORAGE);
+        let gnrm = gpu.upload("gbuffer normals", &gnrm, B::STORAGE);
+        let visibility = gpu.storage_buffer(
+            "visibility",
+            4 * u64::from(width) * u64::from(height),
+            B::COPY_SRC,
         );
-        let normals_buf = init(
-            "gbuffer normals",
-            bytemuck::cast_slice(&gnrm),
-            wgpu::BufferUsages::STORAGE,
-        );
-        let visibility = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("visibility"),
-            size: 4 * u64::from(width) * u64::from(height),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let counts = init(
+        let counts = gpu.upload(
             "instrumentation counts",
-            bytemuck::bytes_of(&Counts::default()),
-            wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
+            &[Counts::default()],
+            B::STORAGE | B::COPY_SRC | B::COPY_DST,
         );
-        let scene_depth = texture(gpu, "dbuffer scene depth", resolution, DEPTH);
-        let umbra_depth = texture(gpu, "dbuffer umbra depth", resolution, DEPTH);
-        let umbra_edge = texture(gpu, "dbuffer umbra edge", resolution, EDGE);
-        let penumbra_depth = texture(gpu, "dbuffer penumbra depth", resolution, DEPTH);
-        let penumbra_edge = texture(gpu, "dbuffer penumbra edge", resolution, EDGE);
+        let depth = ["scene", "umbra", "penumbra"]
+            .map(|n| target(gpu, &format!("dbuffer {n} depth"), resolution, DEPTH));
+        let edge = ["umbra", "penumbra"]
+            .map(|n| target(gpu, &format!("dbuffer {n} edge"), resolution, EDGE));
 
-        let all =
-            wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
-        let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("dbuffer shared"),
-            entries: &[
-                layout::uniform(0, all),
-                layout::storage(
-                    1,
-                    wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE,
-                    false,
-                ),
+        use wgpu::ShaderStages as S;
+        let all = S::VERTEX | S::FRAGMENT | S::COMPUTE;
+        let shared_layout = Layout::new(gpu, "dbuffer shared", all, &[Uniform, ReadWrite]);
+        let scene_layout = Layout::new(gpu, "dbuffer scene depth", S::FRAGMENT, &[Depth]);
+        let lookup_layout = Layout::new(
+            gpu,
+            "dbuffer eye lookup",
+            S::COMPUTE,
+            &[
+                Depth, Depth, Float, Depth, Float, ReadOnly, ReadOnly, ReadWrite,
             ],
-        });
-        let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("dbuffer scene depth"),
-            entries: &[texture_entry(0, wgpu::ShaderStages::FRAGMENT, true)],
-        });
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("dbuffer eye lookup"),
-            entries: &[
-                texture_entry(0, cs, true),
-                texture_entry(1, cs, true),
-                texture_entry(2, cs, false),
-                texture_entry(3, cs, true),
-                texture_entry(4, cs, false),
-                layout::storage(5, cs, true),
-                layout::storage(6, cs, true),
-                layout::storage(7, cs, false),
+        );
+        let shared_group = shared_layout.group(
+            gpu,
+            "dbuffer shared",
+            &[uniform_buf.as_entire_binding(), counts.as_entire_binding()],
+        );
+        let scene_group =
+            scene_layout.group(gpu, "dbuffer scene depth", &[view_resource(&depth[0])]);
+        let lookup_group = lookup_layout.group(
+            gpu,
+            "dbuffer eye lookup",
+            &[
+                view_resource(&depth[0]),
+                view_resource(&depth[1]),
+                view_resource(&edge[0]),
+                view_resource(&depth[2]),
+                view_resource(&edge[1]),
+                gpos.as_entire_binding(),
+                gnrm.as_entire_binding(),
+                visibility.as_entire_binding(),
             ],
-        });
-        let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dbuffer shared"),
-            layout: &shared_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: uniform_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: counts.as_entire_binding(),
-                },
-            ],
-        });
-        let scene_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dbuffer scene depth"),
-            layout: &scene_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::TextureView(&scene_depth.view),
-            }],
-        });
-        let lookup_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("dbuffer eye lookup"),
-            layout: &lookup_layout,
-            entries: &[
-                tex(0, &scene_depth),
-                tex(1, &umbra_depth),
-                tex(2, &umbra_edge),
-                tex(3, &penumbra_depth),
-                tex(4, &penumbra_edge),
-                wgpu::BindGroupEntry {
-                    binding: 5,
-                    resource: positions_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 6,
-                    resource: normals_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 7,
-                    resource: visibility.as_entire_binding(),
-                },
-            ],
-        });
-
-        let scene_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("dbuffer scene"),
-            bind_group_layouts: &[Some(&shared_layout)],
-            immediate_size: 0,
-        });
-        let volume_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("dbuffer volumes"),
-            bind_group_layouts: &[Some(&shared_layout), Some(&scene_layout)],
-            immediate_size: 0,
-        });
-        let compute_pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("dbuffer eye lookup"),
-            bind_group_layouts: &[Some(&shared_layout), Some(&lookup_layout)],
-            immediate_size: 0,
-        });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("dbuffer/wgpu.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(WGSL.into()),
-        });
-        let scene_attrs = wgpu::vertex_attr_array![0 => Float32x3];
-        let volume_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
-        let edge_target = [Some(wgpu::ColorTargetState {
-            format: EDGE,
-            blend: None,
-            write_mask: wgpu::ColorWrites::RED,
-        })];
-        let render = |fs: &str, volume: bool, instrument: bool| {
-            let constants = [("INSTRUMENT", f64::from(u8::from(instrument)))];
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(fs),
-                layout: Some(if volume { &volume_pl } else { &scene_pl }),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some(if volume { "vs_volume" } else { "vs_scene" }),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: if volume { 16 } else { 12 },
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: if volume { &volume_attrs } else { &scene_attrs },
-                    })],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fs),
-                    compilation_options: wgpu::PipelineCompilationOptions {
-                        constants: &constants,
-                        ..Default::default()
-                    },
-                    targets: if volume { &edge_target } else { &[] },
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let compute = |entry: &str, instrument: bool| {
-            gpu.instrumented_compute_pipeline(&compute_pl, &module, entry, instrument)
-        };
-        let pipelines = |instrument: bool| Pipelines {
-            scene: render("fs_scene", false, instrument),
-            umbra: render("fs_umbra", true, instrument),
-            penumbra: render("fs_penumbra", true, instrument),
-            lookup: compute("eye_lookup", instrument),
-        };
+        );
+        let (pipelines, count_covered) =
+            Pipelines::new(gpu, [&shared_layout, &scene_layout, &lookup_layout]);
         Passes {
             gpu,
             width,
             height,
             resolution,
-            scene_mesh,
-            umbra_mesh,
-            penumbra_mesh,
-            scene_depth,
-            umbra_depth,
-            umbra_edge,
-            penumbra_depth,
-            penumbra_edge,
+            meshes,
+            depth,
+            edge,
             visibility,
             counts,
             shared_group,
             scene_group,
             lookup_group,
-            timed: pipelines(false),
-            counting: pipelines(true),
-            count_covered: compute("count_covered", true),
+            pipelines,
+            count_covered,
         }
     }
 
-    /// One render pass of the D-buffer: `mesh` into `depth` (and `edge`), pass `i`.
-    #[allow(clippy::too_many_arguments)]
-    fn draw(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        pipeline: &wgpu::RenderPipeline,
-        mesh: &Mesh,
-        depth: &Target,
-        edge: Option<&Target>,
-        i: u32,
-        timer: Option<&PassTimer>,
-        stats: Option<&PassStats>,
-    ) {
-        let color = edge.map(|t| wgpu::RenderPassColorAttachment {
-            view: &t.view,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations {
-                load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                store: wgpu::StoreOp::Store,
-            },
-        });
-        let colors = [color];
-        let mut pass = timing::render_pass(
-            encoder,
-            wgpu::RenderPassDescriptor {
-                label: Some("dbuffer"),
-                color_attachments: if edge.is_some() { &colors } else { &[] },
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &depth.view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            },
-            timer.map(|t| (t, i)),
-        );
-        if let Some(s) = stats {
-            s.begin_render(&mut pass, i);
-        }
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &self.shared_group, &[]);
-        if edge.is_some() {
-            pass.set_bind_group(1, &self.scene_group, &[]);
-        }
-        pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..mesh.count, 0, 0..1);
-        if stats.is_some() {
-            pass.end_pipeline_statistics_query();
-        }
+    /// The three render passes of the D-buffer: the scene's depth, then each volume into its
+    /// depth and edge targets.
+    fn dbuffer_passes(&self, counting: bool) -> Vec<Pass<'_>> {
+        let p = &self.pipelines[usize::from(counting)];
+        let pipelines = [&p.scene, &p.umbra, &p.penumbra];
+        (0..3)
+            .map(|i| {
+                let mesh = &self.meshes[i];
+                let volume = i > 0;
+                Pass::draw(
+                    "dbuffer",
+                    &[
+                        Some(&self.shared_group),
+                        volume.then_some(&self.scene_group),
+                    ],
+                    Draw {
+                        pipeline: pipelines[i],
+                        color: volume.then(|| &self.edge[i - 1]),
+                        depth: Some(&self.depth[i]),
+                        vertices: Some(&mesh.vertices),
+                        indices: Some(&mesh.indices),
+                        count: mesh.count,
+                        instances: 1,
+                    },
+                )
+            })
+            .collect()
     }
 
-    fn dbuffer_passes(
-        &self,
-        e: &mut wgpu::CommandEncoder,
-        p: &Pipelines,
-        timer: Option<&PassTimer>,
-        stats: Option<&PassStats>,
-    ) {
-        self.draw(
-            e,
-            &p.scene,
-            &self.scene_mesh,
-            &self.scene_depth,
-            None,
-            0,
-            timer,
-            stats,
-        );
-        self.draw(
-            e,
-            &p.umbra,
-            &self.umbra_mesh,
-            &self.umbra_depth,
-            Some(&self.umbra_edge),
-            1,
-            timer,
-            stats,
-        );
-        self.draw(
-            e,
-            &p.penumbra,
-            &self.penumbra_mesh,
-            &self.penumbra_depth,
-            Some(&self.penumbra_edge),
-            2,
-            timer,
-            stats,
-        );
-    }
-
-    fn compute_pass(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        pipeline: &wgpu::ComputePipeline,
-        size: (u32, u32),
-        timer: Option<&PassTimer>,
-        stats: Option<&PassStats>,
-    ) {
-        let mut pass = timing::compute_pass(encoder, "eye_lookup", timer.map(|t| (t, 3)));
-        if let Some(s) = stats {
-            s.begin_compute(&mut pass, 3);
-        }
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &self.shared_group, &[]);
-        pass.set_bind_group(1, &self.lookup_group, &[]);
-        pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
-        if stats.is_some() {
-            pass.end_pipeline_statistics_query();
-        }
+    /// A compute pass over `size` with the lookup's groups.
+    fn compute<'a>(&'a self, pipeline: &'a wgpu::ComputePipeline, size: (u32, u32)) -> Pass<'a> {
+        let groups = [Some(&self.shared_group), Some(&self.lookup_group)];
+        Pass::compute("eye_lookup", &groups, pipeline, tiles(size, WORKGROUP))
     }
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
-        let gpu = self.gpu;
         let image = (self.width, self.height);
-        let mut warnings = Vec::new();
-        let timer = PassTimer::new(gpu, PASSES);
-        let stats = PassStats::new(gpu, PASSES);
-        let dbuffer_wall = self
-            .gpu
-            .submit(|e| self.dbuffer_passes(e, &self.timed, timer.as_ref(), stats.as_ref()))?;
-        let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
-        let lookup_wall = self.gpu.submit(|e| {
-            self.compute_pass(e, &self.timed.lookup, image, timer.as_ref(), stats.as_ref());
-            vis_staging.copy(e, &self.visibility);
-            resolve_queries(e, timer.as_ref(), stats.as_ref());
-        })?;
-        let readback_start = Instant::now();
-        let data: Vec<f32> = words(&vis_staging.read(gpu)?);
-        let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
-        let gpu_ms = times.ms.clone();
-        let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
+        let names = ["dbuffer", "eye_lookup"];
+        let mut run = Timed::new(self.gpu, &names, 4, Statistics::All, &[&self.visibility]);
+        run.submit(0, &self.dbuffer_passes(false))?;
+        run.submit(1, &[self.compute(&self.pipelines[0].lookup, image)])?;
+        let timing = run.finish()?;
 
         // The instrumented submission: same passes, counting with atomics.
-        let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());
-        self.gpu.submit(|e| {
-            e.clear_buffer(&self.counts, 0, None);
-            self.dbuffer_passes(e, &self.counting, None, None);
-            let res = (self.resolution, self.resolution);
-            self.compute_pass(e, &self.count_covered, res, None, None);
-            counts_staging.copy(e, &self.counts);
-        })?;
-        let c: Counts = words::<Counts>(&counts_staging.read(gpu)?)[0];
+        let mut steps = vec![Step::Clear(&self.counts)];
+        steps.extend(self.dbuffer_passes(true).into_iter().map(Step::Run));
+        let res = (self.resolution, self.resolution);
+        steps.push(Step::Run(self.compute(&self.count_covered, res)));
+        steps.push(Step::Read(&self.counts));
+        let c: Counts = words::<Counts>(&replay(self.gpu, &steps)?[0])[0];
 
         let mut dbuffer = Counters::default();
         let fill = f64::from(c.umbra_fragments) + f64::from(c.penumbra_fragments);
@@ -627,104 +395,23 @@ impl<'g> Passes<'g> {
         );
         dbuffer.set("dbuffer.scene_fill", f64::from(c.scene_fragments));
         dbuffer.set("dbuffer.bytes", super::dbuffer_bytes(&frame.params) as f64);
-        let mut eye = Counters::default();
-        if let Some(p) = &pipeline {
-            for s in &p[..3] {
-                dbuffer.merge(s);
-            }
-            eye.merge(&p[3]);
-        }
-        let phase = |name: &str, wall_ms: f64, gpu_ms: Option<f64>, counters: Counters| Phase {
-            name: name.into(),
-            wall_ms,
-            model_ms: None,
-            gpu_ms,
-            counters,
-        };
-        let phases = vec![
-            phase(
-                "dbuffer",
-                dbuffer_wall,
-                gpu_ms.as_ref().map(|t| t[..3].iter().sum()),
-                dbuffer,
-            ),
-            phase(
-                "eye_lookup",
-                lookup_wall,
-                gpu_ms.as_ref().map(|t| t[3]),
-                eye,
-            ),
-        ];
-        let mut counters = Counters::default();
-        for p in &phases {
-            counters.merge(&p.counters);
-        }
-        let mut execution = gpu.execution();
-        times.record(&mut execution);
-        execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
-        execution.insert(
-            "gpu_counters".into(),
-            serde_json::json!(
-                "fill/overdraw from an instrumented replay (WGSL atomics); phases silhouettes \
-                 and volumes ran on the host"
-            ),
-        );
-        Ok(FrameOutput {
-            visibility: VisibilityBuffer {
-                width: self.width,
-                height: self.height,
-                data,
-            },
-            counters,
-            phases,
-            model_ms: None,
-            gpu_ms: gpu_ms.map(|t| t.iter().sum()),
-            execution,
-            warnings,
-            rgb: None,
-        })
+        let note = "fill/overdraw from an instrumented replay (WGSL atomics); phases silhouettes \
+                    and volumes ran on the host";
+        Ok(timing.output(image, vec![dbuffer, Counters::default()], note))
     }
 }
 
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     #[test]
     fn uniforms_match_wgsl() {
-        assert_wgsl_layout!(
-            WGSL,
-            "Light",
-            DbufferUniform {
-                view_proj,
-                eye,
-                radius,
-                n_view,
-                near,
-                disc_n,
-                far,
-                tan_half_fov,
-                resolution,
-                bias_constant,
-                bias_slope,
-                falloff,
-                width,
-                height,
-                pad
-            }
+        let source = SOURCES.join("\n");
+        assert_eq!(
+            DbufferUniform::layout_mismatches(&source),
+            Vec::<String>::new()
         );
-        assert_wgsl_layout!(
-            WGSL,
-            "Counts",
-            Counts {
-                scene_fragments,
-                umbra_fragments,
-                penumbra_fragments,
-                umbra_covered,
-                penumbra_covered,
-                pad
-            }
-        );
+        assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
     }
 }

@@ -2,38 +2,8 @@
 // depth, the umbra volume, the penumbra volume) and the eye lookup. Every function mirrors the
 // Rust function of src/algorithms/dbuffer/ named beside it.
 
-// Layout matches `DbufferUniform` in wgpu.rs.
-struct Light {
-    view_proj: mat4x4<f32>,
-    // The light centre c (LightView::eye) and the disc radius.
-    eye: vec3<f32>,
-    radius: f32,
-    // n_c in light-view space.
-    n_view: vec3<f32>,
-    near: f32,
-    // n_c in world space.
-    disc_n: vec3<f32>,
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    // 0: 3t² − 2t³ (eq. 4), 1: √t (§6.2).
-    falloff: u32,
-    width: u32,
-    height: u32,
-    pad0: u32,
-}
-
-// Instrumented-mode counters, layout matches `Counts` in wgpu.rs.
-struct Counts {
-    scene_fragments: atomic<u32>,
-    umbra_fragments: atomic<u32>,
-    penumbra_fragments: atomic<u32>,
-    umbra_covered: atomic<u32>,
-    penumbra_covered: atomic<u32>,
-    pad: u32,
-}
+// The structs `Light` (`DbufferUniform`) and `Counts` are declared in wgpu.rs and joined before
+// this file.
 
 // True in the instrumented pipelines: count fragments and covered texels with atomics.
 override INSTRUMENT: bool = false;
@@ -50,29 +20,8 @@ override INSTRUMENT: bool = false;
 @group(1) @binding(6) var<storage, read> normals: array<vec4<f32>>;
 @group(1) @binding(7) var<storage, read_write> visibility: array<f32>;
 
-// LightView::project
-fn project(p: vec3<f32>) -> vec4<f32> {
-    let c = light.view_proj * vec4<f32>(p, 1.0);
-    let ndc = c.xyz / c.w;
-    return vec4<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5, ndc.z, c.w);
-}
-
-// LightView::linear_depth
-fn linear_depth(ndc: f32) -> f32 {
-    return light.near * light.far / (light.far - ndc * (light.far - light.near));
-}
-
-// LightView::texel_world
-fn texel_world(z: f32) -> f32 {
-    return 2.0 * z * light.tan_half_fov / f32(light.resolution);
-}
-
-// Bias::at
-fn bias_at(z: f32, n_dot_l: f32) -> f32 {
-    let c = clamp(n_dot_l, 1e-4, 1.0);
-    let t = min(sqrt(1.0 - c * c) / c, 10.0);
-    return texel_world(z) * (light.bias_constant + light.bias_slope * t);
-}
+// `project`, `linear_depth`, `texel_world` and `bias_at`: shadow_map/light_view.wgsl, joined
+// before this file.
 
 // Phase `dbuffer`, the scene's depth (|cx_o|): every triangle, depth only.
 @vertex

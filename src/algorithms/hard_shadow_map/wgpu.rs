@@ -3,26 +3,18 @@
 
 use super::HardShadowOptions;
 use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
-use crate::algorithms::ExecContext;
-use crate::algorithms::FrameOutput;
+use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Gpu;
 
+/// `hard_shadow_map` on wgpu (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
-    _: &ExecContext,
-    options: &HardShadowOptions,
+    _ctx: &ExecContext,
+    o: &HardShadowOptions,
 ) -> Result<FrameOutput> {
-    shadow_map_wgpu::render(
-        gpu,
-        frame,
-        &Lookup {
-            wgsl: include_str!("wgpu.wgsl"),
-            bias: options.bias,
-            blocker_samples: 0,
-            pcf_samples: 0,
-        },
-    )
+    let lookup = Lookup::new(include_str!("wgpu.wgsl"), o.bias);
+    shadow_map_wgpu::render(gpu, frame, &lookup)
 }

@@ -3,26 +3,22 @@
 
 use super::PcssOptions;
 use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
-use crate::algorithms::ExecContext;
-use crate::algorithms::FrameOutput;
+use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Gpu;
 
+/// `pcss` on wgpu (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
-    _: &ExecContext,
-    options: &PcssOptions,
+    _ctx: &ExecContext,
+    o: &PcssOptions,
 ) -> Result<FrameOutput> {
-    shadow_map_wgpu::render(
-        gpu,
-        frame,
-        &Lookup {
-            wgsl: include_str!("wgpu.wgsl"),
-            bias: options.bias,
-            blocker_samples: options.blocker_samples,
-            pcf_samples: options.pcf_samples,
-        },
-    )
+    let lookup = Lookup {
+        blocker_samples: o.blocker_samples,
+        pcf_samples: o.pcf_samples,
+        ..Lookup::new(include_str!("wgpu.wgsl"), o.bias)
+    };
+    shadow_map_wgpu::render(gpu, frame, &lookup)
 }

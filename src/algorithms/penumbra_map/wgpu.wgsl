@@ -1,7 +1,7 @@
 // penumbra_map, phase `penumbra_map` (paper 000 §3-§4): the cones and sheets, built on the CPU
 // in light-view space (`PenumbraGeometry` in mod.rs, the same triangles the cpu executions
-// draw), rasterized into the penumbra map. Appended to
-// src/algorithms/shadow_map/light_raster.wgsl for its `Light` uniform and counters.
+// draw), rasterized into the penumbra map. Joined after the shadow-map family's prelude and
+// src/algorithms/shadow_map/light_raster.wgsl (shadow_map/wgpu.rs) for `Light` and the counters.
 //
 // "Darkest wins" (§4) is the paper's own device: the intensity is written as the fragment's
 // depth into a Depth32Float target cleared to 1.0 with the depth test Less ("we store the
@@ -9,11 +9,7 @@
 // f32 value, as the cpu executions' min-blend does, where a Min blend would need a blendable
 // 32-bit float colour format that adapters need not offer.
 
-// The projection of the light view (`LightView::proj`): positions are already in its view space.
-struct PenumbraView {
-    proj: mat4x4<f32>,
-}
-
+// `penumbra_view`: the light view's projection (`PenumbraView`, declared in wgpu.rs).
 @group(1) @binding(0) var<uniform> penumbra_view: PenumbraView;
 // The shadow map of the same view and resolution (NDC depth).
 @group(1) @binding(1) var shadow_map: texture_depth_2d;

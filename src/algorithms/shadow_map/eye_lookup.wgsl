@@ -1,35 +1,8 @@
 // Phase `eye_lookup`: one invocation per eye pixel reads the shared gbuffer (world position
 // with a hit flag in w, eye-facing normal), projects the point into the light's shadow map and
 // calls `visibility_at`, which each algorithm defines in its own WGSL file appended to this one.
-// Every function here mirrors the Rust function of src/algorithms/shadow_map/mod.rs named beside it.
-
-struct Light {
-    view_proj: mat4x4<f32>,
-    eye: vec3<f32>,
-    radius: f32,
-    near: f32,
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    blocker_samples: u32,
-    pcf_samples: u32,
-    width: u32,
-    height: u32,
-    // FaceView::face_code: the cube face whose receivers this view shades, 6 for all.
-    face: u32,
-    pad: u32,
-}
-
-struct Counts {
-    fragments: atomic<u32>,
-    covered: atomic<u32>,
-    taps: atomic<u32>,
-    wasted_taps: atomic<u32>,
-    discarded: atomic<u32>,
-    extra_taps: atomic<u32>,
-}
+// Every function here mirrors the Rust function of src/algorithms/shadow_map/mod.rs named beside it;
+// `project`, `linear_depth`, `texel_world` and `bias_at` come from light_view.wgsl, joined before.
 
 // Depth of a tap outside the map: beyond every receiver.
 const FAR_AWAY: f32 = 3.4e38;
@@ -37,20 +10,10 @@ const FAR_AWAY: f32 = 3.4e38;
 // True in the instrumented pipeline: count shadow-map taps and wasted work with atomics.
 override INSTRUMENT: bool = false;
 
-@group(0) @binding(0) var<uniform> light: Light;
-@group(0) @binding(1) var<storage, read_write> counts: Counts;
 @group(1) @binding(0) var shadow_map: texture_depth_2d;
 @group(1) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(1) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(1) @binding(3) var<storage, read_write> visibility: array<f32>;
-
-// LightView::project: (u, v) with v down, NDC depth, and clip w (linear depth); w <= 0 means
-// behind the light.
-fn project(p: vec3<f32>) -> vec4<f32> {
-    let c = light.view_proj * vec4<f32>(p, 1.0);
-    let ndc = c.xyz / c.w;
-    return vec4<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5, ndc.z, c.w);
-}
 
 // shadow_map::cube_face
 fn cube_face(d: vec3<f32>) -> u32 {
@@ -69,26 +32,9 @@ fn owns(p: vec3<f32>) -> bool {
     return light.face == 6u || cube_face(p - light.eye) == light.face;
 }
 
-// LightView::linear_depth
-fn linear_depth(ndc: f32) -> f32 {
-    return light.near * light.far / (light.far - ndc * (light.far - light.near));
-}
-
-// LightView::texel_world
-fn texel_world(z: f32) -> f32 {
-    return 2.0 * z * light.tan_half_fov / f32(light.resolution);
-}
-
 // LightView::world_to_uv
 fn world_to_uv(w: f32, z: f32) -> f32 {
     return w / (2.0 * z * light.tan_half_fov);
-}
-
-// Bias::at
-fn bias_at(z: f32, n_dot_l: f32) -> f32 {
-    let c = clamp(n_dot_l, 1e-4, 1.0);
-    let t = min(sqrt(1.0 - c * c) / c, 10.0);
-    return texel_world(z) * (light.bias_constant + light.bias_slope * t);
 }
 
 // vogel_disk

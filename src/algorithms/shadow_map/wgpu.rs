@@ -15,25 +15,31 @@
 //! fragment; those that did not end up in the map), and the shadow-map taps of the lookup. Memory traffic is estimated from formats and
 //! those counts (`mem_est.<buffer>.*`): a GPU does not report it.
 
-use std::time::Instant;
-
-use bytemuck::{Pod, Zeroable};
-
 use super::{Bias, FaceView, LightViews, ViewFit};
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::gpu::layout;
-use crate::gpu::readback::{words, Staging};
-use crate::gpu::stats::PassStats;
-use crate::gpu::timing::{self, GpuTimes, PassTimer};
-use crate::gpu::{gbuffer_positions, resolve_queries, Gpu};
+use crate::gpu::pass::{
+    gpu_struct, replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster,
+    Statistics, Step, Timed,
+};
+use crate::gpu::readback::words;
+use crate::gpu::{gbuffer_positions, Gpu};
 use crate::record::{Counters, Phase};
 use crate::scene::Mesh;
-use crate::visibility::VisibilityBuffer;
 
-const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
-const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
+const UNIFORM: wgpu::BufferUsages = wgpu::BufferUsages::UNIFORM;
+const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
+const VERTEX: wgpu::BufferUsages = wgpu::BufferUsages::VERTEX;
+const INDEX: wgpu::BufferUsages = wgpu::BufferUsages::INDEX;
+
+/// The light-view helpers (`project`, `linear_depth`, `texel_world`, `bias_at`) of the eye
+/// lookup and of dbuffer, joined after their `Light` struct.
+pub(crate) const LIGHT_VIEW_WGSL: &str = include_str!("light_view.wgsl");
+/// Group 0 of the family's passes (after the structs of [`PRELUDE`]).
+const PRELUDE_WGSL: &str = include_str!("light.wgsl");
+pub(crate) const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
+pub(crate) const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
 
 /// Side of the square compute workgroups (`@workgroup_size(8, 8)` in eye_lookup.wgsl).
 const WORKGROUP: u32 = 8;
@@ -55,67 +61,60 @@ pub struct Lookup<'a> {
     pub pcf_samples: u32,
 }
 
-/// The `Light` uniform of both WGSL files.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct LightUniform {
-    view_proj: [f32; 16],
-    eye: [f32; 3],
-    radius: f32,
-    near: f32,
-    far: f32,
-    tan_half_fov: f32,
-    resolution: u32,
-    bias_constant: f32,
-    bias_slope: f32,
-    blocker_samples: u32,
-    pcf_samples: u32,
-    width: u32,
-    height: u32,
-    /// The cube face whose receivers this view shades ([`FaceView::face_code`]; 6: all).
-    face: u32,
-    pad: u32,
-}
-
-/// The `Counts` storage buffer of the instrumented mode.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-pub(crate) struct Counts {
-    /// Fragments rasterized.
-    pub fragments: u32,
-    /// Shadow-map texels covered.
-    pub covered: u32,
-    /// Shadow-map taps of the lookup.
-    pub taps: u32,
-    pub wasted_taps: u32,
-    /// Fragments a fragment program discarded (penumbra map).
-    pub discarded: u32,
-    /// Taps of a second map in the lookup (penumbra map).
-    pub extra_taps: u32,
-}
-
-/// The timestamp and statistics queries of one pass: the query sets (absent when the adapter
-/// lacks the feature, or in the instrumented replay) and the pass's index in them.
-#[derive(Clone, Copy)]
-pub(crate) struct Queries<'a> {
-    pub timer: Option<&'a PassTimer>,
-    pub stats: Option<&'a PassStats>,
-    pub index: u32,
-}
-
-impl<'a> Queries<'a> {
-    pub const NONE: Queries<'static> = Queries {
-        timer: None,
-        stats: None,
-        index: 0,
-    };
-
-    /// The timer and this pass's index in it, for [`timing::compute_pass`] and
-    /// [`timing::render_pass`].
-    pub fn timed(&self) -> Option<(&'a PassTimer, u32)> {
-        self.timer.map(|t| (t, self.index))
+impl<'a> Lookup<'a> {
+    /// A lookup of `wgsl` with `bias` and no PCSS taps.
+    pub fn new(wgsl: &'a str, bias: Bias) -> Lookup<'a> {
+        Lookup {
+            wgsl,
+            bias,
+            blocker_samples: 0,
+            pcf_samples: 0,
+        }
     }
 }
+
+gpu_struct! {
+    /// The light view of a pass (group 0, binding 0 of every pass).
+    struct LightUniform as "Light" {
+        view_proj: [f32; 16] => "mat4x4<f32>",
+        eye: [f32; 3] => "vec3<f32>",
+        radius: f32 => "f32",
+        near: f32 => "f32",
+        far: f32 => "f32",
+        tan_half_fov: f32 => "f32",
+        resolution: u32 => "u32",
+        bias_constant: f32 => "f32",
+        bias_slope: f32 => "f32",
+        blocker_samples: u32 => "u32",
+        pcf_samples: u32 => "u32",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        /// The cube face whose receivers this view shades ([`FaceView::face_code`]; 6: all).
+        face: u32 => "u32",
+        pad: u32 => "u32",
+    }
+}
+
+gpu_struct! {
+    /// The counters of the instrumented replay (group 0, binding 1).
+    pub(crate) struct Counts as "Counts" {
+        /// Fragments rasterized.
+        fragments: u32 => "atomic<u32>",
+        /// Shadow-map texels covered.
+        covered: u32 => "atomic<u32>",
+        /// Shadow-map taps of the lookup.
+        taps: u32 => "atomic<u32>",
+        wasted_taps: u32 => "atomic<u32>",
+        /// Fragments a fragment program discarded (penumbra map).
+        discarded: u32 => "atomic<u32>",
+        /// Taps of a second map in the lookup (penumbra map).
+        extra_taps: u32 => "atomic<u32>",
+    }
+}
+
+/// The family's WGSL prelude, joined before each of its shaders: the `Light` and `Counts`
+/// structs and group 0 (`light.wgsl`).
+pub(crate) const PRELUDE: [&str; 3] = [LightUniform::WGSL, Counts::WGSL, PRELUDE_WGSL];
 
 /// Renders `frame` with the family's two passes and the algorithm's lookup, once per light view
 /// ([`ViewFit::CubeWhenWide`]: one frustum, or the faces of a cube map, each pixel from the
@@ -208,39 +207,29 @@ pub(crate) struct Passes<'g> {
     pub visibility: wgpu::Buffer,
     pub counts: wgpu::Buffer,
     /// Group 0 of every pass: the light uniform and the counters.
-    pub shared_layout: wgpu::BindGroupLayout,
+    pub shared_layout: Layout,
     pub shared_group: wgpu::BindGroup,
     lookup_group: wgpu::BindGroup,
-    raster_timed: wgpu::RenderPipeline,
-    raster_counting: wgpu::RenderPipeline,
-    pub lookup_timed: wgpu::ComputePipeline,
-    pub lookup_counting: wgpu::ComputePipeline,
+    /// The light raster's pipelines: timed, counting.
+    raster: [wgpu::RenderPipeline; 2],
+    /// The eye lookup's pipelines: timed, counting.
+    pub lookup: [wgpu::ComputePipeline; 2],
     pub count_covered: wgpu::ComputePipeline,
-}
-
-/// A storage buffer of the lookup and counting passes (compute and fragment shaders).
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    layout::storage(
-        binding,
-        wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT,
-        read_only,
-    )
 }
 
 impl<'g> Passes<'g> {
     /// The passes of `frame` in light view `face` with the shadow map of `occluders` (the
     /// scene's triangles that meet the view, or a stand-in for them) and `lookup`'s
     /// `visibility_at`; `extra` is the layout of a group 2 that the lookup's WGSL declares
-    /// (bound by [`Self::compute_pass`]).
+    /// (bound by [`Self::compute`]).
     pub fn new(
         gpu: &'g Gpu,
         frame: &Frame,
         lookup: &Lookup,
         face: &FaceView,
         occluders: &Mesh,
-        extra: Option<&wgpu::BindGroupLayout>,
+        extra: Option<&Layout>,
     ) -> Passes<'g> {
-        let device = &gpu.device;
         let (width, height) = (frame.width(), frame.height());
         let resolution = frame.params.map_resolution;
         let view = face.view;
@@ -261,56 +250,28 @@ impl<'g> Passes<'g> {
             face: face.face_code(),
             pad: 0,
         };
-        let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 4, usage);
-        let uniform_buf = init(
-            "light uniform",
-            bytemuck::bytes_of(&uniform),
-            wgpu::BufferUsages::UNIFORM,
-        );
-
+        let uniform_buf = gpu.upload("light uniform", &[uniform], UNIFORM);
         // Every triangle of the scene can cast a shadow into the map (receivers shadow each
         // other too), indexed as in `occluders`, as the cpu executions draw it.
         let positions: Vec<[f32; 3]> = occluders.positions.iter().map(|p| p.to_array()).collect();
         let index_list: Vec<u32> = occluders.triangles.iter().flatten().copied().collect();
-        let vertices = init(
-            "occluder vertices",
-            bytemuck::cast_slice(&positions),
-            wgpu::BufferUsages::VERTEX,
-        );
-        let indices = init(
-            "occluder indices",
-            bytemuck::cast_slice(&index_list),
-            wgpu::BufferUsages::INDEX,
-        );
-
+        let vertices = gpu.upload("occluder vertices", &positions, VERTEX);
+        let indices = gpu.upload("occluder indices", &index_list, INDEX);
         // The gbuffer: position with the hit flag in w, and the eye-facing normal.
         let g = &frame.gbuffer;
-        let gpos = gbuffer_positions(g);
         let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-        let positions_buf = init(
-            "gbuffer positions",
-            bytemuck::cast_slice(&gpos),
-            wgpu::BufferUsages::STORAGE,
+        let positions_buf = gpu.upload("gbuffer positions", &gbuffer_positions(g), STORAGE);
+        let normals_buf = gpu.upload("gbuffer normals", &gnrm, STORAGE);
+        let visibility = gpu.storage_buffer(
+            "visibility",
+            4 * u64::from(width) * u64::from(height),
+            wgpu::BufferUsages::COPY_SRC,
         );
-        let normals_buf = init(
-            "gbuffer normals",
-            bytemuck::cast_slice(&gnrm),
-            wgpu::BufferUsages::STORAGE,
-        );
-        let visibility = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("visibility"),
-            size: 4 * u64::from(width) * u64::from(height),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let counts = init(
+        let counts = gpu.upload(
             "instrumentation counts",
-            bytemuck::bytes_of(&Counts::default()),
-            wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
+            &[Counts::default()],
+            STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
         );
-
         let depth = gpu.map_texture(
             "shadow map",
             resolution,
@@ -319,128 +280,62 @@ impl<'g> Passes<'g> {
         );
         let depth_view = depth.create_view(&Default::default());
 
-        // Group 0 (both shaders): the light uniform and the counters.
-        let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("shadow map shared"),
-            entries: &[
-                layout::uniform(
-                    0,
-                    wgpu::ShaderStages::VERTEX
-                        | wgpu::ShaderStages::FRAGMENT
-                        | wgpu::ShaderStages::COMPUTE,
-                ),
-                storage_entry(1, false),
+        use wgpu::ShaderStages as S;
+        // Group 0 (both shaders): the light uniform and the counters; group 1 (eye lookup):
+        // shadow map, gbuffer, visibility.
+        let all = S::VERTEX | S::FRAGMENT | S::COMPUTE;
+        let shared_layout = Layout::new(gpu, "shadow map shared", all, &[Uniform, ReadWrite]);
+        let lookup_layout = Layout::new(
+            gpu,
+            "eye lookup",
+            S::COMPUTE | S::FRAGMENT,
+            &[Depth, ReadOnly, ReadOnly, ReadWrite],
+        );
+        let shared_group = shared_layout.group(
+            gpu,
+            "shadow map shared",
+            &[uniform_buf.as_entire_binding(), counts.as_entire_binding()],
+        );
+        let lookup_group = lookup_layout.group(
+            gpu,
+            "eye lookup",
+            &[
+                view_resource(&depth_view),
+                positions_buf.as_entire_binding(),
+                normals_buf.as_entire_binding(),
+                visibility.as_entire_binding(),
             ],
-        });
-        // Group 1 (eye lookup): shadow map, gbuffer, visibility.
-        let lookup_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("eye lookup"),
-            entries: &[
-                layout::texture(
-                    0,
-                    wgpu::ShaderStages::COMPUTE,
-                    wgpu::TextureSampleType::Depth,
-                ),
-                storage_entry(1, true),
-                storage_entry(2, true),
-                storage_entry(3, false),
-            ],
-        });
-        let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shadow map shared"),
-            layout: &shared_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: uniform_buf.as_entire_binding(),
+        );
+        let raster = Program::new(
+            gpu,
+            "light_raster.wgsl",
+            &[&PRELUDE[..], &[LIGHT_RASTER_WGSL]].concat(),
+            &[Some(&shared_layout)],
+        );
+        let eye = Program::new(
+            gpu,
+            "eye_lookup.wgsl",
+            &[
+                &PRELUDE[..],
+                &[LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, lookup.wgsl],
+            ]
+            .concat(),
+            &[Some(&shared_layout), Some(&lookup_layout), extra],
+        );
+        let attributes = wgpu::vertex_attr_array![0 => Float32x3];
+        let raster_pipeline = |fs| {
+            raster.render(
+                gpu,
+                &Raster {
+                    fs,
+                    vertex: Some((
+                        VERTEX_BYTES as u64,
+                        wgpu::VertexStepMode::Vertex,
+                        &attributes,
+                    )),
+                    ..Raster::default()
                 },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: counts.as_entire_binding(),
-                },
-            ],
-        });
-        let lookup_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("eye lookup"),
-            layout: &lookup_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(&depth_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: positions_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: normals_buf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: visibility.as_entire_binding(),
-                },
-            ],
-        });
-
-        let raster_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("light raster"),
-            bind_group_layouts: &[Some(&shared_layout)],
-            immediate_size: 0,
-        });
-        let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("eye lookup"),
-            bind_group_layouts: &[Some(&shared_layout), Some(&lookup_layout), extra],
-            immediate_size: 0,
-        });
-        let raster_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("light_raster.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(LIGHT_RASTER_WGSL.into()),
-        });
-        let lookup_source = format!("{EYE_LOOKUP_WGSL}\n{}", lookup.wgsl);
-        let lookup_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("eye_lookup.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(lookup_source.into()),
-        });
-
-        let raster = |fragment: &str| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(fragment),
-                layout: Some(&raster_layout),
-                vertex: wgpu::VertexState {
-                    module: &raster_module,
-                    entry_point: Some("vs"),
-                    compilation_options: Default::default(),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: VERTEX_BYTES as u64,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                    })],
-                },
-                primitive: wgpu::PrimitiveState {
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &raster_module,
-                    entry_point: Some(fragment),
-                    compilation_options: Default::default(),
-                    targets: &[],
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let compute = |entry: &str, instrument: bool| {
-            gpu.instrumented_compute_pipeline(&compute_layout, &lookup_module, entry, instrument)
+            )
         };
         Passes {
             gpu,
@@ -457,192 +352,82 @@ impl<'g> Passes<'g> {
             shared_layout,
             shared_group,
             lookup_group,
-            raster_timed: raster("fs_depth"),
-            raster_counting: raster("fs_count"),
-            lookup_timed: compute("eye_lookup", false),
-            lookup_counting: compute("eye_lookup", true),
-            count_covered: compute("count_covered", true),
+            raster: [raster_pipeline("fs_depth"), raster_pipeline("fs_count")],
+            lookup: eye.compute_pair(gpu, "eye_lookup"),
+            count_covered: eye.compute(gpu, "count_covered", Some(true)),
         }
     }
 
     /// The light raster: the timed pipeline, or the counting one of the instrumented replay.
-    pub fn raster_pass(&self, encoder: &mut wgpu::CommandEncoder, counting: bool, q: Queries) {
-        let pipeline = if counting {
-            &self.raster_counting
-        } else {
-            &self.raster_timed
-        };
-        let mut pass = timing::render_pass(
-            encoder,
-            wgpu::RenderPassDescriptor {
-                label: Some("light_raster"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
+    pub fn raster_pass(&self, counting: bool) -> Pass<'_> {
+        Pass::draw(
+            "light_raster",
+            &[Some(&self.shared_group)],
+            Draw {
+                pipeline: &self.raster[usize::from(counting)],
+                color: None,
+                depth: Some(&self.depth_view),
+                vertices: Some(&self.vertices),
+                indices: Some(&self.indices),
+                count: self.index_count,
+                instances: 1,
             },
-            q.timed(),
-        );
-        if let Some(s) = q.stats {
-            s.begin_render(&mut pass, q.index);
-        }
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &self.shared_group, &[]);
-        pass.set_vertex_buffer(0, self.vertices.slice(..));
-        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..self.index_count, 0, 0..1);
-        if q.stats.is_some() {
-            pass.end_pipeline_statistics_query();
-        }
+        )
     }
 
-    /// A compute pass over `size` (8×8 workgroups) with the eye lookup's bind groups, and
-    /// `extra` as group 2 where the pipeline has one.
-    pub fn compute_pass(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        label: &str,
-        pipeline: &wgpu::ComputePipeline,
+    /// A compute pass of `pipeline` over `size` (8×8 workgroups) with the eye lookup's bind
+    /// groups, and `extra` as group 2 where the pipeline has one.
+    pub fn compute<'a>(
+        &'a self,
+        label: &'a str,
+        pipeline: &'a wgpu::ComputePipeline,
         size: (u32, u32),
-        q: Queries,
-        extra: Option<&wgpu::BindGroup>,
-    ) {
-        let mut pass = timing::compute_pass(encoder, label, q.timed());
-        if let Some(s) = q.stats {
-            s.begin_compute(&mut pass, q.index);
-        }
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &self.shared_group, &[]);
-        pass.set_bind_group(1, &self.lookup_group, &[]);
-        if let Some(g) = extra {
-            pass.set_bind_group(2, g, &[]);
-        }
-        pass.dispatch_workgroups(size.0.div_ceil(WORKGROUP), size.1.div_ceil(WORKGROUP), 1);
-        if q.stats.is_some() {
-            pass.end_pipeline_statistics_query();
-        }
+        extra: Option<&'a wgpu::BindGroup>,
+    ) -> Pass<'a> {
+        let groups = [Some(&self.shared_group), Some(&self.lookup_group), extra];
+        Pass::compute(label, &groups, pipeline, tiles(size, WORKGROUP))
+    }
+
+    /// The eye lookup over the image, timed or counting.
+    pub fn lookup_pass<'a>(
+        &'a self,
+        counting: bool,
+        extra: Option<&'a wgpu::BindGroup>,
+    ) -> Pass<'a> {
+        let pipeline = &self.lookup[usize::from(counting)];
+        self.compute("eye_lookup", pipeline, (self.width, self.height), extra)
+    }
+
+    /// The texels of the shadow map left covered (instrumented replay only).
+    pub fn covered_pass<'a>(&'a self, extra: Option<&'a wgpu::BindGroup>) -> Pass<'a> {
+        let res = (self.resolution, self.resolution);
+        self.compute("count_covered", &self.count_covered, res, extra)
     }
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
-        let gpu = self.gpu;
-        let image = (self.width, self.height);
-
-        // The timed submission: each phase submitted and waited for on its own, so its wall
-        // time includes submission.
-        let timer = PassTimer::new(gpu, 2);
-        let stats = PassStats::new(gpu, 2);
-        let q = |index| Queries {
-            timer: timer.as_ref(),
-            stats: stats.as_ref(),
-            index,
-        };
-        let raster_wall = self.gpu.submit(|e| self.raster_pass(e, false, q(0)))?;
-        let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
-        let lookup_wall = self.gpu.submit(|e| {
-            self.compute_pass(e, "eye_lookup", &self.lookup_timed, image, q(1), None);
-            vis_staging.copy(e, &self.visibility);
-            resolve_queries(e, timer.as_ref(), stats.as_ref());
-        })?;
-        let readback_start = Instant::now();
-        let data: Vec<f32> = words(&vis_staging.read(gpu)?);
-        let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let mut warnings = Vec::new();
-        let (times, pipeline) = read_queries(gpu, &timer, &stats, &mut warnings)?;
-        let gpu_ms = &times.ms;
-
-        // The instrumented submission: same passes, counting with atomics.
-        let counts_staging = Staging::new(gpu, "counts readback", self.counts.size());
-        self.gpu.submit(|e| {
-            e.clear_buffer(&self.counts, 0, None);
-            self.raster_pass(e, true, Queries::NONE);
-            let res = (self.resolution, self.resolution);
-            self.compute_pass(
-                e,
-                "count_covered",
-                &self.count_covered,
-                res,
-                Queries::NONE,
-                None,
-            );
-            self.compute_pass(
-                e,
-                "eye_lookup",
-                &self.lookup_counting,
-                image,
-                Queries::NONE,
-                None,
-            );
-            counts_staging.copy(e, &self.counts);
-        })?;
-        let counts: Counts = words::<Counts>(&counts_staging.read(gpu)?)[0];
-
-        let mut raster = self.raster_counters(&counts);
-        let mut eye = self.lookup_counters(frame, &counts);
-        if let Some(p) = &pipeline {
-            raster.merge(&p[0]);
-            eye.merge(&p[1]);
-        }
-        let phases = vec![
-            gpu_phase(
-                "light_raster",
-                raster_wall,
-                gpu_ms.as_ref().map(|t| t[0]),
-                raster,
-            ),
-            gpu_phase(
-                "eye_lookup",
-                lookup_wall,
-                gpu_ms.as_ref().map(|t| t[1]),
-                eye,
-            ),
-        ];
-        Ok(self.output(data, phases, readback_ms, warnings, &times))
-    }
-
-    /// The frame output of a run: the visibility read back, the phases and their counters
-    /// summed, the GPU time of all phases, the adapter.
-    pub fn output(
-        &self,
-        data: Vec<f32>,
-        phases: Vec<Phase>,
-        readback_ms: f64,
-        warnings: Vec<String>,
-        times: &GpuTimes,
-    ) -> FrameOutput {
-        let counters = sum_phases(&phases);
-        let gpu_ms = phases.iter().filter_map(|p| p.gpu_ms).reduce(|a, b| a + b);
-        let mut execution = self.gpu.execution();
-        times.record(&mut execution);
-        execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
-        execution.insert(
-            "gpu_counters".into(),
-            serde_json::json!(
-                "fill/overdraw from an instrumented replay (WGSL atomics); mem_est.* estimated \
-                 from formats and counts"
-            ),
+        let mut run = Timed::new(
+            self.gpu,
+            &["light_raster", "eye_lookup"],
+            2,
+            Statistics::All,
+            &[&self.visibility],
         );
-        FrameOutput {
-            visibility: VisibilityBuffer {
-                width: self.width,
-                height: self.height,
-                data,
-            },
-            counters,
-            phases,
-            model_ms: None,
-            gpu_ms,
-            execution,
-            warnings,
-            rgb: None,
-        }
+        run.submit(0, &[self.raster_pass(false)])?;
+        run.submit(1, &[self.lookup_pass(false, None)])?;
+        let timing = run.finish()?;
+        let counts = replay(
+            self.gpu,
+            &[
+                Step::Clear(&self.counts),
+                Step::Run(self.raster_pass(true)),
+                Step::Run(self.covered_pass(None)),
+                Step::Run(self.lookup_pass(true, None)),
+                Step::Read(&self.counts),
+            ],
+        )?;
+        let c: Counts = words::<Counts>(&counts[0])[0];
+        let counters = vec![self.raster_counters(&c), self.lookup_counters(frame, &c)];
+        Ok(timing.output((self.width, self.height), counters, NOTE))
     }
 
     /// `light_raster`: fill is every rasterised fragment, overdraw those that did not end up in
@@ -691,84 +476,58 @@ impl<'g> Passes<'g> {
     }
 }
 
-/// A phase of a GPU execution (no modelled time).
-pub(crate) fn gpu_phase(
-    name: &str,
-    wall_ms: f64,
-    gpu_ms: Option<f64>,
-    counters: Counters,
-) -> Phase {
-    Phase {
-        name: name.into(),
-        wall_ms,
-        model_ms: None,
-        gpu_ms,
-        counters,
-    }
-}
-
-/// GPU milliseconds and pipeline statistics per pass, where the adapter offers them; a warning
-/// for each that it does not.
-#[allow(clippy::type_complexity)]
-pub(crate) fn read_queries(
-    gpu: &Gpu,
-    timer: &Option<PassTimer>,
-    stats: &Option<PassStats>,
-    warnings: &mut Vec<String>,
-) -> Result<(GpuTimes, Option<Vec<Counters>>)> {
-    Ok((
-        timing::read_ms_or_warn(gpu, timer, warnings)?,
-        crate::gpu::stats::read_or_warn(gpu, stats, warnings)?,
-    ))
-}
+/// How the family's counters were obtained (`execution.gpu_counters`).
+pub(crate) const NOTE: &str =
+    "fill/overdraw from an instrumented replay (WGSL atomics); mem_est.* \
+     estimated from formats and counts";
 
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
-    /// `LightUniform` and `Counts` against both WGSL files of the family (the eye lookup as
-    /// `hard_shadow_map` completes it).
+    /// `LightUniform` and `Counts` against the family's shaders as their pipelines join them
+    /// (the eye lookup as `hard_shadow_map` completes it).
     #[test]
     fn uniforms_match_wgsl() {
-        let eye_lookup = format!(
-            "{EYE_LOOKUP_WGSL}\n{}",
-            include_str!("../hard_shadow_map/wgpu.wgsl")
-        );
-        for source in [LIGHT_RASTER_WGSL.to_string(), eye_lookup] {
-            assert_wgsl_layout!(
-                source,
-                "Light",
-                LightUniform {
-                    view_proj,
-                    eye,
-                    radius,
-                    near,
-                    far,
-                    tan_half_fov,
-                    resolution,
-                    bias_constant,
-                    bias_slope,
-                    blocker_samples,
-                    pcf_samples,
-                    width,
-                    height,
-                    face,
-                    pad
-                }
+        let hard = include_str!("../hard_shadow_map/wgpu.wgsl");
+        for rest in [
+            vec![LIGHT_RASTER_WGSL],
+            vec![LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, hard],
+        ] {
+            let source = [&PRELUDE[..], &rest].concat().join("\n");
+            assert_eq!(
+                LightUniform::layout_mismatches(&source),
+                Vec::<String>::new()
             );
-            assert_wgsl_layout!(
-                source,
-                "Counts",
-                Counts {
-                    fragments,
-                    covered,
-                    taps,
-                    wasted_taps,
-                    discarded,
-                    extra_taps
-                }
-            );
+            assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
         }
+    }
+
+    /// The check catches a field reordered on one side: the WGSL with `near` and `far` swapped
+    /// no longer matches `LightUniform`, and both fields are named.
+    #[test]
+    fn a_reordered_wgsl_field_is_rejected() {
+        let swapped = LightUniform::WGSL.replace(
+            "    near: f32,\n    far: f32,",
+            "    far: f32,\n    near: f32,",
+        );
+        assert_ne!(
+            swapped,
+            LightUniform::WGSL,
+            "the struct declares near before far"
+        );
+        let found = LightUniform::layout_mismatches(&swapped);
+        assert!(
+            found.iter().any(|m| m.starts_with("Light.near")),
+            "{found:?}"
+        );
+        assert!(
+            found.iter().any(|m| m.starts_with("Light.far")),
+            "{found:?}"
+        );
+        // A Rust field the WGSL lacks (a field removed on the WGSL side).
+        let removed = LightUniform::WGSL.replace("    face: u32,\n", "");
+        let found = LightUniform::layout_mismatches(&removed);
+        assert!(found.iter().any(|m| m.contains("face")), "{found:?}");
     }
 }

@@ -42,24 +42,20 @@
 
 use std::time::Instant;
 
-use bytemuck::{Pod, Zeroable};
-
 use super::{
     check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, NEAR_CLIP,
     OCCLUSION_SCALE,
 };
 use crate::algorithms::shadow_map::{LightViews, ViewFit};
-use crate::algorithms::ExecContext;
-use crate::algorithms::FrameOutput;
+use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::gpu::layout;
-use crate::gpu::readback::{words, Staging};
-use crate::gpu::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
-use crate::gpu::timing::{self, read_ms_or_warn, PassTimer};
-use crate::gpu::{resolve_queries, Gpu};
+use crate::gpu::pass::{
+    gpu_struct, replay, slot64, Bind, Layout, Pass, Program, Statistics, Step, Timed, Work,
+};
+use crate::gpu::readback::words;
+use crate::gpu::Gpu;
 use crate::record::{Counters, Phase};
-use crate::visibility::VisibilityBuffer;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
 
@@ -100,35 +96,45 @@ enum Stat {
 
 const STATS: usize = 11;
 
-/// The `Params` uniform of the WGSL.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct Params {
-    view_proj: [f32; 16],
-    /// Unused; keeps the layout of the WGSL's uniform.
-    pad: f32,
-    w_min: f32,
-    r_uv: f32,
-    pixels: u32,
-    res: u32,
-    slices: u32,
-    bin: u32,
-    bins_x: u32,
-    cells_per_bin: u32,
-    cells: u32,
-    triangles: u32,
-    edges: u32,
-    per_bin_width: u32,
-    wedge_column_cull: u32,
-    scan_blocks: u32,
-    occlusion_scale: f32,
+gpu_struct! {
+    /// The frame's parameters (binding 0); constants come from the host so that they are
+    /// defined once, in Rust.
+    struct Params as "Params" {
+        view_proj: [f32; 16] => "mat4x4<f32>",
+        /// Unused; keeps the uniform's layout.
+        pad: f32 => "f32",
+        /// NEAR_CLIP * far: clip w at or below this has no image-plane position (`in_front`).
+        w_min: f32 => "f32",
+        /// `light_radius_uv`: the light's radius in uv at unit depth.
+        r_uv: f32 => "f32",
+        pixels: u32 => "u32",
+        /// The grid (Figure 3).
+        res: u32 => "u32",
+        slices: u32 => "u32",
+        bin: u32 => "u32",
+        bins_x: u32 => "u32",
+        cells_per_bin: u32 => "u32",
+        cells: u32 => "u32",
+        triangles: u32 => "u32",
+        edges: u32 => "u32",
+        /// `SoftIzbOptions` (§2.5), as 0/1.
+        per_bin_width: u32 => "u32",
+        wedge_column_cull: u32 => "u32",
+        scan_blocks: u32 => "u32",
+        /// `OCCLUSION_SCALE`: fixed-point scale of the penumbral occlusion accumulated with
+        /// atomics.
+        occlusion_scale: f32 => "f32",
+    }
 }
 
-/// `soft_izb` on the GPU.
+/// The shader as the pipelines join it.
+const SOURCES: [&str; 3] = [Params::WGSL, WGSL, crate::scene::coverage::WGSL];
+
+/// `soft_izb` on the GPU (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
-    _: &ExecContext,
+    _ctx: &ExecContext,
     opts: &SoftIzbOptions,
 ) -> Result<FrameOutput> {
     check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
@@ -282,16 +288,10 @@ struct Passes<'g> {
 
 impl<'g> Passes<'g> {
     fn new(gpu: &'g Gpu, frame: &Frame, occ: &Occluders, grid: &Grid, params: Params) -> Self {
-        let device = &gpu.device;
         let g = &frame.gbuffer;
         let pixels = g.len() as u64;
-        let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 4, usage);
         let storage = wgpu::BufferUsages::STORAGE;
-        let uniform = init(
-            "soft_izb params",
-            bytemuck::bytes_of(&params),
-            wgpu::BufferUsages::UNIFORM,
-        );
+        let uniform = gpu.upload("soft_izb params", &[params], wgpu::BufferUsages::UNIFORM);
         // The gbuffer: position bits with the receiver's flat triangle (u32::MAX for none) in w.
         let positions: Vec<[u32; 4]> = (0..g.len())
             .map(|i| {
@@ -323,12 +323,8 @@ impl<'g> Passes<'g> {
         let cells = u64::from(params.cells);
         let copy_src = wgpu::BufferUsages::COPY_SRC;
         let buffers = [
-            init(
-                "gbuffer positions",
-                bytemuck::cast_slice(&positions),
-                storage,
-            ),
-            init("gbuffer offsets", bytemuck::cast_slice(&offsets), storage),
+            gpu.upload("gbuffer positions", &positions, storage),
+            gpu.upload("gbuffer offsets", &offsets, storage),
             gpu.storage_buffer("light-view points", POINT_BYTES * pixels, storage),
             gpu.storage_buffer("bins", WORD * (grid.bins() as u64 + 2), storage),
             gpu.storage_buffer("cell counts", WORD * cells, storage),
@@ -340,8 +336,8 @@ impl<'g> Passes<'g> {
             gpu.storage_buffer("izb_samples", SAMPLE_BYTES * pixels, storage),
             gpu.storage_buffer("occlusion", 2 * WORD * pixels, storage),
             gpu.storage_buffer("visibility", WORD * pixels, copy_src),
-            init("light triangles", bytemuck::cast_slice(&triangles), storage),
-            init("penumbra edges", bytemuck::cast_slice(&edges), storage),
+            gpu.upload("light triangles", &triangles, storage),
+            gpu.upload("penumbra edges", &edges, storage),
             gpu.storage_buffer(
                 "statistics",
                 2 * WORD * STATS as u64,
@@ -349,54 +345,21 @@ impl<'g> Passes<'g> {
             ),
         ];
         // Bindings 1-12 in order; the gbuffer and the primitives are only read.
-        let read_only = |i: usize| matches!(i, 0 | 1 | 9 | 10);
-        let mut layout_entries = vec![layout::buffer(
-            0,
-            wgpu::ShaderStages::COMPUTE,
-            wgpu::BufferBindingType::Uniform,
-        )];
-        for i in 0..buffers.len() {
-            layout_entries.push(layout::buffer(
-                i as u32 + 1,
-                wgpu::ShaderStages::COMPUTE,
-                wgpu::BufferBindingType::Storage {
-                    read_only: read_only(i),
-                },
-            ));
-        }
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("soft_izb"),
-            entries: &layout_entries,
-        });
-        let mut group_entries = vec![wgpu::BindGroupEntry {
-            binding: 0,
-            resource: uniform.as_entire_binding(),
-        }];
-        for (i, b) in buffers.iter().enumerate() {
-            group_entries.push(wgpu::BindGroupEntry {
-                binding: i as u32 + 1,
-                resource: b.as_entire_binding(),
-            });
-        }
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("soft_izb"),
-            layout: &layout,
-            entries: &group_entries,
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("soft_izb"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("soft_izb/wgpu.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(
-                format!("{WGSL}\n{}", crate::scene::coverage::WGSL).into(),
-            ),
-        });
-        let pipeline = |entry: &str, instrument: bool| {
-            gpu.instrumented_compute_pipeline(&pipeline_layout, &module, entry, instrument)
-        };
+        let binds: Vec<Bind> = std::iter::once(Bind::Uniform)
+            .chain((0..buffers.len()).map(|i| match i {
+                0 | 1 | 9 | 10 => Bind::ReadOnly,
+                _ => Bind::ReadWrite,
+            }))
+            .collect();
+        let layout = Layout::new(gpu, "soft_izb", wgpu::ShaderStages::COMPUTE, &binds);
+        let resources: Vec<_> = std::iter::once(&uniform)
+            .chain(&buffers)
+            .map(|b| b.as_entire_binding())
+            .collect();
+        let group = layout.group(gpu, "soft_izb", &resources);
+        let program = Program::new(gpu, "soft_izb/wgpu.wgsl", &SOURCES, &[Some(&layout)]);
+        let pipeline =
+            |entry: &str, instrument: bool| program.compute(gpu, entry, Some(instrument));
         let construct = [
             "clear",
             "project",
@@ -419,164 +382,80 @@ impl<'g> Passes<'g> {
             stats,
             group,
             construct,
-            umbra: [pipeline("umbra", false), pipeline("umbra", true)],
-            penumbra: [pipeline("penumbra", false), pipeline("penumbra", true)],
+            umbra: program.compute_pair(gpu, "umbra"),
+            penumbra: program.compute_pair(gpu, "penumbra"),
             resolve: pipeline("resolve", false),
         }
     }
 
-    /// Records phase `i` (0 construct, 1 hard, 2 soft) as one compute pass; `instrument`
-    /// picks the counting pipelines.
-    fn pass(
-        &self,
-        encoder: &mut wgpu::CommandEncoder,
-        i: usize,
-        instrument: bool,
-        timer: Option<&PassTimer>,
-        stats: Option<&PassStats>,
-    ) {
-        let gpu = self.gpu;
-        let p = &self.params;
-        let mut pass = timing::compute_pass(encoder, PHASES[i], timer.map(|t| (t, i as u32)));
-        if let Some(s) = stats {
-            s.begin_compute(&mut pass, i as u32);
-        }
-        pass.set_bind_group(0, &self.group, &[]);
-        let mut dispatch = |pipeline: &wgpu::ComputePipeline, (x, y): (u32, u32)| {
-            if x > 0 {
-                pass.set_pipeline(pipeline);
-                pass.dispatch_workgroups(x, y, 1);
-            }
-        };
+    /// Phase `i` (0 construct, 1 hard, 2 soft) as one compute pass; `instrument` picks the
+    /// counting pipelines.
+    fn pass(&self, i: usize, instrument: bool) -> Pass<'_> {
+        let (gpu, p) = (self.gpu, &self.params);
         let items = |n: u32| groups(gpu, n.div_ceil(ITEM_WORKGROUP));
         let k = usize::from(instrument);
-        match i {
+        let dispatches = match i {
             0 => {
                 let clear = p.cells.max(self.grid.bins() as u32 + 2);
                 let c = &self.construct;
-                dispatch(&c[0], items(clear));
-                dispatch(&c[1], items(p.pixels));
-                dispatch(&c[2], items(p.pixels));
-                dispatch(&c[3], groups(gpu, p.scan_blocks));
-                dispatch(&c[4], (1, 1));
-                dispatch(&c[5], items(p.cells));
-                dispatch(&c[6], items(p.pixels));
+                vec![
+                    (&c[0], items(clear)),
+                    (&c[1], items(p.pixels)),
+                    (&c[2], items(p.pixels)),
+                    (&c[3], groups(gpu, p.scan_blocks)),
+                    (&c[4], (1, 1)),
+                    (&c[5], items(p.cells)),
+                    (&c[6], items(p.pixels)),
+                ]
             }
-            1 => dispatch(&self.umbra[k], groups(gpu, p.triangles)),
-            _ => {
-                dispatch(&self.penumbra[k], groups(gpu, p.edges));
-                dispatch(&self.resolve, items(p.pixels));
-            }
-        }
-        if stats.is_some() {
-            pass.end_pipeline_statistics_query();
+            1 => vec![(&self.umbra[k], groups(gpu, p.triangles))],
+            _ => vec![
+                (&self.penumbra[k], groups(gpu, p.edges)),
+                (&self.resolve, items(p.pixels)),
+            ],
+        };
+        Pass {
+            label: PHASES[i],
+            groups: vec![Some(&self.group)],
+            work: Work::Dispatch(dispatches),
         }
     }
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
-        let gpu = self.gpu;
-        let mut warnings = Vec::new();
-
         // The timed submission: each phase submitted and waited for on its own.
-        let timer = PassTimer::new(gpu, PHASES.len() as u32);
-        let stats = PassStats::new(gpu, PHASES.len() as u32);
-        let vis_staging = Staging::new(gpu, "visibility readback", self.visibility.size());
-        let samples_staging = Staging::new(gpu, "sample count readback", WORD);
-        let mut wall = Vec::with_capacity(PHASES.len());
+        let readback = [&self.visibility, &self.cell_start];
+        let mut run = Timed::new(self.gpu, &PHASES, 3, Statistics::Compute, &readback);
         for i in 0..PHASES.len() {
-            wall.push(self.gpu.submit(|e| {
-                self.pass(e, i, false, timer.as_ref(), stats.as_ref());
-                if i + 1 == PHASES.len() {
-                    vis_staging.copy(e, &self.visibility);
-                    samples_staging.copy_from(
-                        e,
-                        &self.cell_start,
-                        WORD * u64::from(self.params.cells),
-                    );
-                    resolve_queries(e, timer.as_ref(), stats.as_ref());
-                }
-            })?);
+            run.submit(i, &[self.pass(i, false)])?;
         }
-        let readback_start = Instant::now();
-        let data: Vec<f32> = words(&vis_staging.read(gpu)?);
-        let readback_ms = readback_start.elapsed().as_secs_f64() * 1e3;
-        let samples = f64::from(words::<u32>(&samples_staging.read(gpu)?)[0]);
-        let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
-        let gpu_ms = times.ms.clone();
-        let pipeline = read_or_warn(gpu, &stats, &mut warnings)?;
+        let mut timing = run.finish()?;
+        // The samples stored: the prefix sum's total, after the last cell.
+        let samples = f64::from(words::<u32>(&timing.readback[1])[self.params.cells as usize]);
 
         // The instrumented submission: same passes, counting with atomics.
-        let stats_staging = Staging::new(gpu, "statistics readback", self.stats.size());
-        self.gpu.submit(|e| {
-            e.clear_buffer(&self.stats, 0, None);
-            for i in 0..PHASES.len() {
-                self.pass(e, i, true, None, None);
-            }
-            stats_staging.copy(e, &self.stats);
-        })?;
-        let raw: Vec<u32> = words(&stats_staging.read(gpu)?);
-        let stat = |s: Stat| {
-            let i = s as usize;
-            (u64::from(raw[2 * i + 1]) << 32 | u64::from(raw[2 * i])) as f64
-        };
+        let mut steps = vec![Step::Clear(&self.stats)];
+        steps.extend((0..PHASES.len()).map(|i| Step::Run(self.pass(i, true))));
+        steps.push(Step::Read(&self.stats));
+        let raw: Vec<u32> = words(&replay(self.gpu, &steps)?[0]);
+        let stat = |s: Stat| slot64(&raw, s as usize);
 
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
-        let mut per_phase = [
+        let counters = vec![
             self.construct_counters(hits, samples),
             self.hard_counters(&stat),
             self.soft_counters(&stat, samples),
         ];
-        // Compute passes only: the graphics statistics are all zero.
-        if let Some(p) = &pipeline {
-            for (c, s) in per_phase.iter_mut().zip(p) {
-                if let Some(v) = s.get(COMPUTE_INVOCATIONS) {
-                    c.set(COMPUTE_INVOCATIONS, v);
-                }
-            }
-        }
-        let mut counters = Counters::default();
-        let mut phases = Vec::with_capacity(PHASES.len());
-        for (i, c) in per_phase.into_iter().enumerate() {
-            counters.merge(&c);
-            phases.push(Phase {
-                name: PHASES[i].into(),
-                wall_ms: wall[i],
-                model_ms: None,
-                gpu_ms: gpu_ms.as_ref().map(|t| t[i]),
-                counters: c,
-            });
-        }
         let outside = hits - samples;
         if outside > 0.0 {
-            warnings.push(format!(
+            timing.warnings.push(format!(
                 "{outside} receiver points lie at or behind the light's view plane and are taken \
                  as lit"
             ));
         }
-        let mut execution = gpu.execution();
-        times.record(&mut execution);
-        execution.insert("readback_ms".into(), serde_json::json!(readback_ms));
-        execution.insert(
-            "gpu_counters".into(),
-            serde_json::json!(
-                "columns, tests, fragments, fill and overdraw from an instrumented replay (WGSL \
-                 atomics); mem_est.* estimated from counts and record sizes"
-            ),
-        );
-        Ok(FrameOutput {
-            visibility: VisibilityBuffer {
-                width: self.width,
-                height: self.height,
-                data,
-            },
-            counters,
-            phases,
-            model_ms: None,
-            gpu_ms: gpu_ms.map(|t| t.iter().sum()),
-            execution,
-            warnings,
-            rgb: None,
-        })
+        let note =
+            "columns, tests, fragments, fill and overdraw from an instrumented replay (WGSL \
+                    atomics); mem_est.* estimated from counts and record sizes";
+        Ok(timing.output((self.width, self.height), counters, note))
     }
 
     /// `construct`: the samples stored, the bytes of the grid and sample array (as on the
@@ -684,33 +563,10 @@ impl<'g> Passes<'g> {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     #[test]
     fn uniforms_match_wgsl() {
-        let source = format!("{WGSL}\n{}", crate::scene::coverage::WGSL);
-        assert_wgsl_layout!(
-            source,
-            "Params",
-            Params {
-                view_proj,
-                pad,
-                w_min,
-                r_uv,
-                pixels,
-                res,
-                slices,
-                bin,
-                bins_x,
-                cells_per_bin,
-                cells,
-                triangles,
-                edges,
-                per_bin_width,
-                wedge_column_cull,
-                scan_blocks,
-                occlusion_scale
-            }
-        );
+        let source = SOURCES.join("\n");
+        assert_eq!(Params::layout_mismatches(&source), Vec::<String>::new());
     }
 }

@@ -8,31 +8,7 @@
 //
 // Light-view quantities are uv in the image plane and inverse linear depth 1/z, as on the CPU.
 
-struct Params {
-    view_proj: mat4x4<f32>,
-    // Unused; keeps the uniform's layout.
-    pad: f32,
-    // NEAR_CLIP * far: clip w at or below this has no image-plane position (`in_front`).
-    w_min: f32,
-    // light_radius_uv: the light's radius in uv at unit depth.
-    r_uv: f32,
-    pixels: u32,
-    // Grid (Figure 3).
-    res: u32,
-    slices: u32,
-    bin: u32,
-    bins_x: u32,
-    cells_per_bin: u32,
-    cells: u32,
-    triangles: u32,
-    edges: u32,
-    // SoftIzbOptions (§2.5), as 0/1.
-    per_bin_width: u32,
-    wedge_column_cull: u32,
-    scan_blocks: u32,
-    // OCCLUSION_SCALE: fixed-point scale of the penumbral occlusion accumulated with atomics.
-    occlusion_scale: f32,
-}
+// The parameters `Params` are declared in wgpu.rs and joined before this file.
 
 // A stored receiver point (20 bytes, as the cpu execution's `Sample`).
 struct Sample {

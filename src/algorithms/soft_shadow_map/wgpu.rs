@@ -23,42 +23,56 @@ use bytemuck::{Pod, Zeroable};
 
 use super::cpu::{extent_quad, micro_patch};
 use super::{LightFrame, Precision, SoftShadowMapOptions, Split};
-use crate::algorithms::ExecContext;
-use crate::algorithms::FrameOutput;
+use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::gpu::layout;
+use crate::gpu::pass::{
+    gpu_struct, replay, tiles, view, Bind::*, Draw, Layout, Pass, Program, Raster, Statistics,
+    Step, Timed,
+};
 use crate::gpu::readback::{words, Staging};
-use crate::gpu::timing::{self, read_ms_or_warn, PassTimer};
 use crate::gpu::{gbuffer_positions, Gpu};
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
-use crate::record::{Counters, Phase};
-use crate::visibility::VisibilityBuffer;
+use crate::record::Counters;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
 const WORKGROUP: u32 = 8;
 
-/// The `Ssm` uniform of wgpu.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
-struct SsmUniform {
-    occ_view_proj: [f32; 16],
-    ssm_view_proj: [f32; 16],
-    center: [f32; 3],
-    resolution: u32,
-    e_u: [f32; 3],
-    width: u32,
-    e_v: [f32; 3],
-    height: u32,
-    normal: [f32; 3],
-    bias_texels: f32,
-    occ_window: [f32; 4],
-    ssm_window: [f32; 4],
-    half: [f32; 2],
-    near: f32,
-    far: f32,
+gpu_struct! {
+    /// The frames of the maps (group 0, binding 0 of every pass).
+    struct SsmUniform as "Ssm" {
+        occ_view_proj: [f32; 16] => "mat4x4<f32>",
+        ssm_view_proj: [f32; 16] => "mat4x4<f32>",
+        center: [f32; 3] => "vec3<f32>",
+        resolution: u32 => "u32",
+        e_u: [f32; 3] => "vec3<f32>",
+        width: u32 => "u32",
+        e_v: [f32; 3] => "vec3<f32>",
+        height: u32 => "u32",
+        normal: [f32; 3] => "vec3<f32>",
+        bias_texels: f32 => "f32",
+        /// x0, x1, y0, y1 of each frame's tan window.
+        occ_window: [f32; 4] => "vec4<f32>",
+        ssm_window: [f32; 4] => "vec4<f32>",
+        half_size: [f32; 2] => "vec2<f32>",
+        near: f32 => "f32",
+        far: f32 => "f32",
+    }
 }
+
+gpu_struct! {
+    /// The counters of the instrumented replay (group 0, binding 1).
+    struct Counts as "Counts" {
+        fragments: u32 => "atomic<u32>",
+        zero: u32 => "atomic<u32>",
+        patches: u32 => "atomic<u32>",
+        pad: u32 => "u32",
+    }
+}
+
+/// The shader as the pipelines join it.
+const SOURCES: [&str; 3] = [SsmUniform::WGSL, Counts::WGSL, WGSL];
 
 /// One micro-patch of the transfer path: the patch and its extent in NDC (lo, hi).
 #[repr(C)]
@@ -70,24 +84,15 @@ struct Instance {
     extent: [f32; 4],
 }
 
-/// The `Counts` storage buffer of the instrumented replay.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct Counts {
-    fragments: u32,
-    zero: u32,
-    patches: u32,
-    pad: u32,
-}
-
 fn window(f: &LightFrame) -> [f32; 4] {
     [f.x0, f.x1, f.y0, f.y1]
 }
 
+/// `soft_shadow_map` on wgpu (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
-    _: &ExecContext,
+    _ctx: &ExecContext,
     o: &SoftShadowMapOptions,
 ) -> Result<FrameOutput> {
     if o.precision == Precision::Fp32 && !gpu.float32_blendable {
@@ -103,451 +108,295 @@ pub fn render(
             gpu.limits.max_texture_dimension_2d
         )));
     }
-    run(gpu, frame, o)
+    let split = Split::of(&frame.flat);
+    let mut out = Ssm::new(gpu, frame, o, &split).run()?;
+    if let Some(w) = split.warning() {
+        out.warnings.insert(0, w);
+    }
+    super::cpu::record_receivers_outside(frame, &split, &mut out);
+    Ok(out)
 }
 
-fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput> {
-    let device = &gpu.device;
-    let (width, height) = (frame.width(), frame.height());
-    let res = frame.params.map_resolution;
-    let split = Split::of(&frame.flat);
-    let (occ, ssm) = LightFrame::new(&frame.scene.light, frame.scene.bounds(), res)
-        .focused(split.occluder_bounds);
-    let uniform = SsmUniform {
+/// A depth-only draw of indices into a map.
+struct Depth {
+    indices: wgpu::Buffer,
+    count: u32,
+    group: wgpu::BindGroup,
+}
+
+/// The resources and pipelines of one frame.
+struct Ssm<'g> {
+    gpu: &'g Gpu,
+    o: SoftShadowMapOptions,
+    occ: LightFrame,
+    ssm: LightFrame,
+    size: (u32, u32),
+    res: u32,
+    vertices: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    visibility: wgpu::Buffer,
+    occluders: Depth,
+    receivers: Depth,
+    /// Occluder maps (front faces, back faces with two passes), the receiver map, the SSMs.
+    occ_maps: Vec<wgpu::Texture>,
+    occ_views: Vec<wgpu::TextureView>,
+    receiver_view: wgpu::TextureView,
+    ssm_views: Vec<wgpu::TextureView>,
+    ssm_format: wgpu::TextureFormat,
+    shared_group: wgpu::BindGroup,
+    splat_groups: Vec<wgpu::BindGroup>,
+    project_group: wgpu::BindGroup,
+    p: Pipelines,
+}
+
+/// What the transfer (§4.1) built: the micro-patches of each occluder map as instances, the
+/// bytes transferred and the patches built.
+#[derive(Default)]
+struct Transfer {
+    instances: Vec<(wgpu::Buffer, u32)>,
+    bytes: u64,
+    patches: u64,
+}
+
+/// The pipelines of the passes.
+struct Pipelines {
+    /// Depth: front faces, back faces (front culled).
+    depth: [wgpu::RenderPipeline; 2],
+    /// Splat: timed, counting.
+    splat: [wgpu::RenderPipeline; 2],
+    project: wgpu::ComputePipeline,
+    count_patches: wgpu::ComputePipeline,
+}
+
+/// Square maps of `res`² texels, one per pass (the second labelled "back"), and their views.
+fn maps(
+    gpu: &Gpu,
+    label: &str,
+    (passes, res): (u32, u32),
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> (Vec<wgpu::Texture>, Vec<wgpu::TextureView>) {
+    let textures: Vec<_> = (0..passes)
+        .map(|k| {
+            let back = format!("{label} back");
+            gpu.map_texture(if k == 0 { label } else { &back }, res, format, usage)
+        })
+        .collect();
+    let views = textures
+        .iter()
+        .map(|t| t.create_view(&Default::default()))
+        .collect();
+    (textures, views)
+}
+
+/// The uniform of the frames `occ` (occluder map) and `ssm` (soft shadow map).
+fn uniform(
+    frame: &Frame,
+    o: &SoftShadowMapOptions,
+    occ: &LightFrame,
+    ssm: &LightFrame,
+) -> SsmUniform {
+    SsmUniform {
         occ_view_proj: occ.view_proj.to_cols_array(),
         ssm_view_proj: ssm.view_proj.to_cols_array(),
         center: ssm.center.to_array(),
-        resolution: res,
+        resolution: frame.params.map_resolution,
         e_u: ssm.e_u.to_array(),
-        width,
+        width: frame.width(),
         e_v: ssm.e_v.to_array(),
-        height,
+        height: frame.height(),
         normal: ssm.normal.to_array(),
         bias_texels: o.bias_texels,
-        occ_window: window(&occ),
-        ssm_window: window(&ssm),
-        half: ssm.half.to_array(),
+        occ_window: window(occ),
+        ssm_window: window(ssm),
+        half_size: ssm.half.to_array(),
         near: ssm.near,
         far: ssm.far,
-    };
-    let init = |label: &str, contents: &[u8], usage| gpu.buffer_init(label, contents, 64, usage);
-    let uniform_buf = init(
-        "ssm uniform",
-        bytemuck::bytes_of(&uniform),
-        wgpu::BufferUsages::UNIFORM,
-    );
-    let counts = init(
-        "ssm counts",
-        bytemuck::bytes_of(&Counts::default()),
-        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-    );
-    let positions: Vec<[f32; 3]> = frame
-        .flat
-        .mesh
-        .positions
-        .iter()
-        .map(|p| p.to_array())
-        .collect();
-    let vertices = init(
-        "vertices",
-        bytemuck::cast_slice(&positions),
-        wgpu::BufferUsages::VERTEX,
-    );
-    let occluder_indices: Vec<u32> = split.occluders.iter().flatten().copied().collect();
-    let receiver_indices: Vec<u32> = split.receivers.iter().flatten().copied().collect();
-    let occ_ib = init(
-        "occluder indices",
-        bytemuck::cast_slice(&occluder_indices),
-        wgpu::BufferUsages::INDEX,
-    );
-    let rec_ib = init(
-        "receiver indices",
-        bytemuck::cast_slice(&receiver_indices),
-        wgpu::BufferUsages::INDEX,
-    );
+    }
+}
 
-    // The gbuffer: position with the hit flag, normal with the receives flag.
-    let g = &frame.gbuffer;
-    let gpos = gbuffer_positions(g);
-    let gnrm: Vec<[f32; 4]> = (0..g.len())
-        .map(|i| {
-            let receives = g.is_hit(i)
-                && split.receives[frame.flat.object_of_triangle[g.triangle[i] as usize] as usize];
-            g.normal[i].extend(f32::from(u8::from(receives))).to_array()
-        })
-        .collect();
-    let gpos_buf = init(
-        "gbuffer positions",
-        bytemuck::cast_slice(&gpos),
-        wgpu::BufferUsages::STORAGE,
-    );
-    let gnrm_buf = init(
-        "gbuffer normals",
-        bytemuck::cast_slice(&gnrm),
-        wgpu::BufferUsages::STORAGE,
-    );
-    let visibility = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("visibility"),
-        size: 4 * u64::from(width) * u64::from(height),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-
-    let passes = o.passes as usize;
-    // The occluder maps are read back for the paper's transfer to the CPU.
-    let copy_src = wgpu::TextureUsages::COPY_SRC;
-    let occ_maps: Vec<wgpu::Texture> = (0..passes)
-        .map(|k| {
-            gpu.map_texture(
-                if k == 0 {
-                    "occluder map"
-                } else {
-                    "occluder map back"
-                },
-                res,
-                wgpu::TextureFormat::Depth32Float,
-                copy_src,
-            )
-        })
-        .collect();
-    let receiver_map = gpu.map_texture(
-        "receiver map",
-        res,
-        wgpu::TextureFormat::Depth32Float,
-        wgpu::TextureUsages::empty(),
-    );
-    let ssm_format = match o.precision {
-        Precision::Fp32 => wgpu::TextureFormat::R32Float,
-        Precision::Fp16 => wgpu::TextureFormat::R16Float,
-    };
-    let ssm_maps: Vec<wgpu::Texture> = (0..passes)
-        .map(|k| {
-            gpu.map_texture(
-                if k == 0 {
-                    "soft shadow map"
-                } else {
-                    "soft shadow map back"
-                },
-                res,
-                ssm_format,
-                wgpu::TextureUsages::empty(),
-            )
-        })
-        .collect();
-    let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-    let occ_views: Vec<_> = occ_maps.iter().map(view).collect();
-    let receiver_view = view(&receiver_map);
-    let ssm_views: Vec<_> = ssm_maps.iter().map(view).collect();
-
-    use wgpu::ShaderStages as S;
-    let shared_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("ssm shared"),
-        entries: &[
-            layout::uniform(0, S::VERTEX | S::FRAGMENT | S::COMPUTE),
-            layout::storage(1, S::FRAGMENT | S::COMPUTE, false),
-        ],
-    });
-    let map_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("ssm map view"),
-        entries: &[layout::uniform(0, S::VERTEX)],
-    });
-    let splat_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("ssm splat"),
-        entries: &[
-            layout::texture(1, S::VERTEX | S::COMPUTE, wgpu::TextureSampleType::Depth),
-            layout::texture(2, S::FRAGMENT, wgpu::TextureSampleType::Depth),
-        ],
-    });
-    let project_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("ssm project"),
-        entries: &[
-            layout::texture(
-                0,
-                S::COMPUTE,
-                wgpu::TextureSampleType::Float { filterable: false },
-            ),
-            layout::texture(
-                1,
-                S::COMPUTE,
-                wgpu::TextureSampleType::Float { filterable: false },
-            ),
-            layout::storage(2, S::COMPUTE, true),
-            layout::storage(3, S::COMPUTE, true),
-            layout::storage(4, S::COMPUTE, false),
-        ],
-    });
-    let shared_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("ssm shared"),
-        layout: &shared_layout,
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform_buf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: counts.as_entire_binding(),
-            },
-        ],
-    });
-    let map_group = |m: glam::Mat4| {
-        let b = init(
-            "map view",
-            bytemuck::cast_slice(&m.to_cols_array()),
-            wgpu::BufferUsages::UNIFORM,
+impl<'g> Ssm<'g> {
+    fn new(gpu: &'g Gpu, frame: &Frame, o: &SoftShadowMapOptions, split: &Split) -> Ssm<'g> {
+        let res = frame.params.map_resolution;
+        let (width, height) = (frame.width(), frame.height());
+        let (occ, ssm) = LightFrame::new(&frame.scene.light, frame.scene.bounds(), res)
+            .focused(split.occluder_bounds);
+        let uniform = uniform(frame, o, &occ, &ssm);
+        use wgpu::BufferUsages as B;
+        let uniform_buf = gpu.upload("ssm uniform", &[uniform], B::UNIFORM);
+        let counts = gpu.upload(
+            "ssm counts",
+            &[Counts::default()],
+            B::STORAGE | B::COPY_SRC | B::COPY_DST,
         );
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("map view"),
-            layout: &map_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: b.as_entire_binding(),
-            }],
-        })
-    };
-    let occ_group = map_group(occ.view_proj);
-    let rec_group = map_group(ssm.view_proj);
-    let splat_groups: Vec<wgpu::BindGroup> = occ_views
-        .iter()
-        .map(|v| {
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("ssm splat"),
-                layout: &splat_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::TextureView(v),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
-                        resource: wgpu::BindingResource::TextureView(&receiver_view),
-                    },
-                ],
+        let positions: Vec<[f32; 3]> = frame
+            .flat
+            .mesh
+            .positions
+            .iter()
+            .map(|p| p.to_array())
+            .collect();
+        let vertices = gpu.upload("vertices", &positions, B::VERTEX);
+        // The gbuffer: position with the hit flag, normal with the receives flag.
+        let g = &frame.gbuffer;
+        let gnrm: Vec<[f32; 4]> = (0..g.len())
+            .map(|i| {
+                let receives = g.is_hit(i)
+                    && split.receives
+                        [frame.flat.object_of_triangle[g.triangle[i] as usize] as usize];
+                g.normal[i].extend(f32::from(u8::from(receives))).to_array()
             })
-        })
-        .collect();
-    let project_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("ssm project"),
-        layout: &project_layout,
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::TextureView(&ssm_views[0]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: wgpu::BindingResource::TextureView(&ssm_views[passes - 1]),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: gpos_buf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: gnrm_buf.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: visibility.as_entire_binding(),
-            },
-        ],
-    });
-
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("soft_shadow_map/wgpu.wgsl"),
-        source: wgpu::ShaderSource::Wgsl(WGSL.into()),
-    });
-    let layout = |groups: &[Option<&wgpu::BindGroupLayout>]| {
-        device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: None,
-            bind_group_layouts: groups,
-            immediate_size: 0,
-        })
-    };
-    let depth_layout = layout(&[Some(&shared_layout), Some(&map_layout)]);
-    let splat_pl = layout(&[Some(&shared_layout), Some(&splat_layout)]);
-    let project_pl = layout(&[Some(&shared_layout), None, Some(&project_layout)]);
-
-    let depth_pipeline = |cull: Option<wgpu::Face>| {
-        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("ssm depth"),
-            layout: Some(&depth_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_depth"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 12,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                cull_mode: cull,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: wgpu::TextureFormat::Depth32Float,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_depth"),
-                compilation_options: Default::default(),
-                targets: &[],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
-    };
-    let depth_front = depth_pipeline(None);
-    let depth_back = depth_pipeline(Some(wgpu::Face::Front));
-
-    let instance_layout = [Some(wgpu::VertexBufferLayout {
-        array_stride: size_of::<Instance>() as u64,
-        step_mode: wgpu::VertexStepMode::Instance,
-        attributes: &wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32x2, 2 => Float32, 3 => Float32x4],
-    })];
-    let host = o.occluder_map_transfer;
-    let splat_pipeline = |fs: &str| {
-        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some(fs),
-            layout: Some(&splat_pl),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some(if host {
-                    "vs_splat_host"
-                } else {
-                    "vs_splat_device"
-                }),
-                compilation_options: Default::default(),
-                buffers: if host { &instance_layout } else { &[] },
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleStrip,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some(fs),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: ssm_format,
-                    blend: Some(wgpu::BlendState {
-                        color: wgpu::BlendComponent {
-                            src_factor: wgpu::BlendFactor::One,
-                            dst_factor: wgpu::BlendFactor::One,
-                            operation: wgpu::BlendOperation::Add,
-                        },
-                        alpha: wgpu::BlendComponent::REPLACE,
-                    }),
-                    write_mask: wgpu::ColorWrites::RED,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        })
-    };
-    let splat_timed = splat_pipeline("fs_splat");
-    let splat_counting = splat_pipeline("fs_splat_count");
-    let compute = |entry: &str, pl: &wgpu::PipelineLayout| {
-        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(entry),
-            layout: Some(pl),
-            module: &module,
-            entry_point: Some(entry),
-            compilation_options: Default::default(),
-            cache: None,
-        })
-    };
-    let project_pipeline = compute("project", &project_pl);
-    let count_patches = compute("count_patches", &splat_pl);
-
-    // Passes in timer order: maps (occluders, back faces, receivers), splat (per pass), project.
-    let n_maps = passes + 1;
-    let n_passes = (n_maps + passes + 1) as u32;
-    let timer = PassTimer::new(gpu, n_passes);
-    let depth_pass = |e: &mut wgpu::CommandEncoder,
-                      i: usize,
-                      target: &wgpu::TextureView,
-                      pipeline: &wgpu::RenderPipeline,
-                      group: &wgpu::BindGroup,
-                      ib: &wgpu::Buffer,
-                      count: usize| {
-        let mut pass = timing::render_pass(
-            e,
-            wgpu::RenderPassDescriptor {
-                label: Some("maps"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: target,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            },
-            timer.as_ref().map(|t| (t, i as u32)),
+            .collect();
+        let gpos_buf = gpu.upload("gbuffer positions", &gbuffer_positions(g), B::STORAGE);
+        let gnrm_buf = gpu.upload("gbuffer normals", &gnrm, B::STORAGE);
+        let visibility = gpu.storage_buffer(
+            "visibility",
+            4 * u64::from(width) * u64::from(height),
+            B::COPY_SRC,
         );
-        pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, &shared_group, &[]);
-        pass.set_bind_group(1, group, &[]);
-        pass.set_vertex_buffer(0, vertices.slice(..));
-        pass.set_index_buffer(ib.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..count as u32, 0, 0..1);
-    };
-    let maps_wall = gpu.submit(|e| {
-        depth_pass(
-            e,
-            0,
-            &occ_views[0],
-            &depth_front,
-            &occ_group,
-            &occ_ib,
-            occluder_indices.len(),
+
+        // The occluder maps are read back for the paper's transfer to the CPU.
+        let depth_format = wgpu::TextureFormat::Depth32Float;
+        const COPY_SRC: wgpu::TextureUsages = wgpu::TextureUsages::COPY_SRC;
+        const NONE: wgpu::TextureUsages = wgpu::TextureUsages::empty();
+        let sized = (o.passes, res);
+        let (occ_maps, occ_views) = maps(gpu, "occluder map", sized, depth_format, COPY_SRC);
+        let (_, receiver) = maps(gpu, "receiver map", (1, res), depth_format, NONE);
+        let ssm_format = match o.precision {
+            Precision::Fp32 => wgpu::TextureFormat::R32Float,
+            Precision::Fp16 => wgpu::TextureFormat::R16Float,
+        };
+        let (_, ssm_views) = maps(gpu, "soft shadow map", sized, ssm_format, NONE);
+        let receiver_view = receiver.into_iter().next().expect("one map");
+        use wgpu::ShaderStages as S;
+        let all = S::VERTEX | S::FRAGMENT | S::COMPUTE;
+        let shared_layout = Layout::new(gpu, "ssm shared", all, &[Uniform, ReadWrite]);
+        let map_layout = Layout::new(gpu, "ssm map view", S::VERTEX, &[Uniform]);
+        let splat_layout = Layout::new(gpu, "ssm splat", all, &[Absent, Depth, Depth]);
+        let project_layout = Layout::new(
+            gpu,
+            "ssm project",
+            S::COMPUTE,
+            &[Float, Float, ReadOnly, ReadOnly, ReadWrite],
         );
-        if passes == 2 {
-            depth_pass(
-                e,
-                1,
-                &occ_views[1],
-                &depth_back,
-                &occ_group,
-                &occ_ib,
-                occluder_indices.len(),
-            );
+        let shared_group = shared_layout.group(
+            gpu,
+            "ssm shared",
+            &[uniform_buf.as_entire_binding(), counts.as_entire_binding()],
+        );
+        let depth = |triangles: &[[u32; 3]], m: glam::Mat4| {
+            let list: Vec<u32> = triangles.iter().flatten().copied().collect();
+            let b = gpu.upload("map view", &m.to_cols_array(), B::UNIFORM);
+            Depth {
+                indices: gpu.upload("indices", &list, B::INDEX),
+                count: list.len() as u32,
+                group: map_layout.group(gpu, "map view", &[b.as_entire_binding()]),
+            }
+        };
+        let occluders = depth(&split.occluders, occ.view_proj);
+        let receivers = depth(&split.receivers, ssm.view_proj);
+        let splat_groups = occ_views
+            .iter()
+            .map(|v| splat_layout.group(gpu, "ssm splat", &[view(v), view(&receiver_view)]))
+            .collect();
+        let project_group = project_layout.group(
+            gpu,
+            "ssm project",
+            &[
+                view(&ssm_views[0]),
+                view(&ssm_views[o.passes as usize - 1]),
+                gpos_buf.as_entire_binding(),
+                gnrm_buf.as_entire_binding(),
+                visibility.as_entire_binding(),
+            ],
+        );
+        let layouts = [&shared_layout, &map_layout, &splat_layout, &project_layout];
+        let p = Pipelines::new(gpu, o, ssm_format, layouts);
+        Ssm {
+            gpu,
+            o: *o,
+            occ,
+            ssm,
+            size: (width, height),
+            res,
+            vertices,
+            counts,
+            visibility,
+            occluders,
+            receivers,
+            occ_maps,
+            occ_views,
+            receiver_view,
+            ssm_views,
+            ssm_format,
+            shared_group,
+            splat_groups,
+            project_group,
+            p,
         }
-        depth_pass(
-            e,
-            passes,
-            &receiver_view,
-            &depth_front,
-            &rec_group,
-            &rec_ib,
-            receiver_indices.len(),
-        );
-    })?;
+    }
 
-    // The transfer (§4.1): occluder maps to the host, patches and extents built there in the
-    // cpu's block-linear order.
-    let mut transfer_bytes = 0u64;
-    let mut transfer_ms = 0.0;
-    let mut host_patches = 0u64;
-    let instance_bufs: Vec<(wgpu::Buffer, u32)> = if host {
-        let start = Instant::now();
+    /// A depth-only pass of `d` into `target`.
+    fn depth_pass<'a>(
+        &'a self,
+        d: &'a Depth,
+        target: &'a wgpu::TextureView,
+        back: bool,
+    ) -> Pass<'a> {
+        Pass::draw(
+            "maps",
+            &[Some(&self.shared_group), Some(&d.group)],
+            Draw {
+                pipeline: &self.p.depth[usize::from(back)],
+                color: None,
+                depth: Some(target),
+                vertices: Some(&self.vertices),
+                indices: Some(&d.indices),
+                count: d.count,
+                instances: 1,
+            },
+        )
+    }
+
+    /// The splat passes, one per SSM: the micro-patches uploaded by the transfer
+    /// (`instances`), or one instance per occluder-map texel.
+    fn splat_passes<'a>(
+        &'a self,
+        counting: bool,
+        instances: &'a [(wgpu::Buffer, u32)],
+    ) -> Vec<Pass<'a>> {
+        let texels = self.res.div_ceil(BLOCK).pow(2) * LANES as u32;
+        (0..self.o.passes as usize)
+            .map(|k| {
+                let (vertices, n) = match instances.get(k) {
+                    Some((b, n)) => (Some(b), *n),
+                    None => (None, texels),
+                };
+                Pass::draw(
+                    "splat",
+                    &[Some(&self.shared_group), Some(&self.splat_groups[k])],
+                    Draw {
+                        pipeline: &self.p.splat[usize::from(counting)],
+                        color: Some(&self.ssm_views[k]),
+                        depth: None,
+                        vertices,
+                        indices: None,
+                        count: 4,
+                        instances: n,
+                    },
+                )
+            })
+            .collect()
+    }
+
+    /// The transfer (§4.1): occluder maps to the host, patches and extents built there in the
+    /// cpu's block-linear order and uploaded as instances; also the bytes transferred and the
+    /// patches built.
+    fn transfer(&self) -> Result<Transfer> {
+        let (gpu, res) = (self.gpu, self.res);
         let row = (res * 4).div_ceil(256) * 256;
-        let stagings: Vec<Staging> = occ_maps
+        let stagings: Vec<Staging> = self
+            .occ_maps
             .iter()
             .map(|_| {
                 Staging::new(
@@ -558,227 +407,222 @@ fn run(gpu: &Gpu, frame: &Frame, o: &SoftShadowMapOptions) -> Result<FrameOutput
             })
             .collect();
         gpu.submit(|e| {
-            for (s, t) in stagings.iter().zip(&occ_maps) {
+            for (s, t) in stagings.iter().zip(&self.occ_maps) {
                 s.copy_texture(e, t, row);
             }
         })?;
-        let mut bufs = Vec::new();
+        let (mut bufs, mut bytes, mut patches) = (Vec::new(), 0, 0);
         for s in &stagings {
             let depth: Vec<f32> = words(&s.read(gpu)?);
-            transfer_bytes += u64::from(res) * u64::from(res) * 4;
+            bytes += u64::from(res) * u64::from(res) * 4;
             let mut inst = Vec::new();
             let blocks = res.div_ceil(BLOCK);
-            for by in 0..blocks {
-                for bx in 0..blocks {
-                    for l in 0..LANES as u32 {
-                        let (i, j) = (bx * BLOCK + l % BLOCK, by * BLOCK + l / BLOCK);
-                        if i >= res || j >= res {
-                            continue;
-                        }
-                        let d = depth[(j * row / 4 + i) as usize];
-                        if let Some(p) = micro_patch(&occ, i, j, d) {
-                            let q = extent_quad(&ssm, &p);
-                            inst.push(Instance {
-                                lo: p.lo.to_array(),
-                                hi: p.hi.to_array(),
-                                z_o: p.z_o,
-                                extent: [q[0].x, q[0].y, q[2].x, q[2].y],
-                            });
-                        }
-                    }
+            for (by, bx, l) in (0..blocks).flat_map(|by| {
+                (0..blocks).flat_map(move |bx| (0..LANES as u32).map(move |l| (by, bx, l)))
+            }) {
+                let (i, j) = (bx * BLOCK + l % BLOCK, by * BLOCK + l / BLOCK);
+                if i >= res || j >= res {
+                    continue;
+                }
+                if let Some(p) = micro_patch(&self.occ, i, j, depth[(j * row / 4 + i) as usize]) {
+                    let q = extent_quad(&self.ssm, &p);
+                    inst.push(Instance {
+                        lo: p.lo.to_array(),
+                        hi: p.hi.to_array(),
+                        z_o: p.z_o,
+                        extent: [q[0].x, q[0].y, q[2].x, q[2].y],
+                    });
                 }
             }
-            host_patches += inst.len() as u64;
-            bufs.push((
-                init(
-                    "patches",
-                    bytemuck::cast_slice(&inst),
-                    wgpu::BufferUsages::VERTEX,
-                ),
-                inst.len() as u32,
-            ));
+            patches += inst.len() as u64;
+            let buf = gpu.upload("patches", &inst, wgpu::BufferUsages::VERTEX);
+            bufs.push((buf, inst.len() as u32));
         }
-        transfer_ms = start.elapsed().as_secs_f64() * 1e3;
-        bufs
-    } else {
-        Vec::new()
-    };
-    let texel_instances = res.div_ceil(BLOCK).pow(2) * LANES as u32;
-    let splat = |e: &mut wgpu::CommandEncoder, pipeline: &wgpu::RenderPipeline, timed: bool| {
-        for k in 0..passes {
-            let mut pass = timing::render_pass(
-                e,
-                wgpu::RenderPassDescriptor {
-                    label: Some("splat"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &ssm_views[k],
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    depth_stencil_attachment: None,
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                },
-                timer
-                    .as_ref()
-                    .filter(|_| timed)
-                    .map(|t| (t, (n_maps + k) as u32)),
-            );
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &shared_group, &[]);
-            pass.set_bind_group(1, &splat_groups[k], &[]);
-            if host {
-                let (buf, n) = &instance_bufs[k];
-                pass.set_vertex_buffer(0, buf.slice(..));
-                pass.draw(0..4, 0..*n);
-            } else {
-                pass.draw(0..4, 0..texel_instances);
-            }
-        }
-    };
-    let splat_wall = gpu.submit(|e| splat(e, &splat_timed, true))?;
-    let vis_staging = Staging::new(gpu, "visibility readback", visibility.size());
-    let project_wall = gpu.submit(|e| {
-        {
-            let mut pass =
-                timing::compute_pass(e, "project", timer.as_ref().map(|t| (t, n_passes - 1)));
-            pass.set_pipeline(&project_pipeline);
-            pass.set_bind_group(0, &shared_group, &[]);
-            pass.set_bind_group(2, &project_group, &[]);
-            pass.dispatch_workgroups(width.div_ceil(WORKGROUP), height.div_ceil(WORKGROUP), 1);
-        }
-        vis_staging.copy(e, &visibility);
-        if let Some(t) = &timer {
-            t.resolve(e);
-        }
-    })?;
-    let data: Vec<f32> = words(&vis_staging.read(gpu)?);
-    let mut warnings: Vec<String> = split.warning().into_iter().collect();
-    let times = read_ms_or_warn(gpu, &timer, &mut warnings)?;
-    let gpu_ms = times.ms.clone();
-
-    // The instrumented replay of `splat`.
-    let counts_staging = Staging::new(gpu, "counts readback", counts.size());
-    gpu.submit(|e| {
-        e.clear_buffer(&counts, 0, None);
-        splat(e, &splat_counting, false);
-        if !host {
-            for group in &splat_groups {
-                let mut pass = e.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("count_patches"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&count_patches);
-                pass.set_bind_group(0, &shared_group, &[]);
-                pass.set_bind_group(1, group, &[]);
-                pass.dispatch_workgroups(res.div_ceil(WORKGROUP), res.div_ceil(WORKGROUP), 1);
-            }
-        }
-        counts_staging.copy(e, &counts);
-    })?;
-    let c: Counts = words::<Counts>(&counts_staging.read(gpu)?)[0];
-
-    let sum = |r: std::ops::Range<usize>| gpu_ms.as_ref().map(|t| t[r].iter().sum::<f64>());
-    let mut maps_c = Counters::default();
-    if host {
-        maps_c.set("transfer.bytes", transfer_bytes as f64);
+        Ok(Transfer {
+            instances: bufs,
+            bytes,
+            patches,
+        })
     }
-    let mut splat_c = Counters::default();
-    splat_c.set("fill", f64::from(c.fragments));
-    splat_c.set("overdraw", f64::from(c.zero));
-    splat_c.set(
-        "ssm.micro_patches",
+
+    fn run(&self) -> Result<FrameOutput> {
+        let host = self.o.occluder_map_transfer;
+        let passes = self.o.passes as usize;
+        let n_passes = (2 * passes + 2) as u32;
+        let names = ["maps", "splat", "project"];
+        let mut run = Timed::new(
+            self.gpu,
+            &names,
+            n_passes,
+            Statistics::Off,
+            &[&self.visibility],
+        );
+        // Passes in timer order: maps (occluders, back faces, receivers), splat, project.
+        let mut maps: Vec<Pass> = (0..passes)
+            .map(|k| self.depth_pass(&self.occluders, &self.occ_views[k], k == 1))
+            .collect();
+        maps.push(self.depth_pass(&self.receivers, &self.receiver_view, false));
+        run.submit(0, &maps)?;
+        let start = Instant::now();
+        let transfer = match host {
+            true => run.host(0, || self.transfer())?,
+            false => Transfer::default(),
+        };
+        let transfer_ms = if host {
+            start.elapsed().as_secs_f64() * 1e3
+        } else {
+            0.0
+        };
+        let instances = &transfer.instances;
+        run.submit(1, &self.splat_passes(false, instances))?;
+        let groups = [Some(&self.shared_group), None, Some(&self.project_group)];
+        run.submit(
+            2,
+            &[Pass::compute(
+                "project",
+                &groups,
+                &self.p.project,
+                tiles(self.size, WORKGROUP),
+            )],
+        )?;
+        let timing = run.finish()?;
+
+        // The instrumented replay of `splat`.
+        let mut steps = vec![Step::Clear(&self.counts)];
+        steps.extend(
+            self.splat_passes(true, instances)
+                .into_iter()
+                .map(Step::Run),
+        );
+        if !host {
+            let res = tiles((self.res, self.res), WORKGROUP);
+            steps.extend(self.splat_groups.iter().map(|g| {
+                Step::Run(Pass::compute(
+                    "count_patches",
+                    &[Some(&self.shared_group), Some(g)],
+                    &self.p.count_patches,
+                    res,
+                ))
+            }));
+        }
+        steps.push(Step::Read(&self.counts));
+        let c: Counts = words::<Counts>(&replay(self.gpu, &steps)?[0])[0];
+
+        let mut maps_c = Counters::default();
         if host {
-            host_patches as f64
+            maps_c.set("transfer.bytes", transfer.bytes as f64);
+        }
+        let mut splat_c = Counters::default();
+        splat_c.set("fill", f64::from(c.fragments));
+        splat_c.set("overdraw", f64::from(c.zero));
+        let patches = if host {
+            transfer.patches as f64
         } else {
             f64::from(c.patches)
-        },
-    );
-    splat_c.set(
-        "ssm.occluder_texels",
-        (passes as u64 * u64::from(res) * u64::from(res)) as f64,
-    );
-    let phase = |name: &str, wall_ms: f64, gpu_ms: Option<f64>, counters: Counters| Phase {
-        name: name.into(),
-        wall_ms,
-        model_ms: None,
-        gpu_ms,
-        counters,
-    };
-    let phases = vec![
-        phase("maps", maps_wall + transfer_ms, sum(0..n_maps), maps_c),
-        phase("splat", splat_wall, sum(n_maps..n_maps + passes), splat_c),
-        phase(
-            "project",
-            project_wall,
-            sum(n_maps + passes..n_passes as usize),
-            Counters::default(),
-        ),
-    ];
-    let mut counters = Counters::default();
-    for p in &phases {
-        counters.merge(&p.counters);
-    }
-    let mut execution = gpu.execution();
-    times.record(&mut execution);
-    execution.insert("transfer_ms".into(), serde_json::json!(transfer_ms));
-    execution.insert(
-        "ssm_format".into(),
-        serde_json::json!(format!("{ssm_format:?}")),
-    );
-    execution.insert(
-        "extents".into(),
-        serde_json::json!(if host {
+        };
+        splat_c.set("ssm.micro_patches", patches);
+        let texels = passes as u64 * u64::from(self.res) * u64::from(self.res);
+        splat_c.set("ssm.occluder_texels", texels as f64);
+        let note = "fill/overdraw from an instrumented replay of splat (WGSL atomics)";
+        let mut out = timing.output(self.size, vec![maps_c, splat_c, Counters::default()], note);
+        let e = &mut out.execution;
+        e.insert("transfer_ms".into(), serde_json::json!(transfer_ms));
+        e.insert(
+            "ssm_format".into(),
+            serde_json::json!(format!("{:?}", self.ssm_format)),
+        );
+        let extents = if host {
             "host (occluder map transferred)"
         } else {
             "device (vertex shader)"
-        }),
-    );
-    let mut out = FrameOutput {
-        visibility: VisibilityBuffer {
-            width,
-            height,
-            data,
-        },
-        counters,
-        phases,
-        model_ms: None,
-        gpu_ms: gpu_ms.map(|t| t.iter().sum()),
-        execution,
-        warnings,
-        rgb: None,
-    };
-    super::cpu::record_receivers_outside(frame, &split, &mut out);
-    Ok(out)
+        };
+        e.insert("extents".into(), serde_json::json!(extents));
+        Ok(out)
+    }
+}
+
+impl Pipelines {
+    /// The pipelines from the shared, map-view, splat and project group layouts.
+    fn new(
+        gpu: &Gpu,
+        o: &SoftShadowMapOptions,
+        ssm_format: wgpu::TextureFormat,
+        [shared, map, splat, project]: [&Layout; 4],
+    ) -> Pipelines {
+        let label = "soft_shadow_map/wgpu.wgsl";
+        let depth_program = Program::new(gpu, label, &SOURCES, &[Some(shared), Some(map)]);
+        let splat_program = Program::new(gpu, label, &SOURCES, &[Some(shared), Some(splat)]);
+        let project_program =
+            Program::new(gpu, label, &SOURCES, &[Some(shared), None, Some(project)]);
+        let position = wgpu::vertex_attr_array![0 => Float32x3];
+        let depth = |cull| {
+            depth_program.render(
+                gpu,
+                &Raster {
+                    vs: "vs_depth",
+                    fs: "fs_depth",
+                    vertex: Some((12, wgpu::VertexStepMode::Vertex, &position)),
+                    cull,
+                    ..Raster::default()
+                },
+            )
+        };
+        let instance =
+            wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32x2, 2 => Float32, 3 => Float32x4];
+        let host = o.occluder_map_transfer;
+        let additive = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let splat = |fs| {
+            splat_program.render(
+                gpu,
+                &Raster {
+                    vs: if host {
+                        "vs_splat_host"
+                    } else {
+                        "vs_splat_device"
+                    },
+                    fs,
+                    vertex: host.then_some((
+                        size_of::<Instance>() as u64,
+                        wgpu::VertexStepMode::Instance,
+                        &instance[..],
+                    )),
+                    topology: wgpu::PrimitiveTopology::TriangleStrip,
+                    depth: None,
+                    color: Some(wgpu::ColorTargetState {
+                        format: ssm_format,
+                        blend: Some(wgpu::BlendState {
+                            color: additive,
+                            alpha: wgpu::BlendComponent::REPLACE,
+                        }),
+                        write_mask: wgpu::ColorWrites::RED,
+                    }),
+                    ..Raster::default()
+                },
+            )
+        };
+        Pipelines {
+            depth: [depth(None), depth(Some(wgpu::Face::Front))],
+            splat: [splat("fs_splat"), splat("fs_splat_count")],
+            project: project_program.compute(gpu, "project", None),
+            count_patches: splat_program.compute(gpu, "count_patches", None),
+        }
+    }
 }
 
 #[cfg(test)]
 mod layout_tests {
     use super::*;
-    use crate::gpu::wgsl_layout::assert_wgsl_layout;
 
     /// `SsmUniform` and `Counts`; `Instance` is a vertex buffer read through vertex attributes
     /// (no WGSL struct), and `MicroPatch` is never uploaded as a struct.
     #[test]
     fn uniforms_match_wgsl() {
-        assert_wgsl_layout!(WGSL, "Ssm", SsmUniform {
-            occ_view_proj, ssm_view_proj, center, resolution, e_u, width, e_v, height, normal,
-            bias_texels, occ_window, ssm_window, half as "half_size", near, far
-        });
-        assert_wgsl_layout!(
-            WGSL,
-            "Counts",
-            Counts {
-                fragments,
-                zero,
-                patches,
-                pad
-            }
-        );
+        let source = SOURCES.join("\n");
+        assert_eq!(SsmUniform::layout_mismatches(&source), Vec::<String>::new());
+        assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
     }
 }

@@ -1,32 +1,7 @@
 // Soft shadow maps (paper 002) as GPU passes. Every function names the Rust function in
-// soft_shadow_map/mod.rs or cpu.rs it mirrors; the layouts match `SsmUniform`, `MapUniform`,
-// `Instance` and `Counts` in wgpu.rs.
-
-struct Ssm {
-    occ_view_proj: mat4x4<f32>,
-    ssm_view_proj: mat4x4<f32>,
-    center: vec3<f32>,
-    resolution: u32,
-    e_u: vec3<f32>,
-    width: u32,
-    e_v: vec3<f32>,
-    height: u32,
-    normal: vec3<f32>,
-    bias_texels: f32,
-    // x0, x1, y0, y1 of each frame's tan window
-    occ_window: vec4<f32>,
-    ssm_window: vec4<f32>,
-    half_size: vec2<f32>,
-    near: f32,
-    far: f32,
-}
-
-struct Counts {
-    fragments: atomic<u32>,
-    zero: atomic<u32>,
-    patches: atomic<u32>,
-    pad: u32,
-}
+// soft_shadow_map/mod.rs or cpu.rs it mirrors. The structs `Ssm` and `Counts` are declared in
+// wgpu.rs (`SsmUniform`, `Counts`) and joined before this file; the vertex attributes of the
+// transfer path match `Instance` there.
 
 @group(0) @binding(0) var<uniform> u: Ssm;
 @group(0) @binding(1) var<storage, read_write> counts: Counts;

@@ -1,0 +1,486 @@
+//! The shadow-volume family's GPU passes, shared by `soft_shadow_volume` and `accum_hard` on
+//! wgpu (`wgpu.wgsl`; `soft_shadow_volume` joins its `soft` pass after it):
+//!
+//! - the frame's eye rays and per-pixel buffers ([`FrameResources`]);
+//! - the hard pass (III §3.2.1): shadow quads built on the host from a silhouette and binned to
+//!   8×8 screen tiles on the host (sort-middle, as [`crate::algorithms::eye_raster::raster_pass`]
+//!   bins them), then one invocation per pixel walks its tile's quads in submission order and
+//!   counts z-pass from the eye's count ([`super::eye_count`]) into an i32 V-buffer; with
+//!   `counting: "z_fail"` (Paper II §5) it walks the faces of the capped volumes instead
+//!   (sides, light and dark caps, built on the host by [`zfail_faces`]) and counts those at or
+//!   behind the visible surface;
+//! - `accum_hard`'s accumulation of one light sample's lit pixels (`accumulate`).
+//!
+//! The counters of the instrumented replay are 64-bit slots of one buffer ([`Stat`]).
+
+use glam::Vec3;
+
+use super::{face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad, VolumeFace};
+use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::gpu::pass::{gpu_struct, replay, slot64, tiles, Bind, Layout, Pass, Program, Step};
+use crate::gpu::readback::words;
+use crate::gpu::{Gpu, EMPTY_BYTES};
+use crate::scene::Mesh;
+
+/// The family's WGSL: parameters, bindings, the hard pass, the accumulation.
+pub(crate) const WGSL: &str = include_str!("wgpu.wgsl");
+
+/// Side of the screen tiles primitives are binned to (`TILE` and the workgroup in the WGSL).
+pub(crate) const TILE: u32 = 8;
+/// Storage buffers bound (bindings 1-12).
+pub(crate) const STORAGE_BUFFERS: u32 = 12;
+/// Record sizes: an eye ray, a shadow quad, a wedge primitive, a plane, a word.
+pub(crate) const RAY_BYTES: u64 = 48;
+pub(crate) const QUAD_BYTES: u64 = 80;
+/// A z-fail volume face: six vec4 (corners, normal, footprint) in the `planes` binding.
+pub(crate) const FACE_BYTES: u64 = 96;
+pub(crate) const PRIM_BYTES: u64 = 32;
+pub(crate) const PLANE_BYTES: u64 = 16;
+pub(crate) const WORD: u64 = 4;
+/// Bytes per pixel of the V-buffer (f32, or one rgba8 buffer of the split pair) and of the
+/// stencil the wedge-half culling of IV §4.4 uses on a rasterizer.
+pub(crate) const VBUFFER_BYTES: u64 = 4;
+pub(crate) const STENCIL_BYTES: u64 = 1;
+
+/// The statistics slots of the instrumented pipelines (`STAT_*` in the WGSL), in slot order.
+#[derive(Clone, Copy)]
+pub(crate) enum Stat {
+    HardFill,
+    HardPassed,
+    SoftFill,
+    SoftFront,
+    SoftInside,
+    SoftCovered,
+    SoftContributing,
+    HardTests,
+    SoftTests,
+}
+
+pub(crate) const STATS: u64 = 9;
+
+gpu_struct! {
+    /// The parameters of one pass (binding 0).
+    pub(crate) struct Params as "Params" {
+        /// Light centre; w: emitter shape (0 square, 1 disc).
+        center: [f32; 4] => "vec4f",
+        /// Half-axes for rect and disc lights (constant); w: light kind (0 rect, 1 sphere,
+        /// 2 disc).
+        half_u: [f32; 4] => "vec4f",
+        /// w: sphere radius.
+        half_v: [f32; 4] => "vec4f",
+        /// The eye position.
+        eye: [f32; 4] => "vec4f",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        tiles_x: u32 => "u32",
+        eye_count: i32 => "i32",
+        /// 0: f32 V-buffer, 1: split 12-bit rgba8 pair (IV §4.3).
+        vbuffer: u32 => "u32",
+        /// 0: exact clipping, 1: 4D texture.
+        coverage: u32 => "u32",
+        texture_n: u32 => "u32",
+        /// 1 when this is the first silhouette loop of its sub-light.
+        first_loop: u32 => "u32",
+        /// 1 when this is the last loop of its sub-light; then the sub-light's visibility is
+        /// added.
+        last_loop: u32 => "u32",
+        /// 1 for the first sub-light, 1 for the last (then the final clamp runs).
+        first_light: u32 => "u32",
+        last_light: u32 => "u32",
+        sub_lights: u32 => "u32",
+        /// 0: z-pass from `eye_count`, 1: z-fail over the capped volumes' faces in `planes`.
+        counting: u32 => "u32",
+        /// 3 for a textured light (RGB coverage texture, one f32 per channel), else 1.
+        channels: u32 => "u32",
+        pad1: u32 => "u32",
+        pad2: u32 => "u32",
+        /// The textured light's mean colour (`LightTexture::mean`).
+        mean: [f32; 4] => "vec4f",
+    }
+}
+
+/// Checks the frame against the adapter's limits for the passes of algorithm `id`.
+pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame, id: &str) -> Result<()> {
+    let l = &gpu.limits;
+    if l.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
+        return Err(Error::Resource(format!(
+            "{id} binds {STORAGE_BUFFERS} storage buffers; the adapter allows {}",
+            l.max_storage_buffers_per_shader_stage
+        )));
+    }
+    let bytes = RAY_BYTES * frame.gbuffer.len() as u64;
+    if bytes > l.max_storage_buffer_binding_size {
+        return Err(Error::Resource(format!(
+            "{id} buffer eye_rays needs {bytes} bytes, more than the adapter's storage binding \
+             limit ({})",
+            l.max_storage_buffer_binding_size
+        )));
+    }
+    Ok(())
+}
+
+/// Eye-sized buffers shared by every loop.
+pub(crate) struct FrameResources {
+    pub rays: wgpu::Buffer,
+    pub texels: wgpu::Buffer,
+    pub counts: wgpu::Buffer,
+    pub covered: wgpu::Buffer,
+    pub visibility: wgpu::Buffer,
+    pub stats: wgpu::Buffer,
+    /// Light received per channel (3 words a pixel) under a textured light, else one word.
+    pub rgb: wgpu::Buffer,
+    /// 3 for a textured light, else 1.
+    pub channels: u32,
+}
+
+/// Infinite and NaN parameters become the largest finite ones (WGSL has no infinities).
+fn finite(t: f32) -> f32 {
+    if t.is_nan() {
+        f32::MAX
+    } else {
+        t.clamp(-f32::MAX, f32::MAX)
+    }
+}
+
+impl FrameResources {
+    /// The buffers of `rays`, with a coverage texture's `texels` (none: empty) and, when
+    /// `textured`, an RGB buffer of three words a pixel.
+    pub fn new(gpu: &Gpu, rays: &EyeRays, texels: &[u8], textured: bool) -> FrameResources {
+        let storage = wgpu::BufferUsages::STORAGE;
+        let records: Vec<[f32; 12]> = (0..rays.len())
+            .map(|i| {
+                let (d, p) = (rays.dir[i], rays.point[i]);
+                let (t0, t1) = rays.bounds_interval(i);
+                [
+                    d.x,
+                    d.y,
+                    d.z,
+                    finite(rays.depth[i]),
+                    p.x,
+                    p.y,
+                    p.z,
+                    finite(t0),
+                    finite(t1),
+                    if rays.is_hit(i) { 1.0 } else { 0.0 },
+                    0.0,
+                    0.0,
+                ]
+            })
+            .collect();
+        let mut packed = vec![0u32; texels.len().div_ceil(4)];
+        for (k, &b) in texels.iter().enumerate() {
+            packed[k / 4] |= u32::from(b) << (8 * (k % 4));
+        }
+        let pixels = rays.len() as u64;
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        FrameResources {
+            rays: gpu.upload("eye rays", &records, storage),
+            texels: gpu.upload("coverage texture", &packed, storage),
+            counts: gpu.storage_buffer("hard counts", WORD * pixels, copy),
+            covered: gpu.storage_buffer("covered", WORD * pixels, copy),
+            visibility: gpu.storage_buffer("visibility", WORD * pixels, copy),
+            stats: gpu.storage_buffer("statistics", 2 * WORD * STATS, copy),
+            rgb: gpu.storage_buffer("rgb", if textured { 3 * WORD * pixels } else { WORD }, copy),
+            channels: if textured { 3 } else { 1 },
+        }
+    }
+}
+
+/// Per tile a `[start, end)` pair into the same array, then the primitive indices in
+/// submission order (those `keep(primitive, tile)` lets through); and the number of entries.
+pub(crate) fn bins(
+    rays: &EyeRays,
+    footprints: &[Option<ScreenRect>],
+    keep: impl Fn(usize, usize) -> bool,
+) -> (Vec<u32>, u64) {
+    let (tx, ty) = (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE));
+    let mut lists: Vec<Vec<u32>> = vec![Vec::new(); (tx * ty) as usize];
+    for (k, f) in footprints.iter().enumerate() {
+        let Some(f) = f else { continue };
+        for by in f.y0 / TILE..f.y1.div_ceil(TILE) {
+            for bx in f.x0 / TILE..f.x1.div_ceil(TILE) {
+                let t = (by * tx + bx) as usize;
+                if keep(k, t) {
+                    lists[t].push(k as u32);
+                }
+            }
+        }
+    }
+    let mut out = vec![0u32; 2 * lists.len()];
+    let mut entries = 0;
+    for (t, l) in lists.iter().enumerate() {
+        out[2 * t] = out.len() as u32;
+        out.extend(l);
+        out[2 * t + 1] = out.len() as u32;
+        entries += l.len() as u64;
+    }
+    (out, entries)
+}
+
+/// Per 8×8 tile a cone around the eye-ray directions of its pixels: unit axis and the sine of
+/// the half-angle (2 when the half-angle reaches 90°: nothing is culled against it).
+pub(crate) fn tile_cones(rays: &EyeRays) -> Vec<(Vec3, f32)> {
+    let (tx, ty) = (rays.width.div_ceil(TILE), rays.height.div_ceil(TILE));
+    (0..tx * ty)
+        .map(|t| {
+            let (x0, y0) = (t % tx * TILE, t / tx * TILE);
+            let pixels: Vec<Vec3> = (y0..(y0 + TILE).min(rays.height))
+                .flat_map(|y| (x0..(x0 + TILE).min(rays.width)).map(move |x| (x, y)))
+                .map(|(x, y)| rays.dir[(y * rays.width + x) as usize])
+                .collect();
+            let axis = pixels.iter().sum::<Vec3>().normalize_or_zero();
+            let cos = pixels.iter().map(|d| d.dot(axis)).fold(1.0f32, f32::min);
+            let sin = if cos > 0.0 {
+                (1.0 - cos * cos).max(0.0).sqrt()
+            } else {
+                2.0
+            };
+            (axis, sin)
+        })
+        .collect()
+}
+
+/// Whether a tile's eye rays all miss `volume`: one of its planes has the eye outside and
+/// every direction of the tile's cone leaving it (a coarse test a rasterizer makes per tile;
+/// the per-pixel test would reject every pixel, so the images and fragment counts do not
+/// change). Margins of 1e-4 keep it conservative under rounding.
+pub(crate) fn tile_misses(volume: &ConvexVolume, eye: Vec3, cone: (Vec3, f32)) -> bool {
+    let (axis, sin) = cone;
+    volume.planes.iter().any(|&(n, d)| {
+        let len = n.length();
+        n.dot(eye) - d > 1e-4 * (1.0 + d.abs()) && n.dot(axis) >= (sin + 1e-4) * len
+    })
+}
+
+/// A footprint as the WGSL reads it: x0 y0 x1 y1 (zeros without one).
+pub(crate) fn rect(f: &Option<ScreenRect>) -> [u32; 4] {
+    f.map_or([0; 4], |r| [r.x0, r.y0, r.x1, r.y1])
+}
+
+/// The z-fail faces as the WGSL reads them from the `planes` binding: six vec4 per face, the
+/// four corners (w of the first: the count change of a passing fragment, minus the eye's side;
+/// w of the second: the number of corners), the outward normal and the footprint's bits.
+fn face_records(rays: &EyeRays, faces: &[VolumeFace]) -> Vec<[u32; 24]> {
+    faces
+        .iter()
+        .zip(face_footprints(rays, faces))
+        .map(|(f, fp)| {
+            let mut w = [0u32; 24];
+            let ws = [-f.side(rays.eye), f.sides as f32, 0.0, 0.0];
+            for (k, c) in f.corners.iter().chain([&f.normal]).enumerate() {
+                let v = c.extend(ws.get(k).copied().unwrap_or(0.0));
+                for j in 0..4 {
+                    w[4 * k + j] = v[j].to_bits();
+                }
+            }
+            w[20..24].copy_from_slice(&rect(&fp));
+            w
+        })
+        .collect()
+}
+
+/// What the hard phase uploaded for one loop: the hard pass's bind group, the params, quads and
+/// bins buffers the soft pass binds too, and the counts its counters need.
+pub(crate) struct HardUpload {
+    pub group: wgpu::BindGroup,
+    pub buffers: [wgpu::Buffer; 3],
+    pub bin_entries: u64,
+    pub caps: u64,
+}
+
+/// The family's passes over one frame: the bind-group layout of every pass, the program
+/// (the family's WGSL, an algorithm's, the coverage rule) and the hard and accumulate
+/// pipelines.
+pub(crate) struct VolumePasses<'g> {
+    pub gpu: &'g Gpu,
+    pub counting: Counting,
+    pub res: FrameResources,
+    layout: Layout,
+    pub program: Program,
+    /// The hard pass: timed, counting.
+    hard: [wgpu::ComputePipeline; 2],
+    accumulate: wgpu::ComputePipeline,
+    pub groups: (u32, u32),
+    pub pixels: u64,
+    /// The occluders, whose light-facing triangles cap the z-fail volumes.
+    occluders: Mesh,
+}
+
+impl<'g> VolumePasses<'g> {
+    /// The passes over `rays` with `res`, counting as `counting`; `wgsl` is joined after the
+    /// family's WGSL (an algorithm's own entries).
+    pub fn new(
+        gpu: &'g Gpu,
+        rays: &EyeRays,
+        counting: Counting,
+        res: FrameResources,
+        occluders: Mesh,
+        wgsl: &str,
+    ) -> VolumePasses<'g> {
+        // Binding 0 the parameters, 1-7 what the passes read, 8-12 what they write.
+        let binds: Vec<Bind> = (0..=STORAGE_BUFFERS)
+            .map(|b| match b {
+                0 => Bind::Uniform,
+                1..=7 => Bind::ReadOnly,
+                _ => Bind::ReadWrite,
+            })
+            .collect();
+        let layout = Layout::new(gpu, "shadow volumes", wgpu::ShaderStages::COMPUTE, &binds);
+        let sources = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL];
+        let program = Program::new(gpu, "shadow_volume/wgpu.wgsl", &sources, &[Some(&layout)]);
+        VolumePasses {
+            hard: program.compute_pair(gpu, "hard"),
+            accumulate: program.compute(gpu, "accumulate", Some(false)),
+            gpu,
+            counting,
+            res,
+            layout,
+            program,
+            groups: tiles((rays.width, rays.height), TILE),
+            pixels: rays.len() as u64,
+            occluders,
+        }
+    }
+
+    /// The bind group of one pass: `params`, then the primitives (quads, wedge primitives,
+    /// planes or z-fail faces, quad bins, wedge bins).
+    pub fn group(
+        &self,
+        params: &wgpu::Buffer,
+        prims: [&wgpu::Buffer; 5],
+        label: &str,
+    ) -> wgpu::BindGroup {
+        let r = &self.res;
+        let buffers = [params, &r.rays].into_iter().chain(prims).chain([
+            &r.texels,
+            &r.counts,
+            &r.covered,
+            &r.visibility,
+            &r.stats,
+            &r.rgb,
+        ]);
+        let resources: Vec<_> = buffers.map(|b| b.as_entire_binding()).collect();
+        self.layout.group(self.gpu, label, &resources)
+    }
+
+    /// The hard phase's host part: quads (and for z-fail the capped volumes' faces from light
+    /// point `light`), footprints, bins, upload.
+    pub fn upload_quads(
+        &self,
+        rays: &EyeRays,
+        params: &Params,
+        light: Vec3,
+        quads: &[ShadowQuad],
+    ) -> HardUpload {
+        let gpu = self.gpu;
+        let storage = wgpu::BufferUsages::STORAGE;
+        let footprints = quad_footprints(rays, quads);
+        let records: Vec<[u32; 20]> = quads
+            .iter()
+            .zip(&footprints)
+            .map(|(q, f)| {
+                let mut w = [0u32; 20];
+                let eye_side = q.side(rays.eye);
+                for (k, v) in [q.a.extend(eye_side), q.b.extend(0.0)]
+                    .into_iter()
+                    .chain([q.light.extend(0.0), q.normal.extend(0.0)])
+                    .enumerate()
+                {
+                    for c in 0..4 {
+                        w[4 * k + c] = v[c].to_bits();
+                    }
+                }
+                w[16..20].copy_from_slice(&rect(f));
+                w
+            })
+            .collect();
+        let faces = (self.counting == Counting::ZFail)
+            .then(|| zfail_faces(quads, &self.occluders, light, &rays.bounds));
+        let (quad_bins, entries) = match &faces {
+            None => bins(rays, &footprints, |_, _| true),
+            Some(f) => bins(rays, &face_footprints(rays, f), |_, _| true),
+        };
+        let params = gpu.upload(
+            "ssv params",
+            std::slice::from_ref(params),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let quads_buf = gpu.upload("shadow quads", &records, storage);
+        let bins_buf = gpu.upload("quad bins", &quad_bins, storage);
+        let none = gpu.storage_buffer(
+            "no primitives",
+            EMPTY_BYTES as u64,
+            wgpu::BufferUsages::empty(),
+        );
+        let faces_buf = faces.as_ref().map(|f| {
+            let records = face_records(rays, f);
+            gpu.upload("volume faces", &records, storage)
+        });
+        let group = self.group(
+            &params,
+            [
+                &quads_buf,
+                &none,
+                faces_buf.as_ref().unwrap_or(&none),
+                &bins_buf,
+                &none,
+            ],
+            "hard",
+        );
+        HardUpload {
+            group,
+            buffers: [params, quads_buf, bins_buf],
+            bin_entries: entries,
+            caps: faces.map_or(0, |f| (f.len() - quads.len()) as u64),
+        }
+    }
+
+    /// A pass of `pipeline` over the image's tiles with `group`.
+    pub fn pass<'a>(
+        &'a self,
+        label: &'a str,
+        pipeline: &'a wgpu::ComputePipeline,
+        group: &'a wgpu::BindGroup,
+    ) -> Pass<'a> {
+        Pass::compute(label, &[Some(group)], pipeline, self.groups)
+    }
+
+    /// The hard pass of an upload, timed or counting.
+    pub fn hard<'a>(&'a self, up: &'a HardUpload, counting: bool) -> Pass<'a> {
+        self.pass("hard", &self.hard[usize::from(counting)], &up.group)
+    }
+
+    /// `accum_hard`'s accumulation of a sample's lit pixels.
+    pub fn accumulate<'a>(&'a self, up: &'a HardUpload) -> Pass<'a> {
+        self.pass("accumulate", &self.accumulate, &up.group)
+    }
+
+    /// Runs `passes` as an instrumented replay (statistics cleared before, read after) and
+    /// returns the statistics' reader.
+    pub fn replay(&self, passes: Vec<Pass>) -> Result<impl Fn(Stat) -> f64> {
+        let stats = &self.res.stats;
+        let mut steps = vec![Step::Clear(stats)];
+        steps.extend(passes.into_iter().map(Step::Run));
+        steps.push(Step::Read(stats));
+        let raw: Vec<u32> = words(&replay(self.gpu, &steps)?[0]);
+        Ok(move |s: Stat| slot64(&raw, s as usize))
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+
+    /// `Params` against the family's WGSL as the pipelines join it: alone (`accum_hard`) and
+    /// with `soft_shadow_volume`'s soft pass.
+    #[test]
+    fn uniforms_match_wgsl() {
+        let soft = include_str!("../soft_shadow_volume/wgpu.wgsl");
+        for wgsl in ["", soft] {
+            let source = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL].join("\n");
+            assert_eq!(Params::layout_mismatches(&source), Vec::<String>::new());
+        }
+    }
+}

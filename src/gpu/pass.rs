@@ -1,0 +1,744 @@
+//! The GPU pass builder every wgpu execution is written with: bindings declared as data
+//! ([`Bind`] lists, one per bind group), programs (a WGSL module joined from its parts and a
+//! pipeline layout) and the pipelines made from them, passes as data ([`Pass`]), and the one
+//! sequence every execution runs ([`Timed`], [`replay`], [`Timing::output`]):
+//!
+//! 1. the timed submissions: each pass timed by [`timing`] (timestamps inside passes where the
+//!    adapter offers them, the readings checked against the host time of their submission,
+//!    `execution.gpu_ms_invalid` when they cannot be true) and, where asked, its pipeline
+//!    statistics; the last submission copies the readback buffers and resolves the queries;
+//! 2. the instrumented replay: the same passes with the WGSL override `INSTRUMENT` on, counting
+//!    with atomics into buffers that are cleared before and read after;
+//! 3. the output: phases (wall time of their submissions and host work, GPU time of their
+//!    passes, the counters the execution derives from the replay plus the pipeline
+//!    statistics), their counters summed, and the record's `execution` entries.
+
+use std::time::Instant;
+
+use crate::algorithms::FrameOutput;
+use crate::error::Result;
+use crate::record::{Counters, Phase};
+use crate::visibility::VisibilityBuffer;
+
+use super::readback::{words, Staging};
+use super::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
+use super::timing::{self, read_ms_or_warn, GpuTimes, PassTimer};
+use super::{resolve_queries, Gpu};
+
+/// Declares a `#[repr(C)]` struct the GPU reads (a uniform or storage buffer) once, for both
+/// sides: the Rust struct (`Pod`, every field public) and, as `NAME::WGSL`, the WGSL `struct`
+/// declaration that the shaders using it are joined with ([`Program::new`]). Each field names
+/// its Rust type and its WGSL type (`field: [f32; 3] => "vec3<f32>"`); the WGSL struct is called
+/// as given after `as`. Whether WGSL lays the fields out where Rust does (alignment: a `vec3`
+/// takes 16 bytes unless a scalar follows it) is checked by `NAME::layout_mismatches` (tests
+/// only), which parses the shader source as a pipeline joins it with naga
+/// ([`crate::gpu::wgsl_layout`]).
+macro_rules! gpu_struct {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident as $wgsl:literal {
+            $($(#[doc = $doc:literal])* $field:ident: $rty:ty => $wty:literal,)*
+        }
+    ) => {
+        $(#[$meta])*
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+        $vis struct $name {
+            $($(#[doc = $doc])* pub $field: $rty,)*
+        }
+
+        impl $name {
+            /// The WGSL declaration of this struct.
+            pub const WGSL: &'static str = concat!(
+                "struct ", $wgsl, " {\n",
+                $("    ", stringify!($field), ": ", $wty, ",\n",)*
+                "}\n"
+            );
+
+            /// How the WGSL struct in `source` (a shader as a pipeline joins it) differs in
+            /// size or field offsets from this struct; empty when they agree.
+            #[cfg(test)]
+            pub fn layout_mismatches(source: &str) -> Vec<String> {
+                $crate::gpu::wgsl_layout::mismatches(
+                    source,
+                    $wgsl,
+                    std::mem::size_of::<Self>(),
+                    &[$((stringify!($field), std::mem::offset_of!(Self, $field))),*],
+                )
+            }
+        }
+    };
+}
+pub(crate) use gpu_struct;
+
+/// The kind of one binding of a bind group; a group is a list of them, binding `i` at index
+/// `i`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Bind {
+    /// A uniform buffer.
+    Uniform,
+    /// A storage buffer the shaders only read.
+    ReadOnly,
+    /// A storage buffer the shaders write (not visible to vertex shaders).
+    ReadWrite,
+    /// A 2D depth texture.
+    Depth,
+    /// A 2D float texture read with `textureLoad` (not filterable).
+    Float,
+    /// A 2D storage texture of this format, written (not visible to vertex shaders).
+    StorageTexture(wgpu::TextureFormat),
+    /// A non-filtering sampler.
+    Sampler,
+    /// No binding at this index (the WGSL leaves the number to another group layout).
+    Absent,
+}
+
+impl Bind {
+    fn entry(self, binding: u32, stages: wgpu::ShaderStages) -> Option<wgpu::BindGroupLayoutEntry> {
+        let writable = stages - wgpu::ShaderStages::VERTEX;
+        let buffer = |ty| wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        };
+        let texture = |sample_type| wgpu::BindingType::Texture {
+            sample_type,
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        };
+        let storage = |read_only| buffer(wgpu::BufferBindingType::Storage { read_only });
+        let (visibility, ty) = match self {
+            Bind::Uniform => (stages, buffer(wgpu::BufferBindingType::Uniform)),
+            Bind::ReadOnly => (stages, storage(true)),
+            Bind::ReadWrite => (writable, storage(false)),
+            Bind::Depth => (stages, texture(wgpu::TextureSampleType::Depth)),
+            Bind::Float => (
+                stages,
+                texture(wgpu::TextureSampleType::Float { filterable: false }),
+            ),
+            Bind::StorageTexture(format) => (
+                writable,
+                wgpu::BindingType::StorageTexture {
+                    access: wgpu::StorageTextureAccess::WriteOnly,
+                    format,
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                },
+            ),
+            Bind::Sampler => (
+                stages,
+                wgpu::BindingType::Sampler(wgpu::SamplerBindingType::NonFiltering),
+            ),
+            Bind::Absent => return None,
+        };
+        Some(wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty,
+            count: None,
+        })
+    }
+}
+
+/// A bind-group layout made from a [`Bind`] list, and the binding numbers it holds.
+pub struct Layout {
+    pub layout: wgpu::BindGroupLayout,
+    bindings: Vec<u32>,
+}
+
+impl Layout {
+    /// The layout of `binds` (binding `i` at index `i`) visible to `stages`.
+    pub fn new(gpu: &Gpu, label: &str, stages: wgpu::ShaderStages, binds: &[Bind]) -> Layout {
+        let entries: Vec<_> = (0u32..)
+            .zip(binds)
+            .filter_map(|(i, b)| b.entry(i, stages))
+            .collect();
+        Layout {
+            layout: gpu
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some(label),
+                    entries: &entries,
+                }),
+            bindings: entries.iter().map(|e| e.binding).collect(),
+        }
+    }
+
+    /// A bind group of this layout: `resources` in the order of its bindings (absent ones
+    /// skipped).
+    pub fn group(
+        &self,
+        gpu: &Gpu,
+        label: &str,
+        resources: &[wgpu::BindingResource],
+    ) -> wgpu::BindGroup {
+        assert_eq!(resources.len(), self.bindings.len(), "bind group {label}");
+        let entries: Vec<_> = self
+            .bindings
+            .iter()
+            .zip(resources)
+            .map(|(&binding, r)| wgpu::BindGroupEntry {
+                binding,
+                resource: r.clone(),
+            })
+            .collect();
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &self.layout,
+            entries: &entries,
+        })
+    }
+}
+
+/// A texture view as a binding resource.
+pub fn view(v: &wgpu::TextureView) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::TextureView(v)
+}
+
+/// A shader module and the pipeline layout its entry points share.
+pub struct Program {
+    pub module: wgpu::ShaderModule,
+    pub layout: wgpu::PipelineLayout,
+}
+
+/// A render pipeline of a [`Program`]: entry points, vertex input, depth test and colour
+/// target. [`Raster::default`] is a depth-only pass (Depth32Float, `Less`, written) of
+/// triangle lists drawn from both sides.
+#[derive(Clone)]
+pub struct Raster<'a> {
+    pub vs: &'a str,
+    pub fs: &'a str,
+    /// The vertex buffer's stride (bytes) and attributes, if it reads one.
+    pub vertex: Option<(u64, wgpu::VertexStepMode, &'a [wgpu::VertexAttribute])>,
+    pub topology: wgpu::PrimitiveTopology,
+    pub cull: Option<wgpu::Face>,
+    /// A Depth32Float depth test (written), if any.
+    pub depth: Option<wgpu::CompareFunction>,
+    pub color: Option<wgpu::ColorTargetState>,
+    /// The fragment stage's `INSTRUMENT` override, where its WGSL declares one.
+    pub instrument: Option<bool>,
+}
+
+impl Default for Raster<'_> {
+    fn default() -> Self {
+        Raster {
+            vs: "vs",
+            fs: "fs",
+            vertex: None,
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            cull: None,
+            depth: Some(wgpu::CompareFunction::Less),
+            color: None,
+            instrument: None,
+        }
+    }
+}
+
+/// The override constants of a pipeline: `INSTRUMENT` when given.
+fn overrides(instrument: Option<bool>) -> Vec<(&'static str, f64)> {
+    instrument
+        .map(|on| ("INSTRUMENT", f64::from(u8::from(on))))
+        .into_iter()
+        .collect()
+}
+
+impl Program {
+    /// The module joined from `sources` (a prelude first, then the execution's WGSL, then any
+    /// WGSL it appends), with a pipeline layout of `groups` (a `None` leaves a group number
+    /// unused).
+    pub fn new(gpu: &Gpu, label: &str, sources: &[&str], groups: &[Option<&Layout>]) -> Program {
+        let device = &gpu.device;
+        let layouts: Vec<_> = groups.iter().map(|g| g.map(|l| &l.layout)).collect();
+        Program {
+            module: device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(sources.join("\n").into()),
+            }),
+            layout: device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &layouts,
+                immediate_size: 0,
+            }),
+        }
+    }
+
+    /// The compute pipeline of `entry`, with `INSTRUMENT` set where given.
+    pub fn compute(
+        &self,
+        gpu: &Gpu,
+        entry: &str,
+        instrument: Option<bool>,
+    ) -> wgpu::ComputePipeline {
+        let constants = overrides(instrument);
+        gpu.device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&self.layout),
+                module: &self.module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
+                cache: None,
+            })
+    }
+
+    /// The timed (`INSTRUMENT` off) and counting (on) pipelines of a compute `entry`.
+    pub fn compute_pair(&self, gpu: &Gpu, entry: &str) -> [wgpu::ComputePipeline; 2] {
+        [false, true].map(|on| self.compute(gpu, entry, Some(on)))
+    }
+
+    /// The render pipeline `r`.
+    pub fn render(&self, gpu: &Gpu, r: &Raster) -> wgpu::RenderPipeline {
+        let constants = overrides(r.instrument);
+        let buffers: Vec<_> = r
+            .vertex
+            .iter()
+            .map(|&(array_stride, step_mode, attributes)| {
+                Some(wgpu::VertexBufferLayout {
+                    array_stride,
+                    step_mode,
+                    attributes,
+                })
+            })
+            .collect();
+        let targets = [r.color.clone()];
+        gpu.device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(r.fs),
+                layout: Some(&self.layout),
+                vertex: wgpu::VertexState {
+                    module: &self.module,
+                    entry_point: Some(r.vs),
+                    compilation_options: Default::default(),
+                    buffers: &buffers,
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: r.topology,
+                    cull_mode: r.cull,
+                    ..Default::default()
+                },
+                depth_stencil: r.depth.map(|compare| wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(compare),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &self.module,
+                    entry_point: Some(r.fs),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
+                    targets: if r.color.is_some() { &targets } else { &[] },
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+    }
+}
+
+/// What a pass does.
+#[derive(Clone)]
+pub enum Work<'a> {
+    /// Compute dispatches in order: a pipeline and its workgroup counts (x, y); one with no
+    /// workgroups in x is skipped.
+    Dispatch(Vec<(&'a wgpu::ComputePipeline, (u32, u32))>),
+    /// One draw into cleared targets.
+    Draw(Draw<'a>),
+}
+
+/// A draw: `count` vertices (or indices, with an index buffer) times `instances`, into a colour
+/// target cleared to 0 and a depth target cleared to 1.
+#[derive(Clone)]
+pub struct Draw<'a> {
+    pub pipeline: &'a wgpu::RenderPipeline,
+    pub color: Option<&'a wgpu::TextureView>,
+    pub depth: Option<&'a wgpu::TextureView>,
+    pub vertices: Option<&'a wgpu::Buffer>,
+    /// A `u32` index buffer.
+    pub indices: Option<&'a wgpu::Buffer>,
+    pub count: u32,
+    pub instances: u32,
+}
+
+/// One GPU pass: its label, its bind groups (group `i` at index `i`; `None` leaves one unset)
+/// and its work.
+#[derive(Clone)]
+pub struct Pass<'a> {
+    pub label: &'a str,
+    pub groups: Vec<Option<&'a wgpu::BindGroup>>,
+    pub work: Work<'a>,
+}
+
+/// Workgroups covering `size` with square workgroups of side `side`.
+pub fn tiles(size: (u32, u32), side: u32) -> (u32, u32) {
+    (size.0.div_ceil(side), size.1.div_ceil(side))
+}
+
+impl<'a> Pass<'a> {
+    /// A compute pass of one dispatch.
+    pub fn compute(
+        label: &'a str,
+        groups: &[Option<&'a wgpu::BindGroup>],
+        pipeline: &'a wgpu::ComputePipeline,
+        workgroups: (u32, u32),
+    ) -> Pass<'a> {
+        Pass {
+            label,
+            groups: groups.to_vec(),
+            work: Work::Dispatch(vec![(pipeline, workgroups)]),
+        }
+    }
+
+    /// A render pass of one draw.
+    pub fn draw(
+        label: &'a str,
+        groups: &[Option<&'a wgpu::BindGroup>],
+        draw: Draw<'a>,
+    ) -> Pass<'a> {
+        Pass {
+            label,
+            groups: groups.to_vec(),
+            work: Work::Draw(draw),
+        }
+    }
+
+    /// Records the pass, timed as `timer`'s pass `index` and with its statistics in `stats`
+    /// when given.
+    fn record(
+        &self,
+        e: &mut wgpu::CommandEncoder,
+        timer: Option<&PassTimer>,
+        stats: Option<&PassStats>,
+        index: u32,
+    ) {
+        let timed = timer.map(|t| (t, index));
+        match &self.work {
+            Work::Dispatch(dispatches) => {
+                let mut pass = timing::compute_pass(e, self.label, timed);
+                if let Some(s) = stats {
+                    s.begin_compute(&mut pass, index);
+                }
+                for (i, g) in self.groups.iter().enumerate() {
+                    if let Some(g) = g {
+                        pass.set_bind_group(i as u32, *g, &[]);
+                    }
+                }
+                for &(pipeline, (x, y)) in dispatches {
+                    if x > 0 {
+                        pass.set_pipeline(pipeline);
+                        pass.dispatch_workgroups(x, y, 1);
+                    }
+                }
+                if stats.is_some() {
+                    pass.end_pipeline_statistics_query();
+                }
+            }
+            Work::Draw(d) => {
+                let color = d.color.map(|view| wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                });
+                let colors = [color];
+                let desc = wgpu::RenderPassDescriptor {
+                    label: Some(self.label),
+                    color_attachments: if d.color.is_some() { &colors } else { &[] },
+                    depth_stencil_attachment: d.depth.map(|view| {
+                        wgpu::RenderPassDepthStencilAttachment {
+                            view,
+                            depth_ops: Some(wgpu::Operations {
+                                load: wgpu::LoadOp::Clear(1.0),
+                                store: wgpu::StoreOp::Store,
+                            }),
+                            stencil_ops: None,
+                        }
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                };
+                let mut pass = timing::render_pass(e, desc, timed);
+                if let Some(s) = stats {
+                    s.begin_render(&mut pass, index);
+                }
+                pass.set_pipeline(d.pipeline);
+                for (i, g) in self.groups.iter().enumerate() {
+                    if let Some(g) = g {
+                        pass.set_bind_group(i as u32, *g, &[]);
+                    }
+                }
+                if let Some(v) = d.vertices {
+                    pass.set_vertex_buffer(0, v.slice(..));
+                }
+                match d.indices {
+                    Some(i) => {
+                        pass.set_index_buffer(i.slice(..), wgpu::IndexFormat::Uint32);
+                        pass.draw_indexed(0..d.count, 0, 0..d.instances);
+                    }
+                    None => pass.draw(0..d.count, 0..d.instances),
+                }
+                if stats.is_some() {
+                    pass.end_pipeline_statistics_query();
+                }
+            }
+        }
+    }
+}
+
+/// Which pipeline statistics a run's phases take from its passes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Statistics {
+    /// None are queried.
+    Off,
+    /// Every statistic of every pass (`pipeline.*`).
+    All,
+    /// Compute-shader invocations only (compute passes: the graphics statistics are zero).
+    Compute,
+}
+
+/// The timed submissions of a run: `passes` GPU passes in all, each belonging to one of the
+/// run's phases, plus host work timed into phases.
+pub struct Timed<'g> {
+    gpu: &'g Gpu,
+    timer: Option<PassTimer>,
+    stats: Option<PassStats>,
+    statistics: Statistics,
+    passes: u32,
+    phase_of_pass: Vec<usize>,
+    names: Vec<String>,
+    wall: Vec<f64>,
+    readback: Vec<(&'g wgpu::Buffer, Staging)>,
+}
+
+impl<'g> Timed<'g> {
+    /// A run of `passes` timed passes in the phases `names`; `readback` is copied to the host
+    /// after the last pass (the visibility first).
+    pub fn new(
+        gpu: &'g Gpu,
+        names: &[&str],
+        passes: u32,
+        statistics: Statistics,
+        readback: &[&'g wgpu::Buffer],
+    ) -> Timed<'g> {
+        Timed {
+            gpu,
+            timer: PassTimer::new(gpu, passes),
+            stats: (statistics != Statistics::Off)
+                .then(|| PassStats::new(gpu, passes))
+                .flatten(),
+            statistics,
+            passes,
+            phase_of_pass: Vec::new(),
+            names: names.iter().map(|n| n.to_string()).collect(),
+            wall: vec![0.0; names.len()],
+            readback: readback
+                .iter()
+                .map(|b| (*b, Staging::new(gpu, "readback", b.size())))
+                .collect(),
+        }
+    }
+
+    /// Submits `passes` of phase `phase` and waits for them; their wall time goes to the phase.
+    /// The submission holding the run's last pass also copies the readback buffers and
+    /// resolves the queries.
+    pub fn submit(&mut self, phase: usize, passes: &[Pass]) -> Result<()> {
+        let first = self.phase_of_pass.len() as u32;
+        let last = first + passes.len() as u32 == self.passes;
+        let wall = self.gpu.submit(|e| {
+            for (k, p) in (first..).zip(passes) {
+                p.record(e, self.timer.as_ref(), self.stats.as_ref(), k);
+            }
+            if last {
+                for (b, s) in &self.readback {
+                    s.copy(e, b);
+                }
+                resolve_queries(e, self.timer.as_ref(), self.stats.as_ref());
+            }
+        })?;
+        self.wall[phase] += wall;
+        self.phase_of_pass.extend(passes.iter().map(|_| phase));
+        Ok(())
+    }
+
+    /// Adds `ms` of host work measured elsewhere to phase `phase`.
+    pub fn add_wall(&mut self, phase: usize, ms: f64) {
+        self.wall[phase] += ms;
+    }
+
+    /// Runs host work `f` as part of phase `phase` (its wall time goes to the phase).
+    pub fn host<T>(&mut self, phase: usize, f: impl FnOnce() -> T) -> T {
+        let start = Instant::now();
+        let out = f();
+        self.wall[phase] += start.elapsed().as_secs_f64() * 1e3;
+        out
+    }
+
+    /// Reads back the buffers, the pass times (checked, [`timing`]) and the statistics.
+    pub fn finish(self) -> Result<Timing<'g>> {
+        let gpu = self.gpu;
+        let start = Instant::now();
+        let readback = self
+            .readback
+            .iter()
+            .map(|(_, s)| s.read(gpu))
+            .collect::<Result<Vec<_>>>()?;
+        let readback_ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut warnings = Vec::new();
+        let times = read_ms_or_warn(gpu, &self.timer, &mut warnings)?;
+        let stats = match self.statistics {
+            Statistics::Off => None,
+            _ => read_or_warn(gpu, &self.stats, &mut warnings)?,
+        };
+        Ok(Timing {
+            gpu,
+            names: self.names,
+            wall: self.wall,
+            phase_of_pass: self.phase_of_pass,
+            statistics: self.statistics,
+            times,
+            stats,
+            readback,
+            readback_ms,
+            warnings,
+        })
+    }
+}
+
+/// What the timed submissions gave: buffers read back, times, statistics, warnings.
+pub struct Timing<'g> {
+    gpu: &'g Gpu,
+    names: Vec<String>,
+    wall: Vec<f64>,
+    phase_of_pass: Vec<usize>,
+    statistics: Statistics,
+    pub times: GpuTimes,
+    stats: Option<Vec<Counters>>,
+    /// The readback buffers' bytes, in the order given to [`Timed::new`].
+    pub readback: Vec<Vec<u8>>,
+    readback_ms: f64,
+    pub warnings: Vec<String>,
+}
+
+impl Timing<'_> {
+    /// The frame output: the visibility (the first readback buffer, `width`×`height`), one
+    /// phase per name with `counters[i]` and the pipeline statistics of its passes, the
+    /// counters of all phases summed, the GPU time of all passes, and in `execution` the
+    /// adapter, how the GPU time was obtained, the readback time and `note` (how the counters
+    /// were obtained).
+    pub fn output(
+        self,
+        (width, height): (u32, u32),
+        counters: Vec<Counters>,
+        note: &str,
+    ) -> FrameOutput {
+        let mut phases: Vec<Phase> = self
+            .names
+            .iter()
+            .zip(counters)
+            .zip(&self.wall)
+            .enumerate()
+            .map(|(i, ((name, counters), &wall_ms))| {
+                let passes = || {
+                    self.phase_of_pass
+                        .iter()
+                        .enumerate()
+                        .filter(move |p| *p.1 == i)
+                };
+                Phase {
+                    name: name.clone(),
+                    wall_ms,
+                    model_ms: None,
+                    gpu_ms: match (&self.times.ms, passes().next()) {
+                        (Some(t), Some(_)) => Some(passes().map(|(k, _)| t[k]).sum()),
+                        _ => None,
+                    },
+                    counters,
+                }
+            })
+            .collect();
+        if let Some(stats) = &self.stats {
+            for (s, &phase) in stats.iter().zip(&self.phase_of_pass) {
+                let c = &mut phases[phase].counters;
+                match self.statistics {
+                    Statistics::All => c.merge(s),
+                    _ => {
+                        if let Some(v) = s.get(COMPUTE_INVOCATIONS) {
+                            c.add(COMPUTE_INVOCATIONS, v);
+                        }
+                    }
+                }
+            }
+        }
+        let mut total = Counters::default();
+        for p in &phases {
+            total.merge(&p.counters);
+        }
+        let mut execution = self.gpu.execution();
+        self.times.record(&mut execution);
+        execution.insert("readback_ms".into(), serde_json::json!(self.readback_ms));
+        execution.insert("gpu_counters".into(), serde_json::json!(note));
+        FrameOutput {
+            visibility: VisibilityBuffer {
+                width,
+                height,
+                data: words(&self.readback[0]),
+            },
+            counters: total,
+            phases,
+            model_ms: None,
+            gpu_ms: self.times.ms.as_ref().map(|t| t.iter().sum()),
+            execution,
+            warnings: self.warnings,
+            rgb: None,
+        }
+    }
+}
+
+/// One step of an instrumented replay.
+pub enum Step<'a> {
+    /// Zero a counting buffer.
+    Clear(&'a wgpu::Buffer),
+    /// Record a pass (untimed, with its counting pipelines).
+    Run(Pass<'a>),
+    /// Copy a buffer to the host (its bytes come back in step order).
+    Read(&'a wgpu::Buffer),
+}
+
+/// Runs `steps` in one submission and returns the bytes of every [`Step::Read`] in order.
+pub fn replay(gpu: &Gpu, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
+    let stagings: Vec<(usize, Staging)> = steps
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| match s {
+            Step::Read(b) => Some((i, Staging::new(gpu, "counts readback", b.size()))),
+            _ => None,
+        })
+        .collect();
+    gpu.submit(|e| {
+        for (i, s) in steps.iter().enumerate() {
+            match s {
+                Step::Clear(b) => e.clear_buffer(b, 0, None),
+                Step::Run(p) => p.record(e, None, None, 0),
+                Step::Read(b) => {
+                    let (_, staging) = stagings.iter().find(|(k, _)| *k == i).expect("staged");
+                    staging.copy(e, b);
+                }
+            }
+        }
+    })?;
+    stagings.iter().map(|(_, s)| s.read(gpu)).collect()
+}
+
+/// The 64-bit statistics slot `i` of a buffer of (low, high) `u32` pairs, as a figure.
+pub fn slot64(raw: &[u32], i: usize) -> f64 {
+    (u64::from(raw[2 * i + 1]) << 32 | u64::from(raw[2 * i])) as f64
+}
