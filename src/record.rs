@@ -27,6 +27,20 @@ impl Counters {
         self.0.get(name).copied()
     }
 
+    /// Adds memory traffic of kind `kind` (`mem_est` or `mem_model`): `<kind>.<buffer>.read_bytes`
+    /// for each of `reads`, `<kind>.<buffer>.write_bytes` for each of `writes`, and their sums to
+    /// `<kind>.read_bytes` and `<kind>.write_bytes`, so a total is always the sum of its
+    /// buffers. Bytes.
+    pub fn add_traffic(&mut self, kind: &str, reads: &[(&str, f64)], writes: &[(&str, f64)]) {
+        for (dir, list) in [("read", reads), ("write", writes)] {
+            for (buffer, bytes) in list {
+                self.add(&format!("{kind}.{buffer}.{dir}_bytes"), *bytes);
+            }
+            let total = list.iter().map(|(_, b)| b).sum();
+            self.add(&format!("{kind}.{dir}_bytes"), total);
+        }
+    }
+
     /// Adds every counter of `other` into `self`.
     pub fn merge(&mut self, other: &Counters) {
         for (k, v) in &other.0 {

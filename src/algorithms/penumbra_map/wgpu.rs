@@ -265,8 +265,11 @@ impl<'g> PenumbraPasses<'g> {
         let mut eye = p.lookup_counters(frame, &counts[2]);
         let taps = f64::from(counts[2].extra_taps);
         eye.set("penumbra_map.taps", taps);
-        eye.set("mem_est.penumbra_map.read_bytes", taps * DEPTH_TEXEL_BYTES);
-        eye.add("mem_est.read_bytes", taps * DEPTH_TEXEL_BYTES);
+        eye.add_traffic(
+            "mem_est",
+            &[("penumbra_map", taps * DEPTH_TEXEL_BYTES)],
+            &[],
+        );
         let counters = vec![
             p.raster_counters(&counts[0]),
             silhouette_counters(&s),
@@ -305,16 +308,13 @@ impl<'g> PenumbraPasses<'g> {
         let clear = f64::from(self.passes.resolution).powi(2) * DEPTH_TEXEL_BYTES;
         let map_read = kept * DEPTH_TEXEL_BYTES;
         let map_write = clear + kept * DEPTH_TEXEL_BYTES;
-        k.set("mem_est.penumbra_vertices.read_bytes", vertex_bytes);
-        k.set("mem_est.penumbra_indices.read_bytes", index_bytes);
-        k.set("mem_est.shadow_map.read_bytes", shadow_read);
-        k.set("mem_est.penumbra_map.read_bytes", map_read);
-        k.set("mem_est.penumbra_map.write_bytes", map_write);
-        k.set(
-            "mem_est.read_bytes",
-            vertex_bytes + index_bytes + shadow_read + map_read,
-        );
-        k.set("mem_est.write_bytes", map_write);
+        let reads = [
+            ("penumbra_vertices", vertex_bytes),
+            ("penumbra_indices", index_bytes),
+            ("shadow_map", shadow_read),
+            ("penumbra_map", map_read),
+        ];
+        k.add_traffic("mem_est", &reads, &[("penumbra_map", map_write)]);
         k
     }
 }

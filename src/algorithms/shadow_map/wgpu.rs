@@ -445,12 +445,12 @@ impl<'g> Passes<'g> {
         // plus one per fragment.
         let map_read = fragments * DEPTH_TEXEL_BYTES;
         let map_write = clear + fragments * DEPTH_TEXEL_BYTES;
-        k.set("mem_est.occluder_vertices.read_bytes", vertex_bytes);
-        k.set("mem_est.occluder_indices.read_bytes", index_bytes);
-        k.set("mem_est.shadow_map.read_bytes", map_read);
-        k.set("mem_est.shadow_map.write_bytes", map_write);
-        k.set("mem_est.read_bytes", vertex_bytes + index_bytes + map_read);
-        k.set("mem_est.write_bytes", map_write);
+        let reads = [
+            ("occluder_vertices", vertex_bytes),
+            ("occluder_indices", index_bytes),
+            ("shadow_map", map_read),
+        ];
+        k.add_traffic("mem_est", &reads, &[("shadow_map", map_write)]);
         k
     }
 
@@ -466,12 +466,8 @@ impl<'g> Passes<'g> {
         // Every pixel reads its position (and hit flag); hit pixels also read their normal.
         let gbuffer = (pixels + hits) * GBUFFER_ENTRY_BYTES;
         let map_read = taps * DEPTH_TEXEL_BYTES;
-        let vis_write = pixels * 4.0;
-        k.set("mem_est.gbuffer.read_bytes", gbuffer);
-        k.set("mem_est.shadow_map.read_bytes", map_read);
-        k.set("mem_est.visibility.write_bytes", vis_write);
-        k.set("mem_est.read_bytes", gbuffer + map_read);
-        k.set("mem_est.write_bytes", vis_write);
+        let reads = [("gbuffer", gbuffer), ("shadow_map", map_read)];
+        k.add_traffic("mem_est", &reads, &[("visibility", pixels * 4.0)]);
         k
     }
 }

@@ -479,19 +479,18 @@ impl<'g> Passes<'g> {
         let grid_read = 2.0 * w * cells;
         let grid_write = 3.0 * w * cells + 2.0 * w * n;
         let samples_write = SAMPLE_BYTES as f64 * n + 2.0 * w * n;
-        let vis_write = w * pixels;
-        k.set("mem_est.gbuffer.read_bytes", gbuffer);
-        k.set("mem_est.points.read_bytes", points_read);
-        k.set("mem_est.points.write_bytes", points_write);
-        k.set("mem_est.izb_grid.read_bytes", grid_read);
-        k.set("mem_est.izb_grid.write_bytes", grid_write);
-        k.set("mem_est.izb_samples.write_bytes", samples_write);
-        k.set("mem_est.visibility.write_bytes", vis_write);
-        k.set("mem_est.read_bytes", gbuffer + points_read + grid_read);
-        k.set(
-            "mem_est.write_bytes",
-            points_write + grid_write + samples_write + vis_write,
-        );
+        let reads = [
+            ("gbuffer", gbuffer),
+            ("points", points_read),
+            ("izb_grid", grid_read),
+        ];
+        let writes = [
+            ("points", points_write),
+            ("izb_grid", grid_write),
+            ("izb_samples", samples_write),
+            ("visibility", w * pixels),
+        ];
+        k.add_traffic("mem_est", &reads, &writes);
         k
     }
 
@@ -512,12 +511,14 @@ impl<'g> Passes<'g> {
         let triangles = TRIANGLE_BYTES as f64 * f64::from(self.params.triangles);
         let grid = 2.0 * w * columns;
         let samples = SAMPLE_BYTES as f64 * tests;
-        k.set("mem_est.light_triangles.read_bytes", triangles);
-        k.set("mem_est.izb_grid.read_bytes", grid);
-        k.set("mem_est.izb_samples.read_bytes", samples);
-        k.set("mem_est.occlusion.write_bytes", w * hits);
-        k.set("mem_est.read_bytes", triangles + grid + samples + w * hits);
-        k.set("mem_est.write_bytes", w * hits);
+        // Each covered sample's depth complexity is an atomic increment: read and written.
+        let reads = [
+            ("light_triangles", triangles),
+            ("izb_grid", grid),
+            ("izb_samples", samples),
+            ("occlusion", w * hits),
+        ];
+        k.add_traffic("mem_est", &reads, &[("occlusion", w * hits)]);
         k
     }
 
@@ -544,18 +545,14 @@ impl<'g> Passes<'g> {
         let samples = SAMPLE_BYTES as f64 * (fill + n);
         let occlusion_read = w * contributing + 2.0 * w * n;
         let occlusion_write = w * contributing;
-        let vis_write = w * n;
-        k.set("mem_est.penumbra_edges.read_bytes", edges);
-        k.set("mem_est.izb_grid.read_bytes", grid);
-        k.set("mem_est.izb_samples.read_bytes", samples);
-        k.set("mem_est.occlusion.read_bytes", occlusion_read);
-        k.set("mem_est.occlusion.write_bytes", occlusion_write);
-        k.set("mem_est.visibility.write_bytes", vis_write);
-        k.set(
-            "mem_est.read_bytes",
-            edges + grid + samples + occlusion_read,
-        );
-        k.set("mem_est.write_bytes", occlusion_write + vis_write);
+        let reads = [
+            ("penumbra_edges", edges),
+            ("izb_grid", grid),
+            ("izb_samples", samples),
+            ("occlusion", occlusion_read),
+        ];
+        let writes = [("occlusion", occlusion_write), ("visibility", w * n)];
+        k.add_traffic("mem_est", &reads, &writes);
         k
     }
 }

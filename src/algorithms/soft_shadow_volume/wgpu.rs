@@ -408,13 +408,13 @@ impl<'g> Passes<'g> {
         let bins = (WORD * (lg.quad_bin_entries + 2 * self.tiles())) as f64;
         let depth = fill * DEPTH_BYTES as f64;
         let vbuffer = (VBUFFER_BYTES * self.v.pixels) as f64;
-        k.add("mem_est.eye_rays.read_bytes", rays);
-        k.add("mem_est.shadow_quads.read_bytes", quads);
-        k.add("mem_est.quad_bins.read_bytes", bins);
-        k.add("mem_est.depth.read_bytes", depth);
-        k.add("mem_est.vbuffer.write_bytes", vbuffer);
-        k.add("mem_est.read_bytes", rays + quads + bins + depth);
-        k.add("mem_est.write_bytes", vbuffer);
+        let reads = [
+            ("eye_rays", rays),
+            ("shadow_quads", quads),
+            ("quad_bins", bins),
+            ("depth", depth),
+        ];
+        k.add_traffic("mem_est", &reads, &[("vbuffer", vbuffer)]);
     }
 
     /// `soft`: fill, overdraw, shader invocations, culled fragments and fragments inside wedges
@@ -466,22 +466,22 @@ impl<'g> Passes<'g> {
         let vbuffer = (VBUFFER_BYTES * u64::from(self.v.res.channels)) as f64 * covered;
         let counts = (WORD * self.v.pixels) as f64;
         let out = (2 * WORD * self.v.pixels) as f64;
-        k.add("mem_est.eye_rays.read_bytes", rays);
-        k.add("mem_est.wedge_primitives.read_bytes", prims);
-        k.add("mem_est.wedge_bins.read_bytes", bins);
-        k.add("mem_est.shadow_quads.read_bytes", quads);
-        k.add("mem_est.depth.read_bytes", depth);
-        k.add("mem_est.stencil.read_bytes", stencil_r);
-        k.add("mem_est.stencil.write_bytes", stencil_w);
-        k.add("mem_est.vbuffer.read_bytes", vbuffer + counts);
-        k.add("mem_est.vbuffer.write_bytes", vbuffer);
-        k.add("mem_est.coverage_texture.read_bytes", texture_reads);
-        k.add("mem_est.visibility.write_bytes", out);
-        k.add(
-            "mem_est.read_bytes",
-            rays + prims + bins + quads + depth + stencil_r + vbuffer + counts + texture_reads,
-        );
-        k.add("mem_est.write_bytes", stencil_w + vbuffer + out);
+        let reads = [
+            ("eye_rays", rays),
+            ("wedge_primitives", prims),
+            ("wedge_bins", bins),
+            ("shadow_quads", quads),
+            ("depth", depth),
+            ("stencil", stencil_r),
+            ("vbuffer", vbuffer + counts),
+            ("coverage_texture", texture_reads),
+        ];
+        let writes = [
+            ("stencil", stencil_w),
+            ("vbuffer", vbuffer),
+            ("visibility", out),
+        ];
+        k.add_traffic("mem_est", &reads, &writes);
     }
 
     fn tiles(&self) -> u64 {
