@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
 
-use crate::error::InputError;
+use crate::error::{names_or_none, InputError};
 use crate::util::hash::Fnv64;
 
 /// Rec. 709 luminance weights of r, g, b.
@@ -97,11 +97,7 @@ impl LightTextureSpec {
                 field,
                 format!(
                     "give exactly one of checker, stripes, color or png, got {}",
-                    if given.is_empty() {
-                        "none".to_string()
-                    } else {
-                        given.join(", ")
-                    }
+                    names_or_none(&given)
                 ),
             ));
         }
