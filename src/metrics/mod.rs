@@ -161,10 +161,11 @@ pub fn write_error_heatmap(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn buf(data: Vec<f32>) -> VisibilityBuffer {
+    /// A one-row buffer of `data`.
+    pub(crate) fn buf(data: Vec<f32>) -> VisibilityBuffer {
         VisibilityBuffer {
             width: data.len() as u32,
             height: 1,
