@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
+use serde_with::skip_serializing_none;
 
 use crate::error::InputError;
 use crate::frame::RunParams;
@@ -250,13 +251,11 @@ pub struct GroundPlane {
 
 /// What was added around user meshes to make a scene ([`framed_scene`]): each part is absent
 /// where the file or scenario gave its own. Recorded in every run of such a scene.
+#[skip_serializing_none]
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Framing {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ground: Option<GroundPlane>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera: Option<Camera>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub light: Option<Light>,
 }
 
