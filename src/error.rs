@@ -145,6 +145,15 @@ pub fn unknown_name(what: &str, word: &str, candidates: &[&str]) -> String {
     )
 }
 
+/// The `names` joined by ", ", or "none" without any: for messages that list what is there.
+pub fn names_or_none(names: &[&str]) -> String {
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
 fn edit_distance(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();
     let mut prev: Vec<usize> = (0..=b.len()).collect();

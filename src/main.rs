@@ -150,16 +150,45 @@ struct ExportArgs {
     /// their roles, the scene's camera and light, no added ground.
     #[arg(long)]
     scenario: Option<PathBuf>,
+    #[command(flatten)]
+    generator: GeneratorArgs,
+    #[arg(long)]
+    seed: Option<u64>,
+}
+
+/// The generator flags `render` and `scene export` share.
+#[derive(clap::Args)]
+struct GeneratorArgs {
     /// Target triangle count of a generated scene.
     #[arg(long)]
     triangles: Option<u32>,
+    /// Height of the occluder above the receiver in generated scenes (scene units).
     #[arg(long)]
     occluder_height: Option<f32>,
     /// Lateral offset of the moving occluder along x (scene units; paper 002 §5.2.5).
     #[arg(long, allow_hyphen_values = true)]
     occluder_offset: Option<f32>,
-    #[arg(long)]
-    seed: Option<u64>,
+}
+
+impl GeneratorArgs {
+    /// The generator parameters with `seed`, the flags checked as a scenario's would be.
+    fn params(&self, seed: u64) -> std::result::Result<GeneratorParams, InputError> {
+        if let Some(v) = self.triangles {
+            check::triangles("--triangles", v)?;
+        }
+        if let Some(v) = self.occluder_height {
+            check::occluder_height("--occluder-height", v)?;
+        }
+        if let Some(v) = self.occluder_offset {
+            check::occluder_offset("--occluder-offset", v)?;
+        }
+        Ok(GeneratorParams {
+            triangles: self.triangles,
+            seed,
+            occluder_height: self.occluder_height,
+            occluder_offset: self.occluder_offset,
+        })
+    }
 }
 
 #[derive(clap::Args)]
@@ -272,15 +301,8 @@ struct RenderArgs {
     /// Eye image size, WxH.
     #[arg(long, default_value = "320x240")]
     image: String,
-    /// Target triangle count of a generated scene.
-    #[arg(long)]
-    triangles: Option<u32>,
-    /// Height of the occluder above the receiver in generated scenes (scene units).
-    #[arg(long)]
-    occluder_height: Option<f32>,
-    /// Lateral offset of the moving occluder along x (scene units; paper 002 §5.2.5).
-    #[arg(long, allow_hyphen_values = true)]
-    occluder_offset: Option<f32>,
+    #[command(flatten)]
+    generator: GeneratorArgs,
     /// Light samples per pixel of the reference (a perfect square).
     #[arg(long, default_value_t = algorithms::reference::DEFAULT_SAMPLES)]
     samples: u32,
@@ -421,21 +443,13 @@ fn render(a: RenderArgs) -> Result<()> {
     if let Some(v) = a.light_size {
         check::light_size("--light-size", v)?;
     }
-    check_generator_args(a.triangles, a.occluder_height, a.occluder_offset)?;
+    let seed = a.seed.unwrap_or(1);
+    let generator = a.generator.params(seed)?;
     let machine = MachineConfig::resolve("--machine", &a.machine, Path::new("."))?;
     if let Some(c) = a.cores {
         check::cores("--cores", c)?;
     }
-    let seed = a.seed.unwrap_or(1);
-    let (mut scene, notes) = scenario::scene_from_arg(
-        &a.scene,
-        GeneratorParams {
-            triangles: a.triangles,
-            seed,
-            occluder_height: a.occluder_height,
-            occluder_offset: a.occluder_offset,
-        },
-    )?;
+    let (mut scene, notes) = scenario::scene_from_arg(&a.scene, generator)?;
     for line in notes.framing.iter().flat_map(|f| f.describe()) {
         println!("{line}");
     }
@@ -453,8 +467,8 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     scene.light = harness::light_for_run(&scene, info)?;
     let params = shadowbench::frame::RunParams {
-        occluder_height: a.occluder_height,
-        occluder_offset: a.occluder_offset,
+        occluder_height: generator.occluder_height,
+        occluder_offset: generator.occluder_offset,
         cores: a.cores,
         ..shadowbench::frame::RunParams::of_scene(&scene, image, a.map_resolution, a.tile_size)
     };
@@ -507,35 +521,9 @@ fn render(a: RenderArgs) -> Result<()> {
     }
 }
 
-/// The generator flags `render` and `scene export` share, checked as a scenario's would be.
-fn check_generator_args(
-    triangles: Option<u32>,
-    occluder_height: Option<f32>,
-    occluder_offset: Option<f32>,
-) -> std::result::Result<(), InputError> {
-    if let Some(v) = triangles {
-        check::triangles("--triangles", v)?;
-    }
-    if let Some(v) = occluder_height {
-        check::occluder_height("--occluder-height", v)?;
-    }
-    if let Some(v) = occluder_offset {
-        check::occluder_offset("--occluder-offset", v)?;
-    }
-    Ok(())
-}
-
 fn scene_export(a: ExportArgs) -> Result<()> {
-    check_generator_args(a.triangles, a.occluder_height, a.occluder_offset)?;
-    let (scene, notes) = scenario::scene_from_arg(
-        &a.scene,
-        GeneratorParams {
-            triangles: a.triangles,
-            seed: a.seed.unwrap_or(1),
-            occluder_height: a.occluder_height,
-            occluder_offset: a.occluder_offset,
-        },
-    )?;
+    let generator = a.generator.params(a.seed.unwrap_or(1))?;
+    let (scene, notes) = scenario::scene_from_arg(&a.scene, generator)?;
     for w in &notes.warnings {
         eprintln!("warning: {w}");
     }
@@ -708,16 +696,37 @@ fn run(a: RunArgs) -> Result<()> {
             out_dir.join("results.json").display()
         );
         if verbosity != harness::Verbosity::Quiet {
-            println!(
-                "report: {} ({} charts)",
-                written.index.display(),
-                written.charts.len()
-            );
+            print_report(&written);
         }
         reports.push((dir.clone(), results));
     }
-    let claims = report::write_claims(&out, &reports, several)?;
-    if verbosity != harness::Verbosity::Quiet {
+    write_claims(
+        &out,
+        &reports,
+        several,
+        verbosity != harness::Verbosity::Quiet,
+    )
+}
+
+/// Says where a report was written.
+fn print_report(written: &report::Report) {
+    println!(
+        "report: {} ({} charts)",
+        written.index.display(),
+        written.charts.len()
+    );
+}
+
+/// Writes the claims verdicts of `reports` (and the index of several under `out`); prints the
+/// verdicts when `print_claims` and where the index is.
+fn write_claims(
+    out: &Path,
+    reports: &[(String, harness::output::ResultsFile)],
+    several: bool,
+    print_claims: bool,
+) -> Result<()> {
+    let claims = report::write_claims(out, reports, several)?;
+    if print_claims {
         print!("{claims}");
     }
     if several {
@@ -754,19 +763,10 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
         if several && !report::same_dir(report::results_dir(path), &dir) {
             harness::output::write_results(&dir, &file)?;
         }
-        let written = report::write_report(&dir, &file)?;
-        println!(
-            "report: {} ({} charts)",
-            written.index.display(),
-            written.charts.len()
-        );
+        print_report(&report::write_report(&dir, &file)?);
         reports.push((name, file));
     }
-    print!("{}", report::write_claims(&out, &reports, several)?);
-    if several {
-        println!("index: {}", out.join("index.html").display());
-    }
-    Ok(())
+    write_claims(&out, &reports, several, true)
 }
 
 fn merge(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {

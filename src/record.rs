@@ -4,6 +4,7 @@
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
+use serde_with::skip_serializing_none;
 
 use crate::frame::RunParams;
 use crate::metrics::ErrorMetrics;
@@ -50,13 +51,12 @@ impl Counters {
 }
 
 /// A named step of an algorithm with its own times and counters.
+#[skip_serializing_none]
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Phase {
     pub name: String,
     pub wall_ms: f64,
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub model_ms: Option<f64>,
-    #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_ms: Option<f64>,
     #[serde(default, skip_serializing_if = "counters_empty")]
     pub counters: Counters,

@@ -187,14 +187,7 @@ pub fn load_run(arg: &Path) -> Result<(VisibilityBuffer, Option<Vec<bool>>)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn buf(data: Vec<f32>) -> VisibilityBuffer {
-        VisibilityBuffer {
-            width: data.len() as u32,
-            height: 1,
-            data,
-        }
-    }
+    use crate::metrics::tests::buf;
 
     #[test]
     fn mask_round_trips_through_npy() {

@@ -347,16 +347,19 @@ fn nothing_selected(
     }
 }
 
-/// Runs every case of the scenario; writes `results.json`, `results.csv` and images under
-/// `opts.out` after each run, and returns what `results.json` holds.
-pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::ResultsFile> {
+/// The runs of the scenario's `cases` that `opts` selects (`--only`, `--backend`, `--shard`),
+/// in order: case by case, algorithm by algorithm, execution by execution. Executions an
+/// algorithm lacks, and the wgpu execution without an adapter, are skipped with a note.
+fn plan_runs(
+    loaded: &Loaded,
+    opts: &RunOptions,
+    cases: &[crate::scenario::Case],
+) -> Result<Vec<Planned>> {
     let s = &loaded.scenario;
-    let cases = loaded.cases(opts.max_cases)?;
-    let algorithms: Vec<String> = s
+    let algorithms: Vec<&String> = s
         .algorithms
         .iter()
         .filter(|a| opts.only.as_ref().is_none_or(|o| o.contains(a)))
-        .cloned()
         .collect();
     let mut backends: Vec<Backend> = s
         .backends
@@ -372,8 +375,8 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     }
     let mut plan = Vec::new();
     let mut skipped = Vec::new();
-    for (ci, _) in cases.iter().enumerate() {
-        for a in &algorithms {
+    for ci in 0..cases.len() {
+        for &a in &algorithms {
             let info = algorithms::find(a).expect("validated");
             for &b in &backends {
                 if info.backends.contains(&b) {
@@ -402,7 +405,12 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     for s in &skipped {
         eprintln!("note: skipping {s} (no such execution)");
     }
-    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    Ok(plan)
+}
+
+/// The reference cache of a sweep: in `--cache-dir`, or `reference-cache` under `--out`; in
+/// memory only when that folder cannot be used (the cache only saves time).
+fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions) -> ReferenceCache {
     let cache_dir = opts
         .cache_dir
         .clone()
@@ -410,11 +418,21 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     let mut refs = ReferenceCache::new(Some(cache_dir.clone()), s.reference.samples, s.seed);
     if s.reference.enabled {
         if let Err(e) = cache::describe(&cache_dir) {
-            // The cache only saves time: without its folder the sweep goes on.
             eprintln!("warning: reference cache: {e}; going on without the cache folder");
             refs.memory_only();
         }
     }
+    refs
+}
+
+/// Runs every case of the scenario; writes `results.json`, `results.csv` and images under
+/// `opts.out` after each run, and returns what `results.json` holds.
+pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::ResultsFile> {
+    let s = &loaded.scenario;
+    let cases = loaded.cases(opts.max_cases)?;
+    let plan = plan_runs(loaded, opts, &cases)?;
+    std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
+    let mut refs = reference_cache(s, opts);
     let mut ctx = ExecContext {
         reference_samples: s.reference.samples,
         seed: s.seed,

@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
+use serde_with::skip_serializing_none;
 
 use crate::error::{Error, Result};
 use crate::visibility::VisibilityBuffer;
@@ -16,19 +17,15 @@ pub const SHADOW_THRESHOLD: f32 = 1.0 - 0.5 / 1024.0;
 /// A metric over zero pixels (no pixel sees a surface; for `mae_shadow`, no pixel is in
 /// shadow in either image) is absent (`None`, left out of `results.json`), never 0; so is one
 /// that is not finite. [`ErrorMetrics::warnings`] says which are absent and why.
+#[skip_serializing_none]
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ErrorMetrics {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mae: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rmse: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub max: Option<f64>,
     /// Mean absolute error over pixels in umbra or penumbra in either image (paper 002 §5.2.1).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mae_shadow: Option<f64>,
     /// Fraction of pixels whose absolute error exceeds 0.1.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frac_over_0_1: Option<f64>,
     pub pixels: u64,
     pub shadow_pixels: u64,
@@ -36,7 +33,6 @@ pub struct ErrorMetrics {
     /// not occlude): the part of the image every method claims to compute, beside the
     /// unrestricted figure ([`crate::algorithms::MethodLimit`]). Absent without such pixels in
     /// shadow.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mae_shadow_receivers: Option<f64>,
 }
 
@@ -161,10 +157,11 @@ pub fn write_error_heatmap(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn buf(data: Vec<f32>) -> VisibilityBuffer {
+    /// A one-row buffer of `data`.
+    pub(crate) fn buf(data: Vec<f32>) -> VisibilityBuffer {
         VisibilityBuffer {
             width: data.len() as u32,
             height: 1,

@@ -22,6 +22,7 @@
 use std::ops::Range;
 use std::path::Path;
 
+use plotters::chart::MeshStyle;
 use plotters::coord::ranged1d::{DefaultFormatting, KeyPointHint, Ranged};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -146,37 +147,52 @@ pub fn memory_bytes(r: &RunRecord, kind: &str) -> Option<f64> {
     (rd.is_some() || wr.is_some()).then(|| rd.unwrap_or(0.0) + wr.unwrap_or(0.0))
 }
 
+/// Host wall time of a run.
+pub const WALL_TIME: Metric = Metric {
+    id: "wall_ms",
+    name: "wall time",
+    label: "wall time (ms, measured on the host)",
+    value: |r| Some(r.wall_ms),
+};
+
+/// GPU time of a wgpu run.
+pub const GPU_TIME: Metric = Metric {
+    id: "gpu_ms",
+    name: "GPU time",
+    label: "GPU time (ms, timestamp queries)",
+    value: |r| r.gpu_ms,
+};
+
+/// Modelled time of a cpu-model run.
+pub const MODELLED_TIME: Metric = Metric {
+    id: "model_ms",
+    name: "modelled time",
+    label: "modelled time (ms)",
+    value: |r| r.model_ms,
+};
+
+/// Modelled memory traffic ([`memory_bytes`] of `mem_model`).
+pub const MODELLED_MEMORY: Metric = Metric {
+    id: "modelled_memory_bytes",
+    name: "modelled memory traffic",
+    label: "modelled memory traffic (bytes read + written, cpu-model)",
+    value: |r| memory_bytes(r, "mem_model"),
+};
+
+/// Estimated memory traffic ([`memory_bytes`] of `mem_est`).
+pub const ESTIMATED_MEMORY: Metric = Metric {
+    id: "estimated_memory_bytes",
+    name: "estimated memory traffic",
+    label: "estimated memory traffic (bytes read + written)",
+    value: |r| memory_bytes(r, "mem_est"),
+};
+
 pub const METRICS: [Metric; 8] = [
-    Metric {
-        id: "wall_ms",
-        name: "wall time",
-        label: "wall time (ms, measured on the host)",
-        value: |r| Some(r.wall_ms),
-    },
-    Metric {
-        id: "gpu_ms",
-        name: "GPU time",
-        label: "GPU time (ms, timestamp queries)",
-        value: |r| r.gpu_ms,
-    },
-    Metric {
-        id: "model_ms",
-        name: "modelled time",
-        label: "modelled time (ms)",
-        value: |r| r.model_ms,
-    },
-    Metric {
-        id: "modelled_memory_bytes",
-        name: "modelled memory traffic",
-        label: "modelled memory traffic (bytes read + written, cpu-model)",
-        value: |r| memory_bytes(r, "mem_model"),
-    },
-    Metric {
-        id: "estimated_memory_bytes",
-        name: "estimated memory traffic",
-        label: "estimated memory traffic (bytes read + written)",
-        value: |r| memory_bytes(r, "mem_est"),
-    },
+    WALL_TIME,
+    GPU_TIME,
+    MODELLED_TIME,
+    MODELLED_MEMORY,
+    ESTIMATED_MEMORY,
     Metric {
         id: "fill",
         name: "fill",
@@ -891,6 +907,16 @@ pub struct LegendEntry {
 
 type DrawResult = std::result::Result<(), String>;
 
+/// The label sizes and grey grid lines of every chart's mesh.
+fn grid_style<'m, 'a, 'b, X: Ranged, Y: Ranged, DB: DrawingBackend>(
+    mesh: &'m mut MeshStyle<'a, 'b, X, Y, DB>,
+) -> &'m mut MeshStyle<'a, 'b, X, Y, DB> {
+    mesh.label_style((FONT, 13))
+        .axis_desc_style((FONT, 14))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .light_line_style(RGBColor(240, 240, 240))
+}
+
 fn err<E: std::fmt::Display>(e: E) -> String {
     e.to_string()
 }
@@ -1110,18 +1136,16 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
             label.to_string()
         }
     };
-    chart
-        .configure_mesh()
-        .x_desc(log_note(&c.x_label, xlog))
-        .y_desc(log_note(&c.y_label, ylog))
-        .x_label_formatter(&|v| tick_label(*v, xlog))
-        .y_label_formatter(&|v| tick_label(*v, ylog))
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 14))
-        .bold_line_style(RGBColor(215, 215, 215))
-        .light_line_style(RGBColor(240, 240, 240))
-        .draw()
-        .map_err(err)?;
+    grid_style(
+        chart
+            .configure_mesh()
+            .x_desc(log_note(&c.x_label, xlog))
+            .y_desc(log_note(&c.y_label, ylog))
+            .x_label_formatter(&|v| tick_label(*v, xlog))
+            .y_label_formatter(&|v| tick_label(*v, ylog)),
+    )
+    .draw()
+    .map_err(err)?;
     let (ox, oy) = area.get_base_pixel();
     for s in &c.series {
         let col = style::algorithm_color(&s.algorithm);
@@ -1243,17 +1267,15 @@ fn draw_stacked<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, s: &Stacked) 
         .y_label_area_size(78)
         .build_cartesian_2d(xa, ya)
         .map_err(err)?;
-    chart
-        .configure_mesh()
-        .disable_x_mesh()
-        .y_desc(&s.y_label)
-        .y_label_formatter(&|v| fmt_num(*v))
-        .label_style((FONT, 13))
-        .axis_desc_style((FONT, 14))
-        .bold_line_style(RGBColor(215, 215, 215))
-        .light_line_style(RGBColor(240, 240, 240))
-        .draw()
-        .map_err(err)?;
+    grid_style(
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .y_desc(&s.y_label)
+            .y_label_formatter(&|v| fmt_num(*v)),
+    )
+    .draw()
+    .map_err(err)?;
     for (pi, phase) in phases.iter().enumerate() {
         let col = phase_color(s, pi);
         let rects = bars.iter().enumerate().filter_map(|(bi, b)| {

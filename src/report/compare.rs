@@ -395,6 +395,16 @@ mod tests {
         .unwrap()
     }
 
+    /// The comparison of the baseline, its first run's counter `name` set to `before`, with the
+    /// same results but `after`.
+    fn counter_change(name: &str, before: f64, after: f64) -> Comparison {
+        let mut b = baseline();
+        b.runs[0].counters.set(name, before);
+        let mut cur = b.clone();
+        cur.runs[0].counters.set(name, after);
+        run(&b, &cur)
+    }
+
     #[test]
     fn unchanged_results_pass() {
         let b = baseline();
@@ -532,11 +542,7 @@ mod tests {
 
     #[test]
     fn rates_of_good_outcomes_worsen_downwards() {
-        let mut b = baseline();
-        b.runs[0].counters.set("simd_utilization", 0.8);
-        let mut cur = b.clone();
-        cur.runs[0].counters.set("simd_utilization", 0.7);
-        let c = run(&b, &cur);
+        let c = counter_change("simd_utilization", 0.8, 0.7);
         assert!(c.regressed());
         assert_eq!(c.changes[0].figure, "counters.simd_utilization");
         // The name the model writes is in the glossary, as a rate of good outcomes.
@@ -546,11 +552,7 @@ mod tests {
 
     #[test]
     fn an_increase_from_zero_is_a_regression() {
-        let mut b = baseline();
-        b.runs[0].counters.set("atomics", 0.0);
-        let mut cur = b.clone();
-        cur.runs[0].counters.set("atomics", 3.0);
-        let c = run(&b, &cur);
+        let c = counter_change("atomics", 0.0, 3.0);
         assert!(c.regressed());
         assert!(c.render().contains("+inf%"), "{}", c.render());
     }

@@ -187,7 +187,7 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
             let _ = write!(h, "<th>{}</th>", summary::RESTRICTED);
         }
         for &c in &costs {
-            let _ = write!(h, "<th>{}</th>", text(summary::COSTS[c].label));
+            let _ = write!(h, "<th>{}</th>", text(summary::COSTS[c].metric.label));
         }
         h.push_str("<th>Pareto-optimal on</th></tr>\n");
         let opt = |v: Option<f64>| v.map(fmt_num).unwrap_or_else(|| "–".into());
@@ -425,32 +425,10 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
     );
     let ok: Vec<&RunRecord> = runs.iter().collect();
     let base = summary::base_case(&ok).map(|b| b.0);
-    let mut cases: Vec<String> = Vec::new();
-    for r in runs {
-        let k = summary::case_key(r);
-        if !cases.contains(&k) {
-            cases.push(k);
-        }
-    }
-    if let Some(b) = &base {
-        if let Some(i) = cases.iter().position(|k| k == b) {
-            let k = cases.remove(i);
-            cases.insert(0, k);
-        }
-    }
+    let cases = gallery_cases(runs, base.as_deref());
     if cases.is_empty() {
         h.push_str("<p class=\"none\">No runs.</p>\n");
     }
-    let img = |rel: &str, alt: &str| -> Option<String> {
-        out.join(rel).is_file().then(|| {
-            format!(
-                "<a href=\"{u}\"><img src=\"{u}\" alt=\"{}\" title=\"{}\"></a>",
-                attr(alt),
-                attr(rel),
-                u = attr(&url(rel))
-            )
-        })
-    };
     for (ci, key) in cases.iter().enumerate() {
         let mut at: Vec<&RunRecord> = runs
             .iter()
@@ -462,120 +440,156 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
                 style::execution_rank(&r.backend),
             )
         });
-        let mut backends: Vec<&str> = at.iter().map(|r| r.backend.as_str()).collect();
-        backends.sort_by_key(|b| style::execution_rank(b));
-        backends.dedup();
-        let mut algs: Vec<&str> = at.iter().map(|r| r.algorithm.as_str()).collect();
-        algs.dedup();
-        let rgb = at.iter().any(|r| {
-            out.join(format!("images/{}/visibility_rgb.png", r.case_id()))
-                .is_file()
-        });
-        let files: Vec<(&str, &str)> = {
-            let mut f = vec![
-                ("shaded.png", "shaded"),
-                ("visibility.png", "visibility"),
-                ("error.png", "error"),
-            ];
-            if rgb {
-                f.push(("visibility_rgb.png", "light received (rgb)"));
-            }
-            f
-        };
-        let title = charts::describe_case(at[0], None);
         let is_base = base.as_ref() == Some(key);
         let _ = writeln!(
             h,
             "<details class=\"case\" id=\"case-{ci}\"{}><summary><b>{}{}</b></summary>",
             if is_base { " open" } else { "" },
             if is_base { "base point: " } else { "" },
-            text(&title)
+            text(&charts::describe_case(at[0], None))
         );
-        // The reference, once: from the reference run, or the reference copy of any run.
-        let reference = at
-            .iter()
-            .find(|r| r.algorithm == crate::algorithms::reference::ID)
-            .and_then(|r| {
-                let d = format!("images/{}", r.case_id());
-                Some((
-                    img(&format!("{d}/shaded.png"), "reference shaded"),
-                    img(&format!("{d}/visibility.png"), "reference")?,
-                ))
-            })
-            .or_else(|| {
-                at.iter().find_map(|r| {
-                    let d = format!("images/{}", r.case_id());
-                    Some((
-                        img(&format!("{d}/reference_shaded.png"), "reference shaded"),
-                        img(&format!("{d}/reference.png"), "reference")?,
-                    ))
-                })
-            });
-        if let Some((shaded, vis)) = reference {
-            let _ = writeln!(
-                h,
-                "<table class=\"gallery\"><tr><th>reference</th><th>shaded</th><th>visibility</th></tr>\
-                 <tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>reference</td>\
-                 <td>{}</td><td>{}</td></tr></table>",
-                style::hex(style::REFERENCE),
-                shaded.unwrap_or_else(|| "–".into()),
-                vis
-            );
+        h.push_str(&reference_grid(out, &at));
+        h.push_str(&case_grid(out, &at));
+        h.push_str("</details>\n");
+    }
+    h
+}
+
+/// The case keys of `runs` in order of first appearance, the `base` case first.
+fn gallery_cases(runs: &[RunRecord], base: Option<&str>) -> Vec<String> {
+    let mut cases: Vec<String> = Vec::new();
+    for r in runs {
+        let k = summary::case_key(r);
+        if !cases.contains(&k) {
+            cases.push(k);
         }
-        h.push_str("<table class=\"gallery\"><tr><th rowspan=\"2\">algorithm</th>");
+    }
+    if let Some(i) = base.and_then(|b| cases.iter().position(|k| k == b)) {
+        let k = cases.remove(i);
+        cases.insert(0, k);
+    }
+    cases
+}
+
+/// A linked thumbnail of the image `rel` (relative to `out`), if the file exists.
+fn image_link(out: &Path, rel: &str, alt: &str) -> Option<String> {
+    out.join(rel).is_file().then(|| {
+        format!(
+            "<a href=\"{u}\"><img src=\"{u}\" alt=\"{}\" title=\"{}\"></a>",
+            attr(alt),
+            attr(rel),
+            u = attr(&url(rel))
+        )
+    })
+}
+
+/// The reference of one case's runs `at`, once: from the reference run, or the reference copy
+/// of any run; empty if there is none.
+fn reference_grid(out: &Path, at: &[&RunRecord]) -> String {
+    let pair = |r: &RunRecord, shaded: &str, vis: &str| {
+        let d = format!("images/{}", r.case_id());
+        Some((
+            image_link(out, &format!("{d}/{shaded}"), "reference shaded"),
+            image_link(out, &format!("{d}/{vis}"), "reference")?,
+        ))
+    };
+    let reference = at
+        .iter()
+        .find(|r| r.algorithm == crate::algorithms::reference::ID)
+        .and_then(|r| pair(r, "shaded.png", "visibility.png"))
+        .or_else(|| {
+            at.iter()
+                .find_map(|r| pair(r, "reference_shaded.png", "reference.png"))
+        });
+    let Some((shaded, vis)) = reference else {
+        return String::new();
+    };
+    format!(
+        "<table class=\"gallery\"><tr><th>reference</th><th>shaded</th><th>visibility</th></tr>\
+         <tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>reference</td>\
+         <td>{}</td><td>{}</td></tr></table>\n",
+        style::hex(style::REFERENCE),
+        shaded.unwrap_or_else(|| "–".into()),
+        vis
+    )
+}
+
+/// One case's grid of runs `at` (sorted by algorithm, then execution): a row per algorithm, per
+/// execution a column per image kind.
+fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
+    let mut backends: Vec<&str> = at.iter().map(|r| r.backend.as_str()).collect();
+    backends.sort_by_key(|b| style::execution_rank(b));
+    backends.dedup();
+    let mut algs: Vec<&str> = at.iter().map(|r| r.algorithm.as_str()).collect();
+    algs.dedup();
+    let mut files = vec![
+        ("shaded.png", "shaded"),
+        ("visibility.png", "visibility"),
+        ("error.png", "error"),
+    ];
+    if at.iter().any(|r| {
+        out.join(format!("images/{}/visibility_rgb.png", r.case_id()))
+            .is_file()
+    }) {
+        files.push(("visibility_rgb.png", "light received (rgb)"));
+    }
+    let mut h = String::from("<table class=\"gallery\"><tr><th rowspan=\"2\">algorithm</th>");
+    for b in &backends {
+        let _ = write!(h, "<th colspan=\"{}\">{}</th>", files.len(), text(b));
+    }
+    h.push_str("</tr><tr>");
+    for _ in &backends {
+        for (_, label) in &files {
+            let _ = write!(h, "<th>{}</th>", text(label));
+        }
+    }
+    h.push_str("</tr>\n");
+    for alg in algs
+        .iter()
+        .filter(|a| **a != crate::algorithms::reference::ID)
+    {
+        let _ = write!(
+            h,
+            "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td>",
+            style::hex(style::algorithm_color(alg)),
+            text(alg)
+        );
         for b in &backends {
-            let _ = write!(h, "<th colspan=\"{}\">{}</th>", files.len(), text(b));
-        }
-        h.push_str("</tr><tr>");
-        for _ in &backends {
-            for (_, label) in &files {
-                let _ = write!(h, "<th>{}</th>", text(label));
-            }
+            let run = at.iter().find(|r| r.algorithm == *alg && r.backend == *b);
+            h.push_str(&gallery_cells(out, run.copied(), &files));
         }
         h.push_str("</tr>\n");
-        for alg in algs
-            .iter()
-            .filter(|a| **a != crate::algorithms::reference::ID)
-        {
-            let _ = write!(
-                h,
-                "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td>",
-                style::hex(style::algorithm_color(alg)),
-                text(alg)
-            );
-            for b in &backends {
-                match at.iter().find(|r| r.algorithm == *alg && r.backend == *b) {
-                    Some(r) if r.failure.is_some() => {
-                        let _ = write!(
-                            h,
-                            "<td colspan=\"{}\" class=\"status-fail\">FAILED: {}</td>",
-                            files.len(),
-                            text(r.failure.as_deref().unwrap_or_default())
-                        );
-                    }
-                    Some(r) => {
-                        for (f, label) in &files {
-                            let rel = format!("images/{}/{f}", r.case_id());
-                            match img(&rel, &format!("{alg} on {b}: {label}")) {
-                                Some(i) => {
-                                    let _ = write!(h, "<td>{i}</td>");
-                                }
-                                None => h.push_str("<td class=\"none\">–</td>"),
-                            }
-                        }
-                    }
-                    None => {
-                        let _ = write!(
-                            h,
-                            "<td colspan=\"{}\" class=\"none\">no such execution</td>",
-                            files.len()
-                        );
-                    }
-                }
+    }
+    h.push_str("</table>");
+    h
+}
+
+/// The cells of one algorithm on one execution: its images (`files`: name and label), its
+/// failure, or "no such execution" when it did not run.
+fn gallery_cells(out: &Path, run: Option<&RunRecord>, files: &[(&str, &str)]) -> String {
+    let Some(r) = run else {
+        return format!(
+            "<td colspan=\"{}\" class=\"none\">no such execution</td>",
+            files.len()
+        );
+    };
+    if let Some(failure) = &r.failure {
+        return format!(
+            "<td colspan=\"{}\" class=\"status-fail\">FAILED: {}</td>",
+            files.len(),
+            text(failure)
+        );
+    }
+    let mut h = String::new();
+    for (f, label) in files {
+        let rel = format!("images/{}/{f}", r.case_id());
+        let alt = format!("{} on {}: {label}", r.algorithm, r.backend);
+        match image_link(out, &rel, &alt) {
+            Some(i) => {
+                let _ = write!(h, "<td>{i}</td>");
             }
-            h.push_str("</tr>\n");
+            None => h.push_str("<td class=\"none\">–</td>"),
         }
-        h.push_str("</table></details>\n");
     }
     h
 }

@@ -14,48 +14,37 @@
 
 use std::fmt::Write as _;
 
-use super::charts::{self, Series, Spec, XyChart};
+use super::charts::{self, Metric, Series, Spec, XyChart};
 use super::{fmt_num, style};
 use crate::record::RunRecord;
 
-/// A cost of a run: id, name, axis title with unit, value.
+/// A cost of a run: one of the charted figures ([`charts::METRICS`]), with the short name the
+/// summary gives it.
 pub struct Cost {
-    pub id: &'static str,
+    pub metric: Metric,
     pub name: &'static str,
-    pub label: &'static str,
-    pub value: fn(&RunRecord) -> Option<f64>,
 }
 
 pub const COSTS: [Cost; 5] = [
     Cost {
-        id: "wall_ms",
+        metric: charts::WALL_TIME,
         name: "wall",
-        label: "wall time (ms, measured on the host)",
-        value: |r| Some(r.wall_ms),
     },
     Cost {
-        id: "model_ms",
+        metric: charts::MODELLED_TIME,
         name: "modelled",
-        label: "modelled time (ms)",
-        value: |r| r.model_ms,
     },
     Cost {
-        id: "gpu_ms",
+        metric: charts::GPU_TIME,
         name: "GPU",
-        label: "GPU time (ms, timestamp queries)",
-        value: |r| r.gpu_ms,
     },
     Cost {
-        id: "modelled_memory_bytes",
+        metric: charts::MODELLED_MEMORY,
         name: "modelled memory",
-        label: "modelled memory traffic (bytes read + written, cpu-model)",
-        value: |r| charts::memory_bytes(r, "mem_model"),
     },
     Cost {
-        id: "estimated_memory_bytes",
+        metric: charts::ESTIMATED_MEMORY,
         name: "estimated memory",
-        label: "estimated memory traffic (bytes read + written)",
-        value: |r| charts::memory_bytes(r, "mem_est"),
     },
 ];
 
@@ -186,7 +175,7 @@ impl Summary {
                         restricted: restricted_error(r),
                         costs: COSTS
                             .each_ref()
-                            .map(|c| (c.value)(r).filter(|v| v.is_finite())),
+                            .map(|c| (c.metric.value)(r).filter(|v| v.is_finite())),
                         pareto: [false; COSTS.len()],
                     });
                 }
@@ -261,7 +250,7 @@ impl Summary {
                 // More than MAX_SERIES algorithms: split, each part with its own front would
                 // mislead, so the front stays that of all of them.
                 for mut p in charts::per_execution(series, |_| XyChart {
-                    x_label: COSTS[c].label.into(),
+                    x_label: COSTS[c].metric.label.into(),
                     y_label: QUALITY_LABEL.into(),
                     series: vec![],
                     lines: false,
@@ -296,7 +285,7 @@ impl Summary {
             let _ = write!(s, "{RESTRICTED},");
         }
         for c in &COSTS {
-            let _ = write!(s, "{},", c.id);
+            let _ = write!(s, "{},", c.metric.id);
         }
         s.push_str("pareto_optimal_on\n");
         let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
@@ -341,7 +330,7 @@ impl Summary {
             let _ = write!(
                 head,
                 " & {}",
-                match c.id {
+                match c.metric.id {
                     "wall_ms" => "Wall (ms)",
                     "model_ms" => "Modelled (ms)",
                     "gpu_ms" => "GPU (ms)",

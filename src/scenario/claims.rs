@@ -17,10 +17,12 @@
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
+use serde_with::skip_serializing_none;
 
 use crate::error::InputError;
 
 /// A paper's claim and the measurement of ours that it is compared with.
+#[skip_serializing_none]
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Claim {
@@ -29,12 +31,10 @@ pub struct Claim {
     /// What the paper says, in words.
     pub claim: String,
     /// The paper's figure as it prints it, when it gives one.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub paper_value: Option<String>,
     pub measure: Measure,
     /// A condition our figure must meet for the claim to hold (`"< 1"`, `">= 0.9"`); every
     /// value must meet it when the measure lists several.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub expect: Option<String>,
 }
 

@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
+use serde_with::skip_serializing_none;
 
 use crate::error::InputError;
 use crate::frame::RunParams;
@@ -26,16 +27,12 @@ pub use validate::validate;
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Scenario {
-    #[serde(default)]
     pub name: Option<String>,
-    #[serde(default)]
     pub description: Option<String>,
     pub scene: SceneSpec,
     /// Overrides the scene's default camera.
-    #[serde(default)]
     pub camera: Option<Camera>,
     /// Overrides the scene's default light.
-    #[serde(default)]
     pub light: Option<LightSpec>,
     pub algorithms: Vec<String>,
     #[serde(default = "default_backends")]
@@ -56,7 +53,6 @@ pub struct Scenario {
     pub seed: u64,
     /// The modelled machine of `cpu-model` runs: a preset name (`shadowbench list`) or a path
     /// to a machine JSON file, relative to the scenario (default `larrabee-24`).
-    #[serde(default)]
     pub machine: Option<String>,
     /// Paper claims these runs reproduce, shown in the report next to our figures.
     #[serde(default)]
@@ -86,16 +82,13 @@ fn default_seed() -> u64 {
 }
 
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct SceneSpec {
     /// A built-in generator (`shadowbench list` shows them).
-    #[serde(default)]
     pub generator: Option<String>,
     /// Or user meshes.
-    #[serde(default)]
     pub objects: Option<Vec<ObjectSpec>>,
     /// Add a ground plane under user meshes (default true).
-    #[serde(default)]
     pub ground: Option<bool>,
 }
 
@@ -108,57 +101,34 @@ pub struct ObjectSpec {
     pub obj: PathBuf,
     /// Only this named part of the file: an OBJ object or group (`o`/`g`), or a glTF node with
     /// its children (what `shadowbench scene export` writes per object).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub part: Option<String>,
     /// Default: the part's name, else the file's stem.
-    #[serde(default)]
     pub name: Option<String>,
-    #[serde(default)]
     pub translate: Option<Vec3>,
     /// Euler angles in degrees, applied X then Y then Z.
-    #[serde(default)]
     pub rotate_deg: Option<Vec3>,
-    #[serde(default)]
     pub scale: Option<f32>,
-    #[serde(default)]
     pub occluder: Option<bool>,
-    #[serde(default)]
     pub receiver: Option<bool>,
 }
 
+/// Missing fields take [`BaseParams::default`].
 #[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct BaseParams {
     /// Target triangle count for generators (default: the generator's own).
-    #[serde(default)]
     pub triangles: Option<u32>,
     /// Light size (default: the scene light's own).
-    #[serde(default)]
     pub light_size: Option<f32>,
-    #[serde(default = "default_map_resolution")]
     pub map_resolution: u32,
-    #[serde(default = "default_tile_size")]
     pub tile_size: u32,
-    #[serde(default = "default_image")]
     pub image: [u32; 2],
-    #[serde(default)]
     pub occluder_height: Option<f32>,
     /// Lateral offset of the moving occluder along x, in scene units (generators with a moving
     /// occluder; paper 002 §5.2.5).
-    #[serde(default)]
     pub occluder_offset: Option<f32>,
-    #[serde(default)]
     pub cores: Option<u32>,
-}
-
-fn default_map_resolution() -> u32 {
-    512
-}
-fn default_tile_size() -> u32 {
-    32
-}
-fn default_image() -> [u32; 2] {
-    [320, 240]
 }
 
 impl Default for BaseParams {
@@ -166,9 +136,9 @@ impl Default for BaseParams {
         BaseParams {
             triangles: None,
             light_size: None,
-            map_resolution: default_map_resolution(),
-            tile_size: default_tile_size(),
-            image: default_image(),
+            map_resolution: 512,
+            tile_size: 32,
+            image: [320, 240],
             occluder_height: None,
             occluder_offset: None,
             cores: None,
@@ -178,23 +148,15 @@ impl Default for BaseParams {
 
 /// Sweep axes; each a list of values. Empty axes are not swept.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct Sweep {
-    #[serde(default)]
     pub triangles: Vec<u32>,
-    #[serde(default)]
     pub light_size: Vec<f32>,
-    #[serde(default)]
     pub map_resolution: Vec<u32>,
-    #[serde(default)]
     pub tile_size: Vec<u32>,
-    #[serde(default)]
     pub image: Vec<[u32; 2]>,
-    #[serde(default)]
     pub occluder_height: Vec<f32>,
-    #[serde(default)]
     pub occluder_offset: Vec<f32>,
-    #[serde(default)]
     pub cores: Vec<u32>,
 }
 
@@ -210,28 +172,19 @@ pub enum SweepMode {
 }
 
 #[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(default, deny_unknown_fields)]
 pub struct ReferenceSpec {
     /// Compute the ground truth and quality metrics (default true).
-    #[serde(default = "default_true")]
     pub enabled: bool,
     /// Light samples per pixel, a perfect square (256 default, 1024 for paper runs).
-    #[serde(default = "default_samples")]
     pub samples: u32,
-}
-
-fn default_true() -> bool {
-    true
-}
-fn default_samples() -> u32 {
-    crate::algorithms::reference::DEFAULT_SAMPLES
 }
 
 impl Default for ReferenceSpec {
     fn default() -> Self {
         ReferenceSpec {
             enabled: true,
-            samples: default_samples(),
+            samples: crate::algorithms::reference::DEFAULT_SAMPLES,
         }
     }
 }
@@ -298,13 +251,11 @@ pub struct GroundPlane {
 
 /// What was added around user meshes to make a scene ([`framed_scene`]): each part is absent
 /// where the file or scenario gave its own. Recorded in every run of such a scene.
+#[skip_serializing_none]
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Framing {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ground: Option<GroundPlane>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub camera: Option<Camera>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub light: Option<Light>,
 }
 
@@ -695,24 +646,17 @@ pub fn framed_scene(mut objects: Vec<Object>, ground: bool) -> (Scene, Framing) 
             },
         );
     }
-    let camera = Camera {
-        eye: c + Vec3::new(0.0, 0.9, 1.3) * d,
-        target: Vec3::new(c.x, b.min.y, c.z),
-        up: Vec3::Y,
-        fov_y_deg: 45.0,
-    };
+    let camera = Camera::looking_at(
+        c + Vec3::new(0.0, 0.9, 1.3) * d,
+        Vec3::new(c.x, b.min.y, c.z),
+        45.0,
+    );
     let light = Light::Sphere {
         center: c + Vec3::new(0.3, 1.8, 0.2) * d,
         radius: 0.08 * d,
     };
     (
-        Scene {
-            name: String::new(),
-            objects,
-            camera,
-            light,
-            light_texture: None,
-        },
+        Scene::new(objects, camera, light),
         Framing {
             ground: plane,
             camera: Some(camera),

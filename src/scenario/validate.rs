@@ -49,13 +49,7 @@ pub fn light_size(field: &str, v: f32) -> Check {
 pub const MAX_RESOLUTION: u32 = 16_384;
 
 pub fn map_resolution(field: &str, v: u32) -> Check {
-    if v == 0 || v > MAX_RESOLUTION {
-        return fail(
-            field,
-            format!("map resolution must be in 1..={MAX_RESOLUTION}, got {v}"),
-        );
-    }
-    Ok(())
+    InputError::check_range(field, v, 1..=MAX_RESOLUTION)
 }
 
 pub fn tile_size(field: &str, v: u32) -> Check {
@@ -82,23 +76,11 @@ pub fn image(field: &str, v: [u32; 2]) -> Check {
 }
 
 pub fn triangles(field: &str, v: u32) -> Check {
-    if v == 0 || v > 50_000_000 {
-        return fail(
-            field,
-            format!("triangle count must be in 1..=50000000, got {v}"),
-        );
-    }
-    Ok(())
+    InputError::check_range(field, v, 1..=50_000_000)
 }
 
 pub fn occluder_height(field: &str, v: f32) -> Check {
-    if !v.is_finite() || v < 0.0 {
-        return fail(
-            field,
-            format!("occluder height must be finite and >= 0, got {v}"),
-        );
-    }
-    Ok(())
+    InputError::check_non_negative(field, v)
 }
 
 /// Largest lateral occluder offset accepted, in scene units either way: beyond it the occluder
@@ -106,15 +88,7 @@ pub fn occluder_height(field: &str, v: f32) -> Check {
 pub const MAX_OCCLUDER_OFFSET: f32 = 100.0;
 
 pub fn occluder_offset(field: &str, v: f32) -> Check {
-    if !v.is_finite() || v.abs() > MAX_OCCLUDER_OFFSET {
-        return fail(
-            field,
-            format!(
-                "occluder offset must be finite and in -{MAX_OCCLUDER_OFFSET}..={MAX_OCCLUDER_OFFSET} scene units, got {v}"
-            ),
-        );
-    }
-    Ok(())
+    InputError::check_range(field, v, -MAX_OCCLUDER_OFFSET..=MAX_OCCLUDER_OFFSET)
 }
 
 /// How a sweep moves a generator's occluder: up (`occluder_height`) or sideways
@@ -172,10 +146,7 @@ pub fn occluder_axis_scene(field: &str, generator: Option<&str>, axis: OccluderA
 }
 
 pub fn cores(field: &str, v: u32) -> Check {
-    if !(1..=64).contains(&v) {
-        return fail(field, format!("core count must be in 1..=64, got {v}"));
-    }
-    Ok(())
+    InputError::check_range(field, v, 1..=64)
 }
 
 pub fn reference_samples(field: &str, v: u32) -> Check {
@@ -264,34 +235,51 @@ pub fn validate(s: &Scenario) -> Check {
         // The name becomes a folder under `--out` (as a slug); a path here is a mistake.
         crate::util::paths::check_name("$.name", name)?;
     }
+    scene(s)?;
+    if let Some(c) = &s.camera {
+        camera(c)?;
+    }
+    if let Some(l) = &s.light {
+        light("$.light", &l.light)?;
+    }
+    super::claims::validate(&s.claims)?;
+    algorithms_and_backends(s)?;
+    params(&s.params)?;
+    sweep(&s.sweep)?;
+    occluder_axes(s)?;
+    reference_samples("$.reference.samples", s.reference.samples)?;
+    optional("$.run_timeout_s", s.run_timeout_s, run_timeout)
+}
+
+/// Runs `check` on `value` if there is one.
+fn optional<T>(field: &str, value: Option<T>, check: fn(&str, T) -> Check) -> Check {
+    value.map_or(Ok(()), |v| check(field, v))
+}
+
+/// `$.scene`: a known generator, or user objects with finite placements (and then no triangle
+/// count).
+fn scene(s: &Scenario) -> Check {
     match (&s.scene.generator, &s.scene.objects) {
-        (Some(_), Some(_)) => {
-            return fail(
-                "$.scene",
-                "give either `generator` or `objects`, not both".into(),
-            )
-        }
-        (None, None) => return fail("$.scene", "needs `generator` or `objects`".into()),
-        (Some(g), None) => {
-            if generators::find(g).is_none() {
-                return fail(
-                    "$.scene.generator",
-                    unknown_name("scene generator", g, &generators::names()),
-                );
-            }
-        }
+        (Some(_), Some(_)) => fail(
+            "$.scene",
+            "give either `generator` or `objects`, not both".into(),
+        ),
+        (None, None) => fail("$.scene", "needs `generator` or `objects`".into()),
+        (Some(g), None) => match generators::find(g) {
+            Some(_) => Ok(()),
+            None => fail(
+                "$.scene.generator",
+                unknown_name("scene generator", g, &generators::names()),
+            ),
+        },
         (None, Some(objs)) => {
             if objs.is_empty() {
                 return fail("$.scene.objects", "needs at least one object".into());
             }
             for (i, o) in objs.iter().enumerate() {
                 let f = |k: &str| format!("$.scene.objects[{i}].{k}");
-                if let Some(t) = o.translate {
-                    finite_vec(&f("translate"), t)?;
-                }
-                if let Some(r) = o.rotate_deg {
-                    finite_vec(&f("rotate_deg"), r)?;
-                }
+                optional(&f("translate"), o.translate, finite_vec)?;
+                optional(&f("rotate_deg"), o.rotate_deg, finite_vec)?;
                 if let Some(sc) = o.scale {
                     finite_positive(&f("scale"), "scale", sc)?;
                 }
@@ -303,35 +291,40 @@ pub fn validate(s: &Scenario) -> Check {
                         .into(),
                 );
             }
+            Ok(())
         }
     }
-    if let Some(c) = &s.camera {
-        finite_vec("$.camera.eye", c.eye)?;
-        finite_vec("$.camera.target", c.target)?;
-        finite_vec("$.camera.up", c.up)?;
-        if (c.target - c.eye).length_squared() == 0.0 {
-            return fail("$.camera.target", "target must differ from eye".into());
-        }
-        if (c.target - c.eye).cross(c.up).length_squared() == 0.0 {
-            return fail(
-                "$.camera.up",
-                "up must not be parallel to the view direction".into(),
-            );
-        }
-        if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
-            return fail(
-                "$.camera.fov_y_deg",
-                format!(
-                    "field of view must be in (0, 180) degrees, got {}",
-                    c.fov_y_deg
-                ),
-            );
-        }
+}
+
+/// `$.camera`: finite, a view direction not along `up`, a field of view in (0, 180) degrees.
+fn camera(c: &crate::scene::Camera) -> Check {
+    finite_vec("$.camera.eye", c.eye)?;
+    finite_vec("$.camera.target", c.target)?;
+    finite_vec("$.camera.up", c.up)?;
+    if (c.target - c.eye).length_squared() == 0.0 {
+        return fail("$.camera.target", "target must differ from eye".into());
     }
-    if let Some(l) = &s.light {
-        light("$.light", &l.light)?;
+    if (c.target - c.eye).cross(c.up).length_squared() == 0.0 {
+        return fail(
+            "$.camera.up",
+            "up must not be parallel to the view direction".into(),
+        );
     }
-    super::claims::validate(&s.claims)?;
+    if !(c.fov_y_deg > 0.0 && c.fov_y_deg < 180.0) {
+        return fail(
+            "$.camera.fov_y_deg",
+            format!(
+                "field of view must be in (0, 180) degrees, got {}",
+                c.fov_y_deg
+            ),
+        );
+    }
+    Ok(())
+}
+
+/// `$.algorithms`, `$.backends`, `$.options` and the light texture: known names, at least one
+/// of each, options each algorithm accepts.
+fn algorithms_and_backends(s: &Scenario) -> Check {
     if s.algorithms.is_empty() {
         return fail("$.algorithms", "needs at least one algorithm".into());
     }
@@ -352,83 +345,68 @@ pub fn validate(s: &Scenario) -> Check {
     if let Some(l) = s.light.as_ref().filter(|l| l.texture.is_some()) {
         light_texture("$.light.texture", &l.light, &s.algorithms, &s.options)?;
     }
-    let p = &s.params;
-    if let Some(t) = p.triangles {
-        triangles("$.params.triangles", t)?;
-    }
-    if let Some(v) = p.light_size {
-        light_size("$.params.light_size", v)?;
-    }
+    Ok(())
+}
+
+/// `$.params`: each parameter given in its range.
+fn params(p: &super::BaseParams) -> Check {
+    optional("$.params.triangles", p.triangles, triangles)?;
+    optional("$.params.light_size", p.light_size, light_size)?;
     map_resolution("$.params.map_resolution", p.map_resolution)?;
     tile_size("$.params.tile_size", p.tile_size)?;
     image("$.params.image", p.image)?;
-    if let Some(h) = p.occluder_height {
-        occluder_height("$.params.occluder_height", h)?;
+    optional(
+        "$.params.occluder_height",
+        p.occluder_height,
+        occluder_height,
+    )?;
+    optional(
+        "$.params.occluder_offset",
+        p.occluder_offset,
+        occluder_offset,
+    )?;
+    optional("$.params.cores", p.cores, cores)
+}
+
+/// `$.sweep`: every swept value in the range of its parameter.
+fn sweep(w: &super::Sweep) -> Check {
+    fn each<T: Copy>(name: &str, values: &[T], check: fn(&str, T) -> Check) -> Check {
+        (values.iter().enumerate())
+            .try_for_each(|(i, &v)| check(&format!("$.sweep.{name}[{i}]"), v))
     }
-    if let Some(d) = p.occluder_offset {
-        occluder_offset("$.params.occluder_offset", d)?;
-    }
-    if let Some(c) = p.cores {
-        cores("$.params.cores", c)?;
-    }
-    let w = &s.sweep;
-    fn each(name: &'static str, n: usize) -> impl Iterator<Item = String> {
-        (0..n).map(move |i| format!("$.sweep.{name}[{i}]"))
-    }
-    for (f, &v) in each("triangles", w.triangles.len()).zip(&w.triangles) {
-        triangles(&f, v)?;
-    }
-    for (f, &v) in each("light_size", w.light_size.len()).zip(&w.light_size) {
-        light_size(&f, v)?;
-    }
-    for (f, &v) in each("map_resolution", w.map_resolution.len()).zip(&w.map_resolution) {
-        map_resolution(&f, v)?;
-    }
-    for (f, &v) in each("tile_size", w.tile_size.len()).zip(&w.tile_size) {
-        tile_size(&f, v)?;
-    }
-    for (f, &v) in each("image", w.image.len()).zip(&w.image) {
-        image(&f, v)?;
-    }
-    for (f, &v) in each("occluder_height", w.occluder_height.len()).zip(&w.occluder_height) {
-        occluder_height(&f, v)?;
-    }
-    for (f, &v) in each("occluder_offset", w.occluder_offset.len()).zip(&w.occluder_offset) {
-        occluder_offset(&f, v)?;
-    }
-    for (f, &v) in each("cores", w.cores.len()).zip(&w.cores) {
-        cores(&f, v)?;
-    }
+    each("triangles", &w.triangles, triangles)?;
+    each("light_size", &w.light_size, light_size)?;
+    each("map_resolution", &w.map_resolution, map_resolution)?;
+    each("tile_size", &w.tile_size, tile_size)?;
+    each("image", &w.image, image)?;
+    each("occluder_height", &w.occluder_height, occluder_height)?;
+    each("occluder_offset", &w.occluder_offset, occluder_offset)?;
+    each("cores", &w.cores, cores)
+}
+
+/// An occluder height or offset, fixed or swept, needs a generator whose occluder it moves.
+fn occluder_axes(s: &Scenario) -> Check {
+    let (p, w) = (&s.params, &s.sweep);
     let generator = s.scene.generator.as_deref();
-    for (given, field, axis) in [
+    for (axis, name, fixed, swept) in [
         (
+            OccluderAxis::Height,
+            "occluder_height",
             p.occluder_height.is_some(),
-            "$.params.occluder_height",
-            OccluderAxis::Height,
-        ),
-        (
             !w.occluder_height.is_empty(),
-            "$.sweep.occluder_height",
-            OccluderAxis::Height,
         ),
         (
+            OccluderAxis::Offset,
+            "occluder_offset",
             p.occluder_offset.is_some(),
-            "$.params.occluder_offset",
-            OccluderAxis::Offset,
-        ),
-        (
             !w.occluder_offset.is_empty(),
-            "$.sweep.occluder_offset",
-            OccluderAxis::Offset,
         ),
     ] {
-        if given {
-            occluder_axis_scene(field, generator, axis)?;
+        for (given, field) in [(fixed, "params"), (swept, "sweep")] {
+            if given {
+                occluder_axis_scene(&format!("$.{field}.{name}"), generator, axis)?;
+            }
         }
-    }
-    reference_samples("$.reference.samples", s.reference.samples)?;
-    if let Some(t) = s.run_timeout_s {
-        run_timeout("$.run_timeout_s", t)?;
     }
     Ok(())
 }

@@ -27,6 +27,17 @@ fn default_fov() -> f32 {
 }
 
 impl Camera {
+    /// A camera at `eye` looking at `target`, +y up, with a vertical field of view of
+    /// `fov_y_deg` degrees.
+    pub fn looking_at(eye: Vec3, target: Vec3, fov_y_deg: f32) -> Camera {
+        Camera {
+            eye,
+            target,
+            up: Vec3::Y,
+            fov_y_deg,
+        }
+    }
+
     /// Orthonormal basis (right, up, forward).
     pub fn basis(&self) -> (Vec3, Vec3, Vec3) {
         let forward = (self.target - self.eye).normalize();

@@ -181,16 +181,6 @@ fn ground(half: f32, triangles: u32) -> Object {
     object("ground", primitives::plane(half, n), Role::RECEIVER)
 }
 
-fn scene(objects: Vec<Object>, camera: Camera, light: Light) -> Scene {
-    Scene {
-        name: String::new(),
-        objects,
-        camera,
-        light,
-        light_texture: None,
-    }
-}
-
 /// `at` moved by the lateral occluder offset (unchanged when there is none, so scenes without
 /// an offset keep their exact geometry).
 fn lateral(p: &GeneratorParams, at: Vec3) -> Vec3 {
@@ -208,17 +198,12 @@ fn sphere_on_plane(p: &GeneratorParams, target: u32) -> Scene {
         p,
         Vec3::new(0.0, h + 1.0, 0.0),
     )));
-    scene(
+    Scene::new(
         vec![
             ground(6.0, ground_tris),
             object("sphere", sphere, Role::BOTH),
         ],
-        Camera {
-            eye: Vec3::new(0.0, 4.5, 5.5),
-            target: Vec3::new(-0.3, 0.8, 0.0),
-            up: Vec3::Y,
-            fov_y_deg: 45.0,
-        },
+        Camera::looking_at(Vec3::new(0.0, 4.5, 5.5), Vec3::new(-0.3, 0.8, 0.0), 45.0),
         Light::Sphere {
             center: Vec3::new(1.0, 8.0, 0.5),
             radius: 0.6,
@@ -252,14 +237,9 @@ fn blob_on_plane(p: &GeneratorParams, target: u32) -> Scene {
         p,
         Vec3::new(0.0, h - lowest, 0.0),
     )));
-    scene(
+    Scene::new(
         vec![ground(6.0, ground_tris), object("blob", blob, Role::BOTH)],
-        Camera {
-            eye: Vec3::new(0.0, 4.5, 6.0),
-            target: Vec3::new(-0.8, 0.6, -0.5),
-            up: Vec3::Y,
-            fov_y_deg: 45.0,
-        },
+        Camera::looking_at(Vec3::new(0.0, 4.5, 6.0), Vec3::new(-0.8, 0.6, -0.5), 45.0),
         Light::Sphere {
             center: Vec3::new(1.5, 7.0, 1.5),
             radius: 0.5,
@@ -274,14 +254,9 @@ fn plate_on_plane(p: &GeneratorParams, target: u32) -> Scene {
         lateral(p, Vec3::new(-1.0, h, -1.0)),
         lateral(p, Vec3::new(1.0, h + 0.02, 1.0)),
     );
-    scene(
+    Scene::new(
         vec![ground(5.0, ground_tris), object("plate", plate, Role::BOTH)],
-        Camera {
-            eye: Vec3::new(0.0, 7.0, 6.0),
-            target: Vec3::new(0.0, 0.0, 0.0),
-            up: Vec3::Y,
-            fov_y_deg: 45.0,
-        },
+        Camera::looking_at(Vec3::new(0.0, 7.0, 6.0), Vec3::new(0.0, 0.0, 0.0), 45.0),
         Light::Rect {
             center: Vec3::new(0.0, 6.0, 0.0),
             half_u: Vec3::new(0.5, 0.0, 0.0),
@@ -291,12 +266,7 @@ fn plate_on_plane(p: &GeneratorParams, target: u32) -> Scene {
 }
 
 fn default_view() -> Camera {
-    Camera {
-        eye: Vec3::new(0.0, 6.0, 8.0),
-        target: Vec3::new(0.0, 0.5, 0.0),
-        up: Vec3::Y,
-        fov_y_deg: 45.0,
-    }
+    Camera::looking_at(Vec3::new(0.0, 6.0, 8.0), Vec3::new(0.0, 0.5, 0.0), 45.0)
 }
 
 fn box_on_plane(p: &GeneratorParams, target: u32) -> Scene {
@@ -309,7 +279,7 @@ fn box_on_plane(p: &GeneratorParams, target: u32) -> Scene {
         lateral(p, Vec3::new(0.8, h + 1.2, 0.8)),
         n,
     );
-    scene(
+    Scene::new(
         vec![ground(6.0, ground_tris), object("box", b, Role::BOTH)],
         default_view(),
         Light::Sphere {
@@ -324,7 +294,7 @@ fn cylinder_on_plane(p: &GeneratorParams, target: u32) -> Scene {
     let ground_tris = (target / 10).clamp(2, 2_000);
     let c = primitives::cylinder_with_triangles(0.6, 2.5, target.saturating_sub(ground_tris))
         .transformed(Mat4::from_translation(lateral(p, Vec3::new(0.0, h, 0.0))));
-    scene(
+    Scene::new(
         vec![ground(6.0, ground_tris), object("cylinder", c, Role::BOTH)],
         default_view(),
         Light::Rect {
@@ -343,7 +313,7 @@ fn torus_on_plane(p: &GeneratorParams, target: u32) -> Scene {
             Mat4::from_translation(lateral(p, Vec3::new(0.0, h + 1.2, 0.0)))
                 * Mat4::from_rotation_x(1.1),
         );
-    scene(
+    Scene::new(
         vec![ground(6.0, ground_tris), object("torus", t, Role::BOTH)],
         default_view(),
         Light::Sphere {
@@ -378,7 +348,7 @@ fn sphere_grid(p: &GeneratorParams, target: u32) -> Scene {
             }
         }
     }
-    scene(
+    Scene::new(
         objects,
         default_view(),
         Light::Rect {
@@ -437,7 +407,7 @@ fn replicated(p: &GeneratorParams, target: u32) -> Scene {
         );
         objects.push(object(&format!("copy{c}"), m, Role::BOTH));
     }
-    scene(
+    Scene::new(
         objects,
         default_view(),
         Light::Rect {
@@ -465,7 +435,7 @@ fn terrain(p: &GeneratorParams, target: u32) -> Scene {
         );
         objects.push(object(&format!("rock{k}"), m, Role::BOTH));
     }
-    scene(
+    Scene::new(
         objects,
         default_view(),
         Light::Sphere {
@@ -585,14 +555,9 @@ fn room(p: &GeneratorParams, target: u32) -> Scene {
             objects.push(object(&format!("item{k}_{q}"), m, Role::BOTH));
         }
     }
-    scene(
+    Scene::new(
         objects,
-        Camera {
-            eye: Vec3::new(-4.2, 2.6, 3.6),
-            target: Vec3::new(1.0, 0.6, -1.0),
-            up: Vec3::Y,
-            fov_y_deg: 60.0,
-        },
+        Camera::looking_at(Vec3::new(-4.2, 2.6, 3.6), Vec3::new(1.0, 0.6, -1.0), 60.0),
         Light::Sphere {
             center: Vec3::new(0.0, 3.4, 0.0),
             radius: 0.25,
@@ -695,14 +660,9 @@ fn street(p: &GeneratorParams, target: u32) -> Scene {
             .transformed(Mat4::from_translation(Vec3::new(x, 0.0, z)));
         objects.push(object(&format!("post{k}"), m, Role::BOTH));
     }
-    scene(
+    Scene::new(
         objects,
-        Camera {
-            eye: Vec3::new(4.0, 14.0, 34.0),
-            target: Vec3::new(4.0, 0.0, 0.0),
-            up: Vec3::Y,
-            fov_y_deg: 50.0,
-        },
+        Camera::looking_at(Vec3::new(4.0, 14.0, 34.0), Vec3::new(4.0, 0.0, 0.0), 50.0),
         Light::Sphere {
             center: Vec3::new(40.0, 80.0, 20.0),
             radius: 3.0,
@@ -752,14 +712,9 @@ fn fern(p: &GeneratorParams, target: u32) -> Scene {
         ground(4.0, target.saturating_sub(plant_tris).max(2)),
         object("fern", plant, Role::BOTH),
     ];
-    scene(
+    Scene::new(
         objects,
-        Camera {
-            eye: Vec3::new(0.0, 3.5, 5.5),
-            target: Vec3::new(0.0, 0.3, 0.0),
-            up: Vec3::Y,
-            fov_y_deg: 50.0,
-        },
+        Camera::looking_at(Vec3::new(0.0, 3.5, 5.5), Vec3::new(0.0, 0.3, 0.0), 50.0),
         Light::Sphere {
             center: Vec3::new(1.5, 6.0, 1.0),
             radius: 0.4,

@@ -20,7 +20,7 @@ use gltf::mesh::Mode;
 
 use super::load::MeshFile;
 use super::mesh::Mesh;
-use crate::error::InputError;
+use crate::error::{names_or_none, InputError};
 
 /// Loads the default scene's triangles of the glTF file `path`; with `node`, only those of the
 /// node of that name and its descendants.
@@ -108,11 +108,7 @@ pub fn load_gltf(path: &Path, node: Option<&str>) -> Result<MeshFile, InputError
         return Err(err(format!(
             "no node named '{}' in the default scene (named nodes: {})",
             node.unwrap_or_default(),
-            if names.is_empty() {
-                "none".into()
-            } else {
-                names.join(", ")
-            }
+            names_or_none(&names)
         )));
     }
     if out.mesh.triangles.is_empty() {

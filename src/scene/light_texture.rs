@@ -17,8 +17,9 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec2;
 use serde::{Deserialize, Serialize};
+use serde_with::skip_serializing_none;
 
-use crate::error::InputError;
+use crate::error::{names_or_none, InputError};
 use crate::util::hash::Fnv64;
 
 /// Rec. 709 luminance weights of r, g, b.
@@ -28,26 +29,21 @@ pub const LUMA: [f32; 3] = [0.2126, 0.7152, 0.0722];
 pub const MAX_SIDE: u32 = 4096;
 
 /// `light.texture` of a scenario: exactly one of `checker`, `stripes`, `color` or `png`.
+#[skip_serializing_none]
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LightTextureSpec {
     /// A `k×k` checkerboard of the two `colors`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub checker: Option<u32>,
     /// `k` equal stripes across `axis`, cycling through `colors`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stripes: Option<u32>,
     /// The axis the stripes follow each other along: `u` (default) or `v`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub axis: Option<StripeAxis>,
     /// Colours of `checker` (two) or `stripes` (two or more); default white and black.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub colors: Option<Vec<[f32; 3]>>,
     /// A uniformly coloured light.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub color: Option<[f32; 3]>,
     /// An RGB(A) PNG, relative to the scenario file (alpha ignored).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub png: Option<PathBuf>,
 }
 
@@ -97,11 +93,7 @@ impl LightTextureSpec {
                 field,
                 format!(
                     "give exactly one of checker, stripes, color or png, got {}",
-                    if given.is_empty() {
-                        "none".to_string()
-                    } else {
-                        given.join(", ")
-                    }
+                    names_or_none(&given)
                 ),
             ));
         }

@@ -37,6 +37,17 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// An unnamed scene of `objects` under an untextured `light`.
+    pub fn new(objects: Vec<Object>, camera: Camera, light: Light) -> Scene {
+        Scene {
+            name: String::new(),
+            objects,
+            camera,
+            light,
+            light_texture: None,
+        }
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.objects.iter().map(|o| o.mesh.triangles.len()).sum()
     }

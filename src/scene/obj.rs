@@ -30,7 +30,7 @@ use glam::Vec3;
 use super::load::MeshFile;
 use super::mesh::Mesh;
 use super::polygon::{self, PolygonFault};
-use crate::error::InputError;
+use crate::error::{names_or_none, InputError};
 
 /// Loads the geometry of the OBJ file `path` (all of it, or only the faces under the `o`/`g`
 /// name `group`).
@@ -100,244 +100,15 @@ fn lossy(bytes: &[u8]) -> String {
 
 /// Parses OBJ bytes; `path` names the file in errors. See the module docs for what is read.
 pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshFile, InputError> {
-    let at = |line: usize, msg: String| InputError::file(path, format!("line {line}: {msg}"));
-    let mut positions: Vec<Vec3> = Vec::new();
-    let mut position_line: Vec<usize> = Vec::new();
-    let (mut texcoords, mut normals) = (0usize, 0usize);
-    let mut refs: Vec<u32> = Vec::new();
-    // Positive indices may refer to vertices defined later: they are checked at the end, for
-    // the faces used.
-    let mut faces: Vec<Face> = Vec::new();
-    let mut groups: Vec<String> = vec![String::new()];
-    let mut current_group = 0usize;
-    let (mut lines_skipped, mut points_skipped, mut freeform_skipped) = (0usize, 0usize, 0usize);
-    let (mut max_vt, mut max_vn) = ((0usize, 0usize), (0usize, 0usize));
+    let mut reader = ObjReader::new(path);
     for (n, text) in logical_lines(bytes) {
-        let mut w = words(&text);
-        let Some(keyword) = w.next() else { continue };
-        match keyword {
-            b"v" => {
-                let mut xyz = [0.0f32; 3];
-                for (k, c) in xyz.iter_mut().enumerate() {
-                    let word = w.next().ok_or_else(|| {
-                        at(n, format!("vertex needs three coordinates x y z, got {k}"))
-                    })?;
-                    *c = std::str::from_utf8(word)
-                        .ok()
-                        .and_then(|s| s.parse::<f32>().ok())
-                        .ok_or_else(|| {
-                            at(
-                                n,
-                                format!("vertex coordinate '{}' is not a number", lossy(word)),
-                            )
-                        })?;
-                }
-                positions.push(Vec3::from(xyz));
-                position_line.push(n);
-            }
-            b"vt" => texcoords += 1,
-            b"vn" => normals += 1,
-            b"f" | b"fo" => {
-                let start = refs.len();
-                for word in w {
-                    let mut parts = word.split(|&b| b == b'/');
-                    let v = parts.next().unwrap_or_default();
-                    let resolve = |part: &[u8],
-                                   what: &str,
-                                   count: usize|
-                     -> Result<usize, InputError> {
-                        let k: i64 = std::str::from_utf8(part)
-                            .ok()
-                            .and_then(|s| s.parse().ok())
-                            .ok_or_else(|| {
-                                at(
-                                    n,
-                                    format!("{what} index '{}' is not an integer", lossy(part)),
-                                )
-                            })?;
-                        match k {
-                            0 => Err(at(n, format!("{what} index 0 (OBJ indices start at 1)"))),
-                            k if k > 0 => usize::try_from(k - 1)
-                                .map_err(|_| at(n, format!("{what} index {k} is out of range"))),
-                            k => count.checked_sub(k.unsigned_abs() as usize).ok_or_else(|| {
-                                at(
-                                    n,
-                                    format!(
-                                        "relative {what} index {k} reaches before the first {what} \
-                                         ({count} read so far)"
-                                    ),
-                                )
-                            }),
-                        }
-                    };
-                    let vi = resolve(v, "vertex", positions.len())?;
-                    let vi = u32::try_from(vi)
-                        .map_err(|_| at(n, format!("vertex index {} is out of range", vi + 1)))?;
-                    refs.push(vi);
-                    // The largest texture coordinate and normal referenced, with its line:
-                    // checked at the end, as they may be defined after the face.
-                    if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
-                        let ti = resolve(t, "texture coordinate", texcoords)?;
-                        if ti >= max_vt.0 {
-                            max_vt = (ti + 1, n);
-                        }
-                    }
-                    if let Some(nn) = parts.next().filter(|t| !t.is_empty()) {
-                        let ni = resolve(nn, "normal", normals)?;
-                        if ni >= max_vn.0 {
-                            max_vn = (ni + 1, n);
-                        }
-                    }
-                }
-                let count = refs.len() - start;
-                if count < 3 {
-                    return Err(at(
-                        n,
-                        format!("a face needs at least 3 vertices, got {count}"),
-                    ));
-                }
-                faces.push(Face {
-                    start,
-                    line: n,
-                    group: current_group,
-                });
-            }
-            b"l" => lines_skipped += 1,
-            b"p" => points_skipped += 1,
-            b"curv" | b"curv2" | b"surf" => freeform_skipped += 1,
-            b"o" | b"g" => {
-                let rest = text
-                    .iter()
-                    .position(|b| !b.is_ascii_whitespace())
-                    .map(|s| &text[s + keyword.len()..])
-                    .unwrap_or_default();
-                let name = lossy(rest).trim().to_string();
-                current_group = match groups.iter().position(|g| *g == name) {
-                    Some(i) => i,
-                    None => {
-                        groups.push(name);
-                        groups.len() - 1
-                    }
-                };
-            }
-            _ => {}
-        }
+        reader.statement(n, &text)?;
     }
-    // Texture coordinates and normals do not shape shadows: references to missing ones are
-    // ignored, and said once.
-    let mut warnings = Vec::new();
-    for ((max, line), count, what) in [
-        (max_vt, texcoords, "texture coordinate"),
-        (max_vn, normals, "normal"),
-    ] {
-        if max > count {
-            warnings.push(format!(
-                "{}: line {line}: faces refer to {what} {max} but the file has {count} (ignored: \
-                 only positions shape shadows)",
-                path.display()
-            ));
-        }
-    }
-    let selected: Vec<usize> = match group {
-        None => (0..faces.len()).collect(),
-        Some(g) => {
-            let Some(gi) = groups.iter().position(|n| n == g) else {
-                let named: Vec<&str> = groups
-                    .iter()
-                    .filter(|n| !n.is_empty())
-                    .map(String::as_str)
-                    .collect();
-                return Err(InputError::file(
-                    path,
-                    format!(
-                        "no object or group named '{g}' (the file has: {})",
-                        if named.is_empty() {
-                            "none".to_string()
-                        } else {
-                            named.join(", ")
-                        }
-                    ),
-                ));
-            };
-            (0..faces.len()).filter(|&f| faces[f].group == gi).collect()
-        }
-    };
-    // Check references and finiteness of what is used; keep used vertices in file order.
-    let mut remap = vec![u32::MAX; positions.len()];
-    for &f in &selected {
-        let face = &faces[f];
-        let end = faces.get(f + 1).map_or(refs.len(), |next| next.start);
-        for &v in &refs[face.start..end] {
-            let Some(p) = positions.get(v as usize) else {
-                return Err(at(
-                    face.line,
-                    format!(
-                        "face uses vertex {} but the file has {} vertices",
-                        v as u64 + 1,
-                        positions.len()
-                    ),
-                ));
-            };
-            if !p.is_finite() {
-                return Err(at(
-                    position_line[v as usize],
-                    format!("vertex {} is not finite ({p})", v + 1),
-                ));
-            }
-            remap[v as usize] = 0;
-        }
-    }
-    let mut mesh = Mesh::default();
-    for (i, r) in remap.iter_mut().enumerate() {
-        if *r == 0 {
-            *r = mesh.positions.len() as u32;
-            mesh.positions.push(positions[i]);
-        }
-    }
-    let mut dropped = Vec::new();
-    let mut poly = Vec::new();
-    for &f in &selected {
-        let face = &faces[f];
-        let end = faces.get(f + 1).map_or(refs.len(), |next| next.start);
-        poly.clear();
-        poly.extend(refs[face.start..end].iter().map(|&v| remap[v as usize]));
-        match polygon::triangulate(&mesh.positions, &poly) {
-            Ok(t) => mesh.triangles.extend(t),
-            Err(PolygonFault::Degenerate) => dropped.push(face.line),
-            Err(fault) => {
-                return Err(at(
-                    face.line,
-                    format!("polygon of {} vertices {fault}", poly.len()),
-                ))
-            }
-        }
-    }
-    if !dropped.is_empty() {
-        warnings.push(format!(
-            "{}: dropped {} polygon{} with no area (line{} {})",
-            path.display(),
-            dropped.len(),
-            if dropped.len() == 1 { "" } else { "s" },
-            if dropped.len() == 1 { "" } else { "s" },
-            summarize_lines(&dropped)
-        ));
-    }
-    let skipped: Vec<String> = [
-        (lines_skipped, "line element"),
-        (points_skipped, "point element"),
-        (freeform_skipped, "free-form curve/surface"),
-    ]
-    .iter()
-    .filter(|(k, _)| *k > 0)
-    .map(|(k, what)| format!("{k} {what}{}", if *k == 1 { "" } else { "s" }))
-    .collect();
-    if !skipped.is_empty() {
-        warnings.push(format!(
-            "{}: skipped {} (they bound no surface)",
-            path.display(),
-            skipped.join(", ")
-        ));
-    }
+    let mut warnings = reader.missing_reference_warnings();
+    let selected = reader.select_faces(group)?;
+    let (mesh, dropped) = reader.build_mesh(&selected)?;
+    warnings.extend(dropped_warning(path, &dropped));
+    warnings.extend(reader.skipped_warning());
     if mesh.triangles.is_empty() {
         return Err(InputError::file(
             path,
@@ -348,6 +119,334 @@ pub fn parse_obj(bytes: &[u8], path: &Path, group: Option<&str>) -> Result<MeshF
         ));
     }
     Ok(MeshFile { mesh, warnings })
+}
+
+/// An error at line `line` of the OBJ file `path`.
+fn line_error(path: &Path, line: usize, msg: String) -> InputError {
+    InputError::file(path, format!("line {line}: {msg}"))
+}
+
+/// Resolves one OBJ index `part` (1-based, or negative: relative to the `count` elements read
+/// so far) of a `what` to a 0-based index; errors name line `line` of `path`.
+fn resolve_index(
+    part: &[u8],
+    what: &str,
+    count: usize,
+    path: &Path,
+    line: usize,
+) -> Result<usize, InputError> {
+    let at = |msg: String| line_error(path, line, msg);
+    let k: i64 = std::str::from_utf8(part)
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .ok_or_else(|| at(format!("{what} index '{}' is not an integer", lossy(part))))?;
+    match k {
+        0 => Err(at(format!("{what} index 0 (OBJ indices start at 1)"))),
+        k if k > 0 => {
+            usize::try_from(k - 1).map_err(|_| at(format!("{what} index {k} is out of range")))
+        }
+        k => count.checked_sub(k.unsigned_abs() as usize).ok_or_else(|| {
+            at(format!(
+                "relative {what} index {k} reaches before the first {what} ({count} read so far)"
+            ))
+        }),
+    }
+}
+
+/// The statements of one OBJ file as read, before faces are selected and checked.
+struct ObjReader<'a> {
+    path: &'a Path,
+    positions: Vec<Vec3>,
+    /// The line of each position, for the finiteness error.
+    position_line: Vec<usize>,
+    texcoords: usize,
+    normals: usize,
+    /// The vertex references of all faces, one after another (see [`Face::start`]). Positive
+    /// indices may refer to vertices defined later: they are checked at the end, for the faces
+    /// used.
+    refs: Vec<u32>,
+    faces: Vec<Face>,
+    /// The `o`/`g` names in order of first use; 0 is the unnamed group before any.
+    groups: Vec<String>,
+    current_group: usize,
+    /// Counts of skipped line elements, point elements and free-form statements.
+    skipped: [usize; 3],
+    /// The largest texture coordinate and normal referenced (1-based), with its line: checked
+    /// at the end, as they may be defined after the face.
+    max_vt: (usize, usize),
+    max_vn: (usize, usize),
+}
+
+impl<'a> ObjReader<'a> {
+    fn new(path: &'a Path) -> Self {
+        ObjReader {
+            path,
+            positions: Vec::new(),
+            position_line: Vec::new(),
+            texcoords: 0,
+            normals: 0,
+            refs: Vec::new(),
+            faces: Vec::new(),
+            groups: vec![String::new()],
+            current_group: 0,
+            skipped: [0; 3],
+            max_vt: (0, 0),
+            max_vn: (0, 0),
+        }
+    }
+
+    /// Reads one logical line `text` (line number `n`).
+    fn statement(&mut self, n: usize, text: &[u8]) -> Result<(), InputError> {
+        let mut w = words(text);
+        let Some(keyword) = w.next() else {
+            return Ok(());
+        };
+        match keyword {
+            b"v" => self.vertex(n, w)?,
+            b"vt" => self.texcoords += 1,
+            b"vn" => self.normals += 1,
+            b"f" | b"fo" => self.face(n, w)?,
+            b"l" => self.skipped[0] += 1,
+            b"p" => self.skipped[1] += 1,
+            b"curv" | b"curv2" | b"surf" => self.skipped[2] += 1,
+            b"o" | b"g" => self.group(text, keyword.len()),
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// `v x y z ...`: the position is the first three words.
+    fn vertex<'w>(
+        &mut self,
+        n: usize,
+        mut w: impl Iterator<Item = &'w [u8]>,
+    ) -> Result<(), InputError> {
+        let mut xyz = [0.0f32; 3];
+        for (k, c) in xyz.iter_mut().enumerate() {
+            let word = w.next().ok_or_else(|| {
+                line_error(
+                    self.path,
+                    n,
+                    format!("vertex needs three coordinates x y z, got {k}"),
+                )
+            })?;
+            *c = std::str::from_utf8(word)
+                .ok()
+                .and_then(|s| s.parse::<f32>().ok())
+                .ok_or_else(|| {
+                    line_error(
+                        self.path,
+                        n,
+                        format!("vertex coordinate '{}' is not a number", lossy(word)),
+                    )
+                })?;
+        }
+        self.positions.push(Vec3::from(xyz));
+        self.position_line.push(n);
+        Ok(())
+    }
+
+    /// `f v/vt/vn ...`: appends the vertex references and notes the largest texture coordinate
+    /// and normal referenced.
+    fn face<'w>(&mut self, n: usize, w: impl Iterator<Item = &'w [u8]>) -> Result<(), InputError> {
+        let start = self.refs.len();
+        for word in w {
+            let mut parts = word.split(|&b| b == b'/');
+            let v = parts.next().unwrap_or_default();
+            let vi = resolve_index(v, "vertex", self.positions.len(), self.path, n)?;
+            let vi = u32::try_from(vi).map_err(|_| {
+                line_error(
+                    self.path,
+                    n,
+                    format!("vertex index {} is out of range", vi + 1),
+                )
+            })?;
+            self.refs.push(vi);
+            if let Some(t) = parts.next().filter(|t| !t.is_empty()) {
+                let ti = resolve_index(t, "texture coordinate", self.texcoords, self.path, n)?;
+                if ti >= self.max_vt.0 {
+                    self.max_vt = (ti + 1, n);
+                }
+            }
+            if let Some(nn) = parts.next().filter(|t| !t.is_empty()) {
+                let ni = resolve_index(nn, "normal", self.normals, self.path, n)?;
+                if ni >= self.max_vn.0 {
+                    self.max_vn = (ni + 1, n);
+                }
+            }
+        }
+        let count = self.refs.len() - start;
+        if count < 3 {
+            return Err(line_error(
+                self.path,
+                n,
+                format!("a face needs at least 3 vertices, got {count}"),
+            ));
+        }
+        self.faces.push(Face {
+            start,
+            line: n,
+            group: self.current_group,
+        });
+        Ok(())
+    }
+
+    /// `o name` / `g name`: the rest of the line (after the keyword of `keyword_len` bytes)
+    /// names the group of the faces that follow.
+    fn group(&mut self, text: &[u8], keyword_len: usize) {
+        let rest = text
+            .iter()
+            .position(|b| !b.is_ascii_whitespace())
+            .map(|s| &text[s + keyword_len..])
+            .unwrap_or_default();
+        let name = lossy(rest).trim().to_string();
+        self.current_group = match self.groups.iter().position(|g| *g == name) {
+            Some(i) => i,
+            None => {
+                self.groups.push(name);
+                self.groups.len() - 1
+            }
+        };
+    }
+
+    /// Texture coordinates and normals do not shape shadows: references to missing ones are
+    /// ignored, and said once.
+    fn missing_reference_warnings(&self) -> Vec<String> {
+        [
+            (self.max_vt, self.texcoords, "texture coordinate"),
+            (self.max_vn, self.normals, "normal"),
+        ]
+        .into_iter()
+        .filter(|((max, _), count, _)| max > count)
+        .map(|((max, line), count, what)| {
+            format!(
+                "{}: line {line}: faces refer to {what} {max} but the file has {count} (ignored: \
+                 only positions shape shadows)",
+                self.path.display()
+            )
+        })
+        .collect()
+    }
+
+    /// The indices of the faces under the `o`/`g` name `group` (all faces without one).
+    fn select_faces(&self, group: Option<&str>) -> Result<Vec<usize>, InputError> {
+        let Some(g) = group else {
+            return Ok((0..self.faces.len()).collect());
+        };
+        let Some(gi) = self.groups.iter().position(|n| n == g) else {
+            let named: Vec<&str> = self
+                .groups
+                .iter()
+                .filter(|n| !n.is_empty())
+                .map(String::as_str)
+                .collect();
+            return Err(InputError::file(
+                self.path,
+                format!(
+                    "no object or group named '{g}' (the file has: {})",
+                    names_or_none(&named)
+                ),
+            ));
+        };
+        Ok((0..self.faces.len())
+            .filter(|&f| self.faces[f].group == gi)
+            .collect())
+    }
+
+    /// The vertex references of face `f`.
+    fn face_refs(&self, f: usize) -> &[u32] {
+        let end = self
+            .faces
+            .get(f + 1)
+            .map_or(self.refs.len(), |next| next.start);
+        &self.refs[self.faces[f].start..end]
+    }
+
+    /// The mesh of the `selected` faces: the vertices they use (checked to exist and be finite,
+    /// kept in file order) and their triangulation; also the lines of faces dropped for having
+    /// no area.
+    fn build_mesh(&self, selected: &[usize]) -> Result<(Mesh, Vec<usize>), InputError> {
+        let mut remap = vec![u32::MAX; self.positions.len()];
+        for &f in selected {
+            for &v in self.face_refs(f) {
+                let Some(p) = self.positions.get(v as usize) else {
+                    return Err(line_error(
+                        self.path,
+                        self.faces[f].line,
+                        format!(
+                            "face uses vertex {} but the file has {} vertices",
+                            v as u64 + 1,
+                            self.positions.len()
+                        ),
+                    ));
+                };
+                if !p.is_finite() {
+                    return Err(line_error(
+                        self.path,
+                        self.position_line[v as usize],
+                        format!("vertex {} is not finite ({p})", v + 1),
+                    ));
+                }
+                remap[v as usize] = 0;
+            }
+        }
+        let mut mesh = Mesh::default();
+        for (i, r) in remap.iter_mut().enumerate() {
+            if *r == 0 {
+                *r = mesh.positions.len() as u32;
+                mesh.positions.push(self.positions[i]);
+            }
+        }
+        let mut dropped = Vec::new();
+        let mut poly = Vec::new();
+        for &f in selected {
+            poly.clear();
+            poly.extend(self.face_refs(f).iter().map(|&v| remap[v as usize]));
+            match polygon::triangulate(&mesh.positions, &poly) {
+                Ok(t) => mesh.triangles.extend(t),
+                Err(PolygonFault::Degenerate) => dropped.push(self.faces[f].line),
+                Err(fault) => {
+                    return Err(line_error(
+                        self.path,
+                        self.faces[f].line,
+                        format!("polygon of {} vertices {fault}", poly.len()),
+                    ))
+                }
+            }
+        }
+        Ok((mesh, dropped))
+    }
+
+    /// The warning for skipped line, point and free-form elements, if any.
+    fn skipped_warning(&self) -> Option<String> {
+        let skipped: Vec<String> = self
+            .skipped
+            .iter()
+            .zip(["line element", "point element", "free-form curve/surface"])
+            .filter(|(k, _)| **k > 0)
+            .map(|(k, what)| format!("{k} {what}{}", if *k == 1 { "" } else { "s" }))
+            .collect();
+        (!skipped.is_empty()).then(|| {
+            format!(
+                "{}: skipped {} (they bound no surface)",
+                self.path.display(),
+                skipped.join(", ")
+            )
+        })
+    }
+}
+
+/// The warning for polygons with no area dropped at lines `dropped`, if any.
+fn dropped_warning(path: &Path, dropped: &[usize]) -> Option<String> {
+    let s = if dropped.len() == 1 { "" } else { "s" };
+    (!dropped.is_empty()).then(|| {
+        format!(
+            "{}: dropped {} polygon{s} with no area (line{s} {})",
+            path.display(),
+            dropped.len(),
+            summarize_lines(dropped)
+        )
+    })
 }
 
 /// "3, 7, 12, … (40 in all)": the first few line numbers of a list.

@@ -119,6 +119,11 @@ pub fn triangulate(positions: &[Vec3], poly: &[u32]) -> Result<Vec<[u32; 3]>, Po
 mod tests {
     use super::*;
 
+    /// Points of the z = 0 plane.
+    fn xy(points: &[(f32, f32)]) -> Vec<Vec3> {
+        points.iter().map(|&(x, y)| Vec3::new(x, y, 0.0)).collect()
+    }
+
     fn area(positions: &[Vec3], tris: &[[u32; 3]]) -> f32 {
         tris.iter()
             .map(|t| {
@@ -167,12 +172,7 @@ mod tests {
 
     #[test]
     fn bow_tie_and_collinear_polygons_are_faults() {
-        let bow = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-        ];
+        let bow = xy(&[(0.0, 0.0), (1.0, 1.0), (1.0, 0.0), (0.0, 1.0)]);
         assert!(matches!(
             triangulate(&bow, &[0, 1, 2, 3]),
             Err(PolygonFault::SelfIntersecting { .. })
@@ -186,12 +186,7 @@ mod tests {
 
     #[test]
     fn clockwise_quad_keeps_its_winding() {
-        let q = [
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(1.0, 1.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-        ];
+        let q = xy(&[(0.0, 0.0), (0.0, 1.0), (1.0, 1.0), (1.0, 0.0)]);
         let tris = triangulate(&q, &[0, 1, 2, 3]).unwrap();
         assert_eq!(tris.len(), 2);
         for t in tris {

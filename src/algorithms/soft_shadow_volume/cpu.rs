@@ -206,43 +206,7 @@ pub fn render(
     for phase in ["hard", "wedges", "soft"] {
         m.phase(phase);
     }
-    let rays = EyeRays::new(frame);
-    let depth = EyeBuffer::new(&mut m, &rays, "depth", DEPTH_BYTES as u32);
-    // One f32 per channel under a textured light (III §4.1).
-    let channels = if frame.scene.light_texture.is_some() {
-        3
-    } else {
-        1
-    };
-    let vbuffer_bytes = match opts.vbuffer {
-        VBufferPrecision::F32 => VBUFFER_F32_BYTES * channels,
-        VBufferPrecision::Split12 => VBUFFER_RGBA8_BYTES,
-    };
-    let vbuffer = EyeBuffer::new(&mut m, &rays, "vbuffer", vbuffer_bytes);
-    let stencil = EyeBuffer::new(&mut m, &rays, "stencil", STENCIL_BYTES);
-    let light_texture = frame.scene.light_texture.as_deref();
-    let texture = (opts.coverage == CoverageMethod::Texture).then(|| {
-        let texture = coverage_texture(EmitterShape::of(&light), opts.texture_n, light_texture);
-        let (id, base) = m.memory.reserve("coverage_texture", texture.bytes());
-        TextureBuffer { texture, id, base }
-    });
-    let setup = Setup {
-        hard: CountTarget {
-            depth,
-            count: match opts.vbuffer {
-                VBufferPrecision::F32 => vbuffer,
-                VBufferPrecision::Split12 => stencil,
-            },
-            clear: false,
-        },
-        rays,
-        texture,
-        mean: light_texture.map(LightTexture::mean),
-        opts: *opts,
-        tile: frame.params.tile_size.max(1),
-        vbuffer,
-        stencil,
-    };
+    let setup = Setup::new(&mut m, frame, opts);
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
     let n = setup.rays.len();
@@ -343,6 +307,49 @@ pub fn render(
 }
 
 impl Setup {
+    /// The frame's eye rays and buffers (depth, V-buffer, stencil; reserved in `m`'s memory),
+    /// and the coverage texture when the options ask for it.
+    fn new(m: &mut Machine, frame: &Frame, opts: &SoftShadowVolumeOptions) -> Setup {
+        let light = frame.scene.light;
+        let rays = EyeRays::new(frame);
+        let depth = EyeBuffer::new(m, &rays, "depth", DEPTH_BYTES as u32);
+        // One f32 per channel under a textured light (III §4.1).
+        let channels = if frame.scene.light_texture.is_some() {
+            3
+        } else {
+            1
+        };
+        let vbuffer_bytes = match opts.vbuffer {
+            VBufferPrecision::F32 => VBUFFER_F32_BYTES * channels,
+            VBufferPrecision::Split12 => VBUFFER_RGBA8_BYTES,
+        };
+        let vbuffer = EyeBuffer::new(m, &rays, "vbuffer", vbuffer_bytes);
+        let stencil = EyeBuffer::new(m, &rays, "stencil", STENCIL_BYTES);
+        let light_texture = frame.scene.light_texture.as_deref();
+        let texture = (opts.coverage == CoverageMethod::Texture).then(|| {
+            let texture = coverage_texture(EmitterShape::of(&light), opts.texture_n, light_texture);
+            let (id, base) = m.memory.reserve("coverage_texture", texture.bytes());
+            TextureBuffer { texture, id, base }
+        });
+        Setup {
+            hard: CountTarget {
+                depth,
+                count: match opts.vbuffer {
+                    VBufferPrecision::F32 => vbuffer,
+                    VBufferPrecision::Split12 => stencil,
+                },
+                clear: false,
+            },
+            rays,
+            texture,
+            mean: light_texture.map(LightTexture::mean),
+            opts: *opts,
+            tile: frame.params.tile_size.max(1),
+            vbuffer,
+            stencil,
+        }
+    }
+
     /// Channels of the V-buffer and the coverage texture: 3 for a textured light, else 1.
     fn channels(&self) -> u32 {
         if self.mean.is_some() {
