@@ -12,6 +12,7 @@
 //! geometric mean of modelled / measured, the mean absolute percentage error
 //! `100 · mean(|modelled − measured| / measured)`, and Spearman's rank correlation.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -33,7 +34,7 @@ pub struct Sweep {
     pub map_resolution: u32,
     pub tile_size: u32,
     /// Per-algorithm options (`options.<algorithm>` of a scenario).
-    pub options: std::collections::BTreeMap<String, serde_json::Value>,
+    pub options: BTreeMap<String, serde_json::Value>,
     /// Timed `cpu-native` runs per case (after one warm-up run).
     pub repeats: usize,
 }
@@ -96,6 +97,36 @@ pub struct Row {
     /// The run's whole wall time (median), with the host-side work between phases; runs only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub run_wall_ms: Option<f64>,
+    /// What the cpu-model counted for the run or phase ([`WORK_COUNTERS`]; absent ones are
+    /// left out): the work the modelled time is made of.
+    pub work: BTreeMap<String, f64>,
+}
+
+/// The cpu-model counters of a run or phase that the timing model turns into time
+/// (`docs/model.md`, "Timing"), kept in each [`Row`] to relate a phase's ratio to its work.
+pub const WORK_COUNTERS: [&str; 14] = [
+    "vector_ops",
+    "active_lanes",
+    "scalar_ops",
+    "loads",
+    "stores",
+    "gathers",
+    "gather_lines",
+    "scatters",
+    "scatter_lines",
+    "atomics",
+    "cache.l1_misses",
+    "cache.l2_misses",
+    "cache.l3_misses",
+    "dram_read_bytes",
+];
+
+/// The [`WORK_COUNTERS`] among `c`.
+fn work_of(c: &crate::record::Counters) -> BTreeMap<String, f64> {
+    WORK_COUNTERS
+        .iter()
+        .filter_map(|k| c.get(k).map(|v| (k.to_string(), v)))
+        .collect()
 }
 
 /// Agreement of modelled with measured times over a set of rows.
@@ -370,26 +401,30 @@ fn case(
         let steps = steps_of(&out);
         timed.push((start.elapsed().as_secs_f64() * 1e3, out.phases, steps));
     }
-    let row =
-        |phase: Option<String>, modelled: f64, mut measured: Vec<f64>, mut steps: Vec<f64>| {
-            let (lo, hi) = measured
-                .iter()
-                .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
-            let t = median(&mut measured);
-            Row {
-                algorithm: alg.to_string(),
-                scene: frame.scene.name.clone(),
-                image: frame.params.image,
-                phase,
-                modelled_ms: modelled,
-                measured_ms: t,
-                measured_min_ms: lo,
-                measured_max_ms: hi,
-                steps_ms: median(&mut steps),
-                ratio: modelled / t,
-                run_wall_ms: None,
-            }
-        };
+    let row = |phase: Option<String>,
+               modelled: f64,
+               work: BTreeMap<String, f64>,
+               mut measured: Vec<f64>,
+               mut steps: Vec<f64>| {
+        let (lo, hi) = measured
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+        let t = median(&mut measured);
+        Row {
+            algorithm: alg.to_string(),
+            scene: frame.scene.name.clone(),
+            image: frame.params.image,
+            phase,
+            modelled_ms: modelled,
+            measured_ms: t,
+            measured_min_ms: lo,
+            measured_max_ms: hi,
+            steps_ms: median(&mut steps),
+            ratio: modelled / t,
+            run_wall_ms: None,
+            work,
+        }
+    };
     let mut phase_rows = Vec::new();
     for p in &model.phases {
         let measured: Vec<f64> = timed
@@ -402,7 +437,13 @@ fn case(
             .collect();
         let complete = measured.len() == timed.len() && steps.len() == timed.len();
         match (p.model_ms, complete) {
-            (Some(m), true) => phase_rows.push(row(Some(p.name.clone()), m, measured, steps)),
+            (Some(m), true) => phase_rows.push(row(
+                Some(p.name.clone()),
+                m,
+                work_of(&p.counters),
+                measured,
+                steps,
+            )),
             _ => {
                 return Err(Error::Other(format!(
                     "phase '{}' has no modelled time or is missing from a cpu-native run",
@@ -423,7 +464,7 @@ fn case(
     let modelled = model
         .model_ms
         .ok_or_else(|| Error::Other("the cpu-model run has no model_ms".into()))?;
-    let mut run = row(None, modelled, sums, step_sums);
+    let mut run = row(None, modelled, work_of(&model.counters), sums, step_sums);
     run.run_wall_ms = Some(median(&mut walls));
     Ok((run, phase_rows))
 }
@@ -605,6 +646,7 @@ mod tests {
             steps_ms: 1.75,
             ratio: 0.5,
             run_wall_ms: None,
+            work: BTreeMap::new(),
         };
         let text = csv(&[r]);
         let line = text.lines().nth(1).unwrap();
