@@ -363,6 +363,20 @@ impl Recorder<'_> {
         self.cycles(seconds_per_unit(self.s.repeats, f))
     }
 
+    /// Measures `f`'s cycles per unit and records them as `field`, `method` followed by how
+    /// many repetitions it is the fastest of; returns the figure.
+    fn measure(
+        &mut self,
+        field: &str,
+        unit: &'static str,
+        method: &str,
+        f: impl FnMut() -> u64,
+    ) -> f64 {
+        let v = self.cycles_per_unit(f);
+        let method = format!("{method}, fastest of {}", self.s.repeats);
+        self.record(field, v, unit, method)
+    }
+
     /// Records a figure (and reports it); returns its value.
     fn record(&mut self, field: &str, value: f64, unit: &'static str, method: String) -> f64 {
         (self.progress)(&format!("  {field:<22} {value:>10.3} {unit:<18} {method}"));
@@ -402,23 +416,37 @@ fn issue_costs(m: &mut MachineConfig, rec: &mut Recorder) {
         "cycles/instruction",
         format!("the 16-lane instruction's cycles less 16 lanes' (at least 0), fastest of {r}"),
     );
-    let sc = rec.cycles_per_unit(|| scalar_kernel(s.n(4_000_000)));
-    m.costs.scalar = rec.record(
-        "costs.scalar",
-        sc,
-        "cycles/instruction",
-        format!("4 interleaved integer updates (add, xor, rotate, shift), fastest of {r}"),
-    );
-    let vm = rec.cycles_per_unit(|| vector_memory_kernel(s.n(20_000)));
-    m.costs.vector_memory = rec.record(
-        "costs.vector_memory",
-        vm,
-        "cycles/line",
-        format!(
-            "16-lane load, multiply and store of whole aligned lines of a 16 KiB array, per \
-             line accessed, fastest of {r}"
+    let k = &mut m.costs;
+    let simple: [(&mut f64, &str, &'static str, &str, fn(usize) -> u64, usize); 3] = [
+        (
+            &mut k.scalar,
+            "costs.scalar",
+            "cycles/instruction",
+            "4 interleaved integer updates (add, xor, rotate, shift)",
+            scalar_kernel,
+            4_000_000,
         ),
-    );
+        (
+            &mut k.vector_memory,
+            "costs.vector_memory",
+            "cycles/line",
+            "16-lane load, multiply and store of whole aligned lines of a 16 KiB array, per line \
+             accessed",
+            vector_memory_kernel,
+            20_000,
+        ),
+        (
+            &mut k.atomic,
+            "costs.atomic",
+            "cycles/atomic",
+            "relaxed atomic adds on a 16 KiB array at hashed indices",
+            atomic_kernel,
+            4_000_000,
+        ),
+    ];
+    for (cost, field, unit, method, kernel, base) in simple {
+        *cost = rec.measure(field, unit, method, || kernel(s.n(base)));
+    }
     let g1 = rec.cycles_per_unit(|| gather_kernel(s.n(2_000_000), 1));
     let g16 = rec.cycles_per_unit(|| gather_kernel(s.n(2_000_000), 16));
     let per_line = ((g16 - g1) / 15.0).max(0.0);
@@ -436,13 +464,6 @@ fn issue_costs(m: &mut MachineConfig, rec: &mut Recorder) {
         (g1 - per_line).max(0.0),
         "cycles/instruction",
         format!("the 1-line gather's cycles less one line's, fastest of {r}"),
-    );
-    let at = rec.cycles_per_unit(|| atomic_kernel(s.n(4_000_000)));
-    m.costs.atomic = rec.record(
-        "costs.atomic",
-        at,
-        "cycles/atomic",
-        format!("relaxed atomic adds on a 16 KiB array at hashed indices, fastest of {r}"),
     );
 }
 
@@ -533,26 +554,21 @@ fn memory_costs(m: &mut MachineConfig, rec: &mut Recorder) {
 
 /// The cost of a barrier: an empty step of one task per core on `cpu-native`.
 fn barrier(m: &mut MachineConfig, rec: &mut Recorder) {
-    let (s, r) = (rec.s, rec.s.repeats);
+    let s = rec.s;
     let mut machine = Machine::new(Backend::CpuNative, m.clone());
     machine.phase("barrier");
     let weights = vec![1u64; m.cores as usize];
-    let barrier = rec.cycles_per_unit(|| {
+    let method = format!(
+        "an empty cpu-native step of {} tasks (fork and join)",
+        m.cores
+    );
+    m.barrier_cycles = rec.measure("barrier_cycles", "cycles", &method, || {
         let n = s.n(20_000);
         for _ in 0..n {
             machine.run_step("empty", &Empty, &weights);
         }
         n as u64
     });
-    m.barrier_cycles = rec.record(
-        "barrier_cycles",
-        barrier,
-        "cycles",
-        format!(
-            "an empty cpu-native step of {} tasks (fork and join), fastest of {r}",
-            m.cores
-        ),
-    );
 }
 
 #[cfg(test)]
