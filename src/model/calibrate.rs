@@ -9,7 +9,7 @@
 //!
 //! | figure | kernel |
 //! |---|---|
-//! | `costs.vector` | a receiver-setup-like sequence of 16-lane operations (transform, reciprocal, floor, compares, selects) per counted vector instruction |
+//! | `costs.vector`, `costs.lane` | a receiver-setup-like sequence of 16-lane operations (transform, reciprocal, floor, compares, select) written as the kernels' lane code (a loop over the active lanes, `glam` per lane, a branch per lane), timed with 16 and with 4 active lanes: the cost per active lane and per instruction |
 //! | `costs.scalar` | four interleaved integer updates |
 //! | `costs.vector_memory` | 16-lane loads and stores of whole lines of an L1-resident array |
 //! | `costs.gather`, `costs.gather_line` | 16-lane gathers from an L1-resident table touching 1 and 16 lines: the cost per gather and per extra line |
@@ -19,9 +19,11 @@
 //! | `dram_gb_per_s` | every core summing its share of the DRAM-sized buffer |
 //! | `barrier_cycles` | an empty step of [`Machine::run_step`] on `cpu-native` (the host's fork-join) |
 //!
-//! What the kernels cannot see: how the algorithms' own code compiles (a counted vector
-//! instruction of a kernel that does not vectorise costs more than the calibration kernel's),
-//! work outside the counted steps, page faults of new buffers, frequency changes.
+//! What the kernels cannot see: how much host work the algorithms' own code does per counted
+//! instruction (the counts are a 16-wide Larrabee's; a counted instruction of the rasterizer's
+//! coverage test is 16 `f64` edge evaluations with a branch each on the host), work outside
+//! the counted steps, branch mispredictions, page faults of new buffers, frequency changes,
+//! and other guests on the same physical cores (`docs/model.md`, "Validation").
 
 use std::hint::black_box;
 use std::sync::atomic::{AtomicU32, Ordering};

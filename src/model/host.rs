@@ -90,7 +90,8 @@ const ASSUMED: &str = "assumption (typical of current out-of-order x86 cores; \
 ///   instance's size times the instances the logical CPUs span), sizes and ways from
 ///   `cache/index*/`; without sysfs: 64-byte lines, 32 KiB 8-way L1, 1 MiB 8-way L2, no L3;
 /// - costs (cycles per counted operation): a 16-lane vector instruction or contiguous
-///   one-line access is `16 / f32_lanes` host instructions at one per cycle; scalar 1, gather 1
+///   one-line access is `16 / f32_lanes` host instructions at one per cycle (no per-lane
+///   cost: `costs.lane` 0, which `shadowbench calibrate` measures); scalar 1, gather 1
 ///   per line, atomic 20; latencies L1 4, L2 14, L3 50 cycles, DRAM 100 ns; memory parallelism
 ///   1; DRAM 20 GB/s; barrier 2000 cycles. These are stated assumptions (`sources` says so)
 ///   until `shadowbench calibrate` replaces them with measurements.
