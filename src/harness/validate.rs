@@ -99,7 +99,7 @@ pub struct Row {
     pub run_wall_ms: Option<f64>,
     /// The run's on-CPU time over the logical CPUs (median of the timed runs): the time every
     /// thread of this process spent running (`/proc/self/task/*/schedstat`), divided by the
-    /// machine's cores × threads. Time other processes held the CPUs does not count, so it is
+    /// worker threads of cpu-native (`rayon::current_num_threads`, the logical CPUs). Time other processes held the CPUs does not count, so it is
     /// the run's time on an otherwise idle machine if its work were spread evenly (it also
     /// counts idle workers' spinning). Runs only, Linux only.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -437,7 +437,8 @@ fn case(
         let start = Instant::now();
         let out = algorithms::run(alg, Backend::CpuNative, frame, &ctx)?;
         let wall = start.elapsed().as_secs_f64() * 1e3;
-        let logical = f64::from(machine.cores * machine.threads_per_core);
+        // The worker threads cpu-native runs on (one per logical CPU unless limited).
+        let logical = rayon::current_num_threads() as f64;
         if let Some((a, b)) = cpu_start.zip(cpu_ns()) {
             cpu.push(b.saturating_sub(a) as f64 * 1e-6 / logical);
         }
