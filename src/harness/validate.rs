@@ -99,9 +99,10 @@ pub struct Row {
     pub run_wall_ms: Option<f64>,
     /// The run's on-CPU time over the logical CPUs (median of the timed runs): the time every
     /// thread of this process spent running (`/proc/self/task/*/schedstat`), divided by the
-    /// worker threads of cpu-native (`rayon::current_num_threads`, the logical CPUs). Time other processes held the CPUs does not count, so it is
-    /// the run's time on an otherwise idle machine if its work were spread evenly (it also
-    /// counts idle workers' spinning). Runs only, Linux only.
+    /// worker threads of cpu-native (`rayon::current_num_threads`, the logical CPUs). Time
+    /// other processes held the CPUs does not count, so it is the run's time on an otherwise
+    /// idle machine if its work were spread evenly (it also counts idle workers' spinning).
+    /// Runs only, Linux only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cpu_ms: Option<f64>,
     /// What the cpu-model counted for the run or phase ([`WORK_COUNTERS`]; absent ones are
