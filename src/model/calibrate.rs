@@ -392,6 +392,17 @@ impl Recorder<'_> {
     }
 }
 
+/// A cost measured by one kernel: the figure it sets, its field, unit and method, the kernel
+/// (iterations to units done) and its base iteration count.
+type CostKernel<'a> = (
+    &'a mut f64,
+    &'static str,
+    &'static str,
+    &'static str,
+    fn(usize) -> u64,
+    usize,
+);
+
 /// The issue costs: vector (per instruction and per active lane), scalar, contiguous lines,
 /// gathers, atomics.
 fn issue_costs(m: &mut MachineConfig, rec: &mut Recorder) {
@@ -419,7 +430,7 @@ fn issue_costs(m: &mut MachineConfig, rec: &mut Recorder) {
         format!("the 16-lane instruction's cycles less 16 lanes' (at least 0), fastest of {r}"),
     );
     let k = &mut m.costs;
-    let simple: [(&mut f64, &str, &'static str, &str, fn(usize) -> u64, usize); 3] = [
+    let simple: [CostKernel; 3] = [
         (
             &mut k.scalar,
             "costs.scalar",
