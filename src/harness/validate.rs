@@ -12,6 +12,7 @@
 //! geometric mean of modelled / measured, the mean absolute percentage error
 //! `100 · mean(|modelled − measured| / measured)`, and Spearman's rank correlation.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -33,7 +34,7 @@ pub struct Sweep {
     pub map_resolution: u32,
     pub tile_size: u32,
     /// Per-algorithm options (`options.<algorithm>` of a scenario).
-    pub options: std::collections::BTreeMap<String, serde_json::Value>,
+    pub options: BTreeMap<String, serde_json::Value>,
     /// Timed `cpu-native` runs per case (after one warm-up run).
     pub repeats: usize,
 }
@@ -96,6 +97,44 @@ pub struct Row {
     /// The run's whole wall time (median), with the host-side work between phases; runs only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub run_wall_ms: Option<f64>,
+    /// The run's on-CPU time over the logical CPUs (median of the timed runs): the time every
+    /// thread of this process spent running (`/proc/self/task/*/schedstat`), divided by the
+    /// worker threads of cpu-native (`rayon::current_num_threads`, the logical CPUs). Time
+    /// other processes held the CPUs does not count, so it is the run's time on an otherwise
+    /// idle machine if its work were spread evenly (it also counts idle workers' spinning).
+    /// Runs only, Linux only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cpu_ms: Option<f64>,
+    /// What the cpu-model counted for the run or phase ([`WORK_COUNTERS`]; absent ones are
+    /// left out): the work the modelled time is made of.
+    pub work: BTreeMap<String, f64>,
+}
+
+/// The cpu-model counters of a run or phase that the timing model turns into time
+/// (`docs/model.md`, "Timing"), kept in each [`Row`] to relate a phase's ratio to its work.
+pub const WORK_COUNTERS: [&str; 14] = [
+    "vector_ops",
+    "active_lanes",
+    "scalar_ops",
+    "loads",
+    "stores",
+    "gathers",
+    "gather_lines",
+    "scatters",
+    "scatter_lines",
+    "atomics",
+    "cache.l1_misses",
+    "cache.l2_misses",
+    "cache.l3_misses",
+    "dram_read_bytes",
+];
+
+/// The [`WORK_COUNTERS`] among `c`.
+fn work_of(c: &crate::record::Counters) -> BTreeMap<String, f64> {
+    WORK_COUNTERS
+        .iter()
+        .filter_map(|k| c.get(k).map(|v| (k.to_string(), v)))
+        .collect()
 }
 
 /// Agreement of modelled with measured times over a set of rows.
@@ -196,6 +235,16 @@ impl Agreement {
         Agreement::against(rows, |r| r.measured_min_ms)
     }
 
+    /// Against the on-CPU time per logical CPU ([`Row::cpu_ms`]); rows without it are left out.
+    pub fn of_cpu(rows: &[&Row]) -> Agreement {
+        let with: Vec<&Row> = rows
+            .iter()
+            .copied()
+            .filter(|r| r.cpu_ms.is_some())
+            .collect();
+        Agreement::against(&with, |r| r.cpu_ms.unwrap_or(f64::NAN))
+    }
+
     /// Against the median wall time inside the machine's steps.
     pub fn of_steps(rows: &[&Row]) -> Agreement {
         Agreement::against(rows, |r| r.steps_ms)
@@ -230,6 +279,9 @@ pub struct Validation {
     /// The same against the wall time inside the machine's steps ([`Row::steps_ms`]).
     pub runs_agreement_steps: Agreement,
     pub phases_agreement_steps: Agreement,
+    /// Over whole runs against their on-CPU time per logical CPU ([`Row::cpu_ms`]; absent where
+    /// the OS does not state it).
+    pub runs_agreement_cpu: Agreement,
     /// Over whole runs, per algorithm (in sweep order).
     pub per_algorithm: Vec<(String, Agreement)>,
     pub runs: Vec<Row>,
@@ -252,6 +304,21 @@ fn load_average() -> Option<f64> {
         .next()?
         .parse()
         .ok()
+}
+
+/// Nanoseconds every thread of this process has spent on a CPU so far: the sum of the first
+/// field of `/proc/self/task/*/schedstat` (Linux; `None` elsewhere or when unreadable).
+fn cpu_ns() -> Option<u64> {
+    let mut total = 0u64;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let path = task.ok()?.path().join("schedstat");
+        // A thread that ended between the listing and the read ran nothing since.
+        let Ok(text) = std::fs::read_to_string(path) else {
+            continue;
+        };
+        total += text.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
+    Some(total)
 }
 
 /// Runs `sweep` with `machine` as the cpu-model's machine; `progress` gets a line per case.
@@ -325,6 +392,7 @@ pub fn run(
         phases_agreement_fastest: fastest(&phases),
         runs_agreement_steps: steps(&runs),
         phases_agreement_steps: steps(&phases),
+        runs_agreement_cpu: Agreement::of_cpu(&runs.iter().collect::<Vec<_>>()),
         per_algorithm,
         runs,
         phases,
@@ -364,32 +432,45 @@ fn case(
     // Warm-up: first touches of the frame, the thread pool, the allocator.
     algorithms::run(alg, Backend::CpuNative, frame, &ctx)?;
     let mut timed = Vec::new();
+    let mut cpu = Vec::new();
     for _ in 0..repeats.max(1) {
+        let cpu_start = cpu_ns();
         let start = Instant::now();
         let out = algorithms::run(alg, Backend::CpuNative, frame, &ctx)?;
+        let wall = start.elapsed().as_secs_f64() * 1e3;
+        // The worker threads cpu-native runs on (one per logical CPU unless limited).
+        let logical = rayon::current_num_threads() as f64;
+        if let Some((a, b)) = cpu_start.zip(cpu_ns()) {
+            cpu.push(b.saturating_sub(a) as f64 * 1e-6 / logical);
+        }
         let steps = steps_of(&out);
-        timed.push((start.elapsed().as_secs_f64() * 1e3, out.phases, steps));
+        timed.push((wall, out.phases, steps));
     }
-    let row =
-        |phase: Option<String>, modelled: f64, mut measured: Vec<f64>, mut steps: Vec<f64>| {
-            let (lo, hi) = measured
-                .iter()
-                .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
-            let t = median(&mut measured);
-            Row {
-                algorithm: alg.to_string(),
-                scene: frame.scene.name.clone(),
-                image: frame.params.image,
-                phase,
-                modelled_ms: modelled,
-                measured_ms: t,
-                measured_min_ms: lo,
-                measured_max_ms: hi,
-                steps_ms: median(&mut steps),
-                ratio: modelled / t,
-                run_wall_ms: None,
-            }
-        };
+    let row = |phase: Option<String>,
+               modelled: f64,
+               work: BTreeMap<String, f64>,
+               mut measured: Vec<f64>,
+               mut steps: Vec<f64>| {
+        let (lo, hi) = measured
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+        let t = median(&mut measured);
+        Row {
+            algorithm: alg.to_string(),
+            scene: frame.scene.name.clone(),
+            image: frame.params.image,
+            phase,
+            modelled_ms: modelled,
+            measured_ms: t,
+            measured_min_ms: lo,
+            measured_max_ms: hi,
+            steps_ms: median(&mut steps),
+            ratio: modelled / t,
+            run_wall_ms: None,
+            cpu_ms: None,
+            work,
+        }
+    };
     let mut phase_rows = Vec::new();
     for p in &model.phases {
         let measured: Vec<f64> = timed
@@ -402,7 +483,13 @@ fn case(
             .collect();
         let complete = measured.len() == timed.len() && steps.len() == timed.len();
         match (p.model_ms, complete) {
-            (Some(m), true) => phase_rows.push(row(Some(p.name.clone()), m, measured, steps)),
+            (Some(m), true) => phase_rows.push(row(
+                Some(p.name.clone()),
+                m,
+                work_of(&p.counters),
+                measured,
+                steps,
+            )),
             _ => {
                 return Err(Error::Other(format!(
                     "phase '{}' has no modelled time or is missing from a cpu-native run",
@@ -423,8 +510,9 @@ fn case(
     let modelled = model
         .model_ms
         .ok_or_else(|| Error::Other("the cpu-model run has no model_ms".into()))?;
-    let mut run = row(None, modelled, sums, step_sums);
+    let mut run = row(None, modelled, work_of(&model.counters), sums, step_sums);
     run.run_wall_ms = Some(median(&mut walls));
+    run.cpu_ms = (cpu.len() == timed.len()).then(|| median(&mut cpu));
     Ok((run, phase_rows))
 }
 
@@ -491,6 +579,8 @@ pub fn summary_text(v: &Validation) -> String {
     s += "against the wall time inside the machine's steps (no host-side work between them):\n";
     s += &line("all runs", &v.runs_agreement_steps);
     s += &line("all phases", &v.phases_agreement_steps);
+    s += "against the on-CPU time per logical CPU (time other processes held the CPUs left out):\n";
+    s += &line("all runs", &v.runs_agreement_cpu);
     s += "against the fastest timed run instead of the median:\n";
     s += &line("all runs", &v.runs_agreement_fastest);
     s += &line("all phases", &v.phases_agreement_fastest);
@@ -605,6 +695,8 @@ mod tests {
             steps_ms: 1.75,
             ratio: 0.5,
             run_wall_ms: None,
+            cpu_ms: None,
+            work: BTreeMap::new(),
         };
         let text = csv(&[r]);
         let line = text.lines().nth(1).unwrap();

@@ -9,7 +9,7 @@
 //!
 //! | figure | kernel |
 //! |---|---|
-//! | `costs.vector` | a receiver-setup-like sequence of 16-lane operations (transform, reciprocal, floor, compares, selects) per counted vector instruction |
+//! | `costs.vector`, `costs.lane` | a receiver-setup-like sequence of 16-lane operations (transform, reciprocal, floor, compares, select) written as the kernels' lane code (a loop over the active lanes, `glam` per lane, a branch per lane), timed with 16 and with 4 active lanes: the cost per active lane and per instruction |
 //! | `costs.scalar` | four interleaved integer updates |
 //! | `costs.vector_memory` | 16-lane loads and stores of whole lines of an L1-resident array |
 //! | `costs.gather`, `costs.gather_line` | 16-lane gathers from an L1-resident table touching 1 and 16 lines: the cost per gather and per extra line |
@@ -19,18 +19,20 @@
 //! | `dram_gb_per_s` | every core summing its share of the DRAM-sized buffer |
 //! | `barrier_cycles` | an empty step of [`Machine::run_step`] on `cpu-native` (the host's fork-join) |
 //!
-//! What the kernels cannot see: how the algorithms' own code compiles (a counted vector
-//! instruction of a kernel that does not vectorise costs more than the calibration kernel's),
-//! work outside the counted steps, page faults of new buffers, frequency changes.
+//! What the kernels cannot see: how much host work the algorithms' own code does per counted
+//! instruction (the counts are a 16-wide Larrabee's; a counted instruction of the rasterizer's
+//! coverage test is 16 `f64` edge evaluations with a branch each on the host), work outside
+//! the counted steps, branch mispredictions, page faults of new buffers, frequency changes,
+//! and other guests on the same physical cores (`docs/model.md`, "Validation").
 
 use std::hint::black_box;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
-use glam::Vec3;
+use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
-use super::config::MachineConfig;
+use super::config::{CacheConfig, MachineConfig};
 use super::{Lanes, Machine, Mask, Memory, NoProbe, Probe, TaskKernel, LANES};
 use crate::algorithms::Backend;
 use crate::util::hash::mix64;
@@ -84,40 +86,49 @@ fn seconds_per_unit(repeats: usize, mut f: impl FnMut() -> u64) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
-/// Counted vector instructions per iteration of [`vector_kernel`], by the kernels' convention
+/// Counted vector instructions per iteration of [`lane_kernel`], by the kernels' convention
 /// (a multiply-add, a compare, a select, a floor, a reciprocal: one each): the 4-row transform
 /// (4 × 3 multiply-adds), a reciprocal, the two screen coordinates (2 × (multiply-add,
 /// multiply)), two texel floors (2 × (multiply, floor)), the range test (2 compares, an and),
 /// the depth (multiply, select), a min, the position step (3 adds).
-pub const VECTOR_KERNEL_OPS: u64 = 12 + 1 + 4 + 4 + 3 + 2 + 1 + 3;
+pub const LANE_KERNEL_OPS: u64 = 12 + 1 + 4 + 4 + 3 + 2 + 1 + 3;
 
-/// A receiver-setup-like sequence of 16-lane operations, `iters` times; returns the counted
-/// vector instructions.
-pub fn vector_kernel(iters: usize) -> u64 {
-    let m: [f32; 16] = black_box(std::array::from_fn(|i| 0.1 + i as f32 * 0.05));
+/// A receiver-setup-like sequence of 16-lane operations (the shadow-map eye pass's: transform
+/// to the light view, divide, texel coordinates, range test, depth) written as the kernels
+/// write their lane code: a loop over the active lanes of `mask` (`Mask::lanes`), each lane's
+/// work in `glam` types with a branch of its own, `iters` times. Returns the counted vector
+/// instructions ([`LANE_KERNEL_OPS`] per iteration, whatever the mask: the modelled machine
+/// issues them for all lanes at once).
+pub fn lane_kernel(iters: usize, mask: Mask) -> u64 {
+    let m = black_box(Mat4::from_cols_array(&std::array::from_fn(|i| {
+        0.1 + i as f32 * 0.05
+    })));
     let mut p: Lanes<Vec3> =
         std::array::from_fn(|l| Vec3::new(l as f32 * 0.1, 1.0 + l as f32 * 0.05, 2.0));
     let mut acc = [f32::MAX; LANES];
+    let mask = black_box(mask);
     for _ in 0..iters {
-        let row = |r: usize, p: &Lanes<Vec3>| -> Lanes<f32> {
-            std::array::from_fn(|l| {
-                m[r] * p[l].x + m[4 + r] * p[l].y + m[8 + r] * p[l].z + m[12 + r]
-            })
-        };
-        let (x, y, z, w) = (row(0, &p), row(1, &p), row(2, &p), row(3, &p));
-        let rw: Lanes<f32> = std::array::from_fn(|l| 1.0 / w[l]);
-        let u: Lanes<f32> = std::array::from_fn(|l| x[l] * rw[l] * 0.5 + 0.5);
-        let v: Lanes<f32> = std::array::from_fn(|l| y[l] * rw[l] * 0.5 + 0.5);
-        let tx: Lanes<f32> = std::array::from_fn(|l| (u[l] * 512.0).floor());
-        let ty: Lanes<f32> = std::array::from_fn(|l| (v[l] * 512.0).floor());
-        let inside = Mask::from_fn(|l| tx[l] >= 0.0 && ty[l] < 512.0);
-        let d: Lanes<f32> = std::array::from_fn(|l| if inside.get(l) { z[l] * rw[l] } else { 1.0 });
-        acc = std::array::from_fn(|l| acc[l].min(d[l]));
-        p = std::array::from_fn(|l| p[l] + Vec3::splat(1e-3));
+        for l in mask.lanes() {
+            let c = m * p[l].extend(1.0);
+            let rw = 1.0 / c.w;
+            let (u, v) = (c.x * rw * 0.5 + 0.5, c.y * rw * 0.5 + 0.5);
+            let (tx, ty) = ((u * 512.0).floor(), (v * 512.0).floor());
+            let d = if tx >= 0.0 && ty < 512.0 {
+                c.z * rw
+            } else {
+                1.0
+            };
+            acc[l] = acc[l].min(d);
+            p[l] += Vec3::splat(1e-3);
+        }
     }
     black_box(acc);
-    iters as u64 * VECTOR_KERNEL_OPS
+    iters as u64 * LANE_KERNEL_OPS
 }
+
+/// The partly active mask of the lane costs: every fourth lane (a block a triangle edge or a
+/// silhouette crosses).
+const SPARSE: Mask = Mask(0x1111);
 
 /// Counted scalar instructions per iteration of [`scalar_kernel`]: four updates of two
 /// operations each, and the loop's increment and compare-branch.
@@ -315,54 +326,144 @@ pub fn calibrate(
     s: Settings,
     mut progress: impl FnMut(&str),
 ) -> (MachineConfig, Vec<Figure>) {
-    let ghz = base.clock_ghz;
-    let cycles = |seconds: f64| seconds * ghz * 1e9;
-    let r = s.repeats;
-    let mut figures: Vec<Figure> = Vec::new();
-    let mut record = |field: &str, value: f64, unit: &'static str, method: String| {
-        progress(&format!("  {field:<22} {value:>10.3} {unit:<18} {method}"));
-        figures.push(Figure {
+    let mut rec = Recorder {
+        ghz: base.clock_ghz,
+        s,
+        figures: Vec::new(),
+        progress: &mut progress,
+    };
+    let mut m = base.clone();
+    m.name = "host-calibrated".into();
+    issue_costs(&mut m, &mut rec);
+    memory_costs(&mut m, &mut rec);
+    barrier(&mut m, &mut rec);
+    for f in &rec.figures {
+        m.sources.insert(
+            f.field.clone(),
+            format!("measured by shadowbench calibrate: {}", f.method),
+        );
+    }
+    (m, rec.figures)
+}
+
+/// The calibration's settings and clock, and the figures measured so far.
+struct Recorder<'a> {
+    ghz: f64,
+    s: Settings,
+    figures: Vec<Figure>,
+    progress: &'a mut dyn FnMut(&str),
+}
+
+impl Recorder<'_> {
+    /// Cycles at the machine's clock of `seconds`.
+    fn cycles(&self, seconds: f64) -> f64 {
+        seconds * self.ghz * 1e9
+    }
+
+    /// Cycles per unit of `f`, the fastest of the repetitions.
+    fn cycles_per_unit(&self, f: impl FnMut() -> u64) -> f64 {
+        self.cycles(seconds_per_unit(self.s.repeats, f))
+    }
+
+    /// Measures `f`'s cycles per unit and records them as `field`, `method` followed by how
+    /// many repetitions it is the fastest of; returns the figure.
+    fn measure(
+        &mut self,
+        field: &str,
+        unit: &'static str,
+        method: &str,
+        f: impl FnMut() -> u64,
+    ) -> f64 {
+        let v = self.cycles_per_unit(f);
+        let method = format!("{method}, fastest of {}", self.s.repeats);
+        self.record(field, v, unit, method)
+    }
+
+    /// Records a figure (and reports it); returns its value.
+    fn record(&mut self, field: &str, value: f64, unit: &'static str, method: String) -> f64 {
+        (self.progress)(&format!("  {field:<22} {value:>10.3} {unit:<18} {method}"));
+        self.figures.push(Figure {
             field: field.into(),
             value,
             unit,
             method,
         });
         value
-    };
-    let mut m = base.clone();
-    m.name = "host-calibrated".into();
+    }
+}
 
-    let v = cycles(seconds_per_unit(r, || vector_kernel(s.n(400_000))));
-    m.costs.vector = record(
+/// A cost measured by one kernel: the figure it sets, its field, unit and method, the kernel
+/// (iterations to units done) and its base iteration count.
+type CostKernel<'a> = (
+    &'a mut f64,
+    &'static str,
+    &'static str,
+    &'static str,
+    fn(usize) -> u64,
+    usize,
+);
+
+/// The issue costs: vector (per instruction and per active lane), scalar, contiguous lines,
+/// gathers, atomics.
+fn issue_costs(m: &mut MachineConfig, rec: &mut Recorder) {
+    let (s, r) = (rec.s, rec.s.repeats);
+    // A counted vector instruction with n active lanes costs c_vector + n·c_lane: the lane
+    // kernel with all 16 lanes and with 4.
+    let full = rec.cycles_per_unit(|| lane_kernel(s.n(200_000), Mask::ALL));
+    let sparse = rec.cycles_per_unit(|| lane_kernel(s.n(400_000), SPARSE));
+    let (n_full, n_sparse) = (f64::from(Mask::ALL.count()), f64::from(SPARSE.count()));
+    let lane = ((full - sparse) / (n_full - n_sparse)).max(0.0);
+    m.costs.lane = rec.record(
+        "costs.lane",
+        lane,
+        "cycles/active lane",
+        format!(
+            "receiver-setup-like lane loop ({LANE_KERNEL_OPS} counted vector instructions per \
+             iteration, glam per lane, a branch per lane): {full:.2} cycles per instruction with \
+             16 active lanes, {sparse:.2} with 4; the difference per lane, fastest of {r}"
+        ),
+    );
+    m.costs.vector = rec.record(
         "costs.vector",
-        v,
+        (full - n_full * lane).max(0.0),
         "cycles/instruction",
-        format!(
-            "receiver-setup-like 16-lane kernel ({VECTOR_KERNEL_OPS} counted vector \
-             instructions per iteration), fastest of {r}"
+        format!("the 16-lane instruction's cycles less 16 lanes' (at least 0), fastest of {r}"),
+    );
+    let k = &mut m.costs;
+    let simple: [CostKernel; 3] = [
+        (
+            &mut k.scalar,
+            "costs.scalar",
+            "cycles/instruction",
+            "4 interleaved integer updates (add, xor, rotate, shift)",
+            scalar_kernel,
+            4_000_000,
         ),
-    );
-    let sc = cycles(seconds_per_unit(r, || scalar_kernel(s.n(4_000_000))));
-    m.costs.scalar = record(
-        "costs.scalar",
-        sc,
-        "cycles/instruction",
-        format!("4 interleaved integer updates (add, xor, rotate, shift), fastest of {r}"),
-    );
-    let vm = cycles(seconds_per_unit(r, || vector_memory_kernel(s.n(20_000))));
-    m.costs.vector_memory = record(
-        "costs.vector_memory",
-        vm,
-        "cycles/line",
-        format!(
-            "16-lane load, multiply and store of whole aligned lines of a 16 KiB array, per \
-             line accessed, fastest of {r}"
+        (
+            &mut k.vector_memory,
+            "costs.vector_memory",
+            "cycles/line",
+            "16-lane load, multiply and store of whole aligned lines of a 16 KiB array, per line \
+             accessed",
+            vector_memory_kernel,
+            20_000,
         ),
-    );
-    let g1 = cycles(seconds_per_unit(r, || gather_kernel(s.n(2_000_000), 1)));
-    let g16 = cycles(seconds_per_unit(r, || gather_kernel(s.n(2_000_000), 16)));
+        (
+            &mut k.atomic,
+            "costs.atomic",
+            "cycles/atomic",
+            "relaxed atomic adds on a 16 KiB array at hashed indices",
+            atomic_kernel,
+            4_000_000,
+        ),
+    ];
+    for (cost, field, unit, method, kernel, base) in simple {
+        *cost = rec.measure(field, unit, method, || kernel(s.n(base)));
+    }
+    let g1 = rec.cycles_per_unit(|| gather_kernel(s.n(2_000_000), 1));
+    let g16 = rec.cycles_per_unit(|| gather_kernel(s.n(2_000_000), 16));
     let per_line = ((g16 - g1) / 15.0).max(0.0);
-    m.costs.gather_line = record(
+    m.costs.gather_line = rec.record(
         "costs.gather_line",
         per_line,
         "cycles/line",
@@ -371,74 +472,64 @@ pub fn calibrate(
              ({g1:.2}): the difference over 15 lines (at least 0), fastest of {r}"
         ),
     );
-    m.costs.gather = record(
+    m.costs.gather = rec.record(
         "costs.gather",
         (g1 - per_line).max(0.0),
         "cycles/instruction",
         format!("the 1-line gather's cycles less one line's, fastest of {r}"),
     );
-    let at = cycles(seconds_per_unit(r, || atomic_kernel(s.n(4_000_000))));
-    m.costs.atomic = record(
-        "costs.atomic",
-        at,
-        "cycles/atomic",
-        format!("relaxed atomic adds on a 16 KiB array at hashed indices, fastest of {r}"),
-    );
+}
 
-    // Load-to-use latency at each level: chase through half of its size (the L2's half is
-    // well above the L1; the L3's above the L2 on current CPUs).
-    let steps = |base_steps: usize| s.n(base_steps);
-    let lat_l1 = cycles(chase_ns(m.l1.size_bytes as usize / 2, steps(4_000_000), r) * 1e-9);
-    let lat_l2 = cycles(chase_ns(m.l2.size_bytes as usize / 2, steps(2_000_000), r) * 1e-9);
-    m.l1.latency_cycles = record(
-        "l1.latency_cycles",
-        lat_l1,
-        "cycles",
-        format!(
-            "pointer chase over {} KiB (half the L1), fastest of {r}",
-            m.l1.size_bytes / 2048
-        ),
-    );
-    m.l2.latency_cycles = record(
-        "l2.latency_cycles",
-        (lat_l2 - lat_l1).max(0.0),
-        "cycles",
-        format!(
-            "pointer chase over {} KiB (half the L2): {lat_l2:.1} cycles, less the L1's",
-            m.l2.size_bytes / 2048
-        ),
-    );
+/// Load-to-use latency at each cache level and DRAM, memory-level parallelism and DRAM
+/// bandwidth. Each level's chase runs through half of its size (the L2's half is well above
+/// the L1; the L3's above the L2 on current CPUs), DRAM's through 4× the last level.
+fn memory_costs(m: &mut MachineConfig, rec: &mut Recorder) {
+    let (s, r) = (rec.s, rec.s.repeats);
+    // The chase of each level with its warm-up: cycles per dependent load.
+    let chase_cycles = |rec: &Recorder, chase: &Chase, steps: usize| {
+        chase.chase(chase.lines().min(s.n(4_000_000)));
+        rec.cycles_per_unit(|| chase.chase(s.n(steps)))
+    };
+    let mut below = 0.0;
+    let mut levels: Vec<(&str, &mut CacheConfig, usize)> =
+        vec![("l1", &mut m.l1, 4_000_000), ("l2", &mut m.l2, 2_000_000)];
+    if let Some(l3) = m.l3.as_mut() {
+        levels.push(("l3", l3, 1_000_000));
+    }
+    let mut last: Option<(Chase, f64, &str)> = None;
+    for (name, level, steps) in levels {
+        let bytes = level.size_bytes as usize / 2;
+        let chase = Chase::new(bytes);
+        let lat = chase_cycles(rec, &chase, steps);
+        let less = if below > 0.0 {
+            format!(": {lat:.1} cycles, less the level below's")
+        } else {
+            String::new()
+        };
+        level.latency_cycles = rec.record(
+            &format!("{name}.latency_cycles"),
+            (lat - below).max(0.0),
+            "cycles",
+            format!(
+                "pointer chase over {} KiB (half the {}){less}, fastest of {r}",
+                bytes / 1024,
+                name.to_uppercase()
+            ),
+        );
+        below = lat;
+        last = Some((chase, lat, name));
+    }
     let last_size =
         m.l3.as_ref()
             .map_or(m.l2.size_bytes as usize * m.cores as usize, |c| {
                 c.size_bytes as usize
             });
-    let mut lat_last = lat_l2;
-    let mut mlp_buffer = None;
-    if let Some(l3) = m.l3.as_mut() {
-        let bytes = l3.size_bytes as usize / 2;
-        let chase = Chase::new(bytes);
-        chase.chase(chase.lines().min(steps(4_000_000)));
-        let lat = cycles(seconds_per_unit(r, || chase.chase(steps(1_000_000))));
-        lat_last = lat;
-        l3.latency_cycles = record(
-            "l3.latency_cycles",
-            (lat - lat_l2).max(0.0),
-            "cycles",
-            format!(
-                "pointer chase over {} KiB (half the L3): {lat:.1} cycles, less the L2's",
-                bytes / 1024
-            ),
-        );
-        mlp_buffer = Some((chase, lat, "L3"));
-    }
     let dram_bytes = (4 * last_size).max(64 << 20);
     let dram = Chase::new(dram_bytes);
-    dram.chase(dram.lines().min(steps(4_000_000)));
-    let lat_dram = cycles(seconds_per_unit(r, || dram.chase(steps(500_000))));
-    m.dram_latency_cycles = record(
+    let lat_dram = chase_cycles(rec, &dram, 500_000);
+    m.dram_latency_cycles = rec.record(
         "dram_latency_cycles",
-        (lat_dram - lat_last).max(0.0),
+        (lat_dram - below).max(0.0),
         "cycles",
         format!(
             "pointer chase over {} MiB (4× the last cache level): {lat_dram:.1} cycles, less \
@@ -446,12 +537,13 @@ pub fn calibrate(
             dram_bytes >> 20
         ),
     );
-    let (buffer, lat, level) = match &mlp_buffer {
-        Some((c, lat, level)) => (c, *lat, *level),
-        None => (&dram, lat_dram, "DRAM"),
+    // Memory-level parallelism in the L3 (or DRAM without one; never the L1 or L2).
+    let (buffer, lat, level) = match &last {
+        Some((c, lat, "l3")) => (c, *lat, "L3"),
+        _ => (&dram, lat_dram, "DRAM"),
     };
-    let independent = cycles(seconds_per_unit(r, || buffer.independent(steps(1_000_000))));
-    m.memory_parallelism = Some(record(
+    let independent = rec.cycles_per_unit(|| buffer.independent(s.n(1_000_000)));
+    m.memory_parallelism = Some(rec.record(
         "memory_parallelism",
         (lat / independent).clamp(1.0, 64.0),
         "loads in flight",
@@ -460,8 +552,9 @@ pub fn calibrate(
              independent load of a random line of the same buffer (clamped to 1..=64)"
         ),
     ));
+    drop(last);
     let bytes_per_s = 1.0 / seconds_per_unit(r, || dram.stream(s.n(8)));
-    m.dram_gb_per_s = record(
+    m.dram_gb_per_s = rec.record(
         "dram_gb_per_s",
         bytes_per_s / 1e9,
         "GB/s",
@@ -470,34 +563,25 @@ pub fn calibrate(
             dram_bytes >> 20
         ),
     );
-    drop(dram);
+}
 
+/// The cost of a barrier: an empty step of one task per core on `cpu-native`.
+fn barrier(m: &mut MachineConfig, rec: &mut Recorder) {
+    let s = rec.s;
     let mut machine = Machine::new(Backend::CpuNative, m.clone());
     machine.phase("barrier");
     let weights = vec![1u64; m.cores as usize];
-    let barrier = cycles(seconds_per_unit(r, || {
+    let method = format!(
+        "an empty cpu-native step of {} tasks (fork and join)",
+        m.cores
+    );
+    m.barrier_cycles = rec.measure("barrier_cycles", "cycles", &method, || {
         let n = s.n(20_000);
         for _ in 0..n {
             machine.run_step("empty", &Empty, &weights);
         }
         n as u64
-    }));
-    m.barrier_cycles = record(
-        "barrier_cycles",
-        barrier,
-        "cycles",
-        format!(
-            "an empty cpu-native step of {} tasks (fork and join), fastest of {r}",
-            m.cores
-        ),
-    );
-    for f in &figures {
-        m.sources.insert(
-            f.field.clone(),
-            format!("measured by shadowbench calibrate: {}", f.method),
-        );
-    }
-    (m, figures)
+    });
 }
 
 #[cfg(test)]

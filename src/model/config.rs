@@ -57,6 +57,12 @@ pub struct OpCosts {
     /// from the JSON, on Larrabee).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub gather: f64,
+    /// Issue cycles per active lane of a vector instruction, besides `vector`: a CPU that runs
+    /// the kernels' 16-lane code one lane at a time (a loop over the active lanes, as the Rust
+    /// kernels are written) pays for every active lane (0, absent from the JSON, on Larrabee,
+    /// whose vector unit does all 16 lanes in one issue).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lane: f64,
     /// Cycles of an atomic read-modify-write in L2 (an assumption: an L2 round trip).
     pub atomic: f64,
 }
@@ -151,6 +157,7 @@ impl MachineConfig {
                 vector_memory: 1.0,
                 gather_line: 1.0,
                 gather: 0.0,
+                lane: 0.0,
                 atomic: 20.0,
             },
             clock_source: None,
@@ -359,6 +366,7 @@ impl MachineConfig {
             ("costs.vector_memory", k.vector_memory),
             ("costs.gather_line", k.gather_line),
             ("costs.gather", k.gather),
+            ("costs.lane", k.lane),
             ("costs.atomic", k.atomic),
         ] {
             non_negative(name, v)?;

@@ -90,7 +90,8 @@ const ASSUMED: &str = "assumption (typical of current out-of-order x86 cores; \
 ///   instance's size times the instances the logical CPUs span), sizes and ways from
 ///   `cache/index*/`; without sysfs: 64-byte lines, 32 KiB 8-way L1, 1 MiB 8-way L2, no L3;
 /// - costs (cycles per counted operation): a 16-lane vector instruction or contiguous
-///   one-line access is `16 / f32_lanes` host instructions at one per cycle; scalar 1, gather 1
+///   one-line access is `16 / f32_lanes` host instructions at one per cycle (no per-lane
+///   cost: `costs.lane` 0, which `shadowbench calibrate` measures); scalar 1, gather 1
 ///   per line, atomic 20; latencies L1 4, L2 14, L3 50 cycles, DRAM 100 ns; memory parallelism
 ///   1; DRAM 20 GB/s; barrier 2000 cycles. These are stated assumptions (`sources` says so)
 ///   until `shadowbench calibrate` replaces them with measurements.
@@ -101,116 +102,14 @@ pub fn machine_from(cpu_dir: &Path, logical: u32, simd: Simd, clock_ghz: f64) ->
     let mut src = |k: &str, v: String| {
         sources.insert(k.to_string(), v);
     };
-    let threads = match threads_per_core(cpu_dir) {
-        Some(t) if t >= 1 && t <= logical => {
-            src(
-                "threads_per_core",
-                format!("{}/topology/thread_siblings_list", cpu_dir.display()),
-            );
-            t
-        }
-        _ => {
-            src(
-                "threads_per_core",
-                "assumption: 1 (topology/thread_siblings_list unreadable)".into(),
-            );
-            1
-        }
-    };
+    let threads = threads_of(cpu_dir, logical, &mut src);
     let cores = (logical / threads).max(1);
     src(
         "cores",
         format!("available parallelism ({logical} logical CPUs) / threads_per_core"),
     );
     let caches = read_caches(cpu_dir).unwrap_or_default();
-    let find = |level: u32, data: bool| {
-        caches
-            .iter()
-            .filter(|c| c.level == level)
-            .find(|c| c.kind == "Unified" || (data && c.kind == "Data"))
-            .filter(|c| c.ways > 0 && c.size_bytes > 0 && c.line_bytes > 0)
-    };
-    let l1i = find(1, true);
-    let line_bytes = match l1i {
-        Some(c) if c.line_bytes.is_power_of_two() => {
-            src("line_bytes", format!("{}/coherency_line_size", c.path));
-            c.line_bytes
-        }
-        _ => {
-            src("line_bytes", "assumption: 64 (no sysfs cache entry)".into());
-            64
-        }
-    };
-    let level = |info: Option<&CacheInfo>,
-                 share: u32,
-                 name: &str,
-                 fallback: (u32, u32),
-                 latency: f64,
-                 src: &mut dyn FnMut(&str, String)| {
-        let config = info.and_then(|c| {
-            let size = c.size_bytes.checked_mul(u64::from(share.max(1)))?;
-            let size = u32::try_from(size).ok()?;
-            let whole = size % (line_bytes * c.ways) == 0 && size >= line_bytes * c.ways;
-            whole.then_some((c, size))
-        });
-        let c = match config {
-            Some((c, size)) => {
-                src(
-                    &format!("{name}.size_bytes"),
-                    format!("{}/size{}", c.path, share_note(share)),
-                );
-                src(
-                    &format!("{name}.ways"),
-                    format!("{}/ways_of_associativity", c.path),
-                );
-                CacheConfig {
-                    size_bytes: size,
-                    ways: c.ways,
-                    latency_cycles: latency,
-                }
-            }
-            None => {
-                src(
-                    &format!("{name}.size_bytes"),
-                    format!("assumption: {} bytes (no usable sysfs entry)", fallback.0),
-                );
-                CacheConfig {
-                    size_bytes: fallback.0,
-                    ways: fallback.1,
-                    latency_cycles: latency,
-                }
-            }
-        };
-        src(&format!("{name}.latency_cycles"), ASSUMED.into());
-        c
-    };
-    let l1 = level(l1i, 1, "l1", (32 << 10, 8), 4.0, &mut src);
-    // An L2 shared by k cores gives each core 1/k of it.
-    let l2_info = find(2, false);
-    let l2_cores = l2_info.map_or(1, |c| (c.shared_cpus / threads).max(1));
-    let l2 = {
-        let mut c = level(l2_info, 1, "l2", (1 << 20, 8), 14.0 - 4.0, &mut src);
-        if l2_cores > 1 {
-            c.size_bytes /= l2_cores;
-            src(
-                "l2.size_bytes",
-                format!(
-                    "{}/size / {l2_cores} cores sharing it",
-                    l2_info.map_or(String::new(), |i| i.path.clone())
-                ),
-            );
-        }
-        c
-    };
-    let last = caches
-        .iter()
-        .filter(|c| c.level > 2 && c.kind != "Instruction")
-        .max_by_key(|c| c.level);
-    let l3 = last.map(|c| {
-        let instances = logical.div_ceil(c.shared_cpus.max(1)).max(1);
-        level(Some(c), instances, "l3", (0, 1), 50.0 - 14.0, &mut src)
-    });
-    let l3 = l3.filter(|c| c.size_bytes > 0);
+    let (line_bytes, l1, l2, l3) = cache_levels(&caches, logical, threads, &mut src);
     let lanes = simd.f32_lanes.max(1);
     let per_vector = 16.0 / f64::from(lanes);
     src("simd", simd.source.clone());
@@ -246,6 +145,7 @@ pub fn machine_from(cpu_dir: &Path, logical: u32, simd: Simd, clock_ghz: f64) ->
             vector_memory: per_vector,
             gather_line: 1.0,
             gather: 0.0,
+            lane: 0.0,
             atomic: 20.0,
         },
         clock_source: None,
@@ -256,6 +156,154 @@ pub fn machine_from(cpu_dir: &Path, logical: u32, simd: Simd, clock_ghz: f64) ->
             f32_lanes: lanes,
         }),
         sources,
+    }
+}
+
+/// Where each figure of a machine came from (`MachineConfig::sources`): field, origin.
+type Sources<'a> = dyn FnMut(&str, String) + 'a;
+
+/// Hardware threads per core from `topology/thread_siblings_list` under `cpu_dir` (1 when
+/// unreadable or above `logical`).
+fn threads_of(cpu_dir: &Path, logical: u32, src: &mut Sources) -> u32 {
+    match threads_per_core(cpu_dir) {
+        Some(t) if t >= 1 && t <= logical => {
+            src(
+                "threads_per_core",
+                format!("{}/topology/thread_siblings_list", cpu_dir.display()),
+            );
+            t
+        }
+        _ => {
+            src(
+                "threads_per_core",
+                "assumption: 1 (topology/thread_siblings_list unreadable)".into(),
+            );
+            1
+        }
+    }
+}
+
+/// The line size, L1 (level-1 data), L2 (a core's share of level 2) and L3 (the largest level
+/// above 2, over all the instances `logical` CPUs span) of `caches`, with the fallbacks of
+/// [`machine_from`] and the assumed latencies.
+fn cache_levels(
+    caches: &[CacheInfo],
+    logical: u32,
+    threads: u32,
+    src: &mut Sources,
+) -> (u32, CacheConfig, CacheConfig, Option<CacheConfig>) {
+    let find = |level: u32, data: bool| {
+        caches
+            .iter()
+            .filter(|c| c.level == level)
+            .find(|c| c.kind == "Unified" || (data && c.kind == "Data"))
+            .filter(|c| c.ways > 0 && c.size_bytes > 0 && c.line_bytes > 0)
+    };
+    let l1i = find(1, true);
+    let line_bytes = match l1i {
+        Some(c) if c.line_bytes.is_power_of_two() => {
+            src("line_bytes", format!("{}/coherency_line_size", c.path));
+            c.line_bytes
+        }
+        _ => {
+            src("line_bytes", "assumption: 64 (no sysfs cache entry)".into());
+            64
+        }
+    };
+    let level = |info: Option<&CacheInfo>,
+                 share: u32,
+                 name: &str,
+                 fallback: (u32, u32),
+                 latency: f64,
+                 src: &mut Sources| {
+        let spec = LevelSpec {
+            share,
+            name,
+            fallback,
+            latency,
+            line_bytes,
+        };
+        cache_level(info, &spec, src)
+    };
+    let l1 = level(l1i, 1, "l1", (32 << 10, 8), 4.0, src);
+    // An L2 shared by k cores gives each core 1/k of it.
+    let l2_info = find(2, false);
+    let l2_cores = l2_info.map_or(1, |c| (c.shared_cpus / threads).max(1));
+    let mut l2 = level(l2_info, 1, "l2", (1 << 20, 8), 14.0 - 4.0, src);
+    if l2_cores > 1 {
+        l2.size_bytes /= l2_cores;
+        src(
+            "l2.size_bytes",
+            format!(
+                "{}/size / {l2_cores} cores sharing it",
+                l2_info.map_or(String::new(), |i| i.path.clone())
+            ),
+        );
+    }
+    let last = caches
+        .iter()
+        .filter(|c| c.level > 2 && c.kind != "Instruction")
+        .max_by_key(|c| c.level);
+    let l3 = last
+        .map(|c| {
+            let instances = logical.div_ceil(c.shared_cpus.max(1)).max(1);
+            level(Some(c), instances, "l3", (0, 1), 50.0 - 14.0, src)
+        })
+        .filter(|c| c.size_bytes > 0);
+    (line_bytes, l1, l2, l3)
+}
+
+/// How [`cache_level`] builds one level: `share` instances of the sysfs cache, the machine
+/// field `name`, the `(size, ways)` without a usable entry, the assumed latency in cycles.
+struct LevelSpec<'a> {
+    share: u32,
+    name: &'a str,
+    fallback: (u32, u32),
+    latency: f64,
+    line_bytes: u32,
+}
+
+/// One cache level from its sysfs entry `info` (when its size is a whole number of sets of
+/// `line_bytes` lines), else the fallback; records the origins.
+fn cache_level(info: Option<&CacheInfo>, spec: &LevelSpec, src: &mut Sources) -> CacheConfig {
+    let (name, line_bytes) = (spec.name, spec.line_bytes);
+    let config = info.and_then(|c| {
+        let size = c.size_bytes.checked_mul(u64::from(spec.share.max(1)))?;
+        let size = u32::try_from(size).ok()?;
+        let whole = size % (line_bytes * c.ways) == 0 && size >= line_bytes * c.ways;
+        whole.then_some((c, size))
+    });
+    src(&format!("{name}.latency_cycles"), ASSUMED.into());
+    match config {
+        Some((c, size)) => {
+            src(
+                &format!("{name}.size_bytes"),
+                format!("{}/size{}", c.path, share_note(spec.share)),
+            );
+            src(
+                &format!("{name}.ways"),
+                format!("{}/ways_of_associativity", c.path),
+            );
+            CacheConfig {
+                size_bytes: size,
+                ways: c.ways,
+                latency_cycles: spec.latency,
+            }
+        }
+        None => {
+            src(
+                &format!("{name}.size_bytes"),
+                format!(
+                    "assumption: {} bytes (no usable sysfs entry)",
+                    spec.fallback.0
+                ),
+            );
+            CacheConfig {
+                size_bytes: spec.fallback.0,
+                ways: spec.fallback.1,
+                latency_cycles: spec.latency,
+            }
+        }
     }
 }
 
@@ -418,18 +466,29 @@ mod tests {
         dir
     }
 
+    /// A fake core whose logical CPUs `core` share an L1D of (size, ways), a 32K 8-way L1I and
+    /// an L2 of (size, ways), with an L3 of (size, ways, sharing CPUs); 64-byte lines.
+    fn fake_core_with_l3(
+        l1: (&str, u32),
+        l2: (&str, u32),
+        l3: (&str, u32, &str),
+        core: &str,
+    ) -> tempfile::TempDir {
+        fake_cpu(
+            &[
+                (1, "Data", l1.0, l1.1, 64, core),
+                (1, "Instruction", "32K", 8, 64, core),
+                (2, "Unified", l2.0, l2.1, 64, core),
+                (3, "Unified", l3.0, l3.1, 64, l3.2),
+            ],
+            core,
+        )
+    }
+
     #[test]
     fn caches_and_threads_are_read_from_a_sysfs_folder() {
         // An SMT-2 core: 48K 12-way L1D, 2M 16-way L2, a 30M 12-way L3 over 16 logical CPUs.
-        let cpu = fake_cpu(
-            &[
-                (1, "Data", "48K", 12, 64, "0,8"),
-                (1, "Instruction", "32K", 8, 64, "0,8"),
-                (2, "Unified", "2048K", 16, 64, "0,8"),
-                (3, "Unified", "30M", 12, 64, "0-15"),
-            ],
-            "0,8",
-        );
+        let cpu = fake_core_with_l3(("48K", 12), ("2048K", 16), ("30M", 12, "0-15"), "0,8");
         let c = read_caches(cpu.path()).unwrap();
         assert_eq!(c.len(), 4);
         assert_eq!(
@@ -449,15 +508,7 @@ mod tests {
     fn the_host_machine_is_built_from_the_sysfs_figures() {
         // 8 logical CPUs, 2 threads per core: 4 cores. L2 1 MiB per core (shared by one core's
         // two threads); L3 16 MiB shared by 4 logical CPUs, so two instances span the 8.
-        let cpu = fake_cpu(
-            &[
-                (1, "Data", "32K", 8, 64, "0-1"),
-                (1, "Instruction", "32K", 8, 64, "0-1"),
-                (2, "Unified", "1024K", 8, 64, "0-1"),
-                (3, "Unified", "16M", 16, 64, "0-3"),
-            ],
-            "0-1",
-        );
+        let cpu = fake_core_with_l3(("32K", 8), ("1024K", 8), ("16M", 16, "0-3"), "0-1");
         let avx2 = Simd {
             isa: "avx2".into(),
             f32_lanes: 8,

@@ -25,11 +25,13 @@ pub struct CoreWork {
 }
 
 impl CoreWork {
-    /// Cycles the core's issue pipe is busy: `vector·c_v + scalar·c_s + lines(load/store)·c_m
-    /// + lines(gather/scatter)·c_gl + (gathers + scatters)·c_g + atomics·c_a`.
+    /// Cycles the core's issue pipe is busy: `vector·c_v + active_lanes·c_lane + scalar·c_s
+    /// + lines(load/store)·c_m + lines(gather/scatter)·c_gl + (gathers + scatters)·c_g
+    /// + atomics·c_a` (`c_lane` and `c_g` are 0 on Larrabee).
     pub fn issue_cycles(&self, m: &MachineConfig) -> f64 {
         let k = &m.costs;
         self.vector_ops as f64 * k.vector
+            + self.active_lanes as f64 * k.lane
             + self.scalar_ops as f64 * k.scalar
             + self.access_lines as f64 * k.vector_memory
             + (self.gather_lines + self.scatter_lines) as f64 * k.gather_line
@@ -194,6 +196,22 @@ mod tests {
         assert_eq!(w.cycles(&m), 100.0 + stall);
         m.memory_parallelism = Some(4.0);
         assert_eq!(w.cycles(&m), 100.0 + stall / 4.0);
+    }
+
+    #[test]
+    fn a_lane_cost_charges_every_active_lane() {
+        // 10 instructions with 100 active lanes in all, at 2 cycles per instruction and 0.5
+        // per lane: 20 + 50 cycles; Larrabee (no lane cost) issues them in 10.
+        let mut m = MachineConfig::larrabee(1);
+        let w = CoreWork {
+            vector_ops: 10,
+            active_lanes: 100,
+            ..Default::default()
+        };
+        assert_eq!(w.issue_cycles(&m), 10.0);
+        m.costs.vector = 2.0;
+        m.costs.lane = 0.5;
+        assert_eq!(w.issue_cycles(&m), 70.0);
     }
 
     #[test]

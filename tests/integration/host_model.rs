@@ -31,6 +31,7 @@ fn calibrate_writes_a_machine_that_render_accepts() {
     // One progress line per figure, each naming the field it measured.
     for field in [
         "costs.vector",
+        "costs.lane",
         "costs.gather",
         "costs.atomic",
         "l2.latency_cycles",
@@ -160,6 +161,18 @@ fn validate_model_agrees_with_render_on_its_modelled_times() {
         assert!(o.status.success(), "{}", text(&o.stderr));
         let rendered = json(&dir_r.join("run.json"));
         assert_eq!(rendered["model_ms"].as_f64().unwrap(), m, "{alg}");
+        // The work the row keeps is what the cpu-model counted for the same case.
+        for k in ["vector_ops", "active_lanes", "scalar_ops", "gathers"] {
+            assert_eq!(r["work"][k], rendered["counters"][k], "{alg} {k}");
+        }
+        // On Linux each run has its on-CPU time per logical CPU.
+        if cfg!(target_os = "linux") {
+            assert!(
+                r["cpu_ms"].as_f64().unwrap() > 0.0,
+                "{alg}: {}",
+                r["cpu_ms"]
+            );
+        }
     }
 }
 
