@@ -34,7 +34,7 @@ use rayon::prelude::*;
 
 use super::config::{CacheConfig, MachineConfig};
 use super::{Lanes, Machine, Mask, Memory, NoProbe, Probe, TaskKernel, LANES};
-use crate::algorithms::Backend;
+use crate::backend::Backend;
 use crate::util::hash::mix64;
 
 /// How long calibration runs: `scale` multiplies every kernel's iteration count (1 for the
