@@ -10,7 +10,7 @@ use glam::Vec3;
 
 use super::{
     exact_coverage, overlap_coverage, silhouette_loops, split12, split_light, CoverageMethod,
-    CoverageTexture, Emitter, EmitterShape, SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
+    CoverageTexture, Emitter, EmitterShape, SoftShadowVolumeOptions, VBufferPrecision, Wedge,
 };
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{
@@ -20,7 +20,7 @@ use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
 };
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
@@ -195,13 +195,7 @@ pub fn render(
     opts: &SoftShadowVolumeOptions,
 ) -> Result<FrameOutput> {
     let light = frame.scene.light;
-    let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
-        Error::Unsupported(format!(
-            "{ID}: light splitting (light_split = {}) needs a rectangular light, got {}",
-            opts.light_split,
-            light.kind()
-        ))
-    })?;
+    let sub_lights = split_light(&light, opts.light_split)?;
     let mut m = machine(backend, frame, ctx);
     for phase in ["hard", "wedges", "soft"] {
         m.phase(phase);

@@ -589,8 +589,11 @@ pub fn silhouette_loops(edges: &[SilhouetteEdge]) -> Vec<Vec<SilhouetteEdge>> {
     loops
 }
 
-/// The sub-lights of light splitting (IV §5.2): a rectangle cut into `k×k` equal rectangles.
-pub fn split_light(light: &Light, k: u32) -> Option<Vec<Light>> {
+/// The sub-lights of light splitting (IV §5.2): a rectangle cut into `k×k` equal rectangles;
+/// `k = 1` keeps any light whole.
+///
+/// Errors: `k > 1` with a light that is not a rectangle ([`crate::error::Error::Unsupported`]).
+pub fn split_light(light: &Light, k: u32) -> crate::error::Result<Vec<Light>> {
     match *light {
         Light::Rect {
             center,
@@ -598,22 +601,23 @@ pub fn split_light(light: &Light, k: u32) -> Option<Vec<Light>> {
             half_v,
         } => {
             let (hu, hv) = (half_u / k as f32, half_v / k as f32);
-            Some(
-                (0..k * k)
-                    .map(|i| {
-                        let (a, b) = ((i % k) as f32, (i / k) as f32);
-                        let off = (2.0 * a + 1.0 - k as f32) * hu + (2.0 * b + 1.0 - k as f32) * hv;
-                        Light::Rect {
-                            center: center + off,
-                            half_u: hu,
-                            half_v: hv,
-                        }
-                    })
-                    .collect(),
-            )
+            Ok((0..k * k)
+                .map(|i| {
+                    let (a, b) = ((i % k) as f32, (i / k) as f32);
+                    let off = (2.0 * a + 1.0 - k as f32) * hu + (2.0 * b + 1.0 - k as f32) * hv;
+                    Light::Rect {
+                        center: center + off,
+                        half_u: hu,
+                        half_v: hv,
+                    }
+                })
+                .collect())
         }
-        _ if k == 1 => Some(vec![*light]),
-        _ => None,
+        _ if k == 1 => Ok(vec![*light]),
+        _ => Err(crate::error::Error::Unsupported(format!(
+            "{ID}: light splitting (light_split = {k}) needs a rectangular light, got {}",
+            light.kind()
+        ))),
     }
 }
 

@@ -260,7 +260,7 @@ fn light_splitting_tiles_the_rectangle() {
         center: Vec3::ZERO,
         radius: 1.0,
     };
-    assert!(split_light(&sphere, 2).is_none());
+    assert!(split_light(&sphere, 2).is_err());
 }
 
 #[test]

@@ -52,7 +52,7 @@ use crate::algorithms::shadow_volume::wgpu::{
 };
 use crate::algorithms::shadow_volume::{eye_count, Counting, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed};
 use crate::gpu::readback::words;
@@ -72,13 +72,7 @@ pub fn render(
     opts: &SoftShadowVolumeOptions,
 ) -> Result<FrameOutput> {
     let light = frame.scene.light;
-    let sub_lights = split_light(&light, opts.light_split).ok_or_else(|| {
-        Error::Unsupported(format!(
-            "{ID}: light splitting (light_split = {}) needs a rectangular light, got {}",
-            opts.light_split,
-            light.kind()
-        ))
-    })?;
+    let sub_lights = split_light(&light, opts.light_split)?;
     check_limits(gpu, frame, ID)?;
     let start = Instant::now();
     let rays = EyeRays::new(frame);
