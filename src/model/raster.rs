@@ -159,6 +159,15 @@ pub struct Target {
 }
 
 impl Target {
+    /// A `res`×`res` map (a light-space target) in tiles of `tile` pixels.
+    pub fn square(res: u32, tile: u32) -> Target {
+        Target {
+            width: res,
+            height: res,
+            tile,
+        }
+    }
+
     pub fn tiles_x(&self) -> u32 {
         self.width.div_ceil(self.tile)
     }
@@ -206,6 +215,16 @@ pub struct TileRect {
     pub y0: u32,
     pub x1: u32,
     pub y1: u32,
+}
+
+impl TileRect {
+    /// The origins `(x0, y0)` of the tile's 4×4 blocks ([`BLOCK`]), row by row.
+    pub fn blocks(&self) -> impl Iterator<Item = (u32, u32)> {
+        let (x0, x1) = (self.x0, self.x1);
+        (self.y0..self.y1)
+            .step_by(BLOCK as usize)
+            .flat_map(move |y| (x0..x1).step_by(BLOCK as usize).map(move |x| (x, y)))
+    }
 }
 
 /// Triangles to draw: world positions, index triples (a triangle's index is its primitive id)

@@ -798,11 +798,7 @@ fn draw_volume(
         .memory
         .buffer(&format!("{name}.triangles"), mesh.triangles.clone());
     let res = frame.params.map_resolution;
-    let target = Target {
-        width: res,
-        height: res,
-        tile: frame.params.tile_size,
-    };
+    let target = Target::square(res, frame.params.tile_size);
     let pipeline = Pipeline {
         cull: Cull::None,
         coverage: Coverage::Center,

@@ -43,11 +43,7 @@ pub fn raster_shadow_map(
     let view = face.view;
     let positions = m.memory.buffer("vertices", mesh.positions.clone());
     let triangles = m.memory.buffer("indices", mesh.triangles.clone());
-    let target = Target {
-        width: res,
-        height: res,
-        tile: frame.params.tile_size,
-    };
+    let target = Target::square(res, frame.params.tile_size);
     let geometry = Geometry {
         positions: &positions,
         triangles: &triangles,
@@ -215,26 +211,24 @@ impl<L: Lookup> TaskKernel for EyePass<'_, L> {
         let t = self.tiles.tile_rect(tile);
         let w = self.tiles.width;
         let mut out = Vec::new();
-        for y0 in (t.y0..t.y1).step_by(BLOCK as usize) {
-            for x0 in (t.x0..t.x1).step_by(BLOCK as usize) {
-                p.scalar(2);
-                let r = self.receivers(p, x0, y0);
-                let v = if r.mask.any() {
-                    self.lookup.visibility(p, self.map, &r)
-                } else {
-                    [1.0; LANES]
-                };
-                for row in 0..BLOCK.min(t.y1 - y0) {
-                    let n = BLOCK.min(t.x1 - x0);
-                    let i = ((y0 + row) * w + x0) as usize;
-                    self.visibility.record_store(p, i, n as usize);
-                    for c in 0..n {
-                        let lane = (row * BLOCK + c) as usize;
-                        if r.mask.get(lane) {
-                            out.push((i as u32 + c, v[lane].clamp(0.0, 1.0)));
-                        } else if r.averted.get(lane) {
-                            out.push((i as u32 + c, 0.0));
-                        }
+        for (x0, y0) in t.blocks() {
+            p.scalar(2);
+            let r = self.receivers(p, x0, y0);
+            let v = if r.mask.any() {
+                self.lookup.visibility(p, self.map, &r)
+            } else {
+                [1.0; LANES]
+            };
+            for row in 0..BLOCK.min(t.y1 - y0) {
+                let n = BLOCK.min(t.x1 - x0);
+                let i = ((y0 + row) * w + x0) as usize;
+                self.visibility.record_store(p, i, n as usize);
+                for c in 0..n {
+                    let lane = (row * BLOCK + c) as usize;
+                    if r.mask.get(lane) {
+                        out.push((i as u32 + c, v[lane].clamp(0.0, 1.0)));
+                    } else if r.averted.get(lane) {
+                        out.push((i as u32 + c, 0.0));
                     }
                 }
             }

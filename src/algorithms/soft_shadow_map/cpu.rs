@@ -70,11 +70,7 @@ fn depth_map(
     let triangles = m
         .memory
         .buffer(&format!("{name}.indices"), triangles.to_vec());
-    let target = Target {
-        width: res,
-        height: res,
-        tile: frame.params.tile_size,
-    };
+    let target = Target::square(res, frame.params.tile_size);
     let geometry = Geometry {
         positions: &positions,
         triangles: &triangles,
@@ -303,11 +299,7 @@ fn splat(
             .collect(),
     );
     let res = lf.resolution;
-    let target = Target {
-        width: res,
-        height: res,
-        tile: frame.params.tile_size,
-    };
+    let target = Target::square(res, frame.params.tile_size);
     let pipeline = Pipeline {
         cull: Cull::None,
         coverage: Coverage::Center,
@@ -482,77 +474,75 @@ impl TaskKernel for Project<'_> {
         let t = self.tiles.tile_rect(tile);
         let w = self.tiles.width;
         let mut out = Vec::new();
-        for y0 in (t.y0..t.y1).step_by(BLOCK as usize) {
-            for x0 in (t.x0..t.x1).step_by(BLOCK as usize) {
-                p.scalar(2);
-                let mut hit = Mask::NONE;
-                let mut tri = [0u32; LANES];
-                let mut samples = [Sample::Lit; LANES];
-                let (rows, cols) = (BLOCK.min(t.y1 - y0), BLOCK.min(t.x1 - x0));
-                for row in 0..rows {
-                    let i = ((y0 + row) * w + x0) as usize;
-                    let ids = self.triangle.load_run(p, i, cols as usize);
-                    for c in 0..cols {
-                        if ids[c as usize] != u32::MAX {
-                            let lane = (row * BLOCK + c) as usize;
-                            hit.0 |= 1 << lane;
-                            tri[lane] = ids[c as usize];
-                        }
-                    }
-                }
-                if !hit.any() {
-                    continue;
-                }
-                let objects = self.object.gather(p, &tri, hit);
-                for row in 0..rows {
-                    let i = ((y0 + row) * w + x0) as usize;
-                    let pos = self.position.load_run(p, i, cols as usize);
-                    let nrm = self.normal.load_run(p, i, cols as usize);
-                    for c in 0..cols as usize {
-                        let lane = row as usize * BLOCK as usize + c;
-                        if hit.get(lane) {
-                            let receives = self.receives[objects[lane] as usize];
-                            samples[lane] = classify(self.lf, pos[c], nrm[c], receives);
-                        }
-                    }
-                }
-                p.vector(PROJECT_OPS, hit);
-                let look = Mask::from_fn(|l| matches!(samples[l], Sample::Receiver(_)));
-                let mut taps = [[0u32; LANES]; 4];
-                let mut weights = [[0f32; LANES]; 4];
-                for l in look.lanes() {
-                    if let Sample::Receiver(s) = samples[l] {
-                        let (idx, wt) = bilinear_taps(self.lf, self.ssm, s);
-                        for k in 0..4 {
-                            taps[k][l] = idx[k] as u32;
-                            weights[k][l] = wt[k];
-                        }
-                    }
-                }
-                let mut occ = [0f32; LANES];
-                if look.any() {
-                    for k in 0..4 {
-                        let v = self.ssm.buf.gather(p, &taps[k], look);
-                        for l in look.lanes() {
-                            occ[l] += weights[k][l] * v[l];
-                        }
-                    }
-                }
-                for row in 0..rows {
-                    let i = ((y0 + row) * w + x0) as usize;
-                    self.visibility.record_store(p, i, cols as usize);
-                    for c in 0..cols {
+        for (x0, y0) in t.blocks() {
+            p.scalar(2);
+            let mut hit = Mask::NONE;
+            let mut tri = [0u32; LANES];
+            let mut samples = [Sample::Lit; LANES];
+            let (rows, cols) = (BLOCK.min(t.y1 - y0), BLOCK.min(t.x1 - x0));
+            for row in 0..rows {
+                let i = ((y0 + row) * w + x0) as usize;
+                let ids = self.triangle.load_run(p, i, cols as usize);
+                for c in 0..cols {
+                    if ids[c as usize] != u32::MAX {
                         let lane = (row * BLOCK + c) as usize;
-                        if !hit.get(lane) {
-                            continue;
-                        }
-                        let v = match samples[lane] {
-                            Sample::Lit => 1.0,
-                            Sample::Averted => 0.0,
-                            Sample::Receiver(_) => visibility(occ[lane]),
-                        };
-                        out.push((i as u32 + c, v));
+                        hit.0 |= 1 << lane;
+                        tri[lane] = ids[c as usize];
                     }
+                }
+            }
+            if !hit.any() {
+                continue;
+            }
+            let objects = self.object.gather(p, &tri, hit);
+            for row in 0..rows {
+                let i = ((y0 + row) * w + x0) as usize;
+                let pos = self.position.load_run(p, i, cols as usize);
+                let nrm = self.normal.load_run(p, i, cols as usize);
+                for c in 0..cols as usize {
+                    let lane = row as usize * BLOCK as usize + c;
+                    if hit.get(lane) {
+                        let receives = self.receives[objects[lane] as usize];
+                        samples[lane] = classify(self.lf, pos[c], nrm[c], receives);
+                    }
+                }
+            }
+            p.vector(PROJECT_OPS, hit);
+            let look = Mask::from_fn(|l| matches!(samples[l], Sample::Receiver(_)));
+            let mut taps = [[0u32; LANES]; 4];
+            let mut weights = [[0f32; LANES]; 4];
+            for l in look.lanes() {
+                if let Sample::Receiver(s) = samples[l] {
+                    let (idx, wt) = bilinear_taps(self.lf, self.ssm, s);
+                    for k in 0..4 {
+                        taps[k][l] = idx[k] as u32;
+                        weights[k][l] = wt[k];
+                    }
+                }
+            }
+            let mut occ = [0f32; LANES];
+            if look.any() {
+                for k in 0..4 {
+                    let v = self.ssm.buf.gather(p, &taps[k], look);
+                    for l in look.lanes() {
+                        occ[l] += weights[k][l] * v[l];
+                    }
+                }
+            }
+            for row in 0..rows {
+                let i = ((y0 + row) * w + x0) as usize;
+                self.visibility.record_store(p, i, cols as usize);
+                for c in 0..cols {
+                    let lane = (row * BLOCK + c) as usize;
+                    if !hit.get(lane) {
+                        continue;
+                    }
+                    let v = match samples[lane] {
+                        Sample::Lit => 1.0,
+                        Sample::Averted => 0.0,
+                        Sample::Receiver(_) => visibility(occ[lane]),
+                    };
+                    out.push((i as u32 + c, v));
                 }
             }
         }
