@@ -445,6 +445,27 @@ pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result
 
 /// A description of the adapters for `shadowbench list`: every adapter found with its query
 /// features, which one runs the wgpu execution, or why there is none.
+/// The limits and features of adapter `a` that the wgpu executions check before they run
+/// (storage bindings and buffers, workgroup sizes and counts, texture size, subgroup sizes,
+/// blending into 32-bit floats), as `list` prints them under the adapter.
+fn limits_line(a: &wgpu::Adapter) -> String {
+    let (l, info) = (a.limits(), a.get_info());
+    let blend = a.features().contains(wgpu::Features::FLOAT32_BLENDABLE);
+    format!(
+        "      limits: storage binding {} MiB, {} storage buffers per stage, {} invocations per \
+         workgroup, {} workgroups per dimension, 2D textures {}; subgroups {}..={}; float32 \
+         blending {}",
+        l.max_storage_buffer_binding_size >> 20,
+        l.max_storage_buffers_per_shader_stage,
+        l.max_compute_invocations_per_workgroup,
+        l.max_compute_workgroups_per_dimension,
+        l.max_texture_dimension_2d,
+        info.subgroup_min_size,
+        info.subgroup_max_size,
+        if blend { "yes" } else { "no" }
+    )
+}
+
 pub fn adapter_report() -> Vec<String> {
     let found = adapters();
     let mut lines = Vec::new();
@@ -469,6 +490,7 @@ pub fn adapter_report() -> Vec<String> {
                 q.join(", ")
             }
         ));
+        lines.push(limits_line(a));
     }
     if let Err(e) = chosen {
         lines.push(format!("no device: {e}"));
