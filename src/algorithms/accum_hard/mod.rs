@@ -14,7 +14,9 @@ pub mod wgpu;
 use serde::{Deserialize, Serialize};
 
 pub use super::shadow_volume::Counting;
-use crate::algorithms::{work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WorkEstimate};
+use crate::algorithms::{
+    work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WgpuParity, WorkEstimate,
+};
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 
@@ -104,6 +106,18 @@ impl Algorithm for AccumHard {
         r#"{"gpu_pipeline": "gather"}"#,
         r#"{"samples": 16, "counting": "z_fail", "gpu_pipeline": "gather"}"#,
     ];
+    /// The raster pipeline's coverage and depth test differ from the cpu's ray casting on
+    /// grazing fragments (`shadow_volume::raster`): measured on lavapipe over the registry's
+    /// scenes and option sets (48×36, 16 and 256 samples, z-pass and z-fail): MAE 1.10–1.30e-3,
+    /// 0.29–0.51% of the pixels over 0.1, the pixels at the occluder's terminator where the
+    /// quads graze the surface they start on; fill and overdraw within 0.5% of the fill (the
+    /// gather: MAE 0, counters equal). Bounds: MAE 2.5e-3, 1% over 0.1, fill and overdraw
+    /// within 3% of the fill.
+    const WGPU_PARITY: WgpuParity = WgpuParity {
+        mae: 2.5e-3,
+        frac_over_0_1: 0.01,
+        differ: &[("fill", Some(0.03)), ("overdraw", Some(0.03))],
+    };
     const CPU: CpuEntry<AccumHardOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<AccumHardOptions>> = Some(wgpu::render);
 

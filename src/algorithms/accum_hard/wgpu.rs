@@ -1,19 +1,26 @@
-//! `accum_hard` on wgpu: per light sample the hard pass of the shadow-volume family
-//! ([`crate::algorithms::shadow_volume::wgpu`])
-//! (shadow quads, or for z-fail the capped volumes' faces, built on the host from the sample's
-//! silhouette and binned to 8×8 screen tiles; one invocation per pixel counts its tile's
-//! primitives), then an `accumulate` pass adding the pixels with count 0 to a per-pixel sum on
-//! the GPU; the last sample's accumulation writes the average. Phases `hard` and `accumulate`
-//! as on the cpu executions.
+//! `accum_hard` on wgpu, in one of two pipelines (option `gpu_pipeline`, recorded as
+//! `execution.gpu_pipeline`); phases `hard` and `accumulate` as on the cpu executions.
 //!
-//! The count is an i32 and the sum an f32 per pixel (exact integers up to 2^24), where the
-//! paper's accumulation uses an 8-bit stencil and a 16-bit accumulation buffer. The memory
-//! traffic counters (`mem.*`) are in the cpu-model's terms of that stencil and accumulation
-//! buffer (`accum_hard::cpu`): the stencil cleared per sample, a depth read per fragment, a
-//! stencil read and write per fragment that passes, and per sample the stencil read and the
-//! accumulation buffer read and written for every pixel; fill and passed fragments come from an
-//! instrumented replay of every sample's hard pass (WGSL atomics). Not built on the GPU:
-//! silhouette detection, quad and cap construction, binning (host, as on the cpu executions).
+//! - `"raster"` (default), as the thesis rendered its reference (III §5.1): the eye's depth
+//!   once, then per light sample the sample's shadow quads (or capped volumes) drawn with the
+//!   depth test into a count target by additive blending and the lit pixels (count 0) blended
+//!   into an accumulation target; the average is resolved after the last sample
+//!   ([`crate::algorithms::shadow_volume::raster`], which states how its coverage differs from
+//!   the cpu's ray casting). Count and accumulation are R16Float targets (exact integers up to
+//!   2048), where the paper uses an 8-bit stencil and a 16-bit accumulation buffer.
+//! - `"gather"`: per light sample the hard pass of the shadow-volume family
+//!   ([`crate::algorithms::shadow_volume::wgpu`]): shadow quads, or for z-fail the capped
+//!   volumes' faces, binned to 8×8 screen tiles on the host, one invocation per pixel counting
+//!   its tile's primitives into an i32, then an `accumulate` pass adding the pixels with count
+//!   0 to an f32 sum per pixel.
+//!
+//! The memory traffic counters (`mem_est.*`) are in the cpu-model's terms of that stencil and
+//! accumulation buffer (`accum_hard::cpu`): the stencil cleared per sample, a depth read per
+//! fragment, a stencil read and write per fragment that passes, and per sample the stencil read
+//! and the accumulation buffer read and written for every pixel; fill and passed fragments come
+//! from an instrumented replay of every sample's hard pass (WGSL atomics). Not built on the
+//! GPU: silhouette detection, quad and cap construction (and the gather's binning): host, as on
+//! the cpu executions.
 
 use std::time::Instant;
 
