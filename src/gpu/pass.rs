@@ -211,8 +211,11 @@ pub struct Raster<'a> {
     pub vertex: Option<(u64, wgpu::VertexStepMode, &'a [wgpu::VertexAttribute])>,
     pub topology: wgpu::PrimitiveTopology,
     pub cull: Option<wgpu::Face>,
-    /// A Depth32Float depth test (written), if any.
+    /// A Depth32Float depth test, if any.
     pub depth: Option<wgpu::CompareFunction>,
+    /// Whether fragments passing the depth test write their depth (true by default; false for
+    /// a pass that tests against a kept depth buffer, [`Onto`]).
+    pub depth_write: bool,
     pub color: Option<wgpu::ColorTargetState>,
     /// The fragment stage's `INSTRUMENT` override, where its WGSL declares one.
     pub instrument: Option<bool>,
@@ -227,6 +230,7 @@ impl Default for Raster<'_> {
             topology: wgpu::PrimitiveTopology::TriangleList,
             cull: None,
             depth: Some(wgpu::CompareFunction::Less),
+            depth_write: true,
             color: None,
             instrument: None,
         }
@@ -320,7 +324,7 @@ impl Program {
                 },
                 depth_stencil: r.depth.map(|compare| wgpu::DepthStencilState {
                     format: wgpu::TextureFormat::Depth32Float,
-                    depth_write_enabled: Some(true),
+                    depth_write_enabled: Some(r.depth_write),
                     depth_compare: Some(compare),
                     stencil: Default::default(),
                     bias: Default::default(),
@@ -349,6 +353,22 @@ pub enum Work<'a> {
     Dispatch(Vec<(&'a wgpu::ComputePipeline, (u32, u32))>),
     /// One draw into cleared targets.
     Draw(Draw<'a>),
+    /// One draw onto kept targets.
+    Onto(Onto<'a>),
+}
+
+/// A draw of the vertices `range` onto a colour target that is cleared to `clear` (red; the
+/// other channels 0) or, when `None`, keeps what earlier passes drew there (accumulation by
+/// blending), testing against a depth target that earlier passes drew and this one only reads
+/// (the pipeline's `depth_write` off): a shadow-volume count or an accumulation pass.
+#[derive(Clone)]
+pub struct Onto<'a> {
+    pub pipeline: &'a wgpu::RenderPipeline,
+    pub color: &'a wgpu::TextureView,
+    pub clear: Option<f64>,
+    pub depth: Option<&'a wgpu::TextureView>,
+    pub vertices: Option<&'a wgpu::Buffer>,
+    pub range: std::ops::Range<u32>,
 }
 
 /// A draw: `count` vertices (or indices, with an index buffer) times `instances`, into a colour
@@ -404,6 +424,19 @@ impl<'a> Pass<'a> {
             label,
             groups: groups.to_vec(),
             work: Work::Draw(draw),
+        }
+    }
+
+    /// A render pass of one draw onto kept targets.
+    pub fn onto(
+        label: &'a str,
+        groups: &[Option<&'a wgpu::BindGroup>],
+        onto: Onto<'a>,
+    ) -> Pass<'a> {
+        Pass {
+            label,
+            groups: groups.to_vec(),
+            work: Work::Onto(onto),
         }
     }
 
@@ -486,6 +519,57 @@ impl<'a> Pass<'a> {
                     }
                     None => pass.draw(0..d.count, 0..d.instances),
                 }
+                if stats.is_some() {
+                    pass.end_pipeline_statistics_query();
+                }
+            }
+            Work::Onto(d) => {
+                let load = match d.clear {
+                    Some(r) => wgpu::LoadOp::Clear(wgpu::Color {
+                        r,
+                        g: 0.0,
+                        b: 0.0,
+                        a: 0.0,
+                    }),
+                    None => wgpu::LoadOp::Load,
+                };
+                let colors = [Some(wgpu::RenderPassColorAttachment {
+                    view: d.color,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load,
+                        store: wgpu::StoreOp::Store,
+                    },
+                })];
+                let desc = wgpu::RenderPassDescriptor {
+                    label: Some(self.label),
+                    color_attachments: &colors,
+                    depth_stencil_attachment: d.depth.map(|view| {
+                        wgpu::RenderPassDepthStencilAttachment {
+                            view,
+                            depth_ops: None,
+                            stencil_ops: None,
+                        }
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                };
+                let mut pass = timing::render_pass(e, desc, timed);
+                if let Some(s) = stats {
+                    s.begin_render(&mut pass, index);
+                }
+                pass.set_pipeline(d.pipeline);
+                for (i, g) in self.groups.iter().enumerate() {
+                    if let Some(g) = g {
+                        pass.set_bind_group(i as u32, *g, &[]);
+                    }
+                }
+                if let Some(v) = d.vertices {
+                    pass.set_vertex_buffer(0, v.slice(..));
+                }
+                pass.draw(d.range.clone(), 0..1);
                 if stats.is_some() {
                     pass.end_pipeline_statistics_query();
                 }

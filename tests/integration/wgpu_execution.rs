@@ -413,35 +413,61 @@ fn dbuffer_on_wgpu_agrees_with_the_cpu_model() {
     }
 }
 
-/// `accum_hard` on wgpu (the hard pass of soft_shadow_volume once per light sample, accumulated
-/// per pixel on the GPU) against the cpu-model with N = 16, z-pass and z-fail: the same host
-/// geometry and the same integer counts, so the images differ only where a GPU rounding flips
-/// a ray–quad test for a grazing pixel (1/16 per flip); the fragment counts and the memory
-/// traffic in the cpu-model's terms agree within as many flips, silhouette sizes exactly.
+/// `accum_hard` on wgpu against the cpu-model with N = 16, z-pass and z-fail, in both GPU
+/// pipelines.
+///
+/// - `"gather"` (the hard pass of soft_shadow_volume once per light sample, accumulated per
+///   pixel on the GPU): the same host geometry and the same integer counts, so the images
+///   differ only where a GPU rounding flips a ray–quad test for a grazing pixel (1/16 per
+///   flip); the fragment counts and the memory traffic in the cpu-model's terms agree within
+///   as many flips (0.2%), silhouette sizes exactly.
+/// - `"raster"` (the quads rasterized into a count target, accumulated by blending): the
+///   rasterizer samples pixel centres with its own edge rule and tests interpolated depth
+///   against the depth buffer (`shadow_volume::raster`), so the fragments on the quads' edges
+///   and those grazing the occluder's own surface at its silhouette (the terminator, where a
+///   quad meets the surface it starts on) change hands, several samples at once on the same
+///   pixel. Measured on lavapipe, these scenes: MAE ≤ 1.05e-3, ≤ 0.29% of the pixels over
+///   0.1, largest difference 0.25 (4 of 16 samples), fill within 0.07%, overdraw within 1.2%,
+///   memory traffic within 0.1%; bounds: MAE 2.5e-3, 1% over 0.1, largest difference 0.5,
+///   counters within 3%.
 #[test]
 fn accum_hard_on_wgpu_agrees_with_the_cpu_model() {
     if !have_gpu() {
         return;
     }
-    for (name, counting) in [
-        ("sphere-on-plane", "z_pass"),
-        ("cylinder-on-plane", "z_pass"),
-        ("box-on-plane", "z_fail"),
+    for (name, counting, pipeline) in [
+        ("sphere-on-plane", "z_pass", "gather"),
+        ("cylinder-on-plane", "z_pass", "gather"),
+        ("box-on-plane", "z_fail", "gather"),
+        ("sphere-on-plane", "z_pass", "raster"),
+        ("cylinder-on-plane", "z_pass", "raster"),
+        ("box-on-plane", "z_fail", "raster"),
     ] {
+        let raster = pipeline == "raster";
+        let (mae, over, max, counters) = if raster {
+            (2.5e-3, 0.01, 0.5, 0.03)
+        } else {
+            (1e-3, 1.0, 0.0625 + 1e-6, 0.002)
+        };
         let f = frame(name, |l| l.with_size(0.8), 256);
         let mut ctx = ExecContext::default();
         ctx.options.insert(
             "accum_hard".into(),
-            serde_json::json!({ "samples": 16, "counting": counting }),
+            serde_json::json!({ "samples": 16, "counting": counting, "gpu_pipeline": pipeline }),
         );
         let gpu = algorithms::run("accum_hard", Backend::Wgpu, &f, &ctx).unwrap();
         let model = algorithms::run("accum_hard", Backend::CpuModel, &f, &ctx).unwrap();
+        assert_eq!(gpu.execution["gpu_pipeline"], pipeline);
         gpu.visibility.check_range().unwrap();
         let e = metrics::compare(&gpu.visibility, &model.visibility, &f.gbuffer.mask());
-        eprintln!("{name} {counting}: {e:?}");
+        eprintln!("{name} {counting} {pipeline}: {e:?}");
         assert!(e.shadow_pixels > 50, "{name}: no shadow on screen");
-        assert!(e.mae.unwrap() <= 1e-3, "{name} {counting}: {e:?}");
-        assert!(e.max.unwrap() <= 0.0625 + 1e-6, "{name} {counting}: {e:?}");
+        assert!(e.mae.unwrap() <= mae, "{name} {counting} {pipeline}: {e:?}");
+        assert!(
+            e.frac_over_0_1.unwrap() <= over,
+            "{name} {counting} {pipeline}: {e:?}"
+        );
+        assert!(e.max.unwrap() <= max, "{name} {counting} {pipeline}: {e:?}");
         let c = |o: &FrameOutput, k: &str| o.counters.get(k).unwrap_or(0.0);
         assert_eq!(c(&gpu, "silhouette_edges"), c(&model, "silhouette_edges"));
         assert_eq!(c(&gpu, "volume_caps"), c(&model, "volume_caps"));
@@ -465,11 +491,11 @@ fn accum_hard_on_wgpu_agrees_with_the_cpu_model() {
                 ),
                 None => (c(&gpu, k), c(&model, k)),
             };
-            eprintln!("  {k}: wgpu {g}, cpu-model {m}");
+            eprintln!("  {k}: wgpu {g}, cpu-model {m} ({:.4})", (g - m) / m);
             assert!(m > 0.0, "{name}: {k}");
             assert!(
-                (g - m).abs() <= 0.002 * m,
-                "{name} {counting}: {k} {g} on wgpu, {m} on cpu-model"
+                (g - m).abs() <= counters * m,
+                "{name} {counting} {pipeline}: {k} {g} on wgpu, {m} on cpu-model"
             );
         }
         let phases: Vec<&str> = gpu.phases.iter().map(|p| p.name.as_str()).collect();

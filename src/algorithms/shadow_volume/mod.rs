@@ -27,6 +27,7 @@
 //! Coverage of quads and faces (and of the eye count's triangles) follows the one tie rule of
 //! [`coverage`]: a ray through an edge or corner shared by two faces crosses exactly one.
 
+pub mod raster;
 pub mod wgpu;
 
 use glam::Vec3;

@@ -144,31 +144,37 @@ fn finite(t: f32) -> f32 {
     }
 }
 
+/// The eye rays as the WGSL reads them (`Ray`, 48 bytes a pixel): direction and depth; shaded
+/// point and the bounds entry t0; the bounds exit t1 and 1 where the pixel has a surface.
+pub(crate) fn ray_records(rays: &EyeRays) -> Vec<[f32; 12]> {
+    (0..rays.len())
+        .map(|i| {
+            let (d, p) = (rays.dir[i], rays.point[i]);
+            let (t0, t1) = rays.bounds_interval(i);
+            [
+                d.x,
+                d.y,
+                d.z,
+                finite(rays.depth[i]),
+                p.x,
+                p.y,
+                p.z,
+                finite(t0),
+                finite(t1),
+                if rays.is_hit(i) { 1.0 } else { 0.0 },
+                0.0,
+                0.0,
+            ]
+        })
+        .collect()
+}
+
 impl FrameResources {
     /// The buffers of `rays`, with a coverage texture's `texels` (none: empty) and, when
     /// `textured`, an RGB buffer of three words a pixel.
     pub fn new(gpu: &Gpu, rays: &EyeRays, texels: &[u8], textured: bool) -> FrameResources {
         let storage = wgpu::BufferUsages::STORAGE;
-        let records: Vec<[f32; 12]> = (0..rays.len())
-            .map(|i| {
-                let (d, p) = (rays.dir[i], rays.point[i]);
-                let (t0, t1) = rays.bounds_interval(i);
-                [
-                    d.x,
-                    d.y,
-                    d.z,
-                    finite(rays.depth[i]),
-                    p.x,
-                    p.y,
-                    p.z,
-                    finite(t0),
-                    finite(t1),
-                    if rays.is_hit(i) { 1.0 } else { 0.0 },
-                    0.0,
-                    0.0,
-                ]
-            })
-            .collect();
+        let records = ray_records(rays);
         let mut packed = vec![0u32; texels.len().div_ceil(4)];
         for (k, &b) in texels.iter().enumerate() {
             packed[k / 4] |= u32::from(b) << (8 * (k % 4));

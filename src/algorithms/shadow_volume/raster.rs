@@ -1,0 +1,419 @@
+//! The hard shadow-volume pass as the thesis rendered it, on a rasterizer (paper 001 III §3.2.1;
+//! z-fail Paper II §5; `raster.wgsl`), and `accum_hard`'s accumulation by blending (III §5.1):
+//!
+//! 1. **depth pre-pass** (once per frame): a screen-covering triangle writes the eye's depth
+//!    buffer (Depth32Float) from the frame's shaded points, projected by the same matrix as
+//!    the volumes (an infinite, reversed-depth perspective: no far plane cuts the z-fail dark
+//!    caps, and depth keeps its relative precision far away);
+//! 2. **count pass** (per light point): the shadow quads (z-pass) or the capped volumes' faces
+//!    (z-fail, [`zfail_faces`]) drawn as triangles with the depth test and no depth write into
+//!    a count target (R16Float, exact integers up to ±2048) cleared to the eye's count
+//!    (z-pass, [`super::eye_count`]) or 0 (z-fail); each fragment passing the test adds its
+//!    face's count change by additive blending: the stencil pass with increment and decrement
+//!    as one float target, which a later pass can read as a texture ([`HardRaster::count`];
+//!    pass 1 of `soft_shadow_volume`, whose wedge pass is not built on a rasterizer yet);
+//! 3. **accumulation** (`accum_hard`, per light point): a screen-covering triangle adds 1 where
+//!    the count is 0 into an accumulation target (R16Float, exact up to 2048 ≥ the 1024
+//!    samples allowed: the paper's 16-bit accumulation buffer) by additive blending; then
+//!    **resolve** divides by the number of samples into the visibility buffer.
+//!
+//! How coverage differs from the cpu executions' ray casting ([`super::ShadowQuad::ray_hit`]):
+//! the rasterizer samples each pixel's centre (the cpu rays go through the shaded point, which
+//! the G-buffer may jitter inside the pixel: [`crate::algorithms::eye_raster::EyeRays`]) and
+//! decides edge pixels by its own fixed-point top-left rule instead of the one tie rule of
+//! [`crate::scene::coverage`] (a pixel on an edge shared by two faces is still covered by
+//! exactly one); the depth test compares the interpolated depth of the face with the depth
+//! buffer (f32 z/w of the shaded point) where the cpu compares distances along the ray, so
+//! fragments within rounding of the surface (the occluder's own silhouette, the contact with
+//! the receiver) can change hands; the near plane (at 1e-4 of the scene's diagonal) cuts what
+//! lies closer to the eye, and z-pass fragments in front of the scene bounds count where the
+//! cpu cuts them. The count change of a face is its vertices' `w` (the face's side of the eye,
+//! computed on the host exactly as the cpu does) rather than the rasterizer's front/back
+//! facing, which agrees with it for every face that covers a pixel.
+//!
+//! Fill and passed fragments come from an instrumented replay (the same draws with the depth
+//! test off and WGSL atomics) in the cpu-model's terms: `fill` the fragments within the scene
+//! bounds along the pixel's ray (z-fail: from the entry on) or passing the depth test,
+//! `passed` those passing it (the same comparison of the same values the timed pipeline
+//! makes).
+
+use glam::{Mat4, Vec3};
+
+use super::wgpu::ray_records;
+use super::{zfail_faces, Counting, ShadowQuad};
+use crate::algorithms::eye_raster::EyeRays;
+use crate::error::Result;
+use crate::gpu::pass::{
+    gpu_struct, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster, Step,
+};
+use crate::gpu::readback::words;
+use crate::gpu::Gpu;
+use crate::scene::Mesh;
+
+/// The WGSL of the passes.
+const WGSL: &str = include_str!("raster.wgsl");
+/// The count and accumulation targets' format.
+const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
+/// Bytes of a vertex: position and the count change.
+const VERTEX_BYTES: u64 = 16;
+
+gpu_struct! {
+    /// The parameters of the raster hard pass (group 0, binding 0).
+    pub(crate) struct RasterParams as "RasterParams" {
+        /// The world-to-clip matrix's columns ([`eye_projection`]).
+        vp0: [f32; 4] => "vec4f",
+        vp1: [f32; 4] => "vec4f",
+        vp2: [f32; 4] => "vec4f",
+        vp3: [f32; 4] => "vec4f",
+        /// The eye position.
+        eye: [f32; 4] => "vec4f",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        /// The number of light samples averaged by `resolve`.
+        samples: u32 => "u32",
+        /// 0: z-pass, 1: z-fail.
+        counting: u32 => "u32",
+    }
+}
+
+/// The eye's world-to-clip matrix for `rays`: the camera's view with an infinite perspective of
+/// reversed depth (near/z: 1 at the near plane, 0 at infinity), the near plane at 1e-4 of the
+/// scene's diagonal. Pixel centres map to the directions of `Camera::ray_direction`.
+pub fn eye_projection(rays: &EyeRays, camera: &crate::scene::camera::Camera) -> Mat4 {
+    let view = crate::scene::camera::look_at(camera.eye, camera.target, camera.up);
+    let aspect = rays.width as f32 / rays.height as f32;
+    let near = 1e-4 * rays.bounds.diagonal().max(1e-3);
+    glam::camera::rh::proj::directx::perspective_infinite_reverse(
+        camera.fov_y_deg.to_radians(),
+        aspect,
+        near,
+    ) * view
+}
+
+/// The triangles of a hard pass for light point `light`, as vertices (xyz, the count change):
+/// z-pass the shadow quads cut at twice the scene's diagonal beyond their edges (as
+/// [`super::quad_footprints`]), z-fail the faces of the capped volumes ([`zfail_faces`]); and
+/// the number of cap faces.
+pub fn hard_triangles(
+    rays: &EyeRays,
+    quads: &[ShadowQuad],
+    counting: Counting,
+    occluders: &Mesh,
+    light: Vec3,
+) -> (Vec<[f32; 4]>, u64) {
+    let mut out = Vec::new();
+    let mut polygon = |corners: &[Vec3], step: f32| {
+        for k in 1..corners.len() - 1 {
+            for c in [corners[0], corners[k], corners[k + 1]] {
+                out.push(c.extend(step).to_array());
+            }
+        }
+    };
+    match counting {
+        Counting::ZPass => {
+            let reach = 2.0 * rays.bounds.diagonal();
+            for q in quads {
+                polygon(&q.hull(reach), q.side(rays.eye));
+            }
+            (out, 0)
+        }
+        Counting::ZFail => {
+            let faces = zfail_faces(quads, occluders, light, &rays.bounds);
+            for f in &faces {
+                polygon(&f.corners[..f.sides as usize], -f.side(rays.eye));
+            }
+            let caps = (faces.len() - quads.len()) as u64;
+            (out, caps)
+        }
+    }
+}
+
+/// The textures, bind groups and pipelines of the raster hard pass over one frame, created once
+/// and reused for every light point.
+pub(crate) struct HardRaster<'g> {
+    gpu: &'g Gpu,
+    size: (u32, u32),
+    /// 64-bit fill and passed counters of the instrumented replay.
+    stats: wgpu::Buffer,
+    /// The average over the samples, per pixel (f32), after `resolve`.
+    pub visibility: wgpu::Buffer,
+    depth: wgpu::TextureView,
+    /// The count target: per pixel the number of shadow volumes its point lies in.
+    pub count: wgpu::TextureView,
+    accumulation: wgpu::TextureView,
+    group: wgpu::BindGroup,
+    /// Group 1 reading the count (accumulation pass), or the accumulation (other passes).
+    read_count: wgpu::BindGroup,
+    read_accumulation: wgpu::BindGroup,
+    depth_pipeline: wgpu::RenderPipeline,
+    /// The count pass: timed (depth test on), instrumented (off, counting).
+    quad: [wgpu::RenderPipeline; 2],
+    accumulate: wgpu::RenderPipeline,
+    resolve: wgpu::ComputePipeline,
+}
+
+fn target(
+    gpu: &Gpu,
+    label: &str,
+    size: (u32, u32),
+    format: wgpu::TextureFormat,
+) -> wgpu::TextureView {
+    gpu.device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: size.0,
+                height: size.1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}
+
+impl<'g> HardRaster<'g> {
+    /// The passes over `rays` seen by `camera`, counting as `counting`, averaging `samples`
+    /// light points.
+    pub fn new(
+        gpu: &'g Gpu,
+        rays: &EyeRays,
+        camera: &crate::scene::camera::Camera,
+        counting: Counting,
+        samples: u32,
+    ) -> HardRaster<'g> {
+        let size = (rays.width, rays.height);
+        let cols = eye_projection(rays, camera).to_cols_array_2d();
+        let params = RasterParams {
+            vp0: cols[0],
+            vp1: cols[1],
+            vp2: cols[2],
+            vp3: cols[3],
+            eye: rays.eye.extend(0.0).to_array(),
+            width: size.0,
+            height: size.1,
+            samples,
+            counting: u32::from(counting == Counting::ZFail),
+        };
+        let params = gpu.upload("raster params", &[params], wgpu::BufferUsages::UNIFORM);
+        let storage = wgpu::BufferUsages::STORAGE;
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let rays_buf = gpu.upload("eye rays", &ray_records(rays), storage);
+        let stats = gpu.storage_buffer("raster statistics", 16, copy);
+        let visibility = gpu.storage_buffer("visibility", 4 * rays.len() as u64, copy);
+        let stages = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
+        let layout0 = Layout::new(
+            gpu,
+            "raster hard",
+            stages,
+            &[
+                Bind::Uniform,
+                Bind::ReadOnly,
+                Bind::ReadWrite,
+                Bind::ReadWrite,
+            ],
+        );
+        let layout1 = Layout::new(gpu, "raster target", stages, &[Bind::Float]);
+        let program = Program::new(
+            gpu,
+            "shadow_volume/raster.wgsl",
+            &[RasterParams::WGSL, WGSL],
+            &[Some(&layout0), Some(&layout1)],
+        );
+        let depth = target(gpu, "eye depth", size, wgpu::TextureFormat::Depth32Float);
+        let count = target(gpu, "count", size, TARGET_FORMAT);
+        let accumulation = target(gpu, "accumulation", size, TARGET_FORMAT);
+        let group = layout0.group(
+            gpu,
+            "raster hard",
+            &[
+                params.as_entire_binding(),
+                rays_buf.as_entire_binding(),
+                stats.as_entire_binding(),
+                visibility.as_entire_binding(),
+            ],
+        );
+        let add = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let blend = Some(wgpu::ColorTargetState {
+            format: TARGET_FORMAT,
+            blend: Some(wgpu::BlendState {
+                color: add,
+                alpha: add,
+            }),
+            write_mask: wgpu::ColorWrites::RED,
+        });
+        let attributes = wgpu::vertex_attr_array![0 => Float32x4];
+        let test = match counting {
+            Counting::ZPass => wgpu::CompareFunction::Greater,
+            Counting::ZFail => wgpu::CompareFunction::LessEqual,
+        };
+        let quad = [false, true].map(|instrument| {
+            program.render(
+                gpu,
+                &Raster {
+                    vs: "vs_quad",
+                    fs: "fs_quad",
+                    vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
+                    depth: Some(if instrument {
+                        wgpu::CompareFunction::Always
+                    } else {
+                        test
+                    }),
+                    depth_write: false,
+                    color: blend.clone(),
+                    instrument: Some(instrument),
+                    ..Raster::default()
+                },
+            )
+        });
+        HardRaster {
+            depth_pipeline: program.render(
+                gpu,
+                &Raster {
+                    vs: "vs_full",
+                    fs: "fs_depth",
+                    depth: Some(wgpu::CompareFunction::Always),
+                    ..Raster::default()
+                },
+            ),
+            quad,
+            accumulate: program.render(
+                gpu,
+                &Raster {
+                    vs: "vs_full",
+                    fs: "fs_accumulate",
+                    depth: None,
+                    color: blend.clone(),
+                    ..Raster::default()
+                },
+            ),
+            resolve: program.compute(gpu, "resolve", None),
+            read_count: layout1.group(gpu, "read count", &[view(&count)]),
+            read_accumulation: layout1.group(gpu, "read accumulation", &[view(&accumulation)]),
+            gpu,
+            size,
+            stats,
+            visibility,
+            depth,
+            count,
+            accumulation,
+            group,
+        }
+    }
+
+    /// The vertex buffer of `vertices` ([`hard_triangles`], every light point's in one).
+    pub fn vertices(&self, vertices: &[[f32; 4]]) -> wgpu::Buffer {
+        self.gpu.upload(
+            "shadow volume vertices",
+            vertices,
+            wgpu::BufferUsages::VERTEX,
+        )
+    }
+
+    /// The depth pre-pass.
+    pub fn depth_pass(&self) -> Pass<'_> {
+        Pass::draw(
+            "eye depth",
+            &[Some(&self.group), Some(&self.read_accumulation)],
+            crate::gpu::pass::Draw {
+                pipeline: &self.depth_pipeline,
+                color: None,
+                depth: Some(&self.depth),
+                vertices: None,
+                indices: None,
+                count: 3,
+                instances: 1,
+            },
+        )
+    }
+
+    /// The count pass of the triangles `range` of `vertices`, from `eye_count` (z-pass; 0 for
+    /// z-fail), timed or instrumented.
+    pub fn count_pass<'a>(
+        &'a self,
+        vertices: &'a wgpu::Buffer,
+        range: std::ops::Range<u32>,
+        eye_count: i32,
+        instrument: bool,
+    ) -> Pass<'a> {
+        Pass::onto(
+            "hard",
+            &[Some(&self.group), Some(&self.read_accumulation)],
+            Onto {
+                pipeline: &self.quad[usize::from(instrument)],
+                color: &self.count,
+                clear: Some(f64::from(eye_count)),
+                depth: Some(&self.depth),
+                vertices: Some(vertices),
+                range,
+            },
+        )
+    }
+
+    /// The accumulation of the lit pixels of the last count pass; `first` clears the
+    /// accumulation first.
+    pub fn accumulate_pass(&self, first: bool) -> Pass<'_> {
+        Pass::onto(
+            "accumulate",
+            &[Some(&self.group), Some(&self.read_count)],
+            Onto {
+                pipeline: &self.accumulate,
+                color: &self.accumulation,
+                clear: first.then_some(0.0),
+                depth: None,
+                vertices: None,
+                range: 0..3,
+            },
+        )
+    }
+
+    /// The average over the samples into [`HardRaster::visibility`].
+    pub fn resolve_pass(&self) -> Pass<'_> {
+        Pass::compute(
+            "resolve",
+            &[Some(&self.group), Some(&self.read_accumulation)],
+            &self.resolve,
+            tiles(self.size, 8),
+        )
+    }
+
+    /// Runs the depth pre-pass and the instrumented count passes of `ranges` (with their eye
+    /// counts) and returns the fill and passed fragments.
+    pub fn replay(
+        &self,
+        vertices: &wgpu::Buffer,
+        ranges: &[(std::ops::Range<u32>, i32)],
+    ) -> Result<(f64, f64)> {
+        let mut steps = vec![Step::Clear(&self.stats), Step::Run(self.depth_pass())];
+        steps.extend(
+            ranges
+                .iter()
+                .map(|(r, eye)| Step::Run(self.count_pass(vertices, r.clone(), *eye, true))),
+        );
+        steps.push(Step::Read(&self.stats));
+        let raw: Vec<u32> = words(&crate::gpu::pass::replay(self.gpu, &steps)?[0]);
+        Ok((slot64(&raw, 0), slot64(&raw, 1)))
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::*;
+
+    #[test]
+    fn uniforms_match_wgsl() {
+        let source = [RasterParams::WGSL, WGSL].join("\n");
+        assert_eq!(
+            RasterParams::layout_mismatches(&source),
+            Vec::<String>::new()
+        );
+    }
+}
