@@ -85,10 +85,11 @@ impl AlgorithmOptions for AccumHardOptions {
     }
 }
 
-/// Bytes of the eye-sized buffers (stencil and the f32 accumulation buffer), estimated before
-/// anything is allocated, for the harness's memory limit.
+/// Bytes of the eye-sized buffers of the largest execution, estimated before anything is
+/// allocated, for the harness's memory limit: per pixel the eye ray (48 bytes), its depth (4),
+/// the stencil or count target (2), the accumulation buffer (4) and the visibility (4).
 pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
-    u64::from(p.image[0]) * u64::from(p.image[1]) * (1 + 4)
+    u64::from(p.image[0]) * u64::from(p.image[1]) * (48 + 4 + 2 + 4 + 4)
 }
 
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
