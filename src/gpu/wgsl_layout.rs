@@ -99,3 +99,8 @@ mod tests {
         assert!(!super::mismatches(WGSL, "Other", size, &rust).is_empty());
     }
 }
+
+/// Fails, naming each mismatch, unless `found` (a struct's `layout_mismatches`) is empty.
+pub fn assert_agree(found: Vec<String>) {
+    assert!(found.is_empty(), "WGSL layout mismatches: {found:?}");
+}
