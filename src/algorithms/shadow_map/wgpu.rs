@@ -240,7 +240,7 @@ impl<'g> Passes<'g> {
         let mut sources = PRELUDE.to_vec();
         sources.extend([LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, lookup.wgsl]);
         let groups = [Some(&shared.layout), Some(&lookup_layout), extra];
-        let eye = Program::new(gpu, "eye_lookup.wgsl", &sources, &groups);
+        let program = Program::new(gpu, "eye_lookup.wgsl", &sources, &groups);
         let attributes = wgpu::vertex_attr_array![0 => Float32x3];
         let raster_pipeline = |fs| {
             let vertex = per_vertex(&attributes);
@@ -264,8 +264,8 @@ impl<'g> Passes<'g> {
             shared,
             lookup_group,
             raster: [raster_pipeline("fs_depth"), raster_pipeline("fs_count")],
-            lookup: eye.compute_pair(gpu, "eye_lookup"),
-            count_covered: eye.compute(gpu, "count_covered", Some(true)),
+            lookup: program.compute_pair(gpu, "eye_lookup"),
+            count_covered: program.compute(gpu, "count_covered", Some(true)),
         }
     }
 
