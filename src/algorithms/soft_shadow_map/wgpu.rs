@@ -213,9 +213,9 @@ impl<'g> Ssm<'g> {
         let vertices = gpu.upload("vertices", &positions, B::VERTEX);
         // The gbuffer: position with the hit flag, normal with the receives flag.
         let g = &frame.gbuffer;
+        let receives = |t: u32| split.receives[frame.flat.object_of_triangle[t as usize] as usize];
         let eye = EyeBuffers::new(gpu, g, |i| {
-            let object = frame.flat.object_of_triangle[g.triangle[i] as usize];
-            f32::from(u8::from(g.is_hit(i) && split.receives[object as usize]))
+            f32::from(u8::from(g.is_hit(i) && receives(g.triangle[i])))
         });
 
         // The occluder maps are read back for the paper's transfer to the CPU.
