@@ -86,6 +86,20 @@ impl QueryFeatures {
     }
 }
 
+/// What a run needs of the adapter, checked by [`Gpu::check_limits`] before anything is
+/// allocated; a zero (the default) asks nothing.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Needs<'a> {
+    /// The side of the largest square texture (a map's `map_resolution`).
+    pub texture: u32,
+    /// Storage buffers bound in one shader stage.
+    pub storage_buffers: u32,
+    /// Invocations of the largest compute workgroup (all in x).
+    pub workgroup: u32,
+    /// The storage buffers bound whole: name and bytes.
+    pub buffers: &'a [(&'a str, u64)],
+}
+
 /// The shared device.
 pub struct Gpu {
     pub device: wgpu::Device,
@@ -100,6 +114,16 @@ pub struct Gpu {
     /// (`FLOAT32_BLENDABLE`, requested when the adapter offers it): additive FP32 accumulation
     /// in render passes (soft shadow maps).
     pub float32_blendable: bool,
+}
+
+impl Needs<'_> {
+    /// A map of `resolution`² texels, and nothing else.
+    pub fn map(resolution: u32) -> Self {
+        Needs {
+            texture: resolution,
+            ..Needs::default()
+        }
+    }
 }
 
 impl Gpu {
@@ -165,6 +189,62 @@ impl Gpu {
                 | usage,
             view_formats: &[],
         })
+    }
+
+    /// Checks what algorithm `id` needs against the adapter's limits; the error
+    /// ([`Error::Resource`]) names the need, its size and the adapter's limit.
+    pub fn check_limits(&self, id: &str, needs: Needs) -> Result<()> {
+        let l = &self.limits;
+        let fail = |why: String| Err(Error::Resource(why));
+        if needs.texture > l.max_texture_dimension_2d {
+            return fail(format!(
+                "map_resolution {} exceeds the adapter's largest texture ({})",
+                needs.texture, l.max_texture_dimension_2d
+            ));
+        }
+        if needs.storage_buffers > l.max_storage_buffers_per_shader_stage {
+            return fail(format!(
+                "{id} binds {} storage buffers; the adapter allows {}",
+                needs.storage_buffers, l.max_storage_buffers_per_shader_stage
+            ));
+        }
+        if needs.workgroup
+            > l.max_compute_invocations_per_workgroup
+                .min(l.max_compute_workgroup_size_x)
+        {
+            return fail(format!(
+                "{id} needs compute workgroups of {} invocations",
+                needs.workgroup
+            ));
+        }
+        let max = l.max_storage_buffer_binding_size;
+        match needs.buffers.iter().find(|(_, bytes)| *bytes > max) {
+            Some((name, bytes)) => fail(format!(
+                "{id} buffer {name} needs {bytes} bytes, more than the adapter's storage binding \
+                 limit ({max})"
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// A zeroed `T` in a storage buffer the instrumented replay counts into, clears and reads
+    /// back.
+    pub fn counts_buffer<T: bytemuck::Pod>(&self, label: &str) -> wgpu::Buffer {
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        self.upload(label, &[T::zeroed()], usage)
+    }
+
+    /// A `resolution`² map texture ([`Gpu::map_texture`], no further usage) and its view.
+    pub fn map_view(
+        &self,
+        label: &str,
+        resolution: u32,
+        format: wgpu::TextureFormat,
+    ) -> wgpu::TextureView {
+        self.map_texture(label, resolution, format, wgpu::TextureUsages::empty())
+            .create_view(&Default::default())
     }
 
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
@@ -510,6 +590,16 @@ pub fn resolve_queries(
     }
     if let Some(s) = stats {
         s.resolve(e);
+    }
+}
+
+/// Adds `entries` (a JSON object) to a record's `execution` map.
+pub fn record_execution(
+    execution: &mut BTreeMap<String, serde_json::Value>,
+    entries: serde_json::Value,
+) {
+    if let serde_json::Value::Object(m) = entries {
+        execution.extend(m);
     }
 }
 

@@ -23,7 +23,8 @@ use crate::visibility::VisibilityBuffer;
 use super::readback::{words, Staging};
 use super::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use super::timing::{self, read_ms_or_warn, GpuTimes, PassTimer};
-use super::{resolve_queries, Gpu};
+use super::{gbuffer_positions, resolve_queries, Gpu};
+use crate::frame::GBuffer;
 
 /// Declares a `#[repr(C)]` struct the GPU reads (a uniform or storage buffer) once, for both
 /// sides: the Rust struct (`Pod`, every field public) and, as `NAME::WGSL`, the WGSL `struct`
@@ -163,6 +164,25 @@ impl Layout {
         }
     }
 
+    /// The layout of `binds` (each binding's kind and resource, binding `i` at index `i`)
+    /// visible to `stages`, and the bind group of their resources.
+    pub fn bound(
+        gpu: &Gpu,
+        label: &str,
+        stages: wgpu::ShaderStages,
+        binds: &[(Bind, wgpu::BindingResource)],
+    ) -> (Layout, wgpu::BindGroup) {
+        let kinds: Vec<Bind> = binds.iter().map(|b| b.0).collect();
+        let layout = Layout::new(gpu, label, stages, &kinds);
+        let resources: Vec<_> = binds
+            .iter()
+            .filter(|b| b.0 != Bind::Absent)
+            .map(|b| b.1.clone())
+            .collect();
+        let group = layout.group(gpu, label, &resources);
+        (layout, group)
+    }
+
     /// A bind group of this layout: `resources` in the order of its bindings (absent ones
     /// skipped).
     pub fn group(
@@ -186,6 +206,131 @@ impl Layout {
             layout: &self.layout,
             entries: &entries,
         })
+    }
+}
+
+/// An indexed triangle list on the GPU: its vertex buffer, its `u32` index buffer and their
+/// counts.
+pub struct Mesh {
+    pub vertices: wgpu::Buffer,
+    pub indices: wgpu::Buffer,
+    pub vertex_count: u32,
+    pub index_count: u32,
+}
+
+impl Mesh {
+    /// Uploads `vertices` and the indices of `triangles`, in order.
+    pub fn upload<T: bytemuck::Pod>(
+        gpu: &Gpu,
+        label: &str,
+        vertices: &[T],
+        triangles: &[[u32; 3]],
+    ) -> Mesh {
+        let indices: Vec<u32> = triangles.iter().flatten().copied().collect();
+        Mesh {
+            vertices: gpu.upload(label, vertices, wgpu::BufferUsages::VERTEX),
+            indices: gpu.upload(label, &indices, wgpu::BufferUsages::INDEX),
+            vertex_count: vertices.len() as u32,
+            index_count: indices.len() as u32,
+        }
+    }
+
+    /// One draw of the whole mesh with `pipeline` into `color` and `depth`.
+    pub fn draw<'a>(
+        &'a self,
+        pipeline: &'a wgpu::RenderPipeline,
+        color: Option<&'a wgpu::TextureView>,
+        depth: Option<&'a wgpu::TextureView>,
+    ) -> Draw<'a> {
+        Draw {
+            pipeline,
+            color,
+            depth,
+            vertices: Some(&self.vertices),
+            indices: Some(&self.indices),
+            count: self.index_count,
+            instances: 1,
+        }
+    }
+}
+
+/// Group 0 of a family's passes, visible to every stage: a uniform (binding 0) and the counters
+/// of the instrumented replay (binding 1, a zeroed `C`: [`Gpu::counts_buffer`]).
+pub struct Shared {
+    pub layout: Layout,
+    pub group: wgpu::BindGroup,
+    pub counts: wgpu::Buffer,
+}
+
+impl Shared {
+    /// The group of `uniform` and a new counts buffer of type `C`.
+    pub fn new<C: bytemuck::Pod>(gpu: &Gpu, label: &str, uniform: &impl bytemuck::Pod) -> Shared {
+        let uniform = gpu.upload(
+            label,
+            std::slice::from_ref(uniform),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let counts = gpu.counts_buffer::<C>(label);
+        let stages = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
+        let (layout, group) = Layout::bound(
+            gpu,
+            label,
+            stages,
+            &[
+                (Bind::Uniform, uniform.as_entire_binding()),
+                (Bind::ReadWrite, counts.as_entire_binding()),
+            ],
+        );
+        Shared {
+            layout,
+            group,
+            counts,
+        }
+    }
+}
+
+/// The per-pixel buffers of an eye pass over the gbuffer: positions with the hit flag in w
+/// ([`gbuffer_positions`]) and normals with a flag of the execution's in w, which it reads, and
+/// the visibility (one `f32` a pixel) it writes and the run reads back.
+pub struct EyeBuffers {
+    pub positions: wgpu::Buffer,
+    pub normals: wgpu::Buffer,
+    pub visibility: wgpu::Buffer,
+}
+
+impl EyeBuffers {
+    /// The buffers of gbuffer `g`, with `normal_w(i)` in pixel `i`'s normal.
+    pub fn new(gpu: &Gpu, g: &GBuffer, normal_w: impl Fn(usize) -> f32) -> EyeBuffers {
+        let normals: Vec<[f32; 4]> = (0..g.len())
+            .map(|i| g.normal[i].extend(normal_w(i)).to_array())
+            .collect();
+        let storage = wgpu::BufferUsages::STORAGE;
+        let visibility_bytes = 4 * g.len() as u64;
+        EyeBuffers {
+            positions: gpu.upload("gbuffer positions", &gbuffer_positions(g), storage),
+            normals: gpu.upload("gbuffer normals", &normals, storage),
+            visibility: gpu.storage_buffer(
+                "visibility",
+                visibility_bytes,
+                wgpu::BufferUsages::COPY_SRC,
+            ),
+        }
+    }
+
+    /// The bindings `first`, then these buffers' (positions and normals read, visibility
+    /// written).
+    pub fn binds_after<'a>(
+        &'a self,
+        first: impl IntoIterator<Item = (Bind, wgpu::BindingResource<'a>)>,
+    ) -> Vec<(Bind, wgpu::BindingResource<'a>)> {
+        first
+            .into_iter()
+            .chain([
+                (Bind::ReadOnly, self.positions.as_entire_binding()),
+                (Bind::ReadOnly, self.normals.as_entire_binding()),
+                (Bind::ReadWrite, self.visibility.as_entire_binding()),
+            ])
+            .collect()
     }
 }
 
@@ -235,6 +380,15 @@ impl Default for Raster<'_> {
             instrument: None,
         }
     }
+}
+
+/// A vertex buffer read per vertex whose records are `attributes` packed in order (the stride
+/// is where the last one ends), for [`Raster::vertex`].
+pub fn per_vertex(
+    attributes: &[wgpu::VertexAttribute],
+) -> Option<(u64, wgpu::VertexStepMode, &[wgpu::VertexAttribute])> {
+    let stride = attributes.last().map_or(0, |a| a.offset + a.format.size());
+    Some((stride, wgpu::VertexStepMode::Vertex, attributes))
 }
 
 /// The override constants of a pipeline: `INSTRUMENT` when given.
@@ -290,6 +444,17 @@ impl Program {
     /// The timed (`INSTRUMENT` off) and counting (on) pipelines of a compute `entry`.
     pub fn compute_pair(&self, gpu: &Gpu, entry: &str) -> [wgpu::ComputePipeline; 2] {
         [false, true].map(|on| self.compute(gpu, entry, Some(on)))
+    }
+
+    /// The timed (`INSTRUMENT` off) and counting (on) pipelines of render pipeline `r`.
+    pub fn render_pair(&self, gpu: &Gpu, r: &Raster) -> [wgpu::RenderPipeline; 2] {
+        [false, true].map(|on| {
+            let r = Raster {
+                instrument: Some(on),
+                ..r.clone()
+            };
+            self.render(gpu, &r)
+        })
     }
 
     /// The render pipeline `r`.
@@ -820,6 +985,19 @@ pub fn replay(gpu: &Gpu, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
         }
     })?;
     stagings.iter().map(|(_, s)| s.read(gpu)).collect()
+}
+
+/// The instrumented replay of `passes` counting into `counts`: cleared before, read after; its
+/// bytes.
+pub fn replay_counts<'a>(
+    gpu: &Gpu,
+    counts: &'a wgpu::Buffer,
+    passes: impl IntoIterator<Item = Pass<'a>>,
+) -> Result<Vec<u8>> {
+    let mut steps = vec![Step::Clear(counts)];
+    steps.extend(passes.into_iter().map(Step::Run));
+    steps.push(Step::Read(counts));
+    Ok(replay(gpu, &steps)?.swap_remove(0))
 }
 
 /// The 64-bit statistics slot `i` of a buffer of (low, high) `u32` pairs, as a figure.

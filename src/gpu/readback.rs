@@ -81,3 +81,39 @@ impl Staging {
 pub fn words<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
     bytemuck::pod_collect_to_vec(bytes)
 }
+
+/// Reads the one `T` at the start of a buffer (a counters struct).
+pub fn first<T: bytemuck::Pod>(bytes: &[u8]) -> T {
+    bytemuck::pod_read_unaligned(&bytes[..size_of::<T>()])
+}
+
+/// Copies whole single-layer textures of 4-byte texels (`T`: `f32` or `u32`) to the host in one
+/// submission, and returns each one's texels row by row (the copies' rows are padded to 256
+/// bytes, as buffer copies require; the padding is dropped).
+pub fn read_texels<T: bytemuck::Pod>(gpu: &Gpu, textures: &[wgpu::Texture]) -> Result<Vec<Vec<T>>> {
+    let padded = |t: &wgpu::Texture| (t.width() * 4).div_ceil(256) * 256;
+    let stagings: Vec<Staging> = textures
+        .iter()
+        .map(|t| {
+            let bytes = u64::from(padded(t)) * u64::from(t.height());
+            Staging::new(gpu, "texture readback", bytes)
+        })
+        .collect();
+    gpu.submit(|e| {
+        for (s, t) in stagings.iter().zip(textures) {
+            s.copy_texture(e, t, padded(t));
+        }
+    })?;
+    stagings
+        .iter()
+        .zip(textures)
+        .map(|(s, t)| {
+            let row = 4 * t.width() as usize;
+            let bytes = s.read(gpu)?;
+            Ok(bytes
+                .chunks(padded(t) as usize)
+                .flat_map(|r| words::<T>(&r[..row]))
+                .collect())
+        })
+        .collect()
+}

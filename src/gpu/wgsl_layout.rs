@@ -53,6 +53,11 @@ pub(crate) fn mismatches(
     out
 }
 
+/// Fails, naming each mismatch, unless `found` (a struct's `layout_mismatches`) is empty.
+pub fn assert_agree(found: Vec<String>) {
+    assert!(found.is_empty(), "WGSL layout mismatches: {found:?}");
+}
+
 #[cfg(test)]
 mod tests {
     #[repr(C)]

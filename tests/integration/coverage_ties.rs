@@ -160,7 +160,7 @@ fn quad_line_ties(f: &Frame) -> usize {
 /// Eye samples whose light-view position lies exactly on the projected diagonal of the plate
 /// (the edge shared by its two top triangles in `soft_izb`'s image plane).
 fn izb_diagonal_ties(f: &Frame) -> usize {
-    let views = LightViews::fit(f, &f.scene.light, f.params.map_resolution, ViewFit::Single);
+    let views = LightViews::fit(f, ViewFit::Single);
     let view = *views.single();
     let uv = |p: Vec3| light_point(clip_coords(&view, p)).uv;
     let (a, b) = (uv(Vec3::new(-C, H, -C)), uv(Vec3::new(C, H, C)));

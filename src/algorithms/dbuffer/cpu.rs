@@ -957,12 +957,7 @@ pub fn render(
     let mut m = machine(backend, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
-    let views = LightViews::fit(
-        frame,
-        &frame.scene.light,
-        frame.params.map_resolution,
-        ViewFit::Single,
-    );
+    let views = LightViews::fit(frame, ViewFit::Single);
     let v = build_volumes(&mut m, frame, &adj, disc, views.single(), o);
     let d = dbuffer(&mut m, frame, &views.views[0], &v);
     let lookup = DLookup {

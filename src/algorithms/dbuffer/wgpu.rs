@@ -18,21 +18,22 @@
 //! left covered (`fill − covered = overdraw`) with WGSL atomics, as the shadow-map family does.
 
 use super::cpu::{build_volumes, VolumeMesh};
-use super::{DbufferOptions, Disc, Falloff};
+use super::{DbufferOptions, Disc, Falloff, ID};
 use crate::algorithms::exec::machine;
 use crate::algorithms::shadow_map::wgpu::LIGHT_VIEW_WGSL;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster,
-    Statistics, Step, Timed,
+    gpu_struct, per_vertex, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers,
+    Layout, Mesh, Pass, Program, Raster, Shared, Statistics, Timed,
 };
-use crate::gpu::readback::words;
-use crate::gpu::{gbuffer_positions, Gpu};
+use crate::gpu::readback::first;
+use crate::gpu::{record_execution, Gpu, Needs};
 use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
+use serde_json::json;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
 /// Side of the square compute workgroups (`@workgroup_size(8, 8)`).
@@ -88,26 +89,19 @@ pub fn render(
     o: &DbufferOptions,
 ) -> Result<FrameOutput> {
     let res = frame.params.map_resolution;
-    if res > gpu.limits.max_texture_dimension_2d {
-        return Err(Error::Resource(format!(
-            "map_resolution {res} exceeds the adapter's largest texture ({})",
-            gpu.limits.max_texture_dimension_2d
-        )));
-    }
+    gpu.check_limits(ID, Needs::map(res))?;
     // The host phases, as the cpu-native execution runs them: their wall time on the host's
     // threads, or on one host thread with `volume_build: single_core`.
     let mut m = machine(Backend::CpuNative, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
-    let views = LightViews::fit(frame, &frame.scene.light, res, ViewFit::Single);
+    let views = LightViews::fit(frame, ViewFit::Single);
     let view = *views.single();
     let v = build_volumes(&mut m, frame, &adj, disc, &view, o);
     let host = m.finish();
     let mut out = Passes::new(gpu, frame, &view, disc, &v.umbra, &v.penumbra, o).run(frame)?;
-    out.execution.insert(
-        "volume_build".into(),
-        serde_json::json!(o.volume_build.describe()),
-    );
+    let volume_build = o.volume_build.describe();
+    record_execution(&mut out.execution, json!({ "volume_build": volume_build }));
     let mut phases = host.phases;
     phases.append(&mut out.phases);
     for p in &phases[..2] {
@@ -118,34 +112,17 @@ pub fn render(
     Ok(out)
 }
 
-/// A map of the D-buffer, drawn into and read by the lookup.
-fn target(gpu: &Gpu, label: &str, res: u32, format: wgpu::TextureFormat) -> wgpu::TextureView {
-    gpu.map_texture(label, res, format, wgpu::TextureUsages::empty())
-        .create_view(&Default::default())
-}
-
-/// A mesh drawn into the D-buffer: its vertex buffer, index buffer and index count.
-struct Mesh {
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    count: u32,
-}
-
-/// The pipelines of the scene, umbra, penumbra and lookup passes, timed or counting.
+/// The pipelines of the passes: the D-buffer's scene, umbra and penumbra draws and the lookup,
+/// each timed (`[0]`) and counting (`[1]`), and the replay's `count_covered`.
 struct Pipelines {
-    scene: wgpu::RenderPipeline,
-    umbra: wgpu::RenderPipeline,
-    penumbra: wgpu::RenderPipeline,
-    lookup: wgpu::ComputePipeline,
+    draws: [[wgpu::RenderPipeline; 2]; 3],
+    lookup: [wgpu::ComputePipeline; 2],
+    count_covered: wgpu::ComputePipeline,
 }
 
 impl Pipelines {
-    /// The timed and counting pipelines of every pass, and the replay's `count_covered`, from
-    /// the shared, scene-depth and lookup group layouts.
-    fn new(
-        gpu: &Gpu,
-        [shared, scene, lookup]: [&Layout; 3],
-    ) -> ([Pipelines; 2], wgpu::ComputePipeline) {
+    /// The pipelines from the shared, scene-depth and lookup group layouts.
+    fn new(gpu: &Gpu, [shared, scene, lookup]: [&Layout; 3]) -> Pipelines {
         let program =
             |groups: &[Option<&Layout>]| Program::new(gpu, "dbuffer/wgpu.wgsl", &SOURCES, groups);
         let scene_program = program(&[Some(shared)]);
@@ -153,35 +130,32 @@ impl Pipelines {
         let compute_program = program(&[Some(shared), Some(lookup)]);
         let scene_attrs = wgpu::vertex_attr_array![0 => Float32x3];
         let volume_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
-        let vertex = wgpu::VertexStepMode::Vertex;
-        let pipelines = [false, true].map(|instrument| {
-            let scene = Raster {
-                vs: "vs_scene",
-                fs: "fs_scene",
-                vertex: Some((12, vertex, &scene_attrs)),
-                instrument: Some(instrument),
-                ..Raster::default()
-            };
-            let volume = |fs| Raster {
-                vs: "vs_volume",
-                fs,
-                vertex: Some((16, vertex, &volume_attrs)),
-                color: Some(wgpu::ColorTargetState {
-                    format: EDGE,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::RED,
-                }),
-                ..scene.clone()
-            };
-            Pipelines {
-                scene: scene_program.render(gpu, &scene),
-                umbra: volume_program.render(gpu, &volume("fs_umbra")),
-                penumbra: volume_program.render(gpu, &volume("fs_penumbra")),
-                lookup: compute_program.compute(gpu, "eye_lookup", Some(instrument)),
-            }
-        });
-        let count_covered = compute_program.compute(gpu, "count_covered", Some(true));
-        (pipelines, count_covered)
+        let scene = Raster {
+            vs: "vs_scene",
+            fs: "fs_scene",
+            vertex: per_vertex(&scene_attrs),
+            ..Raster::default()
+        };
+        let volume = |fs| Raster {
+            vs: "vs_volume",
+            fs,
+            vertex: per_vertex(&volume_attrs),
+            color: Some(wgpu::ColorTargetState {
+                format: EDGE,
+                blend: None,
+                write_mask: wgpu::ColorWrites::RED,
+            }),
+            ..scene.clone()
+        };
+        Pipelines {
+            draws: [
+                scene_program.render_pair(gpu, &scene),
+                volume_program.render_pair(gpu, &volume("fs_umbra")),
+                volume_program.render_pair(gpu, &volume("fs_penumbra")),
+            ],
+            lookup: compute_program.compute_pair(gpu, "eye_lookup"),
+            count_covered: compute_program.compute(gpu, "count_covered", Some(true)),
+        }
     }
 }
 
@@ -196,13 +170,10 @@ struct Passes<'g> {
     depth: [wgpu::TextureView; 3],
     edge: [wgpu::TextureView; 2],
     visibility: wgpu::Buffer,
-    counts: wgpu::Buffer,
-    shared_group: wgpu::BindGroup,
+    shared: Shared,
     scene_group: wgpu::BindGroup,
     lookup_group: wgpu::BindGroup,
-    /// Timed and counting pipelines.
-    pipelines: [Pipelines; 2],
-    count_covered: wgpu::ComputePipeline,
+    pipelines: Pipelines,
 }
 
 impl<'g> Passes<'g> {
@@ -237,86 +208,46 @@ impl<'g> Passes<'g> {
             height,
             pad: 0,
         };
-        use wgpu::BufferUsages as B;
-        let uniform_buf = gpu.upload("dbuffer uniform", &[uniform], B::UNIFORM);
-        let mesh = |label: &str, vertices: Vec<f32>, tris: &[[u32; 3]]| {
-            let indices: Vec<u32> = tris.iter().flatten().copied().collect();
-            Mesh {
-                vertices: gpu.upload(label, &vertices, B::VERTEX),
-                indices: gpu.upload(label, &indices, B::INDEX),
-                count: indices.len() as u32,
-            }
-        };
         let volume = |label: &str, v: &VolumeMesh| {
-            let data: Vec<f32> = v
+            let data: Vec<[f32; 4]> = v
                 .positions
                 .iter()
                 .zip(&v.attributes)
-                .flat_map(|(p, a)| [p.x, p.y, p.z, a.x])
+                .map(|(p, a)| p.extend(a.x).to_array())
                 .collect();
-            mesh(label, data, &v.triangles)
+            Mesh::upload(gpu, label, &data, &v.triangles)
         };
         let flat = &frame.flat.mesh;
-        let positions = flat.positions.iter().flat_map(|p| p.to_array()).collect();
+        let positions: Vec<[f32; 3]> = flat.positions.iter().map(|p| p.to_array()).collect();
         let meshes = [
-            mesh("scene", positions, &flat.triangles),
+            Mesh::upload(gpu, "scene", &positions, &flat.triangles),
             volume("umbra volume", umbra),
             volume("penumbra volume", penumbra),
         ];
-        let g = &frame.gbuffer;
-        let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-        let gpos = gpu.upload("gbuffer positions", &gbuffer_positions(g), B::STORAGE);
-        let gnrm = gpu.upload("gbuffer normals", &gnrm, B::STORAGE);
-        let visibility = gpu.storage_buffer(
-            "visibility",
-            4 * u64::from(width) * u64::from(height),
-            B::COPY_SRC,
-        );
-        let counts = gpu.upload(
-            "instrumentation counts",
-            &[Counts::default()],
-            B::STORAGE | B::COPY_SRC | B::COPY_DST,
-        );
+        let eye = EyeBuffers::new(gpu, &frame.gbuffer, |_| 0.0);
         let depth = ["scene", "umbra", "penumbra"]
-            .map(|n| target(gpu, &format!("dbuffer {n} depth"), resolution, DEPTH));
+            .map(|n| gpu.map_view(&format!("dbuffer {n} depth"), resolution, DEPTH));
         let edge = ["umbra", "penumbra"]
-            .map(|n| target(gpu, &format!("dbuffer {n} edge"), resolution, EDGE));
+            .map(|n| gpu.map_view(&format!("dbuffer {n} edge"), resolution, EDGE));
 
         use wgpu::ShaderStages as S;
-        let all = S::VERTEX | S::FRAGMENT | S::COMPUTE;
-        let shared_layout = Layout::new(gpu, "dbuffer shared", all, &[Uniform, ReadWrite]);
-        let scene_layout = Layout::new(gpu, "dbuffer scene depth", S::FRAGMENT, &[Depth]);
-        let lookup_layout = Layout::new(
+        let shared = Shared::new::<Counts>(gpu, "dbuffer shared", &uniform);
+        let scene_depth = [(Depth, view_resource(&depth[0]))];
+        let (scene_layout, scene_group) =
+            Layout::bound(gpu, "dbuffer scene depth", S::FRAGMENT, &scene_depth);
+        let (lookup_layout, lookup_group) = Layout::bound(
             gpu,
             "dbuffer eye lookup",
             S::COMPUTE,
-            &[
-                Depth, Depth, Float, Depth, Float, ReadOnly, ReadOnly, ReadWrite,
-            ],
+            &eye.binds_after([
+                (Depth, view_resource(&depth[0])),
+                (Depth, view_resource(&depth[1])),
+                (Float, view_resource(&edge[0])),
+                (Depth, view_resource(&depth[2])),
+                (Float, view_resource(&edge[1])),
+            ]),
         );
-        let shared_group = shared_layout.group(
-            gpu,
-            "dbuffer shared",
-            &[uniform_buf.as_entire_binding(), counts.as_entire_binding()],
-        );
-        let scene_group =
-            scene_layout.group(gpu, "dbuffer scene depth", &[view_resource(&depth[0])]);
-        let lookup_group = lookup_layout.group(
-            gpu,
-            "dbuffer eye lookup",
-            &[
-                view_resource(&depth[0]),
-                view_resource(&depth[1]),
-                view_resource(&edge[0]),
-                view_resource(&depth[2]),
-                view_resource(&edge[1]),
-                gpos.as_entire_binding(),
-                gnrm.as_entire_binding(),
-                visibility.as_entire_binding(),
-            ],
-        );
-        let (pipelines, count_covered) =
-            Pipelines::new(gpu, [&shared_layout, &scene_layout, &lookup_layout]);
+        let pipelines = Pipelines::new(gpu, [&shared.layout, &scene_layout, &lookup_layout]);
         Passes {
             gpu,
             width,
@@ -325,48 +256,35 @@ impl<'g> Passes<'g> {
             meshes,
             depth,
             edge,
-            visibility,
-            counts,
-            shared_group,
+            visibility: eye.visibility,
+            shared,
             scene_group,
             lookup_group,
             pipelines,
-            count_covered,
         }
     }
 
     /// The three render passes of the D-buffer: the scene's depth, then each volume into its
     /// depth and edge targets.
     fn dbuffer_passes(&self, counting: bool) -> Vec<Pass<'_>> {
-        let p = &self.pipelines[usize::from(counting)];
-        let pipelines = [&p.scene, &p.umbra, &p.penumbra];
         (0..3)
             .map(|i| {
-                let mesh = &self.meshes[i];
                 let volume = i > 0;
-                Pass::draw(
-                    "dbuffer",
-                    &[
-                        Some(&self.shared_group),
-                        volume.then_some(&self.scene_group),
-                    ],
-                    Draw {
-                        pipeline: pipelines[i],
-                        color: volume.then(|| &self.edge[i - 1]),
-                        depth: Some(&self.depth[i]),
-                        vertices: Some(&mesh.vertices),
-                        indices: Some(&mesh.indices),
-                        count: mesh.count,
-                        instances: 1,
-                    },
-                )
+                let groups = [
+                    Some(&self.shared.group),
+                    volume.then_some(&self.scene_group),
+                ];
+                let color = volume.then(|| &self.edge[i - 1]);
+                let pipeline = &self.pipelines.draws[i][usize::from(counting)];
+                let draw = self.meshes[i].draw(pipeline, color, Some(&self.depth[i]));
+                Pass::draw("dbuffer", &groups, draw)
             })
             .collect()
     }
 
     /// A compute pass over `size` with the lookup's groups.
     fn compute<'a>(&'a self, pipeline: &'a wgpu::ComputePipeline, size: (u32, u32)) -> Pass<'a> {
-        let groups = [Some(&self.shared_group), Some(&self.lookup_group)];
+        let groups = [Some(&self.shared.group), Some(&self.lookup_group)];
         Pass::compute("eye_lookup", &groups, pipeline, tiles(size, WORKGROUP))
     }
 
@@ -375,24 +293,20 @@ impl<'g> Passes<'g> {
         let names = ["dbuffer", "eye_lookup"];
         let mut run = Timed::new(self.gpu, &names, 4, Statistics::All, &[&self.visibility]);
         run.submit(0, &self.dbuffer_passes(false))?;
-        run.submit(1, &[self.compute(&self.pipelines[0].lookup, image)])?;
+        run.submit(1, &[self.compute(&self.pipelines.lookup[0], image)])?;
         let timing = run.finish()?;
 
         // The instrumented submission: same passes, counting with atomics.
-        let mut steps = vec![Step::Clear(&self.counts)];
-        steps.extend(self.dbuffer_passes(true).into_iter().map(Step::Run));
+        let mut passes = self.dbuffer_passes(true);
         let res = (self.resolution, self.resolution);
-        steps.push(Step::Run(self.compute(&self.count_covered, res)));
-        steps.push(Step::Read(&self.counts));
-        let c: Counts = words::<Counts>(&replay(self.gpu, &steps)?[0])[0];
+        passes.push(self.compute(&self.pipelines.count_covered, res));
+        let c: Counts = first(&replay_counts(self.gpu, &self.shared.counts, passes)?);
 
         let mut dbuffer = Counters::default();
         let fill = f64::from(c.umbra_fragments) + f64::from(c.penumbra_fragments);
+        let covered = f64::from(c.umbra_covered) + f64::from(c.penumbra_covered);
         dbuffer.set("fill", fill);
-        dbuffer.set(
-            "overdraw",
-            fill - f64::from(c.umbra_covered) - f64::from(c.penumbra_covered),
-        );
+        dbuffer.set("overdraw", fill - covered);
         dbuffer.set("dbuffer.scene_fill", f64::from(c.scene_fragments));
         dbuffer.set("dbuffer.bytes", super::dbuffer_bytes(&frame.params) as f64);
         let note = "fill/overdraw from an instrumented replay (WGSL atomics); phases silhouettes \
@@ -404,14 +318,12 @@ impl<'g> Passes<'g> {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
+    use crate::gpu::wgsl_layout::assert_agree;
 
     #[test]
     fn uniforms_match_wgsl() {
         let source = SOURCES.join("\n");
-        assert_eq!(
-            DbufferUniform::layout_mismatches(&source),
-            Vec::<String>::new()
-        );
-        assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
+        assert_agree(DbufferUniform::layout_mismatches(&source));
+        assert_agree(Counts::layout_mismatches(&source));
     }
 }

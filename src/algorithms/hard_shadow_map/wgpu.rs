@@ -15,6 +15,6 @@ pub fn render(
     _ctx: &ExecContext,
     o: &HardShadowOptions,
 ) -> Result<FrameOutput> {
-    let lookup = Lookup::new(include_str!("wgpu.wgsl"), o.bias);
+    let lookup = Lookup::new(super::ID, include_str!("wgpu.wgsl"), o.bias);
     shadow_map_wgpu::render(gpu, frame, &lookup)
 }

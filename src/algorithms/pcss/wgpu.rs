@@ -18,7 +18,7 @@ pub fn render(
     let lookup = Lookup {
         blocker_samples: o.blocker_samples,
         pcf_samples: o.pcf_samples,
-        ..Lookup::new(include_str!("wgpu.wgsl"), o.bias)
+        ..Lookup::new(super::ID, include_str!("wgpu.wgsl"), o.bias)
     };
     shadow_map_wgpu::render(gpu, frame, &lookup)
 }

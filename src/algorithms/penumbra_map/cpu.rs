@@ -192,16 +192,9 @@ fn silhouettes(
         .run_step("vertices", &step, &[edges.len() as u64 + 1])
         .pop()
         .expect("one task");
-    m.count("silhouette.edges", s.edges.len() as f64);
-    m.count("silhouette.vertices", s.vertices.len() as f64);
-    m.count(
-        "silhouette.vertices_over_two_edges",
-        s.vertices_over_two_edges() as f64,
-    );
-    m.count(
-        "silhouette.max_edges_per_vertex",
-        f64::from(s.max_edges_per_vertex()),
-    );
+    for (name, v) in s.counts() {
+        m.count(name, v);
+    }
     s
 }
 
@@ -449,12 +442,7 @@ pub fn render(
 ) -> Result<FrameOutput> {
     let mut m = machine(backend, frame, ctx);
     let geometry = shadow_geometry(frame, o);
-    let views = LightViews::fit(
-        frame,
-        &frame.scene.light,
-        frame.params.map_resolution,
-        ViewFit::Single,
-    );
+    let views = LightViews::fit(frame, ViewFit::Single);
     let face = &views.views[0];
     m.phase("shadow_map");
     let shadow = raster_shadow_map(

@@ -258,6 +258,22 @@ pub struct Silhouettes {
 }
 
 impl Silhouettes {
+    /// The counters every execution records in its `silhouettes` phase.
+    pub fn counts(&self) -> [(&'static str, f64); 4] {
+        [
+            ("silhouette.edges", self.edges.len() as f64),
+            ("silhouette.vertices", self.vertices.len() as f64),
+            (
+                "silhouette.vertices_over_two_edges",
+                self.vertices_over_two_edges() as f64,
+            ),
+            (
+                "silhouette.max_edges_per_vertex",
+                f64::from(self.max_edges_per_vertex()),
+            ),
+        ]
+    }
+
     /// The vertex step for silhouette edge `e`: its vertices are added when first seen (`slot`
     /// maps welded vertex indices to positions in `vertices`, `u32::MAX` when unseen), their
     /// edge counts grow, and the edge's sheet is set up with its strip count.

@@ -18,7 +18,8 @@
 //! preprocessing, built before the first phase, as is the optional simplified mesh.
 
 use super::{
-    shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry, Silhouettes,
+    shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry,
+    Silhouettes, ID,
 };
 use crate::algorithms::shadow_map::wgpu::{
     self as shadow_map_wgpu, Counts, Lookup, Passes, DEPTH_TEXEL_BYTES, LIGHT_RASTER_WGSL, NOTE,
@@ -29,10 +30,10 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay, view as view_resource, Bind, Draw, Layout, Pass, Program, Raster,
-    Statistics, Step, Timed,
+    gpu_struct, per_vertex, replay, view as view_resource, Bind, Layout, Mesh, Pass, Program,
+    Raster, Statistics, Step, Timed,
 };
-use crate::gpu::readback::words;
+use crate::gpu::readback::first;
 use crate::gpu::Gpu;
 use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
@@ -50,14 +51,9 @@ pub fn render(
     _ctx: &ExecContext,
     o: &PenumbraMapOptions,
 ) -> Result<FrameOutput> {
-    shadow_map_wgpu::check_limits(gpu, frame)?;
+    shadow_map_wgpu::check_limits(gpu, frame, ID)?;
     let geometry = shadow_geometry(frame, o);
-    let views = LightViews::fit(
-        frame,
-        &frame.scene.light,
-        frame.params.map_resolution,
-        ViewFit::Single,
-    );
+    let views = LightViews::fit(frame, ViewFit::Single);
     let mut out =
         PenumbraPasses::new(gpu, frame, o, &geometry, &views.views[0]).run(frame, &geometry, o)?;
     views.record(&mut out);
@@ -79,14 +75,6 @@ fn sources() -> Vec<&'static str> {
         &[LIGHT_RASTER_WGSL, PenumbraView::WGSL, PENUMBRA_WGSL],
     ]
     .concat()
-}
-
-/// The cones and sheets on the GPU.
-struct Cones {
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    vertex_count: u32,
-    index_count: u32,
 }
 
 struct PenumbraPasses<'g> {
@@ -111,16 +99,11 @@ impl<'g> PenumbraPasses<'g> {
         let view = face.view;
         // Group 2 of the eye lookup: the penumbra map.
         let lookup_layout = Layout::new(gpu, "penumbra lookup", S::COMPUTE, &[Bind::Depth]);
-        let lookup = Lookup::new(include_str!("wgpu_lookup.wgsl"), o.bias);
+        let lookup = Lookup::new(ID, include_str!("wgpu_lookup.wgsl"), o.bias);
         let casters = view.casters(&geometry.shadow_map);
         let passes = Passes::new(gpu, frame, &lookup, face, &casters, Some(&lookup_layout));
-        let penumbra = gpu.map_texture(
-            "penumbra map",
-            frame.params.map_resolution,
-            wgpu::TextureFormat::Depth32Float,
-            wgpu::TextureUsages::empty(),
-        );
-        let penumbra_view = penumbra.create_view(&Default::default());
+        let depth_format = wgpu::TextureFormat::Depth32Float;
+        let penumbra_view = gpu.map_view("penumbra map", frame.params.map_resolution, depth_format);
         let lookup_group =
             lookup_layout.group(gpu, "penumbra lookup", &[view_resource(&penumbra_view)]);
         // Group 1 of the penumbra pass: the projection and the shadow map.
@@ -128,46 +111,24 @@ impl<'g> PenumbraPasses<'g> {
             proj: view.proj.to_cols_array(),
         };
         let uniform = gpu.upload("penumbra view", &[proj], wgpu::BufferUsages::UNIFORM);
-        let penumbra_layout = Layout::new(
-            gpu,
-            "penumbra pass",
-            S::VERTEX | S::FRAGMENT,
-            &[Bind::Uniform, Bind::Depth],
-        );
-        let penumbra_group = penumbra_layout.group(
-            gpu,
-            "penumbra pass",
-            &[
-                uniform.as_entire_binding(),
-                view_resource(&passes.depth_view),
-            ],
-        );
-        let program = Program::new(
-            gpu,
-            "penumbra_map/wgpu.wgsl",
-            &sources(),
-            &[Some(&passes.shared_layout), Some(&penumbra_layout)],
-        );
+        let binds = [
+            (Bind::Uniform, uniform.as_entire_binding()),
+            (Bind::Depth, view_resource(&passes.depth_view)),
+        ];
+        let (penumbra_layout, penumbra_group) =
+            Layout::bound(gpu, "penumbra pass", S::VERTEX_FRAGMENT, &binds);
+        let groups = [Some(&passes.shared.layout), Some(&penumbra_layout)];
+        let program = Program::new(gpu, "penumbra_map/wgpu.wgsl", &sources(), &groups);
         let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
         // Cones and sheets are seen from both sides.
-        let pipeline = |instrument| {
-            program.render(
-                gpu,
-                &Raster {
-                    vs: "vs_penumbra",
-                    fs: "fs_penumbra",
-                    vertex: Some((
-                        VERTEX_BYTES as u64,
-                        wgpu::VertexStepMode::Vertex,
-                        &attributes,
-                    )),
-                    instrument: Some(instrument),
-                    ..Raster::default()
-                },
-            )
+        let raster = Raster {
+            vs: "vs_penumbra",
+            fs: "fs_penumbra",
+            vertex: per_vertex(&attributes),
+            ..Raster::default()
         };
         PenumbraPasses {
-            pipelines: [pipeline(false), pipeline(true)],
+            pipelines: program.render_pair(gpu, &raster),
             passes,
             view,
             penumbra_view,
@@ -176,39 +137,23 @@ impl<'g> PenumbraPasses<'g> {
         }
     }
 
-    /// Uploads the cones and sheets.
-    fn upload(&self, g: &PenumbraGeometry) -> Cones {
+    /// Uploads the cones and sheets (light-view position and `Z_v` per vertex).
+    fn upload(&self, g: &PenumbraGeometry) -> Mesh {
         let vertices: Vec<[f32; 4]> = g
             .positions
             .iter()
             .zip(&g.attributes)
             .map(|(p, a)| p.extend(a.x).to_array())
             .collect();
-        let indices: Vec<u32> = g.triangles.iter().flatten().copied().collect();
-        let gpu = self.passes.gpu;
-        Cones {
-            vertices: gpu.upload("penumbra vertices", &vertices, wgpu::BufferUsages::VERTEX),
-            indices: gpu.upload("penumbra indices", &indices, wgpu::BufferUsages::INDEX),
-            vertex_count: vertices.len() as u32,
-            index_count: indices.len() as u32,
-        }
+        Mesh::upload(self.passes.gpu, "penumbra", &vertices, &g.triangles)
     }
 
     /// The penumbra pass: cleared to white (1.0), then every cone and sheet.
-    fn penumbra_pass<'a>(&'a self, cones: &'a Cones, counting: bool) -> Pass<'a> {
-        Pass::draw(
-            "penumbra_map",
-            &[Some(&self.passes.shared_group), Some(&self.penumbra_group)],
-            Draw {
-                pipeline: &self.pipelines[usize::from(counting)],
-                color: None,
-                depth: Some(&self.penumbra_view),
-                vertices: Some(&cones.vertices),
-                indices: Some(&cones.indices),
-                count: cones.index_count,
-                instances: 1,
-            },
-        )
+    fn penumbra_pass<'a>(&'a self, cones: &'a Mesh, counting: bool) -> Pass<'a> {
+        let pipeline = &self.pipelines[usize::from(counting)];
+        let groups = [Some(&self.passes.shared.group), Some(&self.penumbra_group)];
+        let draw = cones.draw(pipeline, None, Some(&self.penumbra_view));
+        Pass::draw("penumbra_map", &groups, draw)
     }
 
     fn run(
@@ -226,19 +171,15 @@ impl<'g> PenumbraPasses<'g> {
         // The timed submission, one phase at a time (GPU passes 0, 1, 2: shadow map, penumbra
         // map, eye lookup).
         let names = ["shadow_map", "silhouettes", "penumbra_map", "eye_lookup"];
-        let mut run = Timed::new(p.gpu, &names, 3, Statistics::All, &[&p.visibility]);
+        let mut run = Timed::new(p.gpu, &names, 3, Statistics::All, &[&p.eye.visibility]);
         run.submit(0, &[p.raster_pass(false)])?;
         let s = run.host(1, || {
             silhouettes(&adj, &self.view, light, light_radius, o.max_sheet_strips)
         });
         // The geometry's build and upload belong to the penumbra_map phase.
         let cones = run.host(2, || {
-            self.upload(&PenumbraGeometry::build(
-                &s,
-                &self.view,
-                light_radius,
-                o.cone_segments,
-            ))
+            let g = PenumbraGeometry::build(&s, &self.view, light_radius, o.cone_segments);
+            self.upload(&g)
         });
         run.submit(2, &[self.penumbra_pass(&cones, false)])?;
         run.submit(3, &[p.lookup_pass(false, extra)])?;
@@ -248,28 +189,25 @@ impl<'g> PenumbraPasses<'g> {
         let counts = replay(
             p.gpu,
             &[
-                Step::Clear(&p.counts),
+                Step::Clear(&p.shared.counts),
                 Step::Run(p.raster_pass(true)),
                 // The lookup's pipeline layout, group 2 included.
                 Step::Run(p.covered_pass(extra)),
-                Step::Read(&p.counts),
-                Step::Clear(&p.counts),
+                Step::Read(&p.shared.counts),
+                Step::Clear(&p.shared.counts),
                 Step::Run(self.penumbra_pass(&cones, true)),
-                Step::Read(&p.counts),
-                Step::Clear(&p.counts),
+                Step::Read(&p.shared.counts),
+                Step::Clear(&p.shared.counts),
                 Step::Run(p.lookup_pass(true, extra)),
-                Step::Read(&p.counts),
+                Step::Read(&p.shared.counts),
             ],
         )?;
-        let counts: Vec<Counts> = counts.iter().map(|b| words::<Counts>(b)[0]).collect();
+        let counts: Vec<Counts> = counts.iter().map(|b| first(b)).collect();
         let mut eye = p.lookup_counters(frame, &counts[2]);
         let taps = f64::from(counts[2].extra_taps);
         eye.set("penumbra_map.taps", taps);
-        eye.add_traffic(
-            "mem_est",
-            &[("penumbra_map", taps * DEPTH_TEXEL_BYTES)],
-            &[],
-        );
+        let read = [("penumbra_map", taps * DEPTH_TEXEL_BYTES)];
+        eye.add_traffic("mem_est", &read, &[]);
         let counters = vec![
             p.raster_counters(&counts[0]),
             silhouette_counters(&s),
@@ -287,7 +225,7 @@ impl<'g> PenumbraPasses<'g> {
         &self,
         s: &Silhouettes,
         o: &PenumbraMapOptions,
-        cones: &Cones,
+        cones: &Mesh,
         c: &Counts,
     ) -> Counters {
         let fragments = f64::from(c.fragments);
@@ -298,10 +236,8 @@ impl<'g> PenumbraPasses<'g> {
         k.set("overdraw", discarded);
         let cone_triangles = s.vertices.len() as f64 * f64::from(o.cone_segments);
         k.set("penumbra.cone_triangles", cone_triangles);
-        k.set(
-            "penumbra.sheet_triangles",
-            f64::from(cones.index_count / 3) - cone_triangles,
-        );
+        let sheet_triangles = f64::from(cones.index_count / 3) - cone_triangles;
+        k.set("penumbra.sheet_triangles", sheet_triangles);
         let vertex_bytes = f64::from(cones.vertex_count) * VERTEX_BYTES;
         let index_bytes = f64::from(cones.index_count) * INDEX_BYTES;
         let shadow_read = fragments * DEPTH_TEXEL_BYTES;
@@ -322,29 +258,20 @@ impl<'g> PenumbraPasses<'g> {
 /// `silhouettes`: the counts the cpu executions record in the same phase.
 fn silhouette_counters(s: &Silhouettes) -> Counters {
     let mut k = Counters::default();
-    k.set("silhouette.edges", s.edges.len() as f64);
-    k.set("silhouette.vertices", s.vertices.len() as f64);
-    k.set(
-        "silhouette.vertices_over_two_edges",
-        s.vertices_over_two_edges() as f64,
-    );
-    k.set(
-        "silhouette.max_edges_per_vertex",
-        f64::from(s.max_edges_per_vertex()),
-    );
+    for (name, v) in s.counts() {
+        k.set(name, v);
+    }
     k
 }
 
 #[cfg(test)]
 mod layout_tests {
     use super::*;
+    use crate::gpu::wgsl_layout::assert_agree;
 
     #[test]
     fn uniforms_match_wgsl() {
         let source = sources().join("\n");
-        assert_eq!(
-            PenumbraView::layout_mismatches(&source),
-            Vec::<String>::new()
-        );
+        assert_agree(PenumbraView::layout_mismatches(&source));
     }
 }

@@ -285,12 +285,7 @@ pub fn render_views<L: Lookup>(
     lookup: &L,
 ) -> FrameOutput {
     let mut m = machine(backend, frame, ctx);
-    let views = LightViews::fit(
-        frame,
-        &frame.scene.light,
-        frame.params.map_resolution,
-        ViewFit::CubeWhenWide,
-    );
+    let views = LightViews::fit(frame, ViewFit::CubeWhenWide);
     let mut vis = VisibilityBuffer::lit(frame.width(), frame.height());
     for face in &views.views {
         let map = light_raster(&mut m, frame, face);

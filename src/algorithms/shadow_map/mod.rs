@@ -320,13 +320,9 @@ pub struct LightViews {
 }
 
 impl LightViews {
-    /// The views of `light` for `frame`'s receivers at `resolution`² texels each.
-    pub fn fit(
-        frame: &crate::frame::Frame,
-        light: &Light,
-        resolution: u32,
-        fit: ViewFit,
-    ) -> LightViews {
+    /// The views of `frame`'s light for its receivers at `map_resolution`² texels each.
+    pub fn fit(frame: &crate::frame::Frame, fit: ViewFit) -> LightViews {
+        let (light, resolution) = (&frame.scene.light, frame.params.map_resolution);
         let eye = light.center();
         let g = &frame.gbuffer;
         let receivers: Vec<Vec3> = (0..g.len())

@@ -17,21 +17,15 @@
 
 use super::{Bias, FaceView, LightViews, ViewFit};
 use crate::algorithms::FrameOutput;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay, tiles, view as view_resource, Bind::*, Draw, Layout, Pass, Program, Raster,
-    Statistics, Step, Timed,
+    gpu_struct, per_vertex, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers,
+    Layout, Mesh, Pass, Program, Raster, Shared, Statistics, Timed,
 };
-use crate::gpu::readback::words;
-use crate::gpu::{gbuffer_positions, Gpu};
-use crate::record::{Counters, Phase};
-use crate::scene::Mesh;
-
-const UNIFORM: wgpu::BufferUsages = wgpu::BufferUsages::UNIFORM;
-const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
-const VERTEX: wgpu::BufferUsages = wgpu::BufferUsages::VERTEX;
-const INDEX: wgpu::BufferUsages = wgpu::BufferUsages::INDEX;
+use crate::gpu::readback::first;
+use crate::gpu::{Gpu, Needs};
+use crate::record::Counters;
 
 /// The light-view helpers (`project`, `linear_depth`, `texel_world`, `bias_at`) of the eye
 /// lookup and of dbuffer, joined after their `Light` struct.
@@ -53,6 +47,8 @@ const INDEX_BYTES: f64 = 4.0;
 
 /// What an algorithm of the family adds to the shared passes.
 pub struct Lookup<'a> {
+    /// The algorithm's id, for its errors.
+    pub id: &'a str,
     /// The algorithm's WGSL defining `visibility_at(uv, z_r, bias) -> f32`.
     pub wgsl: &'a str,
     pub bias: Bias,
@@ -62,9 +58,10 @@ pub struct Lookup<'a> {
 }
 
 impl<'a> Lookup<'a> {
-    /// A lookup of `wgsl` with `bias` and no PCSS taps.
-    pub fn new(wgsl: &'a str, bias: Bias) -> Lookup<'a> {
+    /// The lookup of algorithm `id`: `wgsl` with `bias` and no PCSS taps.
+    pub fn new(id: &'a str, wgsl: &'a str, bias: Bias) -> Lookup<'a> {
         Lookup {
+            id,
             wgsl,
             bias,
             blocker_samples: 0,
@@ -120,13 +117,8 @@ pub(crate) const PRELUDE: [&str; 3] = [LightUniform::WGSL, Counts::WGSL, PRELUDE
 /// ([`ViewFit::CubeWhenWide`]: one frustum, or the faces of a cube map, each pixel from the
 /// face that shades it; phases `light_raster[+x]`, `eye_lookup[+x]`, ... per face).
 pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
-    check_limits(gpu, frame)?;
-    let views = LightViews::fit(
-        frame,
-        &frame.scene.light,
-        frame.params.map_resolution,
-        ViewFit::CubeWhenWide,
-    );
+    check_limits(gpu, frame, lookup.id)?;
+    let views = LightViews::fit(frame, ViewFit::CubeWhenWide);
     let mut merged: Option<FrameOutput> = None;
     for face in &views.views {
         let casters = face.view.casters(&frame.flat.mesh);
@@ -134,62 +126,41 @@ pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> 
         for p in &mut out.phases {
             p.name = face.phase(&p.name);
         }
-        merged = Some(match merged {
-            None => out,
-            Some(mut all) => {
-                face.take_owned(frame, &out.visibility, &mut all.visibility);
-                all.phases.extend(out.phases);
-                all.gpu_ms = match (all.gpu_ms, out.gpu_ms) {
-                    (Some(a), Some(b)) => Some(a + b),
-                    _ => None,
-                };
-                for w in out.warnings {
-                    if !all.warnings.contains(&w) {
-                        all.warnings.push(w);
-                    }
-                }
-                all
+        let Some(all) = &mut merged else {
+            merged = Some(out);
+            continue;
+        };
+        face.take_owned(frame, &out.visibility, &mut all.visibility);
+        all.phases.extend(out.phases);
+        all.gpu_ms = all.gpu_ms.zip(out.gpu_ms).map(|(a, b)| a + b);
+        for w in out.warnings {
+            if !all.warnings.contains(&w) {
+                all.warnings.push(w);
             }
-        });
+        }
     }
     let mut out = merged.expect("a fit has at least one view");
     if views.views.len() > 1 {
-        out.counters = sum_phases(&out.phases);
+        // The run's counters are its phases' summed (derived figures such as `overdraw_ratio`
+        // are added for every record by `crate::counters::derive`).
+        out.counters = Counters::default();
+        for p in &out.phases {
+            out.counters.merge(&p.counters);
+        }
     }
     views.record(&mut out);
     Ok(out)
 }
 
-/// The counters of a run: those of its phases summed (derived figures such as
-/// `overdraw_ratio` are added for every record by [`crate::counters::derive`]).
-fn sum_phases(phases: &[Phase]) -> Counters {
-    let mut counters = Counters::default();
-    for p in phases {
-        counters.merge(&p.counters);
-    }
-    counters
-}
-
-/// Checks the frame against the adapter's limits before anything is allocated.
-pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame) -> Result<()> {
-    let res = frame.params.map_resolution;
-    if res > gpu.limits.max_texture_dimension_2d {
-        return Err(Error::Resource(format!(
-            "map_resolution {res} exceeds the adapter's largest texture ({})",
-            gpu.limits.max_texture_dimension_2d
-        )));
-    }
-    let gbuffer_bytes = frame.gbuffer.len() as u64 * GBUFFER_ENTRY_BYTES as u64;
-    let max = gpu.limits.max_storage_buffer_binding_size;
-    if gbuffer_bytes > max {
-        return Err(Error::Resource(format!(
-            "image {}x{} needs {gbuffer_bytes} bytes per gbuffer buffer, more than the adapter's \
-             storage binding limit ({max})",
-            frame.width(),
-            frame.height()
-        )));
-    }
-    Ok(())
+/// Checks the frame against the adapter's limits for algorithm `id` before anything is
+/// allocated: the map's resolution and the gbuffer's bytes.
+pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame, id: &str) -> Result<()> {
+    let gbuffer = frame.gbuffer.len() as u64 * GBUFFER_ENTRY_BYTES as u64;
+    let needs = Needs {
+        buffers: &[("gbuffer", gbuffer)],
+        ..Needs::map(frame.params.map_resolution)
+    };
+    gpu.check_limits(id, needs)
 }
 
 /// The resources and pipelines of one frame.
@@ -198,17 +169,12 @@ pub(crate) struct Passes<'g> {
     pub width: u32,
     pub height: u32,
     pub resolution: u32,
-    vertices: wgpu::Buffer,
-    indices: wgpu::Buffer,
-    index_count: u32,
-    vertex_count: usize,
+    occluders: Mesh,
     /// The shadow map (Depth32Float, NDC depth).
     pub depth_view: wgpu::TextureView,
-    pub visibility: wgpu::Buffer,
-    pub counts: wgpu::Buffer,
+    pub eye: EyeBuffers,
     /// Group 0 of every pass: the light uniform and the counters.
-    pub shared_layout: Layout,
-    pub shared_group: wgpu::BindGroup,
+    pub shared: Shared,
     lookup_group: wgpu::BindGroup,
     /// The light raster's pipelines: timed, counting.
     raster: [wgpu::RenderPipeline; 2],
@@ -227,7 +193,7 @@ impl<'g> Passes<'g> {
         frame: &Frame,
         lookup: &Lookup,
         face: &FaceView,
-        occluders: &Mesh,
+        occluders: &crate::scene::Mesh,
         extra: Option<&Layout>,
     ) -> Passes<'g> {
         let (width, height) = (frame.width(), frame.height());
@@ -250,89 +216,39 @@ impl<'g> Passes<'g> {
             face: face.face_code(),
             pad: 0,
         };
-        let uniform_buf = gpu.upload("light uniform", &[uniform], UNIFORM);
         // Every triangle of the scene can cast a shadow into the map (receivers shadow each
         // other too), indexed as in `occluders`, as the cpu executions draw it.
         let positions: Vec<[f32; 3]> = occluders.positions.iter().map(|p| p.to_array()).collect();
-        let index_list: Vec<u32> = occluders.triangles.iter().flatten().copied().collect();
-        let vertices = gpu.upload("occluder vertices", &positions, VERTEX);
-        let indices = gpu.upload("occluder indices", &index_list, INDEX);
-        // The gbuffer: position with the hit flag in w, and the eye-facing normal.
-        let g = &frame.gbuffer;
-        let gnrm: Vec<[f32; 4]> = g.normal.iter().map(|n| n.extend(0.0).to_array()).collect();
-        let positions_buf = gpu.upload("gbuffer positions", &gbuffer_positions(g), STORAGE);
-        let normals_buf = gpu.upload("gbuffer normals", &gnrm, STORAGE);
-        let visibility = gpu.storage_buffer(
-            "visibility",
-            4 * u64::from(width) * u64::from(height),
-            wgpu::BufferUsages::COPY_SRC,
-        );
-        let counts = gpu.upload(
-            "instrumentation counts",
-            &[Counts::default()],
-            STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
-        );
-        let depth = gpu.map_texture(
-            "shadow map",
-            resolution,
-            wgpu::TextureFormat::Depth32Float,
-            wgpu::TextureUsages::empty(),
-        );
-        let depth_view = depth.create_view(&Default::default());
+        let occluders = Mesh::upload(gpu, "occluders", &positions, &occluders.triangles);
+        // The gbuffer (position with the hit flag in w, the eye-facing normal), the visibility.
+        let eye = EyeBuffers::new(gpu, &frame.gbuffer, |_| 0.0);
+        let depth_format = wgpu::TextureFormat::Depth32Float;
+        let depth_view = gpu.map_view("shadow map", resolution, depth_format);
 
         use wgpu::ShaderStages as S;
         // Group 0 (both shaders): the light uniform and the counters; group 1 (eye lookup):
         // shadow map, gbuffer, visibility.
-        let all = S::VERTEX | S::FRAGMENT | S::COMPUTE;
-        let shared_layout = Layout::new(gpu, "shadow map shared", all, &[Uniform, ReadWrite]);
-        let lookup_layout = Layout::new(
+        let shared = Shared::new::<Counts>(gpu, "shadow map shared", &uniform);
+        let (lookup_layout, lookup_group) = Layout::bound(
             gpu,
             "eye lookup",
             S::COMPUTE | S::FRAGMENT,
-            &[Depth, ReadOnly, ReadOnly, ReadWrite],
+            &eye.binds_after([(Depth, view_resource(&depth_view))]),
         );
-        let shared_group = shared_layout.group(
-            gpu,
-            "shadow map shared",
-            &[uniform_buf.as_entire_binding(), counts.as_entire_binding()],
-        );
-        let lookup_group = lookup_layout.group(
-            gpu,
-            "eye lookup",
-            &[
-                view_resource(&depth_view),
-                positions_buf.as_entire_binding(),
-                normals_buf.as_entire_binding(),
-                visibility.as_entire_binding(),
-            ],
-        );
-        let raster = Program::new(
-            gpu,
-            "light_raster.wgsl",
-            &[&PRELUDE[..], &[LIGHT_RASTER_WGSL]].concat(),
-            &[Some(&shared_layout)],
-        );
-        let eye = Program::new(
-            gpu,
-            "eye_lookup.wgsl",
-            &[
-                &PRELUDE[..],
-                &[LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, lookup.wgsl],
-            ]
-            .concat(),
-            &[Some(&shared_layout), Some(&lookup_layout), extra],
-        );
+        let sources = [&PRELUDE[..], &[LIGHT_RASTER_WGSL]].concat();
+        let raster = Program::new(gpu, "light_raster.wgsl", &sources, &[Some(&shared.layout)]);
+        let mut sources = PRELUDE.to_vec();
+        sources.extend([LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, lookup.wgsl]);
+        let groups = [Some(&shared.layout), Some(&lookup_layout), extra];
+        let program = Program::new(gpu, "eye_lookup.wgsl", &sources, &groups);
         let attributes = wgpu::vertex_attr_array![0 => Float32x3];
         let raster_pipeline = |fs| {
+            let vertex = per_vertex(&attributes);
             raster.render(
                 gpu,
                 &Raster {
                     fs,
-                    vertex: Some((
-                        VERTEX_BYTES as u64,
-                        wgpu::VertexStepMode::Vertex,
-                        &attributes,
-                    )),
+                    vertex,
                     ..Raster::default()
                 },
             )
@@ -342,37 +258,22 @@ impl<'g> Passes<'g> {
             width,
             height,
             resolution,
-            vertices,
-            indices,
-            index_count: index_list.len() as u32,
-            vertex_count: positions.len(),
+            occluders,
             depth_view,
-            visibility,
-            counts,
-            shared_layout,
-            shared_group,
+            eye,
+            shared,
             lookup_group,
             raster: [raster_pipeline("fs_depth"), raster_pipeline("fs_count")],
-            lookup: eye.compute_pair(gpu, "eye_lookup"),
-            count_covered: eye.compute(gpu, "count_covered", Some(true)),
+            lookup: program.compute_pair(gpu, "eye_lookup"),
+            count_covered: program.compute(gpu, "count_covered", Some(true)),
         }
     }
 
     /// The light raster: the timed pipeline, or the counting one of the instrumented replay.
     pub fn raster_pass(&self, counting: bool) -> Pass<'_> {
-        Pass::draw(
-            "light_raster",
-            &[Some(&self.shared_group)],
-            Draw {
-                pipeline: &self.raster[usize::from(counting)],
-                color: None,
-                depth: Some(&self.depth_view),
-                vertices: Some(&self.vertices),
-                indices: Some(&self.indices),
-                count: self.index_count,
-                instances: 1,
-            },
-        )
+        let pipeline = &self.raster[usize::from(counting)];
+        let draw = self.occluders.draw(pipeline, None, Some(&self.depth_view));
+        Pass::draw("light_raster", &[Some(&self.shared.group)], draw)
     }
 
     /// A compute pass of `pipeline` over `size` (8×8 workgroups) with the eye lookup's bind
@@ -384,7 +285,7 @@ impl<'g> Passes<'g> {
         size: (u32, u32),
         extra: Option<&'a wgpu::BindGroup>,
     ) -> Pass<'a> {
-        let groups = [Some(&self.shared_group), Some(&self.lookup_group), extra];
+        let groups = [Some(&self.shared.group), Some(&self.lookup_group), extra];
         Pass::compute(label, &groups, pipeline, tiles(size, WORKGROUP))
     }
 
@@ -405,27 +306,17 @@ impl<'g> Passes<'g> {
     }
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
-        let mut run = Timed::new(
-            self.gpu,
-            &["light_raster", "eye_lookup"],
-            2,
-            Statistics::All,
-            &[&self.visibility],
-        );
+        let (names, readback) = (["light_raster", "eye_lookup"], [&self.eye.visibility]);
+        let mut run = Timed::new(self.gpu, &names, 2, Statistics::All, &readback);
         run.submit(0, &[self.raster_pass(false)])?;
         run.submit(1, &[self.lookup_pass(false, None)])?;
         let timing = run.finish()?;
-        let counts = replay(
-            self.gpu,
-            &[
-                Step::Clear(&self.counts),
-                Step::Run(self.raster_pass(true)),
-                Step::Run(self.covered_pass(None)),
-                Step::Run(self.lookup_pass(true, None)),
-                Step::Read(&self.counts),
-            ],
-        )?;
-        let c: Counts = words::<Counts>(&counts[0])[0];
+        let passes = [
+            self.raster_pass(true),
+            self.covered_pass(None),
+            self.lookup_pass(true, None),
+        ];
+        let c: Counts = first(&replay_counts(self.gpu, &self.shared.counts, passes)?);
         let counters = vec![self.raster_counters(&c), self.lookup_counters(frame, &c)];
         Ok(timing.output((self.width, self.height), counters, NOTE))
     }
@@ -438,8 +329,8 @@ impl<'g> Passes<'g> {
         k.set("fill", fragments);
         k.set("overdraw", fragments - f64::from(c.covered));
         k.set("shadow_map.covered_texels", f64::from(c.covered));
-        let vertex_bytes = self.vertex_count as f64 * VERTEX_BYTES;
-        let index_bytes = f64::from(self.index_count) * INDEX_BYTES;
+        let vertex_bytes = f64::from(self.occluders.vertex_count) * VERTEX_BYTES;
+        let index_bytes = f64::from(self.occluders.index_count) * INDEX_BYTES;
         let clear = f64::from(self.resolution).powi(2) * DEPTH_TEXEL_BYTES;
         // Every fragment reads the depth it is tested against; writes are bounded by the clear
         // plus one per fragment.
@@ -480,6 +371,7 @@ pub(crate) const NOTE: &str =
 #[cfg(test)]
 mod layout_tests {
     use super::*;
+    use crate::gpu::wgsl_layout::assert_agree;
 
     /// `LightUniform` and `Counts` against the family's shaders as their pipelines join them
     /// (the eye lookup as `hard_shadow_map` completes it).
@@ -491,11 +383,8 @@ mod layout_tests {
             vec![LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, hard],
         ] {
             let source = [&PRELUDE[..], &rest].concat().join("\n");
-            assert_eq!(
-                LightUniform::layout_mismatches(&source),
-                Vec::<String>::new()
-            );
-            assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
+            assert_agree(LightUniform::layout_mismatches(&source));
+            assert_agree(Counts::layout_mismatches(&source));
         }
     }
 

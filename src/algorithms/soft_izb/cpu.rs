@@ -1065,7 +1065,7 @@ pub fn render(
 ) -> Result<FrameOutput> {
     let light = frame.scene.light;
     super::check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
-    let views = LightViews::fit(frame, &light, frame.params.map_resolution, ViewFit::Single);
+    let views = LightViews::fit(frame, ViewFit::Single);
     let view = *views.single();
     let r_uv = light_radius_uv(&view, light.size());
 

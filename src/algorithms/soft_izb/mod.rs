@@ -346,6 +346,7 @@ pub fn wedge_entry_inv_z(r_uv: f32, inv_z_edge_near: f32, distance: f32) -> Opti
 /// The occluding geometry seen from the light centre (the geometry stage of §2.1, shared by
 /// every execution): triangles for the umbra (with their flat
 /// index, to skip a receiver's own triangle) and penumbra edges.
+#[derive(Default)]
 pub struct Occluders {
     pub triangles: Vec<(u32, LightTriangle)>,
     pub edges: Vec<ProjectedEdge>,

@@ -42,20 +42,22 @@
 
 use std::time::Instant;
 
+use serde_json::json;
+
 use super::{
-    check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, NEAR_CLIP,
-    OCCLUSION_SCALE,
+    check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, ID,
+    NEAR_CLIP, OCCLUSION_SCALE,
 };
 use crate::algorithms::shadow_map::{LightViews, ViewFit};
 use crate::algorithms::{ExecContext, FrameOutput};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay, slot64, Bind, Layout, Pass, Program, Statistics, Step, Timed, Work,
+    gpu_struct, replay_counts, slot64, Bind, Layout, Pass, Program, Statistics, Timed, Work,
 };
 use crate::gpu::readback::words;
-use crate::gpu::Gpu;
-use crate::record::{Counters, Phase};
+use crate::gpu::{record_execution, Gpu, Needs};
+use crate::record::Counters;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
 
@@ -75,8 +77,8 @@ const GBUFFER_BYTES: u64 = 16;
 const POINT_BYTES: u64 = 16;
 const WORD: u64 = 4;
 
-/// The phases with GPU passes, in order.
-const PHASES: [&str; 3] = ["construct", "hard", "soft"];
+/// The phases in order: `geometry` on the host, then one GPU pass each.
+const PHASES: [&str; 4] = ["geometry", "construct", "hard", "soft"];
 
 /// The statistics slots of the instrumented pipelines (`STAT_*` in the WGSL), in slot order.
 #[derive(Clone, Copy)]
@@ -140,12 +142,9 @@ pub fn render(
     check_grid_size(frame.params.map_resolution, opts.depth_slices)?;
     let start = Instant::now();
     let light = frame.scene.light;
-    let views = LightViews::fit(frame, &light, frame.params.map_resolution, ViewFit::Single);
+    let views = LightViews::fit(frame, ViewFit::Single);
     let view = *views.single();
-    let mut occ = Occluders {
-        triangles: vec![],
-        edges: vec![],
-    };
+    let mut occ = Occluders::default();
     for o in 0..frame.scene.objects.len() {
         let part = object_occluders(frame, &view, opts, o);
         occ.triangles.extend(part.triangles);
@@ -180,82 +179,44 @@ pub fn render(
         occlusion_scale: OCCLUSION_SCALE,
     };
     check_limits(gpu, &params, &grid)?;
-    let mut out = Passes::new(gpu, frame, &occ, &grid, params).run(frame)?;
     let mut geometry = Counters::default();
     geometry.set("occluder_triangles", occ.triangles.len() as f64);
     geometry.set("silhouette_edges", occ.edges.len() as f64);
-    out.counters.merge(&geometry);
-    out.phases.insert(
-        0,
-        Phase {
-            name: "geometry".into(),
-            wall_ms: geometry_ms,
-            model_ms: None,
-            gpu_ms: None,
-            counters: geometry,
-        },
-    );
-    for (k, v) in [
-        ("grid", serde_json::json!(grid.res)),
-        ("depth_slices", serde_json::json!(grid.slices)),
-        ("bin", serde_json::json!(grid.bin)),
-        ("per_bin_width", serde_json::json!(opts.per_bin_width)),
-        (
-            "wedge_column_cull",
-            serde_json::json!(opts.wedge_column_cull),
-        ),
-        (
-            "silhouettes",
-            serde_json::to_value(opts.silhouettes).unwrap_or_default(),
-        ),
-        (
-            "occlusion_fixed_point_scale",
-            serde_json::json!(OCCLUSION_SCALE),
-        ),
-    ] {
-        out.execution.insert(k.to_string(), v);
-    }
+    let passes = Passes::new(gpu, frame, &occ, &grid, params);
+    let mut out = passes.run(frame, geometry_ms, geometry)?;
+    let entries = json!({
+        "grid": grid.res,
+        "depth_slices": grid.slices,
+        "bin": grid.bin,
+        "per_bin_width": opts.per_bin_width,
+        "wedge_column_cull": opts.wedge_column_cull,
+        "silhouettes": opts.silhouettes,
+        "occlusion_fixed_point_scale": OCCLUSION_SCALE,
+    });
+    record_execution(&mut out.execution, entries);
     views.record(&mut out);
     Ok(out)
 }
 
-/// Bytes of each buffer, checked against the adapter's limits before anything is created.
+/// The storage buffers, workgroups and largest buffers' bytes, checked against the adapter's
+/// limits before anything is created.
 fn check_limits(gpu: &Gpu, p: &Params, grid: &Grid) -> Result<()> {
-    let l = &gpu.limits;
-    if l.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
-        return Err(Error::Resource(format!(
-            "soft_izb binds {STORAGE_BUFFERS} storage buffers; the adapter allows {}",
-            l.max_storage_buffers_per_shader_stage
-        )));
-    }
-    if l.max_compute_invocations_per_workgroup < SCAN_WORKGROUP
-        || l.max_compute_workgroup_size_x < SCAN_WORKGROUP
-    {
-        return Err(Error::Resource(format!(
-            "soft_izb needs compute workgroups of {SCAN_WORKGROUP} invocations"
-        )));
-    }
     let pixels = u64::from(p.pixels);
-    let largest = [
-        (
-            "izb_grid",
-            WORD * (u64::from(p.cells) + 1 + u64::from(p.scan_blocks)),
-        ),
+    let grid_words = u64::from(p.cells) + 1 + u64::from(p.scan_blocks);
+    let buffers = [
+        ("izb_grid", WORD * grid_words),
         ("izb_samples", SAMPLE_BYTES * pixels),
         ("gbuffer", GBUFFER_BYTES * pixels),
         ("light_triangles", TRIANGLE_BYTES * u64::from(p.triangles)),
         ("bins", WORD * (grid.bins() as u64 + 2)),
     ];
-    for (name, bytes) in largest {
-        if bytes > l.max_storage_buffer_binding_size {
-            return Err(Error::Resource(format!(
-                "soft_izb buffer {name} needs {bytes} bytes, more than the adapter's storage \
-                 binding limit ({})",
-                l.max_storage_buffer_binding_size
-            )));
-        }
-    }
-    Ok(())
+    let needs = Needs {
+        storage_buffers: STORAGE_BUFFERS,
+        workgroup: SCAN_WORKGROUP,
+        buffers: &buffers,
+        ..Needs::default()
+    };
+    gpu.check_limits(ID, needs)
 }
 
 /// Workgroups for `n` (a 2D grid, each side within the adapter's limit).
@@ -300,19 +261,13 @@ impl<'g> Passes<'g> {
             })
             .collect();
         let offsets: Vec<[f32; 4]> = g.offset.iter().map(|n| n.extend(0.0).to_array()).collect();
-        let triangles: Vec<[u32; 11]> = occ
+        // A triangle: each vertex's uv and 1/z, twice its uv area (bits), its flat index.
+        let triangles: Vec<u32> = occ
             .triangles
             .iter()
-            .map(|(flat, t)| {
-                let mut w = [0u32; 11];
-                for (k, v) in t.v.iter().enumerate() {
-                    w[3 * k] = v.uv.x.to_bits();
-                    w[3 * k + 1] = v.uv.y.to_bits();
-                    w[3 * k + 2] = v.inv_z.to_bits();
-                }
-                w[9] = t.area2.to_bits();
-                w[10] = *flat;
-                w
+            .flat_map(|(flat, t)| {
+                let floats = t.v.iter().flat_map(|v| [v.uv.x, v.uv.y, v.inv_z]);
+                floats.chain([t.area2]).map(f32::to_bits).chain([*flat])
             })
             .collect();
         let edges: Vec<[f32; 6]> = occ
@@ -322,27 +277,21 @@ impl<'g> Passes<'g> {
             .collect();
         let cells = u64::from(params.cells);
         let copy_src = wgpu::BufferUsages::COPY_SRC;
+        let grid_words = cells + 1 + u64::from(params.scan_blocks);
+        let stats_copy = copy_src | wgpu::BufferUsages::COPY_DST;
         let buffers = [
             gpu.upload("gbuffer positions", &positions, storage),
             gpu.upload("gbuffer offsets", &offsets, storage),
             gpu.storage_buffer("light-view points", POINT_BYTES * pixels, storage),
             gpu.storage_buffer("bins", WORD * (grid.bins() as u64 + 2), storage),
             gpu.storage_buffer("cell counts", WORD * cells, storage),
-            gpu.storage_buffer(
-                "izb_grid",
-                WORD * (cells + 1 + u64::from(params.scan_blocks)),
-                copy_src,
-            ),
+            gpu.storage_buffer("izb_grid", WORD * grid_words, copy_src),
             gpu.storage_buffer("izb_samples", SAMPLE_BYTES * pixels, storage),
             gpu.storage_buffer("occlusion", 2 * WORD * pixels, storage),
             gpu.storage_buffer("visibility", WORD * pixels, copy_src),
             gpu.upload("light triangles", &triangles, storage),
             gpu.upload("penumbra edges", &edges, storage),
-            gpu.storage_buffer(
-                "statistics",
-                2 * WORD * STATS as u64,
-                copy_src | wgpu::BufferUsages::COPY_DST,
-            ),
+            gpu.storage_buffer("statistics", 2 * WORD * STATS as u64, stats_copy),
         ];
         // Bindings 1-12 in order; the gbuffer and the primitives are only read.
         let binds: Vec<Bind> = std::iter::once(Bind::Uniform)
@@ -388,14 +337,14 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// Phase `i` (0 construct, 1 hard, 2 soft) as one compute pass; `instrument` picks the
+    /// Phase `i` (1 construct, 2 hard, 3 soft) as one compute pass; `instrument` picks the
     /// counting pipelines.
     fn pass(&self, i: usize, instrument: bool) -> Pass<'_> {
         let (gpu, p) = (self.gpu, &self.params);
         let items = |n: u32| groups(gpu, n.div_ceil(ITEM_WORKGROUP));
         let k = usize::from(instrument);
         let dispatches = match i {
-            0 => {
+            1 => {
                 let clear = p.cells.max(self.grid.bins() as u32 + 2);
                 let c = &self.construct;
                 vec![
@@ -408,7 +357,7 @@ impl<'g> Passes<'g> {
                     (&c[6], items(p.pixels)),
                 ]
             }
-            1 => vec![(&self.umbra[k], groups(gpu, p.triangles))],
+            2 => vec![(&self.umbra[k], groups(gpu, p.triangles))],
             _ => vec![
                 (&self.penumbra[k], groups(gpu, p.edges)),
                 (&self.resolve, items(p.pixels)),
@@ -421,11 +370,13 @@ impl<'g> Passes<'g> {
         }
     }
 
-    fn run(&self, frame: &Frame) -> Result<FrameOutput> {
+    /// The run after the host's `geometry` phase (its wall time and counters).
+    fn run(&self, frame: &Frame, geometry_ms: f64, geometry: Counters) -> Result<FrameOutput> {
         // The timed submission: each phase submitted and waited for on its own.
         let readback = [&self.visibility, &self.cell_start];
         let mut run = Timed::new(self.gpu, &PHASES, 3, Statistics::Compute, &readback);
-        for i in 0..PHASES.len() {
+        run.add_wall(0, geometry_ms);
+        for i in 1..PHASES.len() {
             run.submit(i, &[self.pass(i, false)])?;
         }
         let mut timing = run.finish()?;
@@ -433,14 +384,13 @@ impl<'g> Passes<'g> {
         let samples = f64::from(words::<u32>(&timing.readback[1])[self.params.cells as usize]);
 
         // The instrumented submission: same passes, counting with atomics.
-        let mut steps = vec![Step::Clear(&self.stats)];
-        steps.extend((0..PHASES.len()).map(|i| Step::Run(self.pass(i, true))));
-        steps.push(Step::Read(&self.stats));
-        let raw: Vec<u32> = words(&replay(self.gpu, &steps)?[0]);
+        let passes = (1..PHASES.len()).map(|i| self.pass(i, true));
+        let raw: Vec<u32> = words(&replay_counts(self.gpu, &self.stats, passes)?);
         let stat = |s: Stat| slot64(&raw, s as usize);
 
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
         let counters = vec![
+            geometry,
             self.construct_counters(hits, samples),
             self.hard_counters(&stat),
             self.soft_counters(&stat, samples),
@@ -496,11 +446,7 @@ impl<'g> Passes<'g> {
 
     /// `hard`: columns visited, samples tested and covered, bin entries, estimated traffic.
     fn hard_counters(&self, stat: &impl Fn(Stat) -> f64) -> Counters {
-        let (columns, tests, hits) = (
-            stat(Stat::HardColumns),
-            stat(Stat::HardTests),
-            stat(Stat::HardHits),
-        );
+        let [columns, tests, hits] = [Stat::HardColumns, Stat::HardTests, Stat::HardHits].map(stat);
         let w = WORD as f64;
         let mut k = Counters::default();
         k.set("hard_columns", columns);
@@ -525,11 +471,8 @@ impl<'g> Passes<'g> {
     /// `soft`: quads, bin entries and culls, fragments, wedge culls, fill and overdraw in the
     /// cpu-model's terms, and estimated traffic (resolve included).
     fn soft_counters(&self, stat: &impl Fn(Stat) -> f64, n: f64) -> Counters {
-        let (fragments, fill, contributing) = (
-            stat(Stat::Fragments),
-            stat(Stat::Fill),
-            stat(Stat::Contributing),
-        );
+        let [fragments, fill, contributing] =
+            [Stat::Fragments, Stat::Fill, Stat::Contributing].map(stat);
         let w = WORD as f64;
         let mut k = Counters::default();
         k.set("penumbra_quads", stat(Stat::Quads));
@@ -560,10 +503,11 @@ impl<'g> Passes<'g> {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
+    use crate::gpu::wgsl_layout::assert_agree;
 
     #[test]
     fn uniforms_match_wgsl() {
         let source = SOURCES.join("\n");
-        assert_eq!(Params::layout_mismatches(&source), Vec::<String>::new());
+        assert_agree(Params::layout_mismatches(&source));
     }
 }

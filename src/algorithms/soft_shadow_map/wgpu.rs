@@ -22,16 +22,16 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 
 use super::cpu::{extent_quad, micro_patch};
-use super::{LightFrame, Precision, SoftShadowMapOptions, Split};
+use super::{LightFrame, Precision, SoftShadowMapOptions, Split, ID};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay, tiles, view, Bind::*, Draw, Layout, Pass, Program, Raster, Statistics,
-    Step, Timed,
+    gpu_struct, per_vertex, replay_counts, tiles, view, Bind::*, Draw, EyeBuffers, Layout, Pass,
+    Program, Raster, Shared, Statistics, Timed,
 };
-use crate::gpu::readback::{words, Staging};
-use crate::gpu::{gbuffer_positions, Gpu};
+use crate::gpu::readback::{first, read_texels};
+use crate::gpu::{record_execution, Gpu, Needs};
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
 use crate::record::Counters;
@@ -101,13 +101,7 @@ pub fn render(
             gpu.info.name
         )));
     }
-    let res = frame.params.map_resolution;
-    if res > gpu.limits.max_texture_dimension_2d {
-        return Err(Error::Resource(format!(
-            "map_resolution {res} exceeds the adapter's largest texture ({})",
-            gpu.limits.max_texture_dimension_2d
-        )));
-    }
+    gpu.check_limits(ID, Needs::map(frame.params.map_resolution))?;
     let split = Split::of(&frame.flat);
     let mut out = Ssm::new(gpu, frame, o, &split).run()?;
     if let Some(w) = split.warning() {
@@ -133,7 +127,6 @@ struct Ssm<'g> {
     size: (u32, u32),
     res: u32,
     vertices: wgpu::Buffer,
-    counts: wgpu::Buffer,
     visibility: wgpu::Buffer,
     occluders: Depth,
     receivers: Depth,
@@ -143,19 +136,20 @@ struct Ssm<'g> {
     receiver_view: wgpu::TextureView,
     ssm_views: Vec<wgpu::TextureView>,
     ssm_format: wgpu::TextureFormat,
-    shared_group: wgpu::BindGroup,
+    shared: Shared,
     splat_groups: Vec<wgpu::BindGroup>,
     project_group: wgpu::BindGroup,
     p: Pipelines,
 }
 
 /// What the transfer (§4.1) built: the micro-patches of each occluder map as instances, the
-/// bytes transferred and the patches built.
+/// bytes transferred, the patches built and the host's wall time (ms).
 #[derive(Default)]
 struct Transfer {
     instances: Vec<(wgpu::Buffer, u32)>,
     bytes: u64,
     patches: u64,
+    ms: f64,
 }
 
 /// The pipelines of the passes.
@@ -189,71 +183,40 @@ fn maps(
     (textures, views)
 }
 
-/// The uniform of the frames `occ` (occluder map) and `ssm` (soft shadow map).
-fn uniform(
-    frame: &Frame,
-    o: &SoftShadowMapOptions,
-    occ: &LightFrame,
-    ssm: &LightFrame,
-) -> SsmUniform {
-    SsmUniform {
-        occ_view_proj: occ.view_proj.to_cols_array(),
-        ssm_view_proj: ssm.view_proj.to_cols_array(),
-        center: ssm.center.to_array(),
-        resolution: frame.params.map_resolution,
-        e_u: ssm.e_u.to_array(),
-        width: frame.width(),
-        e_v: ssm.e_v.to_array(),
-        height: frame.height(),
-        normal: ssm.normal.to_array(),
-        bias_texels: o.bias_texels,
-        occ_window: window(occ),
-        ssm_window: window(ssm),
-        half_size: ssm.half.to_array(),
-        near: ssm.near,
-        far: ssm.far,
-    }
-}
-
 impl<'g> Ssm<'g> {
     fn new(gpu: &'g Gpu, frame: &Frame, o: &SoftShadowMapOptions, split: &Split) -> Ssm<'g> {
         let res = frame.params.map_resolution;
         let (width, height) = (frame.width(), frame.height());
         let (occ, ssm) = LightFrame::new(&frame.scene.light, frame.scene.bounds(), res)
             .focused(split.occluder_bounds);
-        let uniform = uniform(frame, o, &occ, &ssm);
+        // The frames of the occluder map (`occ`) and of the soft shadow map (`ssm`).
+        let uniform = SsmUniform {
+            occ_view_proj: occ.view_proj.to_cols_array(),
+            ssm_view_proj: ssm.view_proj.to_cols_array(),
+            center: ssm.center.to_array(),
+            resolution: res,
+            e_u: ssm.e_u.to_array(),
+            width,
+            e_v: ssm.e_v.to_array(),
+            height,
+            normal: ssm.normal.to_array(),
+            bias_texels: o.bias_texels,
+            occ_window: window(&occ),
+            ssm_window: window(&ssm),
+            half_size: ssm.half.to_array(),
+            near: ssm.near,
+            far: ssm.far,
+        };
         use wgpu::BufferUsages as B;
-        let uniform_buf = gpu.upload("ssm uniform", &[uniform], B::UNIFORM);
-        let counts = gpu.upload(
-            "ssm counts",
-            &[Counts::default()],
-            B::STORAGE | B::COPY_SRC | B::COPY_DST,
-        );
-        let positions: Vec<[f32; 3]> = frame
-            .flat
-            .mesh
-            .positions
-            .iter()
-            .map(|p| p.to_array())
-            .collect();
+        let mesh = &frame.flat.mesh;
+        let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
         let vertices = gpu.upload("vertices", &positions, B::VERTEX);
         // The gbuffer: position with the hit flag, normal with the receives flag.
         let g = &frame.gbuffer;
-        let gnrm: Vec<[f32; 4]> = (0..g.len())
-            .map(|i| {
-                let receives = g.is_hit(i)
-                    && split.receives
-                        [frame.flat.object_of_triangle[g.triangle[i] as usize] as usize];
-                g.normal[i].extend(f32::from(u8::from(receives))).to_array()
-            })
-            .collect();
-        let gpos_buf = gpu.upload("gbuffer positions", &gbuffer_positions(g), B::STORAGE);
-        let gnrm_buf = gpu.upload("gbuffer normals", &gnrm, B::STORAGE);
-        let visibility = gpu.storage_buffer(
-            "visibility",
-            4 * u64::from(width) * u64::from(height),
-            B::COPY_SRC,
-        );
+        let receives = |t: u32| split.receives[frame.flat.object_of_triangle[t as usize] as usize];
+        let eye = EyeBuffers::new(gpu, g, |i| {
+            f32::from(u8::from(g.is_hit(i) && receives(g.triangle[i])))
+        });
 
         // The occluder maps are read back for the paper's transfer to the CPU.
         let depth_format = wgpu::TextureFormat::Depth32Float;
@@ -261,29 +224,17 @@ impl<'g> Ssm<'g> {
         const NONE: wgpu::TextureUsages = wgpu::TextureUsages::empty();
         let sized = (o.passes, res);
         let (occ_maps, occ_views) = maps(gpu, "occluder map", sized, depth_format, COPY_SRC);
-        let (_, receiver) = maps(gpu, "receiver map", (1, res), depth_format, NONE);
+        let receiver_view = gpu.map_view("receiver map", res, depth_format);
         let ssm_format = match o.precision {
             Precision::Fp32 => wgpu::TextureFormat::R32Float,
             Precision::Fp16 => wgpu::TextureFormat::R16Float,
         };
         let (_, ssm_views) = maps(gpu, "soft shadow map", sized, ssm_format, NONE);
-        let receiver_view = receiver.into_iter().next().expect("one map");
         use wgpu::ShaderStages as S;
         let all = S::VERTEX | S::FRAGMENT | S::COMPUTE;
-        let shared_layout = Layout::new(gpu, "ssm shared", all, &[Uniform, ReadWrite]);
+        let shared = Shared::new::<Counts>(gpu, "ssm shared", &uniform);
         let map_layout = Layout::new(gpu, "ssm map view", S::VERTEX, &[Uniform]);
         let splat_layout = Layout::new(gpu, "ssm splat", all, &[Absent, Depth, Depth]);
-        let project_layout = Layout::new(
-            gpu,
-            "ssm project",
-            S::COMPUTE,
-            &[Float, Float, ReadOnly, ReadOnly, ReadWrite],
-        );
-        let shared_group = shared_layout.group(
-            gpu,
-            "ssm shared",
-            &[uniform_buf.as_entire_binding(), counts.as_entire_binding()],
-        );
         let depth = |triangles: &[[u32; 3]], m: glam::Mat4| {
             let list: Vec<u32> = triangles.iter().flatten().copied().collect();
             let b = gpu.upload("map view", &m.to_cols_array(), B::UNIFORM);
@@ -299,18 +250,16 @@ impl<'g> Ssm<'g> {
             .iter()
             .map(|v| splat_layout.group(gpu, "ssm splat", &[view(v), view(&receiver_view)]))
             .collect();
-        let project_group = project_layout.group(
+        let (project_layout, project_group) = Layout::bound(
             gpu,
             "ssm project",
-            &[
-                view(&ssm_views[0]),
-                view(&ssm_views[o.passes as usize - 1]),
-                gpos_buf.as_entire_binding(),
-                gnrm_buf.as_entire_binding(),
-                visibility.as_entire_binding(),
-            ],
+            S::COMPUTE,
+            &eye.binds_after([
+                (Float, view(&ssm_views[0])),
+                (Float, view(&ssm_views[o.passes as usize - 1])),
+            ]),
         );
-        let layouts = [&shared_layout, &map_layout, &splat_layout, &project_layout];
+        let layouts = [&shared.layout, &map_layout, &splat_layout, &project_layout];
         let p = Pipelines::new(gpu, o, ssm_format, layouts);
         Ssm {
             gpu,
@@ -320,8 +269,7 @@ impl<'g> Ssm<'g> {
             size: (width, height),
             res,
             vertices,
-            counts,
-            visibility,
+            visibility: eye.visibility,
             occluders,
             receivers,
             occ_maps,
@@ -329,7 +277,7 @@ impl<'g> Ssm<'g> {
             receiver_view,
             ssm_views,
             ssm_format,
-            shared_group,
+            shared,
             splat_groups,
             project_group,
             p,
@@ -345,7 +293,7 @@ impl<'g> Ssm<'g> {
     ) -> Pass<'a> {
         Pass::draw(
             "maps",
-            &[Some(&self.shared_group), Some(&d.group)],
+            &[Some(&self.shared.group), Some(&d.group)],
             Draw {
                 pipeline: &self.p.depth[usize::from(back)],
                 color: None,
@@ -374,7 +322,7 @@ impl<'g> Ssm<'g> {
                 };
                 Pass::draw(
                     "splat",
-                    &[Some(&self.shared_group), Some(&self.splat_groups[k])],
+                    &[Some(&self.shared.group), Some(&self.splat_groups[k])],
                     Draw {
                         pipeline: &self.p.splat[usize::from(counting)],
                         color: Some(&self.ssm_views[k]),
@@ -390,123 +338,77 @@ impl<'g> Ssm<'g> {
     }
 
     /// The transfer (§4.1): occluder maps to the host, patches and extents built there in the
-    /// cpu's block-linear order and uploaded as instances; also the bytes transferred and the
-    /// patches built.
+    /// cpu's block-linear order and uploaded as instances; also the bytes transferred, the
+    /// patches built and the time it took.
     fn transfer(&self) -> Result<Transfer> {
-        let (gpu, res) = (self.gpu, self.res);
-        let row = (res * 4).div_ceil(256) * 256;
-        let stagings: Vec<Staging> = self
-            .occ_maps
-            .iter()
-            .map(|_| {
-                Staging::new(
-                    gpu,
-                    "occluder map readback",
-                    u64::from(row) * u64::from(res),
-                )
-            })
-            .collect();
-        gpu.submit(|e| {
-            for (s, t) in stagings.iter().zip(&self.occ_maps) {
-                s.copy_texture(e, t, row);
-            }
-        })?;
-        let (mut bufs, mut bytes, mut patches) = (Vec::new(), 0, 0);
-        for s in &stagings {
-            let depth: Vec<f32> = words(&s.read(gpu)?);
-            bytes += u64::from(res) * u64::from(res) * 4;
+        let start = Instant::now();
+        let res = self.res;
+        let blocks = res.div_ceil(BLOCK);
+        let mut t = Transfer::default();
+        for depth in read_texels::<f32>(self.gpu, &self.occ_maps)? {
+            t.bytes += u64::from(res) * u64::from(res) * 4;
             let mut inst = Vec::new();
-            let blocks = res.div_ceil(BLOCK);
-            for (by, bx, l) in (0..blocks).flat_map(|by| {
-                (0..blocks).flat_map(move |bx| (0..LANES as u32).map(move |l| (by, bx, l)))
-            }) {
-                let (i, j) = (bx * BLOCK + l % BLOCK, by * BLOCK + l / BLOCK);
-                if i >= res || j >= res {
-                    continue;
-                }
-                if let Some(p) = micro_patch(&self.occ, i, j, depth[(j * row / 4 + i) as usize]) {
-                    let q = extent_quad(&self.ssm, &p);
-                    inst.push(Instance {
-                        lo: p.lo.to_array(),
-                        hi: p.hi.to_array(),
-                        z_o: p.z_o,
-                        extent: [q[0].x, q[0].y, q[2].x, q[2].y],
-                    });
+            for (by, bx) in (0..blocks).flat_map(|by| (0..blocks).map(move |bx| (by, bx))) {
+                for l in 0..LANES as u32 {
+                    let (i, j) = (bx * BLOCK + l % BLOCK, by * BLOCK + l / BLOCK);
+                    if i >= res || j >= res {
+                        continue;
+                    }
+                    if let Some(p) = micro_patch(&self.occ, i, j, depth[(j * res + i) as usize]) {
+                        let q = extent_quad(&self.ssm, &p);
+                        inst.push(Instance {
+                            lo: p.lo.to_array(),
+                            hi: p.hi.to_array(),
+                            z_o: p.z_o,
+                            extent: [q[0].x, q[0].y, q[2].x, q[2].y],
+                        });
+                    }
                 }
             }
-            patches += inst.len() as u64;
-            let buf = gpu.upload("patches", &inst, wgpu::BufferUsages::VERTEX);
-            bufs.push((buf, inst.len() as u32));
+            t.patches += inst.len() as u64;
+            let buf = self
+                .gpu
+                .upload("patches", &inst, wgpu::BufferUsages::VERTEX);
+            t.instances.push((buf, inst.len() as u32));
         }
-        Ok(Transfer {
-            instances: bufs,
-            bytes,
-            patches,
-        })
+        t.ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(t)
     }
 
     fn run(&self) -> Result<FrameOutput> {
         let host = self.o.occluder_map_transfer;
         let passes = self.o.passes as usize;
         let n_passes = (2 * passes + 2) as u32;
-        let names = ["maps", "splat", "project"];
-        let mut run = Timed::new(
-            self.gpu,
-            &names,
-            n_passes,
-            Statistics::Off,
-            &[&self.visibility],
-        );
+        let (names, readback) = (["maps", "splat", "project"], [&self.visibility]);
+        let mut run = Timed::new(self.gpu, &names, n_passes, Statistics::Off, &readback);
         // Passes in timer order: maps (occluders, back faces, receivers), splat, project.
         let mut maps: Vec<Pass> = (0..passes)
             .map(|k| self.depth_pass(&self.occluders, &self.occ_views[k], k == 1))
             .collect();
         maps.push(self.depth_pass(&self.receivers, &self.receiver_view, false));
         run.submit(0, &maps)?;
-        let start = Instant::now();
         let transfer = match host {
             true => run.host(0, || self.transfer())?,
             false => Transfer::default(),
         };
-        let transfer_ms = if host {
-            start.elapsed().as_secs_f64() * 1e3
-        } else {
-            0.0
-        };
         let instances = &transfer.instances;
         run.submit(1, &self.splat_passes(false, instances))?;
-        let groups = [Some(&self.shared_group), None, Some(&self.project_group)];
-        run.submit(
-            2,
-            &[Pass::compute(
-                "project",
-                &groups,
-                &self.p.project,
-                tiles(self.size, WORKGROUP),
-            )],
-        )?;
+        let groups = [Some(&self.shared.group), None, Some(&self.project_group)];
+        let workgroups = tiles(self.size, WORKGROUP);
+        let project = Pass::compute("project", &groups, &self.p.project, workgroups);
+        run.submit(2, &[project])?;
         let timing = run.finish()?;
 
         // The instrumented replay of `splat`.
-        let mut steps = vec![Step::Clear(&self.counts)];
-        steps.extend(
-            self.splat_passes(true, instances)
-                .into_iter()
-                .map(Step::Run),
-        );
+        let mut counting = self.splat_passes(true, instances);
         if !host {
             let res = tiles((self.res, self.res), WORKGROUP);
-            steps.extend(self.splat_groups.iter().map(|g| {
-                Step::Run(Pass::compute(
-                    "count_patches",
-                    &[Some(&self.shared_group), Some(g)],
-                    &self.p.count_patches,
-                    res,
-                ))
+            counting.extend(self.splat_groups.iter().map(|g| {
+                let groups = [Some(&self.shared.group), Some(g)];
+                Pass::compute("count_patches", &groups, &self.p.count_patches, res)
             }));
         }
-        steps.push(Step::Read(&self.counts));
-        let c: Counts = words::<Counts>(&replay(self.gpu, &steps)?[0])[0];
+        let c: Counts = first(&replay_counts(self.gpu, &self.shared.counts, counting)?);
 
         let mut maps_c = Counters::default();
         if host {
@@ -525,18 +427,17 @@ impl<'g> Ssm<'g> {
         splat_c.set("ssm.occluder_texels", texels as f64);
         let note = "fill/overdraw from an instrumented replay of splat (WGSL atomics)";
         let mut out = timing.output(self.size, vec![maps_c, splat_c, Counters::default()], note);
-        let e = &mut out.execution;
-        e.insert("transfer_ms".into(), serde_json::json!(transfer_ms));
-        e.insert(
-            "ssm_format".into(),
-            serde_json::json!(format!("{:?}", self.ssm_format)),
-        );
         let extents = if host {
             "host (occluder map transferred)"
         } else {
             "device (vertex shader)"
         };
-        e.insert("extents".into(), serde_json::json!(extents));
+        let entries = serde_json::json!({
+            "transfer_ms": transfer.ms,
+            "ssm_format": format!("{:?}", self.ssm_format),
+            "extents": extents,
+        });
+        record_execution(&mut out.execution, entries);
         Ok(out)
     }
 }
@@ -556,16 +457,14 @@ impl Pipelines {
             Program::new(gpu, label, &SOURCES, &[Some(shared), None, Some(project)]);
         let position = wgpu::vertex_attr_array![0 => Float32x3];
         let depth = |cull| {
-            depth_program.render(
-                gpu,
-                &Raster {
-                    vs: "vs_depth",
-                    fs: "fs_depth",
-                    vertex: Some((12, wgpu::VertexStepMode::Vertex, &position)),
-                    cull,
-                    ..Raster::default()
-                },
-            )
+            let raster = Raster {
+                vs: "vs_depth",
+                fs: "fs_depth",
+                vertex: per_vertex(&position),
+                cull,
+                ..Raster::default()
+            };
+            depth_program.render(gpu, &raster)
         };
         let instance =
             wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32x2, 2 => Float32, 3 => Float32x4];
@@ -576,33 +475,27 @@ impl Pipelines {
             operation: wgpu::BlendOperation::Add,
         };
         let splat = |fs| {
-            splat_program.render(
-                gpu,
-                &Raster {
-                    vs: if host {
-                        "vs_splat_host"
-                    } else {
-                        "vs_splat_device"
-                    },
-                    fs,
-                    vertex: host.then_some((
-                        size_of::<Instance>() as u64,
-                        wgpu::VertexStepMode::Instance,
-                        &instance[..],
-                    )),
-                    topology: wgpu::PrimitiveTopology::TriangleStrip,
-                    depth: None,
-                    color: Some(wgpu::ColorTargetState {
-                        format: ssm_format,
-                        blend: Some(wgpu::BlendState {
-                            color: additive,
-                            alpha: wgpu::BlendComponent::REPLACE,
-                        }),
-                        write_mask: wgpu::ColorWrites::RED,
+            let raster = Raster {
+                vs: ["vs_splat_device", "vs_splat_host"][usize::from(host)],
+                fs,
+                vertex: host.then_some((
+                    size_of::<Instance>() as u64,
+                    wgpu::VertexStepMode::Instance,
+                    &instance[..],
+                )),
+                topology: wgpu::PrimitiveTopology::TriangleStrip,
+                depth: None,
+                color: Some(wgpu::ColorTargetState {
+                    format: ssm_format,
+                    blend: Some(wgpu::BlendState {
+                        color: additive,
+                        alpha: wgpu::BlendComponent::REPLACE,
                     }),
-                    ..Raster::default()
-                },
-            )
+                    write_mask: wgpu::ColorWrites::RED,
+                }),
+                ..Raster::default()
+            };
+            splat_program.render(gpu, &raster)
         };
         Pipelines {
             depth: [depth(None), depth(Some(wgpu::Face::Front))],
@@ -616,13 +509,14 @@ impl Pipelines {
 #[cfg(test)]
 mod layout_tests {
     use super::*;
+    use crate::gpu::wgsl_layout::assert_agree;
 
     /// `SsmUniform` and `Counts`; `Instance` is a vertex buffer read through vertex attributes
     /// (no WGSL struct), and `MicroPatch` is never uploaded as a struct.
     #[test]
     fn uniforms_match_wgsl() {
         let source = SOURCES.join("\n");
-        assert_eq!(SsmUniform::layout_mismatches(&source), Vec::<String>::new());
-        assert_eq!(Counts::layout_mismatches(&source), Vec::<String>::new());
+        assert_agree(SsmUniform::layout_mismatches(&source));
+        assert_agree(Counts::layout_mismatches(&source));
     }
 }

@@ -38,6 +38,7 @@
 use std::time::Instant;
 
 use glam::Vec3;
+use serde_json::json;
 
 use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach};
 use super::{
@@ -56,7 +57,7 @@ use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed};
 use crate::gpu::readback::words;
-use crate::gpu::Gpu;
+use crate::gpu::{record_execution, Gpu};
 use crate::record::Counters;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::{Light, LightTexture, Mesh};
@@ -156,17 +157,11 @@ pub fn render(
         }
     }
     out.warnings.extend(warnings);
-    out.execution
-        .insert("options".to_string(), serde_json::json!(opts));
-    out.execution.insert(
-        "accumulation".into(),
-        serde_json::json!("per-pixel gather over 8x8-tile bins in submission order, no atomics"),
-    );
+    let accumulation = "per-pixel gather over 8x8-tile bins in submission order, no atomics";
+    let e = &mut out.execution;
+    record_execution(e, json!({ "options": opts, "accumulation": accumulation }));
     if let Some(t) = &texture {
-        out.execution.insert(
-            "coverage_texture_bytes".into(),
-            serde_json::json!(t.bytes()),
-        );
+        record_execution(e, json!({ "coverage_texture_bytes": t.bytes() }));
     }
     Ok(out)
 }
@@ -201,14 +196,12 @@ struct LoopRun {
     params: Params,
 }
 
-/// A loop's uploaded primitives and what its counters need from the host.
+/// A loop's uploaded primitives and what its counters need from the host (the hard upload's
+/// cap faces and bin entries among them).
 struct LoopGpu {
     hard: HardUpload,
     soft_group: wgpu::BindGroup,
     quads: u64,
-    /// Cap faces of the z-fail volumes (0 for z-pass).
-    caps: u64,
-    quad_bin_entries: u64,
     wedges: WedgeCounts,
 }
 
@@ -271,17 +264,10 @@ impl<'g> Passes<'g> {
             .map(|(p, f)| {
                 let first = planes.len() as u32;
                 planes.extend(p.volume.planes.iter().map(|(n, d)| n.extend(*d).to_array()));
-                let r = rect(f);
-                [
-                    r[0],
-                    r[1],
-                    r[2],
-                    r[3],
-                    p.edge as u32,
-                    first,
-                    p.volume.planes.len() as u32,
-                    p.half.unwrap_or(0.0).to_bits(),
-                ]
+                let [x0, y0, x1, y1] = rect(f);
+                let (edge, n) = (p.edge as u32, p.volume.planes.len() as u32);
+                let half = p.half.unwrap_or(0.0).to_bits();
+                [x0, y0, x1, y1, edge, first, n, half]
             })
             .collect();
         let (wedge_bins, entries) = bins(rays, &footprints, |k, t| {
@@ -336,8 +322,6 @@ impl<'g> Passes<'g> {
                 run.host(1, || self.upload_wedges(rays, lr, &quads, &up.buffers));
             let lg = LoopGpu {
                 quads: quads.len() as u64,
-                caps: up.caps,
-                quad_bin_entries: up.bin_entries,
                 hard: up,
                 soft_group,
                 wedges,
@@ -347,13 +331,10 @@ impl<'g> Passes<'g> {
             loops.push(lg);
         }
         let timing = run.finish()?;
-        let rgb = timing.readback.get(1).map(|b| {
-            let w: Vec<f32> = words(b);
-            RgbBuffer {
-                width: rays.width,
-                height: rays.height,
-                data: w.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-            }
+        let rgb = timing.readback.get(1).map(|b| RgbBuffer {
+            width: rays.width,
+            height: rays.height,
+            data: words(b),
         });
 
         // The instrumented replay: the same passes counting with atomics, per loop.
@@ -382,24 +363,20 @@ impl<'g> Passes<'g> {
     /// bounds, and those behind the visible surface), and estimated traffic: rays of every
     /// pixel, quad records per test, the bins, a depth read per fragment, the count written.
     fn hard_counters(&self, k: &mut Counters, lg: &LoopGpu, stat: &dyn Fn(Stat) -> f64) {
-        let (fill, passed, tests) = (
-            stat(Stat::HardFill),
-            stat(Stat::HardPassed),
-            stat(Stat::HardTests),
-        );
+        let [fill, passed, tests] = [Stat::HardFill, Stat::HardPassed, Stat::HardTests].map(stat);
         k.add("fill", fill);
         k.add("overdraw", fill - passed);
         k.add("quad_tests", tests);
         k.add("shadow_quads", lg.quads as f64);
         let record = if self.opts.counting == Counting::ZFail {
-            k.add("volume_caps", lg.caps as f64);
+            k.add("volume_caps", lg.hard.caps as f64);
             FACE_BYTES
         } else {
             QUAD_BYTES
         };
         let rays = (RAY_BYTES * self.v.pixels) as f64;
         let quads = record as f64 * tests;
-        let bins = (WORD * (lg.quad_bin_entries + 2 * self.tiles())) as f64;
+        let bins = (WORD * (lg.hard.bin_entries + 2 * self.tiles())) as f64;
         let depth = fill * DEPTH_BYTES as f64;
         let vbuffer = (VBUFFER_BYTES * self.v.pixels) as f64;
         let reads = [
