@@ -605,6 +605,35 @@ impl<'a> Pass<'a> {
         }
     }
 
+    /// The body of a render pass: statistics begun (pass `index`) when `stats` is given, the
+    /// pipeline, the pass's bind groups and vertex buffer set, `draw`, statistics ended.
+    fn draw_in(
+        &self,
+        pass: &mut wgpu::RenderPass<'_>,
+        stats: Option<&PassStats>,
+        index: u32,
+        pipeline: &wgpu::RenderPipeline,
+        vertices: Option<&wgpu::Buffer>,
+        draw: impl FnOnce(&mut wgpu::RenderPass<'_>),
+    ) {
+        if let Some(s) = stats {
+            s.begin_render(pass, index);
+        }
+        pass.set_pipeline(pipeline);
+        for (i, g) in self.groups.iter().enumerate() {
+            if let Some(g) = g {
+                pass.set_bind_group(i as u32, *g, &[]);
+            }
+        }
+        if let Some(v) = vertices {
+            pass.set_vertex_buffer(0, v.slice(..));
+        }
+        draw(pass);
+        if stats.is_some() {
+            pass.end_pipeline_statistics_query();
+        }
+    }
+
     /// Records the pass, timed as `timer`'s pass `index` and with its statistics in `stats`
     /// when given.
     fn record(
@@ -664,29 +693,15 @@ impl<'a> Pass<'a> {
                     occlusion_query_set: None,
                     multiview_mask: None,
                 };
-                let mut pass = timing::render_pass(e, desc, timed);
-                if let Some(s) = stats {
-                    s.begin_render(&mut pass, index);
-                }
-                pass.set_pipeline(d.pipeline);
-                for (i, g) in self.groups.iter().enumerate() {
-                    if let Some(g) = g {
-                        pass.set_bind_group(i as u32, *g, &[]);
-                    }
-                }
-                if let Some(v) = d.vertices {
-                    pass.set_vertex_buffer(0, v.slice(..));
-                }
-                match d.indices {
+                let draw = |pass: &mut wgpu::RenderPass<'_>| match d.indices {
                     Some(i) => {
                         pass.set_index_buffer(i.slice(..), wgpu::IndexFormat::Uint32);
                         pass.draw_indexed(0..d.count, 0, 0..d.instances);
                     }
                     None => pass.draw(0..d.count, 0..d.instances),
-                }
-                if stats.is_some() {
-                    pass.end_pipeline_statistics_query();
-                }
+                };
+                let mut pass = timing::render_pass(e, desc, timed);
+                self.draw_in(&mut pass, stats, index, d.pipeline, d.vertices, draw);
             }
             Work::Onto(d) => {
                 let load = match d.clear {
@@ -722,22 +737,8 @@ impl<'a> Pass<'a> {
                     multiview_mask: None,
                 };
                 let mut pass = timing::render_pass(e, desc, timed);
-                if let Some(s) = stats {
-                    s.begin_render(&mut pass, index);
-                }
-                pass.set_pipeline(d.pipeline);
-                for (i, g) in self.groups.iter().enumerate() {
-                    if let Some(g) = g {
-                        pass.set_bind_group(i as u32, *g, &[]);
-                    }
-                }
-                if let Some(v) = d.vertices {
-                    pass.set_vertex_buffer(0, v.slice(..));
-                }
-                pass.draw(d.range.clone(), 0..1);
-                if stats.is_some() {
-                    pass.end_pipeline_statistics_query();
-                }
+                let draw = |pass: &mut wgpu::RenderPass<'_>| pass.draw(d.range.clone(), 0..1);
+                self.draw_in(&mut pass, stats, index, d.pipeline, d.vertices, draw);
             }
         }
     }
