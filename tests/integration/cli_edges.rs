@@ -3,6 +3,7 @@
 //! code 2 for input errors and nothing written.
 
 use std::path::Path;
+use std::process::Command;
 
 use super::common::{shadowbench, stderr, stdout};
 

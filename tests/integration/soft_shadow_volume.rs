@@ -1,8 +1,6 @@
 //! `soft_shadow_volume` and `accum_hard` against the ground-truth reference and against the
 //! paper's stated properties.
 
-use std::collections::BTreeMap;
-
 use glam::Vec3;
 use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
 use shadowbench::frame::{Frame, RunParams};

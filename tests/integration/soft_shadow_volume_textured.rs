@@ -8,7 +8,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use glam::Vec3;
-use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
+use shadowbench::algorithms::{self, Backend, ExecContext};
 use shadowbench::error::Error;
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scenario::Loaded;
