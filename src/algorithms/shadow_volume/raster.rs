@@ -44,7 +44,7 @@ use super::{zfail_faces, Counting, ShadowQuad};
 use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
-    gpu_struct, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster, Step,
+    gpu_struct, per_vertex, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster, Step,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{additive_red, Gpu};
@@ -54,8 +54,6 @@ use crate::scene::Mesh;
 const WGSL: &str = include_str!("raster.wgsl");
 /// The count and accumulation targets' format.
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
-/// Bytes of a vertex: position and the count change.
-const VERTEX_BYTES: u64 = 16;
 
 gpu_struct! {
     /// The parameters of the raster hard pass (group 0, binding 0).
@@ -200,6 +198,7 @@ impl<'g> HardRaster<'g> {
         let count = gpu.target_view("count", size, TARGET_FORMAT);
         let accumulation = gpu.target_view("accumulation", size, TARGET_FORMAT);
         let blend = Some(additive_red(TARGET_FORMAT));
+        // A vertex: position and the count change.
         let attributes = wgpu::vertex_attr_array![0 => Float32x4];
         let test = match counting {
             Counting::ZPass => wgpu::CompareFunction::Greater,
@@ -211,7 +210,7 @@ impl<'g> HardRaster<'g> {
                 &Raster {
                     vs: "vs_quad",
                     fs: "fs_quad",
-                    vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
+                    vertex: per_vertex(&attributes),
                     depth: Some(if instrument {
                         wgpu::CompareFunction::Always
                     } else {

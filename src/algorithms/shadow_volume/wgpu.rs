@@ -158,10 +158,9 @@ impl FrameResources {
     pub fn new(gpu: &Gpu, rays: &EyeRays, texels: &[u8], textured: bool) -> FrameResources {
         let storage = wgpu::BufferUsages::STORAGE;
         let records = ray_records(rays);
-        let mut packed = vec![0u32; texels.len().div_ceil(4)];
-        for (k, &b) in texels.iter().enumerate() {
-            packed[k / 4] |= u32::from(b) << (8 * (k % 4));
-        }
+        // The texels four to a little-endian word, as the WGSL reads them.
+        let mut packed = texels.to_vec();
+        packed.resize(texels.len().div_ceil(4) * 4, 0);
         let pixels = rays.len() as u64;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         FrameResources {
