@@ -12,6 +12,7 @@
 //! [`fault`] injects such faults on purpose, for the robustness tests.
 
 pub mod fault;
+pub mod meshes;
 pub mod pass;
 
 pub mod readback;
@@ -36,6 +37,24 @@ pub const EMPTY_BYTES: usize = 128;
 
 /// Environment variable naming the adapter to use (substring of its name).
 pub const ADAPTER_ENV: &str = "SHADOWBENCH_ADAPTER";
+
+/// A single-channel colour target of `format` that adds each fragment's red value to what it
+/// holds (`One + One`): counts and sums accumulated by blending.
+pub fn additive_red(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
+    let add = wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    };
+    wgpu::ColorTargetState {
+        format,
+        blend: Some(wgpu::BlendState {
+            color: add,
+            alpha: add,
+        }),
+        write_mask: wgpu::ColorWrites::RED,
+    }
+}
 
 /// The query features this crate asks for, and whether the adapter offered them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -164,20 +183,26 @@ impl Gpu {
         })
     }
 
-    /// A square `resolution`² map (one mip level, one sample) that passes render into and
-    /// read from, with `usage` besides `RENDER_ATTACHMENT | TEXTURE_BINDING`.
-    pub fn map_texture(
+    /// A uniform buffer holding `value`.
+    pub fn uniform<T: bytemuck::Pod>(&self, label: &str, value: &T) -> wgpu::Buffer {
+        let data = std::slice::from_ref(value);
+        self.upload(label, data, wgpu::BufferUsages::UNIFORM)
+    }
+
+    /// A `width`×`height` texture (one mip level, one sample) that passes render into and read
+    /// from, with `usage` besides `RENDER_ATTACHMENT | TEXTURE_BINDING`.
+    pub fn texture(
         &self,
         label: &str,
-        resolution: u32,
+        (width, height): (u32, u32),
         format: wgpu::TextureFormat,
         usage: wgpu::TextureUsages,
     ) -> wgpu::Texture {
         self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
             size: wgpu::Extent3d {
-                width: resolution,
-                height: resolution,
+                width,
+                height,
                 depth_or_array_layers: 1,
             },
             mip_level_count: 1,
@@ -189,6 +214,28 @@ impl Gpu {
                 | usage,
             view_formats: &[],
         })
+    }
+
+    /// A square `resolution`² map: [`Gpu::texture`].
+    pub fn map_texture(
+        &self,
+        label: &str,
+        resolution: u32,
+        format: wgpu::TextureFormat,
+        usage: wgpu::TextureUsages,
+    ) -> wgpu::Texture {
+        self.texture(label, (resolution, resolution), format, usage)
+    }
+
+    /// A texture of `size` ([`Gpu::texture`], no further usage) and its view.
+    pub fn target_view(
+        &self,
+        label: &str,
+        size: (u32, u32),
+        format: wgpu::TextureFormat,
+    ) -> wgpu::TextureView {
+        self.texture(label, size, format, wgpu::TextureUsages::empty())
+            .create_view(&Default::default())
     }
 
     /// Checks what algorithm `id` needs against the adapter's limits; the error
@@ -243,8 +290,7 @@ impl Gpu {
         resolution: u32,
         format: wgpu::TextureFormat,
     ) -> wgpu::TextureView {
-        self.map_texture(label, resolution, format, wgpu::TextureUsages::empty())
-            .create_view(&Default::default())
+        self.target_view(label, (resolution, resolution), format)
     }
 
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds

@@ -58,6 +58,27 @@ pub fn assert_agree(found: Vec<String>) {
     assert!(found.is_empty(), "WGSL layout mismatches: {found:?}");
 }
 
+/// The layout test of an execution's GPU structs (declared with
+/// [`crate::gpu::pass::gpu_struct`]): a module `layout_tests` whose test
+/// `uniforms_match_wgsl` checks every struct after `=>` against every shader before it, each
+/// given as the parts its pipeline joins (an array or `Vec` of `&str`). Invoked under
+/// `#[cfg(test)]`, as this module is test-only.
+macro_rules! layout_test {
+    ($($source:expr),+ => $($ty:ident),+) => {
+        mod layout_tests {
+            use super::*;
+
+            #[test]
+            fn uniforms_match_wgsl() {
+                for source in [$($source.join("\n")),+] {
+                    $($crate::gpu::wgsl_layout::assert_agree($ty::layout_mismatches(&source));)+
+                }
+            }
+        }
+    };
+}
+pub(crate) use layout_test;
+
 #[cfg(test)]
 mod tests {
     #[repr(C)]
@@ -102,5 +123,36 @@ mod tests {
         let extra = [("a", 0), ("b", 12), ("c", 16), ("d", 32)];
         assert!(!super::mismatches(WGSL, "Pair", 36, &extra).is_empty());
         assert!(!super::mismatches(WGSL, "Other", size, &rust).is_empty());
+    }
+
+    crate::gpu::pass::gpu_struct! {
+        /// A uniform declared as the executions declare theirs.
+        struct View as "View" {
+            near: f32 => "f32",
+            far: f32 => "f32",
+            face: u32 => "u32",
+            radius: f32 => "f32",
+        }
+    }
+
+    /// A struct declared with `gpu_struct!` agrees with its own WGSL, and the check catches a
+    /// field reordered on the WGSL side (both fields named) and one removed from it.
+    #[test]
+    fn a_reordered_wgsl_field_is_rejected() {
+        assert!(View::layout_mismatches(View::WGSL).is_empty());
+        let swapped = View::WGSL.replace(
+            "    near: f32,\n    far: f32,",
+            "    far: f32,\n    near: f32,",
+        );
+        assert_ne!(swapped, View::WGSL, "the struct declares near before far");
+        let found = View::layout_mismatches(&swapped);
+        assert!(
+            found.iter().any(|m| m.starts_with("View.near")),
+            "{found:?}"
+        );
+        assert!(found.iter().any(|m| m.starts_with("View.far")), "{found:?}");
+        let removed = View::WGSL.replace("    face: u32,\n", "");
+        let found = View::layout_mismatches(&removed);
+        assert!(found.iter().any(|m| m.contains("face")), "{found:?}");
     }
 }

@@ -3,7 +3,9 @@
 //! code 2 for input errors and nothing written.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
+
+use super::common::{shadowbench, stderr, stdout};
 
 const SCENARIO: &str = r#"{
   "name": "edges",
@@ -13,21 +15,6 @@ const SCENARIO: &str = r#"{
   "params": { "image": [24, 18], "map_resolution": 32, "tile_size": 8, "triangles": 200 },
   "reference": { "samples": 4 }
 }"#;
-
-fn shadowbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_shadowbench"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
 
 fn scenario(dir: &Path) -> String {
     let p = dir.join("edges.json");

@@ -1,9 +1,62 @@
-//! Scenes shared by the robustness tests: the degenerate cases of the robustness list.
+//! Helpers shared by the integration tests: running the `shadowbench` command and reading what
+//! it printed and wrote, running an algorithm with options, and the scenes of the robustness
+//! tests (the degenerate cases of the robustness list).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Command, Output};
 
 use glam::Vec3;
+use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scene::generators::primitives;
 use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
+
+/// Runs the `shadowbench` command with `args` (no backtraces on a panic) and waits for it.
+pub fn shadowbench(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .unwrap()
+}
+
+/// Bytes a command printed, as text.
+pub fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+/// What a command printed to standard error.
+pub fn stderr(o: &Output) -> String {
+    text(&o.stderr)
+}
+
+/// What a command printed to standard output.
+pub fn stdout(o: &Output) -> String {
+    text(&o.stdout)
+}
+
+/// A JSON file a command wrote.
+pub fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// Algorithm `id` on `backend` with `options` (`null`: the defaults); its visibility checked
+/// to lie in [0, 1].
+pub fn run_on(
+    backend: Backend,
+    frame: &Frame,
+    id: &str,
+    options: serde_json::Value,
+) -> FrameOutput {
+    let mut ctx = ExecContext::default();
+    if !options.is_null() {
+        ctx.options = BTreeMap::from([(id.to_string(), options)]);
+    }
+    let out = algorithms::run(id, backend, frame, &ctx).unwrap();
+    out.visibility.check_range().unwrap();
+    out
+}
 
 pub fn frame_of(objects: Vec<Object>, light: Light, camera: Camera) -> Frame {
     let scene = Scene {

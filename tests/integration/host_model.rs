@@ -2,23 +2,7 @@
 //! `validate-model` compares the cpu-model with cpu-native on a tiny sweep, its modelled times
 //! being those `render` gives for the same runs. Settings are tiny so CI stays fast.
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn shadowbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_shadowbench"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn text(b: &[u8]) -> String {
-    String::from_utf8_lossy(b).into_owned()
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
-}
+use super::common::{json, shadowbench, text};
 
 #[test]
 fn calibrate_writes_a_machine_that_render_accepts() {

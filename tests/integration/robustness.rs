@@ -9,17 +9,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::{json, Value};
 
-fn shadowbench(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_shadowbench"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use super::common::{shadowbench, stderr};
 
 /// The `error:` line of a failed command; there must be exactly one.
 fn error_line(o: &Output) -> String {

@@ -1,8 +1,6 @@
 //! `soft_shadow_volume` and `accum_hard` against the ground-truth reference and against the
 //! paper's stated properties.
 
-use std::collections::BTreeMap;
-
 use glam::Vec3;
 use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
 use shadowbench::frame::{Frame, RunParams};
@@ -10,6 +8,7 @@ use shadowbench::metrics::{compare, ErrorMetrics};
 use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::scene::{Light, Scene};
 
+use super::common::run_on;
 use super::gpu_check;
 use super::pentagon;
 use gpu_check::have_gpu;
@@ -23,16 +22,6 @@ fn params(scene: &Scene) -> RunParams {
 
 fn run(frame: &Frame, id: &str, options: serde_json::Value) -> FrameOutput {
     run_on(Backend::CpuNative, frame, id, options)
-}
-
-fn run_on(backend: Backend, frame: &Frame, id: &str, options: serde_json::Value) -> FrameOutput {
-    let mut ctx = ExecContext::default();
-    if !options.is_null() {
-        ctx.options = BTreeMap::from([(id.to_string(), options)]);
-    }
-    let out = algorithms::run(id, backend, frame, &ctx).unwrap();
-    out.visibility.check_range().unwrap();
-    out
 }
 
 fn error(frame: &Frame, out: &FrameOutput, reference: &FrameOutput) -> ErrorMetrics {

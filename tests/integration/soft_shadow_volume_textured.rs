@@ -8,7 +8,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use glam::Vec3;
-use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
+use shadowbench::algorithms::{self, Backend, ExecContext};
 use shadowbench::error::Error;
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scenario::Loaded;
@@ -16,6 +16,7 @@ use shadowbench::scene::generators::primitives;
 use shadowbench::scene::light_texture::LightTextureSpec;
 use shadowbench::scene::{Camera, Light, LightTexture, Mesh, Object, Role, Scene};
 
+use super::common::run_on;
 use super::gpu_check;
 use super::pentagon;
 use gpu_check::have_gpu;
@@ -44,16 +45,6 @@ fn pentagon_frame(light: Light, tex: Arc<LightTexture>) -> Frame {
     };
     let params = RunParams::of_scene(&scene, [64, 48], 256, 16);
     Frame::new(scene, params)
-}
-
-fn run_on(backend: Backend, frame: &Frame, id: &str, options: serde_json::Value) -> FrameOutput {
-    let mut ctx = ExecContext::default();
-    if !options.is_null() {
-        ctx.options = BTreeMap::from([(id.to_string(), options)]);
-    }
-    let out = algorithms::run(id, backend, frame, &ctx).unwrap();
-    out.visibility.check_range().unwrap();
-    out
 }
 
 fn texture_4d() -> serde_json::Value {

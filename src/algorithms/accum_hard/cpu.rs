@@ -2,24 +2,19 @@
 //! shadow-volume pass into the stencil (phase `hard`) and the accumulation of its lit pixels
 //! (phase `accumulate`), both as tile tasks of the machine.
 
-use super::AccumHardOptions;
+use super::{AccumHardOptions, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{tiles, Block, EyeBuffer, EyeRays, ScreenRect};
 use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, HardPass,
-    ShadowQuad,
 };
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::Target;
 use crate::model::{Probe, TaskKernel};
-use crate::scene::adjacency::EdgeAdjacency;
 use crate::visibility::VisibilityBuffer;
 
-/// Bytes of a stencil value and of an accumulation-buffer value (16-bit per channel).
-const STENCIL_BYTES: u32 = 1;
-const ACCUMULATION_BYTES: u32 = 2;
 /// Vector instructions per block of the accumulation: compare the stencil with zero, select
 /// 1 or 0, add.
 const ACCUMULATE_OPS: u32 = 3;
@@ -70,13 +65,10 @@ pub fn render(
     ctx: &ExecContext,
     opts: &AccumHardOptions,
 ) -> Result<FrameOutput> {
-    let k = opts.strata_side()?;
     let mut m = machine(backend, frame, ctx);
     let rays = EyeRays::new(frame);
-    let occluders = frame.scene.occluders();
-    let adjacency = EdgeAdjacency::build(&occluders);
-    let light = frame.scene.light;
-    let target = frame.scene.bounds().center();
+    let samples = Samples::new(frame, ctx, opts)?;
+    let occluders = &samples.occluders;
     let n = rays.len() as u64;
     let hard = CountTarget {
         depth: EyeBuffer::new(&mut m, &rays, "depth", 4),
@@ -92,21 +84,15 @@ pub fn render(
         .collect();
     let accumulation = EyeBuffer::new(&mut m, &rays, "accumulation", ACCUMULATION_BYTES);
     let weights: Vec<u64> = sums.iter().map(|s| s.len() as u64).collect();
-    for s in 0..k * k {
+    for s in 0..samples.count() {
         m.phase("hard");
-        let sample = light.stratified_sample(target, s, k, ctx.seed);
-        let silhouette = adjacency.silhouette_from(sample);
-        let quads: Vec<ShadowQuad> = silhouette
-            .edges
-            .iter()
-            .map(|e| ShadowQuad::new(e, sample))
-            .collect();
+        let (sample, quads) = samples.quads(s);
         let counting = match opts.counting {
             Counting::ZPass => HardCounting::ZPass {
-                eye_count: eye_count(&occluders, sample, rays.eye),
+                eye_count: eye_count(occluders, sample, rays.eye),
             },
             Counting::ZFail => HardCounting::ZFail {
-                occluders: &occluders,
+                occluders,
                 light: sample,
             },
         };
@@ -152,7 +138,8 @@ pub fn render(
             for x in r.x0..r.x1 {
                 let i = (y * rays.width + x) as usize;
                 if rays.is_hit(i) {
-                    data[i] = s[((y - r.y0) * w + x - r.x0) as usize] as f32 / (k * k) as f32;
+                    data[i] =
+                        s[((y - r.y0) * w + x - r.x0) as usize] as f32 / samples.count() as f32;
                 }
             }
         }
@@ -164,7 +151,7 @@ pub fn render(
     };
     let mut out = output(m, visibility);
     out.execution
-        .insert("samples".to_string(), serde_json::json!(k * k));
+        .insert("samples".to_string(), serde_json::json!(samples.count()));
     out.execution
         .insert("counting".to_string(), serde_json::json!(opts.counting));
     Ok(out)

@@ -14,13 +14,74 @@ pub mod wgpu;
 use serde::{Deserialize, Serialize};
 
 pub use super::shadow_volume::Counting;
+use super::shadow_volume::ShadowQuad;
 use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WgpuParity, WorkEstimate,
+    work, Algorithm, AlgorithmOptions, CpuEntry, ExecContext, WgpuEntry, WgpuParity, WorkEstimate,
 };
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
+use crate::scene::adjacency::EdgeAdjacency;
+use crate::scene::{Light, Mesh};
 
 pub const ID: &str = "accum_hard";
+
+/// Bytes of a stencil value and of an accumulation-buffer value (16-bit per channel), as every
+/// execution counts them.
+pub const STENCIL_BYTES: u32 = 1;
+pub const ACCUMULATION_BYTES: u32 = 2;
+
+/// The light samples of a frame, shared by the executions: the k×k strata of
+/// [`Light::stratified_sample`] seen from the scene's centre (jittered with `ctx.seed`), and
+/// the occluders whose silhouettes from each sample cast its shadow quads.
+pub struct Samples {
+    /// The side k of the k×k grid.
+    pub k: u32,
+    seed: u64,
+    light: Light,
+    target: glam::Vec3,
+    pub occluders: Mesh,
+    adjacency: EdgeAdjacency,
+}
+
+impl Samples {
+    /// The samples of `opts` (its `samples` checked: [`AccumHardOptions::strata_side`]).
+    pub fn new(
+        frame: &Frame,
+        ctx: &ExecContext,
+        opts: &AccumHardOptions,
+    ) -> Result<Samples, InputError> {
+        let k = opts.strata_side()?;
+        let occluders = frame.scene.occluders();
+        Ok(Samples {
+            k,
+            seed: ctx.seed,
+            light: frame.scene.light,
+            target: frame.scene.bounds().center(),
+            adjacency: EdgeAdjacency::build(&occluders),
+            occluders,
+        })
+    }
+
+    /// N = k², the number of samples.
+    pub fn count(&self) -> u32 {
+        self.k * self.k
+    }
+
+    /// Sample `s` (in 0..N): its point on the light and the shadow quads of the occluders'
+    /// silhouette from it.
+    pub fn quads(&self, s: u32) -> (glam::Vec3, Vec<ShadowQuad>) {
+        let sample = self
+            .light
+            .stratified_sample(self.target, s, self.k, self.seed);
+        let silhouette = self.adjacency.silhouette_from(sample);
+        let quads = silhouette
+            .edges
+            .iter()
+            .map(|e| ShadowQuad::new(e, sample))
+            .collect();
+        (sample, quads)
+    }
+}
 
 /// Options of `accum_hard` (scenario `options.accum_hard`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

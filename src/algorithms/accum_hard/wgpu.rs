@@ -26,26 +26,21 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::{AccumHardOptions, GpuPipeline};
+use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{hard_triangles, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
     check_limits, FrameResources, Params, Stat, VolumePasses, TILE,
 };
-use crate::algorithms::shadow_volume::{eye_count, Counting, ShadowQuad};
+use crate::algorithms::shadow_volume::{eye_count, Counting};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{Statistics, Timed};
+use crate::gpu::pass::{Statistics, Timed, Timing};
 use crate::gpu::Gpu;
 use crate::record::Counters;
-use crate::scene::adjacency::EdgeAdjacency;
 
-/// Bytes of a stencil value and of an accumulation-buffer value, as `accum_hard::cpu` counts.
-const STENCIL_BYTES: f64 = 1.0;
-const ACCUMULATION_BYTES: f64 = 2.0;
-
-/// The hard pass's parameters for light sample `s` of `samples` at `light`.
+/// The hard pass's parameters for light sample `s` of `samples` at `light` (the rest zero).
 fn sample_params(
     rays: &EyeRays,
     s: u32,
@@ -56,16 +51,11 @@ fn sample_params(
 ) -> Params {
     Params {
         center: light.extend(0.0).to_array(),
-        half_u: [0.0; 4],
-        half_v: [0.0; 4],
         eye: rays.eye.extend(0.0).to_array(),
         width: rays.width,
         height: rays.height,
         tiles_x: rays.width.div_ceil(TILE),
         eye_count,
-        vbuffer: 0,
-        coverage: 0,
-        texture_n: 0,
         first_loop: 1,
         last_loop: 1,
         first_light: u32::from(s == 0),
@@ -73,9 +63,8 @@ fn sample_params(
         sub_lights: samples,
         counting: u32::from(counting == Counting::ZFail),
         channels: 1,
-        pad1: 0,
-        pad2: 0,
         mean: [1.0; 4],
+        ..Params::default()
     }
 }
 
@@ -96,6 +85,14 @@ pub fn render(
     Ok(out)
 }
 
+/// The eye's count of a z-pass sample at `light`; 0 for z-fail.
+fn sample_eye_count(samples: &Samples, counting: Counting, light: Vec3, rays: &EyeRays) -> i32 {
+    match counting {
+        Counting::ZPass => eye_count(&samples.occluders, light, rays.eye),
+        Counting::ZFail => 0,
+    }
+}
+
 /// The raster pipeline ([`crate::algorithms::shadow_volume::raster`]): the eye's depth once,
 /// then per light sample a count pass of its shadow quads (or capped volumes) and an
 /// accumulation pass; the average is resolved after the last. Phase `hard` holds the depth
@@ -107,55 +104,34 @@ fn raster(
     ctx: &ExecContext,
     opts: &AccumHardOptions,
 ) -> Result<FrameOutput> {
-    let k = opts.strata_side()?;
-    let n = k * k;
     let start = Instant::now();
+    let samples = Samples::new(frame, ctx, opts)?;
+    let n = samples.count();
     let rays = EyeRays::new(frame);
-    let occluders = frame.scene.occluders();
     let passes = HardRaster::new(gpu, &rays, &frame.scene.camera, opts.counting, n);
-    let setup_ms = start.elapsed().as_secs_f64() * 1e3;
-    let names = ["hard", "accumulate"];
-    let mut run = Timed::new(
-        gpu,
-        &names,
-        2 * n + 2,
-        Statistics::All,
-        &[&passes.visibility],
-    );
-    run.add_wall(0, setup_ms);
-    let (vertices, ranges, silhouette_edges, caps) = run.host(0, || {
-        let mut vertices = Vec::new();
-        let mut ranges = Vec::with_capacity(n as usize);
-        let (mut edges, mut caps) = (0u64, 0u64);
-        let adjacency = EdgeAdjacency::build(&occluders);
-        let target = frame.scene.bounds().center();
+    let readback = [&passes.visibility];
+    let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
+    run.add_wall(0, start.elapsed().as_secs_f64() * 1e3);
+    let (vertices, ranges, m) = run.host(0, || {
+        let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
+        let mut m = Measured::default();
         for s in 0..n {
-            let sample = frame.scene.light.stratified_sample(target, s, k, ctx.seed);
-            let quads: Vec<ShadowQuad> = adjacency
-                .silhouette_from(sample)
-                .edges
-                .iter()
-                .map(|e| ShadowQuad::new(e, sample))
-                .collect();
-            let eye = match opts.counting {
-                Counting::ZPass => eye_count(&occluders, sample, rays.eye),
-                Counting::ZFail => 0,
-            };
-            let (v, c) = hard_triangles(&rays, &quads, opts.counting, &occluders, sample);
+            let (sample, quads) = samples.quads(s);
+            let eye = sample_eye_count(&samples, opts.counting, sample, &rays);
+            let occluders = &samples.occluders;
+            let (v, caps) = hard_triangles(&rays, &quads, opts.counting, occluders, sample);
             let first = vertices.len() as u32;
             vertices.extend(v);
             ranges.push((first..vertices.len() as u32, eye));
-            edges += quads.len() as u64;
-            caps += c;
+            m.edges += quads.len() as u64;
+            m.caps += caps;
         }
-        (passes.vertices(&vertices), ranges, edges, caps)
+        (passes.vertices(&vertices), ranges, m)
     });
     run.submit(0, &[passes.depth_pass()])?;
     for (s, (range, eye)) in ranges.iter().enumerate() {
-        run.submit(
-            0,
-            &[passes.count_pass(&vertices, range.clone(), *eye, false)],
-        )?;
+        let count = passes.count_pass(&vertices, range.clone(), *eye, false);
+        run.submit(0, &[count])?;
         let mut acc = vec![passes.accumulate_pass(s == 0)];
         if s + 1 == ranges.len() {
             acc.push(passes.resolve_pass());
@@ -164,64 +140,75 @@ fn raster(
     }
     let timing = run.finish()?;
     let (fill, passed) = passes.replay(&vertices, &ranges)?;
-    let (hard, acc) = counters(
-        &rays,
-        n,
-        silhouette_edges,
-        caps,
-        opts.counting,
-        fill,
-        passed,
-    );
     let note = "fill and overdraw from an instrumented replay of every sample's count pass \
                 (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
                 cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
+    let m = Measured { fill, passed, ..m };
+    Ok(output(
+        timing,
+        &rays,
+        n,
+        opts.counting,
+        m,
+        Counters::default(),
+        note,
+    ))
+}
+
+/// The phases of both pipelines.
+const PHASES: [&str; 2] = ["hard", "accumulate"];
+
+/// What a pipeline's hard passes gave over all samples: silhouette edges, z-fail caps, fill and
+/// passed fragments.
+#[derive(Default)]
+struct Measured {
+    edges: u64,
+    caps: u64,
+    fill: f64,
+    passed: f64,
+}
+
+/// The frame output of `n` samples: the counters of the two phases in the cpu-model's terms
+/// (`accum_hard::cpu`; `hard` with `extra` added): silhouette edges and caps, fill and
+/// overdraw, and the memory traffic of an 8-bit stencil cleared per sample (a depth read per
+/// fragment, a stencil read and write per passing fragment) and of a 16-bit accumulation
+/// buffer read and written per pixel and sample; `execution` records the samples and the
+/// counting.
+fn output(
+    timing: Timing,
+    rays: &EyeRays,
+    n: u32,
+    counting: Counting,
+    m: Measured,
+    mut hard: Counters,
+    note: &str,
+) -> FrameOutput {
+    let pixel_samples = f64::from(n) * rays.len() as f64;
+    let (stencil, accumulation) = (f64::from(STENCIL_BYTES), f64::from(ACCUMULATION_BYTES));
+    hard.add("silhouette_edges", m.edges as f64);
+    if counting == Counting::ZFail {
+        hard.add("volume_caps", m.caps as f64);
+    }
+    hard.add("fill", m.fill);
+    hard.add("overdraw", m.fill - m.passed);
+    let reads = [
+        ("depth", m.fill * DEPTH_BYTES as f64),
+        ("stencil", m.passed * stencil),
+    ];
+    let stencil_w = (pixel_samples + m.passed) * stencil;
+    hard.add_traffic("mem_est", &reads, &[("stencil", stencil_w)]);
+    let mut acc = Counters::default();
+    let reads = [
+        ("stencil", pixel_samples * stencil),
+        ("accumulation", pixel_samples * accumulation),
+    ];
+    let writes = [("accumulation", pixel_samples * accumulation)];
+    acc.add_traffic("mem_est", &reads, &writes);
     let mut out = timing.output((rays.width, rays.height), vec![hard, acc], note);
     out.execution.insert("samples".into(), serde_json::json!(n));
     out.execution
-        .insert("counting".into(), serde_json::json!(opts.counting));
-    Ok(out)
-}
-
-/// The counters of the two phases in the cpu-model's terms (`accum_hard::cpu`): silhouette
-/// edges and caps, fill and overdraw, and the memory traffic of an 8-bit stencil cleared per
-/// sample (a depth read per fragment, a stencil read and write per passing fragment) and of a
-/// 16-bit accumulation buffer read and written per pixel and sample.
-fn counters(
-    rays: &EyeRays,
-    n: u32,
-    silhouette_edges: u64,
-    caps: u64,
-    counting: Counting,
-    fill: f64,
-    passed: f64,
-) -> (Counters, Counters) {
-    let pixels = rays.len() as f64;
-    let samples_f = f64::from(n);
-    let mut hard = Counters::default();
-    hard.add("silhouette_edges", silhouette_edges as f64);
-    if counting == Counting::ZFail {
-        hard.add("volume_caps", caps as f64);
-    }
-    hard.add("fill", fill);
-    hard.add("overdraw", fill - passed);
-    let depth_r = fill * DEPTH_BYTES as f64;
-    let stencil_w = (samples_f * pixels + passed) * STENCIL_BYTES;
-    let stencil_r = passed * STENCIL_BYTES;
-    hard.add("mem_est.depth.read_bytes", depth_r);
-    hard.add("mem_est.stencil.read_bytes", stencil_r);
-    hard.add("mem_est.stencil.write_bytes", stencil_w);
-    hard.add("mem_est.read_bytes", depth_r + stencil_r);
-    hard.add("mem_est.write_bytes", stencil_w);
-    let mut acc = Counters::default();
-    let stencil_r = samples_f * pixels * STENCIL_BYTES;
-    let accumulation = samples_f * pixels * ACCUMULATION_BYTES;
-    acc.add("mem_est.stencil.read_bytes", stencil_r);
-    acc.add("mem_est.accumulation.read_bytes", accumulation);
-    acc.add("mem_est.accumulation.write_bytes", accumulation);
-    acc.add("mem_est.read_bytes", stencil_r + accumulation);
-    acc.add("mem_est.write_bytes", accumulation);
-    (hard, acc)
+        .insert("counting".into(), serde_json::json!(counting));
+    out
 }
 
 /// The compute gather ([`crate::algorithms::shadow_volume::wgpu`]).
@@ -231,78 +218,43 @@ fn gather(
     ctx: &ExecContext,
     opts: &AccumHardOptions,
 ) -> Result<FrameOutput> {
-    let k = opts.strata_side()?;
-    let n = k * k;
     check_limits(gpu, frame, super::ID)?;
     let start = Instant::now();
+    let samples = Samples::new(frame, ctx, opts)?;
+    let n = samples.count();
     let rays = EyeRays::new(frame);
-    let occluders = frame.scene.occluders();
-    let adjacency = EdgeAdjacency::build(&occluders);
-    let light = frame.scene.light;
-    let target = frame.scene.bounds().center();
     let res = FrameResources::new(gpu, &rays, &[], false);
-    let passes = VolumePasses::new(gpu, &rays, opts.counting, res, occluders.clone(), "");
-    let setup_ms = start.elapsed().as_secs_f64() * 1e3;
-    let names = ["hard", "accumulate"];
+    let occluders = samples.occluders.clone();
+    let passes = VolumePasses::new(gpu, &rays, opts.counting, res, occluders, "");
     let visibility = &passes.res.visibility;
-    let mut run = Timed::new(gpu, &names, 2 * n, Statistics::Compute, &[visibility]);
-    run.add_wall(0, setup_ms);
-    let mut uploads = Vec::with_capacity(n as usize);
-    let mut silhouette_edges = 0u64;
+    let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
+    run.add_wall(0, start.elapsed().as_secs_f64() * 1e3);
+    let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
     for s in 0..n {
         let up = run.host(0, || {
-            let sample = light.stratified_sample(target, s, k, ctx.seed);
-            let quads: Vec<ShadowQuad> = adjacency
-                .silhouette_from(sample)
-                .edges
-                .iter()
-                .map(|e| ShadowQuad::new(e, sample))
-                .collect();
-            silhouette_edges += quads.len() as u64;
-            let eye = match opts.counting {
-                Counting::ZPass => eye_count(&occluders, sample, rays.eye),
-                Counting::ZFail => 0,
-            };
+            let (sample, quads) = samples.quads(s);
+            m.edges += quads.len() as u64;
+            let eye = sample_eye_count(&samples, opts.counting, sample, &rays);
             let params = sample_params(&rays, s, n, sample, eye, opts.counting);
-            (
-                passes.upload_quads(&rays, &params, sample, &quads),
-                quads.len() as u64,
-            )
+            passes.upload_quads(&rays, &params, sample, &quads)
         });
-        run.submit(0, &[passes.hard(&up.0, false)])?;
-        run.submit(1, &[passes.accumulate(&up.0)])?;
+        run.submit(0, &[passes.hard(&up, false)])?;
+        run.submit(1, &[passes.accumulate(&up)])?;
         uploads.push(up);
     }
     let timing = run.finish()?;
-    let stat = passes.replay(
-        uploads
-            .iter()
-            .map(|(up, _)| passes.hard(up, true))
-            .collect(),
-    )?;
-    let (fill, passed) = (stat(Stat::HardFill), stat(Stat::HardPassed));
-
-    let caps = uploads.iter().map(|(u, _)| u.caps).sum::<u64>();
-    let (mut hard, acc) = counters(
-        &rays,
-        n,
-        silhouette_edges,
-        caps,
-        opts.counting,
-        fill,
-        passed,
-    );
-    hard.add(
-        "shadow_quads",
-        uploads.iter().map(|(_, q)| q).sum::<u64>() as f64,
-    );
+    let stat = passes.replay(uploads.iter().map(|up| passes.hard(up, true)).collect())?;
+    let m = Measured {
+        caps: uploads.iter().map(|u| u.caps).sum(),
+        fill: stat(Stat::HardFill),
+        passed: stat(Stat::HardPassed),
+        ..m
+    };
+    let mut hard = Counters::default();
+    hard.add("shadow_quads", m.edges as f64);
     hard.add("quad_tests", stat(Stat::HardTests));
     let note = "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
                 atomics); mem.* in the cpu-model's terms of an 8-bit stencil and a 16-bit \
                 accumulation buffer";
-    let mut out = timing.output((rays.width, rays.height), vec![hard, acc], note);
-    out.execution.insert("samples".into(), serde_json::json!(n));
-    out.execution
-        .insert("counting".into(), serde_json::json!(opts.counting));
-    Ok(out)
+    Ok(output(timing, &rays, n, opts.counting, m, hard, note))
 }

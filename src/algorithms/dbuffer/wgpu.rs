@@ -208,19 +208,13 @@ impl<'g> Passes<'g> {
             height,
             pad: 0,
         };
+        // A volume vertex: its position and the edge depth z_e.
         let volume = |label: &str, v: &VolumeMesh| {
-            let data: Vec<[f32; 4]> = v
-                .positions
-                .iter()
-                .zip(&v.attributes)
-                .map(|(p, a)| p.extend(a.x).to_array())
-                .collect();
-            Mesh::upload(gpu, label, &data, &v.triangles)
+            let z_e = v.attributes.iter().map(|a| a.x);
+            Mesh::with_w(gpu, label, &v.positions, z_e, &v.triangles)
         };
-        let flat = &frame.flat.mesh;
-        let positions: Vec<[f32; 3]> = flat.positions.iter().map(|p| p.to_array()).collect();
         let meshes = [
-            Mesh::upload(gpu, "scene", &positions, &flat.triangles),
+            Mesh::of(gpu, "scene", &frame.flat.mesh),
             volume("umbra volume", umbra),
             volume("penumbra volume", penumbra),
         ];
@@ -316,14 +310,4 @@ impl<'g> Passes<'g> {
 }
 
 #[cfg(test)]
-mod layout_tests {
-    use super::*;
-    use crate::gpu::wgsl_layout::assert_agree;
-
-    #[test]
-    fn uniforms_match_wgsl() {
-        let source = SOURCES.join("\n");
-        assert_agree(DbufferUniform::layout_mismatches(&source));
-        assert_agree(Counts::layout_mismatches(&source));
-    }
-}
+crate::gpu::wgsl_layout::layout_test!(SOURCES => DbufferUniform, Counts);

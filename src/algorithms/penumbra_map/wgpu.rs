@@ -139,13 +139,8 @@ impl<'g> PenumbraPasses<'g> {
 
     /// Uploads the cones and sheets (light-view position and `Z_v` per vertex).
     fn upload(&self, g: &PenumbraGeometry) -> Mesh {
-        let vertices: Vec<[f32; 4]> = g
-            .positions
-            .iter()
-            .zip(&g.attributes)
-            .map(|(p, a)| p.extend(a.x).to_array())
-            .collect();
-        Mesh::upload(self.passes.gpu, "penumbra", &vertices, &g.triangles)
+        let z_v = g.attributes.iter().map(|a| a.x);
+        Mesh::with_w(self.passes.gpu, "penumbra", &g.positions, z_v, &g.triangles)
     }
 
     /// The penumbra pass: cleared to white (1.0), then every cone and sheet.
@@ -210,7 +205,8 @@ impl<'g> PenumbraPasses<'g> {
         eye.add_traffic("mem_est", &read, &[]);
         let counters = vec![
             p.raster_counters(&counts[0]),
-            silhouette_counters(&s),
+            // `silhouettes`: the counts the cpu executions record in the same phase.
+            Counters(s.counts().map(|(k, v)| (k.to_string(), v)).into()),
             self.penumbra_counters(&s, o, &cones, &counts[1]),
             eye,
         ];
@@ -255,23 +251,5 @@ impl<'g> PenumbraPasses<'g> {
     }
 }
 
-/// `silhouettes`: the counts the cpu executions record in the same phase.
-fn silhouette_counters(s: &Silhouettes) -> Counters {
-    let mut k = Counters::default();
-    for (name, v) in s.counts() {
-        k.set(name, v);
-    }
-    k
-}
-
 #[cfg(test)]
-mod layout_tests {
-    use super::*;
-    use crate::gpu::wgsl_layout::assert_agree;
-
-    #[test]
-    fn uniforms_match_wgsl() {
-        let source = sources().join("\n");
-        assert_agree(PenumbraView::layout_mismatches(&source));
-    }
-}
+crate::gpu::wgsl_layout::layout_test!(sources() => PenumbraView);

@@ -218,8 +218,7 @@ impl<'g> Passes<'g> {
         };
         // Every triangle of the scene can cast a shadow into the map (receivers shadow each
         // other too), indexed as in `occluders`, as the cpu executions draw it.
-        let positions: Vec<[f32; 3]> = occluders.positions.iter().map(|p| p.to_array()).collect();
-        let occluders = Mesh::upload(gpu, "occluders", &positions, &occluders.triangles);
+        let occluders = Mesh::of(gpu, "occluders", occluders);
         // The gbuffer (position with the hit flag in w, the eye-facing normal), the visibility.
         let eye = EyeBuffers::new(gpu, &frame.gbuffer, |_| 0.0);
         let depth_format = wgpu::TextureFormat::Depth32Float;
@@ -368,51 +367,14 @@ pub(crate) const NOTE: &str =
     "fill/overdraw from an instrumented replay (WGSL atomics); mem_est.* \
      estimated from formats and counts";
 
+// `LightUniform` and `Counts` against the family's shaders as their pipelines join them (the
+// eye lookup as `hard_shadow_map` completes it).
 #[cfg(test)]
-mod layout_tests {
-    use super::*;
-    use crate::gpu::wgsl_layout::assert_agree;
-
-    /// `LightUniform` and `Counts` against the family's shaders as their pipelines join them
-    /// (the eye lookup as `hard_shadow_map` completes it).
-    #[test]
-    fn uniforms_match_wgsl() {
-        let hard = include_str!("../hard_shadow_map/wgpu.wgsl");
-        for rest in [
-            vec![LIGHT_RASTER_WGSL],
-            vec![LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, hard],
-        ] {
-            let source = [&PRELUDE[..], &rest].concat().join("\n");
-            assert_agree(LightUniform::layout_mismatches(&source));
-            assert_agree(Counts::layout_mismatches(&source));
-        }
-    }
-
-    /// The check catches a field reordered on one side: the WGSL with `near` and `far` swapped
-    /// no longer matches `LightUniform`, and both fields are named.
-    #[test]
-    fn a_reordered_wgsl_field_is_rejected() {
-        let swapped = LightUniform::WGSL.replace(
-            "    near: f32,\n    far: f32,",
-            "    far: f32,\n    near: f32,",
-        );
-        assert_ne!(
-            swapped,
-            LightUniform::WGSL,
-            "the struct declares near before far"
-        );
-        let found = LightUniform::layout_mismatches(&swapped);
-        assert!(
-            found.iter().any(|m| m.starts_with("Light.near")),
-            "{found:?}"
-        );
-        assert!(
-            found.iter().any(|m| m.starts_with("Light.far")),
-            "{found:?}"
-        );
-        // A Rust field the WGSL lacks (a field removed on the WGSL side).
-        let removed = LightUniform::WGSL.replace("    face: u32,\n", "");
-        let found = LightUniform::layout_mismatches(&removed);
-        assert!(found.iter().any(|m| m.contains("face")), "{found:?}");
-    }
-}
+crate::gpu::wgsl_layout::layout_test!(
+    [&PRELUDE[..], &[LIGHT_RASTER_WGSL]].concat(),
+    [
+        &PRELUDE[..],
+        &[LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, include_str!("../hard_shadow_map/wgpu.wgsl")]
+    ]
+    .concat() => LightUniform, Counts
+);

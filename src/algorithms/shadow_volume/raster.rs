@@ -44,18 +44,16 @@ use super::{zfail_faces, Counting, ShadowQuad};
 use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
-    gpu_struct, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster, Step,
+    gpu_struct, per_vertex, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster, Step,
 };
 use crate::gpu::readback::words;
-use crate::gpu::Gpu;
+use crate::gpu::{additive_red, Gpu};
 use crate::scene::Mesh;
 
 /// The WGSL of the passes.
 const WGSL: &str = include_str!("raster.wgsl");
 /// The count and accumulation targets' format.
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R16Float;
-/// Bytes of a vertex: position and the count change.
-const VERTEX_BYTES: u64 = 16;
 
 gpu_struct! {
     /// The parameters of the raster hard pass (group 0, binding 0).
@@ -152,30 +150,6 @@ pub(crate) struct HardRaster<'g> {
     resolve: wgpu::ComputePipeline,
 }
 
-fn target(
-    gpu: &Gpu,
-    label: &str,
-    size: (u32, u32),
-    format: wgpu::TextureFormat,
-) -> wgpu::TextureView {
-    gpu.device
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width: size.0,
-                height: size.1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        })
-        .create_view(&Default::default())
-}
-
 impl<'g> HardRaster<'g> {
     /// The passes over `rays` seen by `camera`, counting as `counting`, averaging `samples`
     /// light points.
@@ -199,24 +173,20 @@ impl<'g> HardRaster<'g> {
             samples,
             counting: u32::from(counting == Counting::ZFail),
         };
-        let params = gpu.upload("raster params", &[params], wgpu::BufferUsages::UNIFORM);
+        let params = gpu.uniform("raster params", &params);
         let storage = wgpu::BufferUsages::STORAGE;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         let rays_buf = gpu.upload("eye rays", &ray_records(rays), storage);
         let stats = gpu.storage_buffer("raster statistics", 16, copy);
         let visibility = gpu.storage_buffer("visibility", 4 * rays.len() as u64, copy);
         let stages = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
-        let layout0 = Layout::new(
-            gpu,
-            "raster hard",
-            stages,
-            &[
-                Bind::Uniform,
-                Bind::ReadOnly,
-                Bind::ReadWrite,
-                Bind::ReadWrite,
-            ],
-        );
+        let binds = [
+            (Bind::Uniform, params.as_entire_binding()),
+            (Bind::ReadOnly, rays_buf.as_entire_binding()),
+            (Bind::ReadWrite, stats.as_entire_binding()),
+            (Bind::ReadWrite, visibility.as_entire_binding()),
+        ];
+        let (layout0, group) = Layout::bound(gpu, "raster hard", stages, &binds);
         let layout1 = Layout::new(gpu, "raster target", stages, &[Bind::Float]);
         let program = Program::new(
             gpu,
@@ -224,32 +194,11 @@ impl<'g> HardRaster<'g> {
             &[RasterParams::WGSL, WGSL],
             &[Some(&layout0), Some(&layout1)],
         );
-        let depth = target(gpu, "eye depth", size, wgpu::TextureFormat::Depth32Float);
-        let count = target(gpu, "count", size, TARGET_FORMAT);
-        let accumulation = target(gpu, "accumulation", size, TARGET_FORMAT);
-        let group = layout0.group(
-            gpu,
-            "raster hard",
-            &[
-                params.as_entire_binding(),
-                rays_buf.as_entire_binding(),
-                stats.as_entire_binding(),
-                visibility.as_entire_binding(),
-            ],
-        );
-        let add = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Add,
-        };
-        let blend = Some(wgpu::ColorTargetState {
-            format: TARGET_FORMAT,
-            blend: Some(wgpu::BlendState {
-                color: add,
-                alpha: add,
-            }),
-            write_mask: wgpu::ColorWrites::RED,
-        });
+        let depth = gpu.target_view("eye depth", size, wgpu::TextureFormat::Depth32Float);
+        let count = gpu.target_view("count", size, TARGET_FORMAT);
+        let accumulation = gpu.target_view("accumulation", size, TARGET_FORMAT);
+        let blend = Some(additive_red(TARGET_FORMAT));
+        // A vertex: position and the count change.
         let attributes = wgpu::vertex_attr_array![0 => Float32x4];
         let test = match counting {
             Counting::ZPass => wgpu::CompareFunction::Greater,
@@ -261,7 +210,7 @@ impl<'g> HardRaster<'g> {
                 &Raster {
                     vs: "vs_quad",
                     fs: "fs_quad",
-                    vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
+                    vertex: per_vertex(&attributes),
                     depth: Some(if instrument {
                         wgpu::CompareFunction::Always
                     } else {
@@ -405,15 +354,4 @@ impl<'g> HardRaster<'g> {
 }
 
 #[cfg(test)]
-mod layout_tests {
-    use super::*;
-
-    #[test]
-    fn uniforms_match_wgsl() {
-        let source = [RasterParams::WGSL, WGSL].join("\n");
-        assert_eq!(
-            RasterParams::layout_mismatches(&source),
-            Vec::<String>::new()
-        );
-    }
-}
+crate::gpu::wgsl_layout::layout_test!([RasterParams::WGSL, WGSL] => RasterParams);

@@ -13,15 +13,15 @@
 //!
 //! The counters of the instrumented replay are 64-bit slots of one buffer ([`Stat`]).
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::{face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad, VolumeFace};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{gpu_struct, replay, slot64, tiles, Bind, Layout, Pass, Program, Step};
+use crate::gpu::pass::{gpu_struct, replay_counts, slot64, tiles, Bind, Layout, Pass, Program};
 use crate::gpu::readback::words;
-use crate::gpu::{Gpu, EMPTY_BYTES};
+use crate::gpu::{Gpu, Needs, EMPTY_BYTES};
 use crate::scene::Mesh;
 
 /// The family's WGSL: parameters, bindings, the hard pass, the accumulation.
@@ -101,24 +101,15 @@ gpu_struct! {
     }
 }
 
-/// Checks the frame against the adapter's limits for the passes of algorithm `id`.
+/// Checks the frame against the adapter's limits for the passes of algorithm `id`: the storage
+/// buffers bound and the eye rays' bytes.
 pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame, id: &str) -> Result<()> {
-    let l = &gpu.limits;
-    if l.max_storage_buffers_per_shader_stage < STORAGE_BUFFERS {
-        return Err(Error::Resource(format!(
-            "{id} binds {STORAGE_BUFFERS} storage buffers; the adapter allows {}",
-            l.max_storage_buffers_per_shader_stage
-        )));
-    }
-    let bytes = RAY_BYTES * frame.gbuffer.len() as u64;
-    if bytes > l.max_storage_buffer_binding_size {
-        return Err(Error::Resource(format!(
-            "{id} buffer eye_rays needs {bytes} bytes, more than the adapter's storage binding \
-             limit ({})",
-            l.max_storage_buffer_binding_size
-        )));
-    }
-    Ok(())
+    let needs = Needs {
+        storage_buffers: STORAGE_BUFFERS,
+        buffers: &[("eye_rays", RAY_BYTES * frame.gbuffer.len() as u64)],
+        ..Needs::default()
+    };
+    gpu.check_limits(id, needs)
 }
 
 /// Eye-sized buffers shared by every loop.
@@ -149,22 +140,14 @@ fn finite(t: f32) -> f32 {
 pub(crate) fn ray_records(rays: &EyeRays) -> Vec<[f32; 12]> {
     (0..rays.len())
         .map(|i| {
-            let (d, p) = (rays.dir[i], rays.point[i]);
             let (t0, t1) = rays.bounds_interval(i);
-            [
-                d.x,
-                d.y,
-                d.z,
-                finite(rays.depth[i]),
-                p.x,
-                p.y,
-                p.z,
-                finite(t0),
-                finite(t1),
-                if rays.is_hit(i) { 1.0 } else { 0.0 },
-                0.0,
-                0.0,
-            ]
+            let hit = if rays.is_hit(i) { 1.0 } else { 0.0 };
+            let record = [
+                rays.dir[i].extend(finite(rays.depth[i])),
+                rays.point[i].extend(finite(t0)),
+                Vec4::new(finite(t1), hit, 0.0, 0.0),
+            ];
+            bytemuck::cast(record.map(|v| v.to_array()))
         })
         .collect()
 }
@@ -175,10 +158,9 @@ impl FrameResources {
     pub fn new(gpu: &Gpu, rays: &EyeRays, texels: &[u8], textured: bool) -> FrameResources {
         let storage = wgpu::BufferUsages::STORAGE;
         let records = ray_records(rays);
-        let mut packed = vec![0u32; texels.len().div_ceil(4)];
-        for (k, &b) in texels.iter().enumerate() {
-            packed[k / 4] |= u32::from(b) << (8 * (k % 4));
-        }
+        // The texels four to a little-endian word, as the WGSL reads them.
+        let mut packed = texels.to_vec();
+        packed.resize(texels.len().div_ceil(4) * 4, 0);
         let pixels = rays.len() as u64;
         let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
         FrameResources {
@@ -265,6 +247,20 @@ pub(crate) fn rect(f: &Option<ScreenRect>) -> [u32; 4] {
     f.map_or([0; 4], |r| [r.x0, r.y0, r.x1, r.y1])
 }
 
+/// A primitive record as the WGSL reads it: the bits of `vectors` (a vec4 each), then the
+/// footprint ([`rect`]) in the last four words; `N` words in all.
+pub(crate) fn record<const N: usize>(
+    vectors: impl IntoIterator<Item = Vec4>,
+    footprint: &Option<ScreenRect>,
+) -> [u32; N] {
+    let mut w = [0u32; N];
+    for (k, v) in vectors.into_iter().enumerate() {
+        w[4 * k..4 * k + 4].copy_from_slice(&v.to_array().map(f32::to_bits));
+    }
+    w[N - 4..].copy_from_slice(&rect(footprint));
+    w
+}
+
 /// The z-fail faces as the WGSL reads them from the `planes` binding: six vec4 per face, the
 /// four corners (w of the first: the count change of a passing fragment, minus the eye's side;
 /// w of the second: the number of corners), the outward normal and the footprint's bits.
@@ -273,16 +269,9 @@ fn face_records(rays: &EyeRays, faces: &[VolumeFace]) -> Vec<[u32; 24]> {
         .iter()
         .zip(face_footprints(rays, faces))
         .map(|(f, fp)| {
-            let mut w = [0u32; 24];
-            let ws = [-f.side(rays.eye), f.sides as f32, 0.0, 0.0];
-            for (k, c) in f.corners.iter().chain([&f.normal]).enumerate() {
-                let v = c.extend(ws.get(k).copied().unwrap_or(0.0));
-                for j in 0..4 {
-                    w[4 * k + j] = v[j].to_bits();
-                }
-            }
-            w[20..24].copy_from_slice(&rect(&fp));
-            w
+            let ws = [-f.side(rays.eye), f.sides as f32, 0.0, 0.0, 0.0];
+            let vectors = f.corners.iter().chain([&f.normal]).zip(ws);
+            record(vectors.map(|(c, w)| c.extend(w)), &fp)
         })
         .collect()
 }
@@ -387,19 +376,16 @@ impl<'g> VolumePasses<'g> {
             .iter()
             .zip(&footprints)
             .map(|(q, f)| {
-                let mut w = [0u32; 20];
-                let eye_side = q.side(rays.eye);
-                for (k, v) in [q.a.extend(eye_side), q.b.extend(0.0)]
-                    .into_iter()
-                    .chain([q.light.extend(0.0), q.normal.extend(0.0)])
-                    .enumerate()
-                {
-                    for c in 0..4 {
-                        w[4 * k + c] = v[c].to_bits();
-                    }
-                }
-                w[16..20].copy_from_slice(&rect(f));
-                w
+                let a = q.a.extend(q.side(rays.eye));
+                record(
+                    [
+                        a,
+                        q.b.extend(0.0),
+                        q.light.extend(0.0),
+                        q.normal.extend(0.0),
+                    ],
+                    f,
+                )
             })
             .collect();
         let faces = (self.counting == Counting::ZFail)
@@ -408,11 +394,7 @@ impl<'g> VolumePasses<'g> {
             None => bins(rays, &footprints, |_, _| true),
             Some(f) => bins(rays, &face_footprints(rays, f), |_, _| true),
         };
-        let params = gpu.upload(
-            "ssv params",
-            std::slice::from_ref(params),
-            wgpu::BufferUsages::UNIFORM,
-        );
+        let params = gpu.uniform("ssv params", params);
         let quads_buf = gpu.upload("shadow quads", &records, storage);
         let bins_buf = gpu.upload("quad bins", &quad_bins, storage);
         let none = gpu.storage_buffer(
@@ -466,27 +448,20 @@ impl<'g> VolumePasses<'g> {
     /// Runs `passes` as an instrumented replay (statistics cleared before, read after) and
     /// returns the statistics' reader.
     pub fn replay(&self, passes: Vec<Pass>) -> Result<impl Fn(Stat) -> f64> {
-        let stats = &self.res.stats;
-        let mut steps = vec![Step::Clear(stats)];
-        steps.extend(passes.into_iter().map(Step::Run));
-        steps.push(Step::Read(stats));
-        let raw: Vec<u32> = words(&replay(self.gpu, &steps)?[0]);
+        let raw: Vec<u32> = words(&replay_counts(self.gpu, &self.res.stats, passes)?);
         Ok(move |s: Stat| slot64(&raw, s as usize))
     }
 }
 
+// `Params` against the family's WGSL as the pipelines join it: alone (`accum_hard`) and with
+// `soft_shadow_volume`'s soft pass.
 #[cfg(test)]
-mod layout_tests {
-    use super::*;
-
-    /// `Params` against the family's WGSL as the pipelines join it: alone (`accum_hard`) and
-    /// with `soft_shadow_volume`'s soft pass.
-    #[test]
-    fn uniforms_match_wgsl() {
-        let soft = include_str!("../soft_shadow_volume/wgpu.wgsl");
-        for wgsl in ["", soft] {
-            let source = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL].join("\n");
-            assert_eq!(Params::layout_mismatches(&source), Vec::<String>::new());
-        }
-    }
-}
+crate::gpu::wgsl_layout::layout_test!(
+    [Params::WGSL, WGSL, "", crate::scene::coverage::WGSL],
+    [
+        Params::WGSL,
+        WGSL,
+        include_str!("../soft_shadow_volume/wgpu.wgsl"),
+        crate::scene::coverage::WGSL
+    ] => Params
+);

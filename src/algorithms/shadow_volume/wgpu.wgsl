@@ -150,40 +150,11 @@ fn face_hit(k: u32, o: vec3f, d: vec3f) -> f32 {
     return -1.0;
 }
 
-// `shadow_volume::QuadPass::block` with z-fail counting (Paper II §5) for one pixel over the
-// faces of the capped volumes binned to its tile: fragments from the entry into the scene
-// bounds on, counted at or behind the visible surface.
-fn hard_zfail(i: u32, id: vec3u, tile: u32) {
-    let ray = rays[i];
-    var c = 0;
-    var fill = 0u;
-    var passed = 0u;
-    var tests = 0u;
-    for (var e = quad_bins[2u * tile]; e < quad_bins[2u * tile + 1u]; e++) {
-        let k = quad_bins[e];
-        if !in_rect(bitcast<vec4u>(planes[6u * k + 5u]), id.x, id.y) {
-            continue;
-        }
-        tests++;
-        let t = face_hit(k, P.eye.xyz, ray.dir.xyz);
-        if t >= 0.0 && t >= ray.point.w {
-            fill++;
-            if t >= ray.dir.w {
-                passed++;
-                c += i32(planes[6u * k].w);
-            }
-        }
-    }
-    counts[i] = c;
-    if INSTRUMENT != 0u {
-        count(STAT_HARD_TESTS, tests);
-        count(STAT_HARD_FILL, fill);
-        count(STAT_HARD_PASSED, passed);
-    }
-}
-
-// `shadow_volume::QuadPass::block` for one pixel over the quads binned to its tile (III §3.2.1,
-// z-pass counting started at the eye's count; z-fail in `hard_zfail`).
+// `shadow_volume::QuadPass::block` for one pixel over the primitives binned to its tile (III
+// §3.2.1): with z-pass counting the shadow quads, counted from the eye's count where they lie
+// in front of the visible surface; with z-fail (`counting` 1, Paper II §5) the faces of the
+// capped volumes, counted from 0 from the entry into the scene bounds on, at or behind the
+// visible surface.
 @compute @workgroup_size(8, 8)
 fn hard(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= P.width || id.y >= P.height {
@@ -191,27 +162,40 @@ fn hard(@builtin(global_invocation_id) id: vec3u) {
     }
     let i = id.y * P.width + id.x;
     let tile = (id.y / TILE) * P.tiles_x + id.x / TILE;
-    if P.counting == 1u {
-        hard_zfail(i, id, tile);
-        return;
-    }
+    let zfail = P.counting == 1u;
     let ray = rays[i];
-    var c = P.eye_count;
+    var c = select(P.eye_count, 0, zfail);
     var fill = 0u;
     var passed = 0u;
     var tests = 0u;
     for (var e = quad_bins[2u * tile]; e < quad_bins[2u * tile + 1u]; e++) {
-        let q = quads[quad_bins[e]];
-        if !in_rect(q.rect, id.x, id.y) {
+        let k = quad_bins[e];
+        // The primitive's footprint and count change (a z-fail face's in `planes`).
+        var rect: vec4u;
+        var step: f32;
+        if zfail {
+            rect = bitcast<vec4u>(planes[6u * k + 5u]);
+            step = planes[6u * k].w;
+        } else {
+            rect = quads[k].rect;
+            step = quads[k].a.w;
+        }
+        if !in_rect(rect, id.x, id.y) {
             continue;
         }
         tests++;
-        let t = quad_hit(q, P.eye.xyz, ray.dir.xyz);
-        if t >= 0.0 && t >= ray.point.w && t <= ray.extra.x {
+        var t: f32;
+        if zfail {
+            t = face_hit(k, P.eye.xyz, ray.dir.xyz);
+        } else {
+            t = quad_hit(quads[k], P.eye.xyz, ray.dir.xyz);
+        }
+        // z-pass fragments end at the scene bounds' exit; z-fail ones pass behind the surface.
+        if t >= 0.0 && t >= ray.point.w && (zfail || t <= ray.extra.x) {
             fill++;
-            if t < ray.dir.w {
+            if (t >= ray.dir.w) == zfail {
                 passed++;
-                c += i32(q.a.w);
+                c += i32(step);
             }
         }
     }

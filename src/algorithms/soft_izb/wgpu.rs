@@ -293,19 +293,19 @@ impl<'g> Passes<'g> {
             gpu.upload("penumbra edges", &edges, storage),
             gpu.storage_buffer("statistics", 2 * WORD * STATS as u64, stats_copy),
         ];
-        // Bindings 1-12 in order; the gbuffer and the primitives are only read.
-        let binds: Vec<Bind> = std::iter::once(Bind::Uniform)
-            .chain((0..buffers.len()).map(|i| match i {
-                0 | 1 | 9 | 10 => Bind::ReadOnly,
-                _ => Bind::ReadWrite,
-            }))
+        // Binding 0 the parameters, then bindings 1-12 in order; the gbuffer and the primitives
+        // are only read.
+        let kind = |i| match i {
+            0 => Bind::Uniform,
+            1 | 2 | 10 | 11 => Bind::ReadOnly,
+            _ => Bind::ReadWrite,
+        };
+        let binds: Vec<_> = (0..)
+            .zip(std::iter::once(&uniform).chain(&buffers))
+            .map(|(i, b)| (kind(i), b.as_entire_binding()))
             .collect();
-        let layout = Layout::new(gpu, "soft_izb", wgpu::ShaderStages::COMPUTE, &binds);
-        let resources: Vec<_> = std::iter::once(&uniform)
-            .chain(&buffers)
-            .map(|b| b.as_entire_binding())
-            .collect();
-        let group = layout.group(gpu, "soft_izb", &resources);
+        let compute = wgpu::ShaderStages::COMPUTE;
+        let (layout, group) = Layout::bound(gpu, "soft_izb", compute, &binds);
         let program = Program::new(gpu, "soft_izb/wgpu.wgsl", &SOURCES, &[Some(&layout)]);
         let pipeline =
             |entry: &str, instrument: bool| program.compute(gpu, entry, Some(instrument));
@@ -501,13 +501,4 @@ impl<'g> Passes<'g> {
 }
 
 #[cfg(test)]
-mod layout_tests {
-    use super::*;
-    use crate::gpu::wgsl_layout::assert_agree;
-
-    #[test]
-    fn uniforms_match_wgsl() {
-        let source = SOURCES.join("\n");
-        assert_agree(Params::layout_mismatches(&source));
-    }
-}
+crate::gpu::wgsl_layout::layout_test!(SOURCES => Params);

@@ -26,12 +26,13 @@ use super::{LightFrame, Precision, SoftShadowMapOptions, Split, ID};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
+use crate::gpu::meshes::positions;
 use crate::gpu::pass::{
     gpu_struct, per_vertex, replay_counts, tiles, view, Bind::*, Draw, EyeBuffers, Layout, Pass,
     Program, Raster, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::{first, read_texels};
-use crate::gpu::{record_execution, Gpu, Needs};
+use crate::gpu::{additive_red, record_execution, Gpu, Needs};
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
 use crate::record::Counters;
@@ -208,9 +209,7 @@ impl<'g> Ssm<'g> {
             far: ssm.far,
         };
         use wgpu::BufferUsages as B;
-        let mesh = &frame.flat.mesh;
-        let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
-        let vertices = gpu.upload("vertices", &positions, B::VERTEX);
+        let vertices = gpu.upload("vertices", &positions(&frame.flat.mesh), B::VERTEX);
         // The gbuffer: position with the hit flag, normal with the receives flag.
         let g = &frame.gbuffer;
         let receives = |t: u32| split.receives[frame.flat.object_of_triangle[t as usize] as usize];
@@ -469,11 +468,6 @@ impl Pipelines {
         let instance =
             wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32x2, 2 => Float32, 3 => Float32x4];
         let host = o.occluder_map_transfer;
-        let additive = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Add,
-        };
         let splat = |fs| {
             let raster = Raster {
                 vs: ["vs_splat_device", "vs_splat_host"][usize::from(host)],
@@ -485,14 +479,7 @@ impl Pipelines {
                 )),
                 topology: wgpu::PrimitiveTopology::TriangleStrip,
                 depth: None,
-                color: Some(wgpu::ColorTargetState {
-                    format: ssm_format,
-                    blend: Some(wgpu::BlendState {
-                        color: additive,
-                        alpha: wgpu::BlendComponent::REPLACE,
-                    }),
-                    write_mask: wgpu::ColorWrites::RED,
-                }),
+                color: Some(additive_red(ssm_format)),
                 ..Raster::default()
             };
             splat_program.render(gpu, &raster)
@@ -506,17 +493,7 @@ impl Pipelines {
     }
 }
 
+// `Instance` is a vertex buffer read through vertex attributes (no WGSL struct), and
+// `MicroPatch` is never uploaded as a struct.
 #[cfg(test)]
-mod layout_tests {
-    use super::*;
-    use crate::gpu::wgsl_layout::assert_agree;
-
-    /// `SsmUniform` and `Counts`; `Instance` is a vertex buffer read through vertex attributes
-    /// (no WGSL struct), and `MicroPatch` is never uploaded as a struct.
-    #[test]
-    fn uniforms_match_wgsl() {
-        let source = SOURCES.join("\n");
-        assert_agree(SsmUniform::layout_mismatches(&source));
-        assert_agree(Counts::layout_mismatches(&source));
-    }
-}
+crate::gpu::wgsl_layout::layout_test!(SOURCES => SsmUniform, Counts);
