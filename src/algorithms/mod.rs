@@ -69,7 +69,7 @@ impl MethodLimit {
 pub type CpuEntry<O> = fn(Backend, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
 
 /// The `wgpu` entry of an algorithm whose options are `O`, run inside
-/// [`crate::gpu::guarded_run`].
+/// [`crate::gpu::guarded_frame`].
 pub type WgpuEntry<O> = fn(&crate::gpu::Gpu, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
 
 /// The estimated fill of a run of an algorithm whose options are `O` ([`work`]), made before
@@ -263,7 +263,7 @@ fn run_typed<A: Algorithm>(backend: Backend, frame: &Frame, ctx: &ExecContext) -
     let warning = A::prepare(frame, &mut o);
     let out = match (backend, A::WGPU) {
         (Backend::Wgpu, Some(wgpu)) => {
-            crate::gpu::guarded_run(ctx.deadline, ctx.gpu_counters, |gpu| {
+            crate::gpu::guarded_frame(ctx.deadline, ctx.gpu_counters, |gpu| {
                 wgpu(gpu, frame, ctx, &o)
             })
         }

@@ -39,6 +39,8 @@ pub struct Setup {
     pub created: u32,
     /// Objects found in the cache.
     pub reused: u32,
+    /// Whether the pipelines went through the driver's pipeline cache ([`Cache::driver`]).
+    pub driver_cache: bool,
 }
 
 impl Setup {
@@ -48,13 +50,13 @@ impl Setup {
     }
 
     /// The record's `execution.gpu_setup` entry.
-    pub fn to_json(self, driver_cache: bool) -> serde_json::Value {
+    pub fn to_json(self) -> serde_json::Value {
         serde_json::json!({
             "device_ms": self.device_ms,
             "objects_ms": self.objects_ms,
             "objects_created": self.created,
             "objects_reused": self.reused,
-            "driver_pipeline_cache": driver_cache,
+            "driver_pipeline_cache": self.driver_cache,
         })
     }
 }
@@ -122,7 +124,11 @@ impl Cache {
 
     /// How many objects of `kind` the cache holds.
     pub fn count(&self, kind: Kind) -> usize {
-        self.lock().objects.keys().filter(|(k, _)| *k == kind).count()
+        self.lock()
+            .objects
+            .keys()
+            .filter(|(k, _)| *k == kind)
+            .count()
     }
 
     /// Starts a run's setup account.

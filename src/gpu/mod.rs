@@ -485,8 +485,8 @@ fn acquire() -> std::result::Result<Gpu, String> {
     let float32_blendable = adapter
         .features()
         .contains(wgpu::Features::FLOAT32_BLENDABLE);
-    let optional = adapter.features()
-        & (wgpu::Features::FLOAT32_BLENDABLE | wgpu::Features::PIPELINE_CACHE);
+    let optional =
+        adapter.features() & (wgpu::Features::FLOAT32_BLENDABLE | wgpu::Features::PIPELINE_CACHE);
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("shadowbench"),
         required_features: queries.features() | optional,
@@ -510,13 +510,15 @@ fn acquire() -> std::result::Result<Gpu, String> {
     });
     // SAFETY: `create_pipeline_cache` is unsafe only for its initial `data`, which must come
     // from `PipelineCache::get_data`; the cache starts empty and lives in memory only.
-    let driver = optional.contains(wgpu::Features::PIPELINE_CACHE).then(|| unsafe {
-        device.create_pipeline_cache(&wgpu::PipelineCacheDescriptor {
-            label: Some("shadowbench pipelines"),
-            data: None,
-            fallback: true,
-        })
-    });
+    let driver = optional
+        .contains(wgpu::Features::PIPELINE_CACHE)
+        .then(|| unsafe {
+            device.create_pipeline_cache(&wgpu::PipelineCacheDescriptor {
+                label: Some("shadowbench pipelines"),
+                data: None,
+                fallback: true,
+            })
+        });
     Ok(Gpu {
         device,
         queue,
@@ -534,20 +536,37 @@ fn acquire() -> std::result::Result<Gpu, String> {
 /// it with the driver's reason, whatever `f` returned, since its buffers cannot be trusted; the
 /// next call acquires a new device. [`fault`] injections happen here. The run stops at
 /// `deadline`, checked before each submission ([`Gpu::submit`]; work already submitted runs
-/// to its end). With `counters` off the run skips its instrumented replay ([`GpuCounters`]).
-///
-/// The run's GPU setup (a device acquired, modules and pipelines created: [`cache`]) is
-/// measured apart and returned in the output's `gpu_setup_ms` and `execution.gpu_setup`, so the
-/// harness can leave it out of the run's wall time.
+/// to its end).
 ///
 /// Runs are serialised process-wide (one at a time on the shared device), so that the host
 /// time of each submission, which [`timing`] checks GPU times against, is the run's own and
 /// not time spent waiting behind another thread's work.
-pub fn guarded_run(
+pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
+    guarded(deadline, GpuCounters::On, f).map(|(out, _)| out)
+}
+
+/// A wgpu execution's run of one frame, as [`guarded_run`]; with `counters` off it skips its
+/// instrumented replay ([`GpuCounters`]). The run's GPU setup (a device acquired, modules and
+/// pipelines created: [`cache`]) is measured apart and returned in the output's
+/// `gpu_setup_ms` and `execution.gpu_setup`, so that the harness leaves it out of the run's
+/// wall time.
+pub fn guarded_frame(
     deadline: Deadline,
     counters: GpuCounters,
     f: impl FnOnce(&'static Gpu) -> Result<crate::algorithms::FrameOutput>,
 ) -> Result<crate::algorithms::FrameOutput> {
+    let (mut out, setup) = guarded(deadline, counters, f)?;
+    out.gpu_setup_ms = Some(setup.ms());
+    out.execution.insert("gpu_setup".into(), setup.to_json());
+    Ok(out)
+}
+
+/// [`guarded_run`] with `counters`, and the run's GPU setup.
+fn guarded<T>(
+    deadline: Deadline,
+    counters: GpuCounters,
+    f: impl FnOnce(&'static Gpu) -> Result<T>,
+) -> Result<(T, cache::Setup)> {
     static ONE_RUN: Mutex<()> = Mutex::new(());
     let _running = ONE_RUN.lock().unwrap_or_else(|e| e.into_inner());
     let start = std::time::Instant::now();
@@ -575,6 +594,7 @@ pub fn guarded_run(
     let ok = matches!(out, Ok(Ok(_))) && v.is_none() && o.is_none() && gpu.lost().is_none();
     let setup = cache::Setup {
         device_ms,
+        driver_cache: gpu.cache.driver.is_some(),
         ..gpu.cache.end_run(ok)
     };
     if let Some(why) = gpu.lost() {
@@ -592,13 +612,7 @@ pub fn guarded_run(
     })?;
     match (v, o) {
         (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(e.to_string())),
-        (None, None) => out.map(|mut out| {
-            out.gpu_setup_ms = Some(setup.ms());
-            let driver = gpu.cache.driver.is_some();
-            out.execution
-                .insert("gpu_setup".into(), setup.to_json(driver));
-            out
-        }),
+        (None, None) => out.map(|out| (out, setup)),
     }
 }
 

@@ -21,10 +21,10 @@ use crate::error::Result;
 use crate::record::{Counters, Phase};
 use crate::visibility::VisibilityBuffer;
 
+use super::cache::Kind;
 use super::readback::{words, Staging};
 use super::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use super::timing::{self, read_ms_or_warn, GpuTimes, PassTimer};
-use super::cache::Kind;
 use super::{counters_mode, gbuffer_positions, resolve_queries, Gpu, GpuCounters};
 use crate::frame::GBuffer;
 
@@ -432,16 +432,14 @@ impl Program {
             .map(|g| g.map_or("-", |l| l.key.as_str()))
             .collect::<Vec<_>>()
             .join("|");
-        let layout = gpu
-            .cache
-            .get(Kind::PipelineLayout, layout_key.clone(), || {
-                let layouts: Vec<_> = groups.iter().map(|g| g.map(|l| &l.layout)).collect();
-                device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some(label),
-                    bind_group_layouts: &layouts,
-                    immediate_size: 0,
-                })
-            });
+        let layout = gpu.cache.get(Kind::PipelineLayout, layout_key.clone(), || {
+            let layouts: Vec<_> = groups.iter().map(|g| g.map(|l| &l.layout)).collect();
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &layouts,
+                immediate_size: 0,
+            })
+        });
         Program {
             module,
             layout,
