@@ -20,6 +20,10 @@
 //! one [`wgpu::PipelineCache`] kept in memory (never written to disk), so the driver may share
 //! compiled stages between pipelines (a timed pipeline and its counting twin share their vertex
 //! stage).
+//!
+//! Not cached: buffers, textures, bind groups and query sets. Their sizes and contents follow
+//! the frame (geometry, image, map resolution), so each run makes its own; a pool reusing
+//! them across runs is not built.
 
 use std::any::Any;
 use std::collections::HashMap;
