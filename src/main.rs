@@ -36,6 +36,24 @@ struct AdapterArg {
     adapter: Option<String>,
 }
 
+/// The instrumented-replay option of the subcommands that run the wgpu execution.
+#[derive(clap::Args)]
+struct GpuCountersArg {
+    /// `off` skips the wgpu runs' instrumented replay when only times matter: their counters
+    /// derived from it (fill, overdraw, taps, ...) are then absent from the record (named in
+    /// execution.gpu_counters_absent, never zero) and execution.gpu_counters is "off"; the
+    /// image, the times and the pipeline statistics are the same.
+    #[arg(long, value_name = "on|off", default_value = "on",
+          value_parser = clap::builder::PossibleValuesParser::new(["on", "off"]))]
+    gpu_counters: String,
+}
+
+impl GpuCountersArg {
+    fn mode(&self) -> shadowbench::gpu::GpuCounters {
+        shadowbench::gpu::GpuCounters::parse(&self.gpu_counters).expect("clap checked the value")
+    }
+}
+
 /// The ids of the registered algorithms, for `--algorithm` and `--only`.
 fn algorithm_ids() -> Vec<&'static str> {
     algorithms::ALGORITHMS.iter().map(|a| a.id).collect()
@@ -245,6 +263,8 @@ struct RunArgs {
     verbose: bool,
     #[command(flatten)]
     adapter: AdapterArg,
+    #[command(flatten)]
+    gpu_counters: GpuCountersArg,
 }
 
 #[derive(clap::Args)]
@@ -327,6 +347,8 @@ struct RenderArgs {
     cores: Option<u32>,
     #[command(flatten)]
     adapter: AdapterArg,
+    #[command(flatten)]
+    gpu_counters: GpuCountersArg,
 }
 
 /// `--memory-limit` in bytes, validated.
@@ -488,6 +510,7 @@ fn render(a: RenderArgs) -> Result<()> {
         reference_samples: a.samples,
         seed,
         machine,
+        gpu_counters: a.gpu_counters.mode(),
         ..Default::default()
     };
     let reference = if a.no_reference || a.algorithm == "reference" {
@@ -587,7 +610,9 @@ fn run(a: RunArgs) -> Result<()> {
         quiet,
         verbose,
         adapter: _,
+        gpu_counters,
     } = a;
+    let gpu_counters = gpu_counters.mode();
     let verbosity = if quiet {
         harness::Verbosity::Quiet
     } else if verbose {
@@ -682,6 +707,7 @@ fn run(a: RunArgs) -> Result<()> {
                 max_cases,
                 run_timeout,
                 verbosity,
+                gpu_counters,
             },
         )?;
         if verbosity != harness::Verbosity::Quiet {

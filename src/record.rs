@@ -77,9 +77,16 @@ pub struct RunRecord {
     pub params: RunParams,
     pub counters: Counters,
     pub phases: Vec<Phase>,
+    /// Host milliseconds of the run, without its GPU setup (`gpu_setup_ms`).
     pub wall_ms: f64,
     pub model_ms: Option<f64>,
     pub gpu_ms: Option<f64>,
+    /// wgpu runs: host milliseconds the run spent on GPU setup (a device acquired after a
+    /// loss, shader modules, layouts and pipelines created; [`crate::gpu::cache`]), left out of
+    /// `wall_ms`. 0 when everything came from an earlier run of the process; the breakdown is
+    /// in `execution.gpu_setup`. Absent for the other executions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gpu_setup_ms: Option<f64>,
     pub error: Option<ErrorMetrics>,
     /// Where it ran: machine preset, adapter, host, sample counts.
     #[serde(default)]
@@ -114,6 +121,7 @@ impl RunRecord {
             wall_ms: 0.0,
             model_ms: None,
             gpu_ms: None,
+            gpu_setup_ms: None,
             error: None,
             execution: [
                 (

@@ -27,5 +27,6 @@ pub fn output(m: Machine, visibility: VisibilityBuffer) -> FrameOutput {
         execution: f.execution,
         warnings: vec![],
         rgb: None,
+        gpu_setup_ms: None,
     }
 }

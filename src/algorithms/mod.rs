@@ -69,7 +69,7 @@ impl MethodLimit {
 pub type CpuEntry<O> = fn(Backend, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
 
 /// The `wgpu` entry of an algorithm whose options are `O`, run inside
-/// [`crate::gpu::guarded_run`].
+/// [`crate::gpu::guarded_frame`].
 pub type WgpuEntry<O> = fn(&crate::gpu::Gpu, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
 
 /// The estimated fill of a run of an algorithm whose options are `O` ([`work`]), made before
@@ -263,7 +263,9 @@ fn run_typed<A: Algorithm>(backend: Backend, frame: &Frame, ctx: &ExecContext) -
     let warning = A::prepare(frame, &mut o);
     let out = match (backend, A::WGPU) {
         (Backend::Wgpu, Some(wgpu)) => {
-            crate::gpu::guarded_run(ctx.deadline, |gpu| wgpu(gpu, frame, ctx, &o))
+            crate::gpu::guarded_frame(ctx.deadline, ctx.gpu_counters, |gpu| {
+                wgpu(gpu, frame, ctx, &o)
+            })
         }
         (Backend::Wgpu, None) => Err(Error::Unsupported(format!(
             "algorithm '{}' has no wgpu execution",
@@ -358,6 +360,8 @@ pub struct ExecContext {
     pub machine: MachineConfig,
     /// When the run must stop (`--run-timeout`); checked cooperatively by every execution.
     pub deadline: Deadline,
+    /// Whether wgpu runs make their instrumented replay (`--gpu-counters`).
+    pub gpu_counters: crate::gpu::GpuCounters,
 }
 
 impl Default for ExecContext {
@@ -368,6 +372,7 @@ impl Default for ExecContext {
             options: BTreeMap::new(),
             machine: MachineConfig::default(),
             deadline: Deadline::default(),
+            gpu_counters: crate::gpu::GpuCounters::On,
         }
     }
 }
@@ -385,6 +390,10 @@ pub struct FrameOutput {
     /// Light received per channel, from algorithms that honour a textured light
     /// ([`check_light_texture`]) when the scene has one.
     pub rgb: Option<RgbBuffer>,
+    /// Host milliseconds of the run's GPU setup (wgpu only: a device acquired, modules and
+    /// pipelines created, [`crate::gpu::cache`]), not part of the run's time; 0 when the
+    /// device and every object were there from an earlier run.
+    pub gpu_setup_ms: Option<f64>,
 }
 
 /// Runs algorithm `id` on `backend` for `frame`. The derived figures of the counters

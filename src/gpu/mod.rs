@@ -11,6 +11,7 @@
 //! reason); the next wgpu run acquires a new device, and the other executions never notice.
 //! [`fault`] injects such faults on purpose, for the robustness tests.
 
+pub mod cache;
 pub mod fault;
 pub mod meshes;
 pub mod pass;
@@ -133,6 +134,34 @@ pub struct Gpu {
     /// (`FLOAT32_BLENDABLE`, requested when the adapter offers it): additive FP32 accumulation
     /// in render passes (soft shadow maps).
     pub float32_blendable: bool,
+    /// The modules, layouts and pipelines made on this device, reused by every run.
+    pub cache: cache::Cache,
+}
+
+/// Whether a wgpu run makes its instrumented replay (`--gpu-counters`, [`ExecContext`]
+/// `gpu_counters`): on, the counters the execution derives from the replay (fill, overdraw,
+/// taps, ...) are recorded; off, the replay is skipped, those counters are absent (listed in
+/// `execution.gpu_counters_absent`, never recorded as zero) and `execution.gpu_counters` is
+/// `"off"`. Times, the image and the pipeline statistics of the timed passes are the same
+/// either way.
+///
+/// [`ExecContext`]: crate::algorithms::ExecContext
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GpuCounters {
+    #[default]
+    On,
+    Off,
+}
+
+impl GpuCounters {
+    /// The value of `--gpu-counters`: `on` or `off`.
+    pub fn parse(s: &str) -> Option<GpuCounters> {
+        match s {
+            "on" => Some(GpuCounters::On),
+            "off" => Some(GpuCounters::Off),
+            _ => None,
+        }
+    }
 }
 
 impl Needs<'_> {
@@ -347,6 +376,14 @@ thread_local! {
     /// The deadline of the wgpu run on this thread ([`guarded_run`]); wgpu runs submit from the
     /// thread that started them.
     static DEADLINE: std::cell::Cell<Deadline> = std::cell::Cell::new(Deadline::default());
+    /// Whether the wgpu run on this thread makes its instrumented replay ([`guarded_run`]).
+    static COUNTERS: std::cell::Cell<GpuCounters> = const { std::cell::Cell::new(GpuCounters::On) };
+}
+
+/// Whether the wgpu run on this thread makes its instrumented replay ([`pass::replay`] and
+/// [`pass::Timing::output`] ask).
+pub(crate) fn counters_mode() -> GpuCounters {
+    COUNTERS.get()
 }
 /// The device in use: acquired on first use, replaced when it is lost. A lost device is leaked
 /// rather than dropped (it is rare, and runs may still hold references to it).
@@ -378,6 +415,11 @@ fn preference() -> Option<String> {
 /// says why there is none (no adapter, no adapter matching the requested name, or the device
 /// request failed).
 pub fn gpu() -> Result<&'static Gpu> {
+    gpu_acquired().map(|(g, _)| g)
+}
+
+/// [`gpu`], and whether this call acquired the device.
+fn gpu_acquired() -> Result<(&'static Gpu, bool)> {
     let mut current = GPU.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(Ok(g)) = current.as_ref() {
         if let Some(why) = g.lost() {
@@ -385,9 +427,11 @@ pub fn gpu() -> Result<&'static Gpu> {
             *current = None;
         }
     }
+    let fresh = current.is_none();
     current
         .get_or_insert_with(|| acquire().map(|g| &*Box::leak(Box::new(g))))
         .clone()
+        .map(|g| (g, fresh))
         .map_err(Error::Gpu)
 }
 
@@ -487,14 +531,11 @@ fn acquire() -> std::result::Result<Gpu, String> {
     let float32_blendable = adapter
         .features()
         .contains(wgpu::Features::FLOAT32_BLENDABLE);
-    let blendable = if float32_blendable {
-        wgpu::Features::FLOAT32_BLENDABLE
-    } else {
-        wgpu::Features::empty()
-    };
+    let optional =
+        adapter.features() & (wgpu::Features::FLOAT32_BLENDABLE | wgpu::Features::PIPELINE_CACHE);
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("shadowbench"),
-        required_features: queries.features() | blendable,
+        required_features: queries.features() | optional,
         required_limits: limits.clone(),
         ..Default::default()
     }))
@@ -513,6 +554,17 @@ fn acquire() -> std::result::Result<Gpu, String> {
             format!("{reason:?}: {message}")
         });
     });
+    // SAFETY: `create_pipeline_cache` is unsafe only for its initial `data`, which must come
+    // from `PipelineCache::get_data`; the cache starts empty and lives in memory only.
+    let driver = optional
+        .contains(wgpu::Features::PIPELINE_CACHE)
+        .then(|| unsafe {
+            device.create_pipeline_cache(&wgpu::PipelineCacheDescriptor {
+                label: Some("shadowbench pipelines"),
+                data: None,
+                fallback: true,
+            })
+        });
     Ok(Gpu {
         device,
         queue,
@@ -521,6 +573,7 @@ fn acquire() -> std::result::Result<Gpu, String> {
         limits,
         lost,
         float32_blendable,
+        cache: cache::Cache::new(driver),
     })
 }
 
@@ -535,10 +588,43 @@ fn acquire() -> std::result::Result<Gpu, String> {
 /// time of each submission, which [`timing`] checks GPU times against, is the run's own and
 /// not time spent waiting behind another thread's work.
 pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
+    guarded(deadline, GpuCounters::On, f).map(|(out, _)| out)
+}
+
+/// A wgpu execution's run of one frame, as [`guarded_run`]; with `counters` off it skips its
+/// instrumented replay ([`GpuCounters`]). The run's GPU setup (a device acquired, modules and
+/// pipelines created: [`cache`]) is measured apart and returned in the output's
+/// `gpu_setup_ms` and `execution.gpu_setup`, so that the harness leaves it out of the run's
+/// wall time.
+pub fn guarded_frame(
+    deadline: Deadline,
+    counters: GpuCounters,
+    f: impl FnOnce(&'static Gpu) -> Result<crate::algorithms::FrameOutput>,
+) -> Result<crate::algorithms::FrameOutput> {
+    let (mut out, setup) = guarded(deadline, counters, f)?;
+    out.gpu_setup_ms = Some(setup.ms());
+    out.execution.insert("gpu_setup".into(), setup.to_json());
+    Ok(out)
+}
+
+/// [`guarded_run`] with `counters`, and the run's GPU setup.
+fn guarded<T>(
+    deadline: Deadline,
+    counters: GpuCounters,
+    f: impl FnOnce(&'static Gpu) -> Result<T>,
+) -> Result<(T, cache::Setup)> {
     static ONE_RUN: Mutex<()> = Mutex::new(());
     let _running = ONE_RUN.lock().unwrap_or_else(|e| e.into_inner());
-    let gpu = gpu()?;
+    let start = std::time::Instant::now();
+    let (gpu, fresh) = gpu_acquired()?;
+    let device_ms = if fresh {
+        start.elapsed().as_secs_f64() * 1e3
+    } else {
+        0.0
+    };
+    gpu.cache.begin_run();
     DEADLINE.set(deadline);
+    COUNTERS.set(counters);
     let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
     fault::inject(gpu);
@@ -546,10 +632,17 @@ pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result
     // panic is caught here so that the error scopes are popped and the loss is reported.
     let out = catch_unwind(AssertUnwindSafe(|| f(gpu)));
     DEADLINE.set(Deadline::default());
+    COUNTERS.set(GpuCounters::On);
     let v = pollster::block_on(validation.pop());
     let o = pollster::block_on(oom.pop());
     // Polling delivers a pending device-lost notice before it is checked.
     let _ = gpu.device.poll(wgpu::PollType::Poll);
+    let ok = matches!(out, Ok(Ok(_))) && v.is_none() && o.is_none() && gpu.lost().is_none();
+    let setup = cache::Setup {
+        device_ms,
+        driver_cache: gpu.cache.driver.is_some(),
+        ..gpu.cache.end_run(ok)
+    };
     if let Some(why) = gpu.lost() {
         return Err(Error::Gpu(format!("device lost during the run: {why}")));
     }
@@ -565,7 +658,7 @@ pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result
     })?;
     match (v, o) {
         (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(e.to_string())),
-        (None, None) => out,
+        (None, None) => out.map(|out| (out, setup)),
     }
 }
 

@@ -13,6 +13,7 @@
 //!    passes, the counters the execution derives from the replay plus the pipeline
 //!    statistics), their counters summed, and the record's `execution` entries.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use crate::algorithms::FrameOutput;
@@ -20,10 +21,11 @@ use crate::error::Result;
 use crate::record::{Counters, Phase};
 use crate::visibility::VisibilityBuffer;
 
+use super::cache::Kind;
 use super::readback::{words, Staging};
 use super::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use super::timing::{self, read_ms_or_warn, GpuTimes, PassTimer};
-use super::{gbuffer_positions, resolve_queries, Gpu};
+use super::{counters_mode, gbuffer_positions, resolve_queries, Gpu, GpuCounters};
 use crate::frame::GBuffer;
 
 /// Declares a `#[repr(C)]` struct the GPU reads (a uniform or storage buffer) once, for both
@@ -144,23 +146,29 @@ impl Bind {
 pub struct Layout {
     pub layout: wgpu::BindGroupLayout,
     bindings: Vec<u32>,
+    /// What determines the layout (its stages and binds), for the device's [`super::cache`].
+    key: String,
 }
 
 impl Layout {
-    /// The layout of `binds` (binding `i` at index `i`) visible to `stages`.
+    /// The layout of `binds` (binding `i` at index `i`) visible to `stages`: made once per
+    /// device ([`super::cache`]; `label` is the first maker's).
     pub fn new(gpu: &Gpu, label: &str, stages: wgpu::ShaderStages, binds: &[Bind]) -> Layout {
         let entries: Vec<_> = (0u32..)
             .zip(binds)
             .filter_map(|(i, b)| b.entry(i, stages))
             .collect();
+        let key = format!("{stages:?}{binds:?}");
         Layout {
-            layout: gpu
-                .device
-                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some(label),
-                    entries: &entries,
-                }),
+            layout: gpu.cache.get(Kind::BindGroupLayout, key.clone(), || {
+                gpu.device
+                    .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                        label: Some(label),
+                        entries: &entries,
+                    })
+            }),
             bindings: entries.iter().map(|e| e.binding).collect(),
+            key,
         }
     }
 
@@ -343,12 +351,16 @@ pub fn view(v: &wgpu::TextureView) -> wgpu::BindingResource<'_> {
 pub struct Program {
     pub module: wgpu::ShaderModule,
     pub layout: wgpu::PipelineLayout,
+    /// What determines the module and the layout (the module's number in the device's
+    /// [`super::cache`], the groups' keys), the start of its pipelines' keys.
+    key: String,
 }
 
 /// A render pipeline of a [`Program`]: entry points, vertex input, depth test and colour
 /// target. [`Raster::default`] is a depth-only pass (Depth32Float, `Less`, written) of
-/// triangle lists drawn from both sides.
-#[derive(Clone)]
+/// triangle lists drawn from both sides. Its `Debug` text holds every field: with the program's
+/// key it keys the pipeline in the device's [`super::cache`].
+#[derive(Clone, Debug)]
 pub struct Raster<'a> {
     pub vs: &'a str,
     pub fs: &'a str,
@@ -402,43 +414,63 @@ fn overrides(instrument: Option<bool>) -> Vec<(&'static str, f64)> {
 impl Program {
     /// The module joined from `sources` (a prelude first, then the execution's WGSL, then any
     /// WGSL it appends), with a pipeline layout of `groups` (a `None` leaves a group number
-    /// unused).
+    /// unused). Both are made once per device ([`super::cache`]: the module keyed by its text, the
+    /// layout by its groups); `label` is the first maker's.
     pub fn new(gpu: &Gpu, label: &str, sources: &[&str], groups: &[Option<&Layout>]) -> Program {
+        static MODULES: AtomicU64 = AtomicU64::new(0);
         let device = &gpu.device;
-        let layouts: Vec<_> = groups.iter().map(|g| g.map(|l| &l.layout)).collect();
-        Program {
-            module: device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        let source = sources.join("\n");
+        let (number, module) = gpu.cache.get(Kind::Module, source.clone(), || {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(label),
-                source: wgpu::ShaderSource::Wgsl(sources.join("\n").into()),
-            }),
-            layout: device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+            (MODULES.fetch_add(1, Ordering::Relaxed), module)
+        });
+        let layout_key = groups
+            .iter()
+            .map(|g| g.map_or("-", |l| l.key.as_str()))
+            .collect::<Vec<_>>()
+            .join("|");
+        let layout = gpu.cache.get(Kind::PipelineLayout, layout_key.clone(), || {
+            let layouts: Vec<_> = groups.iter().map(|g| g.map(|l| &l.layout)).collect();
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(label),
                 bind_group_layouts: &layouts,
                 immediate_size: 0,
-            }),
+            })
+        });
+        Program {
+            module,
+            layout,
+            key: format!("module {number} layout {layout_key}"),
         }
     }
 
-    /// The compute pipeline of `entry`, with `INSTRUMENT` set where given.
+    /// The compute pipeline of `entry`, with `INSTRUMENT` set where given; made once per
+    /// device ([`super::cache`]).
     pub fn compute(
         &self,
         gpu: &Gpu,
         entry: &str,
         instrument: Option<bool>,
     ) -> wgpu::ComputePipeline {
-        let constants = overrides(instrument);
-        gpu.device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: Some(&self.layout),
-                module: &self.module,
-                entry_point: Some(entry),
-                compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &constants,
-                    ..Default::default()
-                },
-                cache: None,
-            })
+        let key = format!("{} {entry} {instrument:?}", self.key);
+        gpu.cache.get(Kind::ComputePipeline, key, || {
+            let constants = overrides(instrument);
+            gpu.device
+                .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(entry),
+                    layout: Some(&self.layout),
+                    module: &self.module,
+                    entry_point: Some(entry),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: &constants,
+                        ..Default::default()
+                    },
+                    cache: gpu.cache.driver.as_ref(),
+                })
+        })
     }
 
     /// The timed (`INSTRUMENT` off) and counting (on) pipelines of a compute `entry`.
@@ -457,8 +489,14 @@ impl Program {
         })
     }
 
-    /// The render pipeline `r`.
+    /// The render pipeline `r`; made once per device ([`super::cache`]).
     pub fn render(&self, gpu: &Gpu, r: &Raster) -> wgpu::RenderPipeline {
+        let key = format!("{} {r:?}", self.key);
+        gpu.cache
+            .get(Kind::RenderPipeline, key, || self.make_render(gpu, r))
+    }
+
+    fn make_render(&self, gpu: &Gpu, r: &Raster) -> wgpu::RenderPipeline {
         let constants = overrides(r.instrument);
         let buffers: Vec<_> = r
             .vertex
@@ -505,7 +543,7 @@ impl Program {
                     targets: if r.color.is_some() { &targets } else { &[] },
                 }),
                 multiview_mask: None,
-                cache: None,
+                cache: gpu.cache.driver.as_ref(),
             })
     }
 }
@@ -884,12 +922,26 @@ impl Timing<'_> {
     /// counters of all phases summed, the GPU time of all passes, and in `execution` the
     /// adapter, how the GPU time was obtained, the readback time and `note` (how the counters
     /// were obtained).
+    ///
+    /// With the run's counters off ([`GpuCounters::Off`]: no instrumented replay) `counters`
+    /// are left out, since they were derived from the skipped replay (alone or with host
+    /// figures): `execution.gpu_counters` is `"off"` and `execution.gpu_counters_absent` names
+    /// them. The pipeline statistics of the timed passes stay.
     pub fn output(
         self,
         (width, height): (u32, u32),
         counters: Vec<Counters>,
         note: &str,
     ) -> FrameOutput {
+        let off = counters_mode() == GpuCounters::Off;
+        let absent: std::collections::BTreeSet<String> = match off {
+            true => counters.iter().flat_map(|c| c.0.keys().cloned()).collect(),
+            false => Default::default(),
+        };
+        let counters = match off {
+            true => vec![Counters::default(); counters.len()],
+            false => counters,
+        };
         let mut phases: Vec<Phase> = self
             .names
             .iter()
@@ -935,7 +987,12 @@ impl Timing<'_> {
         let mut execution = self.gpu.execution();
         self.times.record(&mut execution);
         execution.insert("readback_ms".into(), serde_json::json!(self.readback_ms));
-        execution.insert("gpu_counters".into(), serde_json::json!(note));
+        if off {
+            execution.insert("gpu_counters".into(), serde_json::json!("off"));
+            execution.insert("gpu_counters_absent".into(), serde_json::json!(absent));
+        } else {
+            execution.insert("gpu_counters".into(), serde_json::json!(note));
+        }
         FrameOutput {
             visibility: VisibilityBuffer {
                 width,
@@ -949,6 +1006,7 @@ impl Timing<'_> {
             execution,
             warnings: self.warnings,
             rgb: None,
+            gpu_setup_ms: None,
         }
     }
 }
@@ -964,7 +1022,20 @@ pub enum Step<'a> {
 }
 
 /// Runs `steps` in one submission and returns the bytes of every [`Step::Read`] in order.
+///
+/// With the run's counters off ([`GpuCounters::Off`]) nothing is submitted and every read
+/// comes back as zeros of its buffer's size: what the execution derives from them never reaches
+/// the record ([`Timing::output`] leaves the counters out).
 pub fn replay(gpu: &Gpu, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
+    if counters_mode() == GpuCounters::Off {
+        return Ok(steps
+            .iter()
+            .filter_map(|s| match s {
+                Step::Read(b) => Some(vec![0; b.size() as usize]),
+                _ => None,
+            })
+            .collect());
+    }
     let stagings: Vec<(usize, Staging)> = steps
         .iter()
         .enumerate()

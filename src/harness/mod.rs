@@ -169,6 +169,9 @@ pub fn run_one(
             record.phases = out.phases.clone();
             record.model_ms = out.model_ms;
             record.gpu_ms = out.gpu_ms;
+            // GPU setup is paid once per process, not by the frame: apart from its time.
+            record.gpu_setup_ms = out.gpu_setup_ms;
+            record.wall_ms -= out.gpu_setup_ms.unwrap_or(0.0);
             record.execution.extend(out.execution.clone());
             record.warnings = out.warnings.clone();
             check_gpu_time(&mut record);
@@ -287,6 +290,8 @@ pub struct RunOptions {
     pub run_timeout: Option<std::time::Duration>,
     /// What is printed while the sweep runs.
     pub verbosity: Verbosity,
+    /// Whether wgpu runs make their instrumented replay (`--gpu-counters`).
+    pub gpu_counters: crate::gpu::GpuCounters,
 }
 
 /// What `run` prints while it works.
@@ -442,6 +447,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             .clone()
             .unwrap_or_else(|| loaded.machine.clone()),
         deadline: Deadline::default(),
+        gpu_counters: opts.gpu_counters,
     };
     let timeout = opts
         .run_timeout

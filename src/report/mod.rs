@@ -276,6 +276,7 @@ pub(crate) mod testdata {
             wall_ms: 3.0 + triangles as f64 / 1000.0,
             model_ms: Some(1.0 + triangles as f64 / 100.0),
             gpu_ms: None,
+            gpu_setup_ms: None,
             error: Some(ErrorMetrics {
                 mae: Some(0.01),
                 rmse: Some(0.02),

@@ -10,6 +10,7 @@ mod dbuffer;
 mod degenerate;
 mod every_algorithm;
 mod gpu_check;
+mod gpu_sweep;
 mod host_model;
 mod interrupt;
 mod light_definition;

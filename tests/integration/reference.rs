@@ -129,6 +129,7 @@ fn cached_sweep(
             max_cases: shadowbench::scenario::MAX_CASES,
             run_timeout: None,
             verbosity: shadowbench::harness::Verbosity::Quiet,
+            gpu_counters: Default::default(),
         },
     )
     .unwrap()

@@ -23,6 +23,7 @@ fn run(loaded: &Loaded, out: &Path, cache: &Path, shard: Option<Shard>) -> Vec<R
             max_cases: shadowbench::scenario::MAX_CASES,
             run_timeout: None,
             verbosity: harness::Verbosity::Quiet,
+            gpu_counters: Default::default(),
         },
     )
     .unwrap()

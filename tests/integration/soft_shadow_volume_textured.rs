@@ -376,6 +376,7 @@ fn a_textured_run_writes_the_rgb_image() {
             max_cases: shadowbench::scenario::MAX_CASES,
             run_timeout: None,
             verbosity: shadowbench::harness::Verbosity::Quiet,
+            gpu_counters: Default::default(),
         },
     )
     .unwrap();

@@ -143,6 +143,7 @@ pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) 
         model_ms: None,
         gpu_ms: None,
         execution: [("samples".to_string(), serde_json::json!(k * k))].into(),
+        gpu_setup_ms: None,
         warnings: vec![],
         rgb,
     }
