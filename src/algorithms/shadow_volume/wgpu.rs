@@ -287,6 +287,34 @@ fn face_records(rays: &EyeRays, faces: &[VolumeFace]) -> Vec<[u32; 24]> {
         .collect()
 }
 
+/// The shadow quads as the WGSL reads them (`Quad`, 80 bytes): a with the eye's side, b, the
+/// light point, the normal, and the footprint `footprints` gives.
+pub(crate) fn quad_records(
+    rays: &EyeRays,
+    quads: &[ShadowQuad],
+    footprints: &[Option<ScreenRect>],
+) -> Vec<[u32; 20]> {
+    quads
+        .iter()
+        .zip(footprints)
+        .map(|(q, f)| {
+            let mut w = [0u32; 20];
+            let eye_side = q.side(rays.eye);
+            for (k, v) in [q.a.extend(eye_side), q.b.extend(0.0)]
+                .into_iter()
+                .chain([q.light.extend(0.0), q.normal.extend(0.0)])
+                .enumerate()
+            {
+                for c in 0..4 {
+                    w[4 * k + c] = v[c].to_bits();
+                }
+            }
+            w[16..20].copy_from_slice(&rect(f));
+            w
+        })
+        .collect()
+}
+
 /// What the hard phase uploaded for one loop: the hard pass's bind group, the params, quads and
 /// bins buffers the soft pass binds too, and the counts its counters need.
 pub(crate) struct HardUpload {
@@ -303,7 +331,9 @@ pub(crate) struct VolumePasses<'g> {
     pub gpu: &'g Gpu,
     pub counting: Counting,
     pub res: FrameResources,
-    layout: Layout,
+    /// Group 0 of every pass, visible to compute and fragment shaders (the raster wedge pass
+    /// of `soft_shadow_volume` binds it too).
+    pub layout: Layout,
     pub program: Program,
     /// The hard pass: timed, counting.
     hard: [wgpu::ComputePipeline; 2],
@@ -333,7 +363,8 @@ impl<'g> VolumePasses<'g> {
                 _ => Bind::ReadWrite,
             })
             .collect();
-        let layout = Layout::new(gpu, "shadow volumes", wgpu::ShaderStages::COMPUTE, &binds);
+        let stages = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
+        let layout = Layout::new(gpu, "shadow volumes", stages, &binds);
         let sources = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL];
         let program = Program::new(gpu, "shadow_volume/wgpu.wgsl", &sources, &[Some(&layout)]);
         VolumePasses {
@@ -383,25 +414,7 @@ impl<'g> VolumePasses<'g> {
         let gpu = self.gpu;
         let storage = wgpu::BufferUsages::STORAGE;
         let footprints = quad_footprints(rays, quads);
-        let records: Vec<[u32; 20]> = quads
-            .iter()
-            .zip(&footprints)
-            .map(|(q, f)| {
-                let mut w = [0u32; 20];
-                let eye_side = q.side(rays.eye);
-                for (k, v) in [q.a.extend(eye_side), q.b.extend(0.0)]
-                    .into_iter()
-                    .chain([q.light.extend(0.0), q.normal.extend(0.0)])
-                    .enumerate()
-                {
-                    for c in 0..4 {
-                        w[4 * k + c] = v[c].to_bits();
-                    }
-                }
-                w[16..20].copy_from_slice(&rect(f));
-                w
-            })
-            .collect();
+        let records = quad_records(rays, quads, &footprints);
         let faces = (self.counting == Counting::ZFail)
             .then(|| zfail_faces(quads, &self.occluders, light, &rays.bounds));
         let (quad_bins, entries) = match &faces {

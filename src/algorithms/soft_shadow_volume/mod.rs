@@ -24,6 +24,7 @@
 //! half-axes, so a rectangle is `[−1, 1]²` and a sphere's disc is the unit disc.
 
 pub mod cpu;
+pub mod raster;
 pub mod wgpu;
 
 use std::collections::HashMap;
@@ -666,6 +667,26 @@ pub struct SoftShadowVolumeOptions {
     pub light_split: u32,
     /// Pass 1's counting (III §3.2.1 with z-pass, Paper II §5 z-fail with capped volumes).
     pub counting: Counting,
+    /// The GPU pipeline of the `wgpu` execution ([`GpuPipeline`]): `"raster"` (default) or
+    /// `"gather"`; the cpu executions ignore it. The run's `execution.gpu_pipeline` records
+    /// which one ran.
+    pub gpu_pipeline: GpuPipeline,
+}
+
+/// How the `wgpu` execution renders the two passes (option `gpu_pipeline`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GpuPipeline {
+    /// As the thesis renders it (III §3.2, §4; IV §4): the hard shadow quads (or capped
+    /// volumes) rasterized into a count target, then each wedge's front faces rasterized with a
+    /// fragment shader adding or subtracting the coverage into the V-buffer by additive
+    /// blending ([`raster`]).
+    #[default]
+    Raster,
+    /// Compute passes over the eye pixels: each pixel walks the quads and wedge primitives
+    /// binned to its 8×8 tile on the host and casts its eye ray against them, as the cpu
+    /// executions do ([`wgpu`]).
+    Gather,
 }
 
 impl Default for SoftShadowVolumeOptions {
@@ -679,6 +700,7 @@ impl Default for SoftShadowVolumeOptions {
             overlap_approximation: false,
             light_split: 1,
             counting: Counting::ZPass,
+            gpu_pipeline: GpuPipeline::Raster,
         }
     }
 }
@@ -761,6 +783,11 @@ impl Algorithm for SoftShadowVolume {
         r#"{"wedge_culling": false, "tighter_wedges": false}"#,
         r#"{"light_split": 2, "overlap_approximation": true}"#,
         r#"{"counting": "z_fail"}"#,
+        r#"{"gpu_pipeline": "gather"}"#,
+        r#"{"coverage": "texture", "vbuffer": "split12", "gpu_pipeline": "gather"}"#,
+        r#"{"wedge_culling": false, "tighter_wedges": false, "gpu_pipeline": "gather"}"#,
+        r#"{"light_split": 2, "overlap_approximation": true, "gpu_pipeline": "gather"}"#,
+        r#"{"counting": "z_fail", "gpu_pipeline": "gather"}"#,
     ];
     const CPU: CpuEntry<SoftShadowVolumeOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<SoftShadowVolumeOptions>> = Some(wgpu::render);
