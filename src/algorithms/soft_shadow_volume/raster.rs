@@ -42,7 +42,9 @@ use glam::Vec3;
 use super::wgpu::{soft_counters, LoopRun, WedgeRecords, WGSL as SOFT_WGSL};
 use super::{SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
-use crate::algorithms::shadow_volume::raster::{eye_projection, hard_triangles, target, HardRaster};
+use crate::algorithms::shadow_volume::raster::{
+    eye_projection, hard_triangles, target, HardRaster,
+};
 use crate::algorithms::shadow_volume::wgpu::{
     quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
     WGSL as FAMILY_WGSL,
@@ -63,12 +65,20 @@ const WGSL: &str = include_str!("raster.wgsl");
 /// Bytes of a wedge vertex: clip position and the primitive's index.
 const VERTEX_BYTES: u64 = 20;
 
-/// The front faces (the eye strictly outside their plane) of `volume` cut to `bounds`, as
-/// triangles (three points each): each face is a square on its plane reaching past the bounds,
-/// clipped by every other plane (Sutherland–Hodgman), fanned from its first corner.
-pub fn front_faces(volume: &ConvexVolume, bounds: &Bounds, eye: Vec3) -> Vec<Vec3> {
+/// The front faces (the eye strictly outside their plane) of `volume` cut to `bounds` and to
+/// the half-space in front of plane `near` (`n·x ≤ d` kept, the eye outside: a primitive that
+/// contains the eye is entered through it), as triangles (three points each): each face is a
+/// square on its plane reaching past the bounds, clipped by every other plane
+/// (Sutherland–Hodgman), fanned from its first corner.
+pub fn front_faces(
+    volume: &ConvexVolume,
+    bounds: &Bounds,
+    near: (Vec3, f32),
+    eye: Vec3,
+) -> Vec<Vec3> {
     let (lo, hi) = (bounds.min, bounds.max);
     let mut planes = volume.planes.clone();
+    planes.push(near);
     for (k, axis) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
         planes.extend([(axis, hi[k]), (-axis, -lo[k])]);
     }
@@ -151,7 +161,10 @@ pub(super) fn run(
     let textured = res.channels == 3;
     let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), "");
     let (format, entries) = match (split, textured) {
-        (true, _) => (wgpu::TextureFormat::Rgba8Unorm, &["fs_wedge_add", "fs_wedge_sub"][..]),
+        (true, _) => (
+            wgpu::TextureFormat::Rgba8Unorm,
+            &["fs_wedge_add", "fs_wedge_sub"][..],
+        ),
         (false, true) => (wgpu::TextureFormat::Rgba32Float, &["fs_wedge"][..]),
         (false, false) => (wgpu::TextureFormat::R32Float, &["fs_wedge"][..]),
     };
@@ -164,8 +177,12 @@ pub(super) fn run(
         gpu,
         "ssv targets",
         stages,
-        &[&hard.count, &vbuffers[0], vbuffers.last().unwrap_or(&vbuffers[0])]
-            .map(|t| (Bind::Float, view(t))),
+        &[
+            &hard.count,
+            &vbuffers[0],
+            vbuffers.last().unwrap_or(&vbuffers[0]),
+        ]
+        .map(|t| (Bind::Float, view(t))),
     );
     let sources = [
         Params::WGSL,
@@ -217,6 +234,12 @@ pub(super) fn run(
     let counting = pipeline(entries[0], true);
     let resolve = resolve_program.compute(gpu, "resolve_soft", Some(false));
     let projection = eye_projection(rays, &frame.scene.camera);
+    let camera = &frame.scene.camera;
+    let forward = (camera.target - camera.eye).normalize_or(Vec3::NEG_Z);
+    let near = (
+        -forward,
+        -forward.dot(rays.eye) - 1e-3 * rays.bounds.diagonal(),
+    );
     let mut box_bounds = rays.bounds;
     let margin = Vec3::splat(1e-3 * rays.bounds.diagonal());
     (box_bounds.min, box_bounds.max) = (box_bounds.min - margin, box_bounds.max + margin);
@@ -252,7 +275,7 @@ pub(super) fn run(
             let w = WedgeRecords::new(rays, lr, &quads, opts);
             let mut vertices: Vec<[f32; 5]> = Vec::new();
             for (i, p) in w.prims.iter().enumerate() {
-                for x in front_faces(&p.volume, &box_bounds, rays.eye) {
+                for x in front_faces(&p.volume, &box_bounds, near, rays.eye) {
                     let c = projection * x.extend(1.0);
                     vertices.push([c.x, c.y, c.z, c.w, i as f32]);
                 }
@@ -264,7 +287,11 @@ pub(super) fn run(
                 wgpu::BufferUsages::UNIFORM,
             );
             let no_footprints = vec![None; quads.len()];
-            let quad_buf = gpu.upload("quads", &quad_records(rays, &quads, &no_footprints), storage);
+            let quad_buf = gpu.upload(
+                "quads",
+                &quad_records(rays, &quads, &no_footprints),
+                storage,
+            );
             let prims = gpu.upload("wedge primitives", &w.records, storage);
             let planes = gpu.upload("wedge planes", &w.planes, storage);
             let group = v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft");
@@ -275,7 +302,9 @@ pub(super) fn run(
         let mut passes: Vec<Pass> = timed
             .iter()
             .zip(&vbuffers)
-            .map(|(pipeline, color)| wedge_pass(&group, pipeline, color, &hard, &wedge, wedge_vertices))
+            .map(|(pipeline, color)| {
+                wedge_pass(&group, pipeline, color, &hard, &wedge, wedge_vertices)
+            })
             .collect();
         let groups = [Some(&group), Some(&read_targets)];
         passes.push(Pass::compute("resolve", &groups, &resolve, tiles(size, 8)));
@@ -331,10 +360,21 @@ pub(super) fn run(
             lg.wedge_vertices,
         );
         let stat = v.replay(vec![pass])?;
-        let vertices = ("wedge_vertices", VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices));
+        let vertices = (
+            "wedge_vertices",
+            VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices),
+        );
         let (channels, pixels) = (v.res.channels, v.pixels);
         let k = &mut per_phase[2];
-        soft_counters(k, opts, channels, pixels, &lg.wedges.counts, vertices, &stat);
+        soft_counters(
+            k,
+            opts,
+            channels,
+            pixels,
+            &lg.wedges.counts,
+            vertices,
+            &stat,
+        );
     }
     let note = "fill, overdraw, shader invocations and culls from an instrumented replay of the \
                 count and wedge passes (depth test off, WGSL atomics), in the cpu-model's terms; \

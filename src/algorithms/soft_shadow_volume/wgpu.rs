@@ -1,5 +1,11 @@
-//! `soft_shadow_volume` on wgpu: the two passes of III §3.2 as compute passes over the eye
-//! pixels (`wgpu.wgsl`), per silhouette loop and sub-light as on the cpu executions.
+//! `soft_shadow_volume` on wgpu, in one of two pipelines (option `gpu_pipeline`, recorded as
+//! `execution.gpu_pipeline`): `"raster"` (default), the thesis' render pipeline
+//! ([`super::raster`]), or `"gather"`, this module's compute passes. Both share the loops and
+//! sub-lights set up here, the wedges ([`WedgeRecords`]), and in `wgpu.wgsl` the per-pixel
+//! coverage (`wedge_sample`) and the combination of loops and sub-lights (`combine`).
+//!
+//! The gather: the two passes of III §3.2 as compute passes over the eye pixels
+//! (`wgpu.wgsl`), per silhouette loop and sub-light as on the cpu executions.
 //!
 //! - `hard` (III §3.2.1): the family's hard pass ([`crate::algorithms::shadow_volume::wgpu`]:
 //!   shadow quads from the silhouette seen from the light centre, or the capped volumes' faces
@@ -42,8 +48,8 @@ use serde_json::json;
 
 use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach, WedgePrimitive};
 use super::{
-    silhouette_loops, split_light, CoverageMethod, CoverageTexture, EmitterShape,
-    GpuPipeline, SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
+    silhouette_loops, split_light, CoverageMethod, CoverageTexture, EmitterShape, GpuPipeline,
+    SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
 };
 use crate::algorithms::eye_raster::{EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::wgpu::{
@@ -168,7 +174,9 @@ pub fn render(
     out.warnings.extend(warnings);
     let accumulation = match opts.gpu_pipeline {
         GpuPipeline::Raster => "additive blending of the wedges' fragments in rasterization order",
-        GpuPipeline::Gather => "per-pixel gather over 8x8-tile bins in submission order, no atomics",
+        GpuPipeline::Gather => {
+            "per-pixel gather over 8x8-tile bins in submission order, no atomics"
+        }
     };
     let e = &mut out.execution;
     let pipeline = opts.gpu_pipeline;
@@ -399,7 +407,15 @@ impl<'g> Passes<'g> {
             let bins = (WORD * (lg.bin_entries + 2 * self.tiles())) as f64;
             let (pixels, index) = (self.v.pixels, ("wedge_bins", bins));
             let k = &mut per_phase[2];
-            soft_counters(k, &self.opts, res.channels, pixels, &lg.wedges, index, &stat);
+            soft_counters(
+                k,
+                &self.opts,
+                res.channels,
+                pixels,
+                &lg.wedges,
+                index,
+                &stat,
+            );
         }
         let note =
             "fill, overdraw, shader invocations and culls from an instrumented replay (WGSL \

@@ -1,6 +1,9 @@
 // soft_shadow_volume's soft pass (paper 001, Papers III and IV), joined after
-// src/algorithms/shadow_volume/wgpu.wgsl (parameters, bindings, `count`, the hard pass).
-// Every function names the Rust it mirrors.
+// src/algorithms/shadow_volume/wgpu.wgsl (parameters, bindings, `count`, the hard pass): the
+// per-pixel coverage of a wedge primitive (`wedge_sample`) and the combination of loops and
+// sub-lights (`combine`), shared by the gather's `soft` entry below and the raster pipeline's
+// fragment shader and resolve (raster.wgsl, joined after this file). Every function names the
+// Rust it mirrors.
 
 // `ConvexVolume::ray_interval`; x > y when the ray misses.
 fn ray_interval(first: u32, n: u32, o: vec3f, d: vec3f, t0_in: f32, t1_in: f32) -> vec2f {
