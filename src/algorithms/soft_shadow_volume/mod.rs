@@ -798,13 +798,7 @@ impl Algorithm for SoftShadowVolume {
     const WGPU_PARITY: WgpuParity = WgpuParity {
         mae: 2.5e-3,
         frac_over_0_1: 0.01,
-        differ: &[
-            ("fill", Some(0.03)),
-            ("overdraw", Some(0.03)),
-            ("shader_invocations", Some(0.03)),
-            ("culled_fragments", Some(0.03)),
-            ("fragments_inside_wedges", Some(0.03)),
-        ],
+        differ: &[("fill", Some(0.03)), ("overdraw", Some(0.03))],
     };
     const CPU: CpuEntry<SoftShadowVolumeOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<SoftShadowVolumeOptions>> = Some(wgpu::render);

@@ -46,7 +46,7 @@ use crate::algorithms::shadow_volume::raster::{
     eye_projection, hard_triangles, target, HardRaster,
 };
 use crate::algorithms::shadow_volume::wgpu::{
-    quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
+    bins, quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
     WGSL as FAMILY_WGSL,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
@@ -130,10 +130,10 @@ struct LoopRaster {
     eye_count: i32,
     caps: u64,
     quads: u64,
-    group: wgpu::BindGroup,
-    wedge: wgpu::Buffer,
     wedge_vertices: u32,
     wedges: WedgeRecords,
+    /// Params, quads, wedge primitives, planes and an empty buffer, for the counting replay.
+    buffers: [wgpu::Buffer; 5],
 }
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
@@ -159,7 +159,7 @@ pub(super) fn run(
     let occluders = frame.scene.occluders();
     let hard = HardRaster::new(gpu, rays, &frame.scene.camera, opts.counting, 1);
     let textured = res.channels == 3;
-    let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), "");
+    let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), SOFT_WGSL);
     let (format, entries) = match (split, textured) {
         (true, _) => (
             wgpu::TextureFormat::Rgba8Unorm,
@@ -231,7 +231,6 @@ pub(super) fn run(
         )
     };
     let timed: Vec<wgpu::RenderPipeline> = entries.iter().map(|e| pipeline(e, false)).collect();
-    let counting = pipeline(entries[0], true);
     let resolve = resolve_program.compute(gpu, "resolve_soft", Some(false));
     let projection = eye_projection(rays, &frame.scene.camera);
     let camera = &frame.scene.camera;
@@ -271,7 +270,7 @@ pub(super) fn run(
             _ => run.submit(0, &[count])?,
         }
         // Wedges (III §3.1, IV §4.1) and their front faces, on the host.
-        let (group, wedge, wedge_vertices, wedges) = run.host(1, || {
+        let (group, wedge, wedge_vertices, wedges, buffers) = run.host(1, || {
             let w = WedgeRecords::new(rays, lr, &quads, opts);
             let mut vertices: Vec<[f32; 5]> = Vec::new();
             for (i, p) in w.prims.iter().enumerate() {
@@ -296,7 +295,8 @@ pub(super) fn run(
             let planes = gpu.upload("wedge planes", &w.planes, storage);
             let group = v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft");
             let vb = gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX);
-            (group, vb, vertices.len() as u32, w)
+            let buffers = [params, quad_buf, prims, planes, none];
+            (group, vb, vertices.len() as u32, w, buffers)
         });
         // Pass 2: penumbra wedges (III §3.2.2), then the loop's V-buffer and combination.
         let mut passes: Vec<Pass> = timed
@@ -315,13 +315,13 @@ pub(super) fn run(
             eye_count,
             caps,
             quads: quads.len() as u64,
-            group,
-            wedge,
             wedge_vertices,
             wedges,
+            buffers,
         });
     }
     let timing = run.finish()?;
+    let soft_counting = v.program.compute(gpu, "soft", Some(true));
     let rgb = timing.readback.get(1).map(|b| RgbBuffer {
         width: rays.width,
         height: rays.height,
@@ -351,15 +351,14 @@ pub(super) fn run(
         k.add_traffic("mem_est", &reads, &[(target, passed * count_bytes)]);
         per_phase[1].add("wedges", lg.wedges.counts.wedges as f64);
         per_phase[1].add("wedges_degenerate", lg.wedges.counts.degenerate as f64);
-        let pass = wedge_pass(
-            &lg.group,
-            &counting,
-            &vbuffers[0],
-            &hard,
-            &lg.wedge,
-            lg.wedge_vertices,
-        );
-        let stat = v.replay(vec![pass])?;
+        // The soft pass counted by the gather's instrumented compute pass over the same
+        // primitives (all binned to every tile they cover, no coarse test).
+        let w = &lg.wedges;
+        let (bins_vec, _) = bins(rays, &w.footprints, |_, _| true);
+        let bins_buf = gpu.upload("wedge bins", &bins_vec, storage);
+        let [params, quad_buf, prims, planes, none] = &lg.buffers;
+        let group = v.group(params, [quad_buf, prims, planes, none, &bins_buf], "soft");
+        let stat = v.replay(vec![v.pass("soft", &soft_counting, &group)])?;
         let vertices = (
             "wedge_vertices",
             VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices),

@@ -22,22 +22,10 @@ fn vs_wedge(@location(0) clip: vec4f, @location(1) prim: f32) -> WedgeOut {
     return WedgeOut(clip, u32(prim));
 }
 
-// One fragment of primitive `prim`: `wedge_sample` of its pixel's ray; the instrumented pipeline
-// (depth test off) counts in the cpu-model's terms (`SoftPass::block`): every rasterized
-// fragment (tests), those whose ray meets the primitive (fill), whose point is behind its entry
-// (front) and inside it (inside), covered and contributing.
+// One fragment of primitive `prim`: `wedge_sample` of its pixel's ray.
 fn wedge_fragment(pos: vec4f, prim: u32) -> WedgeSample {
     let i = u32(pos.y) * P.width + u32(pos.x);
-    let w = wedge_sample(rays[i], prims[prim]);
-    if INSTRUMENT != 0u {
-        count(STAT_SOFT_TESTS, 1u);
-        count(STAT_SOFT_FILL, u32(w.reached >= REACHED_FILL));
-        count(STAT_SOFT_FRONT, u32(w.reached >= REACHED_FRONT));
-        count(STAT_SOFT_INSIDE, u32(w.reached >= REACHED_INSIDE));
-        count(STAT_SOFT_COVERED, u32(w.reached == REACHED_COVERED));
-        count(STAT_SOFT_CONTRIBUTING, u32(w.reached == REACHED_COVERED && any(w.c3 > vec3f(0.0))));
-    }
-    return w;
+    return wedge_sample(rays[i], prims[prim]);
 }
 
 // The f32 V-buffer (III §4.1): minus side times the coverage, per channel, blended additively.
