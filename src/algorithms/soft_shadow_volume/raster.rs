@@ -28,14 +28,22 @@
 //! contains the eye has no front face and draws nothing (the gather and the cpu executions
 //! still shade its pixels).
 //!
-//! How the image differs from the cpu's: the hard pass as [`HardRaster`] states; the wedges'
-//! pixels are decided by the rasterizer's coverage of their front faces (top-left rule) and the
-//! depth test, so a pixel whose ray grazes a primitive's silhouette or whose point lies within
-//! rounding of a face can change hands; the V-buffer sums in rasterization order (f32
-//! rounding); the coverage of a pixel the wedge covers is the gather's, operation for
-//! operation. Counters come from an instrumented replay (depth test off, WGSL atomics) in the
-//! cpu-model's terms: a fragment counts towards `fill` when its ray meets the primitive, as
-//! the cpu tests it (`wedge_tests`: every rasterized fragment).
+//! How the image differs from the cpu's: the hard pass as [`HardRaster`] states (at 640×480 on
+//! sphere-on-plane the visible difference is a thin line along the sphere's own terminator,
+//! where the quads graze the surface they start on); the wedges' pixels are decided by the
+//! rasterizer's coverage of their front faces (top-left rule) and the depth test, so a pixel
+//! whose ray grazes a primitive's silhouette or whose point lies within rounding of a face can
+//! change hands; the V-buffer sums in rasterization order (f32 rounding); the coverage of a
+//! pixel the wedge covers is the gather's, operation for operation.
+//!
+//! Counters: the hard pass's fill and overdraw from [`HardRaster::replay`] (rasterized
+//! fragments, in the cpu-model's terms). The wedge pass's fill, overdraw, shader invocations,
+//! culled fragments and fragments inside wedges come from the gather's instrumented compute
+//! pass (`soft` with `INSTRUMENT`) over the same primitives, not from the rasterizer's own
+//! fragments: counting with WGSL atomics in this pipeline's fragment shader read back zero on
+//! lavapipe (the timed draws are correct; the cause is not found), so they are the cpu-model's
+//! per-pixel definitions evaluated on the GPU, and `wedge_tests` counts the gather's
+//! pixel–primitive tests (every primitive binned to every 8×8 tile its footprint covers).
 
 use glam::Vec3;
 
@@ -375,9 +383,10 @@ pub(super) fn run(
             &stat,
         );
     }
-    let note = "fill, overdraw, shader invocations and culls from an instrumented replay of the \
-                count and wedge passes (depth test off, WGSL atomics), in the cpu-model's terms; \
-                mem_est.* estimated from counts and record sizes";
+    let note = "hard fill and overdraw from an instrumented replay of the count passes (depth \
+                test off, WGSL atomics); the wedge pass's fill, overdraw, shader invocations and \
+                culls from the gather's instrumented compute pass over the same primitives, in \
+                the cpu-model's terms; mem_est.* estimated from counts and record sizes";
     let mut out = timing.output(size, per_phase, note);
     out.rgb = rgb;
     Ok(out)
