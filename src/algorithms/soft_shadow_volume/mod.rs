@@ -793,8 +793,13 @@ impl Algorithm for SoftShadowVolume {
     ];
     /// The raster pipeline's coverage, depth test and blending order differ from the cpu's
     /// ray casting on grazing fragments (`raster`, `shadow_volume::raster`): measured on
-    /// lavapipe over the registry's scenes and option sets (PLACEHOLDER). The gather: MAE
-    /// ~1e-8, counters within 0.5% of the cpu-model's.
+    /// lavapipe over the registry's scenes and option sets (48×36; z-pass, z-fail, culling on
+    /// and off, split V-buffer with the 4D texture, light splitting with the overlap
+    /// approximation): MAE 4.6e-4–1.0e-3, 0.07–0.51% of the pixels over 0.1 (the pixels along
+    /// the occluder's own terminator, where the hard quads graze the surface they start on);
+    /// the hard pass's fill and overdraw within 2 fragments; the wedge counters equal (they
+    /// come from the gather's counting pass). The gather: MAE under 1e-9, counters equal.
+    /// Bounds: MAE 2.5e-3, 1% over 0.1, fill and overdraw within 3% of the fill.
     const WGPU_PARITY: WgpuParity = WgpuParity {
         mae: 2.5e-3,
         frac_over_0_1: 0.01,
