@@ -112,7 +112,10 @@ fn raster(
     let readback = [&passes.visibility];
     let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
     // Without the pipelines' creation: the run's GPU setup, reported apart.
-    run.add_wall(0, start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms());
+    run.add_wall(
+        0,
+        start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms(),
+    );
     let (vertices, ranges, m) = run.host(0, || {
         let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
         let mut m = Measured::default();
@@ -230,7 +233,10 @@ fn gather(
     let visibility = &passes.res.visibility;
     let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
     // Without the pipelines' creation: the run's GPU setup, reported apart.
-    run.add_wall(0, start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms());
+    run.add_wall(
+        0,
+        start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms(),
+    );
     let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
     for s in 0..n {
         let up = run.host(0, || {

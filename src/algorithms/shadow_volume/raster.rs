@@ -11,7 +11,7 @@
 //!    (z-pass, [`super::eye_count`]) or 0 (z-fail); each fragment passing the test adds its
 //!    face's count change by additive blending: the stencil pass with increment and decrement
 //!    as one float target, which a later pass can read as a texture ([`HardRaster::count`];
-//!    pass 1 of `soft_shadow_volume`, whose wedge pass is not built on a rasterizer yet);
+//!    pass 1 of `soft_shadow_volume`'s raster pipeline, `soft_shadow_volume::raster`);
 //! 3. **accumulation** (`accum_hard`, per light point): a screen-covering triangle adds 1 where
 //!    the count is 0 into an accumulation target (R16Float, exact up to 2048 ≥ the 1024
 //!    samples allowed: the paper's 16-bit accumulation buffer) by additive blending; then
@@ -135,7 +135,8 @@ pub(crate) struct HardRaster<'g> {
     stats: wgpu::Buffer,
     /// The average over the samples, per pixel (f32), after `resolve`.
     pub visibility: wgpu::Buffer,
-    depth: wgpu::TextureView,
+    /// The eye's depth (reversed), written by the depth pre-pass.
+    pub depth: wgpu::TextureView,
     /// The count target: per pixel the number of shadow volumes its point lies in.
     pub count: wgpu::TextureView,
     accumulation: wgpu::TextureView,

@@ -276,6 +276,24 @@ fn face_records(rays: &EyeRays, faces: &[VolumeFace]) -> Vec<[u32; 24]> {
         .collect()
 }
 
+/// The shadow quads as the WGSL reads them (`Quad`, 80 bytes): a with the eye's side, b, the
+/// light point, the normal, and the footprint `footprints` gives.
+pub(crate) fn quad_records(
+    rays: &EyeRays,
+    quads: &[ShadowQuad],
+    footprints: &[Option<ScreenRect>],
+) -> Vec<[u32; 20]> {
+    quads
+        .iter()
+        .zip(footprints)
+        .map(|(q, f)| {
+            let a = q.a.extend(q.side(rays.eye));
+            let rest = [q.b, q.light, q.normal].map(|v| v.extend(0.0));
+            record(std::iter::once(a).chain(rest), f)
+        })
+        .collect()
+}
+
 /// What the hard phase uploaded for one loop: the hard pass's bind group, the params, quads and
 /// bins buffers the soft pass binds too, and the counts its counters need.
 pub(crate) struct HardUpload {
@@ -292,7 +310,9 @@ pub(crate) struct VolumePasses<'g> {
     pub gpu: &'g Gpu,
     pub counting: Counting,
     pub res: FrameResources,
-    layout: Layout,
+    /// Group 0 of every pass, visible to compute and fragment shaders (the raster wedge pass
+    /// of `soft_shadow_volume` binds it too).
+    pub layout: Layout,
     pub program: Program,
     /// The hard pass: timed, counting.
     hard: [wgpu::ComputePipeline; 2],
@@ -322,7 +342,8 @@ impl<'g> VolumePasses<'g> {
                 _ => Bind::ReadWrite,
             })
             .collect();
-        let layout = Layout::new(gpu, "shadow volumes", wgpu::ShaderStages::COMPUTE, &binds);
+        let stages = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
+        let layout = Layout::new(gpu, "shadow volumes", stages, &binds);
         let sources = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL];
         let program = Program::new(gpu, "shadow_volume/wgpu.wgsl", &sources, &[Some(&layout)]);
         VolumePasses {
@@ -372,22 +393,7 @@ impl<'g> VolumePasses<'g> {
         let gpu = self.gpu;
         let storage = wgpu::BufferUsages::STORAGE;
         let footprints = quad_footprints(rays, quads);
-        let records: Vec<[u32; 20]> = quads
-            .iter()
-            .zip(&footprints)
-            .map(|(q, f)| {
-                let a = q.a.extend(q.side(rays.eye));
-                record(
-                    [
-                        a,
-                        q.b.extend(0.0),
-                        q.light.extend(0.0),
-                        q.normal.extend(0.0),
-                    ],
-                    f,
-                )
-            })
-            .collect();
+        let records = quad_records(rays, quads, &footprints);
         let faces = (self.counting == Counting::ZFail)
             .then(|| zfail_faces(quads, &self.occluders, light, &rays.bounds));
         let (quad_bins, entries) = match &faces {

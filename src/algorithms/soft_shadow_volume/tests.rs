@@ -307,3 +307,42 @@ fn options_name_the_bad_field_and_value() {
         (crate::algorithms::AlgorithmInfo::of::<SoftShadowVolume>().check_options)(&o).is_err()
     );
 }
+
+/// The raster pipeline's front faces of a convex volume against the cube's analytic answer:
+/// the cube [-1, 1]³ seen from (5, 5, 5) shows three faces of area 4 (triangles summing to
+/// 12, each on its face's plane), seen from (0, 0, 5) one; bounds smaller than the cube cut
+/// the faces to the bounds (the +z face of bounds [-0.5, 0.5]³: area 1), and a near plane
+/// in front of an eye inside the cube is the one face drawn (area 4 on z = 0.5).
+#[test]
+fn front_faces_are_the_faces_the_eye_sees() {
+    use crate::algorithms::eye_raster::ConvexVolume;
+    use crate::scene::Bounds;
+    let axes = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z];
+    let cube = ConvexVolume {
+        planes: axes.iter().map(|&n| (n, 1.0)).collect(),
+    };
+    let bounds = |h: f32| Bounds {
+        min: Vec3::splat(-h),
+        max: Vec3::splat(h),
+    };
+    // A near plane far behind every eye: it cuts nothing.
+    let no_near = (Vec3::Z, 100.0);
+    let area = |tris: &[Vec3]| -> f32 {
+        tris.chunks(3)
+            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+            .sum()
+    };
+    let corner = raster::front_faces(&cube, &bounds(3.0), no_near, Vec3::splat(5.0));
+    assert!((area(&corner) - 12.0).abs() < 1e-3, "{}", area(&corner));
+    assert!(corner.iter().all(|p| p.max_element() > 1.0 - 1e-4));
+    let above = raster::front_faces(&cube, &bounds(3.0), no_near, Vec3::new(0.0, 0.0, 5.0));
+    assert!((area(&above) - 4.0).abs() < 1e-3, "{}", area(&above));
+    assert!(above.iter().all(|p| (p.z - 1.0).abs() < 1e-4));
+    let cut = raster::front_faces(&cube, &bounds(0.5), no_near, Vec3::new(0.0, 0.0, 5.0));
+    assert!((area(&cut) - 1.0).abs() < 1e-3, "{}", area(&cut));
+    // The eye inside the cube looking down -z: the near plane z ≤ 0.5 is the only front face.
+    let near = (Vec3::Z, 0.5);
+    let inside = raster::front_faces(&cube, &bounds(3.0), near, Vec3::new(0.0, 0.0, 0.9));
+    assert!((area(&inside) - 4.0).abs() < 1e-3, "{}", area(&inside));
+    assert!(inside.iter().all(|p| (p.z - 0.5).abs() < 1e-4));
+}

@@ -1,5 +1,11 @@
-//! `soft_shadow_volume` on wgpu: the two passes of III §3.2 as compute passes over the eye
-//! pixels (`wgpu.wgsl`), per silhouette loop and sub-light as on the cpu executions.
+//! `soft_shadow_volume` on wgpu, in one of two pipelines (option `gpu_pipeline`, recorded as
+//! `execution.gpu_pipeline`): `"raster"` (default), the thesis' render pipeline
+//! ([`super::raster`]), or `"gather"`, this module's compute passes. Both share the loops and
+//! sub-lights set up here, the wedges ([`WedgeRecords`]), and in `wgpu.wgsl` the per-pixel
+//! coverage (`wedge_sample`) and the combination of loops and sub-lights (`combine`).
+//!
+//! The gather: the two passes of III §3.2 as compute passes over the eye pixels
+//! (`wgpu.wgsl`), per silhouette loop and sub-light as on the cpu executions.
 //!
 //! - `hard` (III §3.2.1): the family's hard pass ([`crate::algorithms::shadow_volume::wgpu`]:
 //!   shadow quads from the silhouette seen from the light centre, or the capped volumes' faces
@@ -40,12 +46,12 @@ use std::time::Instant;
 use glam::Vec3;
 use serde_json::json;
 
-use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach};
+use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach, WedgePrimitive};
 use super::{
-    silhouette_loops, split_light, CoverageMethod, CoverageTexture, EmitterShape,
+    silhouette_loops, split_light, CoverageMethod, CoverageTexture, EmitterShape, GpuPipeline,
     SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
 };
-use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
+use crate::algorithms::eye_raster::{EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::wgpu::{
     bins, check_limits, rect, tile_cones, tile_misses, FrameResources, HardUpload, Params, Stat,
     VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES, STENCIL_BYTES, TILE,
@@ -63,7 +69,9 @@ use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::{Light, LightTexture, Mesh};
 use crate::visibility::RgbBuffer;
 
-const WGSL: &str = include_str!("wgpu.wgsl");
+/// The soft pass: `wedge_sample` and `combine`, shared with the raster pipeline, and the
+/// gather's `soft` entry.
+pub(super) const WGSL: &str = include_str!("wgpu.wgsl");
 
 /// `soft_shadow_volume` on wgpu.
 pub fn render(
@@ -85,8 +93,8 @@ pub fn render(
     let frame_res = FrameResources::new(gpu, &rays, texels, mean.is_some());
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
-    let setup_ms = start.elapsed().as_secs_f64() * 1e3;
-    let passes = Passes::new(gpu, &rays, opts, frame_res, occluders.clone());
+    // Without the pipelines' creation: the run's GPU setup, reported apart.
+    let setup_ms = start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms();
 
     let mut runs = Vec::new();
     let mut warnings = Vec::new();
@@ -147,7 +155,15 @@ pub fn render(
             });
         }
     }
-    let mut out = passes.run(&rays, &runs, setup_ms)?;
+    let mut out = match opts.gpu_pipeline {
+        GpuPipeline::Raster => {
+            super::raster::run(gpu, frame, &rays, opts, frame_res, &runs, setup_ms)?
+        }
+        GpuPipeline::Gather => {
+            let passes = Passes::new(gpu, &rays, opts, frame_res, occluders);
+            passes.run(&rays, &runs, setup_ms)?
+        }
+    };
     if let (Some(rgb), Some(mean)) = (&mut out.rgb, mean) {
         // Pixels without a surface receive the whole light, as their visibility is 1.
         for (i, c) in rgb.data.iter_mut().enumerate() {
@@ -157,9 +173,18 @@ pub fn render(
         }
     }
     out.warnings.extend(warnings);
-    let accumulation = "per-pixel gather over 8x8-tile bins in submission order, no atomics";
+    let accumulation = match opts.gpu_pipeline {
+        GpuPipeline::Raster => "additive blending of the wedges' fragments in rasterization order",
+        GpuPipeline::Gather => {
+            "per-pixel gather over 8x8-tile bins in submission order, no atomics"
+        }
+    };
     let e = &mut out.execution;
-    record_execution(e, json!({ "options": opts, "accumulation": accumulation }));
+    let pipeline = opts.gpu_pipeline;
+    record_execution(
+        e,
+        json!({ "options": opts, "accumulation": accumulation, "gpu_pipeline": pipeline }),
+    );
     if let Some(t) = &texture {
         record_execution(e, json!({ "coverage_texture_bytes": t.bytes() }));
     }
@@ -188,12 +213,12 @@ fn frame_light(light: &Light, shape: EmitterShape) -> ([f32; 4], [f32; 4], [f32;
 }
 
 /// One silhouette loop of one sub-light.
-struct LoopRun {
-    light: Light,
-    edges: Vec<SilhouetteEdge>,
+pub(super) struct LoopRun {
+    pub light: Light,
+    pub edges: Vec<SilhouetteEdge>,
     /// The sub-light's silhouette size, on its first loop.
-    silhouette_edges: Option<usize>,
-    params: Params,
+    pub silhouette_edges: Option<usize>,
+    pub params: Params,
 }
 
 /// A loop's uploaded primitives and what its counters need from the host (the hard upload's
@@ -203,15 +228,71 @@ struct LoopGpu {
     soft_group: wgpu::BindGroup,
     quads: u64,
     wedges: WedgeCounts,
+    /// Entries of the wedge bins.
+    bin_entries: u64,
 }
 
 /// What the wedges phase built for one loop.
-struct WedgeCounts {
-    wedges: u64,
-    degenerate: u64,
-    prims: u64,
-    planes: u64,
-    bin_entries: u64,
+pub(super) struct WedgeCounts {
+    pub wedges: u64,
+    pub degenerate: u64,
+    pub prims: u64,
+    pub planes: u64,
+}
+
+/// The wedges of a loop (III §3.1, IV §4.1, with the cpu executions' code) and their
+/// primitives (wedge halves when culling, IV §4.4) as the WGSL reads them (`Prim`: footprint;
+/// edge, first plane, plane count, half) with their planes.
+pub(super) struct WedgeRecords {
+    pub prims: Vec<WedgePrimitive>,
+    pub footprints: Vec<Option<ScreenRect>>,
+    pub records: Vec<[u32; 8]>,
+    pub planes: Vec<[f32; 4]>,
+    pub counts: WedgeCounts,
+}
+
+impl WedgeRecords {
+    pub fn new(
+        rays: &EyeRays,
+        run: &LoopRun,
+        quads: &[ShadowQuad],
+        opts: &SoftShadowVolumeOptions,
+    ) -> WedgeRecords {
+        let reach = wedge_reach(rays);
+        let wedges: Vec<Option<Wedge>> = run
+            .edges
+            .iter()
+            .map(|e| build_wedge(e, &run.light, opts.tighter_wedges, reach))
+            .collect();
+        let (prims, footprints) = wedge_primitives(rays, quads, &wedges, opts.wedge_culling);
+        let mut planes: Vec<[f32; 4]> = Vec::new();
+        let records = prims
+            .iter()
+            .zip(&footprints)
+            .map(|(p, f)| {
+                let first = planes.len() as u32;
+                planes.extend(p.volume.planes.iter().map(|(n, d)| n.extend(*d).to_array()));
+                let [x0, y0, x1, y1] = rect(f);
+                let (edge, n) = (p.edge as u32, p.volume.planes.len() as u32);
+                let half = p.half.unwrap_or(0.0).to_bits();
+                [x0, y0, x1, y1, edge, first, n, half]
+            })
+            .collect();
+        let degenerate = wedges.iter().filter(|w| w.is_none()).count() as u64;
+        let counts = WedgeCounts {
+            wedges: wedges.len() as u64 - degenerate,
+            degenerate,
+            prims: prims.len() as u64,
+            planes: planes.len() as u64,
+        };
+        WedgeRecords {
+            prims,
+            footprints,
+            records,
+            planes,
+            counts,
+        }
+    }
 }
 
 /// The family's passes with the soft pass of this algorithm.
@@ -240,49 +321,23 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// The wedges phase's host part: wedges, primitives, bins, upload; the soft pass's group.
+    /// The wedges phase's host part: wedges, primitives, bins, upload; the soft pass's group
+    /// and the number of bin entries.
     fn upload_wedges(
         &self,
         rays: &EyeRays,
         run: &LoopRun,
         quads: &[ShadowQuad],
         quad_buffers: &[wgpu::Buffer; 3],
-    ) -> (wgpu::BindGroup, WedgeCounts) {
+    ) -> (wgpu::BindGroup, WedgeCounts, u64) {
         let gpu = self.v.gpu;
         let storage = wgpu::BufferUsages::STORAGE;
-        let reach = wedge_reach(rays);
-        let wedges: Vec<Option<Wedge>> = run
-            .edges
-            .iter()
-            .map(|e| build_wedge(e, &run.light, self.opts.tighter_wedges, reach))
-            .collect();
-        let (prims, footprints) = wedge_primitives(rays, quads, &wedges, self.opts.wedge_culling);
-        let mut planes: Vec<[f32; 4]> = Vec::new();
-        let records: Vec<[u32; 8]> = prims
-            .iter()
-            .zip(&footprints)
-            .map(|(p, f)| {
-                let first = planes.len() as u32;
-                planes.extend(p.volume.planes.iter().map(|(n, d)| n.extend(*d).to_array()));
-                let [x0, y0, x1, y1] = rect(f);
-                let (edge, n) = (p.edge as u32, p.volume.planes.len() as u32);
-                let half = p.half.unwrap_or(0.0).to_bits();
-                [x0, y0, x1, y1, edge, first, n, half]
-            })
-            .collect();
-        let (wedge_bins, entries) = bins(rays, &footprints, |k, t| {
-            !tile_misses(&prims[k].volume, rays.eye, self.cones[t])
+        let w = WedgeRecords::new(rays, run, quads, &self.opts);
+        let (wedge_bins, entries) = bins(rays, &w.footprints, |k, t| {
+            !tile_misses(&w.prims[k].volume, rays.eye, self.cones[t])
         });
-        let degenerate = wedges.iter().filter(|w| w.is_none()).count() as u64;
-        let counts = WedgeCounts {
-            wedges: wedges.len() as u64 - degenerate,
-            degenerate,
-            prims: prims.len() as u64,
-            planes: planes.len() as u64,
-            bin_entries: entries,
-        };
-        let prims_buf = gpu.upload("wedge primitives", &records, storage);
-        let planes_buf = gpu.upload("wedge planes", &planes, storage);
+        let prims_buf = gpu.upload("wedge primitives", &w.records, storage);
+        let planes_buf = gpu.upload("wedge planes", &w.planes, storage);
         let bins_buf = gpu.upload("wedge bins", &wedge_bins, storage);
         let [params, quads_buf, quad_bins] = quad_buffers;
         let group = self.v.group(
@@ -290,7 +345,7 @@ impl<'g> Passes<'g> {
             [quads_buf, &prims_buf, &planes_buf, quad_bins, &bins_buf],
             "soft",
         );
-        (group, counts)
+        (group, w.counts, entries)
     }
 
     fn run(&self, rays: &EyeRays, runs: &[LoopRun], setup_ms: f64) -> Result<FrameOutput> {
@@ -318,13 +373,14 @@ impl<'g> Passes<'g> {
             });
             run.submit(0, &[self.v.hard(&up, false)])?;
             // Wedges (III §3.1, IV §4.1), on the host.
-            let (soft_group, wedges) =
+            let (soft_group, wedges, bin_entries) =
                 run.host(1, || self.upload_wedges(rays, lr, &quads, &up.buffers));
             let lg = LoopGpu {
                 quads: quads.len() as u64,
                 hard: up,
                 soft_group,
                 wedges,
+                bin_entries,
             };
             // Pass 2: penumbra wedges (III §3.2.2).
             run.submit(2, &[self.v.pass("soft", &self.soft[0], &lg.soft_group)])?;
@@ -348,7 +404,19 @@ impl<'g> Passes<'g> {
             self.hard_counters(&mut per_phase[0], lg, &stat);
             per_phase[1].add("wedges", lg.wedges.wedges as f64);
             per_phase[1].add("wedges_degenerate", lg.wedges.degenerate as f64);
-            self.soft_counters(&mut per_phase[2], lg, &stat);
+            let res = &self.v.res;
+            let bins = (WORD * (lg.bin_entries + 2 * self.tiles())) as f64;
+            let (pixels, index) = (self.v.pixels, ("wedge_bins", bins));
+            let k = &mut per_phase[2];
+            soft_counters(
+                k,
+                &self.opts,
+                res.channels,
+                pixels,
+                &lg.wedges,
+                index,
+                &stat,
+            );
         }
         let note =
             "fill, overdraw, shader invocations and culls from an instrumented replay (WGSL \
@@ -388,74 +456,82 @@ impl<'g> Passes<'g> {
         k.add_traffic("mem_est", &reads, &[("vbuffer", vbuffer)]);
     }
 
-    /// `soft`: fill, overdraw, shader invocations, culled fragments and fragments inside wedges
-    /// in the cpu-model's terms (with culling each half is rasterized twice, IV §4.4), and
-    /// estimated traffic: rays, primitive records and planes per test, bins, depth and stencil
-    /// as a rasterizer would touch them, the V-buffer per fragment inside, texture reads.
-    fn soft_counters(&self, k: &mut Counters, lg: &LoopGpu, stat: &dyn Fn(Stat) -> f64) {
-        let (fill, front, inside, covered, contributing, tests) = (
-            stat(Stat::SoftFill),
-            stat(Stat::SoftFront),
-            stat(Stat::SoftInside),
-            stat(Stat::SoftCovered),
-            stat(Stat::SoftContributing),
-            stat(Stat::SoftTests),
-        );
-        let (raster_fill, shaded, culled, stencil_read, stencil_write) = if self.opts.wedge_culling
-        {
-            (2.0 * fill, inside, fill - inside, fill, 2.0 * front)
-        } else {
-            (fill, front, 0.0, 0.0, 0.0)
-        };
-        k.add("fill", raster_fill);
-        k.add("overdraw", raster_fill - contributing);
-        k.add("shader_invocations", shaded);
-        k.add("culled_fragments", culled);
-        k.add("fragments_inside_wedges", covered);
-        k.add("wedge_tests", tests);
-        k.add("wedge_primitives", lg.wedges.prims as f64);
-        let texture_reads = if self.opts.coverage == CoverageMethod::Texture {
-            CoverageTexture::READS as f64 * covered
-        } else {
-            0.0
-        };
-        k.add("coverage_texture_reads", texture_reads);
-        // Bytes: one per channel of each texel read.
-        let texture_reads = texture_reads * f64::from(self.v.res.channels);
-        let per_plane = if lg.wedges.prims > 0 {
-            lg.wedges.planes as f64 / lg.wedges.prims as f64
-        } else {
-            0.0
-        };
-        let rays = (RAY_BYTES * self.v.pixels) as f64;
-        let prims = tests * (PRIM_BYTES as f64 + per_plane * PLANE_BYTES as f64);
-        let bins = (WORD * (lg.wedges.bin_entries + 2 * self.tiles())) as f64;
-        let quads = QUAD_BYTES as f64 * inside;
-        let depth = raster_fill * DEPTH_BYTES as f64;
-        let stencil_r = stencil_read * STENCIL_BYTES as f64;
-        let stencil_w = stencil_write * STENCIL_BYTES as f64;
-        let vbuffer = (VBUFFER_BYTES * u64::from(self.v.res.channels)) as f64 * covered;
-        let counts = (WORD * self.v.pixels) as f64;
-        let out = (2 * WORD * self.v.pixels) as f64;
-        let reads = [
-            ("eye_rays", rays),
-            ("wedge_primitives", prims),
-            ("wedge_bins", bins),
-            ("shadow_quads", quads),
-            ("depth", depth),
-            ("stencil", stencil_r),
-            ("vbuffer", vbuffer + counts),
-            ("coverage_texture", texture_reads),
-        ];
-        let writes = [
-            ("stencil", stencil_w),
-            ("vbuffer", vbuffer),
-            ("visibility", out),
-        ];
-        k.add_traffic("mem_est", &reads, &writes);
-    }
-
     fn tiles(&self) -> u64 {
         u64::from(self.v.groups.0) * u64::from(self.v.groups.1)
     }
+}
+
+/// `soft`: fill, overdraw, shader invocations, culled fragments and fragments inside wedges
+/// in the cpu-model's terms (with culling each half is rasterized twice, IV §4.4), and
+/// estimated traffic: rays, primitive records and planes per test (`wedge_tests`: the
+/// gather's pixel–primitive tests, the raster pass's rasterized fragments), what finds the
+/// primitives (`index`: the gather's bins, the raster pass's vertices), depth and stencil as a
+/// rasterizer touches them, the V-buffer per fragment inside, texture reads.
+pub(super) fn soft_counters(
+    k: &mut Counters,
+    opts: &SoftShadowVolumeOptions,
+    channels: u32,
+    pixels: u64,
+    w: &WedgeCounts,
+    index: (&str, f64),
+    stat: &dyn Fn(Stat) -> f64,
+) {
+    let (fill, front, inside, covered, contributing, tests) = (
+        stat(Stat::SoftFill),
+        stat(Stat::SoftFront),
+        stat(Stat::SoftInside),
+        stat(Stat::SoftCovered),
+        stat(Stat::SoftContributing),
+        stat(Stat::SoftTests),
+    );
+    let (raster_fill, shaded, culled, stencil_read, stencil_write) = if opts.wedge_culling {
+        (2.0 * fill, inside, fill - inside, fill, 2.0 * front)
+    } else {
+        (fill, front, 0.0, 0.0, 0.0)
+    };
+    k.add("fill", raster_fill);
+    k.add("overdraw", raster_fill - contributing);
+    k.add("shader_invocations", shaded);
+    k.add("culled_fragments", culled);
+    k.add("fragments_inside_wedges", covered);
+    k.add("wedge_tests", tests);
+    k.add("wedge_primitives", w.prims as f64);
+    let texture_reads = if opts.coverage == CoverageMethod::Texture {
+        CoverageTexture::READS as f64 * covered
+    } else {
+        0.0
+    };
+    k.add("coverage_texture_reads", texture_reads);
+    // Bytes: one per channel of each texel read.
+    let texture_reads = texture_reads * f64::from(channels);
+    let per_plane = if w.prims > 0 {
+        w.planes as f64 / w.prims as f64
+    } else {
+        0.0
+    };
+    let rays = (RAY_BYTES * pixels) as f64;
+    let prims = tests * (PRIM_BYTES as f64 + per_plane * PLANE_BYTES as f64);
+    let quads = QUAD_BYTES as f64 * inside;
+    let depth = raster_fill * DEPTH_BYTES as f64;
+    let stencil_r = stencil_read * STENCIL_BYTES as f64;
+    let stencil_w = stencil_write * STENCIL_BYTES as f64;
+    let vbuffer = (VBUFFER_BYTES * u64::from(channels)) as f64 * covered;
+    let counts = (WORD * pixels) as f64;
+    let out = (2 * WORD * pixels) as f64;
+    let reads = [
+        ("eye_rays", rays),
+        ("wedge_primitives", prims),
+        index,
+        ("shadow_quads", quads),
+        ("depth", depth),
+        ("stencil", stencil_r),
+        ("vbuffer", vbuffer + counts),
+        ("coverage_texture", texture_reads),
+    ];
+    let writes = [
+        ("stencil", stencil_w),
+        ("vbuffer", vbuffer),
+        ("visibility", out),
+    ];
+    k.add_traffic("mem_est", &reads, &writes);
 }

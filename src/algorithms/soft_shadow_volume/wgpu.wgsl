@@ -1,6 +1,9 @@
 // soft_shadow_volume's soft pass (paper 001, Papers III and IV), joined after
-// src/algorithms/shadow_volume/wgpu.wgsl (parameters, bindings, `count`, the hard pass).
-// Every function names the Rust it mirrors.
+// src/algorithms/shadow_volume/wgpu.wgsl (parameters, bindings, `count`, the hard pass): the
+// per-pixel coverage of a wedge primitive (`wedge_sample`) and the combination of loops and
+// sub-lights (`combine`), shared by the gather's `soft` entry below and the raster pipeline's
+// fragment shader and resolve (raster.wgsl, joined after this file). Every function names the
+// Rust it mirrors.
 
 // `ConvexVolume::ray_interval`; x > y when the ray misses.
 fn ray_interval(first: u32, n: u32, o: vec3f, d: vec3f, t0_in: f32, t1_in: f32) -> vec2f {
@@ -287,8 +290,103 @@ fn overlap_coverage(ca: f32, cb: f32) -> f32 {
     return min(max(ca, cb) + 0.5 * min(ca, cb), 1.0);
 }
 
-// `SoftPass::block` for one pixel over the wedge primitives binned to its tile (III §3.2.2,
-// IV §4.4), then `render_loop`'s V-buffer and `render`'s combination of loops and sub-lights.
+// How far `wedge_sample` got for one (pixel, primitive): the ray misses, meets the primitive
+// (fill), its visible point is behind the entry (front), inside the primitive (inside), or the
+// projected edge covers some of the light (covered).
+const REACHED_FILL: u32 = 1u;
+const REACHED_FRONT: u32 = 2u;
+const REACHED_INSIDE: u32 = 3u;
+const REACHED_COVERED: u32 = 4u;
+
+struct WedgeSample {
+    reached: u32,
+    // The point's side of the hard shadow quad (-1 inner, +1 outer).
+    side: f32,
+    // The coverage per channel (the one channel repeated for an untextured light).
+    c3: vec3f,
+}
+
+// `SoftPass::block` for one pixel's ray and one wedge primitive (III §3.2.2, IV §4.4): the
+// ray–primitive interval, the depth tests, the side and the coverage by exact clipping or the
+// 4D texture. Shared by the gather (`soft`) and the raster pass (raster.wgsl).
+fn wedge_sample(ray: Ray, prim: Prim) -> WedgeSample {
+    var w = WedgeSample(0u, 0.0, vec3f(0.0));
+    let iv = ray_interval(prim.info.y, prim.info.z, P.eye.xyz, ray.dir.xyz, ray.point.w, ray.extra.x);
+    if iv.x > iv.y {
+        return w;
+    }
+    w.reached = REACHED_FILL;
+    let t_p = ray.dir.w;
+    if !(iv.x < t_p) {
+        return w;
+    }
+    w.reached = REACHED_FRONT;
+    if !(t_p < iv.y) {
+        return w;
+    }
+    w.reached = REACHED_INSIDE;
+    let q = quads[prim.info.x];
+    let p = ray.point.xyz;
+    w.side = bitcast<f32>(prim.info.w);
+    if w.side == 0.0 {
+        w.side = quad_side(q, p);
+    }
+    let proj = project_edge(p, q.a.xyz, q.b.xyz);
+    if !proj.ok {
+        return w;
+    }
+    let cl = clip_to_emitter(proj.q0, proj.q1);
+    if !cl.ok {
+        return w;
+    }
+    if P.coverage == 1u {
+        w.c3 = texture_coverage(cl.q0, cl.q1);
+    } else {
+        w.c3 = vec3f(exact_coverage(cl.q0, cl.q1));
+    }
+    w.reached = REACHED_COVERED;
+    return w;
+}
+
+// `render_loop`'s V-buffer of pixel i from its hard count and its wedge sum (`acc`, or `acc3`
+// per channel under a textured light), and `render`'s combination of loops and sub-lights.
+// Shared by the gather (`soft`) and the raster pass's resolve (raster.wgsl).
+fn combine(i: u32, hard_count: f32, acc: f32, acc3: vec3f) {
+    let hit = rays[i].extra.y != 0.0;
+    if P.channels == 3u {
+        // `cpu::render` for a textured light (one loop, one light): the light received per
+        // channel, mean·(1 − count) ± coverage, at most the mean; its luminance fraction.
+        let m = P.mean.xyz;
+        let v3 = clamp(m * (1.0 - hard_count) + acc3, vec3f(0.0), m);
+        rgb[3u * i] = v3.x;
+        rgb[3u * i + 1u] = v3.y;
+        rgb[3u * i + 2u] = v3.z;
+        let vis = clamp(luminance(v3) / luminance(m), 0.0, 1.0);
+        visibility[i] = select(1.0, vis, hit);
+        return;
+    }
+    let v = 1.0 - hard_count + acc;
+    let c = clamp(1.0 - v, 0.0, 1.0);
+    var cov = c;
+    if P.first_loop == 0u {
+        cov = overlap_coverage(covered[i], c);
+    }
+    covered[i] = cov;
+    if P.last_loop == 1u {
+        var vis = 0.0;
+        if P.first_light == 0u {
+            vis = visibility[i];
+        }
+        vis += (1.0 - cov) / f32(P.sub_lights);
+        if P.last_light == 1u {
+            vis = select(1.0, clamp(vis, 0.0, 1.0), hit);
+        }
+        visibility[i] = vis;
+    }
+}
+
+// The gather: one pixel over the wedge primitives binned to its tile, in submission order,
+// then `combine`.
 @compute @workgroup_size(8, 8)
 fn soft(@builtin(global_invocation_id) id: vec3u) {
     if id.x >= P.width || id.y >= P.height {
@@ -296,17 +394,13 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
     }
     let i = id.y * P.width + id.x;
     let ray = rays[i];
-    let o = P.eye.xyz;
     let tile = (id.y / TILE) * P.tiles_x + id.x / TILE;
     var acc = 0.0;
     var acc3 = vec3f(0.0);
     var add = vec4u(0u);
     var sub = vec4u(0u);
     var tests = 0u;
-    var fill = 0u;
-    var front = 0u;
-    var inside_n = 0u;
-    var covered_n = 0u;
+    var reached = array<u32, 5>(0u, 0u, 0u, 0u, 0u);
     var contributing = 0u;
     for (var e = wedge_bins[2u * tile]; e < wedge_bins[2u * tile + 1u]; e++) {
         let prim = prims[wedge_bins[e]];
@@ -314,91 +408,34 @@ fn soft(@builtin(global_invocation_id) id: vec3u) {
             continue;
         }
         tests++;
-        let iv = ray_interval(prim.info.y, prim.info.z, o, ray.dir.xyz, ray.point.w, ray.extra.x);
-        if iv.x > iv.y {
+        let w = wedge_sample(ray, prim);
+        reached[w.reached]++;
+        if w.reached != REACHED_COVERED {
             continue;
         }
-        fill++;
-        let t_p = ray.dir.w;
-        if !(iv.x < t_p) {
-            continue;
-        }
-        front++;
-        if !(t_p < iv.y) {
-            continue;
-        }
-        inside_n++;
-        let q = quads[prim.info.x];
-        let p = ray.point.xyz;
-        var side = bitcast<f32>(prim.info.w);
-        if side == 0.0 {
-            side = quad_side(q, p);
-        }
-        let proj = project_edge(p, q.a.xyz, q.b.xyz);
-        if !proj.ok {
-            continue;
-        }
-        let cl = clip_to_emitter(proj.q0, proj.q1);
-        if !cl.ok {
-            continue;
-        }
-        var c3 = vec3f(0.0);
-        if P.coverage == 1u {
-            c3 = texture_coverage(cl.q0, cl.q1);
-        } else {
-            c3 = vec3f(exact_coverage(cl.q0, cl.q1));
-        }
-        let c = c3.x;
-        covered_n++;
-        if any(c3 > vec3f(0.0)) {
+        if any(w.c3 > vec3f(0.0)) {
             contributing++;
         }
         if P.channels == 3u {
-            acc3 -= side * c3;
+            acc3 -= w.side * w.c3;
         } else if P.vbuffer == 0u {
-            acc -= side * c;
-        } else if side < 0.0 {
-            add = min(add + split12(c), vec4u(255u));
+            acc -= w.side * w.c3.x;
+        } else if w.side < 0.0 {
+            add = min(add + split12(w.c3.x), vec4u(255u));
         } else {
-            sub = min(sub + split12(c), vec4u(255u));
+            sub = min(sub + split12(w.c3.x), vec4u(255u));
         }
     }
     if P.vbuffer == 1u {
         acc = split12_value(add) - split12_value(sub);
     }
-    if P.channels == 3u {
-        // `cpu::render` for a textured light (one loop, one light): the light received per
-        // channel, mean·(1 − count) ± coverage, at most the mean; its luminance fraction.
-        let m = P.mean.xyz;
-        let v3 = clamp(m * (1.0 - f32(counts[i])) + acc3, vec3f(0.0), m);
-        rgb[3u * i] = v3.x;
-        rgb[3u * i + 1u] = v3.y;
-        rgb[3u * i + 2u] = v3.z;
-        let vis = clamp(luminance(v3) / luminance(m), 0.0, 1.0);
-        visibility[i] = select(1.0, vis, ray.extra.y != 0.0);
-    } else {
-        let v = 1.0 - f32(counts[i]) + acc;
-        let c = clamp(1.0 - v, 0.0, 1.0);
-        var cov = c;
-        if P.first_loop == 0u {
-            cov = overlap_coverage(covered[i], c);
-        }
-        covered[i] = cov;
-        if P.last_loop == 1u {
-            var vis = 0.0;
-            if P.first_light == 0u {
-                vis = visibility[i];
-            }
-            vis += (1.0 - cov) / f32(P.sub_lights);
-            if P.last_light == 1u {
-                vis = select(1.0, clamp(vis, 0.0, 1.0), ray.extra.y != 0.0);
-            }
-            visibility[i] = vis;
-        }
-    }
+    combine(i, f32(counts[i]), acc, acc3);
     if INSTRUMENT != 0u {
+        let covered_n = reached[4];
+        let inside_n = reached[3] + covered_n;
+        let front = reached[2] + inside_n;
         count(STAT_SOFT_TESTS, tests);
-        count(STAT_SOFT_FILL, fill);
+        count(STAT_SOFT_FILL, reached[1] + front);
         count(STAT_SOFT_FRONT, front);
         count(STAT_SOFT_INSIDE, inside_n);
         count(STAT_SOFT_COVERED, covered_n);

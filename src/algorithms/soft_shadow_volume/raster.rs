@@ -1,0 +1,421 @@
+//! `soft_shadow_volume` on wgpu as the thesis renders it (option `gpu_pipeline: "raster"`, the
+//! default; `raster.wgsl`), per silhouette loop and sub-light as on the cpu executions:
+//!
+//! - `hard` (III §3.2.1): the eye's depth once, then the shadow quads of the silhouette seen
+//!   from the light centre (z-pass, cleared to the eye's count) or the capped volumes' faces
+//!   (z-fail) drawn with the depth test into the count target by additive blending
+//!   ([`crate::algorithms::shadow_volume::raster::HardRaster`], which states how its coverage
+//!   differs from the cpu's ray casting).
+//! - `wedges` (III §3.1, IV §4.1): on the host with the cpu executions' code, as the gather
+//!   ([`super::wgpu::WedgeRecords`]); each wedge primitive (the wedge, or with culling each
+//!   half) is cut to the enlarged scene bounds and its front faces seen from the eye are
+//!   triangulated and projected on the host ([`front_faces`]).
+//! - `soft` (III §3.2.2, §4; IV §4.2-4.3): the front faces drawn with the depth test (reversed
+//!   depth `Greater`: the visible point behind the face), a fragment shader computing the
+//!   coverage of its pixel exactly as the gather does (`wedge_sample` of `wgpu.wgsl`: the
+//!   point inside the primitive, the edge projected onto the light, exact clipping or the 4D
+//!   texture) and adding or subtracting it into the V-buffer by additive blending: R32Float
+//!   (Rgba32Float, one f32 per channel, under a textured light, III §4.1), or the split 12-bit
+//!   format (IV §4.3) as two rgba8 buffers, the inner side's digits drawn into the additive
+//!   one and the outer side's into the subtractive one (one draw each), the 8-bit blend
+//!   saturating as [`super::split12::blend`]; then a compute `resolve` forms `1 − count ±
+//!   coverage` and the loops' and sub-lights' combination (`combine`, shared with the gather).
+//!
+//! Not built on the GPU: silhouettes, quads, caps and wedges (host, as on the cpu executions);
+//! the two-pass stencil culling of IV §4.4: each half is one primitive with the quad's plane
+//! as an extra plane, whose test the fragment shader makes (the point inside the half), and the
+//! culling's two passes are counted as the cpu-model counts them. A wedge primitive that
+//! contains the eye has no front face and draws nothing (the gather and the cpu executions
+//! still shade its pixels).
+//!
+//! How the image differs from the cpu's: the hard pass as [`HardRaster`] states (at 640×480 on
+//! sphere-on-plane the visible difference is a thin line along the sphere's own terminator,
+//! where the quads graze the surface they start on); the wedges' pixels are decided by the
+//! rasterizer's coverage of their front faces (top-left rule) and the depth test, so a pixel
+//! whose ray grazes a primitive's silhouette or whose point lies within rounding of a face can
+//! change hands; the V-buffer sums in rasterization order (f32 rounding); the coverage of a
+//! pixel the wedge covers is the gather's, operation for operation.
+//!
+//! Counters: the hard pass's fill and overdraw from [`HardRaster::replay`] (rasterized
+//! fragments, in the cpu-model's terms). The wedge pass's fill, overdraw, shader invocations,
+//! culled fragments and fragments inside wedges come from the gather's instrumented compute
+//! pass (`soft` with `INSTRUMENT`) over the same primitives, not from the rasterizer's own
+//! fragments: counting with WGSL atomics in this pipeline's fragment shader read back zero on
+//! lavapipe (the timed draws are correct; the cause is not found), so they are the cpu-model's
+//! per-pixel definitions evaluated on the GPU, and `wedge_tests` counts the gather's
+//! pixel–primitive tests (every primitive binned to every 8×8 tile its footprint covers).
+
+use glam::Vec3;
+
+use super::wgpu::{soft_counters, LoopRun, WedgeRecords, WGSL as SOFT_WGSL};
+use super::{SoftShadowVolumeOptions, VBufferPrecision};
+use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
+use crate::algorithms::shadow_volume::raster::{eye_projection, hard_triangles, HardRaster};
+use crate::algorithms::shadow_volume::wgpu::{
+    bins, quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
+    WGSL as FAMILY_WGSL,
+};
+use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
+use crate::algorithms::FrameOutput;
+use crate::error::{Error, Result};
+use crate::frame::Frame;
+use crate::gpu::pass::{tiles, view, Bind, Onto, Pass, Program, Raster, Statistics, Timed};
+use crate::gpu::readback::words;
+use crate::gpu::{Gpu, EMPTY_BYTES};
+use crate::record::Counters;
+use crate::scene::Bounds;
+use crate::visibility::RgbBuffer;
+
+/// The wedge pass's WGSL.
+const WGSL: &str = include_str!("raster.wgsl");
+/// Bytes of a wedge vertex: clip position and the primitive's index.
+const VERTEX_BYTES: u64 = 20;
+
+/// The front faces (the eye strictly outside their plane) of `volume` cut to `bounds` and to
+/// the half-space in front of plane `near` (`n·x ≤ d` kept, the eye outside: a primitive that
+/// contains the eye is entered through it), as triangles (three points each): each face is a
+/// square on its plane reaching past the bounds, clipped by every other plane
+/// (Sutherland–Hodgman), fanned from its first corner.
+pub fn front_faces(
+    volume: &ConvexVolume,
+    bounds: &Bounds,
+    near: (Vec3, f32),
+    eye: Vec3,
+) -> Vec<Vec3> {
+    let (lo, hi) = (bounds.min, bounds.max);
+    let mut planes = volume.planes.clone();
+    planes.push(near);
+    for (k, axis) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
+        planes.extend([(axis, hi[k]), (-axis, -lo[k])]);
+    }
+    let (centre, reach) = (bounds.center(), bounds.diagonal());
+    let mut out = Vec::new();
+    for (i, &(n, d)) in planes.iter().enumerate() {
+        let len = n.length();
+        if len == 0.0 || n.dot(eye) <= d {
+            continue;
+        }
+        let (n, d) = (n / len, d / len);
+        let (u, v) = n.any_orthonormal_pair();
+        let c = centre - n * (n.dot(centre) - d);
+        let mut poly: Vec<Vec3> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .map(|(a, b)| c + (u * a + v * b) * reach)
+            .to_vec();
+        for (j, &(m, e)) in planes.iter().enumerate() {
+            if j != i && poly.len() >= 3 {
+                poly = clip(&poly, |x| e - m.dot(x));
+            }
+        }
+        for k in 1..poly.len().saturating_sub(1) {
+            out.extend([poly[0], poly[k], poly[k + 1]]);
+        }
+    }
+    out
+}
+
+/// Sutherland–Hodgman: the part of `poly` where `f ≥ 0` (`f` affine).
+fn clip(poly: &[Vec3], f: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for (i, &p) in poly.iter().enumerate() {
+        let q = poly[(i + 1) % poly.len()];
+        let (fp, fq) = (f(p), f(q));
+        if fp >= 0.0 {
+            out.push(p);
+        }
+        if (fp >= 0.0) != (fq >= 0.0) {
+            out.push(p + (q - p) * (fp / (fp - fq)));
+        }
+    }
+    out
+}
+
+/// What one loop uploaded, kept for the instrumented replay.
+struct LoopRaster {
+    hard: wgpu::Buffer,
+    hard_vertices: u32,
+    eye_count: i32,
+    caps: u64,
+    quads: u64,
+    wedge_vertices: u32,
+    wedges: WedgeRecords,
+    /// Params, quads, wedge primitives, planes and an empty buffer, for the counting replay.
+    buffers: [wgpu::Buffer; 5],
+}
+
+/// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
+pub(super) fn run(
+    gpu: &Gpu,
+    frame: &Frame,
+    rays: &EyeRays,
+    opts: &SoftShadowVolumeOptions,
+    res: FrameResources,
+    runs: &[LoopRun],
+    setup_ms: f64,
+) -> Result<FrameOutput> {
+    let split = opts.vbuffer == VBufferPrecision::Split12;
+    if !split && !gpu.float32_blendable {
+        return Err(Error::Unsupported(format!(
+            "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use vbuffer \
+             \"split12\" or gpu_pipeline \"gather\"",
+            gpu.info.name
+        )));
+    }
+    let start = std::time::Instant::now();
+    let objects_ms = gpu.cache.run_objects_ms();
+    let size = (rays.width, rays.height);
+    let occluders = frame.scene.occluders();
+    let hard = HardRaster::new(gpu, rays, &frame.scene.camera, opts.counting, 1);
+    let textured = res.channels == 3;
+    let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), SOFT_WGSL);
+    let (format, entries) = match (split, textured) {
+        (true, _) => (
+            wgpu::TextureFormat::Rgba8Unorm,
+            &["fs_wedge_add", "fs_wedge_sub"][..],
+        ),
+        (false, true) => (wgpu::TextureFormat::Rgba32Float, &["fs_wedge"][..]),
+        (false, false) => (wgpu::TextureFormat::R32Float, &["fs_wedge"][..]),
+    };
+    let vbuffers: Vec<wgpu::TextureView> = entries
+        .iter()
+        .map(|e| gpu.target_view(e, size, format))
+        .collect();
+    let stages = wgpu::ShaderStages::COMPUTE;
+    let (targets, read_targets) = crate::gpu::pass::Layout::bound(
+        gpu,
+        "ssv targets",
+        stages,
+        &[
+            &hard.count,
+            &vbuffers[0],
+            vbuffers.last().unwrap_or(&vbuffers[0]),
+        ]
+        .map(|t| (Bind::Float, view(t))),
+    );
+    let sources = [
+        Params::WGSL,
+        FAMILY_WGSL,
+        SOFT_WGSL,
+        WGSL,
+        crate::scene::coverage::WGSL,
+    ];
+    let program = Program::new(gpu, "ssv raster", &sources, &[Some(&v.layout)]);
+    let resolve_program = Program::new(
+        gpu,
+        "ssv resolve",
+        &sources,
+        &[Some(&v.layout), Some(&targets)],
+    );
+    let add = wgpu::BlendComponent {
+        src_factor: wgpu::BlendFactor::One,
+        dst_factor: wgpu::BlendFactor::One,
+        operation: wgpu::BlendOperation::Add,
+    };
+    let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32];
+    let pipeline = |fs: &str, instrument: bool| {
+        program.render(
+            gpu,
+            &Raster {
+                vs: "vs_wedge",
+                fs,
+                vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
+                depth: Some(if instrument {
+                    wgpu::CompareFunction::Always
+                } else {
+                    wgpu::CompareFunction::Greater
+                }),
+                depth_write: false,
+                color: Some(wgpu::ColorTargetState {
+                    format,
+                    blend: Some(wgpu::BlendState {
+                        color: add,
+                        alpha: add,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                }),
+                instrument: Some(instrument),
+                ..Raster::default()
+            },
+        )
+    };
+    let timed: Vec<wgpu::RenderPipeline> = entries.iter().map(|e| pipeline(e, false)).collect();
+    let resolve = resolve_program.compute(gpu, "resolve_soft", Some(false));
+    let projection = eye_projection(rays, &frame.scene.camera);
+    let camera = &frame.scene.camera;
+    let forward = (camera.target - camera.eye).normalize_or(Vec3::NEG_Z);
+    let near = (
+        -forward,
+        -forward.dot(rays.eye) - 1e-3 * rays.bounds.diagonal(),
+    );
+    let mut box_bounds = rays.bounds;
+    let margin = Vec3::splat(1e-3 * rays.bounds.diagonal());
+    (box_bounds.min, box_bounds.max) = (box_bounds.min - margin, box_bounds.max + margin);
+
+    let names = ["hard", "wedges", "soft"];
+    let readback: Vec<&wgpu::Buffer> =
+        [&v.res.visibility, &v.res.rgb][..1 + usize::from(textured)].to_vec();
+    let n_passes = 1 + runs.len() as u32 * (2 + entries.len() as u32);
+    let mut run = Timed::new(gpu, &names, n_passes, Statistics::All, &readback);
+    // Without the pipelines' creation: the run's GPU setup, reported apart.
+    let objects_ms = gpu.cache.run_objects_ms() - objects_ms;
+    run.add_wall(
+        0,
+        setup_ms + start.elapsed().as_secs_f64() * 1e3 - objects_ms,
+    );
+    let storage = wgpu::BufferUsages::STORAGE;
+    let mut loops = Vec::with_capacity(runs.len());
+    for (k, lr) in runs.iter().enumerate() {
+        // Pass 1: hard shadow quads (III §3.2.1).
+        let centre = lr.light.center();
+        let (quads, hard_vb, hard_vertices, caps) = run.host(0, || {
+            let quads: Vec<ShadowQuad> = lr
+                .edges
+                .iter()
+                .map(|e| ShadowQuad::new(e, centre))
+                .collect();
+            let (tris, caps) = hard_triangles(rays, &quads, opts.counting, &occluders, centre);
+            (quads, hard.vertices(&tris), tris.len() as u32, caps)
+        });
+        let eye_count = lr.params.eye_count;
+        let count = hard.count_pass(&hard_vb, 0..hard_vertices, eye_count, false);
+        match k {
+            0 => run.submit(0, &[hard.depth_pass(), count])?,
+            _ => run.submit(0, &[count])?,
+        }
+        // Wedges (III §3.1, IV §4.1) and their front faces, on the host.
+        let (group, wedge, wedge_vertices, wedges, buffers) = run.host(1, || {
+            let w = WedgeRecords::new(rays, lr, &quads, opts);
+            let mut vertices: Vec<[f32; 5]> = Vec::new();
+            for (i, p) in w.prims.iter().enumerate() {
+                for x in front_faces(&p.volume, &box_bounds, near, rays.eye) {
+                    let c = projection * x.extend(1.0);
+                    vertices.push([c.x, c.y, c.z, c.w, i as f32]);
+                }
+            }
+            let none = gpu.storage_buffer("no bins", EMPTY_BYTES as u64, storage);
+            let params = gpu.upload(
+                "ssv params",
+                std::slice::from_ref(&lr.params),
+                wgpu::BufferUsages::UNIFORM,
+            );
+            let no_footprints = vec![None; quads.len()];
+            let quad_buf = gpu.upload(
+                "quads",
+                &quad_records(rays, &quads, &no_footprints),
+                storage,
+            );
+            let prims = gpu.upload("wedge primitives", &w.records, storage);
+            let planes = gpu.upload("wedge planes", &w.planes, storage);
+            let group = v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft");
+            let vb = gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX);
+            let buffers = [params, quad_buf, prims, planes, none];
+            (group, vb, vertices.len() as u32, w, buffers)
+        });
+        // Pass 2: penumbra wedges (III §3.2.2), then the loop's V-buffer and combination.
+        let mut passes: Vec<Pass> = timed
+            .iter()
+            .zip(&vbuffers)
+            .map(|(pipeline, color)| {
+                wedge_pass(&group, pipeline, color, &hard, &wedge, wedge_vertices)
+            })
+            .collect();
+        let groups = [Some(&group), Some(&read_targets)];
+        passes.push(Pass::compute("resolve", &groups, &resolve, tiles(size, 8)));
+        run.submit(2, &passes)?;
+        loops.push(LoopRaster {
+            hard: hard_vb,
+            hard_vertices,
+            eye_count,
+            caps,
+            quads: quads.len() as u64,
+            wedge_vertices,
+            wedges,
+            buffers,
+        });
+    }
+    let timing = run.finish()?;
+    let soft_counting = v.program.compute(gpu, "soft", Some(true));
+    let rgb = timing.readback.get(1).map(|b| RgbBuffer {
+        width: rays.width,
+        height: rays.height,
+        data: words(b),
+    });
+
+    // The instrumented replay, per loop.
+    let mut per_phase = vec![Counters::default(); 3];
+    for (lr, lg) in runs.iter().zip(&loops) {
+        let k = &mut per_phase[0];
+        let (fill, passed) = hard.replay(&lg.hard, &[(0..lg.hard_vertices, lg.eye_count)])?;
+        if let Some(n) = lr.silhouette_edges {
+            k.add("silhouette_edges", n as f64);
+        }
+        k.add("fill", fill);
+        k.add("overdraw", fill - passed);
+        k.add("shadow_quads", lg.quads as f64);
+        if opts.counting == Counting::ZFail {
+            k.add("volume_caps", lg.caps as f64);
+        }
+        // As the cpu-model counts: a depth read per fragment, the V-buffer (the stencil for
+        // the split format) read and written per passing fragment.
+        let count_bytes = if split { STENCIL_BYTES } else { VBUFFER_BYTES } as f64;
+        let depth = [("depth", fill * DEPTH_BYTES as f64)];
+        let target = if split { "stencil" } else { "vbuffer" };
+        let reads = [depth[0], (target, passed * count_bytes)];
+        k.add_traffic("mem_est", &reads, &[(target, passed * count_bytes)]);
+        per_phase[1].add("wedges", lg.wedges.counts.wedges as f64);
+        per_phase[1].add("wedges_degenerate", lg.wedges.counts.degenerate as f64);
+        // The soft pass counted by the gather's instrumented compute pass over the same
+        // primitives (all binned to every tile they cover, no coarse test).
+        let w = &lg.wedges;
+        let (bins_vec, _) = bins(rays, &w.footprints, |_, _| true);
+        let bins_buf = gpu.upload("wedge bins", &bins_vec, storage);
+        let [params, quad_buf, prims, planes, none] = &lg.buffers;
+        let group = v.group(params, [quad_buf, prims, planes, none, &bins_buf], "soft");
+        let stat = v.replay(vec![v.pass("soft", &soft_counting, &group)])?;
+        let vertices = (
+            "wedge_vertices",
+            VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices),
+        );
+        let (channels, pixels) = (v.res.channels, v.pixels);
+        let k = &mut per_phase[2];
+        soft_counters(
+            k,
+            opts,
+            channels,
+            pixels,
+            &lg.wedges.counts,
+            vertices,
+            &stat,
+        );
+    }
+    let note = "hard fill and overdraw from an instrumented replay of the count passes (depth \
+                test off, WGSL atomics); the wedge pass's fill, overdraw, shader invocations and \
+                culls from the gather's instrumented compute pass over the same primitives, in \
+                the cpu-model's terms; mem_est.* estimated from counts and record sizes";
+    let mut out = timing.output(size, per_phase, note);
+    out.rgb = rgb;
+    Ok(out)
+}
+
+/// A wedge pass of `pipeline` over the front faces in `vertices` into `color`, cleared to 0,
+/// with the eye's depth.
+fn wedge_pass<'a>(
+    group: &'a wgpu::BindGroup,
+    pipeline: &'a wgpu::RenderPipeline,
+    color: &'a wgpu::TextureView,
+    hard: &'a HardRaster,
+    vertices: &'a wgpu::Buffer,
+    count: u32,
+) -> Pass<'a> {
+    Pass::onto(
+        "soft",
+        &[Some(group)],
+        Onto {
+            pipeline,
+            color,
+            clear: Some(0.0),
+            depth: Some(&hard.depth),
+            vertices: Some(vertices),
+            range: 0..count,
+        },
+    )
+}

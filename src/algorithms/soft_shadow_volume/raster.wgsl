@@ -1,0 +1,83 @@
+// soft_shadow_volume's wedge pass on a rasterizer (soft_shadow_volume/raster.rs; paper 001
+// III §3.2.2, §4; IV §4.3-4.4), joined after the family's shadow_volume/wgpu.wgsl and
+// soft_shadow_volume/wgpu.wgsl, whose `wedge_sample` (the per-pixel coverage) and `combine`
+// (the V-buffer and the loops' and sub-lights' combination) it calls.
+
+// The targets the resolve reads: the hard pass's count (R16Float), the V-buffer (R32Float,
+// Rgba32Float per channel under a textured light, or the additive rgba8 buffer of the split
+// format) and the split format's subtractive rgba8 buffer (else the V-buffer again).
+@group(1) @binding(0) var count_in: texture_2d<f32>;
+@group(1) @binding(1) var vbuffer_in: texture_2d<f32>;
+@group(1) @binding(2) var vbuffer_sub: texture_2d<f32>;
+
+struct WedgeOut {
+    @builtin(position) pos: vec4f,
+    @location(0) @interpolate(flat) prim: u32,
+}
+
+// A corner of a front face of a wedge primitive, in clip space (transformed on the host by
+// `shadow_volume::raster::eye_projection`), and the primitive's index.
+@vertex
+fn vs_wedge(@location(0) clip: vec4f, @location(1) prim: f32) -> WedgeOut {
+    return WedgeOut(clip, u32(prim));
+}
+
+// One fragment of primitive `prim`: `wedge_sample` of its pixel's ray.
+fn wedge_fragment(pos: vec4f, prim: u32) -> WedgeSample {
+    let i = u32(pos.y) * P.width + u32(pos.x);
+    return wedge_sample(rays[i], prims[prim]);
+}
+
+// The f32 V-buffer (III §4.1): minus side times the coverage, per channel, blended additively.
+@fragment
+fn fs_wedge(in: WedgeOut) -> @location(0) vec4f {
+    let w = wedge_fragment(in.pos, in.prim);
+    if w.reached != REACHED_COVERED {
+        discard;
+    }
+    return vec4f(-w.side * w.c3, 0.0);
+}
+
+// The split 12-bit V-buffer (IV §4.3, `split12`): the coverage's four 3-bit digits into the
+// additive rgba8 buffer (inner side) or the subtractive one (outer side), one draw each, the
+// 8-bit blend saturating as `split12::blend`.
+fn split_fragment(in: WedgeOut, inner: bool) -> vec4f {
+    let w = wedge_fragment(in.pos, in.prim);
+    if w.reached != REACHED_COVERED || (w.side < 0.0) != inner {
+        discard;
+    }
+    return vec4f(split12(w.c3.x)) / 255.0;
+}
+
+@fragment
+fn fs_wedge_add(in: WedgeOut) -> @location(0) vec4f {
+    return split_fragment(in, true);
+}
+
+@fragment
+fn fs_wedge_sub(in: WedgeOut) -> @location(0) vec4f {
+    return split_fragment(in, false);
+}
+
+// An rgba8 texel's 8-bit channels.
+fn bytes(v: vec4f) -> vec4u {
+    return vec4u(floor(v * 255.0 + 0.5));
+}
+
+// The loop's V-buffer, 1 − count ± coverage, and `combine`.
+@compute @workgroup_size(8, 8)
+fn resolve_soft(@builtin(global_invocation_id) id: vec3u) {
+    if id.x >= P.width || id.y >= P.height {
+        return;
+    }
+    let i = id.y * P.width + id.x;
+    let xy = vec2i(id.xy);
+    let hard_count = textureLoad(count_in, xy, 0).x;
+    let v = textureLoad(vbuffer_in, xy, 0);
+    var acc = v.x;
+    if P.vbuffer == 1u {
+        let sub = textureLoad(vbuffer_sub, xy, 0);
+        acc = split12_value(bytes(v)) - split12_value(bytes(sub));
+    }
+    combine(i, hard_count, acc, v.xyz);
+}
