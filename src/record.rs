@@ -103,6 +103,21 @@ pub struct RunRecord {
 }
 
 impl RunRecord {
+    /// The GPU pipeline a wgpu run used (`execution.gpu_pipeline`: `"raster"` or `"gather"`),
+    /// for algorithms that offer two; `None` otherwise.
+    pub fn gpu_pipeline(&self) -> Option<&str> {
+        self.execution.get("gpu_pipeline")?.as_str()
+    }
+
+    /// The algorithm as reports name it: its id, and the GPU pipeline where a run names one
+    /// (`soft_shadow_volume (raster)`).
+    pub fn algorithm_label(&self) -> String {
+        match self.gpu_pipeline() {
+            Some(p) => format!("{} ({p})", self.algorithm),
+            None => self.algorithm.clone(),
+        }
+    }
+
     /// A record for `algorithm` on `backend` in `scene`, before it ran.
     pub fn new(
         algorithm: &str,

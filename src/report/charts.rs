@@ -229,9 +229,10 @@ fn phase_time(p: &Phase, id: &str) -> Option<f64> {
     }
 }
 
-/// The series a run belongs to.
+/// The series a run belongs to: `algorithm / backend`, the algorithm with its GPU pipeline where
+/// the run names one ([`RunRecord::algorithm_label`]).
 pub fn series_name(r: &RunRecord) -> String {
-    format!("{} / {}", r.algorithm, r.backend)
+    format!("{} / {}", r.algorithm_label(), r.backend)
 }
 
 /// The points of one algorithm on one execution.

@@ -196,7 +196,7 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
                 h,
                 "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td><td>{}</td>",
                 style::hex(style::algorithm_color(&r.algorithm)),
-                text(&r.algorithm),
+                text(&r.label),
                 opt(r.mae_shadow)
             );
             if s.has_restricted {
@@ -583,7 +583,7 @@ fn gallery_cells(out: &Path, run: Option<&RunRecord>, files: &[(&str, &str)]) ->
     let mut h = String::new();
     for (f, label) in files {
         let rel = format!("images/{}/{f}", r.case_id());
-        let alt = format!("{} on {}: {label}", r.algorithm, r.backend);
+        let alt = format!("{} on {}: {label}", r.algorithm_label(), r.backend);
         match image_link(out, &rel, &alt) {
             Some(i) => {
                 let _ = write!(h, "<td>{i}</td>");

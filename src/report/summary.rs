@@ -118,6 +118,8 @@ pub fn base_case(runs: &[&RunRecord]) -> Option<(String, String)> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Row {
     pub algorithm: String,
+    /// The algorithm as the tables and legends name it ([`RunRecord::algorithm_label`]).
+    pub label: String,
     pub backend: String,
     pub mae_shadow: Option<f64>,
     pub restricted: Option<f64>,
@@ -170,6 +172,7 @@ impl Summary {
                     }
                     rows.push(Row {
                         algorithm: r.algorithm.clone(),
+                        label: r.algorithm_label(),
                         backend: b.clone(),
                         mae_shadow: r.error.as_ref().and_then(|e| e.mae_shadow),
                         restricted: restricted_error(r),
@@ -236,7 +239,7 @@ impl Summary {
                     .iter()
                     .filter_map(|r| {
                         Some(Series {
-                            name: format!("{} / {}", r.algorithm, r.backend),
+                            name: format!("{} / {}", r.label, r.backend),
                             algorithm: r.algorithm.clone(),
                             backend: r.backend.clone(),
                             points: vec![(r.costs[c]?, r.mae_shadow?)],
@@ -365,7 +368,7 @@ impl Summary {
                 let _ = write!(
                     s,
                     "{exec} & {} & {}",
-                    tex(&r.algorithm),
+                    tex(&r.label),
                     num(r.mae_shadow, false)
                 );
                 if self.has_restricted {
@@ -444,6 +447,32 @@ mod tests {
         let mut rev = refs.clone();
         rev.reverse();
         assert_eq!(base_case(&rev).unwrap().0, key);
+    }
+
+    #[test]
+    fn a_wgpu_run_is_named_with_its_gpu_pipeline_in_the_table_and_the_chart() {
+        let mut runs = sweep();
+        let mut gpu = record("soft_shadow_volume", "wgpu", 2000, 32);
+        gpu.params.light_size = 0.5;
+        gpu.execution
+            .insert("gpu_pipeline".into(), serde_json::json!("gather"));
+        runs.push(gpu);
+        let refs: Vec<&RunRecord> = runs.iter().collect();
+        let s = Summary::of(&refs).unwrap();
+        let wgpu = s.executions.iter().find(|e| e.backend == "wgpu").unwrap();
+        assert_eq!(wgpu.rows[0].label, "soft_shadow_volume (gather)");
+        // Runs without a pipeline keep the bare id.
+        assert!(s.executions[0].rows.iter().all(|r| r.label == r.algorithm));
+        let names: Vec<String> = s
+            .charts()
+            .iter()
+            .flat_map(|c| c.panels.iter().flat_map(|p| p.series_names()))
+            .collect();
+        assert!(
+            names.contains(&"soft_shadow_volume (gather) / wgpu".to_string()),
+            "{names:?}"
+        );
+        assert!(s.latex("t").contains("soft\\_shadow\\_volume (gather)"));
     }
 
     #[test]
