@@ -52,7 +52,7 @@ use super::{SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{eye_projection, hard_triangles, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
-    bins, quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
+    quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
     WGSL as FAMILY_WGSL,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
@@ -138,8 +138,9 @@ struct LoopRaster {
     quads: u64,
     wedge_vertices: u32,
     wedges: WedgeRecords,
-    /// Params, quads, wedge primitives, planes and an empty buffer, for the counting replay.
-    buffers: [wgpu::Buffer; 5],
+    /// The wedge pass's bind group and vertex buffer.
+    group: wgpu::BindGroup,
+    wedge: wgpu::Buffer,
 }
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
@@ -238,6 +239,7 @@ pub(super) fn run(
         )
     };
     let timed: Vec<wgpu::RenderPipeline> = entries.iter().map(|e| pipeline(e, false)).collect();
+    let counting = pipeline(entries[0], true);
     let resolve = resolve_program.compute(gpu, "resolve_soft", Some(false));
     let projection = eye_projection(rays, &frame.scene.camera);
     let camera = &frame.scene.camera;
@@ -282,7 +284,7 @@ pub(super) fn run(
             _ => run.submit(0, &[count])?,
         }
         // Wedges (III §3.1, IV §4.1) and their front faces, on the host.
-        let (group, wedge, wedge_vertices, wedges, buffers) = run.host(1, || {
+        let (group, wedge, wedge_vertices, wedges) = run.host(1, || {
             let w = WedgeRecords::new(rays, lr, &quads, opts);
             let mut vertices: Vec<[f32; 5]> = Vec::new();
             for (i, p) in w.prims.iter().enumerate() {
@@ -307,8 +309,7 @@ pub(super) fn run(
             let planes = gpu.upload("wedge planes", &w.planes, storage);
             let group = v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft");
             let vb = gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX);
-            let buffers = [params, quad_buf, prims, planes, none];
-            (group, vb, vertices.len() as u32, w, buffers)
+            (group, vb, vertices.len() as u32, w)
         });
         // Pass 2: penumbra wedges (III §3.2.2), then the loop's V-buffer and combination.
         let mut passes: Vec<Pass> = timed
@@ -329,11 +330,11 @@ pub(super) fn run(
             quads: quads.len() as u64,
             wedge_vertices,
             wedges,
-            buffers,
+            group,
+            wedge,
         });
     }
     let timing = run.finish()?;
-    let soft_counting = v.program.compute(gpu, "soft", Some(true));
     let rgb = timing.readback.get(1).map(|b| RgbBuffer {
         width: rays.width,
         height: rays.height,
@@ -363,14 +364,15 @@ pub(super) fn run(
         k.add_traffic("mem_est", &reads, &[(target, passed * count_bytes)]);
         per_phase[1].add("wedges", lg.wedges.counts.wedges as f64);
         per_phase[1].add("wedges_degenerate", lg.wedges.counts.degenerate as f64);
-        // The soft pass counted by the gather's instrumented compute pass over the same
-        // primitives (all binned to every tile they cover, no coarse test).
-        let w = &lg.wedges;
-        let (bins_vec, _) = bins(rays, &w.footprints, |_, _| true);
-        let bins_buf = gpu.upload("wedge bins", &bins_vec, storage);
-        let [params, quad_buf, prims, planes, none] = &lg.buffers;
-        let group = v.group(params, [quad_buf, prims, planes, none, &bins_buf], "soft");
-        let stat = v.replay(vec![v.pass("soft", &soft_counting, &group)])?;
+        // The soft pass: the same draws with the counting pipeline (depth test off).
+        let stat = v.replay(vec![wedge_pass(
+            &lg.group,
+            &counting,
+            &vbuffers[0],
+            &hard,
+            &lg.wedge,
+            lg.wedge_vertices,
+        )])?;
         let vertices = (
             "wedge_vertices",
             VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices),
