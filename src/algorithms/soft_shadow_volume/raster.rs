@@ -37,13 +37,16 @@
 //! pixel the wedge covers is the gather's, operation for operation.
 //!
 //! Counters: the hard pass's fill and overdraw from [`HardRaster::replay`] (rasterized
-//! fragments, in the cpu-model's terms). The wedge pass's fill, overdraw, shader invocations,
-//! culled fragments and fragments inside wedges come from the gather's instrumented compute
-//! pass (`soft` with `INSTRUMENT`) over the same primitives, not from the rasterizer's own
-//! fragments: counting with WGSL atomics in this pipeline's fragment shader read back zero on
-//! lavapipe (the timed draws are correct; the cause is not found), so they are the cpu-model's
-//! per-pixel definitions evaluated on the GPU, and `wedge_tests` counts the gather's
-//! pixel–primitive tests (every primitive binned to every 8×8 tile its footprint covers).
+//! fragments, in the cpu-model's terms). The wedge pass's from an instrumented replay of its own
+//! draws (the counting pipeline: depth test off, `INSTRUMENT` on; one draw of the primitives
+//! even where the split format draws them twice), each fragment counted in the cpu-model's terms
+//! (`SoftPass::block`): fill, its ray meets the primitive within the scene bounds (doubled with
+//! culling: both passes of IV §4.4 rasterize the half); shader invocations, its point is behind
+//! the entry (inside the half, with culling); fragments inside wedges, the coverage was
+//! computed; overdraw, fill less the fragments adding a non-zero coverage; `wedge_tests`,
+//! every rasterized fragment. A pixel whose ray grazes a primitive can be rasterized where the
+//! cpu's interval misses it or the reverse, so these differ from the cpu-model's by a small
+//! fraction of the fill ([`super::SoftShadowVolume`]'s `WGPU_PARITY`).
 
 use glam::Vec3;
 
@@ -389,10 +392,9 @@ pub(super) fn run(
             &stat,
         );
     }
-    let note = "hard fill and overdraw from an instrumented replay of the count passes (depth \
-                test off, WGSL atomics); the wedge pass's fill, overdraw, shader invocations and \
-                culls from the gather's instrumented compute pass over the same primitives, in \
-                the cpu-model's terms; mem_est.* estimated from counts and record sizes";
+    let note = "fill, overdraw, shader invocations and culls from an instrumented replay of the \
+                count and wedge passes' draws (depth test off, WGSL atomics), in the \
+                cpu-model's terms; mem_est.* estimated from counts and record sizes";
     let mut out = timing.output(size, per_phase, note);
     out.rgb = rgb;
     Ok(out)
