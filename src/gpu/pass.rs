@@ -1021,7 +1021,11 @@ pub enum Step<'a> {
     Read(&'a wgpu::Buffer),
 }
 
-/// Runs `steps` in one submission and returns the bytes of every [`Step::Read`] in order.
+/// Runs `steps` and returns the bytes of every [`Step::Read`] in order. The passes before a
+/// read are submitted first and the read's copy in a submission of its own: on lavapipe a copy
+/// recorded after a render pass in the same submission reads the buffer before that pass's
+/// fragment-shader atomics land (a following compute pass or submission sees them), which made
+/// an instrumented replay of draws whose fragment shader counts read back zero.
 ///
 /// With the run's counters off ([`GpuCounters::Off`]) nothing is submitted and every read
 /// comes back as zeros of its buffer's size: what the execution derives from them never reaches
@@ -1044,18 +1048,28 @@ pub fn replay(gpu: &Gpu, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
             _ => None,
         })
         .collect();
-    gpu.submit(|e| {
-        for (i, s) in steps.iter().enumerate() {
-            match s {
-                Step::Clear(b) => e.clear_buffer(b, 0, None),
-                Step::Run(p) => p.record(e, None, None, 0),
-                Step::Read(b) => {
-                    let (_, staging) = stagings.iter().find(|(k, _)| *k == i).expect("staged");
-                    staging.copy(e, b);
+    // Submissions alternate: passes (and clears), then the reads that follow them.
+    let mut start = 0;
+    while start < steps.len() {
+        let is_read = matches!(steps[start], Step::Read(_));
+        let end = steps[start..]
+            .iter()
+            .position(|s| matches!(s, Step::Read(_)) != is_read)
+            .map_or(steps.len(), |n| start + n);
+        gpu.submit(|e| {
+            for (i, s) in steps.iter().enumerate().take(end).skip(start) {
+                match s {
+                    Step::Clear(b) => e.clear_buffer(b, 0, None),
+                    Step::Run(p) => p.record(e, None, None, 0),
+                    Step::Read(b) => {
+                        let (_, staging) = stagings.iter().find(|(k, _)| *k == i).expect("staged");
+                        staging.copy(e, b);
+                    }
                 }
             }
-        }
-    })?;
+        })?;
+        start = end;
+    }
     stagings.iter().map(|(_, s)| s.read(gpu)).collect()
 }
 

@@ -797,13 +797,23 @@ impl Algorithm for SoftShadowVolume {
     /// and off, split V-buffer with the 4D texture, light splitting with the overlap
     /// approximation): MAE 4.6e-4–1.0e-3, 0.07–0.51% of the pixels over 0.1 (the pixels along
     /// the occluder's own terminator, where the hard quads graze the surface they start on);
-    /// the hard pass's fill and overdraw within 2 fragments; the wedge counters equal (they
-    /// come from the gather's counting pass). The gather: MAE under 1e-9, counters equal.
-    /// Bounds: MAE 2.5e-3, 1% over 0.1, fill and overdraw within 3% of the fill.
+    /// the hard pass's fill and overdraw within 2 fragments; the wedge pass's counters (from
+    /// the instrumented replay of its draws) differ where the rasterizer's coverage of a front
+    /// face (top-left rule, pixel centres) and the cpu's ray–primitive interval disagree on a
+    /// grazing ray: measured at 64×48 on sphere-on-plane, fill 9469 against 9489 (0.2%),
+    /// shader invocations 2079 against 2082. The gather: MAE under 1e-9, counters equal.
+    /// Bounds: MAE 2.5e-3, 1% over 0.1, fill, overdraw, shader invocations, culled fragments
+    /// and fragments inside wedges within 3% of the fill.
     const WGPU_PARITY: WgpuParity = WgpuParity {
         mae: 2.5e-3,
         frac_over_0_1: 0.01,
-        differ: &[("fill", Some(0.03)), ("overdraw", Some(0.03))],
+        differ: &[
+            ("fill", Some(0.03)),
+            ("overdraw", Some(0.03)),
+            ("shader_invocations", Some(0.03)),
+            ("culled_fragments", Some(0.03)),
+            ("fragments_inside_wedges", Some(0.03)),
+        ],
     };
     const CPU: CpuEntry<SoftShadowVolumeOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<SoftShadowVolumeOptions>> = Some(wgpu::render);

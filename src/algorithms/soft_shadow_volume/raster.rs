@@ -37,13 +37,16 @@
 //! pixel the wedge covers is the gather's, operation for operation.
 //!
 //! Counters: the hard pass's fill and overdraw from [`HardRaster::replay`] (rasterized
-//! fragments, in the cpu-model's terms). The wedge pass's fill, overdraw, shader invocations,
-//! culled fragments and fragments inside wedges come from the gather's instrumented compute
-//! pass (`soft` with `INSTRUMENT`) over the same primitives, not from the rasterizer's own
-//! fragments: counting with WGSL atomics in this pipeline's fragment shader read back zero on
-//! lavapipe (the timed draws are correct; the cause is not found), so they are the cpu-model's
-//! per-pixel definitions evaluated on the GPU, and `wedge_tests` counts the gather's
-//! pixel–primitive tests (every primitive binned to every 8×8 tile its footprint covers).
+//! fragments, in the cpu-model's terms). The wedge pass's from an instrumented replay of its own
+//! draws (the counting pipeline: depth test off, `INSTRUMENT` on; one draw of the primitives
+//! even where the split format draws them twice), each fragment counted in the cpu-model's terms
+//! (`SoftPass::block`): fill, its ray meets the primitive within the scene bounds (doubled with
+//! culling: both passes of IV §4.4 rasterize the half); shader invocations, its point is behind
+//! the entry (inside the half, with culling); fragments inside wedges, the coverage was
+//! computed; overdraw, fill less the fragments adding a non-zero coverage; `wedge_tests`,
+//! every rasterized fragment. A pixel whose ray grazes a primitive can be rasterized where the
+//! cpu's interval misses it or the reverse, so these differ from the cpu-model's by a small
+//! fraction of the fill ([`super::SoftShadowVolume`]'s `WGPU_PARITY`).
 
 use glam::Vec3;
 
@@ -52,7 +55,7 @@ use super::{SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{eye_projection, hard_triangles, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
-    bins, quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
+    quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
     WGSL as FAMILY_WGSL,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
@@ -138,8 +141,9 @@ struct LoopRaster {
     quads: u64,
     wedge_vertices: u32,
     wedges: WedgeRecords,
-    /// Params, quads, wedge primitives, planes and an empty buffer, for the counting replay.
-    buffers: [wgpu::Buffer; 5],
+    /// The wedge pass's bind group and vertex buffer.
+    group: wgpu::BindGroup,
+    wedge: wgpu::Buffer,
 }
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
@@ -238,6 +242,7 @@ pub(super) fn run(
         )
     };
     let timed: Vec<wgpu::RenderPipeline> = entries.iter().map(|e| pipeline(e, false)).collect();
+    let counting = pipeline(entries[0], true);
     let resolve = resolve_program.compute(gpu, "resolve_soft", Some(false));
     let projection = eye_projection(rays, &frame.scene.camera);
     let camera = &frame.scene.camera;
@@ -282,7 +287,7 @@ pub(super) fn run(
             _ => run.submit(0, &[count])?,
         }
         // Wedges (III §3.1, IV §4.1) and their front faces, on the host.
-        let (group, wedge, wedge_vertices, wedges, buffers) = run.host(1, || {
+        let (group, wedge, wedge_vertices, wedges) = run.host(1, || {
             let w = WedgeRecords::new(rays, lr, &quads, opts);
             let mut vertices: Vec<[f32; 5]> = Vec::new();
             for (i, p) in w.prims.iter().enumerate() {
@@ -307,8 +312,7 @@ pub(super) fn run(
             let planes = gpu.upload("wedge planes", &w.planes, storage);
             let group = v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft");
             let vb = gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX);
-            let buffers = [params, quad_buf, prims, planes, none];
-            (group, vb, vertices.len() as u32, w, buffers)
+            (group, vb, vertices.len() as u32, w)
         });
         // Pass 2: penumbra wedges (III §3.2.2), then the loop's V-buffer and combination.
         let mut passes: Vec<Pass> = timed
@@ -329,11 +333,11 @@ pub(super) fn run(
             quads: quads.len() as u64,
             wedge_vertices,
             wedges,
-            buffers,
+            group,
+            wedge,
         });
     }
     let timing = run.finish()?;
-    let soft_counting = v.program.compute(gpu, "soft", Some(true));
     let rgb = timing.readback.get(1).map(|b| RgbBuffer {
         width: rays.width,
         height: rays.height,
@@ -363,14 +367,15 @@ pub(super) fn run(
         k.add_traffic("mem_est", &reads, &[(target, passed * count_bytes)]);
         per_phase[1].add("wedges", lg.wedges.counts.wedges as f64);
         per_phase[1].add("wedges_degenerate", lg.wedges.counts.degenerate as f64);
-        // The soft pass counted by the gather's instrumented compute pass over the same
-        // primitives (all binned to every tile they cover, no coarse test).
-        let w = &lg.wedges;
-        let (bins_vec, _) = bins(rays, &w.footprints, |_, _| true);
-        let bins_buf = gpu.upload("wedge bins", &bins_vec, storage);
-        let [params, quad_buf, prims, planes, none] = &lg.buffers;
-        let group = v.group(params, [quad_buf, prims, planes, none, &bins_buf], "soft");
-        let stat = v.replay(vec![v.pass("soft", &soft_counting, &group)])?;
+        // The soft pass: the same draws with the counting pipeline (depth test off).
+        let stat = v.replay(vec![wedge_pass(
+            &lg.group,
+            &counting,
+            &vbuffers[0],
+            &hard,
+            &lg.wedge,
+            lg.wedge_vertices,
+        )])?;
         let vertices = (
             "wedge_vertices",
             VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices),
@@ -387,10 +392,9 @@ pub(super) fn run(
             &stat,
         );
     }
-    let note = "hard fill and overdraw from an instrumented replay of the count passes (depth \
-                test off, WGSL atomics); the wedge pass's fill, overdraw, shader invocations and \
-                culls from the gather's instrumented compute pass over the same primitives, in \
-                the cpu-model's terms; mem_est.* estimated from counts and record sizes";
+    let note = "fill, overdraw, shader invocations and culls from an instrumented replay of the \
+                count and wedge passes' draws (depth test off, WGSL atomics), in the \
+                cpu-model's terms; mem_est.* estimated from counts and record sizes";
     let mut out = timing.output(size, per_phase, note);
     out.rgb = rgb;
     Ok(out)

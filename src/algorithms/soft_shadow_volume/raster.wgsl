@@ -22,10 +22,23 @@ fn vs_wedge(@location(0) clip: vec4f, @location(1) prim: f32) -> WedgeOut {
     return WedgeOut(clip, u32(prim));
 }
 
-// One fragment of primitive `prim`: `wedge_sample` of its pixel's ray.
+// One fragment of primitive `prim`: `wedge_sample` of its pixel's ray. The instrumented
+// pipeline (depth test off) counts every rasterized fragment in the cpu-model's terms
+// (`SoftPass::block`): tests (every fragment), fill (its ray meets the primitive within the
+// scene bounds), front (its visible point behind the entry: the fragment passing the timed
+// pipeline's depth test), inside, covered and contributing.
 fn wedge_fragment(pos: vec4f, prim: u32) -> WedgeSample {
     let i = u32(pos.y) * P.width + u32(pos.x);
-    return wedge_sample(rays[i], prims[prim]);
+    let w = wedge_sample(rays[i], prims[prim]);
+    if INSTRUMENT != 0u {
+        count(STAT_SOFT_TESTS, 1u);
+        count(STAT_SOFT_FILL, u32(w.reached >= REACHED_FILL));
+        count(STAT_SOFT_FRONT, u32(w.reached >= REACHED_FRONT));
+        count(STAT_SOFT_INSIDE, u32(w.reached >= REACHED_INSIDE));
+        count(STAT_SOFT_COVERED, u32(w.reached == REACHED_COVERED));
+        count(STAT_SOFT_CONTRIBUTING, u32(w.reached == REACHED_COVERED && any(w.c3 > vec3f(0.0))));
+    }
+    return w;
 }
 
 // The f32 V-buffer (III §4.1): minus side times the coverage, per channel, blended additively.

@@ -515,7 +515,12 @@ pub(super) fn soft_counters(
     let depth = raster_fill * DEPTH_BYTES as f64;
     let stencil_r = stencil_read * STENCIL_BYTES as f64;
     let stencil_w = stencil_write * STENCIL_BYTES as f64;
-    let vbuffer = (VBUFFER_BYTES * u64::from(channels)) as f64 * covered;
+    // As the cpu-model: an f32 per channel, or the split format's rgba8 texel.
+    let vbytes = match opts.vbuffer {
+        VBufferPrecision::F32 => VBUFFER_BYTES * u64::from(channels),
+        VBufferPrecision::Split12 => VBUFFER_BYTES,
+    };
+    let vbuffer = vbytes as f64 * covered;
     let counts = (WORD * pixels) as f64;
     let out = (2 * WORD * pixels) as f64;
     let reads = [
