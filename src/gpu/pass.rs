@@ -603,6 +603,15 @@ pub fn tiles(size: (u32, u32), side: u32) -> (u32, u32) {
 }
 
 impl<'a> Pass<'a> {
+    /// A pass of `work` with the bind groups `groups`.
+    fn new(label: &'a str, groups: &[Option<&'a wgpu::BindGroup>], work: Work<'a>) -> Pass<'a> {
+        Pass {
+            label,
+            groups: groups.to_vec(),
+            work,
+        }
+    }
+
     /// A compute pass of one dispatch.
     pub fn compute(
         label: &'a str,
@@ -610,11 +619,7 @@ impl<'a> Pass<'a> {
         pipeline: &'a wgpu::ComputePipeline,
         workgroups: (u32, u32),
     ) -> Pass<'a> {
-        Pass {
-            label,
-            groups: groups.to_vec(),
-            work: Work::Dispatch(vec![(pipeline, workgroups)]),
-        }
+        Pass::new(label, groups, Work::Dispatch(vec![(pipeline, workgroups)]))
     }
 
     /// A render pass of one draw.
@@ -623,11 +628,7 @@ impl<'a> Pass<'a> {
         groups: &[Option<&'a wgpu::BindGroup>],
         draw: Draw<'a>,
     ) -> Pass<'a> {
-        Pass {
-            label,
-            groups: groups.to_vec(),
-            work: Work::Draw(draw),
-        }
+        Pass::new(label, groups, Work::Draw(draw))
     }
 
     /// A render pass of one draw onto kept targets.
@@ -636,11 +637,7 @@ impl<'a> Pass<'a> {
         groups: &[Option<&'a wgpu::BindGroup>],
         onto: Onto<'a>,
     ) -> Pass<'a> {
-        Pass {
-            label,
-            groups: groups.to_vec(),
-            work: Work::Onto(onto),
-        }
+        Pass::new(label, groups, Work::Onto(onto))
     }
 
     /// The body of a render pass: statistics begun (pass `index`) when `stats` is given, the
