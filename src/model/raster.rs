@@ -147,6 +147,18 @@ impl Pipeline {
         depth_write: true,
         color: None,
     };
+
+    /// A colour-only pass, both sides drawn, no depth test: every fragment reaches `blend`
+    /// onto a target cleared to `clear` (a penumbra or soft shadow map splatted into).
+    pub const fn color_only(clear: f32, blend: Blend) -> Pipeline {
+        Pipeline {
+            cull: Cull::None,
+            coverage: Coverage::Center,
+            depth_clear: None,
+            depth_write: false,
+            color: Some((clear, blend)),
+        }
+    }
 }
 
 /// Where a draw renders and how it is tiled.

@@ -36,8 +36,7 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
-    self, Blend, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface,
-    Target, TileRect,
+    self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
 };
 use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::scene::adjacency::EdgeAdjacency;
@@ -800,11 +799,8 @@ fn draw_volume(
     let res = frame.params.map_resolution;
     let target = Target::square(res, frame.params.tile_size);
     let pipeline = Pipeline {
-        cull: Cull::None,
-        coverage: Coverage::Center,
-        depth_clear: Some(1.0),
-        depth_write: true,
         color: Some((0.0, Blend::Replace)),
+        ..Pipeline::DEPTH_ONLY
     };
     let geometry = Geometry {
         positions: &positions,

@@ -25,8 +25,7 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
-    self, Blend, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface,
-    Target, TileRect,
+    self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
 };
 use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
@@ -385,14 +384,8 @@ fn penumbra_map(
 
     let res = frame.params.map_resolution;
     let target = Target::square(res, frame.params.tile_size);
-    let pipeline = Pipeline {
-        cull: Cull::None,
-        coverage: Coverage::Center,
-        depth_clear: None,
-        depth_write: false,
-        // §4: the darkest contribution wins (the paper's GL_LESS on intensity as depth).
-        color: Some((1.0, Blend::Min)),
-    };
+    // §4: the darkest contribution wins (the paper's GL_LESS on intensity as depth).
+    let pipeline = Pipeline::color_only(1.0, Blend::Min);
     let geometry = Geometry {
         positions: &positions,
         triangles: &triangles,

@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 
 use super::texel;
 use super::{Bias, FaceView, LightView, LightViews, ViewFit};
-use crate::algorithms::exec::{machine, output};
+use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
@@ -249,11 +249,7 @@ pub fn eye_lookup<L: Lookup>(
 ) -> VisibilityBuffer {
     m.phase(&map.face.phase("eye_lookup"));
     let g = &frame.gbuffer;
-    let tiles = Target {
-        width: g.width,
-        height: g.height,
-        tile: frame.params.tile_size,
-    };
+    let tiles = eye_tiles(frame);
     let pass = EyePass {
         frame,
         map,
@@ -266,12 +262,7 @@ pub fn eye_lookup<L: Lookup>(
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
     let weights = tiles.tile_weights(|i| g.is_hit(i) && map.face.owns(g.position[i]));
-    let outs = m.run_step("lookup", &pass, &weights);
-    let mut vis = VisibilityBuffer::lit(g.width, g.height);
-    for (i, v) in outs.into_iter().flatten() {
-        vis.data[i as usize] = v;
-    }
-    vis
+    eye_lookup_step(m, frame, &pass, &weights)
 }
 
 /// The shadow-map family's frame on a CPU execution with `lookup`: the light views of the frame

@@ -9,13 +9,13 @@ use super::{
     bias_at, occlusion, penumbra_extent, visibility, LightFrame, MicroPatch, SoftShadowMapOptions,
     Split, MAX_HALF_ANGLE_DEG,
 };
-use crate::algorithms::exec::machine;
+use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
-    self, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target,
-    TileRect, BLOCK,
+    self, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
+    BLOCK,
 };
 use crate::model::{Buffer, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::visibility::VisibilityBuffer;
@@ -300,13 +300,7 @@ fn splat(
     );
     let res = lf.resolution;
     let target = Target::square(res, frame.params.tile_size);
-    let pipeline = Pipeline {
-        cull: Cull::None,
-        coverage: Coverage::Center,
-        depth_clear: None,
-        depth_write: false,
-        color: Some((0.0, o.precision.blend())),
-    };
+    let pipeline = Pipeline::color_only(0.0, o.precision.blend());
     let geometry = Geometry {
         positions: &vertices,
         triangles: &triangles,
@@ -560,11 +554,7 @@ fn project(
 ) -> VisibilityBuffer {
     m.phase("project");
     let g = &frame.gbuffer;
-    let tiles = Target {
-        width: g.width,
-        height: g.height,
-        tile: frame.params.tile_size,
-    };
+    let tiles = eye_tiles(frame);
     let pass = Project {
         lf,
         ssm,
@@ -579,12 +569,7 @@ fn project(
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
     let weights = tiles.tile_weights(|i| g.is_hit(i));
-    let outs = m.run_step("lookup", &pass, &weights);
-    let mut vis = VisibilityBuffer::lit(g.width, g.height);
-    for (i, v) in outs.into_iter().flatten() {
-        vis.data[i as usize] = v;
-    }
-    vis
+    eye_lookup_step(m, frame, &pass, &weights)
 }
 
 /// `soft_shadow_map` on a CPU execution.
@@ -599,7 +584,7 @@ pub fn render(
     let maps = maps(&mut m, frame, &split, o);
     let ssm = soft_shadow_map(&mut m, frame, &maps, o);
     let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
-    let mut out = crate::algorithms::exec::output(m, vis);
+    let mut out = output(m, vis);
     out.warnings.extend(split.warning());
     record_receivers_outside(frame, &split, &mut out);
     Ok(out)
