@@ -602,9 +602,12 @@ pub fn tiles(size: (u32, u32), side: u32) -> (u32, u32) {
     (size.0.div_ceil(side), size.1.div_ceil(side))
 }
 
+/// A pass's bind groups: group `i` at index `i`; `None` leaves one unset.
+pub type Groups<'a> = [Option<&'a wgpu::BindGroup>];
+
 impl<'a> Pass<'a> {
     /// A pass of `work` with the bind groups `groups`.
-    fn new(label: &'a str, groups: &[Option<&'a wgpu::BindGroup>], work: Work<'a>) -> Pass<'a> {
+    fn new(label: &'a str, groups: &Groups<'a>, work: Work<'a>) -> Pass<'a> {
         Pass {
             label,
             groups: groups.to_vec(),
@@ -615,7 +618,7 @@ impl<'a> Pass<'a> {
     /// A compute pass of one dispatch.
     pub fn compute(
         label: &'a str,
-        groups: &[Option<&'a wgpu::BindGroup>],
+        groups: &Groups<'a>,
         pipeline: &'a wgpu::ComputePipeline,
         workgroups: (u32, u32),
     ) -> Pass<'a> {
@@ -623,20 +626,12 @@ impl<'a> Pass<'a> {
     }
 
     /// A render pass of one draw.
-    pub fn draw(
-        label: &'a str,
-        groups: &[Option<&'a wgpu::BindGroup>],
-        draw: Draw<'a>,
-    ) -> Pass<'a> {
+    pub fn draw(label: &'a str, groups: &Groups<'a>, draw: Draw<'a>) -> Pass<'a> {
         Pass::new(label, groups, Work::Draw(draw))
     }
 
     /// A render pass of one draw onto kept targets.
-    pub fn onto(
-        label: &'a str,
-        groups: &[Option<&'a wgpu::BindGroup>],
-        onto: Onto<'a>,
-    ) -> Pass<'a> {
+    pub fn onto(label: &'a str, groups: &Groups<'a>, onto: Onto<'a>) -> Pass<'a> {
         Pass::new(label, groups, Work::Onto(onto))
     }
 

@@ -31,7 +31,9 @@ pub use buffer::{Buffer, Memory};
 pub use config::MachineConfig;
 
 use crate::util::deadline::Deadline;
-pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
+pub use simd::{
+    lane_groups, task_items, task_weights, BufferId, Lanes, Mask, NoProbe, Probe, LANES,
+};
 
 use crate::backend::Backend;
 use crate::record::{Counters, Phase};

@@ -38,7 +38,9 @@ use crate::frame::Frame;
 use crate::model::raster::{
     self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
 };
-use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::model::{
+    lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES,
+};
 use crate::scene::adjacency::EdgeAdjacency;
 
 /// Faces per task of the facing test.
@@ -134,12 +136,10 @@ impl TaskKernel for FaceTest<'_> {
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
         let n = self.adj.triangles.len();
-        let (start, end) = (chunk * FACE_CHUNK, ((chunk + 1) * FACE_CHUNK).min(n));
-        let mut classes = Vec::with_capacity(end - start);
+        let items = task_items(chunk, FACE_CHUNK, n);
+        let mut classes = Vec::with_capacity(items.len());
         let mut faces = Vec::new();
-        for group in (start..end).step_by(LANES) {
-            let k = (end - group).min(LANES);
-            let mask = Mask::first(k);
+        for (group, k, mask) in lane_groups(items) {
             let tris = self.triangles.load_run(p, group, k);
             for c in [0, 1, 2] {
                 let idx: Lanes<u32> = std::array::from_fn(|l| tris.get(l).map_or(0, |t| t[c]));
@@ -184,11 +184,9 @@ impl TaskKernel for EdgeTest<'_> {
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
         let n = self.adj.edges.len();
-        let (start, end) = (chunk * EDGE_CHUNK, ((chunk + 1) * EDGE_CHUNK).min(n));
+        let items = task_items(chunk, EDGE_CHUNK, n);
         let mut found = Vec::new();
-        for group in (start..end).step_by(LANES) {
-            let k = (end - group).min(LANES);
-            let mask = Mask::first(k);
+        for (group, k, mask) in lane_groups(items) {
             let recs = self.edges.load_run(p, group, k);
             for f in 2..4 {
                 let faces: Lanes<u64> =
@@ -248,9 +246,7 @@ pub fn silhouettes(m: &mut Machine, adj: &EdgeAdjacency, disc: Disc) -> Silhouet
         classes: m.memory.reserve("silhouette.face_classes", nf as u64),
     };
     let class_buf = faces.classes;
-    let weights: Vec<u64> = (0..nf.div_ceil(FACE_CHUNK))
-        .map(|c| (((c + 1) * FACE_CHUNK).min(nf) - c * FACE_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(nf, FACE_CHUNK);
     let mut classes = Vec::with_capacity(nf);
     let mut umbra_faces = Vec::new();
     for (c, f) in m.run_step("faces", &faces, &weights) {
@@ -272,9 +268,7 @@ pub fn silhouettes(m: &mut Machine, adj: &EdgeAdjacency, disc: Disc) -> Silhouet
         class_buf,
         out: m.memory.reserve("silhouette.edges", ne as u64 * 48),
     };
-    let weights: Vec<u64> = (0..ne.div_ceil(EDGE_CHUNK))
-        .map(|c| (((c + 1) * EDGE_CHUNK).min(ne) - c * EDGE_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(ne, EDGE_CHUNK);
     let edges: Vec<VolumeEdge> = m
         .run_step("edges", &test, &weights)
         .into_iter()
@@ -420,11 +414,8 @@ impl TaskKernel for Points<'_> {
     type Out = Vec<Option<(Vec3, Vec3)>>;
 
     fn run<P: Probe>(&self, p: &mut P, task: usize) -> Self::Out {
-        let (start, end) = (
-            task * PRIM_CHUNK,
-            ((task + 1) * PRIM_CHUNK).min(self.edges.len()),
-        );
-        self.edges[start..end]
+        let items = task_items(task, PRIM_CHUNK, self.edges.len());
+        self.edges[items]
             .iter()
             .map(|e| {
                 p.scalar(EXTRUDE_SCALAR);
@@ -502,14 +493,11 @@ impl TaskKernel for Quads<'_> {
     );
 
     fn run<P: Probe>(&self, p: &mut P, task: usize) -> Self::Out {
-        let (start, end) = (
-            task * PRIM_CHUNK,
-            ((task + 1) * PRIM_CHUNK).min(self.edges.len()),
-        );
+        let items = task_items(task, PRIM_CHUNK, self.edges.len());
         let (mut umbra, mut penumbra) = (VolumeMesh::default(), VolumeMesh::default());
         let mut ends = Vec::new();
         let (mut degenerate, mut trims) = (0, 0);
-        for i in start..end {
+        for i in items {
             let e = &self.edges[i];
             let Some((pu, pp)) = self.points[i] else {
                 degenerate += 1;
@@ -623,9 +611,7 @@ pub fn volumes(
     m.phase("volumes");
     let length = extrusion_length(frame, &disc);
     let n = s.edges.len();
-    let weights: Vec<u64> = (0..n.div_ceil(PRIM_CHUNK))
-        .map(|t| (((t + 1) * PRIM_CHUNK).min(n) - t * PRIM_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(n, PRIM_CHUNK);
     let points: Vec<Option<(Vec3, Vec3)>> = m
         .run_step(
             "extrude",

@@ -27,7 +27,9 @@ use crate::frame::Frame;
 use crate::model::raster::{
     self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
 };
-use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::model::{
+    lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES,
+};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 
 /// Edges per task of the silhouette test.
@@ -81,11 +83,9 @@ impl TaskKernel for SilhouetteTest<'_> {
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
         let n = self.adj.edges.len();
-        let (start, end) = (chunk * EDGE_CHUNK, ((chunk + 1) * EDGE_CHUNK).min(n));
+        let items = task_items(chunk, EDGE_CHUNK, n);
         let mut found = Vec::new();
-        for group in (start..end).step_by(LANES) {
-            let k = (end - group).min(LANES);
-            let mask = Mask::first(k);
+        for (group, k, mask) in lane_groups(items) {
             let recs = self.edges.load_run(p, group, k);
             for f in 2..4 {
                 let faces: Lanes<u32> = std::array::from_fn(|l| recs.get(l).map_or(0, |r| r[f]));
@@ -168,10 +168,7 @@ fn silhouettes(
         vertices: m.memory.buffer("adjacency.vertices", adj.vertices.clone()),
         out: m.memory.reserve("silhouette.edges", n as u64 * 32),
     };
-    let chunks = n.div_ceil(EDGE_CHUNK);
-    let weights: Vec<u64> = (0..chunks)
-        .map(|c| (((c + 1) * EDGE_CHUNK).min(n) - c * EDGE_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(n, EDGE_CHUNK);
     let edges: Vec<SilhouetteEdge> = m
         .run_step("edges", &test, &weights)
         .into_iter()
@@ -245,10 +242,10 @@ impl TaskKernel for GeometryStep<'_> {
     fn run<P: Probe>(&self, p: &mut P, task: usize) -> PenumbraGeometry {
         let cones = self.s.vertices.len();
         let total = self.layout.offsets.len();
-        let (start, end) = (task * PRIM_CHUNK, ((task + 1) * PRIM_CHUNK).min(total));
+        let items = task_items(task, PRIM_CHUNK, total);
         let mut g = PenumbraGeometry::default();
-        let base = self.layout.offsets[start];
-        for i in start..end {
+        let base = self.layout.offsets[items.start];
+        for i in items {
             let (v0, t0) = (g.positions.len(), g.triangles.len());
             if i < cones {
                 g.cone(
@@ -362,9 +359,7 @@ fn penumbra_map(
         triangles: &triangles,
     };
     let n = layout.offsets.len();
-    let weights: Vec<u64> = (0..n.div_ceil(PRIM_CHUNK))
-        .map(|t| (((t + 1) * PRIM_CHUNK).min(n) - t * PRIM_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(n, PRIM_CHUNK);
     let parts = m.run_step("geometry", &step, &weights);
     let (mut pv, mut pa, mut pt) = (Vec::new(), Vec::new(), Vec::new());
     for g in parts {
