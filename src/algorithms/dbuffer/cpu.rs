@@ -741,15 +741,7 @@ impl FragmentKernel for VolumeFragments<'_> {
                 self.view.linear_depth(z_f) >= self.view.linear_depth(z_o) - slack
             }));
         }
-        let value = std::array::from_fn(|l| {
-            let w: [f32; 3] = std::array::from_fn(|k| f.bary[k][l] * attr[k].y);
-            let sum = w[0] + w[1] + w[2];
-            if sum > 0.0 {
-                (w[0] * attr[0].x + w[1] * attr[1].x + w[2] * attr[2].x) / sum
-            } else {
-                attr[0].x
-            }
-        });
+        let value = std::array::from_fn(|l| f.perspective_value(l, &attr));
         Shade { value, mask: keep }
     }
 }

@@ -300,26 +300,15 @@ impl FragmentKernel for PenumbraFragments<'_> {
         let block = map.block_index(f.x / raster::BLOCK, f.y / raster::BLOCK);
         map.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
-        let mut value = [1.0; LANES];
-        let mut keep = Mask::NONE;
-        for l in f.mask.lanes() {
+        let shade = Shade::select(f.mask, 1.0, |l| {
             let (z_f, z_p) = (f.z[l], map.buf.data[block + l]);
-            if z_f > z_p {
-                continue;
-            }
-            // Perspective-correct Z_v from the screen-space weights.
-            let w: [f32; 3] = std::array::from_fn(|k| f.bary[k][l] * attr[k].y);
-            let sum = w[0] + w[1] + w[2];
-            let z_v = if sum > 0.0 {
-                (w[0] * attr[0].x + w[1] * attr[1].x + w[2] * attr[2].x) / sum
-            } else {
-                attr[0].x
-            };
-            value[l] = intensity(view.linear_depth(z_f), view.linear_depth(z_p), z_v);
-            keep.0 |= 1 << l;
-        }
-        *discarded += u64::from(f.mask.and_not(keep).count());
-        Shade { value, mask: keep }
+            (z_f <= z_p).then(|| {
+                let z_v = f.perspective_value(l, &attr);
+                intensity(view.linear_depth(z_f), view.linear_depth(z_p), z_v)
+            })
+        });
+        *discarded += u64::from(f.mask.and_not(shade.mask).count());
+        shade
     }
 }
 

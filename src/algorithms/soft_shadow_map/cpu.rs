@@ -233,24 +233,19 @@ impl FragmentKernel for Splat<'_> {
         let block = r.block_index(f.x / BLOCK, f.y / BLOCK);
         r.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
-        let mut value = [0.0; LANES];
-        let mut keep = Mask::NONE;
-        for l in f.mask.lanes() {
+        let shade = Shade::select(f.mask, 0.0, |l| {
             let d = r.buf.data[block + l];
             if d >= 1.0 {
-                continue;
+                return None;
             }
             let (x, y) = f.pixel(l);
             let z_r = self.lf.linear_depth(d);
             let bias = bias_at(self.lf, self.bias_texels, z_r);
             let v = occlusion(self.lf, &patch, self.lf.texel_center(x, y), z_r, bias);
-            if v > 0.0 {
-                value[l] = v;
-                keep.0 |= 1 << l;
-            }
-        }
-        *zero += u64::from(f.mask.and_not(keep).count());
-        Shade { value, mask: keep }
+            (v > 0.0).then_some(v)
+        });
+        *zero += u64::from(f.mask.and_not(shade.mask).count());
+        shade
     }
 }
 
