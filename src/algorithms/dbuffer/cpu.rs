@@ -928,9 +928,9 @@ pub fn render(
     ctx: &ExecContext,
     o: &DbufferOptions,
 ) -> Result<FrameOutput> {
-    let mut m = machine(backend, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
+    let mut m = machine(backend, frame, ctx);
     let views = LightViews::fit(frame, ViewFit::Single);
     let v = build_volumes(&mut m, frame, &adj, disc, views.single(), o);
     let d = dbuffer(&mut m, frame, &views.views[0], &v);

@@ -17,7 +17,8 @@ use super::{
 };
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::shadow_map::cpu::{
-    eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap, COMPARE_OPS,
+    eye_lookup, raster_shadow_map, texel_indices, umbra_test, Lookup, Receivers, ShadowMap,
+    COMPARE_OPS,
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
@@ -398,15 +399,7 @@ impl Lookup for PenumbraLookup<'_> {
         let lit_lanes = inside.and(Mask::from_fn(|l| lit(&map.view, d[l], r.z[l], r.bias[l])));
         let penumbra = self.penumbra.buf.gather(p, &idx, lit_lanes);
         p.vector(1, inside);
-        std::array::from_fn(|l| {
-            if !inside.get(l) {
-                1.0
-            } else if lit_lanes.get(l) {
-                penumbra[l]
-            } else {
-                0.0
-            }
-        })
+        umbra_test(inside, lit_lanes, |l| penumbra[l])
     }
 }
 
@@ -417,8 +410,8 @@ pub fn render(
     ctx: &ExecContext,
     o: &PenumbraMapOptions,
 ) -> Result<FrameOutput> {
-    let mut m = machine(backend, frame, ctx);
     let geometry = shadow_geometry(frame, o);
+    let mut m = machine(backend, frame, ctx);
     let views = LightViews::fit(frame, ViewFit::Single);
     let face = &views.views[0];
     m.phase("shadow_map");

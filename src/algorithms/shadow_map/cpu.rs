@@ -129,15 +129,13 @@ pub fn texel_indices<P: Probe>(
     (idx, inside)
 }
 
-/// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the map.
-pub fn tap<P: Probe>(
-    p: &mut P,
-    map: &ShadowMap,
-    uv: &Lanes<Vec2>,
-    mask: Mask,
-) -> (Lanes<f32>, Mask) {
-    let (idx, inside) = texel_indices(p, map, uv, mask);
-    (map.map.buf.gather(p, &idx, inside), inside)
+impl ShadowMap {
+    /// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the
+    /// map.
+    pub fn tap<P: Probe>(&self, p: &mut P, uv: &Lanes<Vec2>, mask: Mask) -> (Lanes<f32>, Mask) {
+        let (idx, inside) = texel_indices(p, self, uv, mask);
+        (self.map.buf.gather(p, &idx, inside), inside)
+    }
 }
 
 struct EyePass<'a, L> {
@@ -220,6 +218,21 @@ impl<L: Lookup> EyeKernel for EyePass<'_, L> {
             }
         });
     }
+}
+
+/// A lookup's visibility after the map's depth test: 1 where the receiver lies outside the map
+/// (`inside` false), 0 where the map shadows it (`lit` false), `lit_value(lane)` where it does
+/// not (1 for the hard test, the penumbra map's intensity for paper 000 §3).
+pub fn umbra_test(inside: Mask, lit: Mask, lit_value: impl Fn(usize) -> f32) -> Lanes<f32> {
+    std::array::from_fn(|l| {
+        if !inside.get(l) {
+            1.0
+        } else if lit.get(l) {
+            lit_value(l)
+        } else {
+            0.0
+        }
+    })
 }
 
 /// Phase `eye_lookup` (`eye_lookup[+x]` per cube face): visibility of every eye pixel the map's

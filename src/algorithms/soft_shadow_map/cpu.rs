@@ -551,8 +551,8 @@ pub fn render(
     ctx: &ExecContext,
     o: &SoftShadowMapOptions,
 ) -> Result<FrameOutput> {
-    let mut m = machine(backend, frame, ctx);
     let split = Split::of(&frame.flat);
+    let mut m = machine(backend, frame, ctx);
     let maps = maps(&mut m, frame, &split, o);
     let ssm = soft_shadow_map(&mut m, frame, &maps, o);
     let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
