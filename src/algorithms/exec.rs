@@ -4,7 +4,7 @@
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{Target, BLOCK};
-use crate::model::{Buffer, Machine, Probe, TaskKernel};
+use crate::model::{lane_groups, task_items, Buffer, Machine, Mask, Probe, TaskKernel};
 use crate::visibility::VisibilityBuffer;
 
 /// The machine an execution runs on: the context's configuration with the run's core count.
@@ -138,4 +138,23 @@ pub fn eye_lookup_step<K: EyeKernel>(
         vis.data[i as usize] = v;
     }
     vis
+}
+
+/// Edges per task of a brute-force edge scan ([`scan_edges`]).
+pub const EDGE_CHUNK: usize = 1024;
+
+/// Task `task` of a brute-force scan over the edge records `edges`
+/// ([`crate::scene::adjacency::EdgeAdjacency::edge_records`]), [`EDGE_CHUNK`] edges a task: per
+/// vector of up to 16 edges, the records loaded, then `f(p, first edge, edge count, lane mask,
+/// records)`.
+pub fn scan_edges<P: Probe>(
+    p: &mut P,
+    edges: &Buffer<[u32; 4]>,
+    task: usize,
+    mut f: impl FnMut(&mut P, usize, usize, Mask, &[[u32; 4]]),
+) {
+    for (group, k, mask) in lane_groups(task_items(task, EDGE_CHUNK, edges.data.len())) {
+        let recs = edges.load_run(p, group, k);
+        f(p, group, k, mask, recs);
+    }
 }

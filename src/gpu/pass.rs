@@ -378,6 +378,19 @@ pub struct Raster<'a> {
     pub instrument: Option<bool>,
 }
 
+impl<'a> Raster<'a> {
+    /// The default pipeline with the vertex stage `vs` and the fragment stage `fs`, reading a
+    /// vertex buffer of `attributes` per vertex ([`per_vertex`]).
+    pub fn of_vertices(vs: &'a str, fs: &'a str, attributes: &'a [wgpu::VertexAttribute]) -> Self {
+        Raster {
+            vs,
+            fs,
+            vertex: per_vertex(attributes),
+            ..Raster::default()
+        }
+    }
+}
+
 impl Default for Raster<'_> {
     fn default() -> Self {
         Raster {

@@ -26,7 +26,7 @@ use super::{
     centre_behind, classify, edge_distance, extrude, extrusion_points, front_fraction, rim_arc,
     t_penumbra, t_umbra, visibility, DbufferOptions, Disc, Facing, VolumeBuild,
 };
-use crate::algorithms::exec::{machine, output};
+use crate::algorithms::exec::{machine, output, scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::cpu::{
     eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
@@ -35,18 +35,14 @@ use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::model::raster::{
-    self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
-};
-use crate::model::{
-    lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES,
-};
+use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
+use crate::model::raster::{Surface, Target, TileRect};
+use crate::model::{lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe};
+use crate::model::{TaskKernel, LANES};
 use crate::scene::adjacency::EdgeAdjacency;
 
 /// Faces per task of the facing test.
 const FACE_CHUNK: usize = 1024;
-/// Edges per task of the edge test.
-const EDGE_CHUNK: usize = 1024;
 /// Silhouette edges per task of the extrusion.
 const PRIM_CHUNK: usize = 64;
 
@@ -183,11 +179,8 @@ impl TaskKernel for EdgeTest<'_> {
     type Out = Vec<VolumeEdge>;
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
-        let n = self.adj.edges.len();
-        let items = task_items(chunk, EDGE_CHUNK, n);
         let mut found = Vec::new();
-        for (group, k, mask) in lane_groups(items) {
-            let recs = self.edges.load_run(p, group, k);
+        scan_edges(p, &self.edges, chunk, |p, group, k, mask, recs| {
             for f in 2..4 {
                 let faces: Lanes<u64> =
                     std::array::from_fn(|l| recs.get(l).map_or(0, |r| u64::from(r[f].min(r[2]))));
@@ -227,7 +220,7 @@ impl TaskKernel for EdgeTest<'_> {
                     penumbra,
                 });
             }
-        }
+        });
         found
     }
 }
@@ -254,17 +247,10 @@ pub fn silhouettes(m: &mut Machine, adj: &EdgeAdjacency, disc: Disc) -> Silhouet
         umbra_faces.extend(f);
     }
     let ne = adj.edges.len();
-    let record = |e: usize| {
-        let edge = &adj.edges[e];
-        let face = |k: usize| edge.faces.get(k).copied().unwrap_or(u32::MAX);
-        [edge.v[0], edge.v[1], face(0), face(1)]
-    };
     let test = EdgeTest {
         adj,
         classes: &classes,
-        edges: m
-            .memory
-            .buffer("adjacency.edges", (0..ne).map(record).collect()),
+        edges: m.memory.buffer("adjacency.edges", adj.edge_records()),
         class_buf,
         out: m.memory.reserve("silhouette.edges", ne as u64 * 48),
     };

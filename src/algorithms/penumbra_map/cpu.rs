@@ -15,7 +15,7 @@ use super::{
     cone_size, intensity, shadow_geometry, sheet_size, PenumbraGeometry, PenumbraMapOptions,
     Silhouettes,
 };
-use crate::algorithms::exec::{machine, output};
+use crate::algorithms::exec::{machine, output, scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::cpu::{
     eye_lookup, raster_shadow_map, texel_indices, umbra_test, Lookup, Receivers, ShadowMap,
     COMPARE_OPS,
@@ -25,16 +25,12 @@ use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::model::raster::{
-    self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
-};
-use crate::model::{
-    lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES,
-};
+use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
+use crate::model::raster::{Surface, Target, TileRect};
+use crate::model::{task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe};
+use crate::model::{TaskKernel, LANES};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 
-/// Edges per task of the silhouette test.
-const EDGE_CHUNK: usize = 1024;
 /// Cones and sheets per task of the geometry step.
 const PRIM_CHUNK: usize = 64;
 
@@ -62,14 +58,6 @@ const POINT_OPS: u32 = 12;
 /// a clamp) and `3t² − 2t³` (3). The paper's ARB program has 24 instructions.
 const FRAGMENT_OPS: u32 = 9 + 1 + 6 + 4 + 3 + 1;
 
-/// Edge records of the brute-force test: the two welded vertices and the first two faces
-/// (closed meshes have exactly two).
-fn edge_record(adj: &EdgeAdjacency, e: usize) -> [u32; 4] {
-    let edge = &adj.edges[e];
-    let face = |k: usize| edge.faces.get(k).copied().unwrap_or(u32::MAX);
-    [edge.v[0], edge.v[1], face(0), face(1)]
-}
-
 struct SilhouetteTest<'a> {
     adj: &'a EdgeAdjacency,
     light: Vec3,
@@ -83,11 +71,8 @@ impl TaskKernel for SilhouetteTest<'_> {
     type Out = Vec<SilhouetteEdge>;
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
-        let n = self.adj.edges.len();
-        let items = task_items(chunk, EDGE_CHUNK, n);
         let mut found = Vec::new();
-        for (group, k, mask) in lane_groups(items) {
-            let recs = self.edges.load_run(p, group, k);
+        scan_edges(p, &self.edges, chunk, |p, group, k, mask, recs| {
             for f in 2..4 {
                 let faces: Lanes<u32> = std::array::from_fn(|l| recs.get(l).map_or(0, |r| r[f]));
                 let has = mask.and(Mask::from_fn(|l| faces[l] != u32::MAX));
@@ -106,7 +91,7 @@ impl TaskKernel for SilhouetteTest<'_> {
                     found.push(s);
                 }
             }
-        }
+        });
         found
     }
 }
@@ -159,10 +144,7 @@ fn silhouettes(
     let test = SilhouetteTest {
         adj,
         light,
-        edges: m.memory.buffer(
-            "adjacency.edges",
-            (0..n).map(|e| edge_record(adj, e)).collect(),
-        ),
+        edges: m.memory.buffer("adjacency.edges", adj.edge_records()),
         triangles: m
             .memory
             .buffer("adjacency.triangles", adj.triangles.clone()),
