@@ -462,11 +462,11 @@ impl EyeKernel for Project<'_> {
         let cols = b.cols as usize;
         for row in 0..b.rows {
             let ids = self.triangle.load_run(p, b.row_start(row), cols);
-            for c in 0..cols {
-                if ids[c] != u32::MAX {
+            for (c, &id) in ids.iter().enumerate() {
+                if id != u32::MAX {
                     let lane = row as usize * BLOCK as usize + c;
                     hit.0 |= 1 << lane;
-                    tri[lane] = ids[c];
+                    tri[lane] = id;
                 }
             }
         }
