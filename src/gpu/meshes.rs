@@ -12,6 +12,13 @@ pub fn positions(mesh: &crate::scene::Mesh) -> Vec<[f32; 3]> {
 }
 
 impl Mesh {
+    /// The vertex attributes of [`Mesh::of`]'s vertices: the position at location 0.
+    pub const POSITION: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+    /// The vertex attributes of [`Mesh::with_w`]'s vertices: the position at location 0, `w` at
+    /// location 1.
+    pub const POSITION_W: [wgpu::VertexAttribute; 2] =
+        wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
+
     /// Uploads the positions ([`positions`]) and triangles of `mesh`.
     pub fn of(gpu: &Gpu, label: &str, mesh: &crate::scene::Mesh) -> Mesh {
         Mesh::upload(gpu, label, &positions(mesh), &mesh.triangles)

@@ -378,6 +378,19 @@ pub struct Raster<'a> {
     pub instrument: Option<bool>,
 }
 
+impl<'a> Raster<'a> {
+    /// The default pipeline with the vertex stage `vs` and the fragment stage `fs`, reading a
+    /// vertex buffer of `attributes` per vertex ([`per_vertex`]).
+    pub fn of_vertices(vs: &'a str, fs: &'a str, attributes: &'a [wgpu::VertexAttribute]) -> Self {
+        Raster {
+            vs,
+            fs,
+            vertex: per_vertex(attributes),
+            ..Raster::default()
+        }
+    }
+}
+
 impl Default for Raster<'_> {
     fn default() -> Self {
         Raster {
@@ -602,45 +615,37 @@ pub fn tiles(size: (u32, u32), side: u32) -> (u32, u32) {
     (size.0.div_ceil(side), size.1.div_ceil(side))
 }
 
+/// A pass's bind groups: group `i` at index `i`; `None` leaves one unset.
+pub type Groups<'a> = [Option<&'a wgpu::BindGroup>];
+
 impl<'a> Pass<'a> {
+    /// A pass of `work` with the bind groups `groups`.
+    fn new(label: &'a str, groups: &Groups<'a>, work: Work<'a>) -> Pass<'a> {
+        Pass {
+            label,
+            groups: groups.to_vec(),
+            work,
+        }
+    }
+
     /// A compute pass of one dispatch.
     pub fn compute(
         label: &'a str,
-        groups: &[Option<&'a wgpu::BindGroup>],
+        groups: &Groups<'a>,
         pipeline: &'a wgpu::ComputePipeline,
         workgroups: (u32, u32),
     ) -> Pass<'a> {
-        Pass {
-            label,
-            groups: groups.to_vec(),
-            work: Work::Dispatch(vec![(pipeline, workgroups)]),
-        }
+        Pass::new(label, groups, Work::Dispatch(vec![(pipeline, workgroups)]))
     }
 
     /// A render pass of one draw.
-    pub fn draw(
-        label: &'a str,
-        groups: &[Option<&'a wgpu::BindGroup>],
-        draw: Draw<'a>,
-    ) -> Pass<'a> {
-        Pass {
-            label,
-            groups: groups.to_vec(),
-            work: Work::Draw(draw),
-        }
+    pub fn draw(label: &'a str, groups: &Groups<'a>, draw: Draw<'a>) -> Pass<'a> {
+        Pass::new(label, groups, Work::Draw(draw))
     }
 
     /// A render pass of one draw onto kept targets.
-    pub fn onto(
-        label: &'a str,
-        groups: &[Option<&'a wgpu::BindGroup>],
-        onto: Onto<'a>,
-    ) -> Pass<'a> {
-        Pass {
-            label,
-            groups: groups.to_vec(),
-            work: Work::Onto(onto),
-        }
+    pub fn onto(label: &'a str, groups: &Groups<'a>, onto: Onto<'a>) -> Pass<'a> {
+        Pass::new(label, groups, Work::Onto(onto))
     }
 
     /// The body of a render pass: statistics begun (pass `index`) when `stats` is given, the

@@ -4,6 +4,16 @@ use crate::error::{Error, Result};
 
 use super::Gpu;
 
+/// A buffer of `size` bytes that a query set resolves into, to be copied to a [`Staging`].
+pub fn resolve_buffer(gpu: &Gpu, label: &str, size: u64) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
 /// A host-readable copy of a GPU buffer, filled by [`Staging::copy`] in a command encoder and
 /// read after submission by [`Staging::read`].
 pub struct Staging {

@@ -4,7 +4,7 @@
 use crate::error::Result;
 use crate::record::Counters;
 
-use super::readback::{words, Staging};
+use super::readback::{resolve_buffer, words, Staging};
 use super::Gpu;
 
 /// The statistic that means something for compute passes.
@@ -58,12 +58,7 @@ impl PassStats {
                 ty: wgpu::QueryType::PipelineStatistics(types),
                 count: passes,
             }),
-            resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("pipeline statistics resolve"),
-                size,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
+            resolve: resolve_buffer(gpu, "pipeline statistics resolve", size),
             staging: Staging::new(gpu, "pipeline statistics readback", size),
             passes,
         })

@@ -35,7 +35,7 @@ use std::sync::Mutex;
 
 use crate::error::Result;
 
-use super::readback::{words, Staging};
+use super::readback::{resolve_buffer, words, Staging};
 use super::Gpu;
 
 /// A reading may exceed its submission's host time by this fraction (clock domains drift)...
@@ -152,12 +152,7 @@ impl PassTimer {
                 ty: wgpu::QueryType::Timestamp,
                 count,
             }),
-            resolve: gpu.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamp resolve"),
-                size,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
+            resolve: resolve_buffer(gpu, "timestamp resolve", size),
             staging: Staging::new(gpu, "timestamp readback", size),
             passes,
             placement,

@@ -31,7 +31,9 @@ pub use buffer::{Buffer, Memory};
 pub use config::MachineConfig;
 
 use crate::util::deadline::Deadline;
-pub use simd::{BufferId, Lanes, Mask, NoProbe, Probe, LANES};
+pub use simd::{
+    lane_groups, task_items, task_weights, BufferId, Lanes, Mask, NoProbe, Probe, LANES,
+};
 
 use crate::backend::Backend;
 use crate::record::{Counters, Phase};
@@ -52,6 +54,20 @@ struct BufferStats {
     writes: u64,
     read_bytes: u64,
     write_bytes: u64,
+}
+
+impl BufferStats {
+    /// One read access of `bytes` bytes.
+    fn read(&mut self, bytes: u64) {
+        self.reads += 1;
+        self.read_bytes += bytes;
+    }
+
+    /// One write access of `bytes` bytes.
+    fn write(&mut self, bytes: u64) {
+        self.writes += 1;
+        self.write_bytes += bytes;
+    }
 }
 
 /// The probe of one modelled core: counts its work and runs its accesses through its caches.
@@ -132,46 +148,36 @@ impl Probe for ModelProbe<'_> {
         let lines = self.touch(addr, bytes, false);
         self.work.loads += 1;
         self.work.access_lines += lines;
-        let b = self.buffer(buf);
-        b.reads += 1;
-        b.read_bytes += u64::from(bytes);
+        self.buffer(buf).read(u64::from(bytes));
     }
 
     fn write(&mut self, buf: BufferId, addr: u64, bytes: u32) {
         let lines = self.touch(addr, bytes, true);
         self.work.stores += 1;
         self.work.access_lines += lines;
-        let b = self.buffer(buf);
-        b.writes += 1;
-        b.write_bytes += u64::from(bytes);
+        self.buffer(buf).write(u64::from(bytes));
     }
 
     fn gather(&mut self, buf: BufferId, addrs: &Lanes<u64>, bytes: u32, mask: Mask) {
         let (lines, total) = self.lanes_access(addrs, bytes, mask, false);
         self.work.gathers += 1;
         self.work.gather_lines += lines;
-        let b = self.buffer(buf);
-        b.reads += 1;
-        b.read_bytes += total;
+        self.buffer(buf).read(total);
     }
 
     fn scatter(&mut self, buf: BufferId, addrs: &Lanes<u64>, bytes: u32, mask: Mask) {
         let (lines, total) = self.lanes_access(addrs, bytes, mask, true);
         self.work.scatters += 1;
         self.work.scatter_lines += lines;
-        let b = self.buffer(buf);
-        b.writes += 1;
-        b.write_bytes += total;
+        self.buffer(buf).write(total);
     }
 
     fn atomic(&mut self, buf: BufferId, addr: u64, bytes: u32) {
         self.touch(addr, bytes, true);
         self.work.atomics += 1;
         let b = self.buffer(buf);
-        b.reads += 1;
-        b.writes += 1;
-        b.read_bytes += u64::from(bytes);
-        b.write_bytes += u64::from(bytes);
+        b.read(u64::from(bytes));
+        b.write(u64::from(bytes));
     }
 }
 

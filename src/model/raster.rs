@@ -18,7 +18,7 @@
 //! Render targets are stored block-linear (each 4×4 block of 32-bit values is one 64-byte cache
 //! line), as a tiled renderer stores them; [`Surface::index`] is the one place that layout lives.
 
-use glam::{Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 
 use super::buffer::{Buffer, Memory};
 use super::simd::{Lanes, Mask, Probe, LANES};
@@ -147,6 +147,18 @@ impl Pipeline {
         depth_write: true,
         color: None,
     };
+
+    /// A colour-only pass, both sides drawn, no depth test: every fragment reaches `blend`
+    /// onto a target cleared to `clear` (a penumbra or soft shadow map splatted into).
+    pub const fn color_only(clear: f32, blend: Blend) -> Pipeline {
+        Pipeline {
+            cull: Cull::None,
+            coverage: Coverage::Center,
+            depth_clear: None,
+            depth_write: false,
+            color: Some((clear, blend)),
+        }
+    }
 }
 
 /// Where a draw renders and how it is tiled.
@@ -254,6 +266,19 @@ impl Fragments<'_> {
     pub fn pixel(&self, lane: usize) -> (u32, u32) {
         (self.x + lane as u32 % BLOCK, self.y + lane as u32 / BLOCK)
     }
+
+    /// The perspective-correct value at lane `lane` of a per-vertex attribute stored as
+    /// (value, 1/w) per vertex: the screen-space weights times 1/w, normalized; the first
+    /// vertex's value where the weights sum to zero.
+    pub fn perspective_value(&self, lane: usize, attr: &[Vec2; 3]) -> f32 {
+        let w: [f32; 3] = std::array::from_fn(|k| self.bary[k][lane] * attr[k].y);
+        let sum = w[0] + w[1] + w[2];
+        if sum > 0.0 {
+            (w[0] * attr[0].x + w[1] * attr[1].x + w[2] * attr[2].x) / sum
+        } else {
+            attr[0].x
+        }
+    }
 }
 
 /// What a kernel returns for a block: a value per lane and the lanes to write (a subset of the
@@ -261,6 +286,24 @@ impl Fragments<'_> {
 pub struct Shade {
     pub value: Lanes<f32>,
     pub mask: Mask,
+}
+
+impl Shade {
+    /// The lanes of `mask` that `value` gives a value for, written with it; the other lanes
+    /// dropped (their value `fill`).
+    pub fn select(mask: Mask, fill: f32, mut value: impl FnMut(usize) -> Option<f32>) -> Shade {
+        let mut s = Shade {
+            value: [fill; LANES],
+            mask: Mask::NONE,
+        };
+        for l in mask.lanes() {
+            if let Some(v) = value(l) {
+                s.value[l] = v;
+                s.mask.0 |= 1 << l;
+            }
+        }
+        s
+    }
 }
 
 /// The per-fragment hook of the back end.

@@ -13,6 +13,30 @@ pub const LANES: usize = 16;
 /// One value per lane.
 pub type Lanes<T> = [T; LANES];
 
+/// The items `range` in vectors of [`LANES`]: per vector its first item, its item count and the
+/// mask of its live lanes (the last vector may be partial).
+pub fn lane_groups(range: std::ops::Range<usize>) -> impl Iterator<Item = (usize, usize, Mask)> {
+    let end = range.end;
+    range.step_by(LANES).map(move |group| {
+        let k = (end - group).min(LANES);
+        (group, k, Mask::first(k))
+    })
+}
+
+/// The items of task `task` when `n` items are cut into tasks of `size` items (the last task
+/// may be short).
+pub fn task_items(task: usize, size: usize, n: usize) -> std::ops::Range<usize> {
+    (task * size).min(n)..((task + 1) * size).min(n)
+}
+
+/// The weights (items per task) of `n` items cut into tasks of `size`, as
+/// [`crate::model::Machine::run_step`] takes them.
+pub fn task_weights(n: usize, size: usize) -> Vec<u64> {
+    (0..n.div_ceil(size))
+        .map(|t| task_items(t, size, n).len() as u64)
+        .collect()
+}
+
 /// Which lanes of a vector instruction are active.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Mask(pub u16);

@@ -72,6 +72,19 @@ pub struct Silhouette {
 }
 
 impl EdgeAdjacency {
+    /// Every edge's record as the brute-force silhouette tests read it: its two welded vertices
+    /// and its first two faces (`u32::MAX` where a boundary edge has only one; closed meshes
+    /// have exactly two).
+    pub fn edge_records(&self) -> Vec<[u32; 4]> {
+        self.edges
+            .iter()
+            .map(|edge| {
+                let face = |k: usize| edge.faces.get(k).copied().unwrap_or(u32::MAX);
+                [edge.v[0], edge.v[1], face(0), face(1)]
+            })
+            .collect()
+    }
+
     pub fn build(mesh: &Mesh) -> EdgeAdjacency {
         let mut weld: HashMap<[u32; 3], u32> = HashMap::new();
         let mut vertices = Vec::new();

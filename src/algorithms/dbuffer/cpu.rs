@@ -26,7 +26,7 @@ use super::{
     centre_behind, classify, edge_distance, extrude, extrusion_points, front_fraction, rim_arc,
     t_penumbra, t_umbra, visibility, DbufferOptions, Disc, Facing, VolumeBuild,
 };
-use crate::algorithms::exec::{machine, output};
+use crate::algorithms::exec::{machine, output, scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::cpu::{
     eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
@@ -35,17 +35,14 @@ use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::model::raster::{
-    self, Blend, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface,
-    Target, TileRect,
-};
-use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
+use crate::model::raster::{Surface, Target, TileRect};
+use crate::model::{lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe};
+use crate::model::{TaskKernel, LANES};
 use crate::scene::adjacency::EdgeAdjacency;
 
 /// Faces per task of the facing test.
 const FACE_CHUNK: usize = 1024;
-/// Edges per task of the edge test.
-const EDGE_CHUNK: usize = 1024;
 /// Silhouette edges per task of the extrusion.
 const PRIM_CHUNK: usize = 64;
 
@@ -135,12 +132,10 @@ impl TaskKernel for FaceTest<'_> {
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
         let n = self.adj.triangles.len();
-        let (start, end) = (chunk * FACE_CHUNK, ((chunk + 1) * FACE_CHUNK).min(n));
-        let mut classes = Vec::with_capacity(end - start);
+        let items = task_items(chunk, FACE_CHUNK, n);
+        let mut classes = Vec::with_capacity(items.len());
         let mut faces = Vec::new();
-        for group in (start..end).step_by(LANES) {
-            let k = (end - group).min(LANES);
-            let mask = Mask::first(k);
+        for (group, k, mask) in lane_groups(items) {
             let tris = self.triangles.load_run(p, group, k);
             for c in [0, 1, 2] {
                 let idx: Lanes<u32> = std::array::from_fn(|l| tris.get(l).map_or(0, |t| t[c]));
@@ -184,13 +179,8 @@ impl TaskKernel for EdgeTest<'_> {
     type Out = Vec<VolumeEdge>;
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
-        let n = self.adj.edges.len();
-        let (start, end) = (chunk * EDGE_CHUNK, ((chunk + 1) * EDGE_CHUNK).min(n));
         let mut found = Vec::new();
-        for group in (start..end).step_by(LANES) {
-            let k = (end - group).min(LANES);
-            let mask = Mask::first(k);
-            let recs = self.edges.load_run(p, group, k);
+        scan_edges(p, &self.edges, chunk, |p, group, k, mask, recs| {
             for f in 2..4 {
                 let faces: Lanes<u64> =
                     std::array::from_fn(|l| recs.get(l).map_or(0, |r| u64::from(r[f].min(r[2]))));
@@ -230,7 +220,7 @@ impl TaskKernel for EdgeTest<'_> {
                     penumbra,
                 });
             }
-        }
+        });
         found
     }
 }
@@ -249,9 +239,7 @@ pub fn silhouettes(m: &mut Machine, adj: &EdgeAdjacency, disc: Disc) -> Silhouet
         classes: m.memory.reserve("silhouette.face_classes", nf as u64),
     };
     let class_buf = faces.classes;
-    let weights: Vec<u64> = (0..nf.div_ceil(FACE_CHUNK))
-        .map(|c| (((c + 1) * FACE_CHUNK).min(nf) - c * FACE_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(nf, FACE_CHUNK);
     let mut classes = Vec::with_capacity(nf);
     let mut umbra_faces = Vec::new();
     for (c, f) in m.run_step("faces", &faces, &weights) {
@@ -259,23 +247,14 @@ pub fn silhouettes(m: &mut Machine, adj: &EdgeAdjacency, disc: Disc) -> Silhouet
         umbra_faces.extend(f);
     }
     let ne = adj.edges.len();
-    let record = |e: usize| {
-        let edge = &adj.edges[e];
-        let face = |k: usize| edge.faces.get(k).copied().unwrap_or(u32::MAX);
-        [edge.v[0], edge.v[1], face(0), face(1)]
-    };
     let test = EdgeTest {
         adj,
         classes: &classes,
-        edges: m
-            .memory
-            .buffer("adjacency.edges", (0..ne).map(record).collect()),
+        edges: m.memory.buffer("adjacency.edges", adj.edge_records()),
         class_buf,
         out: m.memory.reserve("silhouette.edges", ne as u64 * 48),
     };
-    let weights: Vec<u64> = (0..ne.div_ceil(EDGE_CHUNK))
-        .map(|c| (((c + 1) * EDGE_CHUNK).min(ne) - c * EDGE_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(ne, EDGE_CHUNK);
     let edges: Vec<VolumeEdge> = m
         .run_step("edges", &test, &weights)
         .into_iter()
@@ -421,11 +400,8 @@ impl TaskKernel for Points<'_> {
     type Out = Vec<Option<(Vec3, Vec3)>>;
 
     fn run<P: Probe>(&self, p: &mut P, task: usize) -> Self::Out {
-        let (start, end) = (
-            task * PRIM_CHUNK,
-            ((task + 1) * PRIM_CHUNK).min(self.edges.len()),
-        );
-        self.edges[start..end]
+        let items = task_items(task, PRIM_CHUNK, self.edges.len());
+        self.edges[items]
             .iter()
             .map(|e| {
                 p.scalar(EXTRUDE_SCALAR);
@@ -503,14 +479,11 @@ impl TaskKernel for Quads<'_> {
     );
 
     fn run<P: Probe>(&self, p: &mut P, task: usize) -> Self::Out {
-        let (start, end) = (
-            task * PRIM_CHUNK,
-            ((task + 1) * PRIM_CHUNK).min(self.edges.len()),
-        );
+        let items = task_items(task, PRIM_CHUNK, self.edges.len());
         let (mut umbra, mut penumbra) = (VolumeMesh::default(), VolumeMesh::default());
         let mut ends = Vec::new();
         let (mut degenerate, mut trims) = (0, 0);
-        for i in start..end {
+        for i in items {
             let e = &self.edges[i];
             let Some((pu, pp)) = self.points[i] else {
                 degenerate += 1;
@@ -624,9 +597,7 @@ pub fn volumes(
     m.phase("volumes");
     let length = extrusion_length(frame, &disc);
     let n = s.edges.len();
-    let weights: Vec<u64> = (0..n.div_ceil(PRIM_CHUNK))
-        .map(|t| (((t + 1) * PRIM_CHUNK).min(n) - t * PRIM_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(n, PRIM_CHUNK);
     let points: Vec<Option<(Vec3, Vec3)>> = m
         .run_step(
             "extrude",
@@ -756,15 +727,7 @@ impl FragmentKernel for VolumeFragments<'_> {
                 self.view.linear_depth(z_f) >= self.view.linear_depth(z_o) - slack
             }));
         }
-        let value = std::array::from_fn(|l| {
-            let w: [f32; 3] = std::array::from_fn(|k| f.bary[k][l] * attr[k].y);
-            let sum = w[0] + w[1] + w[2];
-            if sum > 0.0 {
-                (w[0] * attr[0].x + w[1] * attr[1].x + w[2] * attr[2].x) / sum
-            } else {
-                attr[0].x
-            }
-        });
+        let value = std::array::from_fn(|l| f.perspective_value(l, &attr));
         Shade { value, mask: keep }
     }
 }
@@ -800,11 +763,8 @@ fn draw_volume(
     let res = frame.params.map_resolution;
     let target = Target::square(res, frame.params.tile_size);
     let pipeline = Pipeline {
-        cull: Cull::None,
-        coverage: Coverage::Center,
-        depth_clear: Some(1.0),
-        depth_write: true,
         color: Some((0.0, Blend::Replace)),
+        ..Pipeline::DEPTH_ONLY
     };
     let geometry = Geometry {
         positions: &positions,
@@ -954,9 +914,9 @@ pub fn render(
     ctx: &ExecContext,
     o: &DbufferOptions,
 ) -> Result<FrameOutput> {
-    let mut m = machine(backend, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
     let adj = EdgeAdjacency::build(&frame.scene.occluders());
+    let mut m = machine(backend, frame, ctx);
     let views = LightViews::fit(frame, ViewFit::Single);
     let v = build_volumes(&mut m, frame, &adj, disc, views.single(), o);
     let d = dbuffer(&mut m, frame, &views.views[0], &v);

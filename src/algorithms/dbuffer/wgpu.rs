@@ -26,8 +26,8 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers,
-    Layout, Mesh, Pass, Program, Raster, Shared, Statistics, Timed,
+    gpu_struct, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers, Layout, Mesh,
+    Pass, Program, Raster, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::first;
 use crate::gpu::{record_execution, Gpu, Needs};
@@ -128,24 +128,14 @@ impl Pipelines {
         let scene_program = program(&[Some(shared)]);
         let volume_program = program(&[Some(shared), Some(scene)]);
         let compute_program = program(&[Some(shared), Some(lookup)]);
-        let scene_attrs = wgpu::vertex_attr_array![0 => Float32x3];
-        let volume_attrs = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
-        let scene = Raster {
-            vs: "vs_scene",
-            fs: "fs_scene",
-            vertex: per_vertex(&scene_attrs),
-            ..Raster::default()
-        };
+        let scene = Raster::of_vertices("vs_scene", "fs_scene", &Mesh::POSITION);
         let volume = |fs| Raster {
-            vs: "vs_volume",
-            fs,
-            vertex: per_vertex(&volume_attrs),
             color: Some(wgpu::ColorTargetState {
                 format: EDGE,
                 blend: None,
                 write_mask: wgpu::ColorWrites::RED,
             }),
-            ..scene.clone()
+            ..Raster::of_vertices("vs_volume", fs, &Mesh::POSITION_W)
         };
         Pipelines {
             draws: [

@@ -5,28 +5,23 @@
 
 use super::HardShadowOptions;
 use crate::algorithms::shadow_map::cpu::{
-    render_views, tap, Lookup, Receivers, ShadowMap, COMPARE_OPS,
+    render_views, umbra_test, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::model::{Lanes, Probe};
+use crate::model::{Lanes, Mask, Probe};
 
 /// The hard shadow: one tap at the receiver's own texel.
 pub struct HardLookup;
 
 impl Lookup for HardLookup {
     fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32> {
-        let (d, inside) = tap(p, map, &r.uv, r.mask);
+        let (d, inside) = map.tap(p, &r.uv, r.mask);
         p.vector(COMPARE_OPS, inside);
-        std::array::from_fn(|l| {
-            if !inside.get(l) || lit(&map.view, d[l], r.z[l], r.bias[l]) {
-                1.0
-            } else {
-                0.0
-            }
-        })
+        let lit_lanes = Mask::from_fn(|l| lit(&map.view, d[l], r.z[l], r.bias[l]));
+        umbra_test(inside, lit_lanes, |_| 1.0)
     }
 }
 

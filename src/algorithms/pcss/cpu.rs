@@ -4,9 +4,7 @@
 use glam::Vec2;
 
 use super::PcssOptions;
-use crate::algorithms::shadow_map::cpu::{
-    render_views, tap, Lookup, Receivers, ShadowMap, COMPARE_OPS,
-};
+use crate::algorithms::shadow_map::cpu::{render_views, Lookup, Receivers, ShadowMap, COMPARE_OPS};
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{pcss_filter_radius_uv, pcss_search_radius_uv, vogel_disk};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
@@ -38,7 +36,7 @@ impl Lookup for PcssLookup {
         for i in 0..nb {
             let o = vogel_disk(i, nb);
             let uv: Lanes<Vec2> = std::array::from_fn(|l| r.uv[l] + o * search[l]);
-            let (d, inside) = tap(p, map, &uv, r.mask);
+            let (d, inside) = map.tap(p, &uv, r.mask);
             p.vector(COMPARE_OPS + BLOCKER_ACCUMULATE_OPS, inside);
             for l in inside.lanes() {
                 let zb = view.linear_depth(d[l]);
@@ -64,7 +62,7 @@ impl Lookup for PcssLookup {
             for i in 0..nf {
                 let o = vogel_disk(i, nf);
                 let uv: Lanes<Vec2> = std::array::from_fn(|l| r.uv[l] + o * radius[l]);
-                let (d, inside) = tap(p, map, &uv, filtering);
+                let (d, inside) = map.tap(p, &uv, filtering);
                 p.vector(COMPARE_OPS + 1, filtering);
                 for l in filtering.lanes() {
                     lit_taps[l] += u32::from(!inside.get(l) || lit(view, d[l], r.z[l], r.bias[l]));

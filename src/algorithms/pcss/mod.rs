@@ -62,10 +62,7 @@ impl Algorithm for Pcss {
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::pcss;
     const OPTION_SETS: &'static [&'static str] = &[r#"{"blocker_samples": 4, "pcf_samples": 8}"#];
     /// Fragment counts differ where the light raster as in hard_shadow_map.
-    const WGPU_PARITY: WgpuParity = WgpuParity {
-        differ: &[("fill", Some(0.02)), ("overdraw", Some(0.02))],
-        ..WgpuParity::SAME_FORMULAS
-    };
+    const WGPU_PARITY: WgpuParity = WgpuParity::LIGHT_RASTER;
     const CPU: CpuEntry<PcssOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<PcssOptions>> = Some(wgpu::render);
 }

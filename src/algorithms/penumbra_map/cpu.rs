@@ -15,24 +15,22 @@ use super::{
     cone_size, intensity, shadow_geometry, sheet_size, PenumbraGeometry, PenumbraMapOptions,
     Silhouettes,
 };
-use crate::algorithms::exec::{machine, output};
+use crate::algorithms::exec::{machine, output, scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::cpu::{
-    eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap, COMPARE_OPS,
+    eye_lookup, raster_shadow_map, texel_indices, umbra_test, Lookup, Receivers, ShadowMap,
+    COMPARE_OPS,
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::model::raster::{
-    self, Blend, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface,
-    Target, TileRect,
-};
-use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
+use crate::model::raster::{Surface, Target, TileRect};
+use crate::model::{task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe};
+use crate::model::{TaskKernel, LANES};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 
-/// Edges per task of the silhouette test.
-const EDGE_CHUNK: usize = 1024;
 /// Cones and sheets per task of the geometry step.
 const PRIM_CHUNK: usize = 64;
 
@@ -60,14 +58,6 @@ const POINT_OPS: u32 = 12;
 /// a clamp) and `3t² − 2t³` (3). The paper's ARB program has 24 instructions.
 const FRAGMENT_OPS: u32 = 9 + 1 + 6 + 4 + 3 + 1;
 
-/// Edge records of the brute-force test: the two welded vertices and the first two faces
-/// (closed meshes have exactly two).
-fn edge_record(adj: &EdgeAdjacency, e: usize) -> [u32; 4] {
-    let edge = &adj.edges[e];
-    let face = |k: usize| edge.faces.get(k).copied().unwrap_or(u32::MAX);
-    [edge.v[0], edge.v[1], face(0), face(1)]
-}
-
 struct SilhouetteTest<'a> {
     adj: &'a EdgeAdjacency,
     light: Vec3,
@@ -81,13 +71,8 @@ impl TaskKernel for SilhouetteTest<'_> {
     type Out = Vec<SilhouetteEdge>;
 
     fn run<P: Probe>(&self, p: &mut P, chunk: usize) -> Self::Out {
-        let n = self.adj.edges.len();
-        let (start, end) = (chunk * EDGE_CHUNK, ((chunk + 1) * EDGE_CHUNK).min(n));
         let mut found = Vec::new();
-        for group in (start..end).step_by(LANES) {
-            let k = (end - group).min(LANES);
-            let mask = Mask::first(k);
-            let recs = self.edges.load_run(p, group, k);
+        scan_edges(p, &self.edges, chunk, |p, group, k, mask, recs| {
             for f in 2..4 {
                 let faces: Lanes<u32> = std::array::from_fn(|l| recs.get(l).map_or(0, |r| r[f]));
                 let has = mask.and(Mask::from_fn(|l| faces[l] != u32::MAX));
@@ -106,7 +91,7 @@ impl TaskKernel for SilhouetteTest<'_> {
                     found.push(s);
                 }
             }
-        }
+        });
         found
     }
 }
@@ -159,20 +144,14 @@ fn silhouettes(
     let test = SilhouetteTest {
         adj,
         light,
-        edges: m.memory.buffer(
-            "adjacency.edges",
-            (0..n).map(|e| edge_record(adj, e)).collect(),
-        ),
+        edges: m.memory.buffer("adjacency.edges", adj.edge_records()),
         triangles: m
             .memory
             .buffer("adjacency.triangles", adj.triangles.clone()),
         vertices: m.memory.buffer("adjacency.vertices", adj.vertices.clone()),
         out: m.memory.reserve("silhouette.edges", n as u64 * 32),
     };
-    let chunks = n.div_ceil(EDGE_CHUNK);
-    let weights: Vec<u64> = (0..chunks)
-        .map(|c| (((c + 1) * EDGE_CHUNK).min(n) - c * EDGE_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(n, EDGE_CHUNK);
     let edges: Vec<SilhouetteEdge> = m
         .run_step("edges", &test, &weights)
         .into_iter()
@@ -246,10 +225,10 @@ impl TaskKernel for GeometryStep<'_> {
     fn run<P: Probe>(&self, p: &mut P, task: usize) -> PenumbraGeometry {
         let cones = self.s.vertices.len();
         let total = self.layout.offsets.len();
-        let (start, end) = (task * PRIM_CHUNK, ((task + 1) * PRIM_CHUNK).min(total));
+        let items = task_items(task, PRIM_CHUNK, total);
         let mut g = PenumbraGeometry::default();
-        let base = self.layout.offsets[start];
-        for i in start..end {
+        let base = self.layout.offsets[items.start];
+        for i in items {
             let (v0, t0) = (g.positions.len(), g.triangles.len());
             if i < cones {
                 g.cone(
@@ -304,26 +283,15 @@ impl FragmentKernel for PenumbraFragments<'_> {
         let block = map.block_index(f.x / raster::BLOCK, f.y / raster::BLOCK);
         map.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
-        let mut value = [1.0; LANES];
-        let mut keep = Mask::NONE;
-        for l in f.mask.lanes() {
+        let shade = Shade::select(f.mask, 1.0, |l| {
             let (z_f, z_p) = (f.z[l], map.buf.data[block + l]);
-            if z_f > z_p {
-                continue;
-            }
-            // Perspective-correct Z_v from the screen-space weights.
-            let w: [f32; 3] = std::array::from_fn(|k| f.bary[k][l] * attr[k].y);
-            let sum = w[0] + w[1] + w[2];
-            let z_v = if sum > 0.0 {
-                (w[0] * attr[0].x + w[1] * attr[1].x + w[2] * attr[2].x) / sum
-            } else {
-                attr[0].x
-            };
-            value[l] = intensity(view.linear_depth(z_f), view.linear_depth(z_p), z_v);
-            keep.0 |= 1 << l;
-        }
-        *discarded += u64::from(f.mask.and_not(keep).count());
-        Shade { value, mask: keep }
+            (z_f <= z_p).then(|| {
+                let z_v = f.perspective_value(l, &attr);
+                intensity(view.linear_depth(z_f), view.linear_depth(z_p), z_v)
+            })
+        });
+        *discarded += u64::from(f.mask.and_not(shade.mask).count());
+        shade
     }
 }
 
@@ -363,9 +331,7 @@ fn penumbra_map(
         triangles: &triangles,
     };
     let n = layout.offsets.len();
-    let weights: Vec<u64> = (0..n.div_ceil(PRIM_CHUNK))
-        .map(|t| (((t + 1) * PRIM_CHUNK).min(n) - t * PRIM_CHUNK) as u64)
-        .collect();
+    let weights = task_weights(n, PRIM_CHUNK);
     let parts = m.run_step("geometry", &step, &weights);
     let (mut pv, mut pa, mut pt) = (Vec::new(), Vec::new(), Vec::new());
     for g in parts {
@@ -385,14 +351,8 @@ fn penumbra_map(
 
     let res = frame.params.map_resolution;
     let target = Target::square(res, frame.params.tile_size);
-    let pipeline = Pipeline {
-        cull: Cull::None,
-        coverage: Coverage::Center,
-        depth_clear: None,
-        depth_write: false,
-        // §4: the darkest contribution wins (the paper's GL_LESS on intensity as depth).
-        color: Some((1.0, Blend::Min)),
-    };
+    // §4: the darkest contribution wins (the paper's GL_LESS on intensity as depth).
+    let pipeline = Pipeline::color_only(1.0, Blend::Min);
     let geometry = Geometry {
         positions: &positions,
         triangles: &triangles,
@@ -421,15 +381,7 @@ impl Lookup for PenumbraLookup<'_> {
         let lit_lanes = inside.and(Mask::from_fn(|l| lit(&map.view, d[l], r.z[l], r.bias[l])));
         let penumbra = self.penumbra.buf.gather(p, &idx, lit_lanes);
         p.vector(1, inside);
-        std::array::from_fn(|l| {
-            if !inside.get(l) {
-                1.0
-            } else if lit_lanes.get(l) {
-                penumbra[l]
-            } else {
-                0.0
-            }
-        })
+        umbra_test(inside, lit_lanes, |l| penumbra[l])
     }
 }
 
@@ -440,8 +392,8 @@ pub fn render(
     ctx: &ExecContext,
     o: &PenumbraMapOptions,
 ) -> Result<FrameOutput> {
-    let mut m = machine(backend, frame, ctx);
     let geometry = shadow_geometry(frame, o);
+    let mut m = machine(backend, frame, ctx);
     let views = LightViews::fit(frame, ViewFit::Single);
     let face = &views.views[0];
     m.phase("shadow_map");

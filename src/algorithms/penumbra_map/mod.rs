@@ -429,10 +429,7 @@ impl Algorithm for PenumbraMap {
         r#"{"shadow_mesh_triangles": 300}"#,
     ];
     /// Fragment counts differ where the light raster as in hard_shadow_map, and the cones' and sheets' fragments (measured: 68 of 5,796 on torus-on-plane).
-    const WGPU_PARITY: WgpuParity = WgpuParity {
-        differ: &[("fill", Some(0.02)), ("overdraw", Some(0.02))],
-        ..WgpuParity::SAME_FORMULAS
-    };
+    const WGPU_PARITY: WgpuParity = WgpuParity::LIGHT_RASTER;
     const CPU: CpuEntry<PenumbraMapOptions> = cpu::render;
     const WGPU: Option<WgpuEntry<PenumbraMapOptions>> = Some(wgpu::render);
 }

@@ -30,8 +30,8 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, replay, view as view_resource, Bind, Layout, Mesh, Pass, Program,
-    Raster, Statistics, Step, Timed,
+    gpu_struct, replay, view as view_resource, Bind, Layout, Mesh, Pass, Program, Raster,
+    Statistics, Step, Timed,
 };
 use crate::gpu::readback::first;
 use crate::gpu::Gpu;
@@ -119,14 +119,8 @@ impl<'g> PenumbraPasses<'g> {
             Layout::bound(gpu, "penumbra pass", S::VERTEX_FRAGMENT, &binds);
         let groups = [Some(&passes.shared.layout), Some(&penumbra_layout)];
         let program = Program::new(gpu, "penumbra_map/wgpu.wgsl", &sources(), &groups);
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32];
         // Cones and sheets are seen from both sides.
-        let raster = Raster {
-            vs: "vs_penumbra",
-            fs: "fs_penumbra",
-            vertex: per_vertex(&attributes),
-            ..Raster::default()
-        };
+        let raster = Raster::of_vertices("vs_penumbra", "fs_penumbra", &Mesh::POSITION_W);
         PenumbraPasses {
             pipelines: program.render_pair(gpu, &raster),
             passes,

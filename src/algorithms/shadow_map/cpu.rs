@@ -7,11 +7,11 @@ use glam::{Vec2, Vec3};
 
 use super::texel;
 use super::{Bias, FaceView, LightView, LightViews, ViewFit};
-use crate::algorithms::exec::{machine, output};
+use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
-use crate::model::{Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::model::{Buffer, Lanes, Machine, Mask, Probe, LANES};
 use crate::scene::Mesh;
 use crate::visibility::VisibilityBuffer;
 
@@ -129,15 +129,13 @@ pub fn texel_indices<P: Probe>(
     (idx, inside)
 }
 
-/// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the map.
-pub fn tap<P: Probe>(
-    p: &mut P,
-    map: &ShadowMap,
-    uv: &Lanes<Vec2>,
-    mask: Mask,
-) -> (Lanes<f32>, Mask) {
-    let (idx, inside) = texel_indices(p, map, uv, mask);
-    (map.map.buf.gather(p, &idx, inside), inside)
+impl ShadowMap {
+    /// Gathers the map at `uv` on `mask`'s lanes: the depth per lane and the lanes inside the
+    /// map.
+    pub fn tap<P: Probe>(&self, p: &mut P, uv: &Lanes<Vec2>, mask: Mask) -> (Lanes<f32>, Mask) {
+        let (idx, inside) = texel_indices(p, self, uv, mask);
+        (self.map.buf.gather(p, &idx, inside), inside)
+    }
 }
 
 struct EyePass<'a, L> {
@@ -146,7 +144,6 @@ struct EyePass<'a, L> {
     light: Vec3,
     bias: Bias,
     lookup: &'a L,
-    tiles: Target,
     position: Buffer<Vec3>,
     normal: Buffer<Vec3>,
     visibility: Buffer<f32>,
@@ -203,38 +200,39 @@ impl<L: Lookup> EyePass<'_, L> {
     }
 }
 
-impl<L: Lookup> TaskKernel for EyePass<'_, L> {
-    /// (pixel index, visibility) of the tile's pixels that see a surface.
-    type Out = Vec<(u32, f32)>;
-
-    fn run<P: Probe>(&self, p: &mut P, tile: usize) -> Self::Out {
-        let t = self.tiles.tile_rect(tile);
-        let w = self.tiles.width;
-        let mut out = Vec::new();
-        for (x0, y0) in t.blocks() {
-            p.scalar(2);
-            let r = self.receivers(p, x0, y0);
-            let v = if r.mask.any() {
-                self.lookup.visibility(p, self.map, &r)
+impl<L: Lookup> EyeKernel for EyePass<'_, L> {
+    fn block<P: Probe>(&self, p: &mut P, b: &EyeBlock, out: &mut Vec<(u32, f32)>) {
+        let r = self.receivers(p, b.x0, b.y0);
+        let v = if r.mask.any() {
+            self.lookup.visibility(p, self.map, &r)
+        } else {
+            [1.0; LANES]
+        };
+        b.store(p, &self.visibility, out, |lane| {
+            if r.mask.get(lane) {
+                Some(v[lane].clamp(0.0, 1.0))
+            } else if r.averted.get(lane) {
+                Some(0.0)
             } else {
-                [1.0; LANES]
-            };
-            for row in 0..BLOCK.min(t.y1 - y0) {
-                let n = BLOCK.min(t.x1 - x0);
-                let i = ((y0 + row) * w + x0) as usize;
-                self.visibility.record_store(p, i, n as usize);
-                for c in 0..n {
-                    let lane = (row * BLOCK + c) as usize;
-                    if r.mask.get(lane) {
-                        out.push((i as u32 + c, v[lane].clamp(0.0, 1.0)));
-                    } else if r.averted.get(lane) {
-                        out.push((i as u32 + c, 0.0));
-                    }
-                }
+                None
             }
-        }
-        out
+        });
     }
+}
+
+/// A lookup's visibility after the map's depth test: 1 where the receiver lies outside the map
+/// (`inside` false), 0 where the map shadows it (`lit` false), `lit_value(lane)` where it does
+/// not (1 for the hard test, the penumbra map's intensity for paper 000 §3).
+pub fn umbra_test(inside: Mask, lit: Mask, lit_value: impl Fn(usize) -> f32) -> Lanes<f32> {
+    std::array::from_fn(|l| {
+        if !inside.get(l) {
+            1.0
+        } else if lit.get(l) {
+            lit_value(l)
+        } else {
+            0.0
+        }
+    })
 }
 
 /// Phase `eye_lookup` (`eye_lookup[+x]` per cube face): visibility of every eye pixel the map's
@@ -249,29 +247,18 @@ pub fn eye_lookup<L: Lookup>(
 ) -> VisibilityBuffer {
     m.phase(&map.face.phase("eye_lookup"));
     let g = &frame.gbuffer;
-    let tiles = Target {
-        width: g.width,
-        height: g.height,
-        tile: frame.params.tile_size,
-    };
     let pass = EyePass {
         frame,
         map,
         light: frame.scene.light.center(),
         bias,
         lookup,
-        tiles,
         position: m.memory.buffer("gbuffer.position", g.position.clone()),
         normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
-    let weights = tiles.tile_weights(|i| g.is_hit(i) && map.face.owns(g.position[i]));
-    let outs = m.run_step("lookup", &pass, &weights);
-    let mut vis = VisibilityBuffer::lit(g.width, g.height);
-    for (i, v) in outs.into_iter().flatten() {
-        vis.data[i as usize] = v;
-    }
-    vis
+    let weights = eye_tiles(frame).tile_weights(|i| g.is_hit(i) && map.face.owns(g.position[i]));
+    eye_lookup_step(m, frame, &pass, &weights)
 }
 
 /// The shadow-map family's frame on a CPU execution with `lookup`: the light views of the frame

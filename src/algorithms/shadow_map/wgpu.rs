@@ -20,8 +20,8 @@ use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers,
-    Layout, Mesh, Pass, Program, Raster, Shared, Statistics, Timed,
+    gpu_struct, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers, Layout, Mesh,
+    Pass, Program, Raster, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::first;
 use crate::gpu::{Gpu, Needs};
@@ -240,18 +240,8 @@ impl<'g> Passes<'g> {
         sources.extend([LIGHT_VIEW_WGSL, EYE_LOOKUP_WGSL, lookup.wgsl]);
         let groups = [Some(&shared.layout), Some(&lookup_layout), extra];
         let program = Program::new(gpu, "eye_lookup.wgsl", &sources, &groups);
-        let attributes = wgpu::vertex_attr_array![0 => Float32x3];
-        let raster_pipeline = |fs| {
-            let vertex = per_vertex(&attributes);
-            raster.render(
-                gpu,
-                &Raster {
-                    fs,
-                    vertex,
-                    ..Raster::default()
-                },
-            )
-        };
+        let raster_pipeline =
+            |fs| raster.render(gpu, &Raster::of_vertices("vs", fs, &Mesh::POSITION));
         Passes {
             gpu,
             width,

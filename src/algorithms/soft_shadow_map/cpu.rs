@@ -9,13 +9,13 @@ use super::{
     bias_at, occlusion, penumbra_extent, visibility, LightFrame, MicroPatch, SoftShadowMapOptions,
     Split, MAX_HALF_ANGLE_DEG,
 };
-use crate::algorithms::exec::machine;
+use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
-    self, Coverage, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target,
-    TileRect, BLOCK,
+    self, Cull, FragmentKernel, Fragments, Geometry, Pipeline, Shade, Surface, Target, TileRect,
+    BLOCK,
 };
 use crate::model::{Buffer, Machine, Mask, Probe, TaskKernel, LANES};
 use crate::visibility::VisibilityBuffer;
@@ -233,24 +233,19 @@ impl FragmentKernel for Splat<'_> {
         let block = r.block_index(f.x / BLOCK, f.y / BLOCK);
         r.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
-        let mut value = [0.0; LANES];
-        let mut keep = Mask::NONE;
-        for l in f.mask.lanes() {
+        let shade = Shade::select(f.mask, 0.0, |l| {
             let d = r.buf.data[block + l];
             if d >= 1.0 {
-                continue;
+                return None;
             }
             let (x, y) = f.pixel(l);
             let z_r = self.lf.linear_depth(d);
             let bias = bias_at(self.lf, self.bias_texels, z_r);
             let v = occlusion(self.lf, &patch, self.lf.texel_center(x, y), z_r, bias);
-            if v > 0.0 {
-                value[l] = v;
-                keep.0 |= 1 << l;
-            }
-        }
-        *zero += u64::from(f.mask.and_not(keep).count());
-        Shade { value, mask: keep }
+            (v > 0.0).then_some(v)
+        });
+        *zero += u64::from(f.mask.and_not(shade.mask).count());
+        shade
     }
 }
 
@@ -300,13 +295,7 @@ fn splat(
     );
     let res = lf.resolution;
     let target = Target::square(res, frame.params.tile_size);
-    let pipeline = Pipeline {
-        cull: Cull::None,
-        coverage: Coverage::Center,
-        depth_clear: None,
-        depth_write: false,
-        color: Some((0.0, o.precision.blend())),
-    };
+    let pipeline = Pipeline::color_only(0.0, o.precision.blend());
     let geometry = Geometry {
         positions: &vertices,
         triangles: &triangles,
@@ -458,7 +447,6 @@ struct Project<'a> {
     lf: &'a LightFrame,
     ssm: &'a Surface,
     receives: &'a [bool],
-    tiles: Target,
     position: Buffer<Vec3>,
     normal: Buffer<Vec3>,
     triangle: Buffer<u32>,
@@ -466,87 +454,67 @@ struct Project<'a> {
     visibility: Buffer<f32>,
 }
 
-impl TaskKernel for Project<'_> {
-    /// (pixel index, visibility) of the tile's pixels that see a surface.
-    type Out = Vec<(u32, f32)>;
-
-    fn run<P: Probe>(&self, p: &mut P, tile: usize) -> Self::Out {
-        let t = self.tiles.tile_rect(tile);
-        let w = self.tiles.width;
-        let mut out = Vec::new();
-        for (x0, y0) in t.blocks() {
-            p.scalar(2);
-            let mut hit = Mask::NONE;
-            let mut tri = [0u32; LANES];
-            let mut samples = [Sample::Lit; LANES];
-            let (rows, cols) = (BLOCK.min(t.y1 - y0), BLOCK.min(t.x1 - x0));
-            for row in 0..rows {
-                let i = ((y0 + row) * w + x0) as usize;
-                let ids = self.triangle.load_run(p, i, cols as usize);
-                for c in 0..cols {
-                    if ids[c as usize] != u32::MAX {
-                        let lane = (row * BLOCK + c) as usize;
-                        hit.0 |= 1 << lane;
-                        tri[lane] = ids[c as usize];
-                    }
-                }
-            }
-            if !hit.any() {
-                continue;
-            }
-            let objects = self.object.gather(p, &tri, hit);
-            for row in 0..rows {
-                let i = ((y0 + row) * w + x0) as usize;
-                let pos = self.position.load_run(p, i, cols as usize);
-                let nrm = self.normal.load_run(p, i, cols as usize);
-                for c in 0..cols as usize {
+impl EyeKernel for Project<'_> {
+    fn block<P: Probe>(&self, p: &mut P, b: &EyeBlock, out: &mut Vec<(u32, f32)>) {
+        let mut hit = Mask::NONE;
+        let mut tri = [0u32; LANES];
+        let mut samples = [Sample::Lit; LANES];
+        let cols = b.cols as usize;
+        for row in 0..b.rows {
+            let ids = self.triangle.load_run(p, b.row_start(row), cols);
+            for (c, &id) in ids.iter().enumerate() {
+                if id != u32::MAX {
                     let lane = row as usize * BLOCK as usize + c;
-                    if hit.get(lane) {
-                        let receives = self.receives[objects[lane] as usize];
-                        samples[lane] = classify(self.lf, pos[c], nrm[c], receives);
-                    }
-                }
-            }
-            p.vector(PROJECT_OPS, hit);
-            let look = Mask::from_fn(|l| matches!(samples[l], Sample::Receiver(_)));
-            let mut taps = [[0u32; LANES]; 4];
-            let mut weights = [[0f32; LANES]; 4];
-            for l in look.lanes() {
-                if let Sample::Receiver(s) = samples[l] {
-                    let (idx, wt) = bilinear_taps(self.lf, self.ssm, s);
-                    for k in 0..4 {
-                        taps[k][l] = idx[k] as u32;
-                        weights[k][l] = wt[k];
-                    }
-                }
-            }
-            let mut occ = [0f32; LANES];
-            if look.any() {
-                for k in 0..4 {
-                    let v = self.ssm.buf.gather(p, &taps[k], look);
-                    for l in look.lanes() {
-                        occ[l] += weights[k][l] * v[l];
-                    }
-                }
-            }
-            for row in 0..rows {
-                let i = ((y0 + row) * w + x0) as usize;
-                self.visibility.record_store(p, i, cols as usize);
-                for c in 0..cols {
-                    let lane = (row * BLOCK + c) as usize;
-                    if !hit.get(lane) {
-                        continue;
-                    }
-                    let v = match samples[lane] {
-                        Sample::Lit => 1.0,
-                        Sample::Averted => 0.0,
-                        Sample::Receiver(_) => visibility(occ[lane]),
-                    };
-                    out.push((i as u32 + c, v));
+                    hit.0 |= 1 << lane;
+                    tri[lane] = id;
                 }
             }
         }
-        out
+        if !hit.any() {
+            return;
+        }
+        let objects = self.object.gather(p, &tri, hit);
+        for row in 0..b.rows {
+            let i = b.row_start(row);
+            let pos = self.position.load_run(p, i, cols);
+            let nrm = self.normal.load_run(p, i, cols);
+            for c in 0..cols {
+                let lane = row as usize * BLOCK as usize + c;
+                if hit.get(lane) {
+                    let receives = self.receives[objects[lane] as usize];
+                    samples[lane] = classify(self.lf, pos[c], nrm[c], receives);
+                }
+            }
+        }
+        p.vector(PROJECT_OPS, hit);
+        let look = Mask::from_fn(|l| matches!(samples[l], Sample::Receiver(_)));
+        let mut taps = [[0u32; LANES]; 4];
+        let mut weights = [[0f32; LANES]; 4];
+        for l in look.lanes() {
+            if let Sample::Receiver(s) = samples[l] {
+                let (idx, wt) = bilinear_taps(self.lf, self.ssm, s);
+                for k in 0..4 {
+                    taps[k][l] = idx[k] as u32;
+                    weights[k][l] = wt[k];
+                }
+            }
+        }
+        let mut occ = [0f32; LANES];
+        if look.any() {
+            for k in 0..4 {
+                let v = self.ssm.buf.gather(p, &taps[k], look);
+                for l in look.lanes() {
+                    occ[l] += weights[k][l] * v[l];
+                }
+            }
+        }
+        b.store(p, &self.visibility, out, |lane| {
+            hit.get(lane).then(|| match samples[lane] {
+                Sample::Lit => 1.0,
+                Sample::Averted => 0.0,
+                Sample::Receiver(_) => visibility(occ[lane]),
+            })
+        });
     }
 }
 
@@ -560,16 +528,10 @@ fn project(
 ) -> VisibilityBuffer {
     m.phase("project");
     let g = &frame.gbuffer;
-    let tiles = Target {
-        width: g.width,
-        height: g.height,
-        tile: frame.params.tile_size,
-    };
     let pass = Project {
         lf,
         ssm,
         receives: &split.receives,
-        tiles,
         position: m.memory.buffer("gbuffer.position", g.position.clone()),
         normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
         triangle: m.memory.buffer("gbuffer.triangle", g.triangle.clone()),
@@ -578,13 +540,8 @@ fn project(
             .buffer("object_of_triangle", frame.flat.object_of_triangle.clone()),
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
-    let weights = tiles.tile_weights(|i| g.is_hit(i));
-    let outs = m.run_step("lookup", &pass, &weights);
-    let mut vis = VisibilityBuffer::lit(g.width, g.height);
-    for (i, v) in outs.into_iter().flatten() {
-        vis.data[i as usize] = v;
-    }
-    vis
+    let weights = eye_tiles(frame).tile_weights(|i| g.is_hit(i));
+    eye_lookup_step(m, frame, &pass, &weights)
 }
 
 /// `soft_shadow_map` on a CPU execution.
@@ -594,12 +551,12 @@ pub fn render(
     ctx: &ExecContext,
     o: &SoftShadowMapOptions,
 ) -> Result<FrameOutput> {
-    let mut m = machine(backend, frame, ctx);
     let split = Split::of(&frame.flat);
+    let mut m = machine(backend, frame, ctx);
     let maps = maps(&mut m, frame, &split, o);
     let ssm = soft_shadow_map(&mut m, frame, &maps, o);
     let vis = project(&mut m, frame, &maps.ssm, &ssm, &split);
-    let mut out = crate::algorithms::exec::output(m, vis);
+    let mut out = output(m, vis);
     out.warnings.extend(split.warning());
     record_receivers_outside(frame, &split, &mut out);
     Ok(out)
