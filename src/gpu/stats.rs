@@ -5,6 +5,7 @@ use crate::error::Result;
 use crate::record::Counters;
 
 use super::readback::{resolve_buffer, words, Staging};
+use super::timing::{query_sets, QUERY_SET_MAX};
 use super::Gpu;
 
 /// The statistic that means something for compute passes.
@@ -37,7 +38,8 @@ const STATISTICS: [(wgpu::PipelineStatisticsTypes, &str); 5] = [
 
 /// One pipeline-statistics query per pass; absent without PIPELINE_STATISTICS_QUERY.
 pub struct PassStats {
-    set: wgpu::QuerySet,
+    /// One query per pass, in sets of at most [`super::timing::QUERY_SET_MAX`].
+    sets: Vec<wgpu::QuerySet>,
     resolve: wgpu::Buffer,
     staging: Staging,
     passes: u32,
@@ -53,11 +55,15 @@ impl PassStats {
             .fold(wgpu::PipelineStatisticsTypes::empty(), |a, (t, _)| a | *t);
         let size = 8 * (STATISTICS.len() as u32 * passes) as u64;
         Some(PassStats {
-            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("pipeline statistics"),
-                ty: wgpu::QueryType::PipelineStatistics(types),
-                count: passes,
-            }),
+            sets: query_sets(passes)
+                .map(|(_, n)| {
+                    gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                        label: Some("pipeline statistics"),
+                        ty: wgpu::QueryType::PipelineStatistics(types),
+                        count: n,
+                    })
+                })
+                .collect(),
             resolve: resolve_buffer(gpu, "pipeline statistics resolve", size),
             staging: Staging::new(gpu, "pipeline statistics readback", size),
             passes,
@@ -65,16 +71,25 @@ impl PassStats {
     }
 
     pub fn begin_render(&self, pass: &mut wgpu::RenderPass<'_>, i: u32) {
-        pass.begin_pipeline_statistics_query(&self.set, i);
+        pass.begin_pipeline_statistics_query(
+            &self.sets[(i / QUERY_SET_MAX) as usize],
+            i % QUERY_SET_MAX,
+        );
     }
 
     pub fn begin_compute(&self, pass: &mut wgpu::ComputePass<'_>, i: u32) {
-        pass.begin_pipeline_statistics_query(&self.set, i);
+        pass.begin_pipeline_statistics_query(
+            &self.sets[(i / QUERY_SET_MAX) as usize],
+            i % QUERY_SET_MAX,
+        );
     }
 
     /// Records the resolve and the copy to the host (after all passes).
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        encoder.resolve_query_set(&self.set, 0..self.passes, &self.resolve, 0);
+        let bytes = 8 * STATISTICS.len() as u64;
+        for ((first, n), set) in query_sets(self.passes).zip(&self.sets) {
+            encoder.resolve_query_set(set, 0..n, &self.resolve, bytes * first as u64);
+        }
         self.staging.copy(encoder, &self.resolve);
     }
 

@@ -125,9 +125,24 @@ impl Placement {
     }
 }
 
+/// The most queries one query set may hold (wgpu's limit).
+pub const QUERY_SET_MAX: u32 = wgpu::QUERY_SET_MAX_QUERIES;
+
+/// `count` queries split into query sets of at most [`QUERY_SET_MAX`]: each set's first
+/// query and its size. The sets' results resolve to byte offsets `8 × first` (for
+/// timestamps), multiples of the 256-byte resolve alignment.
+pub fn query_sets(count: u32) -> impl Iterator<Item = (u32, u32)> {
+    (0..count.div_ceil(QUERY_SET_MAX)).map(move |k| {
+        let first = k * QUERY_SET_MAX;
+        (first, (count - first).min(QUERY_SET_MAX))
+    })
+}
+
 /// Timestamps of up to `passes` passes; absent when the adapter has no TIMESTAMP_QUERY.
 pub struct PassTimer {
-    set: wgpu::QuerySet,
+    /// The query sets, [`QUERY_SET_MAX`] queries each (the last fewer): query `q` of the timer
+    /// is query `q % QUERY_SET_MAX` of set `q / QUERY_SET_MAX`.
+    sets: Vec<wgpu::QuerySet>,
     resolve: wgpu::Buffer,
     staging: Staging,
     passes: u32,
@@ -147,11 +162,15 @@ impl PassTimer {
         let count = placement.slots() * passes;
         let size = 8 * count as u64;
         PassTimer {
-            set: gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("pass timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count,
-            }),
+            sets: query_sets(count)
+                .map(|(_, n)| {
+                    gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                        label: Some("pass timestamps"),
+                        ty: wgpu::QueryType::Timestamp,
+                        count: n,
+                    })
+                })
+                .collect(),
             resolve: resolve_buffer(gpu, "timestamp resolve", size),
             staging: Staging::new(gpu, "timestamp readback", size),
             passes,
@@ -169,6 +188,11 @@ impl PassTimer {
             Some(next_submission());
     }
 
+    /// The query set holding query `q` and its index there.
+    fn query(&self, q: u32) -> (&wgpu::QuerySet, u32) {
+        (&self.sets[(q / QUERY_SET_MAX) as usize], q % QUERY_SET_MAX)
+    }
+
     /// The (start, end) query indices of pass `i`.
     fn ends(&self, i: u32) -> (u32, u32) {
         let k = self.placement.slots() * i;
@@ -181,7 +205,9 @@ impl PassTimer {
     /// Records the resolve and the copy to the host (after all passes).
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
         let count = self.placement.slots() * self.passes;
-        encoder.resolve_query_set(&self.set, 0..count, &self.resolve, 0);
+        for ((first, n), set) in query_sets(count).zip(&self.sets) {
+            encoder.resolve_query_set(set, 0..n, &self.resolve, 8 * first as u64);
+        }
         self.staging.copy(encoder, &self.resolve);
     }
 
@@ -361,7 +387,9 @@ impl<'e, P: WriteTimestamp> TimedPass<'e, P> {
     fn around(timer: Option<(&'e PassTimer, u32)>) -> Option<(&'e wgpu::QuerySet, u32, u32)> {
         let (t, i) = timer.filter(|(t, _)| t.placement == Placement::AroundPasses)?;
         let (a, b) = t.ends(i);
-        Some((&t.set, a, b))
+        // A pass's queries lie in one set: a set holds a whole number of passes' slots.
+        let (set, a) = t.query(a);
+        Some((set, a, a + (b - t.ends(i).0)))
     }
 
     /// Wraps a pass just begun: writes its start timestamps inside it, where they go there.
@@ -370,8 +398,9 @@ impl<'e, P: WriteTimestamp> TimedPass<'e, P> {
             t.began(i);
             if t.placement == Placement::InsidePasses {
                 let (a, _) = t.ends(i);
-                pass.write(&t.set, a);
-                pass.write(&t.set, a + 1);
+                let (set, a) = t.query(a);
+                pass.write(set, a);
+                pass.write(set, a + 1);
             }
         }
         TimedPass { pass, end: timer }
@@ -433,8 +462,9 @@ impl<P: WriteTimestamp> Drop for TimedPass<'_, P> {
         if let Some((t, i)) = self.end {
             if t.placement == Placement::InsidePasses {
                 let (_, b) = t.ends(i);
-                self.pass.write(&t.set, b);
-                self.pass.write(&t.set, b + 1);
+                let (set, b) = t.query(b);
+                self.pass.write(set, b);
+                self.pass.write(set, b + 1);
             }
         }
     }
@@ -443,6 +473,25 @@ impl<P: WriteTimestamp> Drop for TimedPass<'_, P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn queries_split_into_sets_of_at_most_the_limit() {
+        let sets: Vec<(u32, u32)> = query_sets(2 * QUERY_SET_MAX + 8).collect();
+        assert_eq!(
+            sets,
+            [
+                (0, QUERY_SET_MAX),
+                (QUERY_SET_MAX, QUERY_SET_MAX),
+                (2 * QUERY_SET_MAX, 8)
+            ]
+        );
+        assert_eq!(query_sets(QUERY_SET_MAX).count(), 1);
+        assert_eq!(query_sets(0).count(), 0);
+        // Each set resolves at a multiple of the resolve alignment.
+        assert!(sets
+            .iter()
+            .all(|(first, _)| (8 * *first as u64) % wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT == 0));
+    }
 
     #[test]
     fn readings_above_the_host_wait_or_far_below_a_long_one_are_implausible() {

@@ -167,6 +167,8 @@ impl Algorithm for AccumHard {
         r#"{"samples": 16, "counting": "z_fail"}"#,
         r#"{"gpu_pipeline": "gather"}"#,
         r#"{"samples": 16, "counting": "z_fail", "gpu_pipeline": "gather"}"#,
+        // The most samples allowed: more passes than one query set holds (4096 queries).
+        r#"{"samples": 1024}"#,
     ];
     /// The raster pipeline's coverage and depth test differ from the cpu's ray casting on
     /// grazing fragments (`shadow_volume::raster`): measured on lavapipe over the registry's
