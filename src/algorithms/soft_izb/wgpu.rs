@@ -9,8 +9,9 @@
 //!   nearest and farthest receiver found with atomic max/min; each receiver's cell counted with
 //!   an atomic increment and its bin's maximum receiver depth recorded with an atomic minimum
 //!   of the bits of `1/z` (positive floats order as their bits); a three-step prefix sum over
-//!   the cells (blocks of 1024, block offsets, add); then each receiver scattered to the next
-//!   slot of its cell (an atomic cursor). Cells are stored in [`Grid::cell`] order, as on the
+//!   the cells (blocks of 4096, block offsets, add; the per-cell kernels take 16 consecutive
+//!   cells per invocation); then each receiver scattered to the next slot of its cell (an
+//!   atomic cursor). Cells are stored in [`Grid::cell`] order, as on the
 //!   CPU; within a cell, samples land in whatever order the atomics are served, and nothing
 //!   downstream depends on that order.
 //! - `hard` (Figure 2b, §2.4): one workgroup per occluding triangle, its 64 invocations
@@ -30,7 +31,8 @@
 //!   sample's eye pixel; pixels with no sample stay lit.
 //!
 //! The timed submission runs the passes as an engine would, with timestamps and pipeline
-//! statistics per phase. A second, instrumented submission runs the same passes with WGSL
+//! statistics per phase. A second, instrumented submission runs `hard` and `soft` again (on the
+//! grid the timed `construct` left; `construct` and `resolve` count nothing) with WGSL
 //! atomics counting what the cpu-model counts: grid columns and sample tests of the umbra,
 //! quads, bin entries and per-bin culls, quad fragments, wedge-culled fragments, fill (eq. 3
 //! evaluations) and overdraw (those that returned 0). Memory traffic is estimated from these
@@ -64,8 +66,12 @@ const WGSL: &str = include_str!("wgpu.wgsl");
 /// Invocations of the per-item kernels (`@workgroup_size(64)`) and of the scan kernels (256).
 const ITEM_WORKGROUP: u32 = 64;
 const SCAN_WORKGROUP: u32 = 256;
-/// Cells per block of the prefix sum (`SCAN_BLOCK` in the WGSL).
-const SCAN_BLOCK: u32 = 1024;
+/// Cells per invocation of the per-cell kernels `clear`, `scan_local` and `scan_add`
+/// (`CELLS_PER_ITEM` in the WGSL): the grid has several times more cells than the frame has
+/// pixels, and an invocation costs far more than a loop step on a CPU adapter.
+const CELLS_PER_ITEM: u32 = 16;
+/// Cells per block of the prefix sum (`SCAN_BLOCK` in the WGSL): a 256-wide workgroup's cells.
+const SCAN_BLOCK: u32 = SCAN_WORKGROUP * CELLS_PER_ITEM;
 /// Storage buffers bound by the kernels (bindings 1-12).
 const STORAGE_BUFFERS: u32 = 12;
 /// Record sizes: a sample (uv, 1/z, pixel, triangle), a projected triangle with its flat index,
@@ -338,14 +344,17 @@ impl<'g> Passes<'g> {
     }
 
     /// Phase `i` (1 construct, 2 hard, 3 soft) as one compute pass; `instrument` picks the
-    /// counting pipelines.
+    /// counting pipelines and leaves out `resolve`, which counts nothing.
     fn pass(&self, i: usize, instrument: bool) -> Pass<'_> {
         let (gpu, p) = (self.gpu, &self.params);
         let items = |n: u32| groups(gpu, n.div_ceil(ITEM_WORKGROUP));
         let k = usize::from(instrument);
         let dispatches = match i {
             1 => {
-                let clear = p.cells.max(self.grid.bins() as u32 + 2);
+                // One invocation per CELLS_PER_ITEM cells, and at least one per depth record.
+                let clear = p.cells.div_ceil(CELLS_PER_ITEM);
+                let clear = clear.max(self.grid.bins() as u32 + 2);
+                let cell_runs = p.cells.div_ceil(CELLS_PER_ITEM);
                 let c = &self.construct;
                 vec![
                     (&c[0], items(clear)),
@@ -353,13 +362,14 @@ impl<'g> Passes<'g> {
                     (&c[2], items(p.pixels)),
                     (&c[3], groups(gpu, p.scan_blocks)),
                     (&c[4], (1, 1)),
-                    (&c[5], items(p.cells)),
+                    (&c[5], items(cell_runs)),
                     (&c[6], items(p.pixels)),
                 ]
             }
             2 => vec![(&self.umbra[k], groups(gpu, p.triangles))],
+            _ if instrument => vec![(&self.penumbra[1], groups(gpu, p.edges))],
             _ => vec![
-                (&self.penumbra[k], groups(gpu, p.edges)),
+                (&self.penumbra[0], groups(gpu, p.edges)),
                 (&self.resolve, items(p.pixels)),
             ],
         };
@@ -383,8 +393,12 @@ impl<'g> Passes<'g> {
         // The samples stored: the prefix sum's total, after the last cell.
         let samples = f64::from(words::<u32>(&timing.readback[1])[self.params.cells as usize]);
 
-        // The instrumented submission: same passes, counting with atomics.
-        let passes = (1..PHASES.len()).map(|i| self.pass(i, true));
+        // The instrumented submission: `hard` and `soft` again, counting with atomics. They read
+        // the grid, the samples and the bin depths that the timed `construct` left (nothing
+        // after it writes them) and add into the occlusion accumulators, which nothing reads
+        // after the timed `resolve`; `construct` and `resolve` count nothing, so they are not
+        // run again.
+        let passes = (2..PHASES.len()).map(|i| self.pass(i, true));
         let raw: Vec<u32> = words(&replay_counts(self.gpu, &self.stats, passes)?);
         let stat = |s: Stat| slot64(&raw, s as usize);
 

@@ -53,8 +53,12 @@ const NONE: u32 = 0xffffffffu;
 const INF_BITS: u32 = 0x7f800000u;
 // f32::MIN_POSITIVE (ProjectedEdge::distance).
 const MIN_POSITIVE: f32 = 1.1754944e-38;
-// Cells of one block of the prefix sum: 256 invocations × 4 cells.
-const SCAN_BLOCK: u32 = 1024u;
+// Cells per invocation of the per-cell kernels (`clear`, `scan_local`, `scan_add`): the grid
+// has far more cells than the frame has pixels (512² × 8 by default), and a CPU adapter pays
+// for every invocation, so each walks a run of consecutive cells.
+const CELLS_PER_ITEM: u32 = 16u;
+// Cells of one block of the prefix sum: 256 invocations × CELLS_PER_ITEM cells.
+const SCAN_BLOCK: u32 = 4096u;
 
 // Invocations of a workgroup of the one-workgroup-per-primitive kernels (umbra, penumbra).
 const PRIM_WG: u32 = 64u;
@@ -352,13 +356,24 @@ fn combined_visibility(depth_complexity: u32, penumbral: f32) -> f32 {
 
 // ---- construct (Figure 2a, Figure 3) ----
 
-// Resets the per-cell counts and the depth records.
+// The j-th cell (j < CELLS_PER_ITEM) of invocation `lid` of workgroup `wid` of a per-cell
+// kernel: a workgroup takes 64 * CELLS_PER_ITEM consecutive cells, and at each step its
+// invocations take 64 consecutive ones.
+fn cell_of_item(wid: vec3<u32>, nwg: vec3<u32>, lid: u32, j: u32) -> u32 {
+    return ((wid.y * nwg.x + wid.x) * CELLS_PER_ITEM + j) * 64u + lid;
+}
+
+// Resets the per-cell counts (CELLS_PER_ITEM cells per invocation) and the depth records (one
+// per invocation).
 @compute @workgroup_size(64)
 fn clear(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
          @builtin(local_invocation_index) lid: u32) {
     let i = item(wid, nwg, lid);
-    if (i < P.cells) {
-        atomicStore(&counts[i], 0u);
+    for (var j = 0u; j < CELLS_PER_ITEM; j++) {
+        let c = cell_of_item(wid, nwg, lid, j);
+        if (c < P.cells) {
+            atomicStore(&counts[c], 0u);
+        }
     }
     if (i == 0u) {
         atomicStore(&depth[0], 0u);
@@ -432,8 +447,8 @@ fn workgroup_scan(lid: u32) {
     workgroupBarrier();
 }
 
-// Step "scan", 1 of 3: exclusive prefix sums of the cell counts within blocks of 1024 cells,
-// and each block's total (after the cells + 1 starts).
+// Step "scan", 1 of 3: exclusive prefix sums of the cell counts within blocks of SCAN_BLOCK
+// cells, and each block's total (after the cells + 1 starts).
 @compute @workgroup_size(256)
 fn scan_local(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
               @builtin(local_invocation_index) lid: u32) {
@@ -441,10 +456,10 @@ fn scan_local(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
     if (block >= P.scan_blocks) {
         return;
     }
-    let first = block * SCAN_BLOCK + 4u * lid;
-    var v: array<u32, 4>;
+    let first = block * SCAN_BLOCK + CELLS_PER_ITEM * lid;
+    var v: array<u32, CELLS_PER_ITEM>;
     var sum = 0u;
-    for (var j = 0u; j < 4u; j++) {
+    for (var j = 0u; j < CELLS_PER_ITEM; j++) {
         var n = 0u;
         if (first + j < P.cells) {
             n = atomicLoad(&counts[first + j]);
@@ -455,7 +470,7 @@ fn scan_local(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nw
     scan_shared[lid] = sum;
     workgroup_scan(lid);
     var run = scan_shared[lid] - sum;
-    for (var j = 0u; j < 4u; j++) {
+    for (var j = 0u; j < CELLS_PER_ITEM; j++) {
         if (first + j < P.cells) {
             cell_start[first + j] = run;
         }
@@ -492,17 +507,19 @@ fn scan_blocks(@builtin(local_invocation_index) lid: u32) {
     }
 }
 
-// Step "scan", 3 of 3: block offsets added; each cell's cursor starts at its first slot.
+// Step "scan", 3 of 3: block offsets added; each cell's cursor starts at its first slot
+// (CELLS_PER_ITEM cells per invocation).
 @compute @workgroup_size(64)
 fn scan_add(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>,
             @builtin(local_invocation_index) lid: u32) {
-    let c = item(wid, nwg, lid);
-    if (c >= P.cells) {
-        return;
+    for (var j = 0u; j < CELLS_PER_ITEM; j++) {
+        let c = cell_of_item(wid, nwg, lid, j);
+        if (c < P.cells) {
+            let s = cell_start[c] + cell_start[P.cells + 1u + c / SCAN_BLOCK];
+            cell_start[c] = s;
+            atomicStore(&counts[c], s);
+        }
     }
-    let s = cell_start[c] + cell_start[P.cells + 1u + c / SCAN_BLOCK];
-    cell_start[c] = s;
-    atomicStore(&counts[c], s);
 }
 
 // Step "insert": each receiver takes the next slot of its cell (atomic fetch-and-add on the

@@ -15,7 +15,8 @@
 //!    bilinear weights.
 //!
 //! The timed submission runs the passes with timestamps; an instrumented replay of `splat`
-//! counts fragments (`fill`) and those that hide nothing (`overdraw`) with WGSL atomics.
+//! counts fragments (`fill`) and those that hide nothing (`overdraw`) with WGSL atomics, one
+//! per fragment, through a pipeline that writes no colour (no blending to pay for twice).
 
 use std::time::Instant;
 
@@ -65,7 +66,9 @@ gpu_struct! {
 gpu_struct! {
     /// The counters of the instrumented replay (group 0, binding 1).
     struct Counts as "Counts" {
-        fragments: u32 => "atomic<u32>",
+        /// Fragments that hide part of the light (fill is `kept + zero`).
+        kept: u32 => "atomic<u32>",
+        /// Fragments that hide nothing (overdraw).
         zero: u32 => "atomic<u32>",
         patches: u32 => "atomic<u32>",
         pad: u32 => "u32",
@@ -414,7 +417,7 @@ impl<'g> Ssm<'g> {
             maps_c.set("transfer.bytes", transfer.bytes as f64);
         }
         let mut splat_c = Counters::default();
-        splat_c.set("fill", f64::from(c.fragments));
+        splat_c.set("fill", f64::from(c.kept) + f64::from(c.zero));
         splat_c.set("overdraw", f64::from(c.zero));
         let patches = if host {
             transfer.patches as f64
@@ -468,7 +471,13 @@ impl Pipelines {
         let instance =
             wgpu::vertex_attr_array![0 => Float32x2, 1 => Float32x2, 2 => Float32, 3 => Float32x4];
         let host = o.occluder_map_transfer;
-        let splat = |fs| {
+        // The counting pipeline of the replay writes no colour: its fragments are only counted.
+        let splat = |fs, count: bool| {
+            let mut color = additive_red(ssm_format);
+            if count {
+                color.blend = None;
+                color.write_mask = wgpu::ColorWrites::empty();
+            }
             let raster = Raster {
                 vs: ["vs_splat_device", "vs_splat_host"][usize::from(host)],
                 fs,
@@ -479,14 +488,14 @@ impl Pipelines {
                 )),
                 topology: wgpu::PrimitiveTopology::TriangleStrip,
                 depth: None,
-                color: Some(additive_red(ssm_format)),
+                color: Some(color),
                 ..Raster::default()
             };
             splat_program.render(gpu, &raster)
         };
         Pipelines {
             depth: [depth(None), depth(Some(wgpu::Face::Front))],
-            splat: [splat("fs_splat"), splat("fs_splat_count")],
+            splat: [splat("fs_splat", false), splat("fs_splat_count", true)],
             project: project_program.compute(gpu, "project", None),
             count_patches: splat_program.compute(gpu, "count_patches", None),
         }

@@ -178,15 +178,17 @@ fn fs_splat(in: SplatOut) -> @location(0) vec4<f32> {
     return vec4<f32>(v, 0.0, 0.0, 0.0);
 }
 
-// The instrumented replay: every fragment counted, and those that hide nothing (overdraw).
+// The instrumented replay: every fragment counted once, either among those that hide part of
+// the light or among those that hide nothing (overdraw); fill is their sum. Its pipeline writes
+// no colour (the SSM of the timed pass is left as it was).
 @fragment
 fn fs_splat_count(in: SplatOut) -> @location(0) vec4<f32> {
-    atomicAdd(&counts.fragments, 1u);
     let v = splat_value(in);
     if (v <= 0.0) {
         atomicAdd(&counts.zero, 1u);
         discard;
     }
+    atomicAdd(&counts.kept, 1u);
     return vec4<f32>(v, 0.0, 0.0, 0.0);
 }
 
