@@ -488,9 +488,9 @@ mod tests {
         assert_eq!(query_sets(QUERY_SET_MAX).count(), 1);
         assert_eq!(query_sets(0).count(), 0);
         // Each set resolves at a multiple of the resolve alignment.
-        assert!(sets
-            .iter()
-            .all(|(first, _)| (8 * *first as u64) % wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT == 0));
+        let aligned =
+            |first: u32| (8 * first as u64).is_multiple_of(wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT);
+        assert!(sets.iter().all(|(first, _)| aligned(*first)));
     }
 
     #[test]
