@@ -158,9 +158,12 @@ fn figure(name: &str, json: &serde_json::Value) -> Option<f64> {
         return (total > 0.0).then(|| mine / total);
     }
     // Counter names contain dots (`mem_est.gbuffer.read_bytes`): after `counters.` the rest is
-    // one key.
-    if let Some(counter) = name.strip_prefix("counters.") {
-        return json["counters"].get(counter)?.as_f64();
+    // one key, or several joined by `+` (their sum; absent unless every one is present).
+    if let Some(counters) = name.strip_prefix("counters.") {
+        return counters
+            .split('+')
+            .map(|c| json["counters"].get(c)?.as_f64())
+            .sum();
     }
     name.split('.')
         .try_fold(json, |v, key| v.get(key))?
@@ -282,5 +285,34 @@ mod tests {
         // Phases of 1 and 2 wall ms together: the whole frame.
         assert_eq!(out[4].measured.as_ref().unwrap()[0].1, 1.0);
         assert_eq!(out[4].holds, Some(true));
+    }
+
+    #[test]
+    fn a_sum_of_counters_needs_every_one() {
+        let mut a = record("accum_hard", "wgpu", 1000, 16);
+        a.counters.set("mem_est.depth.read_bytes", 30.0);
+        a.counters.set("mem_est.stencil.read_bytes", 70.0);
+        let runs = [a];
+        let all = [ScenarioRuns {
+            scenario: "s",
+            runs: &runs,
+        }];
+        let sum = |figure: &str| {
+            claim(serde_json::json!({
+                "paper": "p", "claim": "c", "expect": "> 0",
+                "measure": { "figure": figure, "aggregate": "sum" }
+            }))
+        };
+        let out = evaluate(
+            "s",
+            &[
+                sum("counters.mem_est.depth.read_bytes+mem_est.stencil.read_bytes"),
+                sum("counters.mem_est.depth.read_bytes+mem_est.vbuffer.read_bytes"),
+            ],
+            &all,
+        );
+        assert_eq!(out[0].measured.as_ref().unwrap()[0].1, 100.0);
+        // A part the run lacks: no figure, not a partial sum.
+        assert!(out[1].measured.is_err() && out[1].holds.is_none());
     }
 }

@@ -45,6 +45,8 @@ pub struct Measure {
     /// A figure of a run:
     /// - a dotted path into its record (`model_ms`, `error.mae_shadow`, `counters.fill`,
     ///   `params.light_size`);
+    /// - `counters.A+B+...`: the sum of several counters (`counters.mem_est.depth.read_bytes+
+    ///   mem_est.stencil.read_bytes`), absent unless the run records every one;
     /// - `per_second.PATH`: 1000 / the figure at PATH (frames per second from a time in ms);
     /// - `phase_share.PHASE.TIME`: the phase's `TIME` (`model_ms`, `gpu_ms`, `wall_ms`) over
     ///   the sum of all phases' `TIME`; `PHASE` may join several with `+`
