@@ -13,8 +13,8 @@ pub mod wgpu;
 
 use serde::{Deserialize, Serialize};
 
-pub use super::shadow_volume::Counting;
 use super::shadow_volume::ShadowQuad;
+pub use super::shadow_volume::{Counting, GpuPipeline};
 use crate::algorithms::{
     work, Algorithm, AlgorithmOptions, CpuEntry, ExecContext, WgpuEntry, WgpuParity, WorkEstimate,
 };
@@ -96,22 +96,6 @@ pub struct AccumHardOptions {
     /// `"gather"`; the cpu executions ignore it. The run's `execution.gpu_pipeline` records
     /// which one ran.
     pub gpu_pipeline: GpuPipeline,
-}
-
-/// How the `wgpu` execution renders the hard passes (option `gpu_pipeline`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GpuPipeline {
-    /// As the thesis rendered its reference (III §5.1): per light sample the shadow quads (or
-    /// the capped volumes) rasterized with the depth test into a count target by additive
-    /// blending, then the lit pixels blended into an accumulation target
-    /// ([`crate::algorithms::shadow_volume::raster`]).
-    #[default]
-    Raster,
-    /// A compute pass per sample: each pixel walks the quads binned to its 8×8 tile on the host
-    /// and casts its eye ray against them, as the cpu executions do
-    /// ([`crate::algorithms::shadow_volume::wgpu`]).
-    Gather,
 }
 
 impl Default for AccumHardOptions {

@@ -49,6 +49,25 @@ pub enum Counting {
     ZFail,
 }
 
+/// How the `wgpu` execution of a shadow-volume algorithm renders (option `gpu_pipeline` of
+/// `soft_shadow_volume` and `accum_hard`; recorded as `execution.gpu_pipeline`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GpuPipeline {
+    /// As the thesis renders it: the hard shadow quads (or capped volumes) rasterized with the
+    /// depth test into a count target by additive blending ([`raster`], III §3.2.1); then
+    /// `soft_shadow_volume` rasterizes each wedge's front faces with a fragment shader adding
+    /// or subtracting the coverage into the V-buffer by additive blending (III §3.2.2, §4; IV
+    /// §4), and `accum_hard` blends each sample's lit pixels into an accumulation target
+    /// (III §5.1).
+    #[default]
+    Raster,
+    /// Compute passes over the eye pixels: each pixel walks the quads (and wedge primitives)
+    /// binned to its 8×8 tile on the host and casts its eye ray against them, as the cpu
+    /// executions do ([`wgpu`]).
+    Gather,
+}
+
 /// The hard shadow quad of silhouette edge `a→b` from light point `light` (paper 001 III §3.2.1):
 /// the part of the plane through `a`, `b`, `light` beyond the edge and between the rays from the
 /// light through `a` and `b`.

@@ -33,7 +33,7 @@ use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::eye_raster::ConvexVolume;
-pub use super::shadow_volume::Counting;
+pub use super::shadow_volume::{Counting, GpuPipeline};
 use crate::algorithms::{
     work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WgpuParity, WorkEstimate,
 };
@@ -228,8 +228,15 @@ pub fn textured_coverage(light: &LightTexture, q0: Vec2, q1: Vec2) -> [f32; 3] {
         .map(|v| (v / EmitterShape::Square.area()).clamp(0.0, 1.0))
 }
 
-/// Sutherland–Hodgman: the part of `poly` where `f ≥ 0` (`f` affine).
-fn clip_half_plane(poly: &[Vec2], f: impl Fn(Vec2) -> f32) -> Vec<Vec2> {
+/// Sutherland–Hodgman: the part of the polygon `poly` (2D, or planar in 3D) where `f ≥ 0` (`f`
+/// affine: a half-plane or half-space).
+pub(crate) fn clip_half_plane<V>(poly: &[V], f: impl Fn(V) -> f32) -> Vec<V>
+where
+    V: Copy
+        + std::ops::Add<Output = V>
+        + std::ops::Sub<Output = V>
+        + std::ops::Mul<f32, Output = V>,
+{
     let mut out = Vec::with_capacity(poly.len() + 1);
     for (i, &p) in poly.iter().enumerate() {
         let q = poly[(i + 1) % poly.len()];
@@ -673,22 +680,6 @@ pub struct SoftShadowVolumeOptions {
     /// `"gather"`; the cpu executions ignore it. The run's `execution.gpu_pipeline` records
     /// which one ran.
     pub gpu_pipeline: GpuPipeline,
-}
-
-/// How the `wgpu` execution renders the two passes (option `gpu_pipeline`).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum GpuPipeline {
-    /// As the thesis renders it (III §3.2, §4; IV §4): the hard shadow quads (or capped
-    /// volumes) rasterized into a count target, then each wedge's front faces rasterized with a
-    /// fragment shader adding or subtracting the coverage into the V-buffer by additive
-    /// blending ([`raster`]).
-    #[default]
-    Raster,
-    /// Compute passes over the eye pixels: each pixel walks the quads and wedge primitives
-    /// binned to its 8×8 tile on the host and casts its eye ray against them, as the cpu
-    /// executions do ([`wgpu`]).
-    Gather,
 }
 
 impl Default for SoftShadowVolumeOptions {

@@ -51,7 +51,7 @@
 use glam::Vec3;
 
 use super::wgpu::{soft_counters, LoopRun, WedgeRecords, WGSL as SOFT_WGSL};
-use super::{SoftShadowVolumeOptions, VBufferPrecision};
+use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{eye_projection, hard_triangles, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
@@ -106,27 +106,11 @@ pub fn front_faces(
             .to_vec();
         for (j, &(m, e)) in planes.iter().enumerate() {
             if j != i && poly.len() >= 3 {
-                poly = clip(&poly, |x| e - m.dot(x));
+                poly = clip_half_plane(&poly, |x| e - m.dot(x));
             }
         }
         for k in 1..poly.len().saturating_sub(1) {
             out.extend([poly[0], poly[k], poly[k + 1]]);
-        }
-    }
-    out
-}
-
-/// Sutherland–Hodgman: the part of `poly` where `f ≥ 0` (`f` affine).
-fn clip(poly: &[Vec3], f: impl Fn(Vec3) -> f32) -> Vec<Vec3> {
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for (i, &p) in poly.iter().enumerate() {
-        let q = poly[(i + 1) % poly.len()];
-        let (fp, fq) = (f(p), f(q));
-        if fp >= 0.0 {
-            out.push(p);
-        }
-        if (fp >= 0.0) != (fq >= 0.0) {
-            out.push(p + (q - p) * (fp / (fp - fq)));
         }
     }
     out
