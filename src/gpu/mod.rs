@@ -134,6 +134,10 @@ pub struct Gpu {
     /// (`FLOAT32_BLENDABLE`, requested when the adapter offers it): additive FP32 accumulation
     /// in render passes (soft shadow maps).
     pub float32_blendable: bool,
+    /// Whether the combined Depth32FloatStencil8 format is available (`DEPTH32FLOAT_STENCIL8`,
+    /// requested when the adapter offers it): the stencil test of soft shadow volumes' wedge-half
+    /// culling (paper 001 IV §4.4) over the same f32 depth as the shadow-volume passes.
+    pub depth32_stencil8: bool,
     /// The modules, layouts and pipelines made on this device, reused by every run.
     pub cache: cache::Cache,
 }
@@ -531,8 +535,13 @@ fn acquire() -> std::result::Result<Gpu, String> {
     let float32_blendable = adapter
         .features()
         .contains(wgpu::Features::FLOAT32_BLENDABLE);
-    let optional =
-        adapter.features() & (wgpu::Features::FLOAT32_BLENDABLE | wgpu::Features::PIPELINE_CACHE);
+    let depth32_stencil8 = adapter
+        .features()
+        .contains(wgpu::Features::DEPTH32FLOAT_STENCIL8);
+    let optional = adapter.features()
+        & (wgpu::Features::FLOAT32_BLENDABLE
+            | wgpu::Features::PIPELINE_CACHE
+            | wgpu::Features::DEPTH32FLOAT_STENCIL8);
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("shadowbench"),
         required_features: queries.features() | optional,
@@ -573,6 +582,7 @@ fn acquire() -> std::result::Result<Gpu, String> {
         limits,
         lost,
         float32_blendable,
+        depth32_stencil8,
         cache: cache::Cache::new(driver),
     })
 }
@@ -670,10 +680,11 @@ fn guarded<T>(
 fn limits_line(a: &wgpu::Adapter) -> String {
     let (l, info) = (a.limits(), a.get_info());
     let blend = a.features().contains(wgpu::Features::FLOAT32_BLENDABLE);
+    let stencil = a.features().contains(wgpu::Features::DEPTH32FLOAT_STENCIL8);
     format!(
         "      limits: storage binding {} MiB, {} storage buffers per stage, {} invocations per \
          workgroup, {} workgroups per dimension, 2D textures {}; subgroups {}..={}; float32 \
-         blending {}",
+         blending {}; depth32float-stencil8 {}",
         l.max_storage_buffer_binding_size >> 20,
         l.max_storage_buffers_per_shader_stage,
         l.max_compute_invocations_per_workgroup,
@@ -681,7 +692,8 @@ fn limits_line(a: &wgpu::Adapter) -> String {
         l.max_texture_dimension_2d,
         info.subgroup_min_size,
         info.subgroup_max_size,
-        if blend { "yes" } else { "no" }
+        if blend { "yes" } else { "no" },
+        if stencil { "yes" } else { "no" }
     )
 }
 

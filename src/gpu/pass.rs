@@ -368,8 +368,13 @@ pub struct Raster<'a> {
     pub vertex: Option<(u64, wgpu::VertexStepMode, &'a [wgpu::VertexAttribute])>,
     pub topology: wgpu::PrimitiveTopology,
     pub cull: Option<wgpu::Face>,
-    /// A Depth32Float depth test, if any.
+    /// A depth test, if any, on a target of `depth_format`.
     pub depth: Option<wgpu::CompareFunction>,
+    /// The depth target's format: Depth32Float by default, Depth32FloatStencil8 for a pass
+    /// that also tests the stencil ([`Gpu::depth32_stencil8`]).
+    pub depth_format: wgpu::TextureFormat,
+    /// The stencil test and operations (none by default).
+    pub stencil: wgpu::StencilState,
     /// Whether fragments passing the depth test write their depth (true by default; false for
     /// a pass that tests against a kept depth buffer, [`Onto`]).
     pub depth_write: bool,
@@ -400,6 +405,8 @@ impl Default for Raster<'_> {
             topology: wgpu::PrimitiveTopology::TriangleList,
             cull: None,
             depth: Some(wgpu::CompareFunction::Less),
+            depth_format: wgpu::TextureFormat::Depth32Float,
+            stencil: wgpu::StencilState::default(),
             depth_write: true,
             color: None,
             instrument: None,
@@ -539,10 +546,10 @@ impl Program {
                     ..Default::default()
                 },
                 depth_stencil: r.depth.map(|compare| wgpu::DepthStencilState {
-                    format: wgpu::TextureFormat::Depth32Float,
+                    format: r.depth_format,
                     depth_write_enabled: Some(r.depth_write),
                     depth_compare: Some(compare),
-                    stencil: Default::default(),
+                    stencil: r.stencil.clone(),
                     bias: Default::default(),
                 }),
                 multisample: Default::default(),
@@ -571,6 +578,25 @@ pub enum Work<'a> {
     Draw(Draw<'a>),
     /// One draw onto kept targets.
     Onto(Onto<'a>),
+    /// Draws onto kept targets with a stencil.
+    Stenciled(Stenciled<'a>),
+}
+
+/// Draws of vertex ranges of one buffer onto a colour target cleared to `clear` (red) or kept,
+/// each with its own pipeline and stencil reference, testing against a kept depth whose stencil
+/// (Depth32FloatStencil8) is cleared to 0 first: the two-pass culling of a wedge half (paper 001
+/// IV §4.4) draws its front faces setting the stencil, then its back faces testing it.
+#[derive(Clone)]
+pub struct Stenciled<'a> {
+    pub color: &'a wgpu::TextureView,
+    pub clear: Option<f64>,
+    pub depth_stencil: &'a wgpu::TextureView,
+    pub vertices: &'a wgpu::Buffer,
+    /// The pipelines the draws use (at least one).
+    pub pipelines: &'a [wgpu::RenderPipeline],
+    /// Pipeline (index into `pipelines`), vertex range and stencil reference of each draw, in
+    /// order.
+    pub draws: Vec<(usize, std::ops::Range<u32>, u32)>,
 }
 
 /// A draw of the vertices `range` onto a colour target that is cleared to `clear` (red; the
@@ -641,6 +667,11 @@ impl<'a> Pass<'a> {
     /// A render pass of one draw.
     pub fn draw(label: &'a str, groups: &Groups<'a>, draw: Draw<'a>) -> Pass<'a> {
         Pass::new(label, groups, Work::Draw(draw))
+    }
+
+    /// A render pass of draws with a stencil ([`Stenciled`]).
+    pub fn stenciled(label: &'a str, groups: &Groups<'a>, draws: Stenciled<'a>) -> Pass<'a> {
+        Pass::new(label, groups, Work::Stenciled(draws))
     }
 
     /// A render pass of one draw onto kept targets.
@@ -747,24 +778,7 @@ impl<'a> Pass<'a> {
                 self.draw_in(&mut pass, stats, index, d.pipeline, d.vertices, draw);
             }
             Work::Onto(d) => {
-                let load = match d.clear {
-                    Some(r) => wgpu::LoadOp::Clear(wgpu::Color {
-                        r,
-                        g: 0.0,
-                        b: 0.0,
-                        a: 0.0,
-                    }),
-                    None => wgpu::LoadOp::Load,
-                };
-                let colors = [Some(wgpu::RenderPassColorAttachment {
-                    view: d.color,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load,
-                        store: wgpu::StoreOp::Store,
-                    },
-                })];
+                let colors = [Some(kept_color(d.color, d.clear))];
                 let desc = wgpu::RenderPassDescriptor {
                     label: Some(self.label),
                     color_attachments: &colors,
@@ -783,7 +797,61 @@ impl<'a> Pass<'a> {
                 let draw = |pass: &mut wgpu::RenderPass<'_>| pass.draw(d.range.clone(), 0..1);
                 self.draw_in(&mut pass, stats, index, d.pipeline, d.vertices, draw);
             }
+            Work::Stenciled(d) => {
+                let colors = [Some(kept_color(d.color, d.clear))];
+                let desc = wgpu::RenderPassDescriptor {
+                    label: Some(self.label),
+                    color_attachments: &colors,
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: d.depth_stencil,
+                        depth_ops: None,
+                        stencil_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                };
+                let mut pass = timing::render_pass(e, desc, timed);
+                let draw = |pass: &mut wgpu::RenderPass<'_>| {
+                    let mut bound = 0;
+                    for (pipeline, range, reference) in &d.draws {
+                        if *pipeline != bound {
+                            pass.set_pipeline(&d.pipelines[*pipeline]);
+                            bound = *pipeline;
+                        }
+                        pass.set_stencil_reference(*reference);
+                        pass.draw(range.clone(), 0..1);
+                    }
+                };
+                let first = &d.pipelines[0];
+                self.draw_in(&mut pass, stats, index, first, Some(d.vertices), draw);
+            }
         }
+    }
+}
+
+/// A colour attachment of `view` cleared to `clear` (red; the other channels 0), or kept.
+fn kept_color(view: &wgpu::TextureView, clear: Option<f64>) -> wgpu::RenderPassColorAttachment<'_> {
+    let load = match clear {
+        Some(r) => wgpu::LoadOp::Clear(wgpu::Color {
+            r,
+            g: 0.0,
+            b: 0.0,
+            a: 0.0,
+        }),
+        None => wgpu::LoadOp::Load,
+    };
+    wgpu::RenderPassColorAttachment {
+        view,
+        depth_slice: None,
+        resolve_target: None,
+        ops: wgpu::Operations {
+            load,
+            store: wgpu::StoreOp::Store,
+        },
     }
 }
 

@@ -108,7 +108,14 @@ fn raster(
     let samples = Samples::new(frame, ctx, opts)?;
     let n = samples.count();
     let rays = EyeRays::new(frame);
-    let passes = HardRaster::new(gpu, &rays, &frame.scene.camera, opts.counting, n);
+    let passes = HardRaster::new(
+        gpu,
+        &rays,
+        &frame.scene.camera,
+        opts.counting,
+        n,
+        wgpu::TextureFormat::Depth32Float,
+    );
     let readback = [&passes.visibility];
     let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
     // Without the pipelines' creation: the run's GPU setup, reported apart.

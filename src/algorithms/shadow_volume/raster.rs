@@ -153,13 +153,15 @@ pub(crate) struct HardRaster<'g> {
 
 impl<'g> HardRaster<'g> {
     /// The passes over `rays` seen by `camera`, counting as `counting`, averaging `samples`
-    /// light points.
+    /// light points, with the eye's depth in `depth_format` (Depth32Float, or
+    /// Depth32FloatStencil8 for a later pass that also tests a stencil).
     pub fn new(
         gpu: &'g Gpu,
         rays: &EyeRays,
         camera: &crate::scene::camera::Camera,
         counting: Counting,
         samples: u32,
+        depth_format: wgpu::TextureFormat,
     ) -> HardRaster<'g> {
         let size = (rays.width, rays.height);
         let cols = eye_projection(rays, camera).to_cols_array_2d();
@@ -195,7 +197,7 @@ impl<'g> HardRaster<'g> {
             &[RasterParams::WGSL, WGSL],
             &[Some(&layout0), Some(&layout1)],
         );
-        let depth = gpu.target_view("eye depth", size, wgpu::TextureFormat::Depth32Float);
+        let depth = gpu.target_view("eye depth", size, depth_format);
         let count = gpu.target_view("count", size, TARGET_FORMAT);
         let accumulation = gpu.target_view("accumulation", size, TARGET_FORMAT);
         let blend = Some(additive_red(TARGET_FORMAT));
@@ -217,6 +219,7 @@ impl<'g> HardRaster<'g> {
                     } else {
                         test
                     }),
+                    depth_format,
                     depth_write: false,
                     color: blend.clone(),
                     instrument: Some(instrument),
@@ -231,6 +234,7 @@ impl<'g> HardRaster<'g> {
                     vs: "vs_full",
                     fs: "fs_depth",
                     depth: Some(wgpu::CompareFunction::Always),
+                    depth_format,
                     ..Raster::default()
                 },
             ),

@@ -9,7 +9,7 @@
 //! - `wedges` (III §3.1, IV §4.1): on the host with the cpu executions' code, as the gather
 //!   ([`super::wgpu::WedgeRecords`]); each wedge primitive (the wedge, or with culling each
 //!   half) is cut to the enlarged scene bounds and its front faces seen from the eye are
-//!   triangulated and projected on the host ([`front_faces`]).
+//!   triangulated and projected on the host ([`faces`]).
 //! - `soft` (III §3.2.2, §4; IV §4.2-4.3): the front faces drawn with the depth test (reversed
 //!   depth `Greater`: the visible point behind the face), a fragment shader computing the
 //!   coverage of its pixel exactly as the gather does (`wedge_sample` of `wgpu.wgsl`: the
@@ -17,16 +17,22 @@
 //!   texture) and adding or subtracting it into the V-buffer by additive blending: R32Float
 //!   (Rgba32Float, one f32 per channel, under a textured light, III §4.1), or the split 12-bit
 //!   format (IV §4.3) as two rgba8 buffers, the inner side's digits drawn into the additive
-//!   one and the outer side's into the subtractive one (one draw each), the 8-bit blend
-//!   saturating as [`super::split12::blend`]; then a compute `resolve` forms `1 − count ±
-//!   coverage` and the loops' and sub-lights' combination (`combine`, shared with the gather).
+//!   one and the outer side's into the subtractive one, the 8-bit blend saturating as
+//!   [`super::split12::blend`]; then a compute `resolve` forms `1 − count ± coverage` and the
+//!   loops' and sub-lights' combination (`combine`, shared with the gather).
+//! - Wedge-half culling (IV §4.4, `wedge_culling`, where the adapter has Depth32FloatStencil8):
+//!   each half separately, its front faces marking the stencil with the half's reference where
+//!   the point is behind them (no colour), then its back faces, with the shader, where the point
+//!   is in front of them and the stencil holds the reference — the point inside the half, the
+//!   shader run for no other; every back-face fragment clears the stencil ([`culled_pass`]).
+//!   The split format draws the inner halves into the additive buffer and the outer halves
+//!   into the subtractive one. The shader still tests the point against the half's planes, as
+//!   the cpu executions do, so the image does not depend on the culling. Without the format the
+//!   shader's test alone culls (recorded in `execution.wedge_culling`).
 //!
-//! Not built on the GPU: silhouettes, quads, caps and wedges (host, as on the cpu executions);
-//! the two-pass stencil culling of IV §4.4: each half is one primitive with the quad's plane
-//! as an extra plane, whose test the fragment shader makes (the point inside the half), and the
-//! culling's two passes are counted as the cpu-model counts them. A wedge primitive that
-//! contains the eye has no front face and draws nothing (the gather and the cpu executions
-//! still shade its pixels).
+//! Not built on the GPU: silhouettes, quads, caps and wedges (host, as on the cpu executions).
+//! A wedge primitive that contains the eye has no front face and draws nothing (the gather and
+//! the cpu executions still shade its pixels).
 //!
 //! How the image differs from the cpu's: the hard pass as [`HardRaster`] states (at 640×480 on
 //! sphere-on-plane the visible difference is a thin line along the sphere's own terminator,
@@ -38,15 +44,17 @@
 //!
 //! Counters: the hard pass's fill and overdraw from [`HardRaster::replay`] (rasterized
 //! fragments, in the cpu-model's terms). The wedge pass's from an instrumented replay of its own
-//! draws (the counting pipeline: depth test off, `INSTRUMENT` on; one draw of the primitives
-//! even where the split format draws them twice), each fragment counted in the cpu-model's terms
-//! (`SoftPass::block`): fill, its ray meets the primitive within the scene bounds (doubled with
-//! culling: both passes of IV §4.4 rasterize the half); shader invocations, its point is behind
-//! the entry (inside the half, with culling); fragments inside wedges, the coverage was
-//! computed; overdraw, fill less the fragments adding a non-zero coverage; `wedge_tests`,
-//! every rasterized fragment. A pixel whose ray grazes a primitive can be rasterized where the
-//! cpu's interval misses it or the reverse, so these differ from the cpu-model's by a small
-//! fraction of the fill ([`super::SoftShadowVolume`]'s `WGPU_PARITY`).
+//! front faces (the counting pipeline: depth test off, `INSTRUMENT` on; one draw of the
+//! primitives even where the split format draws them twice), each fragment counted in the
+//! cpu-model's terms (`SoftPass::block`): fill, its ray meets the primitive within the scene
+//! bounds (doubled with culling: the front and the back faces of the half are rasterized);
+//! shader invocations, its point is behind the entry, or with culling the fragments that pass
+//! the culled passes' depth and stencil tests, counted by those passes themselves (each adds 1
+//! into an R32Float target; `execution.shader_invocations` says which); fragments inside
+//! wedges, the coverage was computed; overdraw, fill less the fragments adding a non-zero
+//! coverage; `wedge_tests`, every rasterized fragment. A pixel whose ray grazes a primitive can
+//! be rasterized where the cpu's interval misses it or the reverse, so these differ from the
+//! cpu-model's by a small fraction of the fill ([`super::SoftShadowVolume`]'s `WGPU_PARITY`).
 
 use glam::Vec3;
 
@@ -55,16 +63,18 @@ use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{eye_projection, hard_triangles, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
-    quad_records, FrameResources, Params, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
+    quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
     WGSL as FAMILY_WGSL,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
-use crate::gpu::pass::{tiles, view, Bind, Onto, Pass, Program, Raster, Statistics, Timed};
-use crate::gpu::readback::words;
-use crate::gpu::{Gpu, EMPTY_BYTES};
+use crate::gpu::pass::{
+    tiles, view, Bind, Onto, Pass, Program, Raster, Statistics, Stenciled, Step, Timed,
+};
+use crate::gpu::readback::{read_texels, words};
+use crate::gpu::{counters_mode, Gpu, GpuCounters, EMPTY_BYTES};
 use crate::record::Counters;
 use crate::scene::Bounds;
 use crate::visibility::RgbBuffer;
@@ -74,16 +84,18 @@ const WGSL: &str = include_str!("raster.wgsl");
 /// Bytes of a wedge vertex: clip position and the primitive's index.
 const VERTEX_BYTES: u64 = 20;
 
-/// The front faces (the eye strictly outside their plane) of `volume` cut to `bounds` and to
-/// the half-space in front of plane `near` (`n·x ≤ d` kept, the eye outside: a primitive that
-/// contains the eye is entered through it), as triangles (three points each): each face is a
-/// square on its plane reaching past the bounds, clipped by every other plane
-/// (Sutherland–Hodgman), fanned from its first corner.
-pub fn front_faces(
+/// The front faces (the eye strictly outside their plane), or with `front` false the back
+/// faces (strictly inside), of `volume` cut to `bounds` and to the half-space in front of plane
+/// `near` (`n·x ≤ d` kept, the eye outside: a primitive that contains the eye is entered
+/// through it), as triangles (three points each): each face is a square on its plane reaching
+/// past the bounds, clipped by every other plane (Sutherland–Hodgman), fanned from its first
+/// corner.
+pub fn faces(
     volume: &ConvexVolume,
     bounds: &Bounds,
     near: (Vec3, f32),
     eye: Vec3,
+    front: bool,
 ) -> Vec<Vec3> {
     let (lo, hi) = (bounds.min, bounds.max);
     let mut planes = volume.planes.clone();
@@ -95,7 +107,8 @@ pub fn front_faces(
     let mut out = Vec::new();
     for (i, &(n, d)) in planes.iter().enumerate() {
         let len = n.length();
-        if len == 0.0 || n.dot(eye) <= d {
+        let facing = n.dot(eye) - d;
+        if len == 0.0 || (front && facing <= 0.0) || (!front && facing >= 0.0) {
             continue;
         }
         let (n, d) = (n / len, d / len);
@@ -128,6 +141,8 @@ struct LoopRaster {
     /// The wedge pass's bind group and vertex buffer.
     group: wgpu::BindGroup,
     wedge: wgpu::Buffer,
+    /// The wedge halves' faces, with the stencil.
+    halves: Vec<Half>,
 }
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
@@ -152,7 +167,22 @@ pub(super) fn run(
     let objects_ms = gpu.cache.run_objects_ms();
     let size = (rays.width, rays.height);
     let occluders = frame.scene.occluders();
-    let hard = HardRaster::new(gpu, rays, &frame.scene.camera, opts.counting, 1);
+    // Wedge-half culling by the depth and stencil tests (IV §4.4) where the adapter has the
+    // combined f32 depth and stencil format; else the fragment shader tests the half's plane.
+    let stencil = opts.wedge_culling && gpu.depth32_stencil8;
+    let depth_format = if stencil {
+        wgpu::TextureFormat::Depth32FloatStencil8
+    } else {
+        wgpu::TextureFormat::Depth32Float
+    };
+    let hard = HardRaster::new(
+        gpu,
+        rays,
+        &frame.scene.camera,
+        opts.counting,
+        1,
+        depth_format,
+    );
     let textured = res.channels == 3;
     let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), SOFT_WGSL);
     let (format, entries) = match (split, textured) {
@@ -199,34 +229,66 @@ pub(super) fn run(
         operation: wgpu::BlendOperation::Add,
     };
     let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32];
-    let pipeline = |fs: &str, instrument: bool| {
+    let blend = Some(wgpu::BlendState {
+        color: add,
+        alpha: add,
+    });
+    let pipeline = |fs: &str, format, depth, stencil: wgpu::StencilState, write: bool| {
         program.render(
             gpu,
             &Raster {
                 vs: "vs_wedge",
                 fs,
                 vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
-                depth: Some(if instrument {
-                    wgpu::CompareFunction::Always
-                } else {
-                    wgpu::CompareFunction::Greater
-                }),
+                depth: Some(depth),
+                depth_format,
+                stencil,
                 depth_write: false,
                 color: Some(wgpu::ColorTargetState {
                     format,
-                    blend: Some(wgpu::BlendState {
-                        color: add,
-                        alpha: add,
-                    }),
-                    write_mask: wgpu::ColorWrites::ALL,
+                    blend: write.then_some(blend).flatten(),
+                    write_mask: if write {
+                        wgpu::ColorWrites::ALL
+                    } else {
+                        wgpu::ColorWrites::empty()
+                    },
                 }),
-                instrument: Some(instrument),
+                // The counting pipeline is the one without a depth test.
+                instrument: Some(depth == wgpu::CompareFunction::Always),
                 ..Raster::default()
             },
         )
     };
-    let timed: Vec<wgpu::RenderPipeline> = entries.iter().map(|e| pipeline(e, false)).collect();
-    let counting = pipeline(entries[0], true);
+    let no_stencil = wgpu::StencilState::default();
+    use wgpu::CompareFunction::{Always, Greater, Less};
+    // Timed, per V-buffer: the front faces drawn with the point behind them (reversed depth
+    // `Greater`); with the stencil, first marking the stencil (`fs_mark`, no colour), then the
+    // back faces shading where the point is in front of them (`Less`) and the stencil is the
+    // half's (IV §4.4), every fragment of the back faces clearing it.
+    let timed: Vec<Vec<wgpu::RenderPipeline>> = entries
+        .iter()
+        .map(|e| match stencil {
+            false => vec![pipeline(e, format, Greater, no_stencil.clone(), true)],
+            true => vec![
+                pipeline("fs_mark", format, Greater, mark_stencil(), false),
+                pipeline(e, format, Less, test_stencil(), true),
+            ],
+        })
+        .collect();
+    let counting = pipeline(entries[0], format, Always, no_stencil, true);
+    // With the stencil, the fragments passing both of its tests are counted by the culled
+    // passes themselves: each adds 1 into an R32Float target (where it can be blended).
+    let measure_culling = stencil && gpu.float32_blendable && counters_mode() == GpuCounters::On;
+    let culled_count = measure_culling.then(|| {
+        let f = wgpu::TextureFormat::R32Float;
+        let target = gpu.texture("culled fragments", size, f, wgpu::TextureUsages::COPY_SRC);
+        let view = target.create_view(&Default::default());
+        let pipelines = [
+            pipeline("fs_mark", f, Greater, mark_stencil(), false),
+            pipeline("fs_one", f, Less, test_stencil(), true),
+        ];
+        (target, view, pipelines)
+    });
     let resolve = resolve_program.compute(gpu, "resolve_soft", Some(false));
     let projection = eye_projection(rays, &frame.scene.camera);
     let camera = &frame.scene.camera;
@@ -271,15 +333,34 @@ pub(super) fn run(
             _ => run.submit(0, &[count])?,
         }
         // Wedges (III §3.1, IV §4.1) and their front faces, on the host.
-        let (group, wedge, wedge_vertices, wedges) = run.host(1, || {
+        let (group, wedge, (wedge_vertices, halves), wedges) = run.host(1, || {
             let w = WedgeRecords::new(rays, lr, &quads, opts);
-            let mut vertices: Vec<[f32; 5]> = Vec::new();
-            for (i, p) in w.prims.iter().enumerate() {
-                for x in front_faces(&p.volume, &box_bounds, near, rays.eye) {
-                    let c = projection * x.extend(1.0);
-                    vertices.push([c.x, c.y, c.z, c.w, i as f32]);
+            // Every primitive's front faces, then (with the stencil) every one's back faces.
+            let n = w.prims.len();
+            let (mut vertices, mut ranges, mut fronts) = (Vec::<[f32; 5]>::new(), Vec::new(), 0);
+            for front in [true, false].into_iter().take(1 + usize::from(stencil)) {
+                for (i, p) in w.prims.iter().enumerate() {
+                    let first = vertices.len() as u32;
+                    for x in faces(&p.volume, &box_bounds, near, rays.eye, front) {
+                        let c = projection * x.extend(1.0);
+                        vertices.push([c.x, c.y, c.z, c.w, i as f32]);
+                    }
+                    ranges.push(first..vertices.len() as u32);
+                }
+                if front {
+                    fronts = vertices.len() as u32;
                 }
             }
+            let halves: Vec<Half> = match stencil {
+                false => Vec::new(),
+                true => (0..n)
+                    .map(|i| Half {
+                        front: ranges[i].clone(),
+                        back: ranges[n + i].clone(),
+                        side: w.prims[i].half.unwrap_or(0.0),
+                    })
+                    .collect(),
+            };
             let none = gpu.storage_buffer("no bins", EMPTY_BYTES as u64, storage);
             let params = gpu.upload(
                 "ssv params",
@@ -296,14 +377,22 @@ pub(super) fn run(
             let planes = gpu.upload("wedge planes", &w.planes, storage);
             let group = v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft");
             let vb = gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX);
-            (group, vb, vertices.len() as u32, w)
+            (group, vb, (fronts, halves), w)
         });
         // Pass 2: penumbra wedges (III §3.2.2), then the loop's V-buffer and combination.
         let mut passes: Vec<Pass> = timed
             .iter()
             .zip(&vbuffers)
-            .map(|(pipeline, color)| {
-                wedge_pass(&group, pipeline, color, &hard, &wedge, wedge_vertices)
+            .enumerate()
+            .map(|(j, (pipelines, color))| match stencil {
+                false => wedge_pass(&group, &pipelines[0], color, &hard, &wedge, wedge_vertices),
+                // The split format's additive buffer takes the inner halves, the subtractive one
+                // the outer halves.
+                true => {
+                    let keep = |h: &&Half| !split || (h.side < 0.0) == (j == 0);
+                    let halves: Vec<&Half> = halves.iter().filter(keep).collect();
+                    culled_pass(&group, pipelines, color, &hard, &wedge, &halves)
+                }
             })
             .collect();
         let groups = [Some(&group), Some(&read_targets)];
@@ -319,6 +408,7 @@ pub(super) fn run(
             wedges,
             group,
             wedge,
+            halves,
         });
     }
     let timing = run.finish()?;
@@ -364,6 +454,21 @@ pub(super) fn run(
             "wedge_vertices",
             VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices),
         );
+        // With the stencil, the shaded fragments are those the culled passes let through.
+        let shaded = match &culled_count {
+            Some((target, view, pipelines)) => {
+                let halves: Vec<&Half> = lg.halves.iter().collect();
+                let pass = culled_pass(&lg.group, pipelines, view, &hard, &lg.wedge, &halves);
+                crate::gpu::pass::replay(gpu, &[Step::Run(pass)])?;
+                let texels = read_texels::<f32>(gpu, std::slice::from_ref(target))?;
+                Some(texels[0].iter().map(|&n| f64::from(n)).sum::<f64>())
+            }
+            None => None,
+        };
+        let stat = |s: Stat| match (s, shaded) {
+            (Stat::SoftInside, Some(n)) => n,
+            _ => stat(s),
+        };
         let (channels, pixels) = (v.res.channels, v.pixels);
         let k = &mut per_phase[2];
         soft_counters(
@@ -381,6 +486,22 @@ pub(super) fn run(
                 cpu-model's terms; mem_est.* estimated from counts and record sizes";
     let mut out = timing.output(size, per_phase, note);
     out.rgb = rgb;
+    let culling = match (opts.wedge_culling, stencil) {
+        (false, _) => "off",
+        (true, true) => "depth and stencil tests: front faces mark, back faces shade (IV §4.4)",
+        (true, false) => {
+            "the half's plane tested in the fragment shader (the adapter lacks \
+             DEPTH32FLOAT_STENCIL8)"
+        }
+    };
+    let shaded = match (stencil, &culled_count) {
+        (true, Some(_)) => "fragments passing the culled passes' depth and stencil tests",
+        _ => "fragments whose point the shader finds inside the primitive",
+    };
+    crate::gpu::record_execution(
+        &mut out.execution,
+        serde_json::json!({ "wedge_culling": culling, "shader_invocations": shaded }),
+    );
     Ok(out)
 }
 
@@ -406,4 +527,83 @@ fn wedge_pass<'a>(
             range: 0..count,
         },
     )
+}
+
+/// A wedge half's front and back faces (vertex ranges) and its side of the hard shadow quad
+/// (−1 inner, +1 outer).
+struct Half {
+    front: std::ops::Range<u32>,
+    back: std::ops::Range<u32>,
+    side: f32,
+}
+
+/// The wedge pass with the culling of IV §4.4 into `color`, cleared to 0: per half, its front
+/// faces mark the stencil with the half's reference where the point is behind them
+/// (`pipelines[0]`), then its back faces shade where the point is in front of them and the
+/// stencil holds the reference (`pipelines[1]`), clearing it. References run 1..=255 and the
+/// back faces clear what the front faces marked, so no half sees another's marks.
+fn culled_pass<'a>(
+    group: &'a wgpu::BindGroup,
+    pipelines: &'a [wgpu::RenderPipeline],
+    color: &'a wgpu::TextureView,
+    hard: &'a HardRaster,
+    vertices: &'a wgpu::Buffer,
+    halves: &[&Half],
+) -> Pass<'a> {
+    let draws = halves
+        .iter()
+        .enumerate()
+        .flat_map(|(i, h)| {
+            let reference = (i % 255) as u32 + 1;
+            [
+                (0, h.front.clone(), reference),
+                (1, h.back.clone(), reference),
+            ]
+        })
+        .collect();
+    Pass::stenciled(
+        "soft",
+        &[Some(group)],
+        Stenciled {
+            color,
+            clear: Some(0.0),
+            depth_stencil: &hard.depth,
+            vertices,
+            pipelines,
+            draws,
+        },
+    )
+}
+
+/// The stencil of the culling's first pass: the reference written where the depth test passes.
+fn mark_stencil() -> wgpu::StencilState {
+    let face = wgpu::StencilFaceState {
+        compare: wgpu::CompareFunction::Always,
+        fail_op: wgpu::StencilOperation::Keep,
+        depth_fail_op: wgpu::StencilOperation::Keep,
+        pass_op: wgpu::StencilOperation::Replace,
+    };
+    wgpu::StencilState {
+        front: face,
+        back: face,
+        read_mask: 0xff,
+        write_mask: 0xff,
+    }
+}
+
+/// The stencil of the culling's second pass: passing where it equals the reference, cleared to
+/// 0 by every fragment.
+fn test_stencil() -> wgpu::StencilState {
+    let face = wgpu::StencilFaceState {
+        compare: wgpu::CompareFunction::Equal,
+        fail_op: wgpu::StencilOperation::Zero,
+        depth_fail_op: wgpu::StencilOperation::Zero,
+        pass_op: wgpu::StencilOperation::Zero,
+    };
+    wgpu::StencilState {
+        front: face,
+        back: face,
+        read_mask: 0xff,
+        write_mask: 0xff,
+    }
 }

@@ -94,3 +94,15 @@ fn resolve_soft(@builtin(global_invocation_id) id: vec3u) {
     }
     combine(i, hard_count, acc, v.xyz);
 }
+
+// The culling's first pass (IV §4.4): the front faces only mark the stencil; no colour.
+@fragment
+fn fs_mark(in: WedgeOut) -> @location(0) vec4f {
+    return vec4f(0.0);
+}
+
+// The culling's count (counters only): one per fragment passing the depth and stencil tests.
+@fragment
+fn fs_one(in: WedgeOut) -> @location(0) vec4f {
+    return vec4f(1.0);
+}

@@ -312,9 +312,12 @@ fn options_name_the_bad_field_and_value() {
 /// the cube [-1, 1]³ seen from (5, 5, 5) shows three faces of area 4 (triangles summing to
 /// 12, each on its face's plane), seen from (0, 0, 5) one; bounds smaller than the cube cut
 /// the faces to the bounds (the +z face of bounds [-0.5, 0.5]³: area 1), and a near plane
-/// in front of an eye inside the cube is the one face drawn (area 4 on z = 0.5).
+/// in front of an eye inside the cube is the one face drawn (area 4 on z = 0.5). The back
+/// faces (IV §4.4's second culling pass) are the other three (area 12, each on a face at −1)
+/// from (5, 5, 5), the bottom face from (0, 0, 5), and with the near plane cutting the cube at
+/// z = 0.5 the five faces below it (4 + 4 × 3 = 16).
 #[test]
-fn front_faces_are_the_faces_the_eye_sees() {
+fn front_and_back_faces_are_the_faces_the_eye_sees_and_the_far_ones() {
     use crate::algorithms::eye_raster::ConvexVolume;
     use crate::scene::Bounds;
     let axes = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z];
@@ -332,17 +335,31 @@ fn front_faces_are_the_faces_the_eye_sees() {
             .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
             .sum()
     };
-    let corner = raster::front_faces(&cube, &bounds(3.0), no_near, Vec3::splat(5.0));
+    let corner = raster::faces(&cube, &bounds(3.0), no_near, Vec3::splat(5.0), true);
     assert!((area(&corner) - 12.0).abs() < 1e-3, "{}", area(&corner));
     assert!(corner.iter().all(|p| p.max_element() > 1.0 - 1e-4));
-    let above = raster::front_faces(&cube, &bounds(3.0), no_near, Vec3::new(0.0, 0.0, 5.0));
+    let above = raster::faces(&cube, &bounds(3.0), no_near, Vec3::new(0.0, 0.0, 5.0), true);
     assert!((area(&above) - 4.0).abs() < 1e-3, "{}", area(&above));
     assert!(above.iter().all(|p| (p.z - 1.0).abs() < 1e-4));
-    let cut = raster::front_faces(&cube, &bounds(0.5), no_near, Vec3::new(0.0, 0.0, 5.0));
+    let cut = raster::faces(&cube, &bounds(0.5), no_near, Vec3::new(0.0, 0.0, 5.0), true);
     assert!((area(&cut) - 1.0).abs() < 1e-3, "{}", area(&cut));
     // The eye inside the cube looking down -z: the near plane z ≤ 0.5 is the only front face.
     let near = (Vec3::Z, 0.5);
-    let inside = raster::front_faces(&cube, &bounds(3.0), near, Vec3::new(0.0, 0.0, 0.9));
+    let inside = raster::faces(&cube, &bounds(3.0), near, Vec3::new(0.0, 0.0, 0.9), true);
     assert!((area(&inside) - 4.0).abs() < 1e-3, "{}", area(&inside));
     assert!(inside.iter().all(|p| (p.z - 0.5).abs() < 1e-4));
+    let far = raster::faces(&cube, &bounds(3.0), no_near, Vec3::splat(5.0), false);
+    assert!((area(&far) - 12.0).abs() < 1e-3, "{}", area(&far));
+    assert!(far.iter().all(|p| p.min_element() < -1.0 + 1e-4));
+    let below = raster::faces(
+        &cube,
+        &bounds(3.0),
+        no_near,
+        Vec3::new(0.0, 0.0, 5.0),
+        false,
+    );
+    assert!((area(&below) - 4.0).abs() < 1e-3, "{}", area(&below));
+    assert!(below.iter().all(|p| (p.z + 1.0).abs() < 1e-4));
+    let cut_far = raster::faces(&cube, &bounds(3.0), near, Vec3::new(0.0, 0.0, 0.9), false);
+    assert!((area(&cut_far) - 16.0).abs() < 1e-3, "{}", area(&cut_far));
 }
