@@ -21,9 +21,18 @@
 //! compiled stages between pipelines (a timed pipeline and its counting twin share their vertex
 //! stage).
 //!
-//! Not cached: buffers, textures, bind groups and query sets. Their sizes and contents follow
-//! the frame (geometry, image, map resolution), so each run makes its own; a pool reusing
-//! them across runs is not built.
+//! Buffers ([`Cache::take_buffer`]): the storage, uniform and vertex buffers a run makes through
+//! [`super::Gpu::upload`] and [`super::Gpu::storage_buffer`] go back to a pool when the run ends
+//! well, and a later run asking for a buffer of the same size and usage gets one of them
+//! (filled with its data, or zeroed, before the run's first submission) instead of a new
+//! allocation: the runs of a sweep whose frame keeps its sizes (image, map resolution) reuse
+//! their eye, map and count buffers. Only exact sizes are reused, since a shader's
+//! `arrayLength` reads a bound buffer's size. The pool holds the last run's buffers only (those
+//! a run does not take are dropped), so it never holds more than one run's working set; a
+//! failed run's buffers are dropped. Outside a run (a test holding a device) nothing is pooled.
+//!
+//! Not reused: textures (their contents would have to be cleared by format), bind groups, query
+//! sets and the host-readable staging buffers.
 
 use std::any::Any;
 use std::collections::HashMap;
@@ -45,6 +54,9 @@ pub struct Setup {
     pub reused: u32,
     /// Whether the pipelines went through the driver's pipeline cache ([`Cache::driver`]).
     pub driver_cache: bool,
+    /// Buffers allocated, and taken from the pool instead, by the run.
+    pub buffers_made: u32,
+    pub buffers_reused: u32,
 }
 
 impl Setup {
@@ -61,6 +73,8 @@ impl Setup {
             "objects_created": self.created,
             "objects_reused": self.reused,
             "driver_pipeline_cache": self.driver_cache,
+            "buffers_made": self.buffers_made,
+            "buffers_reused": self.buffers_reused,
         })
     }
 }
@@ -81,7 +95,16 @@ struct Inner {
     /// Keys created since the run began, dropped if it fails.
     created_in_run: Vec<(Kind, String)>,
     setup: Setup,
+    /// Whether a run is under way (buffers are pooled only then).
+    in_run: bool,
+    /// Buffers of the last run that ended well, by size and usage.
+    free: HashMap<BufferKey, Vec<wgpu::Buffer>>,
+    /// Buffers the current run made or took.
+    lent: Vec<(BufferKey, wgpu::Buffer)>,
 }
+
+/// A pooled buffer's size (bytes) and usage.
+pub type BufferKey = (u64, wgpu::BufferUsages);
 
 /// The cache of one device.
 pub struct Cache {
@@ -132,15 +155,40 @@ impl Cache {
         self.lock().setup.objects_ms
     }
 
+    /// A buffer of `key` for the current run: one from the pool (`Some(true)` with it: its
+    /// contents are the last user's, the caller overwrites them), or `make`'s (`false`). Outside
+    /// a run, `make`'s, not pooled.
+    pub fn take_buffer(
+        &self,
+        key: BufferKey,
+        make: impl FnOnce() -> wgpu::Buffer,
+    ) -> (wgpu::Buffer, bool) {
+        let mut inner = self.lock();
+        if !inner.in_run {
+            return (make(), false);
+        }
+        let found = inner.free.get_mut(&key).and_then(Vec::pop);
+        let reused = found.is_some();
+        let buffer = found.unwrap_or_else(make);
+        match reused {
+            true => inner.setup.buffers_reused += 1,
+            false => inner.setup.buffers_made += 1,
+        }
+        inner.lent.push((key, buffer.clone()));
+        (buffer, reused)
+    }
+
     /// Starts a run's setup account.
     pub fn begin_run(&self) {
         let mut inner = self.lock();
         inner.created_in_run.clear();
         inner.setup = Setup::default();
+        inner.lent.clear();
+        inner.in_run = true;
     }
 
-    /// Ends a run's account and returns it; when the run failed (`ok` false) the objects it
-    /// created are dropped.
+    /// Ends a run's account and returns it; when the run failed (`ok` false) the objects and
+    /// buffers it created are dropped, else its buffers become the pool.
     pub fn end_run(&self, ok: bool) -> Setup {
         let mut inner = self.lock();
         let created = std::mem::take(&mut inner.created_in_run);
@@ -149,6 +197,14 @@ impl Cache {
                 inner.objects.remove(key);
             }
         }
+        let lent = std::mem::take(&mut inner.lent);
+        inner.free.clear();
+        if ok {
+            for (key, buffer) in lent {
+                inner.free.entry(key).or_default().push(buffer);
+            }
+        }
+        inner.in_run = false;
         std::mem::take(&mut inner.setup)
     }
 }

@@ -181,6 +181,8 @@ impl Needs<'_> {
 impl Gpu {
     /// A buffer holding `data`. Zero-sized buffers cannot be bound, so empty data becomes
     /// [`EMPTY_BYTES`] zero bytes (at least one record of any kind a shader reads from it).
+    /// Within a run, a pooled buffer of the same size and usage is refilled instead of a new
+    /// one made ([`cache`]).
     pub fn upload<T: bytemuck::Pod>(
         &self,
         label: &str,
@@ -188,32 +190,59 @@ impl Gpu {
         usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
         let bytes: &[u8] = bytemuck::cast_slice(data);
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: if bytes.is_empty() {
-                    &[0; EMPTY_BYTES]
-                } else {
-                    bytes
-                },
-                usage,
-            })
+        let contents = if bytes.is_empty() {
+            &[0; EMPTY_BYTES]
+        } else {
+            bytes
+        };
+        // Buffer writes go in 4-byte words; other sizes are not pooled.
+        if contents.len() % 4 != 0 {
+            return self
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                });
+        }
+        let usage = usage | wgpu::BufferUsages::COPY_DST;
+        let (buffer, reused) = self.cache.take_buffer((contents.len() as u64, usage), || {
+            self.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                })
+        });
+        if reused {
+            self.queue.write_buffer(&buffer, 0, contents);
+        }
+        buffer
     }
 
-    /// An uninitialised storage buffer of `bytes` (at least one 4-byte word), with `usage`
-    /// besides `STORAGE`.
+    /// A zeroed storage buffer of `bytes` (at least one 4-byte word, rounded up to whole
+    /// words), with `usage` besides `STORAGE`; within a run, a pooled one of the same size and
+    /// usage, zeroed ([`cache`]).
     pub fn storage_buffer(
         &self,
         label: &str,
         bytes: u64,
         usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
-        self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: bytes.max(4),
-            usage: wgpu::BufferUsages::STORAGE | usage,
-            mapped_at_creation: false,
-        })
+        let size = bytes.max(4).next_multiple_of(4);
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | usage;
+        let (buffer, reused) = self.cache.take_buffer((size, usage), || {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        });
+        if reused {
+            self.queue.write_buffer(&buffer, 0, &vec![0; size as usize]);
+        }
+        buffer
     }
 
     /// A uniform buffer holding `value`.

@@ -1,5 +1,6 @@
 //! wgpu runs in a sweep: the shader modules and pipelines a run creates are reused by the
-//! next run of the process (`gpu_setup_ms` 0, nothing created) without changing its image
+//! next run of the process (`gpu_setup_ms` 0, nothing created), and so are its buffers of
+//! the sizes the next run asks for again, without changing its image
 //! (checked against a run of a fresh process), and `--gpu-counters off` skips the instrumented
 //! replay: the same image, the replay's counters absent (named, never zero), and a report that
 //! does not chart them.
@@ -11,9 +12,9 @@ use serde_json::Value;
 
 use super::gpu_check::have_gpu;
 
-/// The wgpu algorithms these tests run: a render-pipeline family (light raster, compute lookup)
-/// and a compute-only one, both quick at 64×48.
-const ALGORITHMS: [&str; 2] = ["pcss", "soft_izb"];
+/// The wgpu algorithms these tests run: a render-pipeline family (light raster, compute lookup),
+/// a compute-only one and the shadow-volume raster pipeline with its stencil, quick at 64×48.
+const ALGORITHMS: [&str; 3] = ["pcss", "soft_izb", "soft_shadow_volume"];
 
 fn shadowbench(args: &[&str]) -> std::process::Output {
     let out = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
@@ -98,11 +99,21 @@ fn a_sweep_creates_pipelines_once_and_its_images_match_a_fresh_process() {
         // ... and the second, another light size, finds every one of them.
         let second = setup(&runs[1]);
         assert_eq!(second["objects_created"], 0, "{algorithm}: {second}");
+        let asked = |s: &Value| {
+            s["objects_created"].as_u64().unwrap() + s["objects_reused"].as_u64().unwrap()
+        };
         assert_eq!(
-            second["objects_reused"], first["objects_created"],
-            "{algorithm}: every object the first run made is asked for again: {first} {second}"
+            second["objects_reused"].as_u64().unwrap(),
+            asked(&first),
+            "{algorithm}: the second run asks for the first's objects again: {first} {second}"
         );
         assert_eq!(runs[1]["gpu_setup_ms"], 0.0, "{algorithm}");
+        // The buffers: all new in a fresh process; the second run (same image and map sizes)
+        // takes some from the first's.
+        assert_eq!(first["buffers_reused"], 0, "{algorithm}: {first}");
+        assert!(first["buffers_made"].as_u64().unwrap() > 0, "{first}");
+        let reused = second["buffers_reused"].as_u64().unwrap();
+        assert!(reused > 0, "{algorithm}: {second}");
 
         // A fresh process renders the second case with pipelines of its own: the same image.
         let fresh = dir.path().join(format!("fresh-{algorithm}"));
@@ -147,8 +158,8 @@ fn gpu_counters_off_keeps_the_image_and_leaves_the_replay_counters_out() {
     let dir = tempfile::tempdir().unwrap();
     let on = sweep(dir.path(), &ALGORITHMS, "on");
     let off = sweep(dir.path(), &ALGORITHMS, "off");
-    assert_eq!(on.len(), 4);
-    assert_eq!(off.len(), 4);
+    assert_eq!(on.len(), 2 * ALGORITHMS.len());
+    assert_eq!(off.len(), 2 * ALGORITHMS.len());
     for (a, b) in on.iter().zip(&off) {
         let id = format!("{} at {}", a["algorithm"], a["params"]["light_size"]);
         assert_eq!(a["params"], b["params"], "{id}");
