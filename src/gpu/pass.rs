@@ -584,14 +584,18 @@ pub enum Work<'a> {
 
 /// Draws of vertex ranges of one buffer onto a colour target cleared to `clear` (red) or kept,
 /// each with its own pipeline and stencil reference, testing against a kept depth whose stencil
-/// (Depth32FloatStencil8) is cleared to 0 first: the two-pass culling of a wedge half (paper 001
-/// IV §4.4) draws its front faces setting the stencil, then its back faces testing it.
+/// (Depth32FloatStencil8) is cleared to `stencil_clear` first or kept: the two-pass culling of a
+/// wedge half (paper 001 IV §4.4) draws its front faces setting the stencil, then its back faces
+/// testing it; a stencil shadow-volume pass increments and decrements it, and a later pass
+/// shades where it is 0.
 #[derive(Clone)]
 pub struct Stenciled<'a> {
     pub color: &'a wgpu::TextureView,
     pub clear: Option<f64>,
     pub depth_stencil: &'a wgpu::TextureView,
-    pub vertices: &'a wgpu::Buffer,
+    pub stencil_clear: Option<u32>,
+    /// The vertex buffer, if the pipelines read one.
+    pub vertices: Option<&'a wgpu::Buffer>,
     /// The pipelines the draws use (at least one).
     pub pipelines: &'a [wgpu::RenderPipeline],
     /// Pipeline (index into `pipelines`), vertex range and stencil reference of each draw, in
@@ -806,8 +810,10 @@ impl<'a> Pass<'a> {
                         view: d.depth_stencil,
                         depth_ops: None,
                         stencil_ops: Some(wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(0),
-                            store: wgpu::StoreOp::Discard,
+                            load: d
+                                .stencil_clear
+                                .map_or(wgpu::LoadOp::Load, wgpu::LoadOp::Clear),
+                            store: wgpu::StoreOp::Store,
                         }),
                     }),
                     timestamp_writes: None,
@@ -827,7 +833,7 @@ impl<'a> Pass<'a> {
                     }
                 };
                 let first = &d.pipelines[0];
-                self.draw_in(&mut pass, stats, index, first, Some(d.vertices), draw);
+                self.draw_in(&mut pass, stats, index, first, d.vertices, draw);
             }
         }
     }

@@ -3,11 +3,13 @@
 //!
 //! - `"raster"` (default), as the thesis rendered its reference (III §5.1): the eye's depth
 //!   once, then per light sample the sample's shadow quads (or capped volumes) drawn with the
-//!   depth test into a count target by additive blending and the lit pixels (count 0) blended
-//!   into an accumulation target; the average is resolved after the last sample
-//!   ([`crate::algorithms::shadow_volume::raster`], which states how its coverage differs from
-//!   the cpu's ray casting). Count and accumulation are R16Float targets (exact integers up to
-//!   2048), where the paper uses an 8-bit stencil and a 16-bit accumulation buffer.
+//!   depth test into the stencil (increment and decrement with wrap-around, cleared to the
+//!   eye's count) and the lit pixels (stencil 0) blended into an accumulation target; the
+//!   average is resolved after the last sample ([`crate::algorithms::shadow_volume::raster`],
+//!   which states how its coverage differs from the cpu's ray casting). The stencil is the
+//!   8 bits of Depth32FloatStencil8 where the adapter has it, else an R16Float count target by
+//!   additive blending (`execution.hard_count` says which); the accumulation is R16Float (exact
+//!   integers up to 2048), as the paper's 16-bit accumulation buffer.
 //! - `"gather"`: per light sample the hard pass of the shadow-volume family
 //!   ([`crate::algorithms::shadow_volume::wgpu`]): shadow quads, or for z-fail the capped
 //!   volumes' faces, binned to 8×8 screen tiles on the host, one invocation per pixel counting
@@ -28,7 +30,7 @@ use glam::Vec3;
 
 use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
-use crate::algorithms::shadow_volume::raster::{hard_triangles, HardRaster};
+use crate::algorithms::shadow_volume::raster::{hard_triangles, DepthTarget, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
     check_limits, FrameResources, Params, Stat, VolumePasses, TILE,
 };
@@ -108,14 +110,8 @@ fn raster(
     let samples = Samples::new(frame, ctx, opts)?;
     let n = samples.count();
     let rays = EyeRays::new(frame);
-    let passes = HardRaster::new(
-        gpu,
-        &rays,
-        &frame.scene.camera,
-        opts.counting,
-        n,
-        wgpu::TextureFormat::Depth32Float,
-    );
+    let target = DepthTarget::for_accumulation(gpu);
+    let passes = HardRaster::new(gpu, &rays, &frame.scene.camera, opts.counting, n, target);
     let readback = [&passes.visibility];
     let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
     // Without the pipelines' creation: the run's GPU setup, reported apart.
@@ -155,7 +151,7 @@ fn raster(
                 (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
                 cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
     let m = Measured { fill, passed, ..m };
-    Ok(output(
+    let mut out = output(
         timing,
         &rays,
         n,
@@ -163,7 +159,10 @@ fn raster(
         m,
         Counters::default(),
         note,
-    ))
+    );
+    let hard_count = serde_json::json!({ "hard_count": target.describe() });
+    crate::gpu::record_execution(&mut out.execution, hard_count);
+    Ok(out)
 }
 
 /// The phases of both pipelines.

@@ -11,9 +11,12 @@
 //!    (z-pass, [`super::eye_count`]) or 0 (z-fail); each fragment passing the test adds its
 //!    face's count change by additive blending: the stencil pass with increment and decrement
 //!    as one float target, which a later pass can read as a texture ([`HardRaster::count`];
-//!    pass 1 of `soft_shadow_volume`'s raster pipeline, `soft_shadow_volume::raster`);
+//!    pass 1 of `soft_shadow_volume`'s raster pipeline, `soft_shadow_volume::raster`); or, for
+//!    `accum_hard` ([`DepthTarget::StencilCount`]), the stencil of a Depth32FloatStencil8 depth
+//!    cleared to the eye's count, the faces of change +1 drawn incrementing and those of −1
+//!    decrementing it (8 bits, wrapping), as the thesis' stencil shadow volumes;
 //! 3. **accumulation** (`accum_hard`, per light point): a screen-covering triangle adds 1 where
-//!    the count is 0 into an accumulation target (R16Float, exact up to 2048 ≥ the 1024
+//!    the count (or the stencil, by the stencil test) is 0 into an accumulation target (R16Float, exact up to 2048 ≥ the 1024
 //!    samples allowed: the paper's 16-bit accumulation buffer) by additive blending; then
 //!    **resolve** divides by the number of samples into the visibility buffer.
 //!
@@ -44,7 +47,8 @@ use super::{zfail_faces, Counting, ShadowQuad};
 use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster, Step,
+    gpu_struct, per_vertex, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster,
+    Stenciled, Step,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{additive_red, Gpu};
@@ -126,6 +130,55 @@ pub fn hard_triangles(
     }
 }
 
+/// The eye's depth target of a [`HardRaster`], and where its count pass counts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DepthTarget {
+    /// Depth32Float; the count in the count target.
+    Depth,
+    /// Depth32FloatStencil8, its stencil left to a later pass (`soft_shadow_volume`'s
+    /// wedge-half culling); the count in the count target.
+    DepthStencil,
+    /// Depth32FloatStencil8; the count pass in the stencil as the thesis' stencil shadow
+    /// volumes (increment and decrement with wrap-around, 8 bits: a count that is a non-zero
+    /// multiple of 256 reads as 0), cleared to the eye's count; the accumulation adds the
+    /// pixels whose stencil is 0 (`accum_hard`, III §5.1).
+    StencilCount,
+}
+
+impl DepthTarget {
+    /// The accumulation's target on `gpu`: the stencil where the adapter has the combined
+    /// format, else the count target.
+    pub fn for_accumulation(gpu: &Gpu) -> DepthTarget {
+        match gpu.depth32_stencil8 {
+            true => DepthTarget::StencilCount,
+            false => DepthTarget::Depth,
+        }
+    }
+
+    pub fn format(self) -> wgpu::TextureFormat {
+        match self {
+            DepthTarget::Depth => wgpu::TextureFormat::Depth32Float,
+            _ => wgpu::TextureFormat::Depth32FloatStencil8,
+        }
+    }
+
+    /// What the count pass counts into, for the record (`execution.hard_count`).
+    pub fn describe(self) -> &'static str {
+        match self {
+            DepthTarget::StencilCount => {
+                "8-bit stencil, increment and decrement with wrap-around (III §3.2.1)"
+            }
+            _ => "R16Float count target by additive blending",
+        }
+    }
+}
+
+/// The pipelines of the count pass in the stencil: [increment, decrement] and the accumulation.
+struct StencilCount {
+    quads: [wgpu::RenderPipeline; 2],
+    lit: [wgpu::RenderPipeline; 1],
+}
+
 /// The textures, bind groups and pipelines of the raster hard pass over one frame, created once
 /// and reused for every light point.
 pub(crate) struct HardRaster<'g> {
@@ -148,21 +201,25 @@ pub(crate) struct HardRaster<'g> {
     /// The count pass: timed (depth test on), instrumented (off, counting).
     quad: [wgpu::RenderPipeline; 2],
     accumulate: wgpu::RenderPipeline,
+    /// Counting in the stencil ([`DepthTarget::StencilCount`]): the pipelines incrementing for
+    /// the faces of count change +1 and decrementing for −1, and the accumulation of the
+    /// pixels whose stencil is 0.
+    stencil: Option<StencilCount>,
     resolve: wgpu::ComputePipeline,
 }
 
 impl<'g> HardRaster<'g> {
     /// The passes over `rays` seen by `camera`, counting as `counting`, averaging `samples`
-    /// light points, with the eye's depth in `depth_format` (Depth32Float, or
-    /// Depth32FloatStencil8 for a later pass that also tests a stencil).
+    /// light points, with the eye's depth in `target`.
     pub fn new(
         gpu: &'g Gpu,
         rays: &EyeRays,
         camera: &crate::scene::camera::Camera,
         counting: Counting,
         samples: u32,
-        depth_format: wgpu::TextureFormat,
+        target: DepthTarget,
     ) -> HardRaster<'g> {
+        let depth_format = target.format();
         let size = (rays.width, rays.height);
         let cols = eye_projection(rays, camera).to_cols_array_2d();
         let params = RasterParams {
@@ -227,7 +284,58 @@ impl<'g> HardRaster<'g> {
                 },
             )
         });
+        let stencil = (target == DepthTarget::StencilCount).then(|| {
+            let op = |pass_op| {
+                let face = wgpu::StencilFaceState {
+                    compare: wgpu::CompareFunction::Always,
+                    pass_op,
+                    ..Default::default()
+                };
+                stencil_state(face)
+            };
+            let quad = |vs, pass_op| {
+                program.render(
+                    gpu,
+                    &Raster {
+                        vs,
+                        fs: "fs_quad",
+                        vertex: per_vertex(&attributes),
+                        depth: Some(test),
+                        depth_format,
+                        stencil: op(pass_op),
+                        depth_write: false,
+                        color: Some(no_color(TARGET_FORMAT)),
+                        instrument: Some(false),
+                        ..Raster::default()
+                    },
+                )
+            };
+            let lit = wgpu::StencilFaceState {
+                compare: wgpu::CompareFunction::Equal,
+                ..Default::default()
+            };
+            StencilCount {
+                quads: [
+                    quad("vs_quad_up", wgpu::StencilOperation::IncrementWrap),
+                    quad("vs_quad_down", wgpu::StencilOperation::DecrementWrap),
+                ],
+                lit: [program.render(
+                    gpu,
+                    &Raster {
+                        vs: "vs_full",
+                        fs: "fs_lit",
+                        depth: Some(wgpu::CompareFunction::Always),
+                        depth_format,
+                        stencil: stencil_state(lit),
+                        depth_write: false,
+                        color: blend.clone(),
+                        ..Raster::default()
+                    },
+                )],
+            }
+        });
         HardRaster {
+            stencil,
             depth_pipeline: program.render(
                 gpu,
                 &Raster {
@@ -298,6 +406,21 @@ impl<'g> HardRaster<'g> {
         eye_count: i32,
         instrument: bool,
     ) -> Pass<'a> {
+        if let (Some(st), false) = (&self.stencil, instrument) {
+            return Pass::stenciled(
+                "hard",
+                &[Some(&self.group), Some(&self.read_accumulation)],
+                Stenciled {
+                    color: &self.count,
+                    clear: None,
+                    depth_stencil: &self.depth,
+                    stencil_clear: Some(eye_count.rem_euclid(256) as u32),
+                    vertices: Some(vertices),
+                    pipelines: &st.quads,
+                    draws: vec![(0, range.clone(), 0), (1, range, 0)],
+                },
+            );
+        }
         Pass::onto(
             "hard",
             &[Some(&self.group), Some(&self.read_accumulation)],
@@ -315,6 +438,21 @@ impl<'g> HardRaster<'g> {
     /// The accumulation of the lit pixels of the last count pass; `first` clears the
     /// accumulation first.
     pub fn accumulate_pass(&self, first: bool) -> Pass<'_> {
+        if let Some(st) = &self.stencil {
+            return Pass::stenciled(
+                "accumulate",
+                &[Some(&self.group), Some(&self.read_count)],
+                Stenciled {
+                    color: &self.accumulation,
+                    clear: first.then_some(0.0),
+                    depth_stencil: &self.depth,
+                    stencil_clear: None,
+                    vertices: None,
+                    pipelines: &st.lit,
+                    draws: vec![(0, 0..3, 0)],
+                },
+            );
+        }
         Pass::onto(
             "accumulate",
             &[Some(&self.group), Some(&self.read_count)],
@@ -355,6 +493,25 @@ impl<'g> HardRaster<'g> {
         steps.push(Step::Read(&self.stats));
         let raw: Vec<u32> = words(&crate::gpu::pass::replay(self.gpu, &steps)?[0]);
         Ok((slot64(&raw, 0), slot64(&raw, 1)))
+    }
+}
+
+/// A stencil test of `face` on both faces, over all 8 bits.
+fn stencil_state(face: wgpu::StencilFaceState) -> wgpu::StencilState {
+    wgpu::StencilState {
+        front: face,
+        back: face,
+        read_mask: 0xff,
+        write_mask: 0xff,
+    }
+}
+
+/// A colour target of `format` that the pipeline does not write.
+fn no_color(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
+    wgpu::ColorTargetState {
+        format,
+        blend: None,
+        write_mask: wgpu::ColorWrites::empty(),
     }
 }
 

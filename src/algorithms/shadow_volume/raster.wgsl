@@ -77,13 +77,38 @@ struct QuadOut {
 
 // A corner of a shadow quad or volume face: xyz, w the count change (`shadow_volume::QuadPass`
 // steps: z-pass +1 for a face whose outer side the eye is on, z-fail the opposite).
-@vertex
-fn vs_quad(@location(0) v: vec4f) -> QuadOut {
+fn quad_vertex(v: vec4f) -> QuadOut {
     var out: QuadOut;
     out.pos = view_proj() * vec4f(v.xyz, 1.0);
     out.step = v.w;
     out.world = v.xyz;
     return out;
+}
+
+@vertex
+fn vs_quad(@location(0) v: vec4f) -> QuadOut {
+    return quad_vertex(v);
+}
+
+// The count pass into the stencil (`DepthTarget::StencilCount`): the faces of one count change,
+// drawn by the pipeline that increments (+1) or decrements (−1); a face of the other change has
+// every corner at one point behind the near plane and draws nothing.
+fn signed_vertex(v: vec4f, change: f32) -> QuadOut {
+    var out = quad_vertex(v);
+    if v.w != change {
+        out.pos = vec4f(0.0, 0.0, 2.0, 1.0);
+    }
+    return out;
+}
+
+@vertex
+fn vs_quad_up(@location(0) v: vec4f) -> QuadOut {
+    return signed_vertex(v, 1.0);
+}
+
+@vertex
+fn vs_quad_down(@location(0) v: vec4f) -> QuadOut {
+    return signed_vertex(v, -1.0);
 }
 
 // A quad fragment: its count change, blended additively into the count target by the timed
@@ -117,6 +142,13 @@ fn fs_quad(in: QuadOut) -> @location(0) vec4f {
 fn fs_accumulate(@builtin(position) pos: vec4f) -> @location(0) vec4f {
     let c = textureLoad(target_in, vec2i(pos.xy), 0).x;
     return vec4f(select(0.0, 1.0, c == 0.0), 0.0, 0.0, 0.0);
+}
+
+// The accumulation with the count in the stencil: 1 for every fragment, the stencil test
+// (equal to 0) keeping the lit pixels.
+@fragment
+fn fs_lit() -> @location(0) vec4f {
+    return vec4f(1.0, 0.0, 0.0, 0.0);
 }
 
 // The average over the samples (1 for pixels without a surface), as `accum_hard::cpu::render`.

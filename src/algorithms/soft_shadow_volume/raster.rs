@@ -57,11 +57,15 @@
 //! cpu-model's by a small fraction of the fill ([`super::SoftShadowVolume`]'s `WGPU_PARITY`).
 
 use glam::Vec3;
+use wgpu::CompareFunction::{Always, Equal, Greater, Less};
+use wgpu::StencilOperation::{Keep, Replace, Zero};
 
 use super::wgpu::{soft_counters, LoopRun, WedgeRecords, WGSL as SOFT_WGSL};
 use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
-use crate::algorithms::shadow_volume::raster::{eye_projection, hard_triangles, HardRaster};
+use crate::algorithms::shadow_volume::raster::{
+    eye_projection, hard_triangles, DepthTarget, HardRaster,
+};
 use crate::algorithms::shadow_volume::wgpu::{
     quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
     WGSL as FAMILY_WGSL,
@@ -136,6 +140,7 @@ struct LoopRaster {
     eye_count: i32,
     caps: u64,
     quads: u64,
+    /// The wedge primitives' front faces: the first `wedge_vertices` of `wedge`.
     wedge_vertices: u32,
     wedges: WedgeRecords,
     /// The wedge pass's bind group and vertex buffer.
@@ -143,6 +148,228 @@ struct LoopRaster {
     wedge: wgpu::Buffer,
     /// The wedge halves' faces, with the stencil.
     halves: Vec<Half>,
+}
+
+/// The wedge pass (pass 2): its V-buffers, pipelines and the host's cut of the primitives.
+struct WedgePass {
+    split: bool,
+    /// Wedge-half culling by the depth and stencil tests (IV §4.4).
+    stencil: bool,
+    vbuffers: Vec<wgpu::TextureView>,
+    /// Per V-buffer: the timed pipeline, or with the stencil the marking and shading ones.
+    timed: Vec<Vec<wgpu::RenderPipeline>>,
+    /// The counting pipeline (depth test off, `INSTRUMENT` on).
+    counting: wgpu::RenderPipeline,
+    /// With the stencil and the counters: an R32Float target and the culled pipelines that add
+    /// 1 per fragment passing both tests.
+    culled_count: Option<(wgpu::Texture, wgpu::TextureView, Vec<wgpu::RenderPipeline>)>,
+    projection: glam::Mat4,
+    /// The plane just in front of the eye and the scene bounds, slightly enlarged, that cut
+    /// the primitives.
+    near: (Vec3, f32),
+    bounds: Bounds,
+}
+
+impl WedgePass {
+    fn new(
+        gpu: &Gpu,
+        frame: &Frame,
+        rays: &EyeRays,
+        opts: &SoftShadowVolumeOptions,
+        program: &Program,
+        textured: bool,
+    ) -> WedgePass {
+        let split = opts.vbuffer == VBufferPrecision::Split12;
+        let stencil = stencil_in(opts, gpu);
+        let size = (rays.width, rays.height);
+        let (format, entries) = match (split, textured) {
+            (true, _) => (
+                wgpu::TextureFormat::Rgba8Unorm,
+                &["fs_wedge_add", "fs_wedge_sub"][..],
+            ),
+            (false, true) => (wgpu::TextureFormat::Rgba32Float, &["fs_wedge"][..]),
+            (false, false) => (wgpu::TextureFormat::R32Float, &["fs_wedge"][..]),
+        };
+        let add = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::One,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32];
+        let pipeline = |fs: &str, format, depth, test: wgpu::StencilState| {
+            let write = fs != "fs_mark";
+            program.render(
+                gpu,
+                &Raster {
+                    vs: "vs_wedge",
+                    fs,
+                    vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
+                    depth: Some(depth),
+                    depth_format: depth_target(stencil).format(),
+                    stencil: test,
+                    depth_write: false,
+                    color: Some(wgpu::ColorTargetState {
+                        format,
+                        blend: write.then_some(wgpu::BlendState {
+                            color: add,
+                            alpha: add,
+                        }),
+                        write_mask: match write {
+                            true => wgpu::ColorWrites::ALL,
+                            false => wgpu::ColorWrites::empty(),
+                        },
+                    }),
+                    // The counting pipeline is the one without a depth test.
+                    instrument: Some(depth == Always),
+                    ..Raster::default()
+                },
+            )
+        };
+        // Per half (IV §4.4): the front faces mark the stencil (`fs_mark`, no colour) where the
+        // point is behind them (reversed depth `Greater`), the back faces shade where it is in
+        // front of them (`Less`) and the stencil holds the half's reference.
+        let culled = |fs: &str, format| {
+            vec![
+                pipeline(
+                    "fs_mark",
+                    format,
+                    Greater,
+                    stencil_state(Always, Replace, Keep),
+                ),
+                pipeline(fs, format, Less, stencil_state(Equal, Zero, Zero)),
+            ]
+        };
+        let timed = entries
+            .iter()
+            .map(|e| match stencil {
+                false => vec![pipeline(e, format, Greater, Default::default())],
+                true => culled(e, format),
+            })
+            .collect();
+        let measure = stencil && gpu.float32_blendable && counters_mode() == GpuCounters::On;
+        let culled_count = measure.then(|| {
+            let f = wgpu::TextureFormat::R32Float;
+            let target = gpu.texture("culled fragments", size, f, wgpu::TextureUsages::COPY_SRC);
+            let view = target.create_view(&Default::default());
+            (target, view, culled("fs_one", f))
+        });
+        let camera = &frame.scene.camera;
+        let forward = (camera.target - camera.eye).normalize_or(Vec3::NEG_Z);
+        let reach = 1e-3 * rays.bounds.diagonal();
+        let mut bounds = rays.bounds;
+        (bounds.min, bounds.max) = (bounds.min - reach, bounds.max + reach);
+        WedgePass {
+            split,
+            stencil,
+            vbuffers: entries
+                .iter()
+                .map(|e| gpu.target_view(e, size, format))
+                .collect(),
+            timed,
+            counting: pipeline(entries[0], format, Always, Default::default()),
+            culled_count,
+            projection: eye_projection(rays, camera),
+            near: (-forward, -forward.dot(rays.eye) - reach),
+            bounds,
+        }
+    }
+
+    /// Every primitive's front faces in clip space (with its index), then with the stencil
+    /// every one's back faces; the count of front-face vertices and the halves' ranges.
+    fn geometry(&self, rays: &EyeRays, w: &WedgeRecords) -> (Vec<[f32; 5]>, u32, Vec<Half>) {
+        let n = w.prims.len();
+        let (mut vertices, mut ranges, mut fronts) = (Vec::new(), Vec::new(), 0);
+        for front in [true, false]
+            .into_iter()
+            .take(1 + usize::from(self.stencil))
+        {
+            for (i, p) in w.prims.iter().enumerate() {
+                let first = vertices.len() as u32;
+                for x in faces(&p.volume, &self.bounds, self.near, rays.eye, front) {
+                    let c = self.projection * x.extend(1.0);
+                    vertices.push([c.x, c.y, c.z, c.w, i as f32]);
+                }
+                ranges.push(first..vertices.len() as u32);
+            }
+            if front {
+                fronts = vertices.len() as u32;
+            }
+        }
+        let halves = match self.stencil {
+            false => Vec::new(),
+            true => (0..n)
+                .map(|i| Half {
+                    front: ranges[i].clone(),
+                    back: ranges[n + i].clone(),
+                    side: w.prims[i].half.unwrap_or(0.0),
+                })
+                .collect(),
+        };
+        (vertices, fronts, halves)
+    }
+
+    /// The timed wedge passes of loop `lg`, one per V-buffer; with the stencil the split
+    /// format's additive buffer takes the inner halves, the subtractive one the outer halves.
+    fn passes<'a>(&'a self, lg: &'a LoopRaster, hard: &'a HardRaster) -> Vec<Pass<'a>> {
+        let (group, wedge) = (&lg.group, &lg.wedge);
+        self.timed
+            .iter()
+            .zip(&self.vbuffers)
+            .enumerate()
+            .map(|(j, (pipelines, color))| match self.stencil {
+                false => wedge_pass(group, &pipelines[0], color, hard, wedge, lg.wedge_vertices),
+                true => {
+                    let keep = |h: &&Half| !self.split || (h.side < 0.0) == (j == 0);
+                    let halves: Vec<&Half> = lg.halves.iter().filter(keep).collect();
+                    culled_pass(group, pipelines, color, hard, wedge, &halves)
+                }
+            })
+            .collect()
+    }
+
+    /// The fragments of loop `lg` that pass the culled passes' depth and stencil tests, counted
+    /// by those passes; `None` without the stencil or the counters.
+    fn shaded(&self, gpu: &Gpu, lg: &LoopRaster, hard: &HardRaster) -> Result<Option<f64>> {
+        let Some((target, view, pipelines)) = &self.culled_count else {
+            return Ok(None);
+        };
+        let halves: Vec<&Half> = lg.halves.iter().collect();
+        let pass = culled_pass(&lg.group, pipelines, view, hard, &lg.wedge, &halves);
+        crate::gpu::pass::replay(gpu, &[Step::Run(pass)])?;
+        let texels = read_texels::<f32>(gpu, std::slice::from_ref(target))?;
+        Ok(Some(texels[0].iter().map(|&n| f64::from(n)).sum()))
+    }
+
+    /// `execution.wedge_culling` and `execution.shader_invocations`: how the halves were culled
+    /// and what the shader invocations count.
+    fn record(&self, opts: &SoftShadowVolumeOptions) -> serde_json::Value {
+        let culling = match (opts.wedge_culling, self.stencil) {
+            (false, _) => "off",
+            (true, true) => "depth and stencil tests: front faces mark, back faces shade (IV §4.4)",
+            (true, false) => {
+                "the half's plane tested in the fragment shader (the adapter lacks \
+                 DEPTH32FLOAT_STENCIL8)"
+            }
+        };
+        let shaded = match self.culled_count {
+            Some(_) => "fragments passing the culled passes' depth and stencil tests",
+            None => "fragments whose point the shader finds inside the primitive",
+        };
+        serde_json::json!({ "wedge_culling": culling, "shader_invocations": shaded })
+    }
+}
+
+/// Whether a run of `opts` on `gpu` culls the wedge halves by the stencil (IV §4.4).
+fn stencil_in(opts: &SoftShadowVolumeOptions, gpu: &Gpu) -> bool {
+    opts.wedge_culling && gpu.depth32_stencil8
+}
+
+/// The eye depth: with the stencil of the culling, or without.
+fn depth_target(stencil: bool) -> DepthTarget {
+    match stencil {
+        true => DepthTarget::DepthStencil,
+        false => DepthTarget::Depth,
+    }
 }
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
@@ -155,8 +382,7 @@ pub(super) fn run(
     runs: &[LoopRun],
     setup_ms: f64,
 ) -> Result<FrameOutput> {
-    let split = opts.vbuffer == VBufferPrecision::Split12;
-    if !split && !gpu.float32_blendable {
+    if opts.vbuffer == VBufferPrecision::F32 && !gpu.float32_blendable {
         return Err(Error::Unsupported(format!(
             "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use vbuffer \
              \"split12\" or gpu_pipeline \"gather\"",
@@ -167,48 +393,11 @@ pub(super) fn run(
     let objects_ms = gpu.cache.run_objects_ms();
     let size = (rays.width, rays.height);
     let occluders = frame.scene.occluders();
-    // Wedge-half culling by the depth and stencil tests (IV §4.4) where the adapter has the
-    // combined f32 depth and stencil format; else the fragment shader tests the half's plane.
-    let stencil = opts.wedge_culling && gpu.depth32_stencil8;
-    let depth_format = if stencil {
-        wgpu::TextureFormat::Depth32FloatStencil8
-    } else {
-        wgpu::TextureFormat::Depth32Float
-    };
-    let hard = HardRaster::new(
-        gpu,
-        rays,
-        &frame.scene.camera,
-        opts.counting,
-        1,
-        depth_format,
-    );
+    let camera = &frame.scene.camera;
+    let depth = depth_target(stencil_in(opts, gpu));
+    let hard = HardRaster::new(gpu, rays, camera, opts.counting, 1, depth);
     let textured = res.channels == 3;
     let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), SOFT_WGSL);
-    let (format, entries) = match (split, textured) {
-        (true, _) => (
-            wgpu::TextureFormat::Rgba8Unorm,
-            &["fs_wedge_add", "fs_wedge_sub"][..],
-        ),
-        (false, true) => (wgpu::TextureFormat::Rgba32Float, &["fs_wedge"][..]),
-        (false, false) => (wgpu::TextureFormat::R32Float, &["fs_wedge"][..]),
-    };
-    let vbuffers: Vec<wgpu::TextureView> = entries
-        .iter()
-        .map(|e| gpu.target_view(e, size, format))
-        .collect();
-    let stages = wgpu::ShaderStages::COMPUTE;
-    let (targets, read_targets) = crate::gpu::pass::Layout::bound(
-        gpu,
-        "ssv targets",
-        stages,
-        &[
-            &hard.count,
-            &vbuffers[0],
-            vbuffers.last().unwrap_or(&vbuffers[0]),
-        ]
-        .map(|t| (Bind::Float, view(t))),
-    );
     let sources = [
         Params::WGSL,
         FAMILY_WGSL,
@@ -217,94 +406,26 @@ pub(super) fn run(
         crate::scene::coverage::WGSL,
     ];
     let program = Program::new(gpu, "ssv raster", &sources, &[Some(&v.layout)]);
-    let resolve_program = Program::new(
+    let wp = WedgePass::new(gpu, frame, rays, opts, &program, textured);
+    let vb = &wp.vbuffers;
+    let (targets, read_targets) = crate::gpu::pass::Layout::bound(
+        gpu,
+        "ssv targets",
+        wgpu::ShaderStages::COMPUTE,
+        &[&hard.count, &vb[0], vb.last().unwrap_or(&vb[0])].map(|t| (Bind::Float, view(t))),
+    );
+    let resolve = Program::new(
         gpu,
         "ssv resolve",
         &sources,
         &[Some(&v.layout), Some(&targets)],
-    );
-    let add = wgpu::BlendComponent {
-        src_factor: wgpu::BlendFactor::One,
-        dst_factor: wgpu::BlendFactor::One,
-        operation: wgpu::BlendOperation::Add,
-    };
-    let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32];
-    let blend = Some(wgpu::BlendState {
-        color: add,
-        alpha: add,
-    });
-    let pipeline = |fs: &str, format, depth, stencil: wgpu::StencilState, write: bool| {
-        program.render(
-            gpu,
-            &Raster {
-                vs: "vs_wedge",
-                fs,
-                vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
-                depth: Some(depth),
-                depth_format,
-                stencil,
-                depth_write: false,
-                color: Some(wgpu::ColorTargetState {
-                    format,
-                    blend: write.then_some(blend).flatten(),
-                    write_mask: if write {
-                        wgpu::ColorWrites::ALL
-                    } else {
-                        wgpu::ColorWrites::empty()
-                    },
-                }),
-                // The counting pipeline is the one without a depth test.
-                instrument: Some(depth == wgpu::CompareFunction::Always),
-                ..Raster::default()
-            },
-        )
-    };
-    let no_stencil = wgpu::StencilState::default();
-    use wgpu::CompareFunction::{Always, Greater, Less};
-    // Timed, per V-buffer: the front faces drawn with the point behind them (reversed depth
-    // `Greater`); with the stencil, first marking the stencil (`fs_mark`, no colour), then the
-    // back faces shading where the point is in front of them (`Less`) and the stencil is the
-    // half's (IV §4.4), every fragment of the back faces clearing it.
-    let timed: Vec<Vec<wgpu::RenderPipeline>> = entries
-        .iter()
-        .map(|e| match stencil {
-            false => vec![pipeline(e, format, Greater, no_stencil.clone(), true)],
-            true => vec![
-                pipeline("fs_mark", format, Greater, mark_stencil(), false),
-                pipeline(e, format, Less, test_stencil(), true),
-            ],
-        })
-        .collect();
-    let counting = pipeline(entries[0], format, Always, no_stencil, true);
-    // With the stencil, the fragments passing both of its tests are counted by the culled
-    // passes themselves: each adds 1 into an R32Float target (where it can be blended).
-    let measure_culling = stencil && gpu.float32_blendable && counters_mode() == GpuCounters::On;
-    let culled_count = measure_culling.then(|| {
-        let f = wgpu::TextureFormat::R32Float;
-        let target = gpu.texture("culled fragments", size, f, wgpu::TextureUsages::COPY_SRC);
-        let view = target.create_view(&Default::default());
-        let pipelines = [
-            pipeline("fs_mark", f, Greater, mark_stencil(), false),
-            pipeline("fs_one", f, Less, test_stencil(), true),
-        ];
-        (target, view, pipelines)
-    });
-    let resolve = resolve_program.compute(gpu, "resolve_soft", Some(false));
-    let projection = eye_projection(rays, &frame.scene.camera);
-    let camera = &frame.scene.camera;
-    let forward = (camera.target - camera.eye).normalize_or(Vec3::NEG_Z);
-    let near = (
-        -forward,
-        -forward.dot(rays.eye) - 1e-3 * rays.bounds.diagonal(),
-    );
-    let mut box_bounds = rays.bounds;
-    let margin = Vec3::splat(1e-3 * rays.bounds.diagonal());
-    (box_bounds.min, box_bounds.max) = (box_bounds.min - margin, box_bounds.max + margin);
+    )
+    .compute(gpu, "resolve_soft", Some(false));
 
-    let names = ["hard", "wedges", "soft"];
     let readback: Vec<&wgpu::Buffer> =
         [&v.res.visibility, &v.res.rgb][..1 + usize::from(textured)].to_vec();
-    let n_passes = 1 + runs.len() as u32 * (2 + entries.len() as u32);
+    let n_passes = 1 + runs.len() as u32 * (2 + vb.len() as u32);
+    let names = ["hard", "wedges", "soft"];
     let mut run = Timed::new(gpu, &names, n_passes, Statistics::All, &readback);
     // Without the pipelines' creation: the run's GPU setup, reported apart.
     let objects_ms = gpu.cache.run_objects_ms() - objects_ms;
@@ -332,35 +453,10 @@ pub(super) fn run(
             0 => run.submit(0, &[hard.depth_pass(), count])?,
             _ => run.submit(0, &[count])?,
         }
-        // Wedges (III §3.1, IV §4.1) and their front faces, on the host.
-        let (group, wedge, (wedge_vertices, halves), wedges) = run.host(1, || {
+        // Wedges (III §3.1, IV §4.1) and their faces, on the host.
+        let lg = run.host(1, || {
             let w = WedgeRecords::new(rays, lr, &quads, opts);
-            // Every primitive's front faces, then (with the stencil) every one's back faces.
-            let n = w.prims.len();
-            let (mut vertices, mut ranges, mut fronts) = (Vec::<[f32; 5]>::new(), Vec::new(), 0);
-            for front in [true, false].into_iter().take(1 + usize::from(stencil)) {
-                for (i, p) in w.prims.iter().enumerate() {
-                    let first = vertices.len() as u32;
-                    for x in faces(&p.volume, &box_bounds, near, rays.eye, front) {
-                        let c = projection * x.extend(1.0);
-                        vertices.push([c.x, c.y, c.z, c.w, i as f32]);
-                    }
-                    ranges.push(first..vertices.len() as u32);
-                }
-                if front {
-                    fronts = vertices.len() as u32;
-                }
-            }
-            let halves: Vec<Half> = match stencil {
-                false => Vec::new(),
-                true => (0..n)
-                    .map(|i| Half {
-                        front: ranges[i].clone(),
-                        back: ranges[n + i].clone(),
-                        side: w.prims[i].half.unwrap_or(0.0),
-                    })
-                    .collect(),
-            };
+            let (vertices, wedge_vertices, halves) = wp.geometry(rays, &w);
             let none = gpu.storage_buffer("no bins", EMPTY_BYTES as u64, storage);
             let params = gpu.upload(
                 "ssv params",
@@ -368,48 +464,30 @@ pub(super) fn run(
                 wgpu::BufferUsages::UNIFORM,
             );
             let no_footprints = vec![None; quads.len()];
-            let quad_buf = gpu.upload(
-                "quads",
-                &quad_records(rays, &quads, &no_footprints),
-                storage,
-            );
+            let quad_records = quad_records(rays, &quads, &no_footprints);
+            let quad_buf = gpu.upload("quads", &quad_records, storage);
             let prims = gpu.upload("wedge primitives", &w.records, storage);
             let planes = gpu.upload("wedge planes", &w.planes, storage);
-            let group = v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft");
-            let vb = gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX);
-            (group, vb, (fronts, halves), w)
+            LoopRaster {
+                hard: hard_vb,
+                hard_vertices,
+                eye_count,
+                caps,
+                quads: quads.len() as u64,
+                wedge_vertices,
+                group: v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft"),
+                wedge: gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX),
+                wedges: w,
+                halves,
+            }
         });
         // Pass 2: penumbra wedges (III §3.2.2), then the loop's V-buffer and combination.
-        let mut passes: Vec<Pass> = timed
-            .iter()
-            .zip(&vbuffers)
-            .enumerate()
-            .map(|(j, (pipelines, color))| match stencil {
-                false => wedge_pass(&group, &pipelines[0], color, &hard, &wedge, wedge_vertices),
-                // The split format's additive buffer takes the inner halves, the subtractive one
-                // the outer halves.
-                true => {
-                    let keep = |h: &&Half| !split || (h.side < 0.0) == (j == 0);
-                    let halves: Vec<&Half> = halves.iter().filter(keep).collect();
-                    culled_pass(&group, pipelines, color, &hard, &wedge, &halves)
-                }
-            })
-            .collect();
-        let groups = [Some(&group), Some(&read_targets)];
+        let mut passes = wp.passes(&lg, &hard);
+        let groups = [Some(&lg.group), Some(&read_targets)];
         passes.push(Pass::compute("resolve", &groups, &resolve, tiles(size, 8)));
         run.submit(2, &passes)?;
-        loops.push(LoopRaster {
-            hard: hard_vb,
-            hard_vertices,
-            eye_count,
-            caps,
-            quads: quads.len() as u64,
-            wedge_vertices,
-            wedges,
-            group,
-            wedge,
-            halves,
-        });
+        drop(passes);
+        loops.push(lg);
     }
     let timing = run.finish()?;
     let rgb = timing.readback.get(1).map(|b| RgbBuffer {
@@ -417,10 +495,29 @@ pub(super) fn run(
         height: rays.height,
         data: words(b),
     });
+    let per_phase = replay(gpu, opts, &hard, &v, &wp, runs, &loops)?;
+    let note = "fill, overdraw, shader invocations and culls from an instrumented replay of the \
+                count and wedge passes' draws (depth test off, WGSL atomics; with the stencil, \
+                shader invocations from the culled passes), in the cpu-model's terms; mem_est.* \
+                estimated from counts and record sizes";
+    let mut out = timing.output(size, per_phase, note);
+    out.rgb = rgb;
+    crate::gpu::record_execution(&mut out.execution, wp.record(opts));
+    Ok(out)
+}
 
-    // The instrumented replay, per loop.
+/// The instrumented replay of every loop: the counters of the phases `hard`, `wedges`, `soft`.
+fn replay(
+    gpu: &Gpu,
+    opts: &SoftShadowVolumeOptions,
+    hard: &HardRaster,
+    v: &VolumePasses,
+    wp: &WedgePass,
+    runs: &[LoopRun],
+    loops: &[LoopRaster],
+) -> Result<Vec<Counters>> {
     let mut per_phase = vec![Counters::default(); 3];
-    for (lr, lg) in runs.iter().zip(&loops) {
+    for (lr, lg) in runs.iter().zip(loops) {
         let k = &mut per_phase[0];
         let (fill, passed) = hard.replay(&lg.hard, &[(0..lg.hard_vertices, lg.eye_count)])?;
         if let Some(n) = lr.silhouette_edges {
@@ -434,75 +531,48 @@ pub(super) fn run(
         }
         // As the cpu-model counts: a depth read per fragment, the V-buffer (the stencil for
         // the split format) read and written per passing fragment.
-        let count_bytes = if split { STENCIL_BYTES } else { VBUFFER_BYTES } as f64;
-        let depth = [("depth", fill * DEPTH_BYTES as f64)];
-        let target = if split { "stencil" } else { "vbuffer" };
-        let reads = [depth[0], (target, passed * count_bytes)];
+        let (target, count_bytes) = match wp.split {
+            true => ("stencil", STENCIL_BYTES as f64),
+            false => ("vbuffer", VBUFFER_BYTES as f64),
+        };
+        let reads = [
+            ("depth", fill * DEPTH_BYTES as f64),
+            (target, passed * count_bytes),
+        ];
         k.add_traffic("mem_est", &reads, &[(target, passed * count_bytes)]);
         per_phase[1].add("wedges", lg.wedges.counts.wedges as f64);
         per_phase[1].add("wedges_degenerate", lg.wedges.counts.degenerate as f64);
-        // The soft pass: the same draws with the counting pipeline (depth test off).
-        let stat = v.replay(vec![wedge_pass(
-            &lg.group,
-            &counting,
-            &vbuffers[0],
-            &hard,
+        // The soft pass: the front faces with the counting pipeline (depth test off).
+        let (group, vertices) = (&lg.group, lg.wedge_vertices);
+        let counting = wedge_pass(
+            group,
+            &wp.counting,
+            &wp.vbuffers[0],
+            hard,
             &lg.wedge,
-            lg.wedge_vertices,
-        )])?;
-        let vertices = (
-            "wedge_vertices",
-            VERTEX_BYTES as f64 * f64::from(lg.wedge_vertices),
+            vertices,
         );
+        let stat = v.replay(vec![counting])?;
         // With the stencil, the shaded fragments are those the culled passes let through.
-        let shaded = match &culled_count {
-            Some((target, view, pipelines)) => {
-                let halves: Vec<&Half> = lg.halves.iter().collect();
-                let pass = culled_pass(&lg.group, pipelines, view, &hard, &lg.wedge, &halves);
-                crate::gpu::pass::replay(gpu, &[Step::Run(pass)])?;
-                let texels = read_texels::<f32>(gpu, std::slice::from_ref(target))?;
-                Some(texels[0].iter().map(|&n| f64::from(n)).sum::<f64>())
-            }
-            None => None,
-        };
+        let shaded = wp.shaded(gpu, lg, hard)?;
         let stat = |s: Stat| match (s, shaded) {
             (Stat::SoftInside, Some(n)) => n,
             _ => stat(s),
         };
+        let bytes = ("wedge_vertices", VERTEX_BYTES as f64 * f64::from(vertices));
         let (channels, pixels) = (v.res.channels, v.pixels);
-        let k = &mut per_phase[2];
+        let counts = &lg.wedges.counts;
         soft_counters(
-            k,
+            &mut per_phase[2],
             opts,
             channels,
             pixels,
-            &lg.wedges.counts,
-            vertices,
+            counts,
+            bytes,
             &stat,
         );
     }
-    let note = "fill, overdraw, shader invocations and culls from an instrumented replay of the \
-                count and wedge passes' draws (depth test off, WGSL atomics), in the \
-                cpu-model's terms; mem_est.* estimated from counts and record sizes";
-    let mut out = timing.output(size, per_phase, note);
-    out.rgb = rgb;
-    let culling = match (opts.wedge_culling, stencil) {
-        (false, _) => "off",
-        (true, true) => "depth and stencil tests: front faces mark, back faces shade (IV §4.4)",
-        (true, false) => {
-            "the half's plane tested in the fragment shader (the adapter lacks \
-             DEPTH32FLOAT_STENCIL8)"
-        }
-    };
-    let shaded = match (stencil, &culled_count) {
-        (true, Some(_)) => "fragments passing the culled passes' depth and stencil tests",
-        _ => "fragments whose point the shader finds inside the primitive",
-    };
-    crate::gpu::record_execution(
-        &mut out.execution,
-        serde_json::json!({ "wedge_culling": culling, "shader_invocations": shaded }),
-    );
-    Ok(out)
+    Ok(per_phase)
 }
 
 /// A wedge pass of `pipeline` over the front faces in `vertices` into `color`, cleared to 0,
@@ -568,37 +638,28 @@ fn culled_pass<'a>(
             color,
             clear: Some(0.0),
             depth_stencil: &hard.depth,
-            vertices,
+            stencil_clear: Some(0),
+            vertices: Some(vertices),
             pipelines,
             draws,
         },
     )
 }
 
-/// The stencil of the culling's first pass: the reference written where the depth test passes.
-fn mark_stencil() -> wgpu::StencilState {
+/// A stencil test (both faces) of `compare` against the reference, writing `pass` where the
+/// fragment passes it and the depth test and `other` where it fails either (all 8 bits): the
+/// culling's first pass (`Always`, `Replace`, `Keep`: mark) and second (`Equal`, `Zero`, `Zero`:
+/// test, clearing every mark its faces cover).
+fn stencil_state(
+    compare: wgpu::CompareFunction,
+    pass: wgpu::StencilOperation,
+    other: wgpu::StencilOperation,
+) -> wgpu::StencilState {
     let face = wgpu::StencilFaceState {
-        compare: wgpu::CompareFunction::Always,
-        fail_op: wgpu::StencilOperation::Keep,
-        depth_fail_op: wgpu::StencilOperation::Keep,
-        pass_op: wgpu::StencilOperation::Replace,
-    };
-    wgpu::StencilState {
-        front: face,
-        back: face,
-        read_mask: 0xff,
-        write_mask: 0xff,
-    }
-}
-
-/// The stencil of the culling's second pass: passing where it equals the reference, cleared to
-/// 0 by every fragment.
-fn test_stencil() -> wgpu::StencilState {
-    let face = wgpu::StencilFaceState {
-        compare: wgpu::CompareFunction::Equal,
-        fail_op: wgpu::StencilOperation::Zero,
-        depth_fail_op: wgpu::StencilOperation::Zero,
-        pass_op: wgpu::StencilOperation::Zero,
+        compare,
+        fail_op: other,
+        depth_fail_op: other,
+        pass_op: pass,
     };
     wgpu::StencilState {
         front: face,
