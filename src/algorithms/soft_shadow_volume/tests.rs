@@ -313,9 +313,10 @@ fn options_name_the_bad_field_and_value() {
 /// 12, each on its face's plane), seen from (0, 0, 5) one; bounds smaller than the cube cut
 /// the faces to the bounds (the +z face of bounds [-0.5, 0.5]³: area 1), and a near plane
 /// in front of an eye inside the cube is the one face drawn (area 4 on z = 0.5). The back
-/// faces (IV §4.4's second culling pass) are the other three (area 12, each on a face at −1)
-/// from (5, 5, 5), the bottom face from (0, 0, 5), and with the near plane cutting the cube at
-/// z = 0.5 the five faces below it (4 + 4 × 3 = 16).
+/// faces (IV §4.4's second culling pass), those whose plane has the eye on its inner side, are
+/// the other three (area 12, each on a face at −1) from (5, 5, 5), the four sides and the
+/// bottom from (0, 0, 5) (4 × 4 + 4 = 20; the bottom 4), and from inside the cube with the near
+/// plane cutting it at z = 0.5 the five faces below it (4 + 4 × 3 = 16).
 #[test]
 fn front_and_back_faces_are_the_faces_the_eye_sees_and_the_far_ones() {
     use crate::algorithms::eye_raster::ConvexVolume;
@@ -358,8 +359,14 @@ fn front_and_back_faces_are_the_faces_the_eye_sees_and_the_far_ones() {
         Vec3::new(0.0, 0.0, 5.0),
         false,
     );
-    assert!((area(&below) - 4.0).abs() < 1e-3, "{}", area(&below));
-    assert!(below.iter().all(|p| (p.z + 1.0).abs() < 1e-4));
+    assert!((area(&below) - 20.0).abs() < 1e-3, "{}", area(&below));
+    let bottom: Vec<Vec3> = below
+        .chunks(3)
+        .filter(|t| t.iter().all(|p| (p.z + 1.0).abs() < 1e-4))
+        .flatten()
+        .copied()
+        .collect();
+    assert!((area(&bottom) - 4.0).abs() < 1e-3, "{}", area(&bottom));
     let cut_far = raster::faces(&cube, &bounds(3.0), near, Vec3::new(0.0, 0.0, 0.9), false);
     assert!((area(&cut_far) - 16.0).abs() < 1e-3, "{}", area(&cut_far));
 }
