@@ -24,49 +24,19 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
-
 use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{hard_triangles, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
-    check_limits, FrameResources, Params, Stat, VolumePasses, TILE,
+    check_limits, FrameResources, Params, Stat, VolumePasses,
 };
-use crate::algorithms::shadow_volume::{eye_count, Counting};
+use crate::algorithms::shadow_volume::Counting;
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed, Timing};
 use crate::gpu::Gpu;
 use crate::record::Counters;
-
-/// The hard pass's parameters for light sample `s` of `samples` at `light` (the rest zero).
-fn sample_params(
-    rays: &EyeRays,
-    s: u32,
-    samples: u32,
-    light: Vec3,
-    eye_count: i32,
-    counting: Counting,
-) -> Params {
-    Params {
-        center: light.extend(0.0).to_array(),
-        eye: rays.eye.extend(0.0).to_array(),
-        width: rays.width,
-        height: rays.height,
-        tiles_x: rays.width.div_ceil(TILE),
-        eye_count,
-        first_loop: 1,
-        last_loop: 1,
-        first_light: u32::from(s == 0),
-        last_light: u32::from(s + 1 == samples),
-        sub_lights: samples,
-        counting: u32::from(counting == Counting::ZFail),
-        channels: 1,
-        mean: [1.0; 4],
-        ..Params::default()
-    }
-}
 
 /// `accum_hard` on wgpu, with the pipeline `opts.gpu_pipeline` names (recorded as
 /// `execution.gpu_pipeline`).
@@ -83,14 +53,6 @@ pub fn render(
     out.execution
         .insert("gpu_pipeline".into(), serde_json::json!(opts.gpu_pipeline));
     Ok(out)
-}
-
-/// The eye's count of a z-pass sample at `light`; 0 for z-fail.
-fn sample_eye_count(samples: &Samples, counting: Counting, light: Vec3, rays: &EyeRays) -> i32 {
-    match counting {
-        Counting::ZPass => eye_count(&samples.occluders, light, rays.eye),
-        Counting::ZFail => 0,
-    }
 }
 
 /// The raster pipeline ([`crate::algorithms::shadow_volume::raster`]): the eye's depth once,
@@ -111,18 +73,14 @@ fn raster(
     let passes = HardRaster::new(gpu, &rays, &frame.scene.camera, opts.counting, n);
     let readback = [&passes.visibility];
     let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
-    // Without the pipelines' creation: the run's GPU setup, reported apart.
-    run.add_wall(
-        0,
-        start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms(),
-    );
+    run.add_setup(0, start);
     let (vertices, ranges, m) = run.host(0, || {
         let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
         let mut m = Measured::default();
         for s in 0..n {
             let (sample, quads) = samples.quads(s);
-            let eye = sample_eye_count(&samples, opts.counting, sample, &rays);
             let occluders = &samples.occluders;
+            let eye = opts.counting.eye_start(occluders, sample, rays.eye);
             let (v, caps) = hard_triangles(&rays, &quads, opts.counting, occluders, sample);
             let first = vertices.len() as u32;
             vertices.extend(v);
@@ -147,16 +105,8 @@ fn raster(
     let note = "fill and overdraw from an instrumented replay of every sample's count pass \
                 (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
                 cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
-    let m = Measured { fill, passed, ..m };
-    Ok(output(
-        timing,
-        &rays,
-        n,
-        opts.counting,
-        m,
-        Counters::default(),
-        note,
-    ))
+    let (m, hard) = (Measured { fill, passed, ..m }, Counters::default());
+    Ok(output(timing, &rays, n, opts.counting, m, hard, note))
 }
 
 /// The phases of both pipelines.
@@ -232,18 +182,21 @@ fn gather(
     let passes = VolumePasses::new(gpu, &rays, opts.counting, res, occluders, "");
     let visibility = &passes.res.visibility;
     let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
-    // Without the pipelines' creation: the run's GPU setup, reported apart.
-    run.add_wall(
-        0,
-        start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms(),
-    );
+    run.add_setup(0, start);
     let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
     for s in 0..n {
         let up = run.host(0, || {
             let (sample, quads) = samples.quads(s);
             m.edges += quads.len() as u64;
-            let eye = sample_eye_count(&samples, opts.counting, sample, &rays);
-            let params = sample_params(&rays, s, n, sample, eye, opts.counting);
+            let params = Params {
+                center: sample.extend(0.0).to_array(),
+                eye_count: opts
+                    .counting
+                    .eye_start(&samples.occluders, sample, rays.eye),
+                first_loop: 1,
+                last_loop: 1,
+                ..Params::of_light(&rays, s as usize, n as usize, opts.counting)
+            };
             passes.upload_quads(&rays, &params, sample, &quads)
         });
         run.submit(0, &[passes.hard(&up, false)])?;

@@ -318,20 +318,37 @@ impl<'g> Passes<'g> {
         k.set("fill", fragments);
         k.set("overdraw", fragments - f64::from(c.covered));
         k.set("shadow_map.covered_texels", f64::from(c.covered));
-        let vertex_bytes = f64::from(self.occluders.vertex_count) * VERTEX_BYTES;
-        let index_bytes = f64::from(self.occluders.index_count) * INDEX_BYTES;
-        let clear = f64::from(self.resolution).powi(2) * DEPTH_TEXEL_BYTES;
-        // Every fragment reads the depth it is tested against; writes are bounded by the clear
-        // plus one per fragment.
-        let map_read = fragments * DEPTH_TEXEL_BYTES;
-        let map_write = clear + fragments * DEPTH_TEXEL_BYTES;
-        let reads = [
-            ("occluder_vertices", vertex_bytes),
-            ("occluder_indices", index_bytes),
-            ("shadow_map", map_read),
-        ];
-        k.add_traffic("mem_est", &reads, &[("shadow_map", map_write)]);
+        let mesh = ("occluder", &self.occluders, VERTEX_BYTES);
+        self.draw_traffic(&mut k, mesh, ("shadow_map", fragments), &[]);
         k
+    }
+
+    /// Adds the estimated traffic of a depth-tested draw of a mesh (`(name, mesh, bytes a
+    /// vertex)`, its vertices and `u32` indices read as `<name>_vertices`, `<name>_indices`)
+    /// into a Depth32Float map of the view's resolution (`(map, fragments tested)`): a depth
+    /// read per fragment tested, writes bounded by the clear plus one per fragment; and
+    /// `reads`.
+    pub fn draw_traffic(
+        &self,
+        k: &mut Counters,
+        (name, mesh, vertex_bytes): (&str, &Mesh, f64),
+        (map, tested): (&str, f64),
+        reads: &[(&str, f64)],
+    ) {
+        let vertices = (
+            format!("{name}_vertices"),
+            f64::from(mesh.vertex_count) * vertex_bytes,
+        );
+        let indices = (
+            format!("{name}_indices"),
+            f64::from(mesh.index_count) * INDEX_BYTES,
+        );
+        let clear = f64::from(self.resolution).powi(2) * DEPTH_TEXEL_BYTES;
+        let mut all = vec![(&vertices.0[..], vertices.1), (&indices.0[..], indices.1)];
+        all.extend(reads.iter().copied());
+        all.push((map, tested * DEPTH_TEXEL_BYTES));
+        let write = [(map, clear + tested * DEPTH_TEXEL_BYTES)];
+        k.add_traffic("mem_est", &all, &write);
     }
 
     /// `eye_lookup`: no fill (nothing is rasterized); the shadow-map taps, and the PCF taps of

@@ -55,7 +55,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay_counts, slot64, Bind, Layout, Pass, Program, Statistics, Timed, Work,
+    gpu_struct, replay_slots, Bind, Layout, Pass, Program, Statistics, Timed, Work,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{record_execution, Gpu, Needs};
@@ -399,8 +399,8 @@ impl<'g> Passes<'g> {
         // after the timed `resolve`; `construct` and `resolve` count nothing, so they are not
         // run again.
         let passes = (2..PHASES.len()).map(|i| self.pass(i, true));
-        let raw: Vec<u32> = words(&replay_counts(self.gpu, &self.stats, passes)?);
-        let stat = |s: Stat| slot64(&raw, s as usize);
+        let slot = replay_slots(self.gpu, &self.stats, passes)?;
+        let stat = |s: Stat| slot.get(s as usize);
 
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
         let counters = vec![

@@ -39,7 +39,7 @@ use crate::algorithms::{
 };
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
-use crate::scene::adjacency::SilhouetteEdge;
+use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::LightKind;
 use crate::scene::{Light, LightTexture};
 
@@ -597,6 +597,49 @@ pub fn silhouette_loops(edges: &[SilhouetteEdge]) -> Vec<Vec<SilhouetteEdge>> {
         loops[l].push(*e);
     }
     loops
+}
+
+/// One sub-light's silhouette seen from its centre split into loops (IV §5.1; one loop of
+/// every edge without the overlap approximation), as every execution walks them.
+pub struct SubLightLoops {
+    /// The silhouette's size.
+    pub silhouette_edges: usize,
+    pub loops: Vec<Vec<SilhouetteEdge>>,
+    /// The count the hard pass starts from at the eye ([`Counting::eye_start`]).
+    pub eye: i32,
+    /// Why per-loop V-buffers start at 0 though the eye is inside a volume, when they do.
+    pub warning: Option<String>,
+}
+
+impl SubLightLoops {
+    /// The loops of the silhouette of `occluders` (their `adjacency`) from light point
+    /// `centre`, for an eye at `eye`.
+    pub fn new(
+        adjacency: &EdgeAdjacency,
+        occluders: &crate::scene::Mesh,
+        centre: Vec3,
+        eye: Vec3,
+        opts: &SoftShadowVolumeOptions,
+    ) -> SubLightLoops {
+        let edges = adjacency.silhouette_from(centre).edges;
+        let eye = opts.counting.eye_start(occluders, centre, eye);
+        let loops = match opts.overlap_approximation {
+            true => silhouette_loops(&edges),
+            false => vec![edges.clone()],
+        };
+        let warning = (loops.len() > 1 && eye != 0).then(|| {
+            format!(
+                "the eye is inside {eye} shadow volume(s); per-loop V-buffers of the overlap \
+                 approximation start at 0"
+            )
+        });
+        SubLightLoops {
+            silhouette_edges: edges.len(),
+            loops,
+            eye,
+            warning,
+        }
+    }
 }
 
 /// The sub-lights of light splitting (IV §5.2): a rectangle cut into `k×k` equal rectangles;
