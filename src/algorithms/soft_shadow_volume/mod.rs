@@ -40,6 +40,7 @@ use crate::algorithms::{
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
+pub(crate) use crate::scene::polygon::clip_half_plane;
 use crate::scene::LightKind;
 use crate::scene::{Light, LightTexture};
 
@@ -226,29 +227,6 @@ pub fn textured_coverage(light: &LightTexture, q0: Vec2, q1: Vec2) -> [f32; 3] {
     light
         .integrate(&covered_square(q0, q1))
         .map(|v| (v / EmitterShape::Square.area()).clamp(0.0, 1.0))
-}
-
-/// Sutherland–Hodgman: the part of the polygon `poly` (2D, or planar in 3D) where `f ≥ 0` (`f`
-/// affine: a half-plane or half-space).
-pub(crate) fn clip_half_plane<V>(poly: &[V], f: impl Fn(V) -> f32) -> Vec<V>
-where
-    V: Copy
-        + std::ops::Add<Output = V>
-        + std::ops::Sub<Output = V>
-        + std::ops::Mul<f32, Output = V>,
-{
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for (i, &p) in poly.iter().enumerate() {
-        let q = poly[(i + 1) % poly.len()];
-        let (fp, fq) = (f(p), f(q));
-        if fp >= 0.0 {
-            out.push(p);
-        }
-        if (fp >= 0.0) != (fq >= 0.0) {
-            out.push(p + (q - p) * (fp / (fp - fq)));
-        }
-    }
-    out
 }
 
 /// Shoelace area of a convex polygon.
