@@ -629,6 +629,16 @@ pub fn tiles(size: (u32, u32), side: u32) -> (u32, u32) {
     (size.0.div_ceil(side), size.1.div_ceil(side))
 }
 
+/// Workgroups for `n` in a 2D grid whose sides are within the adapter's limit: as few rows as
+/// the limit allows, then as few columns as cover `n` (under one row of workgroups beyond it).
+pub fn workgroups(gpu: &Gpu, n: u32) -> (u32, u32) {
+    if n == 0 {
+        return (0, 0);
+    }
+    let y = n.div_ceil(gpu.limits.max_compute_workgroups_per_dimension);
+    (n.div_ceil(y), y)
+}
+
 /// A pass's bind groups: group `i` at index `i`; `None` leaves one unset.
 pub type Groups<'a> = [Option<&'a wgpu::BindGroup>];
 
@@ -814,7 +824,7 @@ pub enum Statistics {
 
 /// The timed submissions of a run: `passes` GPU passes in all, each belonging to one of the
 /// run's phases, plus host work timed into phases.
-pub struct Timed<'g> {
+pub struct Timed<'g, 'b> {
     gpu: &'g Gpu,
     timer: Option<PassTimer>,
     stats: Option<PassStats>,
@@ -823,10 +833,10 @@ pub struct Timed<'g> {
     phase_of_pass: Vec<usize>,
     names: Vec<String>,
     wall: Vec<f64>,
-    readback: Vec<(&'g wgpu::Buffer, Staging)>,
+    readback: Vec<(&'b wgpu::Buffer, Staging)>,
 }
 
-impl<'g> Timed<'g> {
+impl<'g, 'b> Timed<'g, 'b> {
     /// A run of `passes` timed passes in the phases `names`; `readback` is copied to the host
     /// after the last pass (the visibility first).
     pub fn new(
@@ -834,8 +844,8 @@ impl<'g> Timed<'g> {
         names: &[&str],
         passes: u32,
         statistics: Statistics,
-        readback: &[&'g wgpu::Buffer],
-    ) -> Timed<'g> {
+        readback: &[&'b wgpu::Buffer],
+    ) -> Timed<'g, 'b> {
         Timed {
             gpu,
             timer: PassTimer::new(gpu, passes),

@@ -35,42 +35,82 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed, Timing};
-use crate::gpu::Gpu;
+use crate::gpu::{record_execution, Gpu};
 use crate::record::Counters;
 
 /// `accum_hard` on wgpu, with the pipeline `opts.gpu_pipeline` names (recorded as
-/// `execution.gpu_pipeline`).
+/// `execution.gpu_pipeline`). The counters of the two phases are in the cpu-model's terms
+/// (`accum_hard::cpu`): silhouette edges and caps, fill and overdraw, and the memory traffic of
+/// an 8-bit stencil cleared per sample (a depth read per fragment, a stencil read and write per
+/// passing fragment) and of a 16-bit accumulation buffer read and written per pixel and sample;
+/// `execution` records the samples and the counting.
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
     ctx: &ExecContext,
     opts: &AccumHardOptions,
 ) -> Result<FrameOutput> {
-    let mut out = match opts.gpu_pipeline {
-        GpuPipeline::Raster => raster(gpu, frame, ctx, opts)?,
-        GpuPipeline::Gather => gather(gpu, frame, ctx, opts)?,
+    if opts.gpu_pipeline == GpuPipeline::Gather {
+        check_limits(gpu, frame, super::ID)?;
+    }
+    let start = Instant::now();
+    let samples = Samples::new(frame, ctx, opts)?;
+    let rays = EyeRays::new(frame);
+    let (n, counting) = (samples.count(), opts.counting);
+    let (timing, m, mut hard, note) = match opts.gpu_pipeline {
+        GpuPipeline::Raster => raster(gpu, frame, &samples, &rays, counting, start)?,
+        GpuPipeline::Gather => gather(gpu, &samples, &rays, counting, start)?,
     };
-    out.execution
-        .insert("gpu_pipeline".into(), serde_json::json!(opts.gpu_pipeline));
+    let pixel_samples = f64::from(n) * rays.len() as f64;
+    let (stencil, accumulation) = (f64::from(STENCIL_BYTES), f64::from(ACCUMULATION_BYTES));
+    hard.add("silhouette_edges", m.edges as f64);
+    if counting == Counting::ZFail {
+        hard.add("volume_caps", m.caps as f64);
+    }
+    hard.add("fill", m.fill);
+    hard.add("overdraw", m.fill - m.passed);
+    let reads = [
+        ("depth", m.fill * DEPTH_BYTES as f64),
+        ("stencil", m.passed * stencil),
+    ];
+    let stencil_w = (pixel_samples + m.passed) * stencil;
+    hard.add_traffic("mem_est", &reads, &[("stencil", stencil_w)]);
+    let mut acc = Counters::default();
+    let reads = [
+        ("stencil", pixel_samples * stencil),
+        ("accumulation", pixel_samples * accumulation),
+    ];
+    let writes = [("accumulation", pixel_samples * accumulation)];
+    acc.add_traffic("mem_est", &reads, &writes);
+    let mut out = timing.output((rays.width, rays.height), vec![hard, acc], note);
+    let entries = serde_json::json!({
+        "samples": n,
+        "counting": counting,
+        "gpu_pipeline": opts.gpu_pipeline,
+    });
+    record_execution(&mut out.execution, entries);
     Ok(out)
 }
+
+/// What a pipeline gave: its timing, what its hard passes measured over all samples and its
+/// own `hard` counters, how its counters were obtained.
+type Run<'g> = (Timing<'g>, Measured, Counters, &'static str);
 
 /// The raster pipeline ([`crate::algorithms::shadow_volume::raster`]): the eye's depth once,
 /// then per light sample a count pass of its shadow quads (or capped volumes) and an
 /// accumulation pass; the average is resolved after the last. Phase `hard` holds the depth
 /// pre-pass, the host geometry and the count passes, `accumulate` the accumulation passes and
 /// the resolve.
-fn raster(
-    gpu: &Gpu,
+fn raster<'g>(
+    gpu: &'g Gpu,
     frame: &Frame,
-    ctx: &ExecContext,
-    opts: &AccumHardOptions,
-) -> Result<FrameOutput> {
-    let start = Instant::now();
-    let samples = Samples::new(frame, ctx, opts)?;
+    samples: &Samples,
+    rays: &EyeRays,
+    counting: Counting,
+    start: Instant,
+) -> Result<Run<'g>> {
     let n = samples.count();
-    let rays = EyeRays::new(frame);
-    let passes = HardRaster::new(gpu, &rays, &frame.scene.camera, opts.counting, n);
+    let passes = HardRaster::new(gpu, rays, &frame.scene.camera, counting, n);
     let readback = [&passes.visibility];
     let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
     run.add_setup(0, start);
@@ -80,8 +120,8 @@ fn raster(
         for s in 0..n {
             let (sample, quads) = samples.quads(s);
             let occluders = &samples.occluders;
-            let eye = opts.counting.eye_start(occluders, sample, rays.eye);
-            let (v, caps) = hard_triangles(&rays, &quads, opts.counting, occluders, sample);
+            let eye = counting.eye_start(occluders, sample, rays.eye);
+            let (v, caps) = hard_triangles(rays, &quads, counting, occluders, sample);
             let first = vertices.len() as u32;
             vertices.extend(v);
             ranges.push((first..vertices.len() as u32, eye));
@@ -105,8 +145,12 @@ fn raster(
     let note = "fill and overdraw from an instrumented replay of every sample's count pass \
                 (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
                 cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
-    let (m, hard) = (Measured { fill, passed, ..m }, Counters::default());
-    Ok(output(timing, &rays, n, opts.counting, m, hard, note))
+    Ok((
+        timing,
+        Measured { fill, passed, ..m },
+        Counters::default(),
+        note,
+    ))
 }
 
 /// The phases of both pipelines.
@@ -122,64 +166,18 @@ struct Measured {
     passed: f64,
 }
 
-/// The frame output of `n` samples: the counters of the two phases in the cpu-model's terms
-/// (`accum_hard::cpu`; `hard` with `extra` added): silhouette edges and caps, fill and
-/// overdraw, and the memory traffic of an 8-bit stencil cleared per sample (a depth read per
-/// fragment, a stencil read and write per passing fragment) and of a 16-bit accumulation
-/// buffer read and written per pixel and sample; `execution` records the samples and the
-/// counting.
-fn output(
-    timing: Timing,
-    rays: &EyeRays,
-    n: u32,
-    counting: Counting,
-    m: Measured,
-    mut hard: Counters,
-    note: &str,
-) -> FrameOutput {
-    let pixel_samples = f64::from(n) * rays.len() as f64;
-    let (stencil, accumulation) = (f64::from(STENCIL_BYTES), f64::from(ACCUMULATION_BYTES));
-    hard.add("silhouette_edges", m.edges as f64);
-    if counting == Counting::ZFail {
-        hard.add("volume_caps", m.caps as f64);
-    }
-    hard.add("fill", m.fill);
-    hard.add("overdraw", m.fill - m.passed);
-    let reads = [
-        ("depth", m.fill * DEPTH_BYTES as f64),
-        ("stencil", m.passed * stencil),
-    ];
-    let stencil_w = (pixel_samples + m.passed) * stencil;
-    hard.add_traffic("mem_est", &reads, &[("stencil", stencil_w)]);
-    let mut acc = Counters::default();
-    let reads = [
-        ("stencil", pixel_samples * stencil),
-        ("accumulation", pixel_samples * accumulation),
-    ];
-    let writes = [("accumulation", pixel_samples * accumulation)];
-    acc.add_traffic("mem_est", &reads, &writes);
-    let mut out = timing.output((rays.width, rays.height), vec![hard, acc], note);
-    out.execution.insert("samples".into(), serde_json::json!(n));
-    out.execution
-        .insert("counting".into(), serde_json::json!(counting));
-    out
-}
-
 /// The compute gather ([`crate::algorithms::shadow_volume::wgpu`]).
-fn gather(
-    gpu: &Gpu,
-    frame: &Frame,
-    ctx: &ExecContext,
-    opts: &AccumHardOptions,
-) -> Result<FrameOutput> {
-    check_limits(gpu, frame, super::ID)?;
-    let start = Instant::now();
-    let samples = Samples::new(frame, ctx, opts)?;
+fn gather<'g>(
+    gpu: &'g Gpu,
+    samples: &Samples,
+    rays: &EyeRays,
+    counting: Counting,
+    start: Instant,
+) -> Result<Run<'g>> {
     let n = samples.count();
-    let rays = EyeRays::new(frame);
-    let res = FrameResources::new(gpu, &rays, &[], false);
+    let res = FrameResources::new(gpu, rays, &[], false);
     let occluders = samples.occluders.clone();
-    let passes = VolumePasses::new(gpu, &rays, opts.counting, res, occluders, "");
+    let passes = VolumePasses::new(gpu, rays, counting, res, occluders, "");
     let visibility = &passes.res.visibility;
     let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
     run.add_setup(0, start);
@@ -190,14 +188,12 @@ fn gather(
             m.edges += quads.len() as u64;
             let params = Params {
                 center: sample.extend(0.0).to_array(),
-                eye_count: opts
-                    .counting
-                    .eye_start(&samples.occluders, sample, rays.eye),
+                eye_count: counting.eye_start(&samples.occluders, sample, rays.eye),
                 first_loop: 1,
                 last_loop: 1,
-                ..Params::of_light(&rays, s as usize, n as usize, opts.counting)
+                ..Params::of_light(rays, s as usize, n as usize, counting)
             };
-            passes.upload_quads(&rays, &params, sample, &quads)
+            passes.upload_quads(rays, &params, sample, &quads)
         });
         run.submit(0, &[passes.hard(&up, false)])?;
         run.submit(1, &[passes.accumulate(&up)])?;
@@ -217,5 +213,5 @@ fn gather(
     let note = "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
                 atomics); mem.* in the cpu-model's terms of an 8-bit stencil and a 16-bit \
                 accumulation buffer";
-    Ok(output(timing, &rays, n, opts.counting, m, hard, note))
+    Ok((timing, m, hard, note))
 }
