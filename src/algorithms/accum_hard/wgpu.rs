@@ -37,13 +37,11 @@ use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed, Timing};
 use crate::gpu::{record_execution, Gpu};
 use crate::record::Counters;
+use crate::scene::camera::Camera;
 
-/// `accum_hard` on wgpu, with the pipeline `opts.gpu_pipeline` names (recorded as
-/// `execution.gpu_pipeline`). The counters of the two phases are in the cpu-model's terms
-/// (`accum_hard::cpu`): silhouette edges and caps, fill and overdraw, and the memory traffic of
-/// an 8-bit stencil cleared per sample (a depth read per fragment, a stencil read and write per
-/// passing fragment) and of a 16-bit accumulation buffer read and written per pixel and sample;
-/// `execution` records the samples and the counting.
+/// `accum_hard` on wgpu, with the pipeline `opts.gpu_pipeline` names; the counters of both in
+/// the cpu-model's terms (see the module docs); `execution` records the samples, the counting
+/// and the pipeline.
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
@@ -53,14 +51,17 @@ pub fn render(
     if opts.gpu_pipeline == GpuPipeline::Gather {
         check_limits(gpu, frame, super::ID)?;
     }
-    let start = Instant::now();
-    let samples = Samples::new(frame, ctx, opts)?;
-    let rays = EyeRays::new(frame);
-    let (n, counting) = (samples.count(), opts.counting);
-    let (timing, m, mut hard, note) = match opts.gpu_pipeline {
-        GpuPipeline::Raster => raster(gpu, frame, &samples, &rays, counting, start)?,
-        GpuPipeline::Gather => gather(gpu, &samples, &rays, counting, start)?,
+    let run = Sampled {
+        start: Instant::now(),
+        samples: Samples::new(frame, ctx, opts)?,
+        rays: EyeRays::new(frame),
+        counting: opts.counting,
     };
+    let (timing, m, mut hard, note) = match opts.gpu_pipeline {
+        GpuPipeline::Raster => run.raster(gpu, &frame.scene.camera)?,
+        GpuPipeline::Gather => run.gather(gpu)?,
+    };
+    let (n, counting, rays) = (run.samples.count(), opts.counting, &run.rays);
     let pixel_samples = f64::from(n) * rays.len() as f64;
     let (stencil, accumulation) = (f64::from(STENCIL_BYTES), f64::from(ACCUMULATION_BYTES));
     hard.add("silhouette_edges", m.edges as f64);
@@ -96,63 +97,6 @@ pub fn render(
 /// own `hard` counters, how its counters were obtained.
 type Run<'g> = (Timing<'g>, Measured, Counters, &'static str);
 
-/// The raster pipeline ([`crate::algorithms::shadow_volume::raster`]): the eye's depth once,
-/// then per light sample a count pass of its shadow quads (or capped volumes) and an
-/// accumulation pass; the average is resolved after the last. Phase `hard` holds the depth
-/// pre-pass, the host geometry and the count passes, `accumulate` the accumulation passes and
-/// the resolve.
-fn raster<'g>(
-    gpu: &'g Gpu,
-    frame: &Frame,
-    samples: &Samples,
-    rays: &EyeRays,
-    counting: Counting,
-    start: Instant,
-) -> Result<Run<'g>> {
-    let n = samples.count();
-    let passes = HardRaster::new(gpu, rays, &frame.scene.camera, counting, n);
-    let readback = [&passes.visibility];
-    let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
-    run.add_setup(0, start);
-    let (vertices, ranges, m) = run.host(0, || {
-        let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
-        let mut m = Measured::default();
-        for s in 0..n {
-            let (sample, quads) = samples.quads(s);
-            let occluders = &samples.occluders;
-            let eye = counting.eye_start(occluders, sample, rays.eye);
-            let (v, caps) = hard_triangles(rays, &quads, counting, occluders, sample);
-            let first = vertices.len() as u32;
-            vertices.extend(v);
-            ranges.push((first..vertices.len() as u32, eye));
-            m.edges += quads.len() as u64;
-            m.caps += caps;
-        }
-        (passes.vertices(&vertices), ranges, m)
-    });
-    run.submit(0, &[passes.depth_pass()])?;
-    for (s, (range, eye)) in ranges.iter().enumerate() {
-        let count = passes.count_pass(&vertices, range.clone(), *eye, false);
-        run.submit(0, &[count])?;
-        let mut acc = vec![passes.accumulate_pass(s == 0)];
-        if s + 1 == ranges.len() {
-            acc.push(passes.resolve_pass());
-        }
-        run.submit(1, &acc)?;
-    }
-    let timing = run.finish()?;
-    let (fill, passed) = passes.replay(&vertices, &ranges)?;
-    let note = "fill and overdraw from an instrumented replay of every sample's count pass \
-                (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
-                cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
-    Ok((
-        timing,
-        Measured { fill, passed, ..m },
-        Counters::default(),
-        note,
-    ))
-}
-
 /// The phases of both pipelines.
 const PHASES: [&str; 2] = ["hard", "accumulate"];
 
@@ -166,52 +110,110 @@ struct Measured {
     passed: f64,
 }
 
-/// The compute gather ([`crate::algorithms::shadow_volume::wgpu`]).
-fn gather<'g>(
-    gpu: &'g Gpu,
-    samples: &Samples,
-    rays: &EyeRays,
-    counting: Counting,
+/// What both pipelines start from: when the run began (the setup before the first pass counts
+/// into phase `hard`), the light samples, the eye rays, the counting.
+struct Sampled {
     start: Instant,
-) -> Result<Run<'g>> {
-    let n = samples.count();
-    let res = FrameResources::new(gpu, rays, &[], false);
-    let occluders = samples.occluders.clone();
-    let passes = VolumePasses::new(gpu, rays, counting, res, occluders, "");
-    let visibility = &passes.res.visibility;
-    let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
-    run.add_setup(0, start);
-    let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
-    for s in 0..n {
-        let up = run.host(0, || {
-            let (sample, quads) = samples.quads(s);
-            m.edges += quads.len() as u64;
-            let params = Params {
-                center: sample.extend(0.0).to_array(),
-                eye_count: counting.eye_start(&samples.occluders, sample, rays.eye),
-                first_loop: 1,
-                last_loop: 1,
-                ..Params::of_light(rays, s as usize, n as usize, counting)
-            };
-            passes.upload_quads(rays, &params, sample, &quads)
+    samples: Samples,
+    rays: EyeRays,
+    counting: Counting,
+}
+
+impl Sampled {
+    /// The raster pipeline ([`crate::algorithms::shadow_volume::raster`]): the eye's depth once,
+    /// then per light sample a count pass of its shadow quads (or capped volumes) and an
+    /// accumulation pass; the average is resolved after the last. Phase `hard` holds the depth
+    /// pre-pass, the host geometry and the count passes, `accumulate` the accumulation passes and
+    /// the resolve.
+    fn raster<'g>(&self, gpu: &'g Gpu, camera: &Camera) -> Result<Run<'g>> {
+        let (samples, rays, counting) = (&self.samples, &self.rays, self.counting);
+        let n = samples.count();
+        let passes = HardRaster::new(gpu, rays, camera, counting, n);
+        let readback = [&passes.visibility];
+        let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
+        run.add_setup(0, self.start);
+        let (vertices, ranges, m) = run.host(0, || {
+            let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
+            let mut m = Measured::default();
+            for s in 0..n {
+                let (sample, quads) = samples.quads(s);
+                let occluders = &samples.occluders;
+                let eye = counting.eye_start(occluders, sample, rays.eye);
+                let (v, caps) = hard_triangles(rays, &quads, counting, occluders, sample);
+                let first = vertices.len() as u32;
+                vertices.extend(v);
+                ranges.push((first..vertices.len() as u32, eye));
+                m.edges += quads.len() as u64;
+                m.caps += caps;
+            }
+            (passes.vertices(&vertices), ranges, m)
         });
-        run.submit(0, &[passes.hard(&up, false)])?;
-        run.submit(1, &[passes.accumulate(&up)])?;
-        uploads.push(up);
+        run.submit(0, &[passes.depth_pass()])?;
+        for (s, (range, eye)) in ranges.iter().enumerate() {
+            let count = passes.count_pass(&vertices, range.clone(), *eye, false);
+            run.submit(0, &[count])?;
+            let mut acc = vec![passes.accumulate_pass(s == 0)];
+            if s + 1 == ranges.len() {
+                acc.push(passes.resolve_pass());
+            }
+            run.submit(1, &acc)?;
+        }
+        let timing = run.finish()?;
+        let (fill, passed) = passes.replay(&vertices, &ranges)?;
+        let note = "fill and overdraw from an instrumented replay of every sample's count pass \
+                (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
+                cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
+        Ok((
+            timing,
+            Measured { fill, passed, ..m },
+            Counters::default(),
+            note,
+        ))
     }
-    let timing = run.finish()?;
-    let stat = passes.replay(uploads.iter().map(|up| passes.hard(up, true)).collect())?;
-    let m = Measured {
-        caps: uploads.iter().map(|u| u.caps).sum(),
-        fill: stat(Stat::HardFill),
-        passed: stat(Stat::HardPassed),
-        ..m
-    };
-    let mut hard = Counters::default();
-    hard.add("shadow_quads", m.edges as f64);
-    hard.add("quad_tests", stat(Stat::HardTests));
-    let note = "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
+
+    /// The compute gather ([`crate::algorithms::shadow_volume::wgpu`]).
+    fn gather<'g>(&self, gpu: &'g Gpu) -> Result<Run<'g>> {
+        let (samples, rays, counting) = (&self.samples, &self.rays, self.counting);
+        let n = samples.count();
+        let res = FrameResources::new(gpu, rays, &[], false);
+        let occluders = samples.occluders.clone();
+        let passes = VolumePasses::new(gpu, rays, counting, res, occluders, "");
+        let visibility = &passes.res.visibility;
+        let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
+        run.add_setup(0, self.start);
+        let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
+        for s in 0..n {
+            let up = run.host(0, || {
+                let (sample, quads) = samples.quads(s);
+                m.edges += quads.len() as u64;
+                let params = Params {
+                    center: sample.extend(0.0).to_array(),
+                    eye_count: counting.eye_start(&samples.occluders, sample, rays.eye),
+                    first_loop: 1,
+                    last_loop: 1,
+                    ..Params::of_light(rays, s as usize, n as usize, counting)
+                };
+                passes.upload_quads(rays, &params, sample, &quads)
+            });
+            run.submit(0, &[passes.hard(&up, false)])?;
+            run.submit(1, &[passes.accumulate(&up)])?;
+            uploads.push(up);
+        }
+        let timing = run.finish()?;
+        let stat = passes.replay(uploads.iter().map(|up| passes.hard(up, true)).collect())?;
+        let m = Measured {
+            caps: uploads.iter().map(|u| u.caps).sum(),
+            fill: stat(Stat::HardFill),
+            passed: stat(Stat::HardPassed),
+            ..m
+        };
+        let mut hard = Counters::default();
+        hard.add("shadow_quads", m.edges as f64);
+        hard.add("quad_tests", stat(Stat::HardTests));
+        let note =
+            "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
                 atomics); mem.* in the cpu-model's terms of an 8-bit stencil and a 16-bit \
                 accumulation buffer";
-    Ok((timing, m, hard, note))
+        Ok((timing, m, hard, note))
+    }
 }

@@ -131,14 +131,15 @@ pub fn render(
             });
         }
     }
-    let mut out = match opts.gpu_pipeline {
-        GpuPipeline::Raster => {
-            super::raster::run(gpu, frame, &rays, opts, frame_res, &runs, setup_ms)?
-        }
-        GpuPipeline::Gather => {
-            let passes = Passes::new(gpu, &rays, opts, frame_res, occluders);
-            passes.run(&rays, &runs, setup_ms)?
-        }
+    let (mut out, accumulation) = match opts.gpu_pipeline {
+        GpuPipeline::Raster => (
+            super::raster::run(gpu, frame, &rays, opts, frame_res, &runs, setup_ms)?,
+            "additive blending of the wedges' fragments in rasterization order",
+        ),
+        GpuPipeline::Gather => (
+            Passes::new(gpu, &rays, opts, frame_res, occluders).run(&rays, &runs, setup_ms)?,
+            "per-pixel gather over 8x8-tile bins in submission order, no atomics",
+        ),
     };
     if let (Some(rgb), Some(mean)) = (&mut out.rgb, mean) {
         // Pixels without a surface receive the whole light, as their visibility is 1.
@@ -149,12 +150,6 @@ pub fn render(
         }
     }
     out.warnings.extend(warnings);
-    let accumulation = match opts.gpu_pipeline {
-        GpuPipeline::Raster => "additive blending of the wedges' fragments in rasterization order",
-        GpuPipeline::Gather => {
-            "per-pixel gather over 8x8-tile bins in submission order, no atomics"
-        }
-    };
     let e = &mut out.execution;
     let pipeline = opts.gpu_pipeline;
     record_execution(
@@ -478,11 +473,8 @@ pub(super) fn soft_counters(
     k.add("coverage_texture_reads", texture_reads);
     // Bytes: one per channel of each texel read.
     let texture_reads = texture_reads * f64::from(channels);
-    let per_plane = if w.prims > 0 {
-        w.planes as f64 / w.prims as f64
-    } else {
-        0.0
-    };
+    // Planes per primitive (none without primitives).
+    let per_plane = w.planes as f64 / (w.prims as f64).max(1.0);
     let rays = (RAY_BYTES * pixels) as f64;
     let prims = tests * (PRIM_BYTES as f64 + per_plane * PLANE_BYTES as f64);
     let quads = QUAD_BYTES as f64 * inside;
