@@ -11,7 +11,8 @@
 //!    single-channel textures rather than one RGBA target: each volume needs its own depth
 //!    test (nearest surface, [`super::DEPTH_RULE`]) and the edge depth must come from the same
 //!    fragment that wins it, which blending per channel cannot guarantee.
-//! 2. `eye_lookup` — a compute pass over the shared gbuffer: eq. 2, 3 and 4 (`wgpu.wgsl`).
+//! 2. `eye_lookup` — a compute pass over the shared gbuffer (the shadow-map family's kernel in
+//!    `shadow_map/light_view.wgsl`): eq. 2, 3 and 4 (`shade` in `wgpu.wgsl`).
 //!
 //! The timed submission runs the passes with timestamps and pipeline statistics; a second,
 //! instrumented submission counts the volume fragments (`fill`) and the D-buffer texels they

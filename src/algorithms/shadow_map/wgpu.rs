@@ -5,8 +5,8 @@
 //!    ([`LightView`]) into a `map_resolution`² Depth32Float map (see `light_raster.wgsl`).
 //! 2. `eye_lookup` — a compute pass over the frame's gbuffer, uploaded as storage buffers (the
 //!    eye pass is shared by all executions, so parity is about the shadow algorithm alone),
-//!    writes the visibility buffer with the algorithm's `visibility_at` (see `eye_lookup.wgsl`
-//!    and each algorithm's `wgpu.wgsl`).
+//!    writes the visibility buffer with the algorithm's `visibility_at` (the kernel in
+//!    `light_view.wgsl`, shared with dbuffer; `eye_lookup.wgsl` and each algorithm's `wgpu.wgsl`).
 //!
 //! The timed submission runs the passes as an engine would, with timestamp queries and
 //! pipeline statistics around each. A second, instrumented submission runs the same passes
@@ -35,7 +35,7 @@ const PRELUDE_WGSL: &str = include_str!("light.wgsl");
 pub(crate) const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
 pub(crate) const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
 
-/// Side of the square compute workgroups (`@workgroup_size(8, 8)` in eye_lookup.wgsl).
+/// Side of the square compute workgroups (`@workgroup_size(8, 8)` in light_view.wgsl).
 const WORKGROUP: u32 = 8;
 /// Bytes of one texel of the Depth32Float shadow map.
 pub(crate) const DEPTH_TEXEL_BYTES: f64 = 4.0;
