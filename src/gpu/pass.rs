@@ -19,7 +19,7 @@ use std::time::Instant;
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::record::{Counters, Phase};
-use crate::visibility::VisibilityBuffer;
+use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 use super::cache::Kind;
 use super::readback::{words, Staging};
@@ -251,13 +251,11 @@ impl Mesh {
         depth: Option<&'a wgpu::TextureView>,
     ) -> Draw<'a> {
         Draw {
-            pipeline,
             color,
             depth,
             vertices: Some(&self.vertices),
             indices: Some(&self.indices),
-            count: self.index_count,
-            instances: 1,
+            ..Draw::of(pipeline, self.index_count)
         }
     }
 }
@@ -631,6 +629,22 @@ pub struct Draw<'a> {
     pub instances: u32,
 }
 
+impl<'a> Draw<'a> {
+    /// One instance of `count` vertices drawn with `pipeline`, with no target, vertex or index
+    /// buffer (which a draw sets by struct update).
+    pub fn of(pipeline: &'a wgpu::RenderPipeline, count: u32) -> Draw<'a> {
+        Draw {
+            pipeline,
+            color: None,
+            depth: None,
+            vertices: None,
+            indices: None,
+            count,
+            instances: 1,
+        }
+    }
+}
+
 /// One GPU pass: its label, its bind groups (group `i` at index `i`; `None` leaves one unset)
 /// and its work.
 #[derive(Clone)]
@@ -643,6 +657,16 @@ pub struct Pass<'a> {
 /// Workgroups covering `size` with square workgroups of side `side`.
 pub fn tiles(size: (u32, u32), side: u32) -> (u32, u32) {
     (size.0.div_ceil(side), size.1.div_ceil(side))
+}
+
+/// Workgroups for `n` in a 2D grid whose sides are within the adapter's limit: as few rows as
+/// the limit allows, then as few columns as cover `n` (under one row of workgroups beyond it).
+pub fn workgroups(gpu: &Gpu, n: u32) -> (u32, u32) {
+    if n == 0 {
+        return (0, 0);
+    }
+    let y = n.div_ceil(gpu.limits.max_compute_workgroups_per_dimension);
+    (n.div_ceil(y), y)
 }
 
 /// A pass's bind groups: group `i` at index `i`; `None` leaves one unset.
@@ -874,7 +898,7 @@ pub enum Statistics {
 
 /// The timed submissions of a run: `passes` GPU passes in all, each belonging to one of the
 /// run's phases, plus host work timed into phases.
-pub struct Timed<'g> {
+pub struct Timed<'g, 'b> {
     gpu: &'g Gpu,
     timer: Option<PassTimer>,
     stats: Option<PassStats>,
@@ -883,10 +907,10 @@ pub struct Timed<'g> {
     phase_of_pass: Vec<usize>,
     names: Vec<String>,
     wall: Vec<f64>,
-    readback: Vec<(&'g wgpu::Buffer, Staging)>,
+    readback: Vec<(&'b wgpu::Buffer, Staging)>,
 }
 
-impl<'g> Timed<'g> {
+impl<'g, 'b> Timed<'g, 'b> {
     /// A run of `passes` timed passes in the phases `names`; `readback` is copied to the host
     /// after the last pass (the visibility first).
     pub fn new(
@@ -894,8 +918,8 @@ impl<'g> Timed<'g> {
         names: &[&str],
         passes: u32,
         statistics: Statistics,
-        readback: &[&'g wgpu::Buffer],
-    ) -> Timed<'g> {
+        readback: &[&'b wgpu::Buffer],
+    ) -> Timed<'g, 'b> {
         Timed {
             gpu,
             timer: PassTimer::new(gpu, passes),
@@ -939,6 +963,13 @@ impl<'g> Timed<'g> {
     /// Adds `ms` of host work measured elsewhere to phase `phase`.
     pub fn add_wall(&mut self, phase: usize, ms: f64) {
         self.wall[phase] += ms;
+    }
+
+    /// Adds the host time since `start` to phase `phase`, less the creation of the run's
+    /// pipelines and layouts (the run's GPU setup, reported apart).
+    pub fn add_setup(&mut self, phase: usize, start: Instant) {
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        self.wall[phase] += ms - self.gpu.cache.run_objects_ms();
     }
 
     /// Runs host work `f` as part of phase `phase` (its wall time goes to the phase).
@@ -1090,6 +1121,19 @@ impl Timing<'_> {
     }
 }
 
+impl Timing<'_> {
+    /// Readback buffer `i`, if there is one, as the light received per channel (three `f32` a
+    /// pixel) of a `width`×`height` image.
+    pub fn rgb(&self, i: usize, (width, height): (u32, u32)) -> Option<RgbBuffer> {
+        let data = words(self.readback.get(i)?);
+        Some(RgbBuffer {
+            width,
+            height,
+            data,
+        })
+    }
+}
+
 /// One step of an instrumented replay.
 pub enum Step<'a> {
     /// Zero a counting buffer.
@@ -1159,10 +1203,43 @@ pub fn replay_counts<'a>(
     counts: &'a wgpu::Buffer,
     passes: impl IntoIterator<Item = Pass<'a>>,
 ) -> Result<Vec<u8>> {
-    let mut steps = vec![Step::Clear(counts)];
-    steps.extend(passes.into_iter().map(Step::Run));
-    steps.push(Step::Read(counts));
-    Ok(replay(gpu, &steps)?.swap_remove(0))
+    Ok(replay_each(gpu, counts, [passes.into_iter().collect()])?.swap_remove(0))
+}
+
+/// The instrumented replay of `groups` of passes counting into `counts`, cleared before each
+/// group and read after it; each group's bytes.
+pub fn replay_each<'a>(
+    gpu: &Gpu,
+    counts: &'a wgpu::Buffer,
+    groups: impl IntoIterator<Item = Vec<Pass<'a>>>,
+) -> Result<Vec<Vec<u8>>> {
+    let mut steps = Vec::new();
+    for passes in groups {
+        steps.push(Step::Clear(counts));
+        steps.extend(passes.into_iter().map(Step::Run));
+        steps.push(Step::Read(counts));
+    }
+    replay(gpu, &steps)
+}
+
+/// The instrumented replay of `passes` counting into `slots`, a buffer of 64-bit statistics
+/// slots ((low, high) `u32` pairs): cleared before, read after.
+pub fn replay_slots<'a>(
+    gpu: &Gpu,
+    slots: &'a wgpu::Buffer,
+    passes: impl IntoIterator<Item = Pass<'a>>,
+) -> Result<Slots> {
+    Ok(Slots(words(&replay_counts(gpu, slots, passes)?)))
+}
+
+/// 64-bit statistics slots read back ((low, high) `u32` pairs).
+pub struct Slots(Vec<u32>);
+
+impl Slots {
+    /// Slot `i` as a figure.
+    pub fn get(&self, i: usize) -> f64 {
+        slot64(&self.0, i)
+    }
 }
 
 /// The 64-bit statistics slot `i` of a buffer of (low, high) `u32` pairs, as a figure.

@@ -191,8 +191,7 @@ mod tests {
 
     #[test]
     fn mask_round_trips_through_npy() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("mask.npy");
+        let (_dir, p) = crate::util::paths::temp_path("mask.npy");
         let mask = vec![true, false, false, true, true, false];
         write_mask_npy(&mask, 3, 2, &p).unwrap();
         assert_eq!(read_mask_npy(&p).unwrap(), mask);
@@ -200,8 +199,7 @@ mod tests {
 
     #[test]
     fn masked_pixels_are_transparent() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("v.png");
+        let (_dir, p) = crate::util::paths::temp_path("v.png");
         write_masked_png(&buf(vec![1.0, 0.5, 0.0]), &[true, false, true], &p).unwrap();
         let img = image::open(&p).unwrap().to_luma_alpha8();
         let px: Vec<[u8; 2]> = img.pixels().map(|p| p.0).collect();

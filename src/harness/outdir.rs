@@ -243,8 +243,7 @@ mod tests {
 
     #[test]
     fn an_output_folder_that_cannot_be_created_is_an_input_error() {
-        let dir = tempfile::tempdir().unwrap();
-        let file = dir.path().join("file");
+        let (_dir, file) = crate::util::paths::temp_path("file");
         std::fs::write(&file, b"x").unwrap();
         let e = lock("--out", &file.join("sub")).unwrap_err();
         assert_eq!(e.exit_code(), 2, "{e}");

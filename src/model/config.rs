@@ -508,8 +508,7 @@ mod tests {
 
     #[test]
     fn bad_json_config_names_the_field() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("m.json");
+        let (dir, path) = crate::util::paths::temp_path("m.json");
         let mut m = serde_json::to_value(MachineConfig::larrabee(24)).unwrap();
         m["l1"]["ways"] = serde_json::json!(3);
         std::fs::write(&path, m.to_string()).unwrap();

@@ -92,8 +92,7 @@ mod tests {
 
     #[test]
     fn without_a_system_font_the_embedded_one_is_used() {
-        let dir = tempfile::tempdir().unwrap();
-        let missing = dir.path().join("none.ttf");
+        let (_dir, missing) = crate::util::paths::temp_path("none.ttf");
         let missing = missing.to_str().unwrap();
         assert_eq!(choose(None, &[missing]).unwrap(), Source::Embedded);
         // The embedded bytes are a TrueType font (sfnt version 1.0) with the glyph table
@@ -105,8 +104,7 @@ mod tests {
 
     #[test]
     fn a_system_font_is_preferred_and_an_explicit_one_must_exist() {
-        let dir = tempfile::tempdir().unwrap();
-        let font = dir.path().join("a.ttf");
+        let (dir, font) = crate::util::paths::temp_path("a.ttf");
         std::fs::write(&font, dejavu::sans::regular()).unwrap();
         let f = font.to_str().unwrap();
         assert_eq!(

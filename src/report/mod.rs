@@ -356,8 +356,7 @@ mod tests {
 
     #[test]
     fn unreadable_results_name_the_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let missing = dir.path().join("nope.json");
+        let (dir, missing) = crate::util::paths::temp_path("nope.json");
         let e = read_results(&missing).unwrap_err().to_string();
         assert!(e.contains("nope.json") && e.contains("cannot read"), "{e}");
         let bad = dir.path().join("bad.json");

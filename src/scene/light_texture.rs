@@ -483,8 +483,7 @@ mod tests {
             png.extend_from_slice(&chunk);
             png.extend_from_slice(&crc32(&chunk).to_be_bytes());
         }
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("huge.png");
+        let (_dir, path) = crate::util::paths::temp_path("huge.png");
         std::fs::write(&path, &png).unwrap();
         let e = LightTexture::load_png(&path).unwrap_err();
         assert!(e.message.contains("11000x11000"), "{e}");

@@ -11,6 +11,8 @@
 //! line or a point: [`PolygonFault::Degenerate`]) and one whose triangles do not cover exactly
 //! its area ([`PolygonFault::SelfIntersecting`]: its edges cross, so it has no well-defined
 //! inside; earcut's `deviation` measures the mismatch).
+//!
+//! Also the clipping of a convex polygon by a half-plane ([`clip_half_plane`]).
 
 use earcut::Earcut;
 use glam::{DVec3, Vec3};
@@ -113,6 +115,29 @@ pub fn triangulate(positions: &[Vec3], poly: &[u32]) -> Result<Vec<[u32; 3]>, Po
             }
         })
         .collect())
+}
+
+/// Sutherland–Hodgman: the part of the polygon `poly` (2D, or planar in 3D) where `f ≥ 0` (`f`
+/// affine: a half-plane or half-space).
+pub fn clip_half_plane<V>(poly: &[V], f: impl Fn(V) -> f32) -> Vec<V>
+where
+    V: Copy
+        + std::ops::Add<Output = V>
+        + std::ops::Sub<Output = V>
+        + std::ops::Mul<f32, Output = V>,
+{
+    let mut out = Vec::with_capacity(poly.len() + 1);
+    for (i, &p) in poly.iter().enumerate() {
+        let q = poly[(i + 1) % poly.len()];
+        let (fp, fq) = (f(p), f(q));
+        if fp >= 0.0 {
+            out.push(p);
+        }
+        if (fp >= 0.0) != (fq >= 0.0) {
+            out.push(p + (q - p) * (fp / (fp - fq)));
+        }
+    }
+    out
 }
 
 #[cfg(test)]

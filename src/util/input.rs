@@ -93,16 +93,14 @@ mod tests {
 
     #[test]
     fn a_byte_order_mark_is_dropped() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("bom.json");
+        let (_dir, p) = crate::util::paths::temp_path("bom.json");
         std::fs::write(&p, b"\xEF\xBB\xBF{}").unwrap();
         assert_eq!(read_text(&p, "scenario").unwrap(), "{}");
     }
 
     #[test]
     fn bad_paths_say_what_is_wrong() {
-        let dir = tempfile::tempdir().unwrap();
-        let missing = dir.path().join("missing.json");
+        let (dir, missing) = crate::util::paths::temp_path("missing.json");
         let folder = dir.path().to_path_buf();
         let latin1 = dir.path().join("latin1.json");
         std::fs::write(&latin1, b"{\"name\": \"caf\xE9\"}").unwrap();

@@ -78,6 +78,15 @@ pub fn check_name(field: &str, name: &str) -> Result<(), InputError> {
     }
 }
 
+/// A new temporary folder and the path `name` in it (tests: the folder is removed when the
+/// returned guard drops).
+#[cfg(test)]
+pub fn temp_path(name: &str) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(name);
+    (dir, path)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

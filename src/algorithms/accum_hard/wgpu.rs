@@ -26,173 +26,44 @@
 
 use std::time::Instant;
 
-use glam::Vec3;
-
 use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{hard_triangles, DepthTarget, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
-    check_limits, FrameResources, Params, Stat, VolumePasses, TILE,
+    check_limits, FrameResources, Params, Stat, VolumePasses,
 };
-use crate::algorithms::shadow_volume::{eye_count, Counting};
+use crate::algorithms::shadow_volume::Counting;
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed, Timing};
-use crate::gpu::Gpu;
+use crate::gpu::{record_execution, Gpu};
 use crate::record::Counters;
+use crate::scene::camera::Camera;
 
-/// The hard pass's parameters for light sample `s` of `samples` at `light` (the rest zero).
-fn sample_params(
-    rays: &EyeRays,
-    s: u32,
-    samples: u32,
-    light: Vec3,
-    eye_count: i32,
-    counting: Counting,
-) -> Params {
-    Params {
-        center: light.extend(0.0).to_array(),
-        eye: rays.eye.extend(0.0).to_array(),
-        width: rays.width,
-        height: rays.height,
-        tiles_x: rays.width.div_ceil(TILE),
-        eye_count,
-        first_loop: 1,
-        last_loop: 1,
-        first_light: u32::from(s == 0),
-        last_light: u32::from(s + 1 == samples),
-        sub_lights: samples,
-        counting: u32::from(counting == Counting::ZFail),
-        channels: 1,
-        mean: [1.0; 4],
-        ..Params::default()
-    }
-}
-
-/// `accum_hard` on wgpu, with the pipeline `opts.gpu_pipeline` names (recorded as
-/// `execution.gpu_pipeline`).
+/// `accum_hard` on wgpu, with the pipeline `opts.gpu_pipeline` names; the counters of both in
+/// the cpu-model's terms (see the module docs); `execution` records the samples, the counting
+/// and the pipeline (and the raster pipeline's count target).
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
     ctx: &ExecContext,
     opts: &AccumHardOptions,
 ) -> Result<FrameOutput> {
-    let mut out = match opts.gpu_pipeline {
-        GpuPipeline::Raster => raster(gpu, frame, ctx, opts)?,
-        GpuPipeline::Gather => gather(gpu, frame, ctx, opts)?,
+    if opts.gpu_pipeline == GpuPipeline::Gather {
+        check_limits(gpu, frame, super::ID)?;
+    }
+    let run = Sampled {
+        start: Instant::now(),
+        samples: Samples::new(frame, ctx, opts)?,
+        rays: EyeRays::new(frame),
+        counting: opts.counting,
     };
-    out.execution
-        .insert("gpu_pipeline".into(), serde_json::json!(opts.gpu_pipeline));
-    Ok(out)
-}
-
-/// The eye's count of a z-pass sample at `light`; 0 for z-fail.
-fn sample_eye_count(samples: &Samples, counting: Counting, light: Vec3, rays: &EyeRays) -> i32 {
-    match counting {
-        Counting::ZPass => eye_count(&samples.occluders, light, rays.eye),
-        Counting::ZFail => 0,
-    }
-}
-
-/// The raster pipeline ([`crate::algorithms::shadow_volume::raster`]): the eye's depth once,
-/// then per light sample a count pass of its shadow quads (or capped volumes) and an
-/// accumulation pass; the average is resolved after the last. Phase `hard` holds the depth
-/// pre-pass, the host geometry and the count passes, `accumulate` the accumulation passes and
-/// the resolve.
-fn raster(
-    gpu: &Gpu,
-    frame: &Frame,
-    ctx: &ExecContext,
-    opts: &AccumHardOptions,
-) -> Result<FrameOutput> {
-    let start = Instant::now();
-    let samples = Samples::new(frame, ctx, opts)?;
-    let n = samples.count();
-    let rays = EyeRays::new(frame);
-    let target = DepthTarget::for_accumulation(gpu);
-    let passes = HardRaster::new(gpu, &rays, &frame.scene.camera, opts.counting, n, target);
-    let readback = [&passes.visibility];
-    let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
-    // Without the pipelines' creation: the run's GPU setup, reported apart.
-    run.add_wall(
-        0,
-        start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms(),
-    );
-    let (vertices, ranges, m) = run.host(0, || {
-        let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
-        let mut m = Measured::default();
-        for s in 0..n {
-            let (sample, quads) = samples.quads(s);
-            let eye = sample_eye_count(&samples, opts.counting, sample, &rays);
-            let occluders = &samples.occluders;
-            let (v, caps) = hard_triangles(&rays, &quads, opts.counting, occluders, sample);
-            let first = vertices.len() as u32;
-            vertices.extend(v);
-            ranges.push((first..vertices.len() as u32, eye));
-            m.edges += quads.len() as u64;
-            m.caps += caps;
-        }
-        (passes.vertices(&vertices), ranges, m)
-    });
-    run.submit(0, &[passes.depth_pass()])?;
-    for (s, (range, eye)) in ranges.iter().enumerate() {
-        let count = passes.count_pass(&vertices, range.clone(), *eye, false);
-        run.submit(0, &[count])?;
-        let mut acc = vec![passes.accumulate_pass(s == 0)];
-        if s + 1 == ranges.len() {
-            acc.push(passes.resolve_pass());
-        }
-        run.submit(1, &acc)?;
-    }
-    let timing = run.finish()?;
-    let (fill, passed) = passes.replay(&vertices, &ranges)?;
-    let note = "fill and overdraw from an instrumented replay of every sample's count pass \
-                (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
-                cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
-    let m = Measured { fill, passed, ..m };
-    let mut out = output(
-        timing,
-        &rays,
-        n,
-        opts.counting,
-        m,
-        Counters::default(),
-        note,
-    );
-    let hard_count = serde_json::json!({ "hard_count": target.describe() });
-    crate::gpu::record_execution(&mut out.execution, hard_count);
-    Ok(out)
-}
-
-/// The phases of both pipelines.
-const PHASES: [&str; 2] = ["hard", "accumulate"];
-
-/// What a pipeline's hard passes gave over all samples: silhouette edges, z-fail caps, fill and
-/// passed fragments.
-#[derive(Default)]
-struct Measured {
-    edges: u64,
-    caps: u64,
-    fill: f64,
-    passed: f64,
-}
-
-/// The frame output of `n` samples: the counters of the two phases in the cpu-model's terms
-/// (`accum_hard::cpu`; `hard` with `extra` added): silhouette edges and caps, fill and
-/// overdraw, and the memory traffic of an 8-bit stencil cleared per sample (a depth read per
-/// fragment, a stencil read and write per passing fragment) and of a 16-bit accumulation
-/// buffer read and written per pixel and sample; `execution` records the samples and the
-/// counting.
-fn output(
-    timing: Timing,
-    rays: &EyeRays,
-    n: u32,
-    counting: Counting,
-    m: Measured,
-    mut hard: Counters,
-    note: &str,
-) -> FrameOutput {
+    let (timing, m, mut hard, note) = match opts.gpu_pipeline {
+        GpuPipeline::Raster => run.raster(gpu, &frame.scene.camera)?,
+        GpuPipeline::Gather => run.gather(gpu)?,
+    };
+    let (n, counting, rays) = (run.samples.count(), opts.counting, &run.rays);
     let pixel_samples = f64::from(n) * rays.len() as f64;
     let (stencil, accumulation) = (f64::from(STENCIL_BYTES), f64::from(ACCUMULATION_BYTES));
     hard.add("silhouette_edges", m.edges as f64);
@@ -215,60 +86,144 @@ fn output(
     let writes = [("accumulation", pixel_samples * accumulation)];
     acc.add_traffic("mem_est", &reads, &writes);
     let mut out = timing.output((rays.width, rays.height), vec![hard, acc], note);
-    out.execution.insert("samples".into(), serde_json::json!(n));
-    out.execution
-        .insert("counting".into(), serde_json::json!(counting));
-    out
+    let entries = serde_json::json!({
+        "samples": n,
+        "counting": counting,
+        "gpu_pipeline": opts.gpu_pipeline,
+    });
+    record_execution(&mut out.execution, entries);
+    if opts.gpu_pipeline == GpuPipeline::Raster {
+        let target = DepthTarget::for_accumulation(gpu).describe();
+        record_execution(
+            &mut out.execution,
+            serde_json::json!({ "hard_count": target }),
+        );
+    }
+    Ok(out)
 }
 
-/// The compute gather ([`crate::algorithms::shadow_volume::wgpu`]).
-fn gather(
-    gpu: &Gpu,
-    frame: &Frame,
-    ctx: &ExecContext,
-    opts: &AccumHardOptions,
-) -> Result<FrameOutput> {
-    check_limits(gpu, frame, super::ID)?;
-    let start = Instant::now();
-    let samples = Samples::new(frame, ctx, opts)?;
-    let n = samples.count();
-    let rays = EyeRays::new(frame);
-    let res = FrameResources::new(gpu, &rays, &[], false);
-    let occluders = samples.occluders.clone();
-    let passes = VolumePasses::new(gpu, &rays, opts.counting, res, occluders, "");
-    let visibility = &passes.res.visibility;
-    let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
-    // Without the pipelines' creation: the run's GPU setup, reported apart.
-    run.add_wall(
-        0,
-        start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms(),
-    );
-    let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
-    for s in 0..n {
-        let up = run.host(0, || {
-            let (sample, quads) = samples.quads(s);
-            m.edges += quads.len() as u64;
-            let eye = sample_eye_count(&samples, opts.counting, sample, &rays);
-            let params = sample_params(&rays, s, n, sample, eye, opts.counting);
-            passes.upload_quads(&rays, &params, sample, &quads)
+/// What a pipeline gave: its timing, what its hard passes measured over all samples and its
+/// own `hard` counters, how its counters were obtained.
+type Run<'g> = (Timing<'g>, Measured, Counters, &'static str);
+
+/// The phases of both pipelines.
+const PHASES: [&str; 2] = ["hard", "accumulate"];
+
+/// What a pipeline's hard passes gave over all samples: silhouette edges, z-fail caps, fill and
+/// passed fragments.
+#[derive(Default)]
+struct Measured {
+    edges: u64,
+    caps: u64,
+    fill: f64,
+    passed: f64,
+}
+
+/// What both pipelines start from: when the run began (the setup before the first pass counts
+/// into phase `hard`), the light samples, the eye rays, the counting.
+struct Sampled {
+    start: Instant,
+    samples: Samples,
+    rays: EyeRays,
+    counting: Counting,
+}
+
+impl Sampled {
+    /// The raster pipeline ([`crate::algorithms::shadow_volume::raster`]): the eye's depth once,
+    /// then per light sample a count pass of its shadow quads (or capped volumes) and an
+    /// accumulation pass; the average is resolved after the last. Phase `hard` holds the depth
+    /// pre-pass, the host geometry and the count passes, `accumulate` the accumulation passes and
+    /// the resolve.
+    fn raster<'g>(&self, gpu: &'g Gpu, camera: &Camera) -> Result<Run<'g>> {
+        let (samples, rays, counting) = (&self.samples, &self.rays, self.counting);
+        let n = samples.count();
+        let target = DepthTarget::for_accumulation(gpu);
+        let passes = HardRaster::new(gpu, rays, camera, counting, n, target);
+        let readback = [&passes.visibility];
+        let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
+        run.add_setup(0, self.start);
+        let (vertices, ranges, m) = run.host(0, || {
+            let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
+            let mut m = Measured::default();
+            for s in 0..n {
+                let (sample, quads) = samples.quads(s);
+                let occluders = &samples.occluders;
+                let eye = counting.eye_start(occluders, sample, rays.eye);
+                let (v, caps) = hard_triangles(rays, &quads, counting, occluders, sample);
+                let first = vertices.len() as u32;
+                vertices.extend(v);
+                ranges.push((first..vertices.len() as u32, eye));
+                m.edges += quads.len() as u64;
+                m.caps += caps;
+            }
+            (passes.vertices(&vertices), ranges, m)
         });
-        run.submit(0, &[passes.hard(&up, false)])?;
-        run.submit(1, &[passes.accumulate(&up)])?;
-        uploads.push(up);
+        run.submit(0, &[passes.depth_pass()])?;
+        for (s, (range, eye)) in ranges.iter().enumerate() {
+            let count = passes.count_pass(&vertices, range.clone(), *eye, false);
+            run.submit(0, &[count])?;
+            let mut acc = vec![passes.accumulate_pass(s == 0)];
+            if s + 1 == ranges.len() {
+                acc.push(passes.resolve_pass());
+            }
+            run.submit(1, &acc)?;
+        }
+        let timing = run.finish()?;
+        let (fill, passed) = passes.replay(&vertices, &ranges)?;
+        let note = "fill and overdraw from an instrumented replay of every sample's count pass \
+                (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
+                cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
+        Ok((
+            timing,
+            Measured { fill, passed, ..m },
+            Counters::default(),
+            note,
+        ))
     }
-    let timing = run.finish()?;
-    let stat = passes.replay(uploads.iter().map(|up| passes.hard(up, true)).collect())?;
-    let m = Measured {
-        caps: uploads.iter().map(|u| u.caps).sum(),
-        fill: stat(Stat::HardFill),
-        passed: stat(Stat::HardPassed),
-        ..m
-    };
-    let mut hard = Counters::default();
-    hard.add("shadow_quads", m.edges as f64);
-    hard.add("quad_tests", stat(Stat::HardTests));
-    let note = "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
+
+    /// The compute gather ([`crate::algorithms::shadow_volume::wgpu`]).
+    fn gather<'g>(&self, gpu: &'g Gpu) -> Result<Run<'g>> {
+        let (samples, rays, counting) = (&self.samples, &self.rays, self.counting);
+        let n = samples.count();
+        let res = FrameResources::new(gpu, rays, &[], false);
+        let occluders = samples.occluders.clone();
+        let passes = VolumePasses::new(gpu, rays, counting, res, occluders, "");
+        let visibility = &passes.res.visibility;
+        let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
+        run.add_setup(0, self.start);
+        let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
+        for s in 0..n {
+            let up = run.host(0, || {
+                let (sample, quads) = samples.quads(s);
+                m.edges += quads.len() as u64;
+                let params = Params {
+                    center: sample.extend(0.0).to_array(),
+                    eye_count: counting.eye_start(&samples.occluders, sample, rays.eye),
+                    first_loop: 1,
+                    last_loop: 1,
+                    ..Params::of_light(rays, s as usize, n as usize, counting)
+                };
+                passes.upload_quads(rays, &params, sample, &quads)
+            });
+            run.submit(0, &[passes.hard(&up, false)])?;
+            run.submit(1, &[passes.accumulate(&up)])?;
+            uploads.push(up);
+        }
+        let timing = run.finish()?;
+        let stat = passes.replay(uploads.iter().map(|up| passes.hard(up, true)).collect())?;
+        let m = Measured {
+            caps: uploads.iter().map(|u| u.caps).sum(),
+            fill: stat(Stat::HardFill),
+            passed: stat(Stat::HardPassed),
+            ..m
+        };
+        let mut hard = Counters::default();
+        hard.add("shadow_quads", m.edges as f64);
+        hard.add("quad_tests", stat(Stat::HardTests));
+        let note =
+            "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
                 atomics); mem.* in the cpu-model's terms of an 8-bit stencil and a 16-bit \
                 accumulation buffer";
-    Ok(output(timing, &rays, n, opts.counting, m, hard, note))
+        Ok((timing, m, hard, note))
+    }
 }

@@ -11,7 +11,8 @@
 //!    single-channel textures rather than one RGBA target: each volume needs its own depth
 //!    test (nearest surface, [`super::DEPTH_RULE`]) and the edge depth must come from the same
 //!    fragment that wins it, which blending per channel cannot guarantee.
-//! 2. `eye_lookup` — a compute pass over the shared gbuffer: eq. 2, 3 and 4 (`wgpu.wgsl`).
+//! 2. `eye_lookup` — a compute pass over the shared gbuffer (the shadow-map family's kernel in
+//!    `shadow_map/light_view.wgsl`): eq. 2, 3 and 4 (`shade` in `wgpu.wgsl`).
 //!
 //! The timed submission runs the passes with timestamps and pipeline statistics; a second,
 //! instrumented submission counts the volume fragments (`fill`) and the D-buffer texels they
@@ -112,43 +113,6 @@ pub fn render(
     Ok(out)
 }
 
-/// The pipelines of the passes: the D-buffer's scene, umbra and penumbra draws and the lookup,
-/// each timed (`[0]`) and counting (`[1]`), and the replay's `count_covered`.
-struct Pipelines {
-    draws: [[wgpu::RenderPipeline; 2]; 3],
-    lookup: [wgpu::ComputePipeline; 2],
-    count_covered: wgpu::ComputePipeline,
-}
-
-impl Pipelines {
-    /// The pipelines from the shared, scene-depth and lookup group layouts.
-    fn new(gpu: &Gpu, [shared, scene, lookup]: [&Layout; 3]) -> Pipelines {
-        let program =
-            |groups: &[Option<&Layout>]| Program::new(gpu, "dbuffer/wgpu.wgsl", &SOURCES, groups);
-        let scene_program = program(&[Some(shared)]);
-        let volume_program = program(&[Some(shared), Some(scene)]);
-        let compute_program = program(&[Some(shared), Some(lookup)]);
-        let scene = Raster::of_vertices("vs_scene", "fs_scene", &Mesh::POSITION);
-        let volume = |fs| Raster {
-            color: Some(wgpu::ColorTargetState {
-                format: EDGE,
-                blend: None,
-                write_mask: wgpu::ColorWrites::RED,
-            }),
-            ..Raster::of_vertices("vs_volume", fs, &Mesh::POSITION_W)
-        };
-        Pipelines {
-            draws: [
-                scene_program.render_pair(gpu, &scene),
-                volume_program.render_pair(gpu, &volume("fs_umbra")),
-                volume_program.render_pair(gpu, &volume("fs_penumbra")),
-            ],
-            lookup: compute_program.compute_pair(gpu, "eye_lookup"),
-            count_covered: compute_program.compute(gpu, "count_covered", Some(true)),
-        }
-    }
-}
-
 struct Passes<'g> {
     gpu: &'g Gpu,
     width: u32,
@@ -163,7 +127,11 @@ struct Passes<'g> {
     shared: Shared,
     scene_group: wgpu::BindGroup,
     lookup_group: wgpu::BindGroup,
-    pipelines: Pipelines,
+    /// The D-buffer's scene, umbra and penumbra draws and the lookup, each timed (`[0]`) and
+    /// counting (`[1]`), and the replay's `count_covered`.
+    draws: [[wgpu::RenderPipeline; 2]; 3],
+    lookup: [wgpu::ComputePipeline; 2],
+    count_covered: wgpu::ComputePipeline,
 }
 
 impl<'g> Passes<'g> {
@@ -231,8 +199,29 @@ impl<'g> Passes<'g> {
                 (Float, view_resource(&edge[1])),
             ]),
         );
-        let pipelines = Pipelines::new(gpu, [&shared.layout, &scene_layout, &lookup_layout]);
+        let program =
+            |groups: &[Option<&Layout>]| Program::new(gpu, "dbuffer/wgpu.wgsl", &SOURCES, groups);
+        let (shared_layout, compute) = (Some(&shared.layout), Some(&lookup_layout));
+        let scene_program = program(&[shared_layout]);
+        let volume_program = program(&[shared_layout, Some(&scene_layout)]);
+        let compute_program = program(&[shared_layout, compute]);
+        let scene = Raster::of_vertices("vs_scene", "fs_scene", &Mesh::POSITION);
+        let volume_raster = |fs| Raster {
+            color: Some(wgpu::ColorTargetState {
+                format: EDGE,
+                blend: None,
+                write_mask: wgpu::ColorWrites::RED,
+            }),
+            ..Raster::of_vertices("vs_volume", fs, &Mesh::POSITION_W)
+        };
         Passes {
+            draws: [
+                scene_program.render_pair(gpu, &scene),
+                volume_program.render_pair(gpu, &volume_raster("fs_umbra")),
+                volume_program.render_pair(gpu, &volume_raster("fs_penumbra")),
+            ],
+            lookup: compute_program.compute_pair(gpu, "eye_lookup"),
+            count_covered: compute_program.compute(gpu, "count_covered", Some(true)),
             gpu,
             width,
             height,
@@ -244,7 +233,6 @@ impl<'g> Passes<'g> {
             shared,
             scene_group,
             lookup_group,
-            pipelines,
         }
     }
 
@@ -259,7 +247,7 @@ impl<'g> Passes<'g> {
                     volume.then_some(&self.scene_group),
                 ];
                 let color = volume.then(|| &self.edge[i - 1]);
-                let pipeline = &self.pipelines.draws[i][usize::from(counting)];
+                let pipeline = &self.draws[i][usize::from(counting)];
                 let draw = self.meshes[i].draw(pipeline, color, Some(&self.depth[i]));
                 Pass::draw("dbuffer", &groups, draw)
             })
@@ -277,13 +265,13 @@ impl<'g> Passes<'g> {
         let names = ["dbuffer", "eye_lookup"];
         let mut run = Timed::new(self.gpu, &names, 4, Statistics::All, &[&self.visibility]);
         run.submit(0, &self.dbuffer_passes(false))?;
-        run.submit(1, &[self.compute(&self.pipelines.lookup[0], image)])?;
+        run.submit(1, &[self.compute(&self.lookup[0], image)])?;
         let timing = run.finish()?;
 
         // The instrumented submission: same passes, counting with atomics.
         let mut passes = self.dbuffer_passes(true);
         let res = (self.resolution, self.resolution);
-        passes.push(self.compute(&self.pipelines.count_covered, res));
+        passes.push(self.compute(&self.count_covered, res));
         let c: Counts = first(&replay_counts(self.gpu, &self.shared.counts, passes)?);
 
         let mut dbuffer = Counters::default();

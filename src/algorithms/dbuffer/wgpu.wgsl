@@ -164,44 +164,29 @@ fn visibility_at(uv: vec2<f32>, z: f32, bias: f32) -> f32 {
     return falloff(ray_t(uv, select(z, z - bias, behind), behind, ndc, z_e));
 }
 
-// Phase `eye_lookup` (shadow_map::cpu::eye_lookup with DLookup): a surface facing away
-// from c sees the part of the disc in front of its plane, any other is looked up and scaled by
-// that part.
-@compute @workgroup_size(8, 8)
-fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= light.width || id.y >= light.height {
-        return;
+// The shading of `eye_lookup` (light_view.wgsl; shadow_map::cpu::eye_lookup with DLookup): a
+// surface facing away from c sees the part of the disc in front of its plane, any other is
+// looked up and scaled by that part. One view owns every receiver.
+fn owns(p: vec3<f32>) -> bool {
+    return true;
+}
+
+fn shade(n: vec3<f32>, p: vec3<f32>, m: vec4<f32>, n_dot_l: f32) -> f32 {
+    let f = front_fraction(n, p);
+    if n_dot_l <= 0.0 {
+        return f;
     }
-    let i = id.y * light.width + id.x;
-    let pos = positions[i];
-    var v = 1.0;
-    if pos.w != 0.0 {
-        let m = project(pos.xyz);
-        if m.w > 0.0 {
-            let n = normals[i].xyz;
-            let n_dot_l = dot(n, normalize(light.eye - pos.xyz));
-            let f = front_fraction(n, pos.xyz);
-            if n_dot_l <= 0.0 {
-                v = f;
-            } else {
-                v = clamp(visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l)) * f, 0.0, 1.0);
-            }
-        }
-    }
-    visibility[i] = v;
+    return clamp(visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l)) * f, 0.0, 1.0);
 }
 
 // Instrumented mode only: D-buffer texels each volume draw left covered (the volume fragments
 // that contributed).
 @compute @workgroup_size(8, 8)
 fn count_covered(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= light.resolution || id.y >= light.resolution {
-        return;
-    }
-    if textureLoad(umbra_depth, id.xy, 0) < 1.0 {
+    if covered(umbra_depth, id) {
         atomicAdd(&counts.umbra_covered, 1u);
     }
-    if textureLoad(penumbra_depth, id.xy, 0) < 1.0 {
+    if covered(penumbra_depth, id) {
         atomicAdd(&counts.penumbra_covered, 1u);
     }
 }

@@ -30,8 +30,8 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay, view as view_resource, Bind, Layout, Mesh, Pass, Program, Raster,
-    Statistics, Step, Timed,
+    gpu_struct, replay_each, view as view_resource, Bind, Layout, Mesh, Pass, Program, Raster,
+    Statistics, Timed,
 };
 use crate::gpu::readback::first;
 use crate::gpu::Gpu;
@@ -42,7 +42,6 @@ const PENUMBRA_WGSL: &str = include_str!("wgpu.wgsl");
 
 /// Bytes of one penumbra vertex: light-view position and `Z_v`.
 const VERTEX_BYTES: f64 = 16.0;
-const INDEX_BYTES: f64 = 4.0;
 
 /// `penumbra_map` on wgpu (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
@@ -174,23 +173,15 @@ impl<'g> PenumbraPasses<'g> {
         run.submit(3, &[p.lookup_pass(false, extra)])?;
         let timing = run.finish()?;
 
-        // The instrumented replay: the counters are cleared before each pass and copied after.
-        let counts = replay(
-            p.gpu,
-            &[
-                Step::Clear(&p.shared.counts),
-                Step::Run(p.raster_pass(true)),
-                // The lookup's pipeline layout, group 2 included.
-                Step::Run(p.covered_pass(extra)),
-                Step::Read(&p.shared.counts),
-                Step::Clear(&p.shared.counts),
-                Step::Run(self.penumbra_pass(&cones, true)),
-                Step::Read(&p.shared.counts),
-                Step::Clear(&p.shared.counts),
-                Step::Run(p.lookup_pass(true, extra)),
-                Step::Read(&p.shared.counts),
-            ],
-        )?;
+        // The instrumented replay: the counters are cleared before each phase's passes and
+        // copied after.
+        let phases = [
+            // `count_covered` with the lookup's pipeline layout, group 2 included.
+            vec![p.raster_pass(true), p.covered_pass(extra)],
+            vec![self.penumbra_pass(&cones, true)],
+            vec![p.lookup_pass(true, extra)],
+        ];
+        let counts = replay_each(p.gpu, &p.shared.counts, phases)?;
         let counts: Vec<Counts> = counts.iter().map(|b| first(b)).collect();
         let mut eye = p.lookup_counters(frame, &counts[2]);
         let taps = f64::from(counts[2].extra_taps);
@@ -228,19 +219,10 @@ impl<'g> PenumbraPasses<'g> {
         k.set("penumbra.cone_triangles", cone_triangles);
         let sheet_triangles = f64::from(cones.index_count / 3) - cone_triangles;
         k.set("penumbra.sheet_triangles", sheet_triangles);
-        let vertex_bytes = f64::from(cones.vertex_count) * VERTEX_BYTES;
-        let index_bytes = f64::from(cones.index_count) * INDEX_BYTES;
-        let shadow_read = fragments * DEPTH_TEXEL_BYTES;
-        let clear = f64::from(self.passes.resolution).powi(2) * DEPTH_TEXEL_BYTES;
-        let map_read = kept * DEPTH_TEXEL_BYTES;
-        let map_write = clear + kept * DEPTH_TEXEL_BYTES;
-        let reads = [
-            ("penumbra_vertices", vertex_bytes),
-            ("penumbra_indices", index_bytes),
-            ("shadow_map", shadow_read),
-            ("penumbra_map", map_read),
-        ];
-        k.add_traffic("mem_est", &reads, &[("penumbra_map", map_write)]);
+        let shadow = [("shadow_map", fragments * DEPTH_TEXEL_BYTES)];
+        let mesh = ("penumbra", cones, VERTEX_BYTES);
+        self.passes
+            .draw_traffic(&mut k, mesh, ("penumbra_map", kept), &shadow);
         k
     }
 }

@@ -75,37 +75,20 @@ fn occluder_depth(uv: vec2<f32>) -> f32 {
     return linear_depth(textureLoad(shadow_map, vec2<u32>(t), 0));
 }
 
-@compute @workgroup_size(8, 8)
-fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= light.width || id.y >= light.height {
-        return;
+// The shading of `eye_lookup` (light_view.wgsl): Receivers::averted, a surface facing away from
+// the light centre is in shadow; any other is looked up.
+fn shade(n: vec3<f32>, p: vec3<f32>, m: vec4<f32>, n_dot_l: f32) -> f32 {
+    if n_dot_l <= 0.0 {
+        return 0.0;
     }
-    let i = id.y * light.width + id.x;
-    let pos = positions[i];
-    var v = 1.0;
-    if pos.w != 0.0 && owns(pos.xyz) {
-        let m = project(pos.xyz);
-        if m.w > 0.0 {
-            let n_dot_l = dot(normals[i].xyz, normalize(light.eye - pos.xyz));
-            // Receivers::averted: a surface facing away from the light centre is in shadow.
-            if n_dot_l <= 0.0 {
-                v = 0.0;
-            } else {
-                v = visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l));
-            }
-        }
-    }
-    visibility[i] = v;
+    return visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l));
 }
 
 // Instrumented mode only: texels the light raster covered (depth below the clear value), the
 // fragments of the light raster that contributed.
 @compute @workgroup_size(8, 8)
 fn count_covered(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= light.resolution || id.y >= light.resolution {
-        return;
-    }
-    if textureLoad(shadow_map, id.xy, 0) < 1.0 {
+    if covered(shadow_map, id) {
         atomicAdd(&counts.covered, 1u);
     }
 }

@@ -1,6 +1,8 @@
 // Light-view helpers shared by the shadow-map family's eye lookup (shadow_map/eye_lookup.wgsl)
 // and dbuffer's passes, joined after the declaration of their `Light` uniform (each has the
-// fields read here) and before the shader. Each mirrors the Rust function named beside it.
+// fields read here) and before the shader, and their `eye_lookup` kernel, which reads the
+// gbuffer and writes the visibility they declare and shades with their `owns` and `shade`.
+// Each mirrors the Rust function named beside it.
 
 // LightView::project: (u, v) with v down, NDC depth, and clip w (linear depth); w <= 0 means
 // behind the light.
@@ -25,4 +27,31 @@ fn bias_at(z: f32, n_dot_l: f32) -> f32 {
     let c = clamp(n_dot_l, 1e-4, 1.0);
     let t = min(sqrt(1.0 - c * c) / c, 10.0);
     return texel_world(z) * (light.bias_constant + light.bias_slope * t);
+}
+
+// Phase `eye_lookup` (shadow_map::cpu::eye_lookup): an eye pixel whose surface the view `owns`
+// and that lies in front of the light is shaded by `shade` with its normal, position,
+// projection and n·l towards the light centre; any other stays lit.
+@compute @workgroup_size(8, 8)
+fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= light.width || id.y >= light.height {
+        return;
+    }
+    let i = id.y * light.width + id.x;
+    let pos = positions[i];
+    var v = 1.0;
+    if pos.w != 0.0 && owns(pos.xyz) {
+        let m = project(pos.xyz);
+        if m.w > 0.0 {
+            let n = normals[i].xyz;
+            v = shade(n, pos.xyz, m, dot(n, normalize(light.eye - pos.xyz)));
+        }
+    }
+    visibility[i] = v;
+}
+
+// Instrumented mode only (`count_covered`): whether texel `id` of a depth map of the view holds
+// a fragment (its depth below the clear value 1).
+fn covered(map: texture_depth_2d, id: vec3<u32>) -> bool {
+    return id.x < light.resolution && id.y < light.resolution && textureLoad(map, id.xy, 0) < 1.0;
 }

@@ -16,6 +16,7 @@ pub mod wgpu;
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
 use crate::scene::camera::{look_at, perspective};
+use crate::scene::polygon::clip_half_plane;
 use crate::scene::{Light, Mesh};
 
 /// The texel of the map that holds `uv` (nearest), or `None` outside the map, where nothing
@@ -151,18 +152,7 @@ impl LightView {
         ];
         let mut poly: Vec<Vec3> = tri.iter().map(|&p| self.view.transform_point3(p)).collect();
         for f in planes {
-            let mut out = Vec::with_capacity(poly.len() + 1);
-            for (i, &a) in poly.iter().enumerate() {
-                let b = poly[(i + 1) % poly.len()];
-                let (fa, fb) = (f(a), f(b));
-                if fa >= 0.0 {
-                    out.push(a);
-                }
-                if (fa >= 0.0) != (fb >= 0.0) {
-                    out.push(a + (b - a) * (fa / (fa - fb)));
-                }
-            }
-            poly = out;
+            poly = clip_half_plane(&poly, f);
             if poly.is_empty() {
                 break;
             }

@@ -5,8 +5,8 @@
 //!    ([`LightView`]) into a `map_resolution`² Depth32Float map (see `light_raster.wgsl`).
 //! 2. `eye_lookup` — a compute pass over the frame's gbuffer, uploaded as storage buffers (the
 //!    eye pass is shared by all executions, so parity is about the shadow algorithm alone),
-//!    writes the visibility buffer with the algorithm's `visibility_at` (see `eye_lookup.wgsl`
-//!    and each algorithm's `wgpu.wgsl`).
+//!    writes the visibility buffer with the algorithm's `visibility_at` (the kernel in
+//!    `light_view.wgsl`, shared with dbuffer; `eye_lookup.wgsl` and each algorithm's `wgpu.wgsl`).
 //!
 //! The timed submission runs the passes as an engine would, with timestamp queries and
 //! pipeline statistics around each. A second, instrumented submission runs the same passes
@@ -35,7 +35,7 @@ const PRELUDE_WGSL: &str = include_str!("light.wgsl");
 pub(crate) const LIGHT_RASTER_WGSL: &str = include_str!("light_raster.wgsl");
 pub(crate) const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
 
-/// Side of the square compute workgroups (`@workgroup_size(8, 8)` in eye_lookup.wgsl).
+/// Side of the square compute workgroups (`@workgroup_size(8, 8)` in light_view.wgsl).
 const WORKGROUP: u32 = 8;
 /// Bytes of one texel of the Depth32Float shadow map.
 pub(crate) const DEPTH_TEXEL_BYTES: f64 = 4.0;
@@ -318,20 +318,37 @@ impl<'g> Passes<'g> {
         k.set("fill", fragments);
         k.set("overdraw", fragments - f64::from(c.covered));
         k.set("shadow_map.covered_texels", f64::from(c.covered));
-        let vertex_bytes = f64::from(self.occluders.vertex_count) * VERTEX_BYTES;
-        let index_bytes = f64::from(self.occluders.index_count) * INDEX_BYTES;
-        let clear = f64::from(self.resolution).powi(2) * DEPTH_TEXEL_BYTES;
-        // Every fragment reads the depth it is tested against; writes are bounded by the clear
-        // plus one per fragment.
-        let map_read = fragments * DEPTH_TEXEL_BYTES;
-        let map_write = clear + fragments * DEPTH_TEXEL_BYTES;
-        let reads = [
-            ("occluder_vertices", vertex_bytes),
-            ("occluder_indices", index_bytes),
-            ("shadow_map", map_read),
-        ];
-        k.add_traffic("mem_est", &reads, &[("shadow_map", map_write)]);
+        let mesh = ("occluder", &self.occluders, VERTEX_BYTES);
+        self.draw_traffic(&mut k, mesh, ("shadow_map", fragments), &[]);
         k
+    }
+
+    /// Adds the estimated traffic of a depth-tested draw of a mesh (`(name, mesh, bytes a
+    /// vertex)`, its vertices and `u32` indices read as `<name>_vertices`, `<name>_indices`)
+    /// into a Depth32Float map of the view's resolution (`(map, fragments tested)`): a depth
+    /// read per fragment tested, writes bounded by the clear plus one per fragment; and
+    /// `reads`.
+    pub fn draw_traffic(
+        &self,
+        k: &mut Counters,
+        (name, mesh, vertex_bytes): (&str, &Mesh, f64),
+        (map, tested): (&str, f64),
+        reads: &[(&str, f64)],
+    ) {
+        let vertices = (
+            format!("{name}_vertices"),
+            f64::from(mesh.vertex_count) * vertex_bytes,
+        );
+        let indices = (
+            format!("{name}_indices"),
+            f64::from(mesh.index_count) * INDEX_BYTES,
+        );
+        let clear = f64::from(self.resolution).powi(2) * DEPTH_TEXEL_BYTES;
+        let mut all = vec![(&vertices.0[..], vertices.1), (&indices.0[..], indices.1)];
+        all.extend(reads.iter().copied());
+        all.push((map, tested * DEPTH_TEXEL_BYTES));
+        let write = [(map, clear + tested * DEPTH_TEXEL_BYTES)];
+        k.add_traffic("mem_est", &all, &write);
     }
 
     /// `eye_lookup`: no fill (nothing is rasterized); the shadow-map taps, and the PCF taps of

@@ -49,6 +49,17 @@ pub enum Counting {
     ZFail,
 }
 
+impl Counting {
+    /// The count a pass at light point `light` starts from at the eye: [`eye_count`] for
+    /// z-pass, 0 for z-fail (which needs none).
+    pub fn eye_start(self, occluders: &Mesh, light: Vec3, eye: Vec3) -> i32 {
+        match self {
+            Counting::ZPass => eye_count(occluders, light, eye),
+            Counting::ZFail => 0,
+        }
+    }
+}
+
 /// How the `wgpu` execution of a shadow-volume algorithm renders (option `gpu_pipeline` of
 /// `soft_shadow_volume` and `accum_hard`; recorded as `execution.gpu_pipeline`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -19,8 +19,7 @@ use super::{face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad,
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{gpu_struct, replay_counts, slot64, tiles, Bind, Layout, Pass, Program};
-use crate::gpu::readback::words;
+use crate::gpu::pass::{gpu_struct, replay_slots, tiles, Bind, Layout, Pass, Program};
 use crate::gpu::{Gpu, Needs, EMPTY_BYTES};
 use crate::scene::Mesh;
 
@@ -98,6 +97,26 @@ gpu_struct! {
         pad2: u32 => "u32",
         /// The textured light's mean colour (`LightTexture::mean`).
         mean: [f32; 4] => "vec4f",
+    }
+}
+
+impl Params {
+    /// What every pass over `rays` for light `s` of `n` (sub-light or light sample) counting as
+    /// `counting` shares; the rest zero but one channel of white light.
+    pub fn of_light(rays: &EyeRays, s: usize, n: usize, counting: Counting) -> Params {
+        Params {
+            eye: rays.eye.extend(0.0).to_array(),
+            width: rays.width,
+            height: rays.height,
+            tiles_x: rays.width.div_ceil(TILE),
+            first_light: u32::from(s == 0),
+            last_light: u32::from(s + 1 == n),
+            sub_lights: n as u32,
+            counting: u32::from(counting == Counting::ZFail),
+            channels: 1,
+            mean: [1.0; 4],
+            ..Params::default()
+        }
     }
 }
 
@@ -396,31 +415,20 @@ impl<'g> VolumePasses<'g> {
         let records = quad_records(rays, quads, &footprints);
         let faces = (self.counting == Counting::ZFail)
             .then(|| zfail_faces(quads, &self.occluders, light, &rays.bounds));
-        let (quad_bins, entries) = match &faces {
-            None => bins(rays, &footprints, |_, _| true),
-            Some(f) => bins(rays, &face_footprints(rays, f), |_, _| true),
-        };
+        let face_prints = faces.as_ref().map(|f| face_footprints(rays, f));
+        let prints = face_prints.as_ref().unwrap_or(&footprints);
+        let (quad_bins, entries) = bins(rays, prints, |_, _| true);
         let params = gpu.uniform("ssv params", params);
         let quads_buf = gpu.upload("shadow quads", &records, storage);
         let bins_buf = gpu.upload("quad bins", &quad_bins, storage);
-        let none = gpu.storage_buffer(
-            "no primitives",
-            EMPTY_BYTES as u64,
-            wgpu::BufferUsages::empty(),
-        );
-        let faces_buf = faces.as_ref().map(|f| {
-            let records = face_records(rays, f);
-            gpu.upload("volume faces", &records, storage)
-        });
+        let empty = wgpu::BufferUsages::empty();
+        let none = gpu.storage_buffer("no primitives", EMPTY_BYTES as u64, empty);
+        let faces_buf =
+            (faces.as_ref()).map(|f| gpu.upload("volume faces", &face_records(rays, f), storage));
+        let planes = faces_buf.as_ref().unwrap_or(&none);
         let group = self.group(
             &params,
-            [
-                &quads_buf,
-                &none,
-                faces_buf.as_ref().unwrap_or(&none),
-                &bins_buf,
-                &none,
-            ],
+            [&quads_buf, &none, planes, &bins_buf, &none],
             "hard",
         );
         HardUpload {
@@ -454,8 +462,8 @@ impl<'g> VolumePasses<'g> {
     /// Runs `passes` as an instrumented replay (statistics cleared before, read after) and
     /// returns the statistics' reader.
     pub fn replay(&self, passes: Vec<Pass>) -> Result<impl Fn(Stat) -> f64> {
-        let raw: Vec<u32> = words(&replay_counts(self.gpu, &self.res.stats, passes)?);
-        Ok(move |s: Stat| slot64(&raw, s as usize))
+        let slot = replay_slots(self.gpu, &self.res.stats, passes)?;
+        Ok(move |s: Stat| slot.get(s as usize))
     }
 }
 

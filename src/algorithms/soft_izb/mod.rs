@@ -630,15 +630,16 @@ mod tests {
         };
         // Clockwise in uv: the surface inside (negative cross product), as for a front face.
         let corners = [pt(x0, y0), pt(x0, y1), pt(x1, y1), pt(x1, y0)];
-        let sum: f32 = (0..4)
-            .map(|i| {
-                ProjectedEdge {
-                    a: corners[i],
-                    b: corners[(i + 1) % 4],
-                }
-                .penumbral_occlusion(r_uv, p)
-            })
-            .sum();
+        // Eq. 3 summed over the square's edges for the point `q`.
+        let square = |q: LightPoint| -> f32 {
+            (0..4)
+                .map(|i| {
+                    let (a, b) = (corners[i], corners[(i + 1) % 4]);
+                    ProjectedEdge { a, b }.penumbral_occlusion(r_uv, q)
+                })
+                .sum()
+        };
+        let sum = square(p);
         let expected = (x1 - x0) * (y1 - y0) / PI;
         assert!((sum - expected).abs() < 1e-4, "{sum} vs {expected}");
         // Centre inside the square: one unit of umbra minus the unoccluded rest.
@@ -646,16 +647,7 @@ mod tests {
             uv: Vec2::new(0.4, 0.1),
             inv_z: 0.5,
         };
-        let pen: f32 = (0..4)
-            .map(|i| {
-                ProjectedEdge {
-                    a: corners[i],
-                    b: corners[(i + 1) % 4],
-                }
-                .penumbral_occlusion(r_uv, inside)
-            })
-            .sum();
-        let v = combined_visibility(1, pen);
+        let v = combined_visibility(1, square(inside));
         assert!((v - (1.0 - expected)).abs() < 1e-4, "{v}");
     }
 

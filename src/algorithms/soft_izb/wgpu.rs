@@ -55,7 +55,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay_counts, slot64, Bind, Layout, Pass, Program, Statistics, Timed, Work,
+    gpu_struct, replay_slots, workgroups, Bind, Layout, Pass, Program, Statistics, Timed, Work,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{record_execution, Gpu, Needs};
@@ -225,17 +225,6 @@ fn check_limits(gpu: &Gpu, p: &Params, grid: &Grid) -> Result<()> {
     gpu.check_limits(ID, needs)
 }
 
-/// Workgroups for `n` (a 2D grid, each side within the adapter's limit).
-fn groups(gpu: &Gpu, n: u32) -> (u32, u32) {
-    if n == 0 {
-        return (0, 0);
-    }
-    // As few rows as the limit allows, then as few columns as cover n: under one row of
-    // workgroups beyond n.
-    let y = n.div_ceil(gpu.limits.max_compute_workgroups_per_dimension);
-    (n.div_ceil(y), y)
-}
-
 /// The resources and pipelines of one frame.
 struct Passes<'g> {
     gpu: &'g Gpu,
@@ -347,7 +336,7 @@ impl<'g> Passes<'g> {
     /// counting pipelines and leaves out `resolve`, which counts nothing.
     fn pass(&self, i: usize, instrument: bool) -> Pass<'_> {
         let (gpu, p) = (self.gpu, &self.params);
-        let items = |n: u32| groups(gpu, n.div_ceil(ITEM_WORKGROUP));
+        let items = |n: u32| workgroups(gpu, n.div_ceil(ITEM_WORKGROUP));
         let k = usize::from(instrument);
         let dispatches = match i {
             1 => {
@@ -360,16 +349,16 @@ impl<'g> Passes<'g> {
                     (&c[0], items(clear)),
                     (&c[1], items(p.pixels)),
                     (&c[2], items(p.pixels)),
-                    (&c[3], groups(gpu, p.scan_blocks)),
+                    (&c[3], workgroups(gpu, p.scan_blocks)),
                     (&c[4], (1, 1)),
                     (&c[5], items(cell_runs)),
                     (&c[6], items(p.pixels)),
                 ]
             }
-            2 => vec![(&self.umbra[k], groups(gpu, p.triangles))],
-            _ if instrument => vec![(&self.penumbra[1], groups(gpu, p.edges))],
+            2 => vec![(&self.umbra[k], workgroups(gpu, p.triangles))],
+            _ if instrument => vec![(&self.penumbra[1], workgroups(gpu, p.edges))],
             _ => vec![
-                (&self.penumbra[0], groups(gpu, p.edges)),
+                (&self.penumbra[0], workgroups(gpu, p.edges)),
                 (&self.resolve, items(p.pixels)),
             ],
         };
@@ -399,8 +388,8 @@ impl<'g> Passes<'g> {
         // after the timed `resolve`; `construct` and `resolve` count nothing, so they are not
         // run again.
         let passes = (2..PHASES.len()).map(|i| self.pass(i, true));
-        let raw: Vec<u32> = words(&replay_counts(self.gpu, &self.stats, passes)?);
-        let stat = |s: Stat| slot64(&raw, s as usize);
+        let slot = replay_slots(self.gpu, &self.stats, passes)?;
+        let stat = |s: Stat| slot.get(s as usize);
 
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
         let counters = vec![

@@ -286,26 +286,15 @@ impl<'g> Ssm<'g> {
         }
     }
 
-    /// A depth-only pass of `d` into `target`.
-    fn depth_pass<'a>(
-        &'a self,
-        d: &'a Depth,
-        target: &'a wgpu::TextureView,
-        back: bool,
-    ) -> Pass<'a> {
-        Pass::draw(
-            "maps",
-            &[Some(&self.shared.group), Some(&d.group)],
-            Draw {
-                pipeline: &self.p.depth[usize::from(back)],
-                color: None,
-                depth: Some(target),
-                vertices: Some(&self.vertices),
-                indices: Some(&d.indices),
-                count: d.count,
-                instances: 1,
-            },
-        )
+    /// A depth-only pass of `d` into `map`.
+    fn depth_pass<'a>(&'a self, d: &'a Depth, map: &'a wgpu::TextureView, back: bool) -> Pass<'a> {
+        let draw = Draw {
+            depth: Some(map),
+            vertices: Some(&self.vertices),
+            indices: Some(&d.indices),
+            ..Draw::of(&self.p.depth[usize::from(back)], d.count)
+        };
+        Pass::draw("maps", &[Some(&self.shared.group), Some(&d.group)], draw)
     }
 
     /// The splat passes, one per SSM: the micro-patches uploaded by the transfer
@@ -322,19 +311,14 @@ impl<'g> Ssm<'g> {
                     Some((b, n)) => (Some(b), *n),
                     None => (None, texels),
                 };
-                Pass::draw(
-                    "splat",
-                    &[Some(&self.shared.group), Some(&self.splat_groups[k])],
-                    Draw {
-                        pipeline: &self.p.splat[usize::from(counting)],
-                        color: Some(&self.ssm_views[k]),
-                        depth: None,
-                        vertices,
-                        indices: None,
-                        count: 4,
-                        instances: n,
-                    },
-                )
+                let draw = Draw {
+                    color: Some(&self.ssm_views[k]),
+                    vertices,
+                    instances: n,
+                    ..Draw::of(&self.p.splat[usize::from(counting)], 4)
+                };
+                let groups = [Some(&self.shared.group), Some(&self.splat_groups[k])];
+                Pass::draw("splat", &groups, draw)
             })
             .collect()
     }
@@ -419,21 +403,15 @@ impl<'g> Ssm<'g> {
         let mut splat_c = Counters::default();
         splat_c.set("fill", f64::from(c.kept) + f64::from(c.zero));
         splat_c.set("overdraw", f64::from(c.zero));
-        let patches = if host {
-            transfer.patches as f64
-        } else {
-            f64::from(c.patches)
+        let (patches, extents) = match host {
+            true => (transfer.patches as f64, "host (occluder map transferred)"),
+            false => (f64::from(c.patches), "device (vertex shader)"),
         };
         splat_c.set("ssm.micro_patches", patches);
         let texels = passes as u64 * u64::from(self.res) * u64::from(self.res);
         splat_c.set("ssm.occluder_texels", texels as f64);
         let note = "fill/overdraw from an instrumented replay of splat (WGSL atomics)";
         let mut out = timing.output(self.size, vec![maps_c, splat_c, Counters::default()], note);
-        let extents = if host {
-            "host (occluder map transferred)"
-        } else {
-            "device (vertex shader)"
-        };
         let entries = serde_json::json!({
             "transfer_ms": transfer.ms,
             "ssm_format": format!("{:?}", self.ssm_format),

@@ -9,15 +9,15 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 
 use super::{
-    exact_coverage, overlap_coverage, silhouette_loops, split12, split_light, CoverageMethod,
-    CoverageTexture, Emitter, EmitterShape, SoftShadowVolumeOptions, VBufferPrecision, Wedge,
+    exact_coverage, overlap_coverage, split12, split_light, CoverageMethod, CoverageTexture,
+    Emitter, EmitterShape, SoftShadowVolumeOptions, SubLightLoops, VBufferPrecision, Wedge,
 };
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{
     raster_pass, Block, ConvexVolume, EyeBuffer, EyeRays, ScreenRect, TilePass, DEPTH_BYTES,
 };
 use crate::algorithms::shadow_volume::{
-    eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
+    mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
 };
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
@@ -209,24 +209,15 @@ pub fn render(
     let mut rgb = vec![[0.0f32; 3]; n];
     for sub in &sub_lights {
         let centre = sub.center();
-        let silhouette = adjacency.silhouette_from(centre);
+        let SubLightLoops {
+            silhouette_edges,
+            loops,
+            eye,
+            warning,
+        } = SubLightLoops::new(&adjacency, &occluders, centre, setup.rays.eye, opts);
         m.phase("hard");
-        m.count("silhouette_edges", silhouette.edges.len() as f64);
-        let loops = if opts.overlap_approximation {
-            silhouette_loops(&silhouette.edges)
-        } else {
-            vec![silhouette.edges.clone()]
-        };
-        let eye = match opts.counting {
-            Counting::ZPass => eye_count(&occluders, centre, setup.rays.eye),
-            Counting::ZFail => 0,
-        };
-        if loops.len() > 1 && eye != 0 {
-            warnings.push(format!(
-                "the eye is inside {eye} shadow volume(s); per-loop V-buffers of the overlap \
-                 approximation start at 0"
-            ));
-        }
+        m.count("silhouette_edges", silhouette_edges as f64);
+        warnings.extend(warning);
         let mut covered = vec![0.0f32; n];
         for (k, edges) in loops.iter().enumerate() {
             let counting = match opts.counting {

@@ -39,7 +39,8 @@ use crate::algorithms::{
 };
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
-use crate::scene::adjacency::SilhouetteEdge;
+use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
+pub(crate) use crate::scene::polygon::clip_half_plane;
 use crate::scene::LightKind;
 use crate::scene::{Light, LightTexture};
 
@@ -226,29 +227,6 @@ pub fn textured_coverage(light: &LightTexture, q0: Vec2, q1: Vec2) -> [f32; 3] {
     light
         .integrate(&covered_square(q0, q1))
         .map(|v| (v / EmitterShape::Square.area()).clamp(0.0, 1.0))
-}
-
-/// Sutherland–Hodgman: the part of the polygon `poly` (2D, or planar in 3D) where `f ≥ 0` (`f`
-/// affine: a half-plane or half-space).
-pub(crate) fn clip_half_plane<V>(poly: &[V], f: impl Fn(V) -> f32) -> Vec<V>
-where
-    V: Copy
-        + std::ops::Add<Output = V>
-        + std::ops::Sub<Output = V>
-        + std::ops::Mul<f32, Output = V>,
-{
-    let mut out = Vec::with_capacity(poly.len() + 1);
-    for (i, &p) in poly.iter().enumerate() {
-        let q = poly[(i + 1) % poly.len()];
-        let (fp, fq) = (f(p), f(q));
-        if fp >= 0.0 {
-            out.push(p);
-        }
-        if (fp >= 0.0) != (fq >= 0.0) {
-            out.push(p + (q - p) * (fp / (fp - fq)));
-        }
-    }
-    out
 }
 
 /// Shoelace area of a convex polygon.
@@ -597,6 +575,49 @@ pub fn silhouette_loops(edges: &[SilhouetteEdge]) -> Vec<Vec<SilhouetteEdge>> {
         loops[l].push(*e);
     }
     loops
+}
+
+/// One sub-light's silhouette seen from its centre split into loops (IV §5.1; one loop of
+/// every edge without the overlap approximation), as every execution walks them.
+pub struct SubLightLoops {
+    /// The silhouette's size.
+    pub silhouette_edges: usize,
+    pub loops: Vec<Vec<SilhouetteEdge>>,
+    /// The count the hard pass starts from at the eye ([`Counting::eye_start`]).
+    pub eye: i32,
+    /// Why per-loop V-buffers start at 0 though the eye is inside a volume, when they do.
+    pub warning: Option<String>,
+}
+
+impl SubLightLoops {
+    /// The loops of the silhouette of `occluders` (their `adjacency`) from light point
+    /// `centre`, for an eye at `eye`.
+    pub fn new(
+        adjacency: &EdgeAdjacency,
+        occluders: &crate::scene::Mesh,
+        centre: Vec3,
+        eye: Vec3,
+        opts: &SoftShadowVolumeOptions,
+    ) -> SubLightLoops {
+        let edges = adjacency.silhouette_from(centre).edges;
+        let eye = opts.counting.eye_start(occluders, centre, eye);
+        let loops = match opts.overlap_approximation {
+            true => silhouette_loops(&edges),
+            false => vec![edges.clone()],
+        };
+        let warning = (loops.len() > 1 && eye != 0).then(|| {
+            format!(
+                "the eye is inside {eye} shadow volume(s); per-loop V-buffers of the overlap \
+                 approximation start at 0"
+            )
+        });
+        SubLightLoops {
+            silhouette_edges: edges.len(),
+            loops,
+            eye,
+            warning,
+        }
+    }
 }
 
 /// The sub-lights of light splitting (IV §5.2): a rectangle cut into `k×k` equal rectangles;

@@ -48,26 +48,24 @@ use serde_json::json;
 
 use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach, WedgePrimitive};
 use super::{
-    silhouette_loops, split_light, CoverageMethod, CoverageTexture, EmitterShape, GpuPipeline,
-    SoftShadowVolumeOptions, VBufferPrecision, Wedge, ID,
+    split_light, CoverageMethod, CoverageTexture, EmitterShape, GpuPipeline,
+    SoftShadowVolumeOptions, SubLightLoops, VBufferPrecision, Wedge, ID,
 };
 use crate::algorithms::eye_raster::{EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::wgpu::{
     bins, check_limits, rect, tile_cones, tile_misses, FrameResources, HardUpload, Params, Stat,
-    VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES, STENCIL_BYTES, TILE,
+    VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES, STENCIL_BYTES,
     VBUFFER_BYTES, WORD,
 };
-use crate::algorithms::shadow_volume::{eye_count, Counting, ShadowQuad};
+use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed};
-use crate::gpu::readback::words;
 use crate::gpu::{record_execution, Gpu};
 use crate::record::Counters;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::{Light, LightTexture, Mesh};
-use crate::visibility::RgbBuffer;
 
 /// The soft pass: `wedge_sample` and `combine`, shared with the raster pipeline, and the
 /// gather's `soft` entry.
@@ -80,89 +78,68 @@ pub fn render(
     _ctx: &ExecContext,
     opts: &SoftShadowVolumeOptions,
 ) -> Result<FrameOutput> {
-    let light = frame.scene.light;
-    let sub_lights = split_light(&light, opts.light_split)?;
+    let sub_lights = split_light(&frame.scene.light, opts.light_split)?;
     check_limits(gpu, frame, ID)?;
     let start = Instant::now();
     let rays = EyeRays::new(frame);
     let light_texture = frame.scene.light_texture.as_deref();
+    let shape = EmitterShape::of(&frame.scene.light);
     let texture = (opts.coverage == CoverageMethod::Texture)
-        .then(|| coverage_texture(EmitterShape::of(&light), opts.texture_n, light_texture));
+        .then(|| coverage_texture(shape, opts.texture_n, light_texture));
     let mean = light_texture.map(LightTexture::mean);
     let texels = texture.as_ref().map_or(&[][..], |t| &t.texels[..]);
     let frame_res = FrameResources::new(gpu, &rays, texels, mean.is_some());
-    let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
+    let adjacency = EdgeAdjacency::build(&occluders);
     // Without the pipelines' creation: the run's GPU setup, reported apart.
     let setup_ms = start.elapsed().as_secs_f64() * 1e3 - gpu.cache.run_objects_ms();
 
     let mut runs = Vec::new();
     let mut warnings = Vec::new();
     for (s, sub) in sub_lights.iter().enumerate() {
-        let centre = sub.center();
-        let silhouette = adjacency.silhouette_from(centre);
-        let mut loops = if opts.overlap_approximation {
-            silhouette_loops(&silhouette.edges)
-        } else {
-            vec![silhouette.edges.clone()]
-        };
+        let sl = SubLightLoops::new(&adjacency, &occluders, sub.center(), rays.eye, opts);
+        warnings.extend(sl.warning);
         // No loop at all (overlap approximation, empty silhouette): the sub-light is unshadowed,
         // as on the cpu executions; one empty loop counted from 0 writes exactly that.
-        let no_loop = loops.is_empty();
+        let (no_loop, mut loops) = (sl.loops.is_empty(), sl.loops);
         if no_loop {
             loops.push(Vec::new());
         }
-        let eye = match opts.counting {
-            Counting::ZPass => eye_count(&occluders, centre, rays.eye),
-            Counting::ZFail => 0,
-        };
-        if loops.len() > 1 && eye != 0 {
-            warnings.push(format!(
-                "the eye is inside {eye} shadow volume(s); per-loop V-buffers of the overlap \
-                 approximation start at 0"
-            ));
-        }
-        for (k, edges) in loops.iter().enumerate() {
-            let (center, half_u, half_v) = frame_light(sub, EmitterShape::of(sub));
+        let (center, half_u, half_v) = frame_light(sub, EmitterShape::of(sub));
+        let n = loops.len();
+        for (k, edges) in loops.into_iter().enumerate() {
             let params = Params {
                 center,
                 half_u,
                 half_v,
-                eye: rays.eye.extend(0.0).to_array(),
-                width: rays.width,
-                height: rays.height,
-                tiles_x: rays.width.div_ceil(TILE),
-                eye_count: if loops.len() > 1 || no_loop { 0 } else { eye },
+                eye_count: if n > 1 || no_loop { 0 } else { sl.eye },
                 vbuffer: u32::from(opts.vbuffer == VBufferPrecision::Split12),
                 coverage: u32::from(texture.is_some()),
                 texture_n: opts.texture_n,
                 first_loop: u32::from(k == 0),
-                last_loop: u32::from(k + 1 == loops.len()),
-                first_light: u32::from(s == 0),
-                last_light: u32::from(s + 1 == sub_lights.len()),
-                sub_lights: sub_lights.len() as u32,
-                counting: u32::from(opts.counting == Counting::ZFail),
+                last_loop: u32::from(k + 1 == n),
                 channels: if mean.is_some() { 3 } else { 1 },
-                pad1: 0,
-                pad2: 0,
                 mean: mean.map_or([1.0; 4], |m| [m[0], m[1], m[2], 1.0]),
+                ..Params::of_light(&rays, s, sub_lights.len(), opts.counting)
             };
+            let silhouette_edges = (k == 0).then_some(sl.silhouette_edges);
             runs.push(LoopRun {
                 light: *sub,
-                edges: edges.clone(),
-                silhouette_edges: (k == 0).then_some(silhouette.edges.len()),
+                edges,
+                silhouette_edges,
                 params,
             });
         }
     }
-    let mut out = match opts.gpu_pipeline {
-        GpuPipeline::Raster => {
-            super::raster::run(gpu, frame, &rays, opts, frame_res, &runs, setup_ms)?
-        }
-        GpuPipeline::Gather => {
-            let passes = Passes::new(gpu, &rays, opts, frame_res, occluders);
-            passes.run(&rays, &runs, setup_ms)?
-        }
+    let (mut out, accumulation) = match opts.gpu_pipeline {
+        GpuPipeline::Raster => (
+            super::raster::run(gpu, frame, &rays, opts, frame_res, &runs, setup_ms)?,
+            "additive blending of the wedges' fragments in rasterization order",
+        ),
+        GpuPipeline::Gather => (
+            Passes::new(gpu, &rays, opts, frame_res, occluders).run(&rays, &runs, setup_ms)?,
+            "per-pixel gather over 8x8-tile bins in submission order, no atomics",
+        ),
     };
     if let (Some(rgb), Some(mean)) = (&mut out.rgb, mean) {
         // Pixels without a surface receive the whole light, as their visibility is 1.
@@ -173,12 +150,6 @@ pub fn render(
         }
     }
     out.warnings.extend(warnings);
-    let accumulation = match opts.gpu_pipeline {
-        GpuPipeline::Raster => "additive blending of the wedges' fragments in rasterization order",
-        GpuPipeline::Gather => {
-            "per-pixel gather over 8x8-tile bins in submission order, no atomics"
-        }
-    };
     let e = &mut out.execution;
     let pipeline = opts.gpu_pipeline;
     record_execution(
@@ -321,31 +292,33 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// The wedges phase's host part: wedges, primitives, bins, upload; the soft pass's group
-    /// and the number of bin entries.
+    /// The wedges phase's host part after the hard phase's `hard` upload of `quads`: wedges,
+    /// primitives, bins, upload, the soft pass's group.
     fn upload_wedges(
         &self,
         rays: &EyeRays,
         run: &LoopRun,
         quads: &[ShadowQuad],
-        quad_buffers: &[wgpu::Buffer; 3],
-    ) -> (wgpu::BindGroup, WedgeCounts, u64) {
+        hard: HardUpload,
+    ) -> LoopGpu {
         let gpu = self.v.gpu;
         let storage = wgpu::BufferUsages::STORAGE;
         let w = WedgeRecords::new(rays, run, quads, &self.opts);
-        let (wedge_bins, entries) = bins(rays, &w.footprints, |k, t| {
+        let (wedge_bins, bin_entries) = bins(rays, &w.footprints, |k, t| {
             !tile_misses(&w.prims[k].volume, rays.eye, self.cones[t])
         });
         let prims_buf = gpu.upload("wedge primitives", &w.records, storage);
         let planes_buf = gpu.upload("wedge planes", &w.planes, storage);
         let bins_buf = gpu.upload("wedge bins", &wedge_bins, storage);
-        let [params, quads_buf, quad_bins] = quad_buffers;
-        let group = self.v.group(
-            params,
-            [quads_buf, &prims_buf, &planes_buf, quad_bins, &bins_buf],
-            "soft",
-        );
-        (group, w.counts, entries)
+        let [params, quads_buf, quad_bins] = &hard.buffers;
+        let prims = [quads_buf, &prims_buf, &planes_buf, quad_bins, &bins_buf];
+        LoopGpu {
+            soft_group: self.v.group(params, prims, "soft"),
+            hard,
+            quads: quads.len() as u64,
+            wedges: w.counts,
+            bin_entries,
+        }
     }
 
     fn run(&self, rays: &EyeRays, runs: &[LoopRun], setup_ms: f64) -> Result<FrameOutput> {
@@ -373,55 +346,40 @@ impl<'g> Passes<'g> {
             });
             run.submit(0, &[self.v.hard(&up, false)])?;
             // Wedges (III §3.1, IV §4.1), on the host.
-            let (soft_group, wedges, bin_entries) =
-                run.host(1, || self.upload_wedges(rays, lr, &quads, &up.buffers));
-            let lg = LoopGpu {
-                quads: quads.len() as u64,
-                hard: up,
-                soft_group,
-                wedges,
-                bin_entries,
-            };
+            let lg = run.host(1, || self.upload_wedges(rays, lr, &quads, up));
             // Pass 2: penumbra wedges (III §3.2.2).
             run.submit(2, &[self.v.pass("soft", &self.soft[0], &lg.soft_group)])?;
             loops.push(lg);
         }
         let timing = run.finish()?;
-        let rgb = timing.readback.get(1).map(|b| RgbBuffer {
-            width: rays.width,
-            height: rays.height,
-            data: words(b),
-        });
+        let rgb = timing.rgb(1, (rays.width, rays.height));
 
-        // The instrumented replay: the same passes counting with atomics, per loop.
+        // The instrumented replay of each loop's passes, counting with atomics.
         let mut per_phase = vec![Counters::default(); 3];
         for (lr, lg) in runs.iter().zip(&loops) {
             let soft = self.v.pass("soft", &self.soft[1], &lg.soft_group);
             let stat = self.v.replay(vec![self.v.hard(&lg.hard, true), soft])?;
-            if let Some(n) = lr.silhouette_edges {
-                per_phase[0].add("silhouette_edges", n as f64);
-            }
-            self.hard_counters(&mut per_phase[0], lg, &stat);
+            self.hard_counters(&mut per_phase[0], lr, lg, &stat);
             per_phase[1].add("wedges", lg.wedges.wedges as f64);
             per_phase[1].add("wedges_degenerate", lg.wedges.degenerate as f64);
-            let res = &self.v.res;
-            let bins = (WORD * (lg.bin_entries + 2 * self.tiles())) as f64;
-            let (pixels, index) = (self.v.pixels, ("wedge_bins", bins));
-            let k = &mut per_phase[2];
+            let bins = (
+                "wedge_bins",
+                (WORD * (lg.bin_entries + 2 * self.tiles())) as f64,
+            );
+            let (k, channels) = (&mut per_phase[2], self.v.res.channels);
             soft_counters(
                 k,
                 &self.opts,
-                res.channels,
-                pixels,
+                channels,
+                self.v.pixels,
                 &lg.wedges,
-                index,
+                bins,
                 &stat,
             );
         }
-        let note =
-            "fill, overdraw, shader invocations and culls from an instrumented replay (WGSL \
-                    atomics), in the cpu-model's terms; mem_est.* estimated from counts and record \
-                    sizes";
+        let note = "fill, overdraw, shader invocations and culls from an instrumented replay \
+                    (WGSL atomics), in the cpu-model's terms; mem_est.* estimated from counts and \
+                    record sizes";
         let mut out = timing.output((rays.width, rays.height), per_phase, note);
         out.rgb = rgb;
         Ok(out)
@@ -430,7 +388,16 @@ impl<'g> Passes<'g> {
     /// `hard`: fill and overdraw as on the cpu executions (quad fragments within the scene
     /// bounds, and those behind the visible surface), and estimated traffic: rays of every
     /// pixel, quad records per test, the bins, a depth read per fragment, the count written.
-    fn hard_counters(&self, k: &mut Counters, lg: &LoopGpu, stat: &dyn Fn(Stat) -> f64) {
+    fn hard_counters(
+        &self,
+        k: &mut Counters,
+        lr: &LoopRun,
+        lg: &LoopGpu,
+        stat: &dyn Fn(Stat) -> f64,
+    ) {
+        if let Some(n) = lr.silhouette_edges {
+            k.add("silhouette_edges", n as f64);
+        }
         let [fill, passed, tests] = [Stat::HardFill, Stat::HardPassed, Stat::HardTests].map(stat);
         k.add("fill", fill);
         k.add("overdraw", fill - passed);
@@ -476,14 +443,16 @@ pub(super) fn soft_counters(
     index: (&str, f64),
     stat: &dyn Fn(Stat) -> f64,
 ) {
-    let (fill, front, inside, covered, contributing, tests) = (
-        stat(Stat::SoftFill),
-        stat(Stat::SoftFront),
-        stat(Stat::SoftInside),
-        stat(Stat::SoftCovered),
-        stat(Stat::SoftContributing),
-        stat(Stat::SoftTests),
-    );
+    use Stat::*;
+    let [fill, front, inside, covered, contributing, tests] = [
+        SoftFill,
+        SoftFront,
+        SoftInside,
+        SoftCovered,
+        SoftContributing,
+        SoftTests,
+    ]
+    .map(stat);
     let (raster_fill, shaded, culled, stencil_read, stencil_write) = if opts.wedge_culling {
         (2.0 * fill, inside, fill - inside, fill, 2.0 * front)
     } else {
@@ -504,11 +473,8 @@ pub(super) fn soft_counters(
     k.add("coverage_texture_reads", texture_reads);
     // Bytes: one per channel of each texel read.
     let texture_reads = texture_reads * f64::from(channels);
-    let per_plane = if w.prims > 0 {
-        w.planes as f64 / w.prims as f64
-    } else {
-        0.0
-    };
+    // Planes per primitive (none without primitives).
+    let per_plane = w.planes as f64 / (w.prims as f64).max(1.0);
     let rays = (RAY_BYTES * pixels) as f64;
     let prims = tests * (PRIM_BYTES as f64 + per_plane * PLANE_BYTES as f64);
     let quads = QUAD_BYTES as f64 * inside;
