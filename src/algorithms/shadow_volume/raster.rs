@@ -179,6 +179,62 @@ struct StencilCount {
     lit: [wgpu::RenderPipeline; 1],
 }
 
+impl StencilCount {
+    /// The pipelines over `program`'s count entries: vertices of `attributes`, the depth test
+    /// `test`, the accumulation blended by `blend`.
+    fn new(
+        gpu: &Gpu,
+        program: &Program,
+        attributes: &[wgpu::VertexAttribute],
+        test: wgpu::CompareFunction,
+        blend: Option<wgpu::ColorTargetState>,
+    ) -> StencilCount {
+        let depth_format = DepthTarget::StencilCount.format();
+        let face = |compare, pass_op| wgpu::StencilFaceState {
+            compare,
+            pass_op,
+            ..Default::default()
+        };
+        let quad = |vs, pass_op| {
+            program.render(
+                gpu,
+                &Raster {
+                    vs,
+                    fs: "fs_quad",
+                    vertex: per_vertex(attributes),
+                    depth: Some(test),
+                    depth_format,
+                    stencil: stencil_state(face(wgpu::CompareFunction::Always, pass_op)),
+                    depth_write: false,
+                    color: Some(no_color(TARGET_FORMAT)),
+                    instrument: Some(false),
+                    ..Raster::default()
+                },
+            )
+        };
+        let keep = wgpu::StencilOperation::Keep;
+        StencilCount {
+            quads: [
+                quad("vs_quad_up", wgpu::StencilOperation::IncrementWrap),
+                quad("vs_quad_down", wgpu::StencilOperation::DecrementWrap),
+            ],
+            lit: [program.render(
+                gpu,
+                &Raster {
+                    vs: "vs_full",
+                    fs: "fs_lit",
+                    depth: Some(wgpu::CompareFunction::Always),
+                    depth_format,
+                    stencil: stencil_state(face(wgpu::CompareFunction::Equal, keep)),
+                    depth_write: false,
+                    color: blend,
+                    ..Raster::default()
+                },
+            )],
+        }
+    }
+}
+
 /// The textures, bind groups and pipelines of the raster hard pass over one frame, created once
 /// and reused for every light point.
 pub(crate) struct HardRaster<'g> {
@@ -284,56 +340,8 @@ impl<'g> HardRaster<'g> {
                 },
             )
         });
-        let stencil = (target == DepthTarget::StencilCount).then(|| {
-            let op = |pass_op| {
-                let face = wgpu::StencilFaceState {
-                    compare: wgpu::CompareFunction::Always,
-                    pass_op,
-                    ..Default::default()
-                };
-                stencil_state(face)
-            };
-            let quad = |vs, pass_op| {
-                program.render(
-                    gpu,
-                    &Raster {
-                        vs,
-                        fs: "fs_quad",
-                        vertex: per_vertex(&attributes),
-                        depth: Some(test),
-                        depth_format,
-                        stencil: op(pass_op),
-                        depth_write: false,
-                        color: Some(no_color(TARGET_FORMAT)),
-                        instrument: Some(false),
-                        ..Raster::default()
-                    },
-                )
-            };
-            let lit = wgpu::StencilFaceState {
-                compare: wgpu::CompareFunction::Equal,
-                ..Default::default()
-            };
-            StencilCount {
-                quads: [
-                    quad("vs_quad_up", wgpu::StencilOperation::IncrementWrap),
-                    quad("vs_quad_down", wgpu::StencilOperation::DecrementWrap),
-                ],
-                lit: [program.render(
-                    gpu,
-                    &Raster {
-                        vs: "vs_full",
-                        fs: "fs_lit",
-                        depth: Some(wgpu::CompareFunction::Always),
-                        depth_format,
-                        stencil: stencil_state(lit),
-                        depth_write: false,
-                        color: blend.clone(),
-                        ..Raster::default()
-                    },
-                )],
-            }
-        });
+        let stencil = (target == DepthTarget::StencilCount)
+            .then(|| StencilCount::new(gpu, &program, &attributes, test, blend.clone()));
         HardRaster {
             stencil,
             depth_pipeline: program.render(
