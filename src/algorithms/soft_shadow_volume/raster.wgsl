@@ -45,10 +45,7 @@ fn wedge_fragment(pos: vec4f, prim: u32) -> WedgeSample {
 @fragment
 fn fs_wedge(in: WedgeOut) -> @location(0) vec4f {
     let w = wedge_fragment(in.pos, in.prim);
-    if w.reached != REACHED_COVERED {
-        discard;
-    }
-    return vec4f(-w.side * w.c3, 0.0);
+    return select(vec4f(0.0), vec4f(-w.side * w.c3, 0.0), w.reached == REACHED_COVERED);
 }
 
 // The split 12-bit V-buffer (IV §4.3, `split12`): the coverage's four 3-bit digits into the
@@ -56,10 +53,8 @@ fn fs_wedge(in: WedgeOut) -> @location(0) vec4f {
 // 8-bit blend saturating as `split12::blend`.
 fn split_fragment(in: WedgeOut, inner: bool) -> vec4f {
     let w = wedge_fragment(in.pos, in.prim);
-    if w.reached != REACHED_COVERED || (w.side < 0.0) != inner {
-        discard;
-    }
-    return vec4f(split12(w.c3.x)) / 255.0;
+    let adds = w.reached == REACHED_COVERED && (w.side < 0.0) == inner;
+    return select(vec4f(0.0), vec4f(split12(w.c3.x)) / 255.0, adds);
 }
 
 @fragment
