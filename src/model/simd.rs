@@ -63,6 +63,23 @@ impl Mask {
         }
     }
 
+    /// The mask of the lanes where `lanes[l]` is true (a compare's result; built without a
+    /// branch per lane).
+    #[inline]
+    pub fn from_lanes(lanes: &[bool; LANES]) -> Mask {
+        let mut m = 0u16;
+        for (l, &on) in lanes.iter().enumerate() {
+            m |= u16::from(on) << l;
+        }
+        Mask(m)
+    }
+
+    /// The mask as one bool per lane (for selects over all lanes).
+    #[inline]
+    pub fn to_lanes(self) -> [bool; LANES] {
+        std::array::from_fn(|l| self.0 >> l & 1 == 1)
+    }
+
     pub fn get(self, lane: usize) -> bool {
         self.0 >> lane & 1 == 1
     }
@@ -165,6 +182,10 @@ mod tests {
         assert_eq!(Mask::first(5).count(), 5);
         assert_eq!(Mask::first(16), Mask::ALL);
         assert_eq!(Mask::ALL.and_not(m).count(), 10);
+        let lanes = m.to_lanes();
+        assert_eq!(lanes.iter().filter(|&&b| b).count(), 6);
+        assert!(lanes[0] && lanes[15] && !lanes[1]);
+        assert_eq!(Mask::from_lanes(&lanes), m);
     }
 
     #[test]
