@@ -447,10 +447,10 @@ struct Project<'a> {
     lf: &'a LightFrame,
     ssm: &'a Surface,
     receives: &'a [bool],
-    position: Buffer<Vec3>,
-    normal: Buffer<Vec3>,
-    triangle: Buffer<u32>,
-    object: Buffer<u32>,
+    position: Buffer<Vec3, &'a [Vec3]>,
+    normal: Buffer<Vec3, &'a [Vec3]>,
+    triangle: Buffer<u32, &'a [u32]>,
+    object: Buffer<u32, &'a [u32]>,
     visibility: Buffer<f32>,
 }
 
@@ -532,12 +532,12 @@ fn project(
         lf,
         ssm,
         receives: &split.receives,
-        position: m.memory.buffer("gbuffer.position", g.position.clone()),
-        normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
-        triangle: m.memory.buffer("gbuffer.triangle", g.triangle.clone()),
+        position: m.memory.borrowed("gbuffer.position", &g.position),
+        normal: m.memory.borrowed("gbuffer.normal", &g.normal),
+        triangle: m.memory.borrowed("gbuffer.triangle", &g.triangle),
         object: m
             .memory
-            .buffer("object_of_triangle", frame.flat.object_of_triangle.clone()),
+            .borrowed("object_of_triangle", &frame.flat.object_of_triangle),
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
     let weights = eye_tiles(frame).tile_weights(|i| g.is_hit(i));
