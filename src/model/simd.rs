@@ -100,9 +100,17 @@ impl Mask {
         Mask(self.0 & !o.0)
     }
 
-    /// Active lanes, lowest first.
+    /// Active lanes, lowest first (one step per active lane: the next set bit).
+    #[inline]
     pub fn lanes(self) -> impl Iterator<Item = usize> {
-        (0..LANES).filter(move |&l| self.get(l))
+        let mut bits = self.0;
+        std::iter::from_fn(move || {
+            (bits != 0).then(|| {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                l
+            })
+        })
     }
 }
 

@@ -225,27 +225,24 @@ impl<L: Lookup> EyePass<'_, L> {
             let i = (y * w + x0) as usize;
             let pos = self.position.load_run(p, i, n);
             let nrm = self.normal.load_run(p, i, n);
+            // Every lane of the row computed, its results selected in by its mask (no branch
+            // per lane); the lanes a receiver does not need keep the zeros they start with.
             for c in 0..n {
                 let lane = (row * BLOCK) as usize + c;
-                if !g.is_hit(i + c) || !self.map.face.owns(pos[c]) {
-                    continue;
-                }
-                let Some((uv, _, z)) = self.map.view.project(pos[c]) else {
-                    continue;
-                };
-                let n_dot_l = nrm[c].dot((self.light - pos[c]).normalize_or_zero());
-                if n_dot_l <= 0.0 {
-                    r.averted.0 |= 1 << lane;
-                    if L::AVERTED_IN_SHADOW {
-                        continue;
-                    }
-                }
-                r.mask.0 |= 1 << lane;
-                r.position[lane] = pos[c];
-                r.normal[lane] = nrm[c];
-                r.uv[lane] = uv;
-                r.z[lane] = z;
-                r.bias[lane] = self.bias.at(&self.map.view, z, n_dot_l);
+                let (q, nq) = (pos[c], nrm[c]);
+                let (uv, _, z, front) = self.map.view.project_lane(q);
+                let n_dot_l = nq.dot((self.light - q).normalize_or_zero());
+                let seen = g.is_hit(i + c) && self.map.face.owns(q) && front;
+                let averted = seen && n_dot_l <= 0.0;
+                let active = seen && (!averted || !L::AVERTED_IN_SHADOW);
+                r.averted.0 |= u16::from(averted) << lane;
+                r.mask.0 |= u16::from(active) << lane;
+                let bias = self.bias.at(&self.map.view, z, n_dot_l);
+                r.position[lane] = if active { q } else { Vec3::ZERO };
+                r.normal[lane] = if active { nq } else { Vec3::ZERO };
+                r.uv[lane] = if active { uv } else { Vec2::ZERO };
+                r.z[lane] = if active { z } else { 0.0 };
+                r.bias[lane] = if active { bias } else { 0.0 };
             }
         }
         p.vector(RECEIVER_OPS, r.mask);

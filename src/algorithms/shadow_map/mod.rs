@@ -317,12 +317,23 @@ impl LightView {
     /// Map coordinates of `p`: (u, v) in [0, 1]² with v down, NDC depth in [0, 1], and linear
     /// depth. `None` when `p` is behind the light.
     pub fn project(&self, p: Vec3) -> Option<(Vec2, f32, f32)> {
+        let (uv, ndc_z, z, front) = self.project_lane(p);
+        front.then_some((uv, ndc_z, z))
+    }
+
+    /// [`Self::project`] without a branch, for lane code: the map coordinates, NDC depth and
+    /// linear depth computed whatever `p` is, and whether `p` is in front of the light (where
+    /// they mean something).
+    #[inline]
+    pub fn project_lane(&self, p: Vec3) -> (Vec2, f32, f32, bool) {
         let c = self.view_proj * p.extend(1.0);
-        if c.w <= 0.0 {
-            return None;
-        }
         let ndc = c.xyz() / c.w;
-        Some((Vec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5), ndc.z, c.w))
+        (
+            Vec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5),
+            ndc.z,
+            c.w,
+            c.w > 0.0,
+        )
     }
 
     /// Distance along the view axis for an NDC depth (inverse of the projection's depth).
