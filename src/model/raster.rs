@@ -488,21 +488,18 @@ impl Setup {
         }
     }
 
-    /// Whether pixels [x0, x1) × [y0, y1) lie wholly outside one edge.
+    /// Whether pixels [x0, x1) × [y0, y1) lie wholly outside one edge (all three edges
+    /// evaluated, no branch between them).
+    #[inline]
     fn rejects(&self, x0: u32, y0: u32, x1: u32, y1: u32, coverage: Coverage) -> bool {
-        (0..3).any(|k| {
-            let x = if self.a[k] > 0.0 {
-                f64::from(x1) - 0.5
-            } else {
-                f64::from(x0) + 0.5
-            };
-            let y = if self.b[k] > 0.0 {
-                f64::from(y1) - 0.5
-            } else {
-                f64::from(y0) + 0.5
-            };
+        let (lo_x, hi_x) = (f64::from(x0) + 0.5, f64::from(x1) - 0.5);
+        let (lo_y, hi_y) = (f64::from(y0) + 0.5, f64::from(y1) - 0.5);
+        let outside = |k: usize| {
+            let x = if self.a[k] > 0.0 { hi_x } else { lo_x };
+            let y = if self.b[k] > 0.0 { hi_y } else { lo_y };
             self.edge(k, x, y) + self.slack(k, coverage) < 0.0
-        })
+        };
+        outside(0) | outside(1) | outside(2)
     }
 }
 

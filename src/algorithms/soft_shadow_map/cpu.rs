@@ -233,17 +233,25 @@ impl FragmentKernel for Splat<'_> {
         let block = r.block_index(f.x / BLOCK, f.y / BLOCK);
         r.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
-        let shade = Shade::select(f.mask, 0.0, |l| {
-            let d = r.buf.data[block + l];
-            if d >= 1.0 {
-                return None;
-            }
+        // Every lane computed and kept by mask (no branch per lane): lanes without a receiver
+        // (depth 1) or that the patch does not hide are dropped.
+        let on = f.mask.to_lanes();
+        let depth = &r.buf.data[block..block + LANES];
+        let mut value = [0.0f32; LANES];
+        let mut keep = [false; LANES];
+        for l in 0..LANES {
+            let d = depth[l];
             let (x, y) = f.pixel(l);
             let z_r = self.lf.linear_depth(d);
             let bias = bias_at(self.lf, self.bias_texels, z_r);
             let v = occlusion(self.lf, &patch, self.lf.texel_center(x, y), z_r, bias);
-            (v > 0.0).then_some(v)
-        });
+            keep[l] = on[l] & (d < 1.0 || d.is_nan()) & (v > 0.0);
+            value[l] = if keep[l] { v } else { 0.0 };
+        }
+        let shade = Shade {
+            value,
+            mask: Mask::from_lanes(&keep),
+        };
         *zero += u64::from(f.mask.and_not(shade.mask).count());
         shade
     }
