@@ -241,9 +241,9 @@ impl LightView {
     /// The draw list's part for triangles `range` of `mesh` ([`Self::casters`]), telling `p`
     /// what it executes: per 16 triangles (one per lane) the index load, the vertex gathers
     /// and [`CASTER_CLASSIFY_OPS`] vector instructions; per kept triangle an index store, per
-    /// clipped one its clip and per fan vertex its transform back and
-    /// store. `memory`: the modelled buffers (input vertices, input indices, output indices,
-    /// new vertices), `None` when nothing is counted.
+    /// clipped one its clip, per fan vertex its transform back and store. `memory`: the
+    /// modelled buffers (input vertices and indices, output indices and new vertices), `None`
+    /// when nothing is counted.
     pub fn casters_part<P: Probe>(
         &self,
         p: &mut P,
