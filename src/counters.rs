@@ -148,6 +148,12 @@ pub const COUNTERS: &[Counter] = &[
         "modelled L2 misses (served from DRAM)",
     ),
     c(
+        "casters.triangles",
+        "triangles",
+        Cpu,
+        "triangles on a light pass's draw list (step casters; near-clipped ones as fans)",
+    ),
+    c(
         "coverage_texture_reads",
         "texel reads",
         Wgpu,

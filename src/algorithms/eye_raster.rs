@@ -244,6 +244,12 @@ impl Block {
         Block { x, y, pixel, mask }
     }
 
+    /// Pixel (x, y) of lane `l`: `pixel[l]` as coordinates, without dividing by the width.
+    #[inline]
+    pub fn lane_xy(&self, l: usize) -> (u32, u32) {
+        (self.x + l as u32 % BLOCK, self.y + l as u32 / BLOCK)
+    }
+
     /// The blocks covering `rect` (aligned to the 4×4 grid), lanes restricted to `rect`.
     pub fn cover<'a>(rays: &'a EyeRays, rect: ScreenRect) -> impl Iterator<Item = Block> + 'a {
         let (bx0, by0) = (rect.x0 / BLOCK * BLOCK, rect.y0 / BLOCK * BLOCK);

@@ -36,8 +36,16 @@ impl Memory {
 
     /// A buffer named `name` holding `data`.
     pub fn buffer<T: Copy>(&mut self, name: &str, data: Vec<T>) -> Buffer<T> {
-        let (id, base) = self.reserve(name, (data.len() * size_of::<T>()) as u64);
-        Buffer { id, base, data }
+        Buffer::at(
+            self.reserve(name, size_of_val(data.as_slice()) as u64),
+            data,
+        )
+    }
+
+    /// A buffer named `name` over `data` the host already holds (a frame's G-buffer): the
+    /// modelled machine reads it where it lies, so the host makes no copy of it either.
+    pub fn borrowed<'a, T: Copy>(&mut self, name: &str, data: &'a [T]) -> Buffer<T, &'a [T]> {
+        Buffer::at(self.reserve(name, size_of_val(data) as u64), data)
     }
 
     pub fn name(&self, id: BufferId) -> &str {
@@ -53,15 +61,29 @@ impl Memory {
     }
 }
 
-/// An array in modelled memory: host data plus the id and base address the probe sees.
+/// An array in modelled memory: host data (owned, or borrowed with [`Memory::borrowed`]) plus
+/// the id and base address the probe sees.
 #[derive(Clone, Debug)]
-pub struct Buffer<T> {
+pub struct Buffer<T, D = Vec<T>> {
     pub id: BufferId,
     pub base: u64,
-    pub data: Vec<T>,
+    pub data: D,
+    element: std::marker::PhantomData<T>,
 }
 
-impl<T: Copy + Default> Buffer<T> {
+impl<T, D> Buffer<T, D> {
+    /// `data` at the modelled range `(id, base)` from [`Memory::reserve`].
+    pub fn at((id, base): (BufferId, u64), data: D) -> Buffer<T, D> {
+        Buffer {
+            id,
+            base,
+            data,
+            element: std::marker::PhantomData,
+        }
+    }
+}
+
+impl<T: Copy + Default, D: AsRef<[T]>> Buffer<T, D> {
     pub const ELEMENT: u32 = size_of::<T>() as u32;
 
     pub fn addr(&self, i: usize) -> u64 {
@@ -72,14 +94,14 @@ impl<T: Copy + Default> Buffer<T> {
     #[inline]
     pub fn load<P: Probe>(&self, p: &mut P, i: usize) -> T {
         p.read(self.id, self.addr(i), Self::ELEMENT);
-        self.data[i]
+        self.data.as_ref()[i]
     }
 
     /// A contiguous load of `n` elements from `i` (counted as one access).
     #[inline]
     pub fn load_run<P: Probe>(&self, p: &mut P, i: usize, n: usize) -> &[T] {
         p.read(self.id, self.addr(i), Self::ELEMENT * n as u32);
-        &self.data[i..i + n]
+        &self.data.as_ref()[i..i + n]
     }
 
     /// A gather of elements `idx` on the active lanes; inactive lanes read as `T::default()`.
@@ -89,9 +111,10 @@ impl<T: Copy + Default> Buffer<T> {
             let addrs: Lanes<u64> = std::array::from_fn(|l| self.addr(idx[l] as usize));
             p.gather(self.id, &addrs, Self::ELEMENT, mask);
         }
+        let data = self.data.as_ref();
         let mut out = [T::default(); LANES];
         for l in mask.lanes() {
-            out[l] = self.data[idx[l] as usize];
+            out[l] = data[idx[l] as usize];
         }
         out
     }

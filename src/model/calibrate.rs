@@ -21,9 +21,9 @@
 //!
 //! What the kernels cannot see: how much host work the algorithms' own code does per counted
 //! instruction (the counts are a 16-wide Larrabee's; a counted instruction of the rasterizer's
-//! coverage test is 16 `f64` edge evaluations with a branch each on the host), work outside
-//! the counted steps, branch mispredictions, page faults of new buffers, frequency changes,
-//! and other guests on the same physical cores (`docs/model.md`, "Validation").
+//! coverage test is 16 `f64` edge evaluations on the host, two per SSE2 instruction), work
+//! outside the counted steps, branch mispredictions, page faults of new buffers, frequency
+//! changes, and other guests on the same physical cores (`docs/model.md`, "Validation").
 
 use std::hint::black_box;
 use std::sync::atomic::{AtomicU32, Ordering};

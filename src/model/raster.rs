@@ -488,21 +488,18 @@ impl Setup {
         }
     }
 
-    /// Whether pixels [x0, x1) × [y0, y1) lie wholly outside one edge.
+    /// Whether pixels [x0, x1) × [y0, y1) lie wholly outside one edge (all three edges
+    /// evaluated, no branch between them).
+    #[inline]
     fn rejects(&self, x0: u32, y0: u32, x1: u32, y1: u32, coverage: Coverage) -> bool {
-        (0..3).any(|k| {
-            let x = if self.a[k] > 0.0 {
-                f64::from(x1) - 0.5
-            } else {
-                f64::from(x0) + 0.5
-            };
-            let y = if self.b[k] > 0.0 {
-                f64::from(y1) - 0.5
-            } else {
-                f64::from(y0) + 0.5
-            };
+        let (lo_x, hi_x) = (f64::from(x0) + 0.5, f64::from(x1) - 0.5);
+        let (lo_y, hi_y) = (f64::from(y0) + 0.5, f64::from(y1) - 0.5);
+        let outside = |k: usize| {
+            let x = if self.a[k] > 0.0 { hi_x } else { lo_x };
+            let y = if self.b[k] > 0.0 { hi_y } else { lo_y };
             self.edge(k, x, y) + self.slack(k, coverage) < 0.0
-        })
+        };
+        outside(0) | outside(1) | outside(2)
     }
 }
 
@@ -788,27 +785,34 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
     ) {
         let pl = &self.pipeline;
         let t = &self.target;
+        // Lane code without a branch per lane: every loop below runs over all 16 lanes with
+        // the same operations (compares into a mask, selects), which the compiler turns into
+        // vector instructions.
+        let in_target = block_in_target(t.width - px, t.height - py);
+        let conservative = pl.coverage == Coverage::Conservative;
         let mut e = [[0f64; LANES]; 3];
-        let in_target =
-            Mask::from_fn(|l| px + l as u32 % BLOCK < t.width && py + l as u32 / BLOCK < t.height);
         let mut covered = in_target;
         for (k, ek) in e.iter_mut().enumerate() {
             let slack = s.slack(k, pl.coverage);
-            let m = Mask::from_fn(|l| {
-                let x = f64::from(px + l as u32 % BLOCK) + 0.5;
-                let y = f64::from(py + l as u32 / BLOCK) + 0.5;
+            let tie = s.top_left[k] || conservative;
+            let (x0, y0) = (f64::from(px), f64::from(py));
+            let mut inside = [false; LANES];
+            for l in 0..LANES {
+                let x = x0 + LANE_X[l];
+                let y = y0 + LANE_Y[l];
                 ek[l] = s.edge(k, x, y);
                 let v = ek[l] + slack;
-                v > 0.0 || (v == 0.0 && (s.top_left[k] || pl.coverage == Coverage::Conservative))
-            });
-            covered = covered.and(m);
+                inside[l] = (v > 0.0) | ((v == 0.0) & tie);
+            }
+            covered = covered.and(Mask::from_lanes(&inside));
         }
         p.vector(cost::COVERAGE, Mask::ALL);
         stats.fill += u64::from(covered.count());
         if !covered.any() {
             return;
         }
-        let bary: [Lanes<f32>; 3] = e.map(|ek| ek.map(|v| (v * s.inv_area) as f32));
+        let inv_area = s.inv_area;
+        let bary: [Lanes<f32>; 3] = e.map(|ek| ek.map(|v| (v * inv_area) as f32));
         let (lo, hi) = (s.zmin, s.z[0].max(s.z[1]).max(s.z[2]));
         let z: Lanes<f32> = std::array::from_fn(|l| {
             (bary[0][l] * s.z[0] + bary[1][l] * s.z[1] + bary[2][l] * s.z[2]).clamp(lo, hi)
@@ -823,7 +827,9 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
             d.buf
                 .record_load(p, d.block_index(px / BLOCK, py / BLOCK), LANES);
             p.vector(cost::DEPTH_TEST, covered);
-            mask = covered.and(Mask::from_fn(|l| z[l] < depth[local][l]));
+            let old = &depth[local];
+            let nearer: [bool; LANES] = std::array::from_fn(|l| z[l] < old[l]);
+            mask = covered.and(Mask::from_lanes(&nearer));
             stats.depth_pass += u64::from(mask.count());
             stats.depth_fail += u64::from(covered.and_not(mask).count());
             if !mask.any() {
@@ -845,12 +851,14 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
         if !write.any() {
             return;
         }
+        let lanes = write.to_lanes();
         if let (Some(d), true) = (self.depth, pl.depth_write) {
             p.vector(cost::DEPTH_WRITE, write);
-            for l in write.lanes() {
-                depth[local][l] = z[l];
+            let block = &mut depth[local];
+            for l in 0..LANES {
+                block[l] = if lanes[l] { z[l] } else { block[l] };
             }
-            zmax[local] = depth[local].iter().copied().fold(f32::MIN, f32::max);
+            zmax[local] = block.iter().copied().fold(f32::MIN, f32::max);
             d.buf
                 .record_store(p, d.block_index(px / BLOCK, py / BLOCK), LANES);
         }
@@ -858,10 +866,58 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
             let i = c.block_index(px / BLOCK, py / BLOCK);
             c.buf.record_load(p, i, LANES);
             p.vector(cost::BLEND, write);
-            for l in write.lanes() {
-                color[local][l] = blend.apply(color[local][l], shade.value[l]);
-            }
+            blend_block(blend, &mut color[local], &shade.value, &lanes);
             c.buf.record_store(p, i, LANES);
+        }
+    }
+}
+
+/// Pixel-centre offsets of the lanes of a block from its first pixel: lane `l` is pixel
+/// (l % 4, l / 4) of the block, its centre half a pixel further.
+const LANE_X: Lanes<f64> = [
+    0.5, 1.5, 2.5, 3.5, 0.5, 1.5, 2.5, 3.5, 0.5, 1.5, 2.5, 3.5, 0.5, 1.5, 2.5, 3.5,
+];
+const LANE_Y: Lanes<f64> = [
+    0.5, 0.5, 0.5, 0.5, 1.5, 1.5, 1.5, 1.5, 2.5, 2.5, 2.5, 2.5, 3.5, 3.5, 3.5, 3.5,
+];
+
+/// The lanes of a block inside the target when `cols` pixels remain to its right edge and
+/// `rows` to its bottom edge (counting the block's own first column and row).
+fn block_in_target(cols: u32, rows: u32) -> Mask {
+    let row = (1u16 << cols.min(BLOCK)) - 1;
+    let mut m = 0u16;
+    for r in 0..rows.min(BLOCK) {
+        m |= row << (r * BLOCK);
+    }
+    Mask(m)
+}
+
+/// `target[l] = blend(target[l], value[l])` on the lanes where `write[l]`, the others kept:
+/// one select per lane over the whole block, the blend chosen once.
+fn blend_block(blend: Blend, target: &mut Lanes<f32>, value: &Lanes<f32>, write: &[bool; LANES]) {
+    fn each(
+        target: &mut Lanes<f32>,
+        value: &Lanes<f32>,
+        write: &[bool; LANES],
+        f: impl Fn(f32, f32) -> f32,
+    ) {
+        for l in 0..LANES {
+            let new = f(target[l], value[l]);
+            target[l] = if write[l] { new } else { target[l] };
+        }
+    }
+    match blend {
+        Blend::Replace => each(target, value, write, |_, v| v),
+        Blend::Add => each(target, value, write, |o, v| o + v),
+        Blend::Min => each(target, value, write, f32::min),
+        Blend::Max => each(target, value, write, f32::max),
+        // Half-float rounding is scalar work (a conversion and a compare per lane).
+        Blend::AddHalf => {
+            for l in 0..LANES {
+                if write[l] {
+                    target[l] = blend.apply(target[l], value[l]);
+                }
+            }
         }
     }
 }

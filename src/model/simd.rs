@@ -63,6 +63,23 @@ impl Mask {
         }
     }
 
+    /// The mask of the lanes where `lanes[l]` is true (a compare's result; built without a
+    /// branch per lane).
+    #[inline]
+    pub fn from_lanes(lanes: &[bool; LANES]) -> Mask {
+        let mut m = 0u16;
+        for (l, &on) in lanes.iter().enumerate() {
+            m |= u16::from(on) << l;
+        }
+        Mask(m)
+    }
+
+    /// The mask as one bool per lane (for selects over all lanes).
+    #[inline]
+    pub fn to_lanes(self) -> [bool; LANES] {
+        std::array::from_fn(|l| self.0 >> l & 1 == 1)
+    }
+
     pub fn get(self, lane: usize) -> bool {
         self.0 >> lane & 1 == 1
     }
@@ -83,9 +100,17 @@ impl Mask {
         Mask(self.0 & !o.0)
     }
 
-    /// Active lanes, lowest first.
+    /// Active lanes, lowest first (one step per active lane: the next set bit).
+    #[inline]
     pub fn lanes(self) -> impl Iterator<Item = usize> {
-        (0..LANES).filter(move |&l| self.get(l))
+        let mut bits = self.0;
+        std::iter::from_fn(move || {
+            (bits != 0).then(|| {
+                let l = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                l
+            })
+        })
     }
 }
 
@@ -165,6 +190,10 @@ mod tests {
         assert_eq!(Mask::first(5).count(), 5);
         assert_eq!(Mask::first(16), Mask::ALL);
         assert_eq!(Mask::ALL.and_not(m).count(), 10);
+        let lanes = m.to_lanes();
+        assert_eq!(lanes.iter().filter(|&&b| b).count(), 6);
+        assert!(lanes[0] && lanes[15] && !lanes[1]);
+        assert_eq!(Mask::from_lanes(&lanes), m);
     }
 
     #[test]

@@ -48,10 +48,9 @@ impl TaskKernel for Accumulate<'_> {
             self.accumulation.read(p, &b, b.mask);
             p.vector(ACCUMULATE_OPS, b.mask);
             for l in b.mask.lanes() {
-                let i = b.pixel[l];
-                let (x, y) = (i % self.rays.width, i / self.rays.width);
+                let (x, y) = b.lane_xy(l);
                 sums[((y - rect.y0) * w + x - rect.x0) as usize] +=
-                    u32::from(self.pass.count[i as usize] == 0);
+                    u32::from(self.pass.count[b.pixel[l] as usize] == 0);
             }
             self.accumulation.write(p, &b, b.mask);
         }

@@ -28,7 +28,8 @@ use super::{
 };
 use crate::algorithms::exec::{machine, output, scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::cpu::{
-    eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap, COMPARE_OPS,
+    casters, eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
+    COMPARE_OPS,
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
@@ -787,7 +788,8 @@ fn draw_volume(
 /// Phase `dbuffer`.
 pub fn dbuffer(m: &mut Machine, frame: &Frame, face: &FaceView, v: &Volumes) -> DBuffer {
     m.phase("dbuffer");
-    let scene = raster_shadow_map(m, frame, face, &face.view.casters(&frame.flat.mesh));
+    let mesh = casters(m, &face.view, &frame.flat.mesh);
+    let scene = raster_shadow_map(m, frame, face, mesh);
     // The scene's draw is the |cx_o| channel; fill and overdraw count the volumes.
     let (scene_fill, scene_over) = (m.counter("fill"), m.counter("overdraw"));
     m.count("fill", -scene_fill);

@@ -22,19 +22,22 @@ const BLOCKER_ACCUMULATE_OPS: u32 = 2;
 struct PcssLookup {
     options: PcssOptions,
     light_radius: f32,
+    /// The blocker search's and the filter's tap offsets on the unit disc ([`vogel_disk`]):
+    /// constants of the pass, as a shader holds them.
+    search_taps: Vec<Vec2>,
+    filter_taps: Vec<Vec2>,
 }
 
 impl Lookup for PcssLookup {
     fn visibility<P: Probe>(&self, p: &mut P, map: &ShadowMap, r: &Receivers) -> Lanes<f32> {
         let view = &map.view;
-        let (nb, nf) = (self.options.blocker_samples, self.options.pcf_samples);
+        let nf = self.options.pcf_samples;
         // Step 1: blocker search.
         let search: Lanes<f32> = std::array::from_fn(|l| {
             pcss_search_radius_uv(view, self.light_radius, r.z[l].max(view.near))
         });
         let (mut sum, mut count) = ([0f32; LANES], [0u32; LANES]);
-        for i in 0..nb {
-            let o = vogel_disk(i, nb);
+        for &o in &self.search_taps {
             let uv: Lanes<Vec2> = std::array::from_fn(|l| r.uv[l] + o * search[l]);
             let (d, inside) = map.tap(p, &uv, r.mask);
             p.vector(COMPARE_OPS + BLOCKER_ACCUMULATE_OPS, inside);
@@ -59,8 +62,7 @@ impl Lookup for PcssLookup {
         // Step 3: percentage-closer filter.
         let mut lit_taps = [0u32; LANES];
         if filtering.any() {
-            for i in 0..nf {
-                let o = vogel_disk(i, nf);
+            for &o in &self.filter_taps {
                 let uv: Lanes<Vec2> = std::array::from_fn(|l| r.uv[l] + o * radius[l]);
                 let (d, inside) = map.tap(p, &uv, filtering);
                 p.vector(COMPARE_OPS + 1, filtering);
@@ -86,9 +88,12 @@ pub fn render(
     ctx: &ExecContext,
     options: &PcssOptions,
 ) -> Result<FrameOutput> {
+    let (nb, nf) = (options.blocker_samples, options.pcf_samples);
     let lookup = PcssLookup {
         options: *options,
         light_radius: frame.scene.light.size(),
+        search_taps: (0..nb).map(|i| vogel_disk(i, nb)).collect(),
+        filter_taps: (0..nf).map(|i| vogel_disk(i, nf)).collect(),
     };
     Ok(render_views(backend, frame, ctx, options.bias, &lookup))
 }

@@ -17,8 +17,8 @@ use super::{
 };
 use crate::algorithms::exec::{machine, output, scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::cpu::{
-    eye_lookup, raster_shadow_map, texel_indices, umbra_test, Lookup, Receivers, ShadowMap,
-    COMPARE_OPS,
+    casters, eye_lookup, raster_shadow_map, texel_indices, umbra_test, Lookup, Receivers,
+    ShadowMap, COMPARE_OPS,
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
@@ -397,12 +397,8 @@ pub fn render(
     let views = LightViews::fit(frame, ViewFit::Single);
     let face = &views.views[0];
     m.phase("shadow_map");
-    let shadow = raster_shadow_map(
-        &mut m,
-        frame,
-        face,
-        &face.view.casters(&geometry.shadow_map),
-    );
+    let mesh = casters(&mut m, &face.view, &geometry.shadow_map);
+    let shadow = raster_shadow_map(&mut m, frame, face, mesh);
     let light = frame.scene.light.center();
     let light_radius = frame.scene.light.size();
     let adj = EdgeAdjacency::build(&geometry.occluders);

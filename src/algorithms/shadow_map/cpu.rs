@@ -6,12 +6,17 @@
 use glam::{Vec2, Vec3};
 
 use super::texel;
-use super::{Bias, FaceView, LightView, LightViews, ViewFit};
+use super::{
+    assemble_casters, Bias, CasterBuffers, CastersPart, FaceView, LightView, LightViews, ViewFit,
+    FAN_TRIANGLES_MAX, FAN_VERTICES_MAX,
+};
 use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
-use crate::model::{Buffer, Lanes, Machine, Mask, Probe, LANES};
+use crate::model::{
+    task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES,
+};
 use crate::scene::Mesh;
 use crate::visibility::VisibilityBuffer;
 
@@ -27,22 +32,70 @@ pub struct ShadowMap {
 /// meets `face`'s frustum, nearest kept.
 pub fn light_raster(m: &mut Machine, frame: &Frame, face: &FaceView) -> ShadowMap {
     m.phase(&face.phase("light_raster"));
-    raster_shadow_map(m, frame, face, &face.view.casters(&frame.flat.mesh))
+    let mesh = casters(m, &face.view, &frame.flat.mesh);
+    raster_shadow_map(m, frame, face, mesh)
+}
+
+/// Triangles per task of the `casters` step.
+const CASTER_CHUNK: usize = 1024;
+
+/// The `casters` step: [`LightView::casters_part`] over chunks of the scene's triangles.
+struct Casters<'a> {
+    view: &'a LightView,
+    mesh: &'a Mesh,
+    buffers: CasterBuffers,
+}
+
+impl TaskKernel for Casters<'_> {
+    type Out = CastersPart;
+
+    fn run<P: Probe>(&self, p: &mut P, task: usize) -> CastersPart {
+        let range = task_items(task, CASTER_CHUNK, self.mesh.triangles.len());
+        self.view
+            .casters_part(p, self.mesh, Some(&self.buffers), range)
+    }
+}
+
+/// Step `casters` of the current phase: the light pass's draw list for `mesh` in `view`
+/// ([`LightView::casters`]: triangles outside the frustum culled, those reaching nearer the
+/// light than the near plane clipped to it), [`CASTER_CHUNK`] triangles a task; counts
+/// `casters.triangles` (the draw list's triangles).
+pub fn casters(m: &mut Machine, view: &LightView, mesh: &Mesh) -> Mesh {
+    let n = mesh.triangles.len();
+    let tri_bytes = size_of::<[u32; 3]>() as u64;
+    let vertex_bytes = size_of::<Vec3>() as u64;
+    let buffers = CasterBuffers {
+        positions: m
+            .memory
+            .reserve("scene.vertices", mesh.positions.len() as u64 * vertex_bytes),
+        indices: m.memory.reserve("scene.indices", n as u64 * tri_bytes),
+        out_indices: m
+            .memory
+            .reserve("casters.indices", n as u64 * FAN_TRIANGLES_MAX * tri_bytes),
+        out_positions: m.memory.reserve(
+            "casters.vertices",
+            n as u64 * FAN_VERTICES_MAX * vertex_bytes,
+        ),
+    };
+    let step = Casters {
+        view,
+        mesh,
+        buffers,
+    };
+    let parts = m.run_step("casters", &step, &task_weights(n, CASTER_CHUNK));
+    let out = assemble_casters(mesh, parts);
+    m.count("casters.triangles", out.triangles.len() as f64);
+    out
 }
 
 /// The light pass in the current phase: `mesh` (the scene's triangles that meet the view, or a
 /// stand-in for them) rasterized from the light centre into `face`'s view, nearest NDC depth
 /// kept (the first pass of the penumbra map too).
-pub fn raster_shadow_map(
-    m: &mut Machine,
-    frame: &Frame,
-    face: &FaceView,
-    mesh: &Mesh,
-) -> ShadowMap {
+pub fn raster_shadow_map(m: &mut Machine, frame: &Frame, face: &FaceView, mesh: Mesh) -> ShadowMap {
     let res = frame.params.map_resolution;
     let view = face.view;
-    let positions = m.memory.buffer("vertices", mesh.positions.clone());
-    let triangles = m.memory.buffer("indices", mesh.triangles.clone());
+    let positions = m.memory.buffer("vertices", mesh.positions);
+    let triangles = m.memory.buffer("indices", mesh.triangles);
     let target = Target::square(res, frame.params.tile_size);
     let geometry = Geometry {
         positions: &positions,
@@ -144,8 +197,8 @@ struct EyePass<'a, L> {
     light: Vec3,
     bias: Bias,
     lookup: &'a L,
-    position: Buffer<Vec3>,
-    normal: Buffer<Vec3>,
+    position: Buffer<Vec3, &'a [Vec3]>,
+    normal: Buffer<Vec3, &'a [Vec3]>,
     visibility: Buffer<f32>,
 }
 
@@ -172,27 +225,24 @@ impl<L: Lookup> EyePass<'_, L> {
             let i = (y * w + x0) as usize;
             let pos = self.position.load_run(p, i, n);
             let nrm = self.normal.load_run(p, i, n);
+            // Every lane of the row computed, its results selected in by its mask (no branch
+            // per lane); the lanes a receiver does not need keep the zeros they start with.
             for c in 0..n {
                 let lane = (row * BLOCK) as usize + c;
-                if !g.is_hit(i + c) || !self.map.face.owns(pos[c]) {
-                    continue;
-                }
-                let Some((uv, _, z)) = self.map.view.project(pos[c]) else {
-                    continue;
-                };
-                let n_dot_l = nrm[c].dot((self.light - pos[c]).normalize_or_zero());
-                if n_dot_l <= 0.0 {
-                    r.averted.0 |= 1 << lane;
-                    if L::AVERTED_IN_SHADOW {
-                        continue;
-                    }
-                }
-                r.mask.0 |= 1 << lane;
-                r.position[lane] = pos[c];
-                r.normal[lane] = nrm[c];
-                r.uv[lane] = uv;
-                r.z[lane] = z;
-                r.bias[lane] = self.bias.at(&self.map.view, z, n_dot_l);
+                let (q, nq) = (pos[c], nrm[c]);
+                let (uv, _, z, front) = self.map.view.project_lane(q);
+                let n_dot_l = nq.dot((self.light - q).normalize_or_zero());
+                let seen = g.is_hit(i + c) && self.map.face.owns(q) && front;
+                let averted = seen && n_dot_l <= 0.0;
+                let active = seen && (!averted || !L::AVERTED_IN_SHADOW);
+                r.averted.0 |= u16::from(averted) << lane;
+                r.mask.0 |= u16::from(active) << lane;
+                let bias = self.bias.at(&self.map.view, z, n_dot_l);
+                r.position[lane] = if active { q } else { Vec3::ZERO };
+                r.normal[lane] = if active { nq } else { Vec3::ZERO };
+                r.uv[lane] = if active { uv } else { Vec2::ZERO };
+                r.z[lane] = if active { z } else { 0.0 };
+                r.bias[lane] = if active { bias } else { 0.0 };
             }
         }
         p.vector(RECEIVER_OPS, r.mask);
@@ -253,8 +303,8 @@ pub fn eye_lookup<L: Lookup>(
         light: frame.scene.light.center(),
         bias,
         lookup,
-        position: m.memory.buffer("gbuffer.position", g.position.clone()),
-        normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
+        position: m.memory.borrowed("gbuffer.position", &g.position),
+        normal: m.memory.borrowed("gbuffer.normal", &g.normal),
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
     let weights = eye_tiles(frame).tile_weights(|i| g.is_hit(i) && map.face.owns(g.position[i]));

@@ -15,15 +15,18 @@ pub mod wgpu;
 
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
+use crate::model::{lane_groups, BufferId, Lanes, NoProbe, Probe};
 use crate::scene::camera::{look_at, perspective};
-use crate::scene::polygon::clip_half_plane;
 use crate::scene::{Light, Mesh};
 
 /// The texel of the map that holds `uv` (nearest), or `None` outside the map, where nothing
 /// was rasterized and the receiver counts as lit.
 pub fn texel(view: &LightView, uv: Vec2) -> Option<(u32, u32)> {
     let r = view.resolution as f32;
-    let (x, y) = ((uv.x * r).floor(), (uv.y * r).floor());
+    let (x, y) = (uv.x * r, uv.y * r);
+    // ⌊x⌋ lies in [0, r) exactly when x does (r is a whole number), and there ⌊x⌋ is the
+    // truncation `as u32` does: the same texel as flooring first (as the WGSL mirror does),
+    // without a call to `floor` (a library call on baseline x86-64) per tap.
     (x >= 0.0 && y >= 0.0 && x < r && y < r).then_some((x as u32, y as u32))
 }
 
@@ -137,37 +140,90 @@ impl LightView {
         depth > 0.0 && tan <= self.tan_half_fov
     }
 
-    /// The part of triangle `tri` inside the frustum's side planes between the light and the
-    /// far plane (Sutherland–Hodgman in view space, winding kept), empty when none is.
-    fn clip_to_frustum(&self, tri: [Vec3; 3]) -> Vec<Vec3> {
+    /// The six clip-plane values of view-space `v`, each ≥ 0 inside: in front of the light,
+    /// before the far plane, and the four side planes.
+    #[inline]
+    fn plane_values(&self, v: Vec3) -> [f32; 6] {
         let t = self.tan_half_fov;
-        let far = self.far;
-        let planes: [&dyn Fn(Vec3) -> f32; 6] = [
-            &|v: Vec3| -v.z,
-            &|v: Vec3| far + v.z,
-            &|v: Vec3| -v.z * t - v.x,
-            &|v: Vec3| -v.z * t + v.x,
-            &|v: Vec3| -v.z * t - v.y,
-            &|v: Vec3| -v.z * t + v.y,
-        ];
-        let mut poly: Vec<Vec3> = tri.iter().map(|&p| self.view.transform_point3(p)).collect();
-        for f in planes {
-            poly = clip_half_plane(&poly, f);
-            if poly.is_empty() {
+        [
+            -v.z,
+            self.far + v.z,
+            -v.z * t - v.x,
+            -v.z * t + v.x,
+            -v.z * t - v.y,
+            -v.z * t + v.y,
+        ]
+    }
+
+    /// Where view-space triangle `v` lies against the clip planes, decided from its three
+    /// vertices: [`FrustumClass::Inside`] when every vertex is inside every plane,
+    /// [`FrustumClass::Outside`] when all three are outside the first plane (in
+    /// [`Self::plane_values`] order) that not all of them are inside, else
+    /// [`FrustumClass::Crosses`]. The first two are exactly what [`Self::clip_to_frustum`]
+    /// returns for them (the polygon reaches that plane unclipped), so only the third needs
+    /// the clip.
+    fn classify(&self, v: &[Vec3; 3]) -> FrustumClass {
+        let f = v.map(|v| self.plane_values(v));
+        for k in 0..6 {
+            let inside = f.map(|f| f[k] >= 0.0);
+            if inside == [true; 3] {
+                continue;
+            }
+            return if inside == [false; 3] {
+                FrustumClass::Outside
+            } else {
+                FrustumClass::Crosses
+            };
+        }
+        FrustumClass::Inside
+    }
+
+    /// The part of view-space triangle `v` inside the frustum's side planes between the light
+    /// and the far plane (Sutherland–Hodgman in view space, winding kept), empty when none is;
+    /// and the scalar instructions the clip took.
+    fn clip_to_frustum(&self, v: [Vec3; 3]) -> (ClipPolygon, u32) {
+        let mut poly = ClipPolygon::triangle(v);
+        let mut ops = 0;
+        for k in 0..6 {
+            let mut out = ClipPolygon::default();
+            let n = poly.len;
+            for i in 0..n {
+                let (a, b) = (poly.v[i], poly.v[(i + 1) % n]);
+                let (fa, fb) = (self.plane_values(a)[k], self.plane_values(b)[k]);
+                ops += CLIP_VERTEX_SCALAR;
+                if fa >= 0.0 {
+                    out.push(a);
+                    ops += CLIP_KEEP_SCALAR;
+                }
+                if (fa >= 0.0) != (fb >= 0.0) {
+                    out.push(a + (b - a) * (fa / (fa - fb)));
+                    ops += CLIP_NEW_SCALAR;
+                }
+            }
+            poly = out;
+            if poly.len == 0 {
                 break;
             }
         }
-        poly
+        (poly, ops)
     }
 
     /// The smallest depth of the part of triangle `tri` inside the frustum's side planes between
     /// the light and the far plane, or `None` when no part of it is inside: the triangle can
     /// neither shadow a receiver of this view nor appear in its map.
     pub fn caster_depth(&self, tri: [Vec3; 3]) -> Option<f32> {
-        self.clip_to_frustum(tri)
-            .iter()
-            .map(|v| -v.z)
-            .reduce(f32::min)
+        let v = tri.map(|p| self.view.transform_point3(p));
+        match self.classify(&v) {
+            FrustumClass::Outside => None,
+            FrustumClass::Inside => v.iter().map(|v| -v.z).reduce(f32::min),
+            FrustumClass::Crosses => self
+                .clip_to_frustum(v)
+                .0
+                .as_slice()
+                .iter()
+                .map(|v| -v.z)
+                .reduce(f32::min),
+        }
     }
 
     /// The draw list of the light pass for `mesh`, built on the host as engines build a shadow
@@ -175,45 +231,109 @@ impl LightView {
     /// the near plane drawn as they are, and the few that reach nearer the light than the near
     /// plane (e.g. a wall through the light's plane, whose near part lies outside the frustum)
     /// drawn as their part inside the frustum (a fan, new vertices appended), so the rasterizer
-    /// never clips away a part that lies in the map.
+    /// never clips away a part that lies in the map. The same work as the `casters` step of
+    /// the CPU executions ([`cpu::casters`]), run here in one piece without counting.
     pub fn casters(&self, mesh: &Mesh) -> Mesh {
+        let part = self.casters_part(&mut NoProbe, mesh, None, 0..mesh.triangles.len());
+        assemble_casters(mesh, vec![part])
+    }
+
+    /// The draw list's part for triangles `range` of `mesh` ([`Self::casters`]), telling `p`
+    /// what it executes: per 16 triangles (one per lane) the index load, the vertex gathers
+    /// and [`CASTER_CLASSIFY_OPS`] vector instructions; per kept triangle an index store, per
+    /// clipped one its clip, per fan vertex its transform back and store. `memory`: the
+    /// modelled buffers (input vertices and indices, output indices and new vertices), `None`
+    /// when nothing is counted.
+    pub fn casters_part<P: Probe>(
+        &self,
+        p: &mut P,
+        mesh: &Mesh,
+        memory: Option<&CasterBuffers>,
+        range: std::ops::Range<usize>,
+    ) -> CastersPart {
+        let mut part = CastersPart::default();
         let to_world = self.view.inverse();
-        let mut out = Mesh {
-            positions: mesh.positions.clone(),
-            triangles: Vec::with_capacity(mesh.triangles.len()),
-        };
-        for (t, &idx) in mesh.triangles.iter().enumerate() {
-            let tri = mesh.triangle(t);
-            let poly = self.clip_to_frustum(tri);
-            if poly.is_empty() {
-                continue;
+        let first = range.start as u64;
+        let memory = memory.filter(|_| P::ENABLED);
+        for (group, n, mask) in lane_groups(range) {
+            if let Some(b) = memory {
+                p.read(b.indices.0, b.indices.1 + group as u64 * 12, 12 * n as u32);
+                for k in 0..3 {
+                    let addrs: Lanes<u64> = std::array::from_fn(|l| {
+                        let t = mesh.triangles[group + l.min(n - 1)];
+                        b.positions.1 + u64::from(t[k]) * 12
+                    });
+                    p.gather(b.positions.0, &addrs, 12, mask);
+                }
             }
-            let nearer = tri
-                .iter()
-                .any(|&p| -self.view.transform_point3(p).z < self.near);
-            if !nearer {
-                out.triangles.push(idx);
-                continue;
-            }
-            let base = out.positions.len() as u32;
-            out.positions
-                .extend(poly.iter().map(|&v| to_world.transform_point3(v)));
-            for k in 1..poly.len().saturating_sub(1) as u32 {
-                out.triangles.push([base, base + k, base + k + 1]);
+            p.vector(CASTER_CLASSIFY_OPS, mask);
+            for t in group..group + n {
+                let idx = mesh.triangles[t];
+                let v = mesh.triangle(t).map(|p| self.view.transform_point3(p));
+                let (poly, ops) = match self.classify(&v) {
+                    FrustumClass::Outside => continue,
+                    FrustumClass::Inside => (ClipPolygon::triangle(v), 0),
+                    FrustumClass::Crosses => self.clip_to_frustum(v),
+                };
+                p.scalar(ops);
+                if poly.len == 0 {
+                    continue;
+                }
+                let nearer = v.iter().any(|v| -v.z < self.near);
+                p.scalar(CASTER_KEEP_SCALAR);
+                if !nearer {
+                    if let Some(b) = memory {
+                        let k = part.triangles.len() as u64;
+                        let at = (first * FAN_TRIANGLES_MAX + k) * 12;
+                        p.write(b.out_indices.0, b.out_indices.1 + at, 12);
+                    }
+                    part.triangles.push(Caster::Kept(idx));
+                    continue;
+                }
+                let base = part.positions.len() as u32;
+                for &v in poly.as_slice() {
+                    if let Some(b) = memory {
+                        let at = (first * FAN_VERTICES_MAX + part.positions.len() as u64) * 12;
+                        p.write(b.out_positions.0, b.out_positions.1 + at, 12);
+                    }
+                    p.scalar(FAN_VERTEX_SCALAR);
+                    part.positions.push(to_world.transform_point3(v));
+                }
+                for k in 1..poly.len.saturating_sub(1) as u32 {
+                    if let Some(b) = memory {
+                        let i = part.triangles.len() as u64;
+                        let at = (first * FAN_TRIANGLES_MAX + i) * 12;
+                        p.write(b.out_indices.0, b.out_indices.1 + at, 12);
+                    }
+                    p.scalar(CASTER_KEEP_SCALAR);
+                    part.triangles
+                        .push(Caster::Fan([base, base + k, base + k + 1]));
+                }
             }
         }
-        out
+        part
     }
 
     /// Map coordinates of `p`: (u, v) in [0, 1]² with v down, NDC depth in [0, 1], and linear
     /// depth. `None` when `p` is behind the light.
     pub fn project(&self, p: Vec3) -> Option<(Vec2, f32, f32)> {
+        let (uv, ndc_z, z, front) = self.project_lane(p);
+        front.then_some((uv, ndc_z, z))
+    }
+
+    /// [`Self::project`] without a branch, for lane code: the map coordinates, NDC depth and
+    /// linear depth computed whatever `p` is, and whether `p` is in front of the light (where
+    /// they mean something).
+    #[inline]
+    pub fn project_lane(&self, p: Vec3) -> (Vec2, f32, f32, bool) {
         let c = self.view_proj * p.extend(1.0);
-        if c.w <= 0.0 {
-            return None;
-        }
         let ndc = c.xyz() / c.w;
-        Some((Vec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5), ndc.z, c.w))
+        (
+            Vec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5),
+            ndc.z,
+            c.w,
+            c.w > 0.0,
+        )
     }
 
     /// Distance along the view axis for an NDC depth (inverse of the projection's depth).
@@ -230,6 +350,112 @@ impl LightView {
     pub fn world_to_uv(&self, w: f32, z: f32) -> f32 {
         w / (2.0 * z * self.tan_half_fov)
     }
+}
+
+/// Where a triangle lies against a light view's clip planes ([`LightView::classify`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum FrustumClass {
+    Inside,
+    Outside,
+    Crosses,
+}
+
+/// A convex polygon of at most 9 view-space vertices: a triangle clipped by six planes gains at
+/// most one vertex per plane.
+#[derive(Clone, Copy, Debug, Default)]
+struct ClipPolygon {
+    v: [Vec3; 9],
+    len: usize,
+}
+
+impl ClipPolygon {
+    fn triangle(t: [Vec3; 3]) -> ClipPolygon {
+        let mut p = ClipPolygon::default();
+        for v in t {
+            p.push(v);
+        }
+        p
+    }
+
+    fn push(&mut self, v: Vec3) {
+        self.v[self.len] = v;
+        self.len += 1;
+    }
+
+    fn as_slice(&self) -> &[Vec3] {
+        &self.v[..self.len]
+    }
+}
+
+/// Vector instructions of the caster test per 16 triangles (one per lane): three vertices to
+/// view space (3 × 9 multiply-adds), their six plane values (3 × 6: a negate, an add, four
+/// multiply-adds), the 18 compares, per vertex an outcode (3 × 5 ors), the and/or of the
+/// three outcodes that tell inside, outside and crossing (4), and the near-plane test (3
+/// compares, 2 ors).
+pub const CASTER_CLASSIFY_OPS: u32 = 27 + 18 + 18 + 15 + 4 + 5;
+
+/// Scalar instructions per triangle appended to the draw list: the append and its loop control.
+const CASTER_KEEP_SCALAR: u32 = 3;
+
+/// Scalar instructions per fan vertex: the transform back to world space (9 multiply-adds and
+/// 3 adds).
+const FAN_VERTEX_SCALAR: u32 = 12;
+
+/// Scalar instructions of a Sutherland–Hodgman clip, per plane: per input vertex its plane
+/// value (2), the compare and branch (2) and the loop control (1); per kept vertex its store
+/// (1); per new vertex the interpolation (a subtract, a divide, 3 subtracts, 3 multiply-adds)
+/// and its store (9).
+const CLIP_VERTEX_SCALAR: u32 = 5;
+const CLIP_KEEP_SCALAR: u32 = 1;
+const CLIP_NEW_SCALAR: u32 = 9;
+
+/// Room in the draw list's modelled buffers per scene triangle: a clipped triangle becomes a
+/// fan of up to 7 triangles over up to 9 new vertices ([`ClipPolygon`]).
+pub const FAN_TRIANGLES_MAX: u64 = 7;
+pub const FAN_VERTICES_MAX: u64 = 9;
+
+/// Modelled buffers of the `casters` step: (id, base address) of the scene's vertices and
+/// indices, the draw list's indices and its new (fan) vertices.
+pub struct CasterBuffers {
+    pub positions: (BufferId, u64),
+    pub indices: (BufferId, u64),
+    pub out_indices: (BufferId, u64),
+    pub out_positions: (BufferId, u64),
+}
+
+/// One triangle of a draw list part: a scene triangle kept as it is, or a fan triangle over
+/// the part's own new vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Caster {
+    Kept([u32; 3]),
+    Fan([u32; 3]),
+}
+
+/// The draw list for a range of triangles ([`LightView::casters_part`]).
+#[derive(Clone, Debug, Default)]
+pub struct CastersPart {
+    pub triangles: Vec<Caster>,
+    /// New vertices (world space) of the part's fans, in order.
+    pub positions: Vec<Vec3>,
+}
+
+/// The draw list of `mesh` from its parts in triangle order: the scene's vertices, then each
+/// part's new vertices appended, fan indices moved to where they land.
+pub fn assemble_casters(mesh: &Mesh, parts: Vec<CastersPart>) -> Mesh {
+    let mut out = Mesh {
+        positions: mesh.positions.clone(),
+        triangles: Vec::with_capacity(parts.iter().map(|p| p.triangles.len()).sum()),
+    };
+    for part in parts {
+        let base = out.positions.len() as u32;
+        out.triangles
+            .extend(part.triangles.iter().map(|t| match *t {
+                Caster::Kept(idx) => idx,
+                Caster::Fan(idx) => idx.map(|i| base + i),
+            }));
+        out.positions.extend(part.positions);
+    }
+    out
 }
 
 /// How many views an algorithm may use to cover the receivers.
@@ -551,6 +777,187 @@ mod tests {
         // A triangle beyond the far plane is not a caster.
         let below = ceiling.map(|p| p - Vec3::Y * 12.0);
         assert_eq!(v.caster_depth(below), None);
+    }
+
+    #[test]
+    fn texel_is_the_floored_texel_inside_the_map() {
+        let v = LightView::looking(Vec3::ZERO, Vec3::NEG_Y, 1.0, 0.1, 10.0, 64);
+        let floored = |uv: Vec2| {
+            let (x, y) = ((uv.x * 64.0).floor(), (uv.y * 64.0).floor());
+            (x >= 0.0 && y >= 0.0 && x < 64.0 && y < 64.0).then_some((x as u32, y as u32))
+        };
+        let edges = [
+            -1.0,
+            -0.5 / 64.0,
+            -1e-9,
+            -0.0,
+            0.0,
+            1e-9,
+            0.5,
+            1.0 - 1e-7,
+            1.0,
+            1.0 + 1e-7,
+            2.0,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        for &a in &edges {
+            for &b in &edges {
+                let uv = Vec2::new(a, b);
+                assert_eq!(texel(&v, uv), floored(uv), "{uv}");
+            }
+        }
+        for i in 0..5000u64 {
+            let uv = crate::util::hash::unit_pair(7, i) * 1.2 - Vec2::splat(0.1);
+            assert_eq!(texel(&v, uv), floored(uv), "{uv}");
+        }
+    }
+
+    /// Triangles scattered around and through `v`'s frustum (inside, outside, across its
+    /// planes and through the light's plane), deterministic.
+    fn scattered_triangles(n: u64) -> Vec<[Vec3; 3]> {
+        use crate::util::hash::{mix64, unit_f32};
+        let r = |i: u64| unit_f32(mix64(i)) * 24.0 - 12.0;
+        (0..n)
+            .map(|t| {
+                let c = Vec3::new(r(9 * t), r(9 * t + 1) - 6.0, r(9 * t + 2));
+                let s = 0.2 + unit_f32(mix64(t ^ 0xabc)) * 6.0;
+                std::array::from_fn(|k| {
+                    let k = 9 * t + 3 + 2 * k as u64;
+                    c + Vec3::new(r(k), r(k + 1), r(k ^ 0x55)) * s / 12.0
+                })
+            })
+            .collect()
+    }
+
+    /// The draw list as the full clip of every triangle gives it (the construction before the
+    /// classification): the oracle of [`LightView::casters`].
+    fn casters_by_full_clip(v: &LightView, mesh: &Mesh) -> Mesh {
+        let to_world = v.view.inverse();
+        let mut out = Mesh {
+            positions: mesh.positions.clone(),
+            triangles: Vec::new(),
+        };
+        for (t, &idx) in mesh.triangles.iter().enumerate() {
+            let tri = mesh.triangle(t).map(|p| v.view.transform_point3(p));
+            let poly = v.clip_to_frustum(tri).0;
+            if poly.len == 0 {
+                continue;
+            }
+            if !tri.iter().any(|p| -p.z < v.near) {
+                out.triangles.push(idx);
+                continue;
+            }
+            let base = out.positions.len() as u32;
+            out.positions.extend(
+                poly.as_slice()
+                    .iter()
+                    .map(|&p| to_world.transform_point3(p)),
+            );
+            for k in 1..poly.len.saturating_sub(1) as u32 {
+                out.triangles.push([base, base + k, base + k + 1]);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn classified_casters_match_the_full_clip_of_every_triangle() {
+        let v = LightView::looking(Vec3::new(0.0, 4.0, 0.0), Vec3::NEG_Y, 0.8, 0.5, 14.0, 64);
+        let tris = scattered_triangles(3000);
+        let mut classes = [0usize; 3];
+        for tri in &tris {
+            let view = tri.map(|p| v.view.transform_point3(p));
+            let (full, _) = v.clip_to_frustum(view);
+            match v.classify(&view) {
+                FrustumClass::Inside => {
+                    classes[0] += 1;
+                    assert_eq!(
+                        full.as_slice(),
+                        &view[..],
+                        "an inside triangle is kept whole"
+                    );
+                }
+                FrustumClass::Outside => {
+                    classes[1] += 1;
+                    assert_eq!(full.len, 0, "an outside triangle has no part inside");
+                }
+                FrustumClass::Crosses => classes[2] += 1,
+            }
+            let full_depth = full.as_slice().iter().map(|p| -p.z).reduce(f32::min);
+            assert_eq!(v.caster_depth(*tri), full_depth);
+        }
+        assert!(
+            classes.iter().all(|&c| c > 100),
+            "every class exercised: {classes:?}"
+        );
+        let mesh = Mesh {
+            positions: tris.iter().flatten().copied().collect(),
+            triangles: (0..tris.len() as u32)
+                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+                .collect(),
+        };
+        let want = casters_by_full_clip(&v, &mesh);
+        assert!(want.positions.len() > mesh.positions.len(), "some fans");
+        let got = v.casters(&mesh);
+        assert_eq!(got.triangles, want.triangles);
+        assert_eq!(got.positions, want.positions);
+        // Cut into parts (the tasks of the `casters` step), the same list.
+        let parts = (0..tris.len())
+            .step_by(700)
+            .map(|t| v.casters_part(&mut NoProbe, &mesh, None, t..(t + 700).min(tris.len())))
+            .collect();
+        let joined = assemble_casters(&mesh, parts);
+        assert_eq!(joined.triangles, want.triangles);
+        assert_eq!(joined.positions, want.positions);
+    }
+
+    #[test]
+    fn the_casters_step_builds_the_same_list_on_both_executions_and_counts_it() {
+        use crate::backend::Backend;
+        use crate::model::{Machine, MachineConfig};
+        let v = LightView::looking(Vec3::new(0.0, 4.0, 0.0), Vec3::NEG_Y, 0.8, 0.5, 14.0, 64);
+        let tris = scattered_triangles(2500);
+        let mesh = Mesh {
+            positions: tris.iter().flatten().copied().collect(),
+            triangles: (0..tris.len() as u32)
+                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+                .collect(),
+        };
+        let want = casters_by_full_clip(&v, &mesh);
+        let mut vector_ops = Vec::new();
+        for (backend, cores) in [
+            (Backend::CpuNative, 4),
+            (Backend::CpuModel, 4),
+            (Backend::CpuModel, 3),
+        ] {
+            let mut m = Machine::new(backend, MachineConfig::larrabee(cores));
+            m.phase("light_raster");
+            let got = cpu::casters(&mut m, &v, &mesh);
+            assert_eq!(got.triangles, want.triangles, "{backend:?}");
+            assert_eq!(got.positions, want.positions, "{backend:?}");
+            let f = m.finish();
+            assert_eq!(
+                f.counters.get("casters.triangles"),
+                Some(want.triangles.len() as f64)
+            );
+            if backend == Backend::CpuModel {
+                // One triangle a lane: tasks of 1024 triangles, 16 a vector (the last partial).
+                let groups: usize = (0..tris.len())
+                    .step_by(1024)
+                    .map(|t| (tris.len() - t).min(1024).div_ceil(16))
+                    .sum();
+                let ops = f.counters.get("vector_ops").unwrap();
+                assert_eq!(ops, (groups as u32 * CASTER_CLASSIFY_OPS) as f64);
+                assert!(f.counters.get("scalar_ops").unwrap() > 0.0);
+                vector_ops.push(ops);
+            }
+        }
+        assert_eq!(
+            vector_ops[0], vector_ops[1],
+            "the same count on 4 and 3 cores"
+        );
     }
 
     #[test]

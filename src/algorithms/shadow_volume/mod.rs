@@ -441,7 +441,7 @@ impl<F: CountedFace> TilePass for QuadPass<'_, F> {
         p.vector(COUNT_OPS, passed);
         let w = s.rect.x1 - s.rect.x0;
         for l in passed.lanes() {
-            let (x, y) = (b.pixel[l] % rays.width, b.pixel[l] / rays.width);
+            let (x, y) = b.lane_xy(l);
             s.count[((y - s.rect.y0) * w + x - s.rect.x0) as usize] += self.steps[k];
         }
         self.target.count.write(p, b, passed);

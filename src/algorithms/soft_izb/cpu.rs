@@ -191,9 +191,9 @@ fn pixel_weights(len: usize) -> Vec<u64> {
 struct Project<'a> {
     frame: &'a Frame,
     view: &'a LightView,
-    position: Buffer<glam::Vec3>,
-    normal: Buffer<glam::Vec3>,
-    triangle: Buffer<u32>,
+    position: Buffer<glam::Vec3, &'a [glam::Vec3]>,
+    normal: Buffer<glam::Vec3, &'a [glam::Vec3]>,
+    triangle: Buffer<u32, &'a [u32]>,
 }
 
 impl TaskKernel for Project<'_> {
@@ -308,7 +308,7 @@ struct Insert<'a> {
     /// What each receiver's fetch-and-add returns when the chunks run in order.
     slot_of: &'a [u32],
     cursors: Region,
-    triangle: Buffer<u32>,
+    triangle: Buffer<u32, &'a [u32]>,
     samples: Region,
 }
 
@@ -354,12 +354,12 @@ fn construct(
 ) -> (Izb, u64) {
     m.phase("construct");
     let g = &frame.gbuffer;
-    let triangle = m.memory.buffer("gbuffer.triangle", g.triangle.clone());
+    let triangle = m.memory.borrowed("gbuffer.triangle", &g.triangle);
     let project = Project {
         frame,
         view,
-        position: m.memory.buffer("gbuffer.position", g.position.clone()),
-        normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
+        position: m.memory.borrowed("gbuffer.position", &g.position),
+        normal: m.memory.borrowed("gbuffer.normal", &g.normal),
         triangle: triangle.clone(),
     };
     let weights = pixel_weights(g.len());
@@ -416,11 +416,7 @@ fn construct(
         }
     }
 
-    let counts = Buffer {
-        id: grid_id,
-        base: grid_base,
-        data: cell_start,
-    };
+    let counts = Buffer::at((grid_id, grid_base), cell_start);
     let scan = Scan {
         grid: &grid,
         counts: &counts,
@@ -466,16 +462,8 @@ fn construct(
     (
         Izb {
             grid,
-            cell_start: Buffer {
-                id: grid_id,
-                base: grid_base,
-                data: cell_start,
-            },
-            samples: Buffer {
-                id: samples_region.id,
-                base: samples_region.base,
-                data: samples,
-            },
+            cell_start: Buffer::at((grid_id, grid_base), cell_start),
+            samples: Buffer::at((samples_region.id, samples_region.base), samples),
             bin_inv_z_back,
         },
         hits - n,

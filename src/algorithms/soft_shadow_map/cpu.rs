@@ -233,17 +233,25 @@ impl FragmentKernel for Splat<'_> {
         let block = r.block_index(f.x / BLOCK, f.y / BLOCK);
         r.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
-        let shade = Shade::select(f.mask, 0.0, |l| {
-            let d = r.buf.data[block + l];
-            if d >= 1.0 {
-                return None;
-            }
+        // Every lane computed and kept by mask (no branch per lane): lanes without a receiver
+        // (depth 1) or that the patch does not hide are dropped.
+        let on = f.mask.to_lanes();
+        let depth = &r.buf.data[block..block + LANES];
+        let mut value = [0.0f32; LANES];
+        let mut keep = [false; LANES];
+        for l in 0..LANES {
+            let d = depth[l];
             let (x, y) = f.pixel(l);
             let z_r = self.lf.linear_depth(d);
             let bias = bias_at(self.lf, self.bias_texels, z_r);
             let v = occlusion(self.lf, &patch, self.lf.texel_center(x, y), z_r, bias);
-            (v > 0.0).then_some(v)
-        });
+            keep[l] = on[l] & (d < 1.0 || d.is_nan()) & (v > 0.0);
+            value[l] = if keep[l] { v } else { 0.0 };
+        }
+        let shade = Shade {
+            value,
+            mask: Mask::from_lanes(&keep),
+        };
         *zero += u64::from(f.mask.and_not(shade.mask).count());
         shade
     }
@@ -447,10 +455,10 @@ struct Project<'a> {
     lf: &'a LightFrame,
     ssm: &'a Surface,
     receives: &'a [bool],
-    position: Buffer<Vec3>,
-    normal: Buffer<Vec3>,
-    triangle: Buffer<u32>,
-    object: Buffer<u32>,
+    position: Buffer<Vec3, &'a [Vec3]>,
+    normal: Buffer<Vec3, &'a [Vec3]>,
+    triangle: Buffer<u32, &'a [u32]>,
+    object: Buffer<u32, &'a [u32]>,
     visibility: Buffer<f32>,
 }
 
@@ -532,12 +540,12 @@ fn project(
         lf,
         ssm,
         receives: &split.receives,
-        position: m.memory.buffer("gbuffer.position", g.position.clone()),
-        normal: m.memory.buffer("gbuffer.normal", g.normal.clone()),
-        triangle: m.memory.buffer("gbuffer.triangle", g.triangle.clone()),
+        position: m.memory.borrowed("gbuffer.position", &g.position),
+        normal: m.memory.borrowed("gbuffer.normal", &g.normal),
+        triangle: m.memory.borrowed("gbuffer.triangle", &g.triangle),
         object: m
             .memory
-            .buffer("object_of_triangle", frame.flat.object_of_triangle.clone()),
+            .borrowed("object_of_triangle", &frame.flat.object_of_triangle),
         visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
     };
     let weights = eye_tiles(frame).tile_weights(|i| g.is_hit(i));

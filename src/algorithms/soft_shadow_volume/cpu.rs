@@ -664,7 +664,7 @@ impl TilePass for SoftPass<'_> {
         );
         let w = st.rect.x1 - st.rect.x0;
         for l in covered.lanes() {
-            let (x, y) = (b.pixel[l] % rays.width, b.pixel[l] / rays.width);
+            let (x, y) = b.lane_xy(l);
             let j = ((y - st.rect.y0) * w + x - st.rect.x0) as usize;
             st.accum.add(j, side[l], coverage[l]);
         }
