@@ -707,6 +707,25 @@ impl<'a> Pass<'a> {
         Pass::new(label, groups, Work::Onto(onto))
     }
 
+    /// The descriptor of a render pass onto `colors` and `depth`, kept by earlier passes.
+    fn kept<'p>(
+        &self,
+        colors: &'p [Option<wgpu::RenderPassColorAttachment<'p>>],
+        depth: Option<wgpu::RenderPassDepthStencilAttachment<'p>>,
+    ) -> wgpu::RenderPassDescriptor<'p>
+    where
+        'a: 'p,
+    {
+        wgpu::RenderPassDescriptor {
+            label: Some(self.label),
+            color_attachments: colors,
+            depth_stencil_attachment: depth,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        }
+    }
+
     /// The body of a render pass: statistics begun (pass `index`) when `stats` is given, the
     /// pipeline, the pass's bind groups and vertex buffer set, `draw`, statistics ended.
     fn draw_in(
@@ -807,43 +826,29 @@ impl<'a> Pass<'a> {
             }
             Work::Onto(d) => {
                 let colors = [Some(kept_color(d.color, d.clear))];
-                let desc = wgpu::RenderPassDescriptor {
-                    label: Some(self.label),
-                    color_attachments: &colors,
-                    depth_stencil_attachment: d.depth.map(|view| {
-                        wgpu::RenderPassDepthStencilAttachment {
-                            view,
-                            depth_ops: None,
-                            stencil_ops: None,
-                        }
-                    }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
-                };
+                let depth = d.depth.map(|view| wgpu::RenderPassDepthStencilAttachment {
+                    view,
+                    depth_ops: None,
+                    stencil_ops: None,
+                });
+                let desc = self.kept(&colors, depth);
                 let mut pass = timing::render_pass(e, desc, timed);
                 let draw = |pass: &mut wgpu::RenderPass<'_>| pass.draw(d.range.clone(), 0..1);
                 self.draw_in(&mut pass, stats, index, d.pipeline, d.vertices, draw);
             }
             Work::Stenciled(d) => {
                 let colors = [Some(kept_color(d.color, d.clear))];
-                let desc = wgpu::RenderPassDescriptor {
-                    label: Some(self.label),
-                    color_attachments: &colors,
-                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                        view: d.depth_stencil,
-                        depth_ops: None,
-                        stencil_ops: Some(wgpu::Operations {
-                            load: d
-                                .stencil_clear
-                                .map_or(wgpu::LoadOp::Load, wgpu::LoadOp::Clear),
-                            store: wgpu::StoreOp::Store,
-                        }),
+                let depth = wgpu::RenderPassDepthStencilAttachment {
+                    view: d.depth_stencil,
+                    depth_ops: None,
+                    stencil_ops: Some(wgpu::Operations {
+                        load: d
+                            .stencil_clear
+                            .map_or(wgpu::LoadOp::Load, wgpu::LoadOp::Clear),
+                        store: wgpu::StoreOp::Store,
                     }),
-                    timestamp_writes: None,
-                    occlusion_query_set: None,
-                    multiview_mask: None,
                 };
+                let desc = self.kept(&colors, Some(depth));
                 let mut pass = timing::render_pass(e, desc, timed);
                 let draw = |pass: &mut wgpu::RenderPass<'_>| {
                     let mut bound = 0;

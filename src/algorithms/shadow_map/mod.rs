@@ -816,6 +816,16 @@ mod tests {
 
     /// Triangles scattered around and through `v`'s frustum (inside, outside, across its
     /// planes and through the light's plane), deterministic.
+    /// A mesh of separate triangles `tris`.
+    fn mesh_of(tris: &[[Vec3; 3]]) -> Mesh {
+        Mesh {
+            positions: tris.iter().flatten().copied().collect(),
+            triangles: (0..tris.len() as u32)
+                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+                .collect(),
+        }
+    }
+
     fn scattered_triangles(n: u64) -> Vec<[Vec3; 3]> {
         use crate::util::hash::{mix64, unit_f32};
         let r = |i: u64| unit_f32(mix64(i)) * 24.0 - 12.0;
@@ -892,12 +902,7 @@ mod tests {
             classes.iter().all(|&c| c > 100),
             "every class exercised: {classes:?}"
         );
-        let mesh = Mesh {
-            positions: tris.iter().flatten().copied().collect(),
-            triangles: (0..tris.len() as u32)
-                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
-                .collect(),
-        };
+        let mesh = mesh_of(&tris);
         let want = casters_by_full_clip(&v, &mesh);
         assert!(want.positions.len() > mesh.positions.len(), "some fans");
         let got = v.casters(&mesh);
@@ -919,12 +924,7 @@ mod tests {
         use crate::model::{Machine, MachineConfig};
         let v = LightView::looking(Vec3::new(0.0, 4.0, 0.0), Vec3::NEG_Y, 0.8, 0.5, 14.0, 64);
         let tris = scattered_triangles(2500);
-        let mesh = Mesh {
-            positions: tris.iter().flatten().copied().collect(),
-            triangles: (0..tris.len() as u32)
-                .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
-                .collect(),
-        };
+        let mesh = mesh_of(&tris);
         let want = casters_by_full_clip(&v, &mesh);
         let mut vector_ops = Vec::new();
         for (backend, cores) in [
