@@ -24,8 +24,8 @@
 //! Buffers ([`Cache::take_buffer`]): the storage, uniform and vertex buffers a run makes through
 //! [`super::Gpu::upload`] and [`super::Gpu::storage_buffer`] go back to a pool when the run ends
 //! well, and a later run asking for a buffer of the same size and usage gets one of them
-//! (filled with its data, or zeroed, before the run's first submission) instead of a new
-//! allocation: the runs of a sweep whose frame keeps its sizes (image, map resolution) reuse
+//! (filled with its data, or zeroed, by queue writes that precede the run's next submission)
+//! instead of a new allocation: the runs of a sweep whose frame keeps its sizes (image, map resolution) reuse
 //! their eye, map and count buffers. Only exact sizes are reused, since a shader's
 //! `arrayLength` reads a bound buffer's size. The pool holds the last run's buffers only (those
 //! a run does not take are dropped), so it never holds more than one run's working set; a
@@ -155,9 +155,9 @@ impl Cache {
         self.lock().setup.objects_ms
     }
 
-    /// A buffer of `key` for the current run: one from the pool (`Some(true)` with it: its
-    /// contents are the last user's, the caller overwrites them), or `make`'s (`false`). Outside
-    /// a run, `make`'s, not pooled.
+    /// A buffer of `key` for the current run and whether it came from the pool: `(buffer, true)`
+    /// holds the last user's contents, which the caller overwrites; `(make(), false)` is new.
+    /// Outside a run, `make`'s, not pooled.
     pub fn take_buffer(
         &self,
         key: BufferKey,

@@ -733,7 +733,9 @@ pub fn scene_from_arg(
                 },
                 l.scenario.params.light_size,
             );
-            Ok((scene, l.notes))
+            let mut notes = l.notes;
+            notes.warnings.extend(unused_by_render(&l.scenario, path));
+            Ok((scene, notes))
         }
         _ => Err(InputError::new(
             "--scene",
@@ -744,6 +746,41 @@ pub fn scene_from_arg(
                 ),
         )),
     }
+}
+
+/// A warning naming what of scenario `s` (read from `path` as `--scene`) a single render does
+/// not take: it builds the scene, light and camera with the scenario's triangle count, occluder
+/// placement and light size, but not its options, image, map resolution, tile size, cores or
+/// sweep, which come from the command line.
+fn unused_by_render(s: &Scenario, path: &Path) -> Option<String> {
+    let d = BaseParams::default();
+    let p = &s.params;
+    let mut unused: Vec<String> = s.options.keys().map(|k| format!("options.{k}")).collect();
+    for (name, differs) in [
+        ("params.image", p.image != d.image),
+        (
+            "params.map_resolution",
+            p.map_resolution != d.map_resolution,
+        ),
+        ("params.tile_size", p.tile_size != d.tile_size),
+        ("params.cores", p.cores.is_some()),
+        (
+            "sweep",
+            serde_json::to_value(&s.sweep).ok() != serde_json::to_value(Sweep::default()).ok(),
+        ),
+    ] {
+        if differs {
+            unused.push(name.to_string());
+        }
+    }
+    (!unused.is_empty()).then(|| {
+        format!(
+            "{}: render takes the scenario's scene, light and camera only; its {} are not \
+             used (the command line's values apply; `shadowbench run` runs the scenario)",
+            path.display(),
+            unused.join(", ")
+        )
+    })
 }
 
 /// A scenario (as JSON) that loads `mesh` (written by [`crate::scene::export::write_scene`] from

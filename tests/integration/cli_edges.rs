@@ -192,3 +192,48 @@ fn output_into_a_closed_pipe_ends_quietly() {
         assert_eq!(o.status.signal(), Some(libc::SIGPIPE), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn render_of_a_scenario_names_what_it_does_not_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scenario(dir.path());
+    let with_options = dir.path().join("options.json");
+    let text = SCENARIO.replace(
+        r#""reference": {"#,
+        r#""options": { "hard_shadow_map": {} }, "reference": {"#,
+    );
+    std::fs::write(&with_options, text).unwrap();
+    let render = |scene: &str| {
+        let out = dir.path().join("r");
+        shadowbench(&[
+            "render",
+            "--scene",
+            scene,
+            "--algorithm",
+            "hard_shadow_map",
+            "--image",
+            "32x24",
+            "--no-reference",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    // The scenario's image, map resolution and tile size are not the command line's.
+    let o = render(&s);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("render takes the scenario's scene, light and camera only"),
+        "{e}"
+    );
+    for name in ["params.image", "params.map_resolution", "params.tile_size"] {
+        assert!(e.contains(name), "{name}: {e}");
+    }
+    assert!(!e.contains("options."), "{e}");
+    let o = render(with_options.to_str().unwrap());
+    assert!(
+        stderr(&o).contains("options.hard_shadow_map"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -190,11 +190,7 @@ impl StencilCount {
         blend: Option<wgpu::ColorTargetState>,
     ) -> StencilCount {
         let depth_format = DepthTarget::StencilCount.format();
-        let face = |compare, pass_op| wgpu::StencilFaceState {
-            compare,
-            pass_op,
-            ..Default::default()
-        };
+        let keep = wgpu::StencilOperation::Keep;
         let quad = |vs, pass_op| {
             program.render(
                 gpu,
@@ -204,7 +200,7 @@ impl StencilCount {
                     vertex: per_vertex(attributes),
                     depth: Some(test),
                     depth_format,
-                    stencil: stencil_state(face(wgpu::CompareFunction::Always, pass_op)),
+                    stencil: stencil_test(wgpu::CompareFunction::Always, pass_op, keep),
                     depth_write: false,
                     color: Some(no_color(TARGET_FORMAT)),
                     instrument: Some(false),
@@ -212,7 +208,6 @@ impl StencilCount {
                 },
             )
         };
-        let keep = wgpu::StencilOperation::Keep;
         StencilCount {
             quads: [
                 quad("vs_quad_up", wgpu::StencilOperation::IncrementWrap),
@@ -225,7 +220,7 @@ impl StencilCount {
                     fs: "fs_lit",
                     depth: Some(wgpu::CompareFunction::Always),
                     depth_format,
-                    stencil: stencil_state(face(wgpu::CompareFunction::Equal, keep)),
+                    stencil: stencil_test(wgpu::CompareFunction::Equal, keep, keep),
                     depth_write: false,
                     color: blend,
                     ..Raster::default()
@@ -504,8 +499,22 @@ impl<'g> HardRaster<'g> {
     }
 }
 
-/// A stencil test of `face` on both faces, over all 8 bits.
-fn stencil_state(face: wgpu::StencilFaceState) -> wgpu::StencilState {
+/// A stencil test (both faces, all 8 bits) of `compare` against the reference, writing `pass`
+/// where the fragment passes it and the depth test and `other` where it fails either: the
+/// stencil count (`Always`, increment or decrement, `Keep`), its accumulation (`Equal`, `Keep`,
+/// `Keep`), and `soft_shadow_volume`'s wedge-half culling (`Always`, `Replace`, `Keep` to mark;
+/// `Equal`, `Zero`, `Zero` to test, clearing every mark its faces cover).
+pub(crate) fn stencil_test(
+    compare: wgpu::CompareFunction,
+    pass: wgpu::StencilOperation,
+    other: wgpu::StencilOperation,
+) -> wgpu::StencilState {
+    let face = wgpu::StencilFaceState {
+        compare,
+        fail_op: other,
+        depth_fail_op: other,
+        pass_op: pass,
+    };
     wgpu::StencilState {
         front: face,
         back: face,

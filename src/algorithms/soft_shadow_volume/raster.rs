@@ -64,7 +64,7 @@ use super::wgpu::{soft_counters, LoopRun, WedgeRecords, WGSL as SOFT_WGSL};
 use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{
-    eye_projection, hard_triangles, DepthTarget, HardRaster,
+    eye_projection, hard_triangles, stencil_test, DepthTarget, HardRaster,
 };
 use crate::algorithms::shadow_volume::wgpu::{
     quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
@@ -234,9 +234,9 @@ impl WedgePass {
                     "fs_mark",
                     format,
                     Greater,
-                    stencil_state(Always, Replace, Keep),
+                    stencil_test(Always, Replace, Keep),
                 ),
-                pipeline(fs, format, Less, stencil_state(Equal, Zero, Zero)),
+                pipeline(fs, format, Less, stencil_test(Equal, Zero, Zero)),
             ]
         };
         let timed = entries
@@ -644,27 +644,4 @@ fn culled_pass<'a>(
             draws,
         },
     )
-}
-
-/// A stencil test (both faces) of `compare` against the reference, writing `pass` where the
-/// fragment passes it and the depth test and `other` where it fails either (all 8 bits): the
-/// culling's first pass (`Always`, `Replace`, `Keep`: mark) and second (`Equal`, `Zero`, `Zero`:
-/// test, clearing every mark its faces cover).
-fn stencil_state(
-    compare: wgpu::CompareFunction,
-    pass: wgpu::StencilOperation,
-    other: wgpu::StencilOperation,
-) -> wgpu::StencilState {
-    let face = wgpu::StencilFaceState {
-        compare,
-        fail_op: other,
-        depth_fail_op: other,
-        pass_op: pass,
-    };
-    wgpu::StencilState {
-        front: face,
-        back: face,
-        read_mask: 0xff,
-        write_mask: 0xff,
-    }
 }
