@@ -39,9 +39,9 @@ pub const EMPTY_BYTES: usize = 128;
 /// Environment variable naming the adapter to use (substring of its name).
 pub const ADAPTER_ENV: &str = "SHADOWBENCH_ADAPTER";
 
-/// A single-channel colour target of `format` that adds each fragment's red value to what it
-/// holds (`One + One`): counts and sums accumulated by blending.
-pub fn additive_red(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
+/// A colour target of `format` that adds each fragment's value to what it holds, every channel
+/// (`One + One`): sums accumulated by blending (a V-buffer per channel, split 12-bit digits).
+pub fn additive(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
     let add = wgpu::BlendComponent {
         src_factor: wgpu::BlendFactor::One,
         dst_factor: wgpu::BlendFactor::One,
@@ -53,7 +53,25 @@ pub fn additive_red(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
             color: add,
             alpha: add,
         }),
+        write_mask: wgpu::ColorWrites::ALL,
+    }
+}
+
+/// [`additive`] into the red channel only: counts and sums of one value.
+pub fn additive_red(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
+    wgpu::ColorTargetState {
         write_mask: wgpu::ColorWrites::RED,
+        ..additive(format)
+    }
+}
+
+/// A colour target of `format` that the pipeline does not write (a pass that only counts its
+/// fragments, or only marks the stencil).
+pub fn unwritten(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
+    wgpu::ColorTargetState {
+        format,
+        blend: None,
+        write_mask: wgpu::ColorWrites::empty(),
     }
 }
 

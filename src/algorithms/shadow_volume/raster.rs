@@ -51,7 +51,7 @@ use crate::gpu::pass::{
     Stenciled, Step,
 };
 use crate::gpu::readback::words;
-use crate::gpu::{additive_red, Gpu};
+use crate::gpu::{additive_red, unwritten, Gpu};
 use crate::scene::Mesh;
 
 /// The WGSL of the passes.
@@ -202,7 +202,7 @@ impl StencilCount {
                     depth_format,
                     stencil: stencil_test(wgpu::CompareFunction::Always, pass_op, keep),
                     depth_write: false,
-                    color: Some(no_color(TARGET_FORMAT)),
+                    color: Some(unwritten(TARGET_FORMAT)),
                     instrument: Some(false),
                     ..Raster::default()
                 },
@@ -520,15 +520,6 @@ pub(crate) fn stencil_test(
         back: face,
         read_mask: 0xff,
         write_mask: 0xff,
-    }
-}
-
-/// A colour target of `format` that the pipeline does not write.
-fn no_color(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
-    wgpu::ColorTargetState {
-        format,
-        blend: None,
-        write_mask: wgpu::ColorWrites::empty(),
     }
 }
 

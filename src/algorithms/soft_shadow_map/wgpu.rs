@@ -33,7 +33,7 @@ use crate::gpu::pass::{
     Program, Raster, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::{first, read_texels};
-use crate::gpu::{additive_red, record_execution, Gpu, Needs};
+use crate::gpu::{additive_red, record_execution, unwritten, Gpu, Needs};
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
 use crate::record::Counters;
@@ -451,11 +451,10 @@ impl Pipelines {
         let host = o.occluder_map_transfer;
         // The counting pipeline of the replay writes no colour: its fragments are only counted.
         let splat = |fs, count: bool| {
-            let mut color = additive_red(ssm_format);
-            if count {
-                color.blend = None;
-                color.write_mask = wgpu::ColorWrites::empty();
-            }
+            let color = match count {
+                true => unwritten(ssm_format),
+                false => additive_red(ssm_format),
+            };
             let raster = Raster {
                 vs: ["vs_splat_device", "vs_splat_host"][usize::from(host)],
                 fs,

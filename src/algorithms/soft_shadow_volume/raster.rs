@@ -78,7 +78,7 @@ use crate::gpu::pass::{
     tiles, view, Bind, Onto, Pass, Program, Raster, Statistics, Stenciled, Step, Timed,
 };
 use crate::gpu::readback::{read_texels, words};
-use crate::gpu::{counters_mode, Gpu, GpuCounters, EMPTY_BYTES};
+use crate::gpu::{additive, counters_mode, unwritten, Gpu, GpuCounters, EMPTY_BYTES};
 use crate::record::Counters;
 use crate::scene::Bounds;
 use crate::visibility::RgbBuffer;
@@ -190,14 +190,8 @@ impl WedgePass {
             (false, true) => (wgpu::TextureFormat::Rgba32Float, &["fs_wedge"][..]),
             (false, false) => (wgpu::TextureFormat::R32Float, &["fs_wedge"][..]),
         };
-        let add = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::One,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Add,
-        };
         let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32];
         let pipeline = |fs: &str, format, depth, test: wgpu::StencilState| {
-            let write = fs != "fs_mark";
             program.render(
                 gpu,
                 &Raster {
@@ -208,16 +202,10 @@ impl WedgePass {
                     depth_format: depth_target(stencil).format(),
                     stencil: test,
                     depth_write: false,
-                    color: Some(wgpu::ColorTargetState {
-                        format,
-                        blend: write.then_some(wgpu::BlendState {
-                            color: add,
-                            alpha: add,
-                        }),
-                        write_mask: match write {
-                            true => wgpu::ColorWrites::ALL,
-                            false => wgpu::ColorWrites::empty(),
-                        },
+                    // `fs_mark` only marks the stencil.
+                    color: Some(match fs {
+                        "fs_mark" => unwritten(format),
+                        _ => additive(format),
                     }),
                     // The counting pipeline is the one without a depth test.
                     instrument: Some(depth == Always),
