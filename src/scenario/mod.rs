@@ -753,8 +753,7 @@ pub fn scene_from_arg(
 /// placement and light size, but not its options, image, map resolution, tile size, cores or
 /// sweep, which come from the command line.
 fn unused_by_render(s: &Scenario, path: &Path) -> Option<String> {
-    let d = BaseParams::default();
-    let p = &s.params;
+    let (d, p, w) = (BaseParams::default(), &s.params, &s.sweep);
     let mut unused: Vec<String> = s.options.keys().map(|k| format!("options.{k}")).collect();
     for (name, differs) in [
         ("params.image", p.image != d.image),
@@ -764,10 +763,14 @@ fn unused_by_render(s: &Scenario, path: &Path) -> Option<String> {
         ),
         ("params.tile_size", p.tile_size != d.tile_size),
         ("params.cores", p.cores.is_some()),
-        (
-            "sweep",
-            serde_json::to_value(&s.sweep).ok() != serde_json::to_value(Sweep::default()).ok(),
-        ),
+        ("sweep.triangles", !w.triangles.is_empty()),
+        ("sweep.light_size", !w.light_size.is_empty()),
+        ("sweep.map_resolution", !w.map_resolution.is_empty()),
+        ("sweep.tile_size", !w.tile_size.is_empty()),
+        ("sweep.image", !w.image.is_empty()),
+        ("sweep.occluder_height", !w.occluder_height.is_empty()),
+        ("sweep.occluder_offset", !w.occluder_offset.is_empty()),
+        ("sweep.cores", !w.cores.is_empty()),
     ] {
         if differs {
             unused.push(name.to_string());
