@@ -15,6 +15,7 @@ pub mod cache;
 pub mod fault;
 pub mod meshes;
 pub mod pass;
+mod probe;
 
 pub mod readback;
 pub mod stats;
@@ -158,6 +159,9 @@ pub struct Gpu {
     pub depth32_stencil8: bool,
     /// The modules, layouts and pipelines made on this device, reused by every run.
     pub cache: cache::Cache,
+    /// How the device rounds additive blends into half floats, once probed
+    /// ([`Gpu::half_blend_sums`]).
+    half_blend: OnceLock<[f32; 2]>,
 }
 
 /// Whether a wgpu run makes its instrumented replay (`--gpu-counters`, [`ExecContext`]
@@ -631,6 +635,7 @@ fn acquire() -> std::result::Result<Gpu, String> {
         float32_blendable,
         depth32_stencil8,
         cache: cache::Cache::new(driver),
+        half_blend: OnceLock::new(),
     })
 }
 

@@ -95,9 +95,9 @@ pub enum Blend {
     /// Coverage accumulation, stencil-like counters (add ±1).
     Add,
     /// Add into a half-float target (paper 002, Appendix A): the source and each sum rounded to
-    /// IEEE half precision toward zero, as blending into R16Float does on Mesa's llvmpipe (the
-    /// wgpu parity test matches it to 1e-3; round-to-nearest hardware loses less).
-    AddHalf,
+    /// IEEE half precision as the given rounding says (how a GPU's blend into R16Float rounds is
+    /// the implementation's choice: [`HalfRounding`]).
+    AddHalf(HalfRounding),
     /// Penumbra maps keep the darkest value.
     Min,
     Max,
@@ -109,20 +109,54 @@ impl Blend {
         match self {
             Blend::Replace => new,
             Blend::Add => old + new,
-            Blend::AddHalf => half_toward_zero(old + half_toward_zero(new)),
+            Blend::AddHalf(r) => r.round(old + r.round(new)),
             Blend::Min => old.min(new),
             Blend::Max => old.max(new),
         }
     }
 }
 
-/// `x` rounded to IEEE half precision toward zero.
-fn half_toward_zero(x: f32) -> f32 {
-    let h = half::f16::from_f32(x);
-    if h.to_f32().abs() > x.abs() {
-        half::f16::from_bits(h.to_bits() - 1).to_f32()
-    } else {
-        h.to_f32()
+/// How a sum is rounded to IEEE half precision when it is blended into a half-float target.
+/// Vulkan leaves it to the implementation: Mesa's llvmpipe rounds toward zero, NVIDIA's driver
+/// to nearest (measured by `Gpu::half_blend_sums`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum HalfRounding {
+    /// Toward zero (truncation of the magnitude).
+    #[default]
+    TowardZero,
+    /// To the nearest half, ties to even (IEEE 754's default).
+    NearestEven,
+}
+
+impl HalfRounding {
+    /// The name in options and records.
+    pub fn name(self) -> &'static str {
+        match self {
+            HalfRounding::TowardZero => "toward_zero",
+            HalfRounding::NearestEven => "nearest_even",
+        }
+    }
+
+    /// `x` rounded to IEEE half precision.
+    pub fn round(self, x: f32) -> f32 {
+        let h = half::f16::from_f32(x);
+        match self {
+            HalfRounding::NearestEven => h.to_f32(),
+            HalfRounding::TowardZero if h.to_f32().abs() > x.abs() => {
+                half::f16::from_bits(h.to_bits() - 1).to_f32()
+            }
+            HalfRounding::TowardZero => h.to_f32(),
+        }
+    }
+
+    /// The rounding that stores `1 + ¾ ulp` and `1 + ¼ ulp` (ulp = 2⁻¹⁰) as `sums` when each is
+    /// added onto 1 (`Gpu::half_blend_sums`), or `None` if neither does.
+    pub fn of_sums(sums: [f32; 2]) -> Option<HalfRounding> {
+        let ulp = 2f32.powi(-10);
+        [HalfRounding::TowardZero, HalfRounding::NearestEven]
+            .into_iter()
+            .find(|r| sums == [0.75, 0.25].map(|d| r.round(1.0 + r.round(d * ulp))))
     }
 }
 
@@ -912,7 +946,7 @@ fn blend_block(blend: Blend, target: &mut Lanes<f32>, value: &Lanes<f32>, write:
         Blend::Min => each(target, value, write, f32::min),
         Blend::Max => each(target, value, write, f32::max),
         // Half-float rounding is scalar work (a conversion and a compare per lane).
-        Blend::AddHalf => {
+        Blend::AddHalf(_) => {
             for l in 0..LANES {
                 if write[l] {
                     target[l] = blend.apply(target[l], value[l]);
@@ -1082,5 +1116,45 @@ pub fn draw<K: FragmentKernel>(
         depth,
         color,
         tiles: states,
+    }
+}
+
+#[cfg(test)]
+mod half_rounding_tests {
+    use super::HalfRounding::{NearestEven, TowardZero};
+    use super::*;
+
+    /// A half's step at 1 is 2⁻¹⁰; between 1 and 2 every sum lies on a grid of that step.
+    const ULP: f32 = 1.0 / 1024.0;
+
+    #[test]
+    fn sums_round_as_ieee_half_toward_zero_and_to_nearest_even() {
+        for (x, toward_zero, nearest) in [
+            (1.0 + 0.75 * ULP, 1.0, 1.0 + ULP),
+            (1.0 + 0.25 * ULP, 1.0, 1.0),
+            // Ties go to the even significand: 1 (even) and 1 + 2 ulp (even).
+            (1.0 + 0.5 * ULP, 1.0, 1.0),
+            (1.0 + 1.5 * ULP, 1.0 + ULP, 1.0 + 2.0 * ULP),
+            // Toward zero shrinks the magnitude of negative sums too.
+            (-1.0 - 0.75 * ULP, -1.0, -1.0 - ULP),
+            (3.0, 3.0, 3.0),
+        ] {
+            assert_eq!(TowardZero.round(x), toward_zero, "{x}");
+            assert_eq!(NearestEven.round(x), nearest, "{x}");
+        }
+        // Appendix A of paper 002: an add below half the step at X is lost to nearest rounding,
+        // one below the whole step to rounding toward zero.
+        let blend = |r| Blend::AddHalf(r).apply(1.0, 0.6 * ULP);
+        assert_eq!((blend(TowardZero), blend(NearestEven)), (1.0, 1.0 + ULP));
+    }
+
+    #[test]
+    fn the_probe_sums_name_their_rounding() {
+        let of = HalfRounding::of_sums;
+        assert_eq!(of([1.0, 1.0]), Some(TowardZero));
+        assert_eq!(of([1.0 + ULP, 1.0]), Some(NearestEven));
+        // Rounding up, or a blend that kept f32, is neither.
+        assert_eq!(of([1.0 + ULP, 1.0 + ULP]), None);
+        assert_eq!(of([1.0 + 0.75 * ULP, 1.0 + 0.25 * ULP]), None);
     }
 }

@@ -47,6 +47,22 @@ fn option_sets(info: &AlgorithmInfo) -> Vec<(String, ExecContext)> {
     sets
 }
 
+/// `ctx` with the cpu executions rounding half-float blends as the adapter of the wgpu run `gpu`
+/// did, where it records how (`execution.fp16_blend_rounding`: Vulkan leaves the rounding of
+/// blending to the implementation, and `soft_shadow_map`'s option `fp16_rounding` chooses the
+/// cpu executions').
+pub fn rounding_as_adapter(id: &str, ctx: &ExecContext, gpu: &FrameOutput) -> ExecContext {
+    let mut ctx = ctx.clone();
+    if let Some(r) = gpu.execution.get("fp16_blend_rounding") {
+        let options = ctx
+            .options
+            .entry(id.to_string())
+            .or_insert(serde_json::json!({}));
+        options["fp16_rounding"] = r.clone();
+    }
+    ctx
+}
+
 fn run(info: &AlgorithmInfo, backend: Backend, frame: &Frame, ctx: &ExecContext) -> FrameOutput {
     algorithms::run(info.id, backend, frame, ctx)
         .unwrap_or_else(|e| panic!("{} on {backend}: {e}", info.id))
@@ -88,6 +104,7 @@ fn wgpu_is_within_its_stated_parity_of_the_cpu_model_for_every_algorithm_and_opt
             for (options, ctx) in option_sets(info) {
                 let what = format!("{} {options} on {name}", info.id);
                 let gpu = run(info, Backend::Wgpu, &frame, &ctx);
+                let ctx = rounding_as_adapter(info.id, &ctx, &gpu);
                 let model = run(info, Backend::CpuModel, &frame, &ctx);
                 gpu.visibility.check_range().unwrap();
                 let e = metrics::compare(&gpu.visibility, &model.visibility, &mask);

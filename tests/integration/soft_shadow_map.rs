@@ -125,6 +125,30 @@ fn fp16_error_grows_with_map_resolution_and_fp32_does_not() {
     assert!(last.0 <= first.0, "{rows:?}");
 }
 
+/// How the half-float sum rounds (option `fp16_rounding`, the GPU's choice): toward zero every
+/// add can lose up to a whole half step, to nearest half of one, so against the exact (FP32)
+/// sums the nearest image is closer, and toward zero only ever lightens: each rounded sum is at
+/// most the exact one, so no pixel is darker than in FP32 beyond FP32's own rounding.
+#[test]
+fn fp16_rounding_to_nearest_loses_less_than_toward_zero() {
+    let f = frame("plate-on-plane", Some(0.25), 256);
+    let image = |o: serde_json::Value| ssm(Backend::CpuNative, &f, o).visibility;
+    let exact = image(serde_json::json!({}));
+    let rounded = |r: &str| image(serde_json::json!({"precision": "fp16", "fp16_rounding": r}));
+    let (toward_zero, nearest) = (rounded("toward_zero"), rounded("nearest_even"));
+    let mask = f.gbuffer.mask();
+    let e_tz = compare(&toward_zero, &exact, &mask).mae.unwrap();
+    let e_ne = compare(&nearest, &exact, &mask).mae.unwrap();
+    eprintln!(
+        "plate light 0.25, map 256, fp16 against fp32: toward zero {e_tz:.5}, nearest {e_ne:.5}"
+    );
+    assert!(e_ne < 0.75 * e_tz, "toward zero {e_tz}, nearest {e_ne}");
+    let darker = (toward_zero.data.iter().zip(&exact.data))
+        .filter(|(t, x)| **t < **x - 1e-5)
+        .count();
+    assert_eq!(darker, 0, "pixels darker with sums rounded toward zero");
+}
+
 #[test]
 fn executions_agree_and_counters_do_not_depend_on_host_threads() {
     let f = frame("torus-on-plane", None, 64);

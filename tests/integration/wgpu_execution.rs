@@ -148,7 +148,17 @@ fn records_carry_gpu_times_statistics_and_the_adapter() {
             raster.get("pipeline.clipper_invocations"),
             Some(occluder_triangles)
         );
-        assert!(raster.get("pipeline.fragment_shader_invocations").unwrap() > 0.0);
+        // The light pass's fragment stage is empty: lavapipe counts its invocations, NVIDIA's
+        // driver skips it and reports 0 (Vulkan leaves this to the implementation), so only
+        // the vertex stage is checked: every vertex the triangles use is shaded at least once.
+        let used: std::collections::HashSet<u32> =
+            f.flat.mesh.triangles.iter().flatten().copied().collect();
+        let vertices = raster.get("pipeline.vertex_shader_invocations").unwrap();
+        assert!(
+            vertices >= used.len() as f64,
+            "{vertices} of {}",
+            used.len()
+        );
     }
 }
 
@@ -312,6 +322,7 @@ fn soft_shadow_map_on_wgpu_agrees_with_the_cpu_model() {
             ctx.options
                 .insert("soft_shadow_map".into(), options.clone());
             let gpu = algorithms::run("soft_shadow_map", Backend::Wgpu, &f, &ctx).unwrap();
+            let ctx = super::registry::rounding_as_adapter("soft_shadow_map", &ctx, &gpu);
             let model = algorithms::run("soft_shadow_map", Backend::CpuModel, &f, &ctx).unwrap();
             let e = metrics::compare(&gpu.visibility, &model.visibility, &f.gbuffer.mask());
             let fill = |o: &FrameOutput| o.counters.get("fill").unwrap_or(0.0);

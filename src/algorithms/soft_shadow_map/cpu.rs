@@ -303,7 +303,7 @@ fn splat(
     );
     let res = lf.resolution;
     let target = Target::square(res, frame.params.tile_size);
-    let pipeline = Pipeline::color_only(0.0, o.precision.blend());
+    let pipeline = Pipeline::color_only(0.0, o.precision.blend(o.fp16_rounding));
     let geometry = Geometry {
         positions: &vertices,
         triangles: &triangles,

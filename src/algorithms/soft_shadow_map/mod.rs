@@ -16,7 +16,8 @@
 //!
 //! Accumulation precision (§5.1.3, Appendix A): each add is rounded to half precision with
 //! `precision: "fp16"`, as blending into a half-float target does, so a micro-patch that hides
-//! less than 2⁻¹⁰ of what is already accumulated is lost ([`Blend::AddHalf`]).
+//! less than 2⁻¹⁰ of what is already accumulated is lost ([`Blend::AddHalf`]; how the sum rounds
+//! is the implementation's choice, option `fp16_rounding`).
 //!
 //! Geometry is split by the scene tags ([`Role`](crate::scene::Role)) as the paper splits it:
 //! objects tagged occluder go into the occluder map, objects tagged receiver *only* into the
@@ -42,7 +43,7 @@ use crate::algorithms::{
 };
 use crate::error::InputError;
 use crate::frame::RunParams;
-use crate::model::raster::Blend;
+use crate::model::raster::{Blend, HalfRounding};
 use crate::scene::LightKind;
 use crate::scene::{Bounds, FlatMesh, Light};
 
@@ -59,8 +60,8 @@ pub enum Precision {
     /// 32-bit float adds (R32Float blending on wgpu).
     #[default]
     Fp32,
-    /// Every add rounded to IEEE half toward zero (R16Float blending on wgpu, as llvmpipe does
-    /// it), the paper's hardware.
+    /// Every add rounded to IEEE half (R16Float blending on wgpu), the paper's hardware; the
+    /// cpu executions round as `fp16_rounding` says.
     Fp16,
 }
 
@@ -82,6 +83,11 @@ pub struct SoftShadowMapOptions {
     /// A micro-patch shadows a receiver only when it lies nearer the light by more than this many
     /// map texels (at the receiver's depth).
     pub bias_texels: f32,
+    /// With `precision: "fp16"`, how the cpu executions round each add: `"toward_zero"`
+    /// (default; Mesa's llvmpipe) or `"nearest_even"` (NVIDIA). Vulkan leaves the rounding of
+    /// blending to the implementation; the wgpu execution rounds as its adapter does, records
+    /// it (`execution.fp16_blend_rounding`) and warns where it differs from this option.
+    pub fp16_rounding: HalfRounding,
 }
 
 impl Default for SoftShadowMapOptions {
@@ -92,6 +98,7 @@ impl Default for SoftShadowMapOptions {
             occluder_map_transfer: true,
             transfer_gb_per_s: 1.0,
             bias_texels: 1.5,
+            fp16_rounding: HalfRounding::default(),
         }
     }
 }
@@ -402,18 +409,46 @@ pub fn occlusion(f: &LightFrame, p: &MicroPatch, t_r: Vec2, z_r: f32, bias: f32)
     overlap(a.x, b.x) * overlap(a.y, b.y)
 }
 
+/// What a wgpu run records of its adapter's half-float blend (`sums`, `Gpu::half_blend_sums`)
+/// with option `fp16_rounding` = `option`: the adapter's rounding (`execution.fp16_blend_rounding`)
+/// and a warning where it is not the option's, since the cpu executions' fp16 images then differ
+/// from the adapter's by rounding accumulated over each texel's adds.
+pub fn half_rounding(sums: [f32; 2], option: HalfRounding) -> (&'static str, Option<String>) {
+    match HalfRounding::of_sums(sums) {
+        Some(r) if r == option => (r.name(), None),
+        Some(r) => (
+            r.name(),
+            Some(format!(
+                "the adapter rounds half-float blends {}, the cpu executions {} \
+                 (options.{ID}.fp16_rounding): their fp16 images differ by that rounding",
+                r.name(),
+                option.name()
+            )),
+        ),
+        None => (
+            "unknown",
+            Some(format!(
+                "the adapter's half-float blend rounds neither toward zero nor to nearest (1 + 3/4 \
+                 and 1 + 1/4 of a half's step at 1 stored as {sums:?}): the cpu executions' fp16 \
+                 images are not the adapter's"
+            )),
+        ),
+    }
+}
+
 /// Bias in light-frame depth at receiver depth `z_r`: `bias_texels` map texels.
 pub fn bias_at(f: &LightFrame, bias_texels: f32, z_r: f32) -> f32 {
     bias_texels * f.texel_tan().x * z_r
 }
 
 impl Precision {
-    /// The blend that accumulates the SSM at this precision: fp16 rounds each sum to half, as
-    /// blending into an R16Float target does (Appendix A: `X + ε = X` when `ε < 2⁻¹⁰·X`).
-    pub fn blend(self) -> Blend {
+    /// The blend that accumulates the SSM at this precision: fp16 rounds each sum to half as
+    /// `rounding` says, as blending into an R16Float target does (Appendix A: `X + ε = X` when
+    /// `ε < 2⁻¹⁰·X`, toward zero; `ε < 2⁻¹¹·X` to nearest).
+    pub fn blend(self, rounding: HalfRounding) -> Blend {
         match self {
             Precision::Fp32 => Blend::Add,
-            Precision::Fp16 => Blend::AddHalf,
+            Precision::Fp16 => Blend::AddHalf(rounding),
         }
     }
 }
@@ -586,12 +621,14 @@ mod tests {
 
     #[test]
     fn half_precision_loses_small_adds_on_large_sums() {
-        // Appendix A: 2048 + 1 = 2048 in FP16.
-        let add = |p: Precision, a, b| p.blend().apply(a, b);
-        assert_eq!(add(Precision::Fp16, 2048.0, 1.0), 2048.0);
-        assert_eq!(add(Precision::Fp32, 2048.0, 1.0), 2049.0);
-        let small = 0.5 / 2049.0;
-        assert_eq!(add(Precision::Fp16, 0.5, small), 0.5);
-        assert!(add(Precision::Fp32, 0.5, small) > 0.5);
+        // Appendix A: 2048 + 1 = 2048 in FP16, however the sum rounds (a tie goes to even).
+        for r in [HalfRounding::TowardZero, HalfRounding::NearestEven] {
+            let add = |p: Precision, a, b| p.blend(r).apply(a, b);
+            assert_eq!(add(Precision::Fp16, 2048.0, 1.0), 2048.0);
+            assert_eq!(add(Precision::Fp32, 2048.0, 1.0), 2049.0);
+            let small = 0.5 / 2049.0;
+            assert_eq!(add(Precision::Fp16, 0.5, small), 0.5);
+            assert!(add(Precision::Fp32, 0.5, small) > 0.5);
+        }
     }
 }

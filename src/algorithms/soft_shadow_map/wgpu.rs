@@ -23,7 +23,7 @@ use std::time::Instant;
 use bytemuck::{Pod, Zeroable};
 
 use super::cpu::{extent_quad, micro_patch};
-use super::{LightFrame, Precision, SoftShadowMapOptions, Split, ID};
+use super::{half_rounding, LightFrame, Precision, SoftShadowMapOptions, Split, ID};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
@@ -112,6 +112,14 @@ pub fn render(
         out.warnings.insert(0, w);
     }
     super::cpu::record_receivers_outside(frame, &split, &mut out);
+    if o.precision == Precision::Fp16 {
+        let rounding = half_rounding(gpu.half_blend_sums()?, o.fp16_rounding);
+        record_execution(
+            &mut out.execution,
+            serde_json::json!({"fp16_blend_rounding": rounding.0}),
+        );
+        out.warnings.extend(rounding.1);
+    }
     Ok(out)
 }
 
