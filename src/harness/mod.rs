@@ -60,46 +60,49 @@ pub fn light_as(light: Light, kind: LightKind, toward: glam::Vec3) -> Light {
 }
 
 /// The light a run of algorithm `info` in `scene` uses: the scene's own when the algorithm takes
-/// its kind, else [`light_as`] toward the scene's centre, refused (naming `$.light`) when the
-/// converted emitter would meet triangles of the scene that the scene's light does not meet
-/// (e.g. a 130 × 105 rectangle 0.1 below a ceiling made a sphere of radius 65 pokes through the
-/// ceiling, and its reference would be taken half inside it).
+/// its kind, else [`light_as`] toward the scene's centre. Refused (naming `$.light`) when that
+/// emitter meets triangles of the scene: every method and the reference take the light to lie
+/// outside all geometry, and one passing through it (a light sized past its surroundings, a
+/// 130 × 105 rectangle 0.1 below a ceiling made a sphere of radius 65) shadows nothing right.
 pub fn light_for_run(
     scene: &Scene,
     info: &algorithms::AlgorithmInfo,
 ) -> std::result::Result<Light, crate::error::InputError> {
     let kind = info.light_for(scene.light.kind());
     let light = light_as(scene.light, kind, scene.bounds().center());
-    if kind == scene.light.kind() {
-        return Ok(light);
-    }
-    let poking = scene
+    let meeting = scene
         .objects
         .iter()
         .flat_map(|o| (0..o.mesh.triangles.len()).map(|t| o.mesh.triangle(t)))
-        .filter(|&t| light.meets_triangle(t) && !scene.light.meets_triangle(t))
+        .filter(|&t| light.meets_triangle(t))
         .count();
-    if poking > 0 {
-        let c = light.center();
-        return Err(crate::error::InputError::new(
-            "$.light",
-            format!(
-                "algorithm '{}' takes a {kind} light, but the scene's {} light converted to a                  {kind} of size {} at ({}, {}, {}) would pass through {poking} triangles of the                  scene; give the scene a light of a kind it takes ({}) or a smaller one",
-                info.id,
-                scene.light.kind(),
-                light.size(),
-                c.x,
-                c.y,
-                c.z,
-                info.lights
-                    .iter()
-                    .map(|k| k.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-        ));
+    if meeting == 0 {
+        return Ok(light);
     }
-    Ok(light)
+    let c = light.center();
+    let what = format!(
+        "{kind} light of size {} at ({}, {}, {}) passes through {meeting} triangles of the scene",
+        light.size(),
+        c.x,
+        c.y,
+        c.z
+    );
+    let why = if kind == scene.light.kind() {
+        format!("the {what}; the light must lie outside all geometry (move it or make it smaller)")
+    } else {
+        format!(
+            "algorithm '{}' takes a {kind} light, but the scene's {} light converted to a {what}; \
+             give the scene a light of a kind it takes ({}) or a smaller one",
+            info.id,
+            scene.light.kind(),
+            info.lights
+                .iter()
+                .map(|k| k.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    Err(crate::error::InputError::new("$.light", why))
 }
 
 /// The warning a run gets when its algorithm needs another light kind than the scene's.

@@ -8,7 +8,7 @@ use glam::Vec3;
 use shadowbench::algorithms::{self, Backend, ExecContext};
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::harness::{light_for_run, run_one};
-use shadowbench::scene::generators::primitives;
+use shadowbench::scene::generators::{self, primitives, GeneratorParams};
 use shadowbench::scene::{Camera, Light, LightKind, Object, Role, Scene};
 
 /// Light height, disc radius, and the occluder's edge: a thin slab over x < EDGE_X whose top
@@ -176,6 +176,59 @@ fn a_converted_light_that_would_pass_through_the_ceiling_is_refused() {
         half_v: Vec3::new(0.0, 0.0, 4.0),
     };
     assert!(light_for_run(&small, algorithms::find("penumbra_map").unwrap()).is_ok());
+}
+
+/// The scene's own light passing through its geometry is refused as a converted one is, in
+/// `render` (exit 2 naming `$.light`) and in a sweep (that run fails with the reason, the others
+/// run): a sphere light of radius 3 on sphere-on-plane reaches down into the sphere below it.
+#[test]
+fn a_light_that_passes_through_the_scene_is_refused() {
+    let scene = generators::find("sphere-on-plane")
+        .unwrap()
+        .build(&GeneratorParams::default());
+    let c = scene.light.center();
+    // The light centre's height above the highest point of the scene's geometry.
+    let top = scene.bounds().max.y;
+    let big = scene.light.with_size(2.0 * (c.y - top) + 1.0);
+    let mut through = scene.clone();
+    through.light = big;
+    let e = light_for_run(&through, algorithms::find("pcss").unwrap()).unwrap_err();
+    assert!(
+        e.to_string().contains("$.light") && e.to_string().contains("passes through"),
+        "{e}"
+    );
+    assert!(light_for_run(&scene, algorithms::find("pcss").unwrap()).is_ok());
+
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let json = format!(
+        r#"{{"name": "through", "scene": {{"generator": "sphere-on-plane"}},
+            "algorithms": ["pcss"], "backends": ["cpu-native"],
+            "params": {{"image": [32, 24]}}, "sweep": {{"light_size": [{}, {}]}},
+            "reference": {{"enabled": false}}}}"#,
+        scene.light.size(),
+        big.size()
+    );
+    let file = dir.join("through.json");
+    std::fs::write(&file, json).unwrap();
+    let out_dir = dir.join("out");
+    let out = super::common::shadowbench(&[
+        "run",
+        file.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(out.status.success(), "{}", super::common::stderr(&out));
+    let results: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("out/results.json")).unwrap()).unwrap();
+    let failures: Vec<_> = results["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["failure"].as_str().map(|f| f.contains("passes through")))
+        .collect();
+    assert_eq!(failures, [None, Some(true)], "{results}");
 }
 
 #[test]
