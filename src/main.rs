@@ -1061,6 +1061,13 @@ fn main() -> ExitCode {
             eprintln!("error: {e}");
             return ExitCode::from(e.exit_code() as u8);
         }
+        // An adapter asked for by name that is not there is bad input, not a missing GPU to
+        // skip: the runs the user meant for it would otherwise not happen.
+        if let Err(e) = shadowbench::gpu::gpu() {
+            let e = Error::from(InputError::new("--adapter", e.to_string()));
+            eprintln!("error: {e}");
+            return ExitCode::from(e.exit_code() as u8);
+        }
     }
     if let Ok(spec) = std::env::var(shadowbench::gpu::fault::FAULT_ENV) {
         if let Err(e) = shadowbench::gpu::fault::parse(&spec) {

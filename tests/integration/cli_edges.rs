@@ -237,3 +237,31 @@ fn render_of_a_scenario_names_what_it_does_not_use() {
         stderr(&o)
     );
 }
+
+/// `--adapter` naming no adapter there is bad input (exit 2, naming the option), in `render`
+/// and in `run`, before anything is written: before, `run` skipped its wgpu runs with a note and
+/// exited 0, so the runs meant for that GPU silently did not happen.
+#[test]
+fn an_adapter_that_is_not_there_is_an_input_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = scenario(dir.path());
+    let out = dir.path().join("out");
+    let out = out.to_str().unwrap();
+    let name = "no-such-adapter-7f3a";
+    for args in [
+        vec![
+            "render",
+            "--algorithm",
+            "pcss",
+            "--backend",
+            "wgpu",
+            "--no-reference",
+        ],
+        vec!["run", &file, "-q"],
+    ] {
+        let o = shadowbench(&[&args[..], &["--adapter", name, "--out", out]].concat());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("--adapter"), "{}", stderr(&o));
+        assert!(!Path::new(out).exists(), "{args:?} wrote {out}");
+    }
+}
