@@ -606,13 +606,6 @@ impl Pipeline for Rasterized<'_> {
             "wedge_vertices",
             VERTEX_BYTES as f64 * f64::from(l.wedge_vertices),
         );
-        let (caps, stat) = (h.caps, Box::new(stat));
-        Ok(Replayed {
-            fill,
-            passed,
-            caps,
-            index,
-            stat,
-        })
+        Ok(Replayed::new(fill, passed, h.caps, index, stat))
     }
 }
