@@ -30,7 +30,7 @@ use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{hard_triangles, DepthTarget, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
-    check_limits, FrameResources, Params, Stat, VolumePasses,
+    check_limits, hard_fill, FrameResources, Params, Stat, VolumePasses,
 };
 use crate::algorithms::shadow_volume::Counting;
 use crate::algorithms::{ExecContext, FrameOutput};
@@ -67,11 +67,7 @@ pub fn render(
     let pixel_samples = f64::from(n) * rays.len() as f64;
     let (stencil, accumulation) = (f64::from(STENCIL_BYTES), f64::from(ACCUMULATION_BYTES));
     hard.add("silhouette_edges", m.edges as f64);
-    if counting == Counting::ZFail {
-        hard.add("volume_caps", m.caps as f64);
-    }
-    hard.add("fill", m.fill);
-    hard.add("overdraw", m.fill - m.passed);
+    hard_fill(&mut hard, counting, m.fill, m.passed, m.caps);
     let reads = [
         ("depth", m.fill * DEPTH_BYTES as f64),
         ("stencil", m.passed * stencil),

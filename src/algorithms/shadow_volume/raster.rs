@@ -41,13 +41,15 @@
 //! makes).
 
 use glam::{Mat4, Vec3};
+use wgpu::CompareFunction::{Always, Equal, Greater, LessEqual};
+use wgpu::StencilOperation::{DecrementWrap, IncrementWrap, Keep};
 
 use super::wgpu::ray_records;
 use super::{zfail_faces, Counting, ShadowQuad};
 use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, slot64, tiles, view, Bind, Layout, Onto, Pass, Program, Raster,
+    gpu_struct, per_vertex, slot64, tiles, view, Bind, Draw, Layout, Onto, Pass, Program, Raster,
     Stenciled, Step,
 };
 use crate::gpu::readback::words;
@@ -173,63 +175,6 @@ impl DepthTarget {
     }
 }
 
-/// The pipelines of the count pass in the stencil: [increment, decrement] and the accumulation.
-struct StencilCount {
-    quads: [wgpu::RenderPipeline; 2],
-    lit: [wgpu::RenderPipeline; 1],
-}
-
-impl StencilCount {
-    /// The pipelines over `program`'s count entries: vertices of `attributes`, the depth test
-    /// `test`, the accumulation blended by `blend`.
-    fn new(
-        gpu: &Gpu,
-        program: &Program,
-        attributes: &[wgpu::VertexAttribute],
-        test: wgpu::CompareFunction,
-        blend: Option<wgpu::ColorTargetState>,
-    ) -> StencilCount {
-        let depth_format = DepthTarget::StencilCount.format();
-        let keep = wgpu::StencilOperation::Keep;
-        let quad = |vs, pass_op| {
-            program.render(
-                gpu,
-                &Raster {
-                    vs,
-                    fs: "fs_quad",
-                    vertex: per_vertex(attributes),
-                    depth: Some(test),
-                    depth_format,
-                    stencil: stencil_test(wgpu::CompareFunction::Always, pass_op, keep),
-                    depth_write: false,
-                    color: Some(unwritten(TARGET_FORMAT)),
-                    instrument: Some(false),
-                    ..Raster::default()
-                },
-            )
-        };
-        StencilCount {
-            quads: [
-                quad("vs_quad_up", wgpu::StencilOperation::IncrementWrap),
-                quad("vs_quad_down", wgpu::StencilOperation::DecrementWrap),
-            ],
-            lit: [program.render(
-                gpu,
-                &Raster {
-                    vs: "vs_full",
-                    fs: "fs_lit",
-                    depth: Some(wgpu::CompareFunction::Always),
-                    depth_format,
-                    stencil: stencil_test(wgpu::CompareFunction::Equal, keep, keep),
-                    depth_write: false,
-                    color: blend,
-                    ..Raster::default()
-                },
-            )],
-        }
-    }
-}
-
 /// The textures, bind groups and pipelines of the raster hard pass over one frame, created once
 /// and reused for every light point.
 pub(crate) struct HardRaster<'g> {
@@ -255,7 +200,7 @@ pub(crate) struct HardRaster<'g> {
     /// Counting in the stencil ([`DepthTarget::StencilCount`]): the pipelines incrementing for
     /// the faces of count change +1 and decrementing for −1, and the accumulation of the
     /// pixels whose stencil is 0.
-    stencil: Option<StencilCount>,
+    stencil: Option<([wgpu::RenderPipeline; 2], [wgpu::RenderPipeline; 1])>,
     resolve: wgpu::ComputePipeline,
 }
 
@@ -312,54 +257,81 @@ impl<'g> HardRaster<'g> {
         // A vertex: position and the count change.
         let attributes = wgpu::vertex_attr_array![0 => Float32x4];
         let test = match counting {
-            Counting::ZPass => wgpu::CompareFunction::Greater,
-            Counting::ZFail => wgpu::CompareFunction::LessEqual,
+            Counting::ZPass => Greater,
+            Counting::ZFail => LessEqual,
+        };
+        // The count passes: the faces tested against the eye's depth, which they leave.
+        let count_pipeline = |vs, depth, stencil, color, instrument| {
+            let r = Raster {
+                vs,
+                fs: "fs_quad",
+                vertex: per_vertex(&attributes),
+                depth: Some(depth),
+                depth_format,
+                stencil,
+                depth_write: false,
+                color,
+                instrument: Some(instrument),
+                ..Raster::default()
+            };
+            program.render(gpu, &r)
         };
         let quad = [false, true].map(|instrument| {
-            program.render(
-                gpu,
-                &Raster {
-                    vs: "vs_quad",
-                    fs: "fs_quad",
-                    vertex: per_vertex(&attributes),
-                    depth: Some(if instrument {
-                        wgpu::CompareFunction::Always
-                    } else {
-                        test
-                    }),
-                    depth_format,
-                    depth_write: false,
-                    color: blend.clone(),
-                    instrument: Some(instrument),
-                    ..Raster::default()
-                },
+            let depth = if instrument { Always } else { test };
+            count_pipeline(
+                "vs_quad",
+                depth,
+                Default::default(),
+                blend.clone(),
+                instrument,
             )
         });
-        let stencil = (target == DepthTarget::StencilCount)
-            .then(|| StencilCount::new(gpu, &program, &attributes, test, blend.clone()));
+        // The screen-covering passes: the depth pre-pass, the accumulation of the lit pixels.
+        let full = Raster {
+            vs: "vs_full",
+            fs: "fs_depth",
+            depth: Some(Always),
+            depth_format,
+            ..Raster::default()
+        };
+        let stencil = (target == DepthTarget::StencilCount).then(|| {
+            let unwritten = Some(unwritten(TARGET_FORMAT));
+            let counted = |vs, op| {
+                count_pipeline(
+                    vs,
+                    test,
+                    stencil_test(Always, op, Keep),
+                    unwritten.clone(),
+                    false,
+                )
+            };
+            let lit = Raster {
+                fs: "fs_lit",
+                stencil: stencil_test(Equal, Keep, Keep),
+                depth_write: false,
+                color: blend.clone(),
+                ..full.clone()
+            };
+            (
+                [
+                    counted("vs_quad_up", IncrementWrap),
+                    counted("vs_quad_down", DecrementWrap),
+                ],
+                [program.render(gpu, &lit)],
+            )
+        });
+        let accumulate = Raster {
+            vs: "vs_full",
+            fs: "fs_accumulate",
+            depth: None,
+            color: blend.clone(),
+            ..Raster::default()
+        };
         HardRaster {
             stencil,
-            depth_pipeline: program.render(
-                gpu,
-                &Raster {
-                    vs: "vs_full",
-                    fs: "fs_depth",
-                    depth: Some(wgpu::CompareFunction::Always),
-                    depth_format,
-                    ..Raster::default()
-                },
-            ),
+            depth_pipeline: program.render(gpu, &full),
             quad,
-            accumulate: program.render(
-                gpu,
-                &Raster {
-                    vs: "vs_full",
-                    fs: "fs_accumulate",
-                    depth: None,
-                    color: blend.clone(),
-                    ..Raster::default()
-                },
-            ),
+            accumulate: program.render(gpu, &accumulate),
             resolve: program.compute(gpu, "resolve", None),
             read_count: layout1.group(gpu, "read count", &[view(&count)]),
             read_accumulation: layout1.group(gpu, "read accumulation", &[view(&accumulation)]),
@@ -383,21 +355,22 @@ impl<'g> HardRaster<'g> {
         )
     }
 
+    /// The bind groups of a pass: group 0, and group 1 reading the count or the accumulation.
+    fn groups(&self, read_count: bool) -> [Option<&wgpu::BindGroup>; 2] {
+        let read = match read_count {
+            true => &self.read_count,
+            false => &self.read_accumulation,
+        };
+        [Some(&self.group), Some(read)]
+    }
+
     /// The depth pre-pass.
     pub fn depth_pass(&self) -> Pass<'_> {
-        Pass::draw(
-            "eye depth",
-            &[Some(&self.group), Some(&self.read_accumulation)],
-            crate::gpu::pass::Draw {
-                pipeline: &self.depth_pipeline,
-                color: None,
-                depth: Some(&self.depth),
-                vertices: None,
-                indices: None,
-                count: 3,
-                instances: 1,
-            },
-        )
+        let draw = Draw {
+            depth: Some(&self.depth),
+            ..Draw::of(&self.depth_pipeline, 3)
+        };
+        Pass::draw("eye depth", &self.groups(false), draw)
     }
 
     /// The count pass of the triangles `range` of `vertices`, from `eye_count` (z-pass; 0 for
@@ -409,72 +382,61 @@ impl<'g> HardRaster<'g> {
         eye_count: i32,
         instrument: bool,
     ) -> Pass<'a> {
-        if let (Some(st), false) = (&self.stencil, instrument) {
-            return Pass::stenciled(
-                "hard",
-                &[Some(&self.group), Some(&self.read_accumulation)],
-                Stenciled {
-                    color: &self.count,
-                    clear: None,
-                    depth_stencil: &self.depth,
-                    stencil_clear: Some(eye_count.rem_euclid(256) as u32),
-                    vertices: Some(vertices),
-                    pipelines: &st.quads,
-                    draws: vec![(0, range.clone(), 0), (1, range, 0)],
-                },
-            );
-        }
-        Pass::onto(
-            "hard",
-            &[Some(&self.group), Some(&self.read_accumulation)],
-            Onto {
-                pipeline: &self.quad[usize::from(instrument)],
+        if let (Some((quads, _)), false) = (&self.stencil, instrument) {
+            let stenciled = Stenciled {
                 color: &self.count,
-                clear: Some(f64::from(eye_count)),
-                depth: Some(&self.depth),
+                clear: None,
+                depth_stencil: &self.depth,
+                stencil_clear: Some(eye_count.rem_euclid(256) as u32),
                 vertices: Some(vertices),
-                range,
-            },
-        )
+                pipelines: quads,
+                draws: vec![(0, range.clone(), 0), (1, range, 0)],
+            };
+            return Pass::stenciled("hard", &self.groups(false), stenciled);
+        }
+        let onto = Onto {
+            pipeline: &self.quad[usize::from(instrument)],
+            color: &self.count,
+            clear: Some(f64::from(eye_count)),
+            depth: Some(&self.depth),
+            vertices: Some(vertices),
+            range,
+        };
+        Pass::onto("hard", &self.groups(false), onto)
     }
 
     /// The accumulation of the lit pixels of the last count pass; `first` clears the
     /// accumulation first.
     pub fn accumulate_pass(&self, first: bool) -> Pass<'_> {
-        if let Some(st) = &self.stencil {
-            return Pass::stenciled(
-                "accumulate",
-                &[Some(&self.group), Some(&self.read_count)],
-                Stenciled {
-                    color: &self.accumulation,
-                    clear: first.then_some(0.0),
-                    depth_stencil: &self.depth,
-                    stencil_clear: None,
-                    vertices: None,
-                    pipelines: &st.lit,
-                    draws: vec![(0, 0..3, 0)],
-                },
-            );
-        }
-        Pass::onto(
-            "accumulate",
-            &[Some(&self.group), Some(&self.read_count)],
-            Onto {
-                pipeline: &self.accumulate,
-                color: &self.accumulation,
-                clear: first.then_some(0.0),
-                depth: None,
+        let (color, clear) = (&self.accumulation, first.then_some(0.0));
+        if let Some((_, lit)) = &self.stencil {
+            let stenciled = Stenciled {
+                color,
+                clear,
+                depth_stencil: &self.depth,
+                stencil_clear: None,
                 vertices: None,
-                range: 0..3,
-            },
-        )
+                pipelines: lit,
+                draws: vec![(0, 0..3, 0)],
+            };
+            return Pass::stenciled("accumulate", &self.groups(true), stenciled);
+        }
+        let onto = Onto {
+            pipeline: &self.accumulate,
+            color,
+            clear,
+            depth: None,
+            vertices: None,
+            range: 0..3,
+        };
+        Pass::onto("accumulate", &self.groups(true), onto)
     }
 
     /// The average over the samples into [`HardRaster::visibility`].
     pub fn resolve_pass(&self) -> Pass<'_> {
         Pass::compute(
             "resolve",
-            &[Some(&self.group), Some(&self.read_accumulation)],
+            &self.groups(false),
             &self.resolve,
             tiles(self.size, 8),
         )

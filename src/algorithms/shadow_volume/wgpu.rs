@@ -21,6 +21,7 @@ use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{gpu_struct, replay_slots, tiles, Bind, Layout, Pass, Program};
 use crate::gpu::{Gpu, Needs, EMPTY_BYTES};
+use crate::record::Counters;
 use crate::scene::Mesh;
 
 /// The family's WGSL: parameters, bindings, the hard pass, the accumulation.
@@ -192,6 +193,17 @@ impl FrameResources {
             rgb: gpu.storage_buffer("rgb", if textured { 3 * WORD * pixels } else { WORD }, copy),
             channels: if textured { 3 } else { 1 },
         }
+    }
+}
+
+/// A hard pass's `fill` and `overdraw` (the fragments that fail the depth test) in the
+/// cpu-model's terms, from its `fill` and `passed` fragments, and counting z-fail the volumes'
+/// `volume_caps`.
+pub(crate) fn hard_fill(k: &mut Counters, counting: Counting, fill: f64, passed: f64, caps: u64) {
+    k.add("fill", fill);
+    k.add("overdraw", fill - passed);
+    if counting == Counting::ZFail {
+        k.add("volume_caps", caps as f64);
     }
 }
 

@@ -60,7 +60,7 @@ use glam::Vec3;
 use wgpu::CompareFunction::{Always, Equal, Greater, Less};
 use wgpu::StencilOperation::{Keep, Replace, Zero};
 
-use super::wgpu::{soft_counters, LoopRun, WedgeRecords, WGSL as SOFT_WGSL};
+use super::wgpu::{run_loops, LoopRun, Pipeline, Replayed, WedgeRecords, WGSL as SOFT_WGSL};
 use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{
@@ -70,18 +70,19 @@ use crate::algorithms::shadow_volume::wgpu::{
     quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
     WGSL as FAMILY_WGSL,
 };
-use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
+use crate::algorithms::shadow_volume::ShadowQuad;
 use crate::algorithms::FrameOutput;
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    tiles, view, Bind, Onto, Pass, Program, Raster, Statistics, Stenciled, Step, Timed,
+    view, Bind, Layout, Onto, Pass, Program, Raster, Statistics, Stenciled, Step,
 };
-use crate::gpu::readback::{read_texels, words};
-use crate::gpu::{additive, counters_mode, unwritten, Gpu, GpuCounters, EMPTY_BYTES};
+use crate::gpu::readback::read_texels;
+use crate::gpu::{
+    additive, counters_mode, record_execution, unwritten, Gpu, GpuCounters, EMPTY_BYTES,
+};
 use crate::record::Counters;
-use crate::scene::Bounds;
-use crate::visibility::RgbBuffer;
+use crate::scene::{Bounds, Mesh};
 
 /// The wedge pass's WGSL.
 const WGSL: &str = include_str!("raster.wgsl");
@@ -133,21 +134,89 @@ pub fn faces(
     out
 }
 
-/// What one loop uploaded, kept for the instrumented replay.
-struct LoopRaster {
-    hard: wgpu::Buffer,
-    hard_vertices: u32,
+/// What a loop's hard phase drew: the vertex buffer of its triangles ([`hard_triangles`]),
+/// their vertex count, the eye's count the pass starts from and the z-fail caps.
+struct HardVertices {
+    buffer: wgpu::Buffer,
+    count: u32,
     eye_count: i32,
     caps: u64,
-    quads: u64,
+}
+
+/// What one loop's wedges phase uploaded, kept for the instrumented replay.
+struct LoopRaster {
     /// The wedge primitives' front faces: the first `wedge_vertices` of `wedge`.
     wedge_vertices: u32,
-    wedges: WedgeRecords,
     /// The wedge pass's bind group and vertex buffer.
     group: wgpu::BindGroup,
     wedge: wgpu::Buffer,
     /// The wedge halves' faces, with the stencil.
     halves: Vec<Half>,
+}
+
+impl LoopRaster {
+    /// A wedge pass of `pipeline` over the front faces into `color`, cleared to 0, with the
+    /// eye's depth `depth`.
+    fn onto<'a>(
+        &'a self,
+        pipeline: &'a wgpu::RenderPipeline,
+        color: &'a wgpu::TextureView,
+        depth: &'a wgpu::TextureView,
+    ) -> Pass<'a> {
+        let range = 0..self.wedge_vertices;
+        let (clear, depth, vertices) = (Some(0.0), Some(depth), Some(&self.wedge));
+        let onto = Onto {
+            pipeline,
+            color,
+            clear,
+            depth,
+            vertices,
+            range,
+        };
+        Pass::onto("soft", &[Some(&self.group)], onto)
+    }
+
+    /// The wedge pass with the culling of IV §4.4 over the halves `keep` lets through into
+    /// `color`, cleared to 0: per half, its front faces mark the stencil of `depth` with the
+    /// half's reference where the point is behind them (`pipelines[0]`), then its back faces
+    /// shade where the point is in front of them and the stencil holds the reference
+    /// (`pipelines[1]`), clearing it. References run 1..=255 and the back faces clear what the
+    /// front faces marked, so no half sees another's marks.
+    fn culled<'a>(
+        &'a self,
+        pipelines: &'a [wgpu::RenderPipeline],
+        color: &'a wgpu::TextureView,
+        depth: &'a wgpu::TextureView,
+        keep: impl Fn(&Half) -> bool,
+    ) -> Pass<'a> {
+        let draws = (self.halves.iter().filter(|h| keep(h)).enumerate())
+            .flat_map(|(i, h)| {
+                let reference = (i % 255) as u32 + 1;
+                [
+                    (0, h.front.clone(), reference),
+                    (1, h.back.clone(), reference),
+                ]
+            })
+            .collect();
+        let stenciled = Stenciled {
+            color,
+            clear: Some(0.0),
+            depth_stencil: depth,
+            stencil_clear: Some(0),
+            vertices: Some(&self.wedge),
+            pipelines,
+            draws,
+        };
+        Pass::stenciled("soft", &[Some(&self.group)], stenciled)
+    }
+}
+
+/// A wedge half's front and back faces (vertex ranges) and its side of the hard shadow quad
+/// (−1 inner, +1 outer).
+struct Half {
+    front: std::ops::Range<u32>,
+    back: std::ops::Range<u32>,
+    side: f32,
 }
 
 /// The wedge pass (pass 2): its V-buffers, pipelines and the host's cut of the primitives.
@@ -217,14 +286,11 @@ impl WedgePass {
         // point is behind them (reversed depth `Greater`), the back faces shade where it is in
         // front of them (`Less`) and the stencil holds the half's reference.
         let culled = |fs: &str, format| {
+            let mark = stencil_test(Always, Replace, Keep);
+            let shade = stencil_test(Equal, Zero, Zero);
             vec![
-                pipeline(
-                    "fs_mark",
-                    format,
-                    Greater,
-                    stencil_test(Always, Replace, Keep),
-                ),
-                pipeline(fs, format, Less, stencil_test(Equal, Zero, Zero)),
+                pipeline("fs_mark", format, Greater, mark),
+                pipeline(fs, format, Less, shade),
             ]
         };
         let timed = entries
@@ -296,33 +362,28 @@ impl WedgePass {
         (vertices, fronts, halves)
     }
 
-    /// The timed wedge passes of loop `lg`, one per V-buffer; with the stencil the split
-    /// format's additive buffer takes the inner halves, the subtractive one the outer halves.
-    fn passes<'a>(&'a self, lg: &'a LoopRaster, hard: &'a HardRaster) -> Vec<Pass<'a>> {
-        let (group, wedge) = (&lg.group, &lg.wedge);
-        self.timed
-            .iter()
-            .zip(&self.vbuffers)
-            .enumerate()
+    /// The timed wedge passes of loop `lg`, one per V-buffer, with the eye's depth `depth`;
+    /// with the stencil the split format's additive buffer takes the inner halves, the
+    /// subtractive one the outer halves.
+    fn passes<'a>(&'a self, lg: &'a LoopRaster, depth: &'a wgpu::TextureView) -> Vec<Pass<'a>> {
+        let split = self.split;
+        (self.timed.iter().zip(&self.vbuffers).enumerate())
             .map(|(j, (pipelines, color))| match self.stencil {
-                false => wedge_pass(group, &pipelines[0], color, hard, wedge, lg.wedge_vertices),
-                true => {
-                    let keep = |h: &&Half| !self.split || (h.side < 0.0) == (j == 0);
-                    let halves: Vec<&Half> = lg.halves.iter().filter(keep).collect();
-                    culled_pass(group, pipelines, color, hard, wedge, &halves)
-                }
+                false => lg.onto(&pipelines[0], color, depth),
+                true => lg.culled(pipelines, color, depth, |h| {
+                    !split || (h.side < 0.0) == (j == 0)
+                }),
             })
             .collect()
     }
 
     /// The fragments of loop `lg` that pass the culled passes' depth and stencil tests, counted
     /// by those passes; `None` without the stencil or the counters.
-    fn shaded(&self, gpu: &Gpu, lg: &LoopRaster, hard: &HardRaster) -> Result<Option<f64>> {
+    fn shaded(&self, gpu: &Gpu, lg: &LoopRaster, depth: &wgpu::TextureView) -> Result<Option<f64>> {
         let Some((target, view, pipelines)) = &self.culled_count else {
             return Ok(None);
         };
-        let halves: Vec<&Half> = lg.halves.iter().collect();
-        let pass = culled_pass(&lg.group, pipelines, view, hard, &lg.wedge, &halves);
+        let pass = lg.culled(pipelines, view, depth, |_| true);
         crate::gpu::pass::replay(gpu, &[Step::Run(pass)])?;
         let texels = read_texels::<f32>(gpu, std::slice::from_ref(target))?;
         Ok(Some(texels[0].iter().map(|&n| f64::from(n)).sum()))
@@ -360,6 +421,19 @@ fn depth_target(stencil: bool) -> DepthTarget {
     }
 }
 
+/// The raster pipeline: the family's raster hard pass, the group layout and frame resources
+/// of the family's passes, the wedge pass, and the resolve reading the count and V-buffers.
+struct Rasterized<'g> {
+    gpu: &'g Gpu,
+    opts: SoftShadowVolumeOptions,
+    occluders: Mesh,
+    hard: HardRaster<'g>,
+    v: VolumePasses<'g>,
+    wp: WedgePass,
+    read_targets: wgpu::BindGroup,
+    resolve: wgpu::ComputePipeline,
+}
+
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
 pub(super) fn run(
     gpu: &Gpu,
@@ -379,11 +453,9 @@ pub(super) fn run(
     }
     let start = std::time::Instant::now();
     let objects_ms = gpu.cache.run_objects_ms();
-    let size = (rays.width, rays.height);
     let occluders = frame.scene.occluders();
-    let camera = &frame.scene.camera;
     let depth = depth_target(stencil_in(opts, gpu));
-    let hard = HardRaster::new(gpu, rays, camera, opts.counting, 1, depth);
+    let hard = HardRaster::new(gpu, rays, &frame.scene.camera, opts.counting, 1, depth);
     let textured = res.channels == 3;
     let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), SOFT_WGSL);
     let sources = [
@@ -396,130 +468,123 @@ pub(super) fn run(
     let program = Program::new(gpu, "ssv raster", &sources, &[Some(&v.layout)]);
     let wp = WedgePass::new(gpu, frame, rays, opts, &program, textured);
     let vb = &wp.vbuffers;
-    let (targets, read_targets) = crate::gpu::pass::Layout::bound(
+    let (targets, read_targets) = Layout::bound(
         gpu,
         "ssv targets",
         wgpu::ShaderStages::COMPUTE,
         &[&hard.count, &vb[0], vb.last().unwrap_or(&vb[0])].map(|t| (Bind::Float, view(t))),
     );
-    let resolve = Program::new(
+    let groups = [Some(&v.layout), Some(&targets)];
+    let resolve = Program::new(gpu, "ssv resolve", &sources, &groups).compute(
         gpu,
-        "ssv resolve",
-        &sources,
-        &[Some(&v.layout), Some(&targets)],
-    )
-    .compute(gpu, "resolve_soft", Some(false));
-
-    let readback: Vec<&wgpu::Buffer> =
-        [&v.res.visibility, &v.res.rgb][..1 + usize::from(textured)].to_vec();
-    let n_passes = 1 + runs.len() as u32 * (2 + vb.len() as u32);
-    let names = ["hard", "wedges", "soft"];
-    let mut run = Timed::new(gpu, &names, n_passes, Statistics::All, &readback);
+        "resolve_soft",
+        Some(false),
+    );
+    let p = Rasterized {
+        gpu,
+        opts: *opts,
+        occluders,
+        hard,
+        v,
+        wp,
+        read_targets,
+        resolve,
+    };
     // Without the pipelines' creation: the run's GPU setup, reported apart.
     let objects_ms = gpu.cache.run_objects_ms() - objects_ms;
-    run.add_wall(
-        0,
-        setup_ms + start.elapsed().as_secs_f64() * 1e3 - objects_ms,
-    );
-    let storage = wgpu::BufferUsages::STORAGE;
-    let mut loops = Vec::with_capacity(runs.len());
-    for (k, lr) in runs.iter().enumerate() {
-        // Pass 1: hard shadow quads (III §3.2.1).
-        let centre = lr.light.center();
-        let (quads, hard_vb, hard_vertices, caps) = run.host(0, || {
-            let quads: Vec<ShadowQuad> = lr
-                .edges
-                .iter()
-                .map(|e| ShadowQuad::new(e, centre))
-                .collect();
-            let (tris, caps) = hard_triangles(rays, &quads, opts.counting, &occluders, centre);
-            (quads, hard.vertices(&tris), tris.len() as u32, caps)
-        });
-        let eye_count = lr.params.eye_count;
-        let count = hard.count_pass(&hard_vb, 0..hard_vertices, eye_count, false);
-        match k {
-            0 => run.submit(0, &[hard.depth_pass(), count])?,
-            _ => run.submit(0, &[count])?,
-        }
-        // Wedges (III §3.1, IV §4.1) and their faces, on the host.
-        let lg = run.host(1, || {
-            let w = WedgeRecords::new(rays, lr, &quads, opts);
-            let (vertices, wedge_vertices, halves) = wp.geometry(rays, &w);
-            let none = gpu.storage_buffer("no bins", EMPTY_BYTES as u64, storage);
-            let params = gpu.upload(
-                "ssv params",
-                std::slice::from_ref(&lr.params),
-                wgpu::BufferUsages::UNIFORM,
-            );
-            let no_footprints = vec![None; quads.len()];
-            let quad_records = quad_records(rays, &quads, &no_footprints);
-            let quad_buf = gpu.upload("quads", &quad_records, storage);
-            let prims = gpu.upload("wedge primitives", &w.records, storage);
-            let planes = gpu.upload("wedge planes", &w.planes, storage);
-            LoopRaster {
-                hard: hard_vb,
-                hard_vertices,
-                eye_count,
-                caps,
-                quads: quads.len() as u64,
-                wedge_vertices,
-                group: v.group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft"),
-                wedge: gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX),
-                wedges: w,
-                halves,
-            }
-        });
-        // Pass 2: penumbra wedges (III §3.2.2), then the loop's V-buffer and combination.
-        let mut passes = wp.passes(&lg, &hard);
-        let groups = [Some(&lg.group), Some(&read_targets)];
-        passes.push(Pass::compute("resolve", &groups, &resolve, tiles(size, 8)));
-        run.submit(2, &passes)?;
-        drop(passes);
-        loops.push(lg);
-    }
-    let timing = run.finish()?;
-    let rgb = timing.readback.get(1).map(|b| RgbBuffer {
-        width: rays.width,
-        height: rays.height,
-        data: words(b),
-    });
-    let per_phase = replay(gpu, opts, &hard, &v, &wp, runs, &loops)?;
-    let note = "fill, overdraw, shader invocations and culls from an instrumented replay of the \
-                count and wedge passes' draws (depth test off, WGSL atomics; with the stencil, \
-                shader invocations from the culled passes), in the cpu-model's terms; mem_est.* \
-                estimated from counts and record sizes";
-    let mut out = timing.output(size, per_phase, note);
-    out.rgb = rgb;
-    crate::gpu::record_execution(&mut out.execution, wp.record(opts));
+    let setup_ms = setup_ms + start.elapsed().as_secs_f64() * 1e3 - objects_ms;
+    let mut out = run_loops(&p, gpu, (rays, &p.v.res, opts), runs, setup_ms)?;
+    record_execution(&mut out.execution, p.wp.record(opts));
     Ok(out)
 }
 
-/// The instrumented replay of every loop: the counters of the phases `hard`, `wedges`, `soft`.
-fn replay(
-    gpu: &Gpu,
-    opts: &SoftShadowVolumeOptions,
-    hard: &HardRaster,
-    v: &VolumePasses,
-    wp: &WedgePass,
-    runs: &[LoopRun],
-    loops: &[LoopRaster],
-) -> Result<Vec<Counters>> {
-    let mut per_phase = vec![Counters::default(); 3];
-    for (lr, lg) in runs.iter().zip(loops) {
-        let k = &mut per_phase[0];
-        let (fill, passed) = hard.replay(&lg.hard, &[(0..lg.hard_vertices, lg.eye_count)])?;
-        if let Some(n) = lr.silhouette_edges {
-            k.add("silhouette_edges", n as f64);
+impl Pipeline for Rasterized<'_> {
+    type Hard = HardVertices;
+    type Soft = LoopRaster;
+    const STATISTICS: Statistics = Statistics::All;
+    const NOTE: &'static str = "fill, overdraw, shader invocations and culls from an \
+        instrumented replay of the count and wedge passes' draws (depth test off, WGSL atomics; \
+        with the stencil, shader invocations from the culled passes), in the cpu-model's terms; \
+        mem_est.* estimated from counts and record sizes";
+
+    /// The depth pre-pass, then per loop the count pass, the wedge passes and the resolve.
+    fn timed_passes(&self, loops: u32) -> u32 {
+        1 + loops * (2 + self.wp.vbuffers.len() as u32)
+    }
+
+    fn hard(&self, rays: &EyeRays, lr: &LoopRun, quads: &[ShadowQuad]) -> HardVertices {
+        let (counting, centre) = (self.opts.counting, lr.light.center());
+        let (tris, caps) = hard_triangles(rays, quads, counting, &self.occluders, centre);
+        HardVertices {
+            buffer: self.hard.vertices(&tris),
+            count: tris.len() as u32,
+            eye_count: lr.params.eye_count,
+            caps,
         }
-        k.add("fill", fill);
-        k.add("overdraw", fill - passed);
-        k.add("shadow_quads", lg.quads as f64);
-        if opts.counting == Counting::ZFail {
-            k.add("volume_caps", lg.caps as f64);
+    }
+
+    fn hard_passes<'a>(&'a self, h: &'a HardVertices, first: bool) -> Vec<Pass<'a>> {
+        let count = self
+            .hard
+            .count_pass(&h.buffer, 0..h.count, h.eye_count, false);
+        match first {
+            true => vec![self.hard.depth_pass(), count],
+            false => vec![count],
         }
-        // As the cpu-model counts: a depth read per fragment, the V-buffer (the stencil for
-        // the split format) read and written per passing fragment.
-        let (target, count_bytes) = match wp.split {
+    }
+
+    /// The wedges' faces, the upload.
+    fn soft(
+        &self,
+        rays: &EyeRays,
+        lr: &LoopRun,
+        q: &[ShadowQuad],
+        w: &WedgeRecords,
+        _: &HardVertices,
+    ) -> LoopRaster {
+        let (gpu, storage) = (self.gpu, wgpu::BufferUsages::STORAGE);
+        let (vertices, wedge_vertices, halves) = self.wp.geometry(rays, w);
+        let none = gpu.storage_buffer("no bins", EMPTY_BYTES as u64, storage);
+        let params = gpu.uniform("ssv params", &lr.params);
+        let no_footprints = vec![None; q.len()];
+        let quad_buf = gpu.upload("quads", &quad_records(rays, q, &no_footprints), storage);
+        let prims = gpu.upload("wedge primitives", &w.records, storage);
+        let planes = gpu.upload("wedge planes", &w.planes, storage);
+        LoopRaster {
+            wedge_vertices,
+            group: (self.v).group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft"),
+            wedge: gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX),
+            halves,
+        }
+    }
+
+    /// The wedge passes, then the loop's V-buffer and combination.
+    fn soft_passes<'a>(&'a self, l: &'a LoopRaster) -> Vec<Pass<'a>> {
+        let mut passes = self.wp.passes(l, &self.hard.depth);
+        let groups = [Some(&l.group), Some(&self.read_targets)];
+        // The family's 8×8 tiles are the resolve's workgroups.
+        passes.push(Pass::compute(
+            "resolve",
+            &groups,
+            &self.resolve,
+            self.v.groups,
+        ));
+        passes
+    }
+
+    /// The count pass's replay and `hard`'s estimated traffic as the cpu-model counts it: a
+    /// depth read per fragment, the V-buffer (the stencil for the split format) read and
+    /// written per passing fragment; the wedge pass's front faces with the counting pipeline
+    /// (depth test off), and with the stencil the shaded fragments those the culled passes let
+    /// through.
+    fn replay<'a>(
+        &'a self,
+        h: &'a HardVertices,
+        l: &'a LoopRaster,
+        k: &mut Counters,
+    ) -> Result<Replayed<'a>> {
+        let (fill, passed) = self.hard.replay(&h.buffer, &[(0..h.count, h.eye_count)])?;
+        let (target, count_bytes) = match self.wp.split {
             true => ("stencil", STENCIL_BYTES as f64),
             false => ("vbuffer", VBUFFER_BYTES as f64),
         };
@@ -528,108 +593,19 @@ fn replay(
             (target, passed * count_bytes),
         ];
         k.add_traffic("mem_est", &reads, &[(target, passed * count_bytes)]);
-        per_phase[1].add("wedges", lg.wedges.counts.wedges as f64);
-        per_phase[1].add("wedges_degenerate", lg.wedges.counts.degenerate as f64);
-        // The soft pass: the front faces with the counting pipeline (depth test off).
-        let (group, vertices) = (&lg.group, lg.wedge_vertices);
-        let counting = wedge_pass(
-            group,
-            &wp.counting,
-            &wp.vbuffers[0],
-            hard,
-            &lg.wedge,
-            vertices,
-        );
-        let stat = v.replay(vec![counting])?;
-        // With the stencil, the shaded fragments are those the culled passes let through.
-        let shaded = wp.shaded(gpu, lg, hard)?;
-        let stat = |s: Stat| match (s, shaded) {
+        let (wp, depth) = (&self.wp, &self.hard.depth);
+        let stat = self
+            .v
+            .replay(vec![l.onto(&wp.counting, &wp.vbuffers[0], depth)])?;
+        let shaded = wp.shaded(self.gpu, l, depth)?;
+        let stat = move |s: Stat| match (s, shaded) {
             (Stat::SoftInside, Some(n)) => n,
             _ => stat(s),
         };
-        let bytes = ("wedge_vertices", VERTEX_BYTES as f64 * f64::from(vertices));
-        let (channels, pixels) = (v.res.channels, v.pixels);
-        let counts = &lg.wedges.counts;
-        soft_counters(
-            &mut per_phase[2],
-            opts,
-            channels,
-            pixels,
-            counts,
-            bytes,
-            &stat,
+        let index = (
+            "wedge_vertices",
+            VERTEX_BYTES as f64 * f64::from(l.wedge_vertices),
         );
+        Ok(Replayed::new(fill, passed, h.caps, index, stat))
     }
-    Ok(per_phase)
-}
-
-/// A wedge pass of `pipeline` over the front faces in `vertices` into `color`, cleared to 0,
-/// with the eye's depth.
-fn wedge_pass<'a>(
-    group: &'a wgpu::BindGroup,
-    pipeline: &'a wgpu::RenderPipeline,
-    color: &'a wgpu::TextureView,
-    hard: &'a HardRaster,
-    vertices: &'a wgpu::Buffer,
-    count: u32,
-) -> Pass<'a> {
-    Pass::onto(
-        "soft",
-        &[Some(group)],
-        Onto {
-            pipeline,
-            color,
-            clear: Some(0.0),
-            depth: Some(&hard.depth),
-            vertices: Some(vertices),
-            range: 0..count,
-        },
-    )
-}
-
-/// A wedge half's front and back faces (vertex ranges) and its side of the hard shadow quad
-/// (−1 inner, +1 outer).
-struct Half {
-    front: std::ops::Range<u32>,
-    back: std::ops::Range<u32>,
-    side: f32,
-}
-
-/// The wedge pass with the culling of IV §4.4 into `color`, cleared to 0: per half, its front
-/// faces mark the stencil with the half's reference where the point is behind them
-/// (`pipelines[0]`), then its back faces shade where the point is in front of them and the
-/// stencil holds the reference (`pipelines[1]`), clearing it. References run 1..=255 and the
-/// back faces clear what the front faces marked, so no half sees another's marks.
-fn culled_pass<'a>(
-    group: &'a wgpu::BindGroup,
-    pipelines: &'a [wgpu::RenderPipeline],
-    color: &'a wgpu::TextureView,
-    hard: &'a HardRaster,
-    vertices: &'a wgpu::Buffer,
-    halves: &[&Half],
-) -> Pass<'a> {
-    let draws = halves
-        .iter()
-        .enumerate()
-        .flat_map(|(i, h)| {
-            let reference = (i % 255) as u32 + 1;
-            [
-                (0, h.front.clone(), reference),
-                (1, h.back.clone(), reference),
-            ]
-        })
-        .collect();
-    Pass::stenciled(
-        "soft",
-        &[Some(group)],
-        Stenciled {
-            color,
-            clear: Some(0.0),
-            depth_stencil: &hard.depth,
-            stencil_clear: Some(0),
-            vertices: Some(vertices),
-            pipelines,
-            draws,
-        },
-    )
 }

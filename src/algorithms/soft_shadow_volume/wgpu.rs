@@ -53,19 +53,19 @@ use super::{
 };
 use crate::algorithms::eye_raster::{EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::wgpu::{
-    bins, check_limits, rect, tile_cones, tile_misses, FrameResources, HardUpload, Params, Stat,
-    VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES, STENCIL_BYTES,
-    VBUFFER_BYTES, WORD,
+    bins, check_limits, hard_fill, rect, tile_cones, tile_misses, FrameResources, HardUpload,
+    Params, Stat, VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES,
+    STENCIL_BYTES, VBUFFER_BYTES, WORD,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{Statistics, Timed};
+use crate::gpu::pass::{Pass, Statistics, Timed};
 use crate::gpu::{record_execution, Gpu};
 use crate::record::Counters;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
-use crate::scene::{Light, LightTexture, Mesh};
+use crate::scene::{Light, LightTexture};
 
 /// The soft pass: `wedge_sample` and `combine`, shared with the raster pipeline, and the
 /// gather's `soft` entry.
@@ -137,7 +137,16 @@ pub fn render(
             "additive blending of the wedges' fragments in rasterization order",
         ),
         GpuPipeline::Gather => (
-            Passes::new(gpu, &rays, opts, frame_res, occluders).run(&rays, &runs, setup_ms)?,
+            {
+                let v = VolumePasses::new(gpu, &rays, opts.counting, frame_res, occluders, WGSL);
+                let soft = v.program.compute_pair(gpu, "soft");
+                let gather = Gather {
+                    soft,
+                    v,
+                    cones: tile_cones(&rays),
+                };
+                run_loops(&gather, gpu, (&rays, &gather.v.res, opts), &runs, setup_ms)?
+            },
             "per-pixel gather over 8x8-tile bins in submission order, no atomics",
         ),
     };
@@ -192,25 +201,6 @@ pub(super) struct LoopRun {
     pub params: Params,
 }
 
-/// A loop's uploaded primitives and what its counters need from the host (the hard upload's
-/// cap faces and bin entries among them).
-struct LoopGpu {
-    hard: HardUpload,
-    soft_group: wgpu::BindGroup,
-    quads: u64,
-    wedges: WedgeCounts,
-    /// Entries of the wedge bins.
-    bin_entries: u64,
-}
-
-/// What the wedges phase built for one loop.
-pub(super) struct WedgeCounts {
-    pub wedges: u64,
-    pub degenerate: u64,
-    pub prims: u64,
-    pub planes: u64,
-}
-
 /// The wedges of a loop (III §3.1, IV §4.1, with the cpu executions' code) and their
 /// primitives (wedge halves when culling, IV §4.4) as the WGSL reads them (`Prim`: footprint;
 /// edge, first plane, plane count, half) with their planes.
@@ -219,7 +209,9 @@ pub(super) struct WedgeRecords {
     pub footprints: Vec<Option<ScreenRect>>,
     pub records: Vec<[u32; 8]>,
     pub planes: Vec<[f32; 4]>,
-    pub counts: WedgeCounts,
+    /// The wedges built, and the edges whose wedge is degenerate.
+    pub wedges: u64,
+    pub degenerate: u64,
 }
 
 impl WedgeRecords {
@@ -250,181 +242,233 @@ impl WedgeRecords {
             })
             .collect();
         let degenerate = wedges.iter().filter(|w| w.is_none()).count() as u64;
-        let counts = WedgeCounts {
+        WedgeRecords {
             wedges: wedges.len() as u64 - degenerate,
             degenerate,
-            prims: prims.len() as u64,
-            planes: planes.len() as u64,
-        };
-        WedgeRecords {
             prims,
             footprints,
             records,
             planes,
-            counts,
         }
     }
 }
 
-/// The family's passes with the soft pass of this algorithm.
-struct Passes<'g> {
+/// One of the two pipelines as [`run_loops`] runs it, loop by loop: the hard phase's host part
+/// and passes, the upload of the wedges and the soft phase's passes, and a loop's replay.
+pub(super) trait Pipeline {
+    /// What a loop's hard and soft phases made, kept for the replay.
+    type Hard;
+    type Soft;
+    /// The pipeline statistics its phases take.
+    const STATISTICS: Statistics;
+    /// How its counters were obtained (`execution.gpu_counters`).
+    const NOTE: &'static str;
+    /// Its timed passes over `loops` loops.
+    fn timed_passes(&self, loops: u32) -> u32;
+    /// The hard phase's host part for the loop `lr` of `quads`.
+    fn hard(&self, rays: &EyeRays, lr: &LoopRun, quads: &[ShadowQuad]) -> Self::Hard;
+    /// The hard phase's passes; `first` on the frame's first loop.
+    fn hard_passes<'a>(&'a self, hard: &'a Self::Hard, first: bool) -> Vec<Pass<'a>>;
+    /// The wedges phase's upload of the wedges `w` of loop `lr` of `quads`.
+    fn soft(
+        &self,
+        rays: &EyeRays,
+        lr: &LoopRun,
+        quads: &[ShadowQuad],
+        w: &WedgeRecords,
+        hard: &Self::Hard,
+    ) -> Self::Soft;
+    fn soft_passes<'a>(&'a self, soft: &'a Self::Soft) -> Vec<Pass<'a>>;
+    /// The loop's instrumented replay: `hard`'s counters of this pipeline's own added to `k`.
+    fn replay<'a>(
+        &'a self,
+        hard: &'a Self::Hard,
+        soft: &'a Self::Soft,
+        k: &mut Counters,
+    ) -> Result<Replayed<'a>>;
+}
+
+/// What a loop's instrumented replay gave: the hard pass's fill and passed fragments and
+/// z-fail caps, what finds the wedge primitives ([`soft_counters`]: name, bytes) and the soft
+/// pass's statistics.
+pub(super) struct Replayed<'a> {
+    pub fill: f64,
+    pub passed: f64,
+    pub caps: u64,
+    pub index: (&'static str, f64),
+    pub stat: Box<dyn Fn(Stat) -> f64 + 'a>,
+}
+
+impl<'a> Replayed<'a> {
+    pub fn new(
+        fill: f64,
+        passed: f64,
+        caps: u64,
+        index: (&'static str, f64),
+        stat: impl Fn(Stat) -> f64 + 'a,
+    ) -> Replayed<'a> {
+        let stat = Box::new(stat);
+        Replayed {
+            fill,
+            passed,
+            caps,
+            index,
+            stat,
+        }
+    }
+}
+
+/// Runs pipeline `p` over `runs` (the loops of every sub-light) on the frame resources `res`:
+/// per loop the hard phase (III §3.2.1), the wedges (III §3.1, IV §4.1, on the host) and the
+/// soft phase (III §3.2.2) timed, then every loop's instrumented replay; `setup_ms` of host
+/// work counts into phase `hard`.
+pub(super) fn run_loops<P: Pipeline>(
+    p: &P,
+    gpu: &Gpu,
+    (rays, res, opts): (&EyeRays, &FrameResources, &SoftShadowVolumeOptions),
+    runs: &[LoopRun],
+    setup_ms: f64,
+) -> Result<FrameOutput> {
+    let readback = &[&res.visibility, &res.rgb][..1 + usize::from(res.channels == 3)];
+    // Every sub-light has at least one loop: `runs` is never empty.
+    let passes = p.timed_passes(runs.len() as u32);
+    let names = ["hard", "wedges", "soft"];
+    let mut run = Timed::new(gpu, &names, passes, P::STATISTICS, readback);
+    run.add_wall(0, setup_ms);
+    let mut loops = Vec::with_capacity(runs.len());
+    for (k, lr) in runs.iter().enumerate() {
+        let centre = lr.light.center();
+        let (quads, hard) = run.host(0, || {
+            let quads: Vec<_> = lr
+                .edges
+                .iter()
+                .map(|e| ShadowQuad::new(e, centre))
+                .collect();
+            let hard = p.hard(rays, lr, &quads);
+            (quads, hard)
+        });
+        run.submit(0, &p.hard_passes(&hard, k == 0))?;
+        let (w, soft) = run.host(1, || {
+            let w = WedgeRecords::new(rays, lr, &quads, opts);
+            let soft = p.soft(rays, lr, &quads, &w, &hard);
+            (w, soft)
+        });
+        run.submit(2, &p.soft_passes(&soft))?;
+        loops.push((quads.len(), w, hard, soft));
+    }
+    let timing = run.finish()?;
+    let size = (rays.width, rays.height);
+    let rgb = timing.rgb(1, size);
+    let mut per_phase = vec![Counters::default(); 3];
+    for (lr, (quads, w, hard, soft)) in runs.iter().zip(&loops) {
+        let r = p.replay(hard, soft, &mut per_phase[0])?;
+        let k = &mut per_phase[0];
+        if let Some(n) = lr.silhouette_edges {
+            k.add("silhouette_edges", n as f64);
+        }
+        k.add("shadow_quads", *quads as f64);
+        hard_fill(k, opts.counting, r.fill, r.passed, r.caps);
+        per_phase[1].add("wedges", w.wedges as f64);
+        per_phase[1].add("wedges_degenerate", w.degenerate as f64);
+        let pixels = rays.len() as u64;
+        soft_counters(&mut per_phase[2], (opts, res.channels, pixels), w, &r);
+    }
+    let mut out = timing.output(size, per_phase, P::NOTE);
+    out.rgb = rgb;
+    Ok(out)
+}
+
+/// The gather: the family's passes with the soft pass of this algorithm.
+struct Gather<'g> {
     v: VolumePasses<'g>,
-    opts: SoftShadowVolumeOptions,
     /// The soft pass: timed, counting.
     soft: [wgpu::ComputePipeline; 2],
     cones: Vec<(Vec3, f32)>,
 }
 
-impl<'g> Passes<'g> {
-    fn new(
-        gpu: &'g Gpu,
-        rays: &EyeRays,
-        opts: &SoftShadowVolumeOptions,
-        res: FrameResources,
-        occluders: Mesh,
-    ) -> Passes<'g> {
-        let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders, WGSL);
-        Passes {
-            soft: v.program.compute_pair(gpu, "soft"),
-            v,
-            opts: *opts,
-            cones: tile_cones(rays),
-        }
+impl<'g> Gather<'g> {
+    /// The bytes of bins of `entries` and their per-tile ranges.
+    fn bin_bytes(&self, entries: u64) -> f64 {
+        let tiles = u64::from(self.v.groups.0) * u64::from(self.v.groups.1);
+        (WORD * (entries + 2 * tiles)) as f64
+    }
+}
+
+impl Pipeline for Gather<'_> {
+    type Hard = HardUpload;
+    /// The soft pass's group and the entries of the wedge bins.
+    type Soft = (wgpu::BindGroup, u64);
+    const STATISTICS: Statistics = Statistics::Compute;
+    const NOTE: &'static str = "fill, overdraw, shader invocations and culls from an \
+        instrumented replay (WGSL atomics), in the cpu-model's terms; mem_est.* estimated from \
+        counts and record sizes";
+
+    fn timed_passes(&self, loops: u32) -> u32 {
+        2 * loops
     }
 
-    /// The wedges phase's host part after the hard phase's `hard` upload of `quads`: wedges,
-    /// primitives, bins, upload, the soft pass's group.
-    fn upload_wedges(
+    fn hard(&self, rays: &EyeRays, lr: &LoopRun, quads: &[ShadowQuad]) -> HardUpload {
+        self.v
+            .upload_quads(rays, &lr.params, lr.light.center(), quads)
+    }
+
+    fn hard_passes<'a>(&'a self, hard: &'a HardUpload, _first: bool) -> Vec<Pass<'a>> {
+        vec![self.v.hard(hard, false)]
+    }
+
+    /// Primitives, bins, upload, the soft pass's group.
+    fn soft(
         &self,
         rays: &EyeRays,
-        run: &LoopRun,
-        quads: &[ShadowQuad],
-        hard: HardUpload,
-    ) -> LoopGpu {
+        _: &LoopRun,
+        _: &[ShadowQuad],
+        w: &WedgeRecords,
+        h: &HardUpload,
+    ) -> Self::Soft {
         let gpu = self.v.gpu;
         let storage = wgpu::BufferUsages::STORAGE;
-        let w = WedgeRecords::new(rays, run, quads, &self.opts);
         let (wedge_bins, bin_entries) = bins(rays, &w.footprints, |k, t| {
             !tile_misses(&w.prims[k].volume, rays.eye, self.cones[t])
         });
         let prims_buf = gpu.upload("wedge primitives", &w.records, storage);
         let planes_buf = gpu.upload("wedge planes", &w.planes, storage);
         let bins_buf = gpu.upload("wedge bins", &wedge_bins, storage);
-        let [params, quads_buf, quad_bins] = &hard.buffers;
+        let [params, quads_buf, quad_bins] = &h.buffers;
         let prims = [quads_buf, &prims_buf, &planes_buf, quad_bins, &bins_buf];
-        LoopGpu {
-            soft_group: self.v.group(params, prims, "soft"),
-            hard,
-            quads: quads.len() as u64,
-            wedges: w.counts,
-            bin_entries,
-        }
+        (self.v.group(params, prims, "soft"), bin_entries)
     }
 
-    fn run(&self, rays: &EyeRays, runs: &[LoopRun], setup_ms: f64) -> Result<FrameOutput> {
-        let res = &self.v.res;
-        let textured = res.channels == 3;
-        let readback: Vec<&wgpu::Buffer> =
-            [&res.visibility, &res.rgb][..1 + usize::from(textured)].to_vec();
-        // Every sub-light has at least one loop: `runs` is never empty.
-        let n_passes = 2 * runs.len() as u32;
-        let names = ["hard", "wedges", "soft"];
-        let mut run = Timed::new(self.v.gpu, &names, n_passes, Statistics::Compute, &readback);
-        run.add_wall(0, setup_ms);
-        let mut loops = Vec::with_capacity(runs.len());
-        for lr in runs {
-            // Pass 1: hard shadow quads (III §3.2.1).
-            let centre = lr.light.center();
-            let (quads, up) = run.host(0, || {
-                let quads: Vec<ShadowQuad> = lr
-                    .edges
-                    .iter()
-                    .map(|e| ShadowQuad::new(e, centre))
-                    .collect();
-                let up = self.v.upload_quads(rays, &lr.params, centre, &quads);
-                (quads, up)
-            });
-            run.submit(0, &[self.v.hard(&up, false)])?;
-            // Wedges (III §3.1, IV §4.1), on the host.
-            let lg = run.host(1, || self.upload_wedges(rays, lr, &quads, up));
-            // Pass 2: penumbra wedges (III §3.2.2).
-            run.submit(2, &[self.v.pass("soft", &self.soft[0], &lg.soft_group)])?;
-            loops.push(lg);
-        }
-        let timing = run.finish()?;
-        let rgb = timing.rgb(1, (rays.width, rays.height));
-
-        // The instrumented replay of each loop's passes, counting with atomics.
-        let mut per_phase = vec![Counters::default(); 3];
-        for (lr, lg) in runs.iter().zip(&loops) {
-            let soft = self.v.pass("soft", &self.soft[1], &lg.soft_group);
-            let stat = self.v.replay(vec![self.v.hard(&lg.hard, true), soft])?;
-            self.hard_counters(&mut per_phase[0], lr, lg, &stat);
-            per_phase[1].add("wedges", lg.wedges.wedges as f64);
-            per_phase[1].add("wedges_degenerate", lg.wedges.degenerate as f64);
-            let bins = (
-                "wedge_bins",
-                (WORD * (lg.bin_entries + 2 * self.tiles())) as f64,
-            );
-            let (k, channels) = (&mut per_phase[2], self.v.res.channels);
-            soft_counters(
-                k,
-                &self.opts,
-                channels,
-                self.v.pixels,
-                &lg.wedges,
-                bins,
-                &stat,
-            );
-        }
-        let note = "fill, overdraw, shader invocations and culls from an instrumented replay \
-                    (WGSL atomics), in the cpu-model's terms; mem_est.* estimated from counts and \
-                    record sizes";
-        let mut out = timing.output((rays.width, rays.height), per_phase, note);
-        out.rgb = rgb;
-        Ok(out)
+    fn soft_passes<'a>(&'a self, soft: &'a Self::Soft) -> Vec<Pass<'a>> {
+        vec![self.v.pass("soft", &self.soft[0], &soft.0)]
     }
 
-    /// `hard`: fill and overdraw as on the cpu executions (quad fragments within the scene
-    /// bounds, and those behind the visible surface), and estimated traffic: rays of every
-    /// pixel, quad records per test, the bins, a depth read per fragment, the count written.
-    fn hard_counters(
-        &self,
+    /// `hard`'s own counters: the quad tests and the estimated traffic: rays of every pixel,
+    /// quad records per test, the bins, a depth read per fragment, the count written.
+    fn replay<'a>(
+        &'a self,
+        h: &'a HardUpload,
+        soft: &'a Self::Soft,
         k: &mut Counters,
-        lr: &LoopRun,
-        lg: &LoopGpu,
-        stat: &dyn Fn(Stat) -> f64,
-    ) {
-        if let Some(n) = lr.silhouette_edges {
-            k.add("silhouette_edges", n as f64);
-        }
-        let [fill, passed, tests] = [Stat::HardFill, Stat::HardPassed, Stat::HardTests].map(stat);
-        k.add("fill", fill);
-        k.add("overdraw", fill - passed);
+    ) -> Result<Replayed<'a>> {
+        let soft_pass = self.v.pass("soft", &self.soft[1], &soft.0);
+        let stat = self.v.replay(vec![self.v.hard(h, true), soft_pass])?;
+        let [fill, passed, tests] = [Stat::HardFill, Stat::HardPassed, Stat::HardTests].map(&stat);
         k.add("quad_tests", tests);
-        k.add("shadow_quads", lg.quads as f64);
-        let record = if self.opts.counting == Counting::ZFail {
-            k.add("volume_caps", lg.hard.caps as f64);
-            FACE_BYTES
-        } else {
-            QUAD_BYTES
+        let record = match self.v.counting {
+            Counting::ZFail => FACE_BYTES,
+            Counting::ZPass => QUAD_BYTES,
         };
-        let rays = (RAY_BYTES * self.v.pixels) as f64;
-        let quads = record as f64 * tests;
-        let bins = (WORD * (lg.hard.bin_entries + 2 * self.tiles())) as f64;
-        let depth = fill * DEPTH_BYTES as f64;
-        let vbuffer = (VBUFFER_BYTES * self.v.pixels) as f64;
+        let pixels = self.v.pixels;
         let reads = [
-            ("eye_rays", rays),
-            ("shadow_quads", quads),
-            ("quad_bins", bins),
-            ("depth", depth),
+            ("eye_rays", (RAY_BYTES * pixels) as f64),
+            ("shadow_quads", record as f64 * tests),
+            ("quad_bins", self.bin_bytes(h.bin_entries)),
+            ("depth", fill * DEPTH_BYTES as f64),
         ];
+        let vbuffer = (VBUFFER_BYTES * pixels) as f64;
         k.add_traffic("mem_est", &reads, &[("vbuffer", vbuffer)]);
-    }
-
-    fn tiles(&self) -> u64 {
-        u64::from(self.v.groups.0) * u64::from(self.v.groups.1)
+        let index = ("wedge_bins", self.bin_bytes(soft.1));
+        Ok(Replayed::new(fill, passed, h.caps, index, stat))
     }
 }
 
@@ -433,15 +477,13 @@ impl<'g> Passes<'g> {
 /// estimated traffic: rays, primitive records and planes per test (`wedge_tests`: the
 /// gather's pixel–primitive tests, the raster pass's rasterized fragments), what finds the
 /// primitives (`index`: the gather's bins, the raster pass's vertices), depth and stencil as a
-/// rasterizer touches them, the V-buffer per fragment inside, texture reads.
-pub(super) fn soft_counters(
+/// rasterizer touches them, the V-buffer per fragment inside, texture reads; for `opts`, light
+/// `channels` and `pixels` eye pixels.
+fn soft_counters(
     k: &mut Counters,
-    opts: &SoftShadowVolumeOptions,
-    channels: u32,
-    pixels: u64,
-    w: &WedgeCounts,
-    index: (&str, f64),
-    stat: &dyn Fn(Stat) -> f64,
+    (opts, channels, pixels): (&SoftShadowVolumeOptions, u32, u64),
+    w: &WedgeRecords,
+    r: &Replayed,
 ) {
     use Stat::*;
     let [fill, front, inside, covered, contributing, tests] = [
@@ -452,7 +494,7 @@ pub(super) fn soft_counters(
         SoftContributing,
         SoftTests,
     ]
-    .map(stat);
+    .map(&r.stat);
     let (raster_fill, shaded, culled, stencil_read, stencil_write) = if opts.wedge_culling {
         (2.0 * fill, inside, fill - inside, fill, 2.0 * front)
     } else {
@@ -464,7 +506,7 @@ pub(super) fn soft_counters(
     k.add("culled_fragments", culled);
     k.add("fragments_inside_wedges", covered);
     k.add("wedge_tests", tests);
-    k.add("wedge_primitives", w.prims as f64);
+    k.add("wedge_primitives", w.prims.len() as f64);
     let texture_reads = if opts.coverage == CoverageMethod::Texture {
         CoverageTexture::READS as f64 * covered
     } else {
@@ -474,7 +516,7 @@ pub(super) fn soft_counters(
     // Bytes: one per channel of each texel read.
     let texture_reads = texture_reads * f64::from(channels);
     // Planes per primitive (none without primitives).
-    let per_plane = w.planes as f64 / (w.prims as f64).max(1.0);
+    let per_plane = w.planes.len() as f64 / (w.prims.len() as f64).max(1.0);
     let rays = (RAY_BYTES * pixels) as f64;
     let prims = tests * (PRIM_BYTES as f64 + per_plane * PLANE_BYTES as f64);
     let quads = QUAD_BYTES as f64 * inside;
@@ -492,7 +534,7 @@ pub(super) fn soft_counters(
     let reads = [
         ("eye_rays", rays),
         ("wedge_primitives", prims),
-        index,
+        r.index,
         ("shadow_quads", quads),
         ("depth", depth),
         ("stencil", stencil_r),
