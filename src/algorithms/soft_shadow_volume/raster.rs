@@ -24,7 +24,7 @@
 //!   each half separately, its front faces marking the stencil with the half's reference where
 //!   the point is behind them (no colour), then its back faces, with the shader, where the point
 //!   is in front of them and the stencil holds the reference — the point inside the half, the
-//!   shader run for no other; every back-face fragment clears the stencil ([`culled_pass`]).
+//!   shader run for no other; every back-face fragment clears the stencil ([`LoopRaster::culled`]).
 //!   The split format draws the inner halves into the additive buffer and the outer halves
 //!   into the subtractive one. The shader still tests the point against the half's planes, as
 //!   the cpu executions do, so the image does not depend on the culling. Without the format the
