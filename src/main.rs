@@ -487,7 +487,15 @@ fn render(a: RenderArgs) -> Result<()> {
     if let Some(w) = &converted {
         eprintln!("warning: {w}");
     }
-    scene.light = harness::light_for_run(&scene, info)?;
+    scene.light = harness::light_for_run(&scene, info).map_err(|e| {
+        // A scene from a file: the error names it.
+        let file = Path::new(&a.scene);
+        if file.is_file() {
+            e.in_file(file)
+        } else {
+            e
+        }
+    })?;
     let params = shadowbench::frame::RunParams {
         occluder_height: generator.occluder_height,
         occluder_offset: generator.occluder_offset,
@@ -1050,21 +1058,30 @@ fn main() -> ExitCode {
     ) {
         private_runtime_dir();
     }
-    let adapter = match &cli.command {
-        Command::List { adapter, .. } => adapter.adapter.clone(),
-        Command::Render(a) => a.adapter.adapter.clone(),
-        Command::Run(a) => a.adapter.adapter.clone(),
-        _ => None,
+    let (uses_gpu, adapter) = match &cli.command {
+        Command::List { adapter, .. } => (true, adapter.adapter.clone()),
+        Command::Render(a) => (true, a.adapter.adapter.clone()),
+        Command::Run(a) => (true, a.adapter.adapter.clone()),
+        _ => (false, None),
     };
     if let Some(name) = &adapter {
         if let Err(e) = shadowbench::gpu::prefer_adapter(name) {
             eprintln!("error: {e}");
             return ExitCode::from(e.exit_code() as u8);
         }
-        // An adapter asked for by name that is not there is bad input, not a missing GPU to
-        // skip: the runs the user meant for it would otherwise not happen.
+    }
+    // An adapter asked for by name (the option, else the environment) that is not there is bad
+    // input, not a missing GPU to skip: the runs the user meant for it would otherwise not
+    // happen.
+    let env = std::env::var(shadowbench::gpu::ADAPTER_ENV).ok();
+    let named = match (&adapter, env.filter(|s| !s.trim().is_empty())) {
+        (Some(n), _) if !n.trim().is_empty() => Some("--adapter"),
+        (_, Some(_)) => Some(shadowbench::gpu::ADAPTER_ENV),
+        _ => None,
+    };
+    if let Some(field) = named.filter(|_| uses_gpu) {
         if let Err(e) = shadowbench::gpu::gpu() {
-            let e = Error::from(InputError::new("--adapter", e.to_string()));
+            let e = Error::from(InputError::new(field, e.to_string()));
             eprintln!("error: {e}");
             return ExitCode::from(e.exit_code() as u8);
         }

@@ -78,7 +78,7 @@ pub type WorkEstimate<O> = fn(&work::SceneExtent, &RunParams, &ExecContext, &O) 
 
 /// The typed options of an algorithm (`options.<ID>` of a scenario): read with serde (defaults
 /// when absent), then [`AlgorithmOptions::validate`]d once per run.
-pub trait AlgorithmOptions: serde::de::DeserializeOwned + Default {
+pub trait AlgorithmOptions: serde::de::DeserializeOwned + serde::Serialize + Default {
     /// Checks what serde cannot (ranges, combinations); an error names the field's JSON path
     /// (`$.options.<ID>.<field>`) and its value. By default every value serde reads is valid.
     fn validate(&self) -> std::result::Result<(), InputError> {
@@ -270,7 +270,7 @@ fn run_typed<A: Algorithm>(backend: Backend, frame: &Frame, ctx: &ExecContext) -
         A::light_texture(&o)?;
     }
     let warning = A::prepare(frame, &mut o);
-    let out = match (backend, A::WGPU) {
+    let mut out = match (backend, A::WGPU) {
         (Backend::Wgpu, Some(wgpu)) => {
             crate::gpu::guarded_frame(ctx.deadline, ctx.gpu_counters, |gpu| {
                 wgpu(gpu, frame, ctx, &o)
@@ -282,6 +282,17 @@ fn run_typed<A: Algorithm>(backend: Backend, frame: &Frame, ctx: &ExecContext) -
         ))),
         (Backend::CpuNative | Backend::CpuModel, _) => (A::CPU)(backend, frame, ctx, &o),
     }?;
+    // Every option's value as the run used it (defaults filled in, after `prepare`), so that
+    // records of different options are told apart.
+    match serde_json::to_value(&o) {
+        Ok(serde_json::Value::Null) => {}
+        Ok(v) => {
+            out.execution.insert("options".into(), v);
+        }
+        Err(e) => out
+            .warnings
+            .push(format!("the run's options could not be recorded: {e}")),
+    }
     Ok((out, warning))
 }
 

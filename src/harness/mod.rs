@@ -81,11 +81,12 @@ pub fn light_for_run(
     }
     let c = light.center();
     let what = format!(
-        "{kind} light of size {} at ({}, {}, {}) passes through {meeting} triangles of the scene",
+        "{kind} light of size {} at ({}, {}, {}) passes through {meeting} triangle{} of the scene",
         light.size(),
         c.x,
         c.y,
-        c.z
+        c.z,
+        if meeting == 1 { "" } else { "s" }
     );
     let why = if kind == scene.light.kind() {
         format!("the {what}; the light must lie outside all geometry (move it or make it smaller)")

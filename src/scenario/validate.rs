@@ -25,6 +25,21 @@ fn finite_positive(field: &str, what: &str, v: f32) -> Check {
     Ok(())
 }
 
+/// A light's size (radius, half-width): finite, > 0 and within the coordinate range the
+/// algorithms hold ([`crate::scene::load::MAX_COORDINATE`], 2^40); larger ones overflow the
+/// emitter's `f32` geometry (a rectangle's half-axis length, its area).
+fn light_extent(field: &str, what: &str, v: f32) -> Check {
+    use crate::scene::load::MAX_COORDINATE;
+    finite_positive(field, what, v)?;
+    if v > MAX_COORDINATE {
+        return fail(
+            field,
+            format!("{what} must be at most {MAX_COORDINATE:.3e} (2^40), got {v:e}"),
+        );
+    }
+    Ok(())
+}
+
 /// A finite vector within the coordinate range the algorithms hold
 /// ([`crate::scene::load::MAX_COORDINATE`], 2^40).
 fn finite_vec(field: &str, v: Vec3) -> Check {
@@ -42,7 +57,7 @@ fn finite_vec(field: &str, v: Vec3) -> Check {
 }
 
 pub fn light_size(field: &str, v: f32) -> Check {
-    finite_positive(field, "light size", v)
+    light_extent(field, "light size", v)
 }
 
 /// Largest map or image side accepted (a 16384² f32 map is 1 GiB).
@@ -185,15 +200,13 @@ pub fn light_texture(
 pub fn light(field: &str, l: &Light) -> Check {
     finite_vec(&format!("{field}.center"), l.center())?;
     match *l {
-        Light::Sphere { radius, .. } => {
-            finite_positive(&format!("{field}.radius"), "radius", radius)
-        }
+        Light::Sphere { radius, .. } => light_extent(&format!("{field}.radius"), "radius", radius),
         Light::Disc { normal, radius, .. } => {
             finite_vec(&format!("{field}.normal"), normal)?;
             if normal.length_squared() == 0.0 {
                 return fail(&format!("{field}.normal"), "normal must be non-zero".into());
             }
-            finite_positive(&format!("{field}.radius"), "radius", radius)
+            light_extent(&format!("{field}.radius"), "radius", radius)
         }
         Light::Rect { half_u, half_v, .. } => {
             finite_vec(&format!("{field}.half_u"), half_u)?;

@@ -238,8 +238,8 @@ fn render_of_a_scenario_names_what_it_does_not_use() {
     );
 }
 
-/// `--adapter` naming no adapter there is bad input (exit 2, naming the option), in `render`
-/// and in `run`, before anything is written: before, `run` skipped its wgpu runs with a note and
+/// `--adapter` (or `SHADOWBENCH_ADAPTER`) naming no adapter there is bad input (exit 2, naming
+/// the option or the variable), in `render` and in `run`, before anything is written: before, `run` skipped its wgpu runs with a note and
 /// exited 0, so the runs meant for that GPU silently did not happen.
 #[test]
 fn an_adapter_that_is_not_there_is_an_input_error() {
@@ -264,4 +264,13 @@ fn an_adapter_that_is_not_there_is_an_input_error() {
         assert!(stderr(&o).contains("--adapter"), "{}", stderr(&o));
         assert!(!Path::new(out).exists(), "{args:?} wrote {out}");
     }
+    // The environment's name is held to the same rule, and named.
+    let o = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+        .args(["run", &file, "-q", "--out", out])
+        .env("SHADOWBENCH_ADAPTER", name)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("SHADOWBENCH_ADAPTER"), "{}", stderr(&o));
+    assert!(!Path::new(out).exists(), "run wrote {out}");
 }

@@ -83,6 +83,13 @@ fn cpu_native_and_cpu_model_images_are_identical_for_every_algorithm_and_option_
                     "{} {options} on {name}: cpu-native and cpu-model images differ",
                     info.id
                 );
+                // The record says which options ran: every one the set gives, with its value.
+                let given: serde_json::Value = serde_json::from_str(&options).unwrap();
+                let recorded = &native.execution.get("options");
+                for (k, v) in given.as_object().unwrap() {
+                    let ran = recorded.and_then(|r| r.get(k));
+                    assert_eq!(ran, Some(v), "{} {options}: execution.options", info.id);
+                }
             }
         }
     }

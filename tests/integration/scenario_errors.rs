@@ -80,6 +80,12 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             vec!["$.sweep.light_size[1]", "inf"],
         ),
         (
+            // Beyond the coordinate range a rectangle's half-axis length overflows f32.
+            "light size past the coordinate range",
+            mutate("0.4]", "1e30]"),
+            vec!["$.sweep.light_size[1]", "1e30", "2^40"],
+        ),
+        (
             "unknown algorithm",
             mutate(r#"["reference"]"#, r#"["referense"]"#),
             vec!["$.algorithms[0]", "referense", "did you mean 'reference'"],
