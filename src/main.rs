@@ -723,10 +723,16 @@ fn run(a: RunArgs) -> Result<()> {
         }
         let written = report::write_report(&out_dir, &results)?;
         let failed = results.runs.iter().filter(|r| r.failure.is_some()).count();
+        let warned = results
+            .runs
+            .iter()
+            .filter(|r| !r.warnings.is_empty())
+            .count();
         println!(
-            "{} runs ({} failed); results in {}",
+            "{} runs ({} failed, {} with warnings); results in {}",
             results.runs.len(),
             failed,
+            warned,
             out_dir.join("results.json").display()
         );
         if verbosity != harness::Verbosity::Quiet {
