@@ -19,6 +19,7 @@
 //! line), as a tiled renderer stores them; [`Surface::index`] is the one place that layout lives.
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
+use rayon::prelude::*;
 
 use super::buffer::{Buffer, Memory};
 use super::simd::{Lanes, Mask, Probe, LANES};
@@ -206,14 +207,21 @@ impl Target {
 
     /// Per tile, how many of its pixels (row-major index `y * width + x`) satisfy `counts`:
     /// the scheduling weights of a per-pixel step over the tiles.
-    pub fn tile_weights(&self, counts: impl Fn(usize) -> bool) -> Vec<u64> {
+    /// The tiles are counted in parallel on the host (the scheduler's estimate is host work the
+    /// model does not time).
+    pub fn tile_weights(&self, counts: impl Fn(usize) -> bool + Sync) -> Vec<u64> {
         (0..self.tiles())
+            .into_par_iter()
             .map(|t| {
                 let r = self.tile_rect(t);
-                (r.y0..r.y1)
-                    .flat_map(|y| (r.x0..r.x1).map(move |x| (y * self.width + x) as usize))
-                    .filter(|&i| counts(i))
-                    .count() as u64
+                let mut n = 0u64;
+                for y in r.y0..r.y1 {
+                    let row = (y * self.width) as usize;
+                    for x in r.x0..r.x1 {
+                        n += u64::from(counts(row + x as usize));
+                    }
+                }
+                n
             })
             .collect()
     }
@@ -507,8 +515,11 @@ impl Setup {
 /// resulting polygon (0, 3 or 4 vertices). The crossing of an edge is interpolated from its
 /// kept endpoint whichever way the triangle runs along it, so two triangles sharing a clipped
 /// edge get the same new vertex and stay watertight.
-fn clip_near(v: [Vec4; 3]) -> Vec<Vec4> {
-    let mut out = Vec::with_capacity(4);
+fn clip_near(v: [Vec4; 3]) -> Polygon {
+    let mut out = Polygon {
+        v: [Vec4::ZERO; 4],
+        n: 0,
+    };
     for i in 0..3 {
         let (p, q) = (v[i], v[(i + 1) % 3]);
         if p.z >= 0.0 {
@@ -521,6 +532,24 @@ fn clip_near(v: [Vec4; 3]) -> Vec<Vec4> {
         }
     }
     out
+}
+
+/// A triangle cut by one plane: a convex polygon of 0, 3 or 4 clip-space vertices, held on the
+/// stack (the front end makes no allocation per triangle).
+struct Polygon {
+    v: [Vec4; 4],
+    n: usize,
+}
+
+impl Polygon {
+    fn push(&mut self, c: Vec4) {
+        self.v[self.n] = c;
+        self.n += 1;
+    }
+
+    fn vertices(&self) -> &[Vec4] {
+        &self.v[..self.n]
+    }
 }
 
 fn to_screen(c: Vec4, t: &Target) -> Vec3 {
@@ -573,8 +602,8 @@ impl TaskKernel for FrontEnd<'_> {
         let (start, end) = (chunk * CHUNK, ((chunk + 1) * CHUNK).min(n_tris));
         let t = &self.target;
         let mut out = Binned {
-            setups: Vec::new(),
-            entries: Vec::new(),
+            setups: Vec::with_capacity(end - start),
+            entries: Vec::with_capacity(end - start),
             culled: 0,
             clipped: 0,
         };
@@ -599,13 +628,15 @@ impl TaskKernel for FrontEnd<'_> {
             for l in 0..n {
                 let prim = (group + l) as u32;
                 let clip = verts.map(|v| g.view_proj * v[l].extend(1.0));
-                let polygon = if clip.iter().all(|c| c.z >= 0.0) {
+                let clipped;
+                let polygon: &[Vec4] = if clip.iter().all(|c| c.z >= 0.0) {
                     setup_mask.0 |= 1 << l;
-                    clip.to_vec()
+                    &clip
                 } else {
                     out.clipped += 1;
                     p.scalar(cost::CLIP_SCALAR);
-                    clip_near(clip)
+                    clipped = clip_near(clip);
+                    clipped.vertices()
                 };
                 let mut any = false;
                 for i in 1..polygon.len().saturating_sub(1) {
