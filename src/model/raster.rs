@@ -411,8 +411,12 @@ const SETUP_BYTES: u32 = 80;
 /// Sub-pixel precision of snapped vertex positions (8 bits, as GPUs use).
 pub const SUBPIXELS: f64 = 256.0;
 
+/// `v` on the [`SUBPIXELS`] grid, rounded half away from zero as `f64::round` does (a libm call
+/// on baseline x86-64, once per vertex coordinate): for the `|v| < 1e6` that [`Setup::new`]
+/// admits, `|v|·256 + 0.5` is exact in f64, so truncating it is the rounding.
 fn snap(v: f32) -> f64 {
-    (f64::from(v) * SUBPIXELS).round() / SUBPIXELS
+    let r = f64::from(v) * SUBPIXELS;
+    (((r.abs() + 0.5) as i64) as f64).copysign(r) / SUBPIXELS
 }
 
 impl Setup {
@@ -672,18 +676,17 @@ impl TaskKernel for FrontEnd<'_> {
     }
 }
 
-/// One tile's work in the back end: (chunk, entry within the chunk's bin, global setup index).
+/// One tile's work in the back end: (chunk, entry within the chunk's bin, setup index within the
+/// chunk); the setups stay where their front-end task put them.
 type BinEntry = (u32, u32, u32);
 
 struct BackEnd<'a, K> {
     kernel: &'a K,
     pipeline: Pipeline,
     target: Target,
-    setups: &'a [Setup],
+    binned: &'a [Binned],
     bins: &'a [Vec<BinEntry>],
     front: &'a FrontEnd<'a>,
-    /// Global setup index → (chunk, index within chunk), for modelled addresses.
-    setup_home: &'a [(u32, u32)],
     depth: Option<&'a Surface>,
     color: Option<&'a Surface>,
 }
@@ -739,16 +742,15 @@ impl<K: FragmentKernel> TaskKernel for BackEnd<'_, K> {
         }
         let mut state = self.kernel.begin_tile(r);
         for &(chunk, k, si) in &self.bins[tile] {
-            let s = &self.setups[si as usize];
+            let s = &self.binned[chunk as usize].setups[si as usize];
             p.read(
                 self.front.bins_buf.0,
                 self.front.bin_addr(chunk as usize, tile as u32, k as usize),
                 4,
             );
-            let (hc, hi) = self.setup_home[si as usize];
             p.read(
                 self.front.setup_buf.0,
-                self.front.setup_addr(hc as usize, hi as usize),
+                self.front.setup_addr(chunk as usize, si as usize),
                 SETUP_BYTES,
             );
             p.scalar(cost::TRI_TILE_SCALAR);
@@ -1002,12 +1004,9 @@ pub fn draw<K: FragmentKernel>(
         .collect();
     let binned = m.run_step("binning", &front, &weights);
 
-    let mut setups = Vec::new();
-    let mut setup_home = Vec::new();
     let mut bins: Vec<Vec<BinEntry>> = vec![Vec::new(); target.tiles()];
     let (mut culled, mut clipped) = (0, 0);
     for (c, b) in binned.iter().enumerate() {
-        let base = setups.len() as u32;
         let mut fill = vec![
             0u32;
             if b.entries.is_empty() {
@@ -1018,11 +1017,9 @@ pub fn draw<K: FragmentKernel>(
         ];
         for &(tile, si) in &b.entries {
             let k = &mut fill[tile as usize];
-            bins[tile as usize].push((c as u32, *k, base + si));
+            bins[tile as usize].push((c as u32, *k, si));
             *k += 1;
         }
-        setup_home.extend((0..b.setups.len() as u32).map(|i| (c as u32, i)));
-        setups.extend_from_slice(&b.setups);
         culled += b.culled;
         clipped += b.clipped;
     }
@@ -1055,10 +1052,9 @@ pub fn draw<K: FragmentKernel>(
         kernel,
         pipeline,
         target,
-        setups: &setups,
+        binned: &binned,
         bins: &bins,
         front: &front,
-        setup_home: &setup_home,
         depth: depth.as_ref(),
         color: color.as_ref(),
     };
@@ -1113,5 +1109,32 @@ pub fn draw<K: FragmentKernel>(
         depth,
         color,
         tiles: states,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The snap without `round` is `f64::round` on the grid, to the bit: exact halves of a
+    /// sub-pixel both ways, their neighbours one f32 step away, zeros of both signs, tiny
+    /// values and the largest coordinates admitted.
+    #[test]
+    fn snapping_rounds_half_away_from_zero_as_round_does() {
+        let mut values = vec![0.0f32, -0.0, 1e-30, -1e-30, 999_999.9, -999_999.9];
+        for k in -2000i32..2000 {
+            let half = (k as f32 + 0.5) / 256.0;
+            for v in [
+                half,
+                f32::from_bits(half.to_bits() + 1),
+                f32::from_bits(half.to_bits() - 1),
+            ] {
+                values.extend([v, v * 1021.0, v * 3.7e3]);
+            }
+        }
+        for v in values {
+            let round = (f64::from(v) * SUBPIXELS).round() / SUBPIXELS;
+            assert_eq!(snap(v).to_bits(), round.to_bits(), "{v}");
+        }
     }
 }

@@ -233,19 +233,18 @@ impl<L: Lookup> EyePass<'_, L> {
         // are theirs to the bit.
         let m = &self.map.view.view_proj;
         let (mx, my, mz, mw) = (m.x_axis, m.y_axis, m.z_axis, m.w_axis);
-        let mut ndc = [[0.0f32; LANES]; 3];
-        let mut front = [false; LANES];
+        // NDC x and y, and the clip w: the linear depth from the light.
+        let mut ndc = [[0.0f32; LANES]; 2];
+        let mut depth = [0.0f32; LANES];
         for l in 0..LANES {
             let (x, y, z) = (q[0][l], q[1][l], q[2][l]);
             // The matrix–vector product of the columns, w = 1.
             let cx = ((mx.x * x + my.x * y) + mz.x * z) + mw.x;
             let cy = ((mx.y * x + my.y * y) + mz.y * z) + mw.y;
-            let cz = ((mx.z * x + my.z * y) + mz.z * z) + mw.z;
             let cw = ((mx.w * x + my.w * y) + mz.w * z) + mw.w;
             ndc[0][l] = cx / cw;
             ndc[1][l] = cy / cw;
-            ndc[2][l] = cz / cw;
-            front[l] = cw > 0.0;
+            depth[l] = cw;
         }
         let light = self.light;
         let mut n_dot_l = [0.0f32; LANES];
@@ -257,7 +256,7 @@ impl<L: Lookup> EyePass<'_, L> {
             n_dot_l[l] = (nq[0][l] * u[0]) + (nq[1][l] * u[1]) + (nq[2][l] * u[2]);
         }
         let view = &self.map.view;
-        let bias: Lanes<f32> = std::array::from_fn(|l| self.bias.at(view, ndc[2][l], n_dot_l[l]));
+        let bias: Lanes<f32> = std::array::from_fn(|l| self.bias.at(view, depth[l], n_dot_l[l]));
         let mut r = Receivers {
             mask: Mask::NONE,
             averted: Mask::NONE,
@@ -268,7 +267,7 @@ impl<L: Lookup> EyePass<'_, L> {
             bias: [0.0; LANES],
         };
         for lane in 0..LANES {
-            let seen = valid[lane] && front[lane];
+            let seen = valid[lane] && depth[lane] > 0.0;
             let averted = seen && n_dot_l[lane] <= 0.0;
             let active = seen && (!averted || !L::AVERTED_IN_SHADOW);
             r.averted.0 |= u16::from(averted) << lane;
@@ -277,7 +276,7 @@ impl<L: Lookup> EyePass<'_, L> {
                 r.position[lane] = Vec3::new(q[0][lane], q[1][lane], q[2][lane]);
                 r.normal[lane] = Vec3::new(nq[0][lane], nq[1][lane], nq[2][lane]);
                 r.uv[lane] = Vec2::new(ndc[0][lane] * 0.5 + 0.5, 0.5 - ndc[1][lane] * 0.5);
-                r.z[lane] = ndc[2][lane];
+                r.z[lane] = depth[lane];
                 r.bias[lane] = bias[lane];
             }
         }

@@ -251,7 +251,10 @@ impl LightView {
         memory: Option<&CasterBuffers>,
         range: std::ops::Range<usize>,
     ) -> CastersPart {
-        let mut part = CastersPart::default();
+        let mut part = CastersPart {
+            triangles: Vec::with_capacity(range.len()),
+            positions: Vec::new(),
+        };
         let to_world = self.view.inverse();
         let first = range.start as u64;
         let memory = memory.filter(|_| P::ENABLED);
