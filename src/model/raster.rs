@@ -464,10 +464,10 @@ impl Setup {
             s[0].max(s[1]).max(s[2]) + grow,
         );
         let bbox = [
-            lo.x.floor().clamp(0.0, t.width as f32) as u32,
-            lo.y.floor().clamp(0.0, t.height as f32) as u32,
-            hi.x.ceil().clamp(0.0, t.width as f32) as u32,
-            hi.y.ceil().clamp(0.0, t.height as f32) as u32,
+            pixel_floor(lo.x, t.width),
+            pixel_floor(lo.y, t.height),
+            pixel_ceil(hi.x, t.width),
+            pixel_ceil(hi.y, t.height),
         ];
         if bbox[0] >= bbox[2] || bbox[1] >= bbox[3] {
             return None;
@@ -513,6 +513,20 @@ impl Setup {
         };
         outside(0) | outside(1) | outside(2)
     }
+}
+
+/// `⌊x⌋` clamped to `0..=size` (x finite, |x| < 2²⁴): below 0 it is 0, and in `0..=size` the
+/// truncation of the conversion is the floor, so no `floor` call (libm on baseline x86-64).
+fn pixel_floor(x: f32, size: u32) -> u32 {
+    x.clamp(0.0, size as f32) as u32
+}
+
+/// `⌈x⌉` clamped to `0..=size` (x finite, |x| < 2²⁴), without a `ceil` call: the truncation,
+/// one more where it lies below `x`.
+fn pixel_ceil(x: f32, size: u32) -> u32 {
+    let c = x.clamp(0.0, size as f32);
+    let t = c as u32;
+    t + u32::from((t as f32) < c)
 }
 
 /// Sutherland–Hodgman clip of a clip-space triangle against the near plane z ≥ 0; returns the
@@ -1135,6 +1149,26 @@ mod tests {
         for v in values {
             let round = (f64::from(v) * SUBPIXELS).round() / SUBPIXELS;
             assert_eq!(snap(v).to_bits(), round.to_bits(), "{v}");
+        }
+    }
+
+    /// The bounding box's pixel bounds without `floor`/`ceil` are theirs, clamped: whole and
+    /// half pixels, one f32 step either side, negatives and values past the edge.
+    #[test]
+    fn pixel_bounds_are_floor_and_ceil_clamped() {
+        let size = 640u32;
+        for k in -400i32..1400 {
+            let base = k as f32 * 0.5;
+            for x in [
+                base,
+                f32::from_bits(base.to_bits() + 1),
+                f32::from_bits(base.to_bits().saturating_sub(1)),
+                -base,
+            ] {
+                let s = size as f32;
+                assert_eq!(pixel_floor(x, size), x.floor().clamp(0.0, s) as u32, "{x}");
+                assert_eq!(pixel_ceil(x, size), x.ceil().clamp(0.0, s) as u32, "{x}");
+            }
         }
     }
 }
