@@ -736,7 +736,7 @@ mod tests {
                 sides: 3,
                 normal: (corners[1] - corners[0]).cross(corners[2] - corners[0]),
             };
-            let faces: [(FaceFrom, Vec3, Vec3, Vec<(Vec3, Vec3)>); 2] = [
+            let faces = [
                 (
                     quad.from(o),
                     quad.normal,

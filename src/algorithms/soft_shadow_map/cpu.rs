@@ -234,9 +234,9 @@ impl FragmentKernel for Splat<'_> {
         r.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
         // Every lane computed and kept by mask (no branch per lane): lanes without a receiver
-        // (depth 1) or that the patch does not hide are dropped.
-        // Structure of arrays, one branch-free loop per stage over the 16 lanes (`occlusion`
-        // selects its early zero), so that each compiles to packed instructions.
+        // (depth 1) or that the patch does not hide are dropped. Structure of arrays, one
+        // branch-free loop per stage over the 16 lanes (`occlusion` selects its early zero),
+        // so that each compiles to packed instructions.
         let lf = self.lf;
         let on = f.mask.to_lanes();
         let depth = &r.buf.data[block..block + LANES];
