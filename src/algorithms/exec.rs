@@ -6,6 +6,7 @@ use crate::frame::Frame;
 use crate::model::raster::{Target, BLOCK};
 use crate::model::{lane_groups, task_items, Buffer, Machine, Mask, Probe, TaskKernel};
 use crate::visibility::VisibilityBuffer;
+use rayon::prelude::*;
 
 /// The machine an execution runs on: the context's configuration with the run's core count.
 pub fn machine(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Machine {
@@ -102,7 +103,7 @@ impl<K: EyeKernel> TaskKernel for EyeTiles<'_, K> {
 
     fn run<P: Probe>(&self, p: &mut P, tile: usize) -> Self::Out {
         let t = self.tiles.tile_rect(tile);
-        let mut out = Vec::new();
+        let mut out = Vec::with_capacity(((t.x1 - t.x0) * (t.y1 - t.y0)) as usize);
         for (x0, y0) in t.blocks() {
             // The block's loop control and pixel offset.
             p.scalar(2);
@@ -134,9 +135,21 @@ pub fn eye_lookup_step<K: EyeKernel>(
     };
     let g = &frame.gbuffer;
     let mut vis = VisibilityBuffer::lit(g.width, g.height);
-    for (i, v) in m.run_step("lookup", &step, weights).into_iter().flatten() {
-        vis.data[i as usize] = v;
-    }
+    let tiles = m.run_step("lookup", &step, weights);
+    // The tiles of one row of tiles write only the image rows they span: each such band is
+    // filled by one host thread.
+    let band = (step.tiles.tile * g.width) as usize;
+    let tiles_x = step.tiles.tiles_x() as usize;
+    vis.data
+        .par_chunks_mut(band)
+        .zip(tiles.par_chunks(tiles_x))
+        .enumerate()
+        .for_each(|(row, (data, row_tiles))| {
+            let first = row * band;
+            for (i, v) in row_tiles.iter().flatten() {
+                data[*i as usize - first] = *v;
+            }
+        });
     vis
 }
 

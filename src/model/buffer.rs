@@ -42,6 +42,16 @@ impl Memory {
         )
     }
 
+    /// A buffer named `name` of `len` elements of `T` that the host does not hold: its tasks
+    /// return their values and the executor places them, so only its modelled accesses
+    /// ([`Buffer::record_store`], [`Buffer::record_load`]) are used.
+    pub fn unbacked<T: Copy>(&mut self, name: &str, len: usize) -> Buffer<T> {
+        Buffer::at(
+            self.reserve(name, (len * size_of::<T>()) as u64),
+            Vec::new(),
+        )
+    }
+
     /// A buffer named `name` over `data` the host already holds (a frame's G-buffer): the
     /// modelled machine reads it where it lies, so the host makes no copy of it either.
     pub fn borrowed<'a, T: Copy>(&mut self, name: &str, data: &'a [T]) -> Buffer<T, &'a [T]> {

@@ -19,6 +19,7 @@
 //! line), as a tiled renderer stores them; [`Surface::index`] is the one place that layout lives.
 
 use glam::{Mat4, Vec2, Vec3, Vec4};
+use rayon::prelude::*;
 
 use super::buffer::{Buffer, Memory};
 use super::simd::{Lanes, Mask, Probe, LANES};
@@ -240,14 +241,21 @@ impl Target {
 
     /// Per tile, how many of its pixels (row-major index `y * width + x`) satisfy `counts`:
     /// the scheduling weights of a per-pixel step over the tiles.
-    pub fn tile_weights(&self, counts: impl Fn(usize) -> bool) -> Vec<u64> {
+    /// The tiles are counted in parallel on the host (the scheduler's estimate is host work the
+    /// model does not time).
+    pub fn tile_weights(&self, counts: impl Fn(usize) -> bool + Sync) -> Vec<u64> {
         (0..self.tiles())
+            .into_par_iter()
             .map(|t| {
                 let r = self.tile_rect(t);
-                (r.y0..r.y1)
-                    .flat_map(|y| (r.x0..r.x1).map(move |x| (y * self.width + x) as usize))
-                    .filter(|&i| counts(i))
-                    .count() as u64
+                let mut n = 0u64;
+                for y in r.y0..r.y1 {
+                    let row = (y * self.width) as usize;
+                    for x in r.x0..r.x1 {
+                        n += u64::from(counts(row + x as usize));
+                    }
+                }
+                n
             })
             .collect()
     }
@@ -437,8 +445,12 @@ const SETUP_BYTES: u32 = 80;
 /// Sub-pixel precision of snapped vertex positions (8 bits, as GPUs use).
 pub const SUBPIXELS: f64 = 256.0;
 
+/// `v` on the [`SUBPIXELS`] grid, rounded half away from zero as `f64::round` does (a libm call
+/// on baseline x86-64, once per vertex coordinate): for the `|v| < 1e6` that [`Setup::new`]
+/// admits, `|v|·256 + 0.5` is exact in f64, so truncating it is the rounding.
 fn snap(v: f32) -> f64 {
-    (f64::from(v) * SUBPIXELS).round() / SUBPIXELS
+    let r = f64::from(v) * SUBPIXELS;
+    (((r.abs() + 0.5) as i64) as f64).copysign(r) / SUBPIXELS
 }
 
 impl Setup {
@@ -486,10 +498,10 @@ impl Setup {
             s[0].max(s[1]).max(s[2]) + grow,
         );
         let bbox = [
-            lo.x.floor().clamp(0.0, t.width as f32) as u32,
-            lo.y.floor().clamp(0.0, t.height as f32) as u32,
-            hi.x.ceil().clamp(0.0, t.width as f32) as u32,
-            hi.y.ceil().clamp(0.0, t.height as f32) as u32,
+            pixel_floor(lo.x, t.width),
+            pixel_floor(lo.y, t.height),
+            pixel_ceil(hi.x, t.width),
+            pixel_ceil(hi.y, t.height),
         ];
         if bbox[0] >= bbox[2] || bbox[1] >= bbox[3] {
             return None;
@@ -537,12 +549,29 @@ impl Setup {
     }
 }
 
+/// `⌊x⌋` clamped to `0..=size` (x finite, |x| < 2²⁴): below 0 it is 0, and in `0..=size` the
+/// truncation of the conversion is the floor, so no `floor` call (libm on baseline x86-64).
+fn pixel_floor(x: f32, size: u32) -> u32 {
+    x.clamp(0.0, size as f32) as u32
+}
+
+/// `⌈x⌉` clamped to `0..=size` (x finite, |x| < 2²⁴), without a `ceil` call: the truncation,
+/// one more where it lies below `x`.
+fn pixel_ceil(x: f32, size: u32) -> u32 {
+    let c = x.clamp(0.0, size as f32);
+    let t = c as u32;
+    t + u32::from((t as f32) < c)
+}
+
 /// Sutherland–Hodgman clip of a clip-space triangle against the near plane z ≥ 0; returns the
 /// resulting polygon (0, 3 or 4 vertices). The crossing of an edge is interpolated from its
 /// kept endpoint whichever way the triangle runs along it, so two triangles sharing a clipped
 /// edge get the same new vertex and stay watertight.
-fn clip_near(v: [Vec4; 3]) -> Vec<Vec4> {
-    let mut out = Vec::with_capacity(4);
+fn clip_near(v: [Vec4; 3]) -> Polygon {
+    let mut out = Polygon {
+        v: [Vec4::ZERO; 4],
+        n: 0,
+    };
     for i in 0..3 {
         let (p, q) = (v[i], v[(i + 1) % 3]);
         if p.z >= 0.0 {
@@ -555,6 +584,24 @@ fn clip_near(v: [Vec4; 3]) -> Vec<Vec4> {
         }
     }
     out
+}
+
+/// A triangle cut by one plane: a convex polygon of 0, 3 or 4 clip-space vertices, held on the
+/// stack (the front end makes no allocation per triangle).
+struct Polygon {
+    v: [Vec4; 4],
+    n: usize,
+}
+
+impl Polygon {
+    fn push(&mut self, c: Vec4) {
+        self.v[self.n] = c;
+        self.n += 1;
+    }
+
+    fn vertices(&self) -> &[Vec4] {
+        &self.v[..self.n]
+    }
 }
 
 fn to_screen(c: Vec4, t: &Target) -> Vec3 {
@@ -607,8 +654,8 @@ impl TaskKernel for FrontEnd<'_> {
         let (start, end) = (chunk * CHUNK, ((chunk + 1) * CHUNK).min(n_tris));
         let t = &self.target;
         let mut out = Binned {
-            setups: Vec::new(),
-            entries: Vec::new(),
+            setups: Vec::with_capacity(end - start),
+            entries: Vec::with_capacity(end - start),
             culled: 0,
             clipped: 0,
         };
@@ -633,13 +680,15 @@ impl TaskKernel for FrontEnd<'_> {
             for l in 0..n {
                 let prim = (group + l) as u32;
                 let clip = verts.map(|v| g.view_proj * v[l].extend(1.0));
-                let polygon = if clip.iter().all(|c| c.z >= 0.0) {
+                let clipped;
+                let polygon: &[Vec4] = if clip.iter().all(|c| c.z >= 0.0) {
                     setup_mask.0 |= 1 << l;
-                    clip.to_vec()
+                    &clip
                 } else {
                     out.clipped += 1;
                     p.scalar(cost::CLIP_SCALAR);
-                    clip_near(clip)
+                    clipped = clip_near(clip);
+                    clipped.vertices()
                 };
                 let mut any = false;
                 for i in 1..polygon.len().saturating_sub(1) {
@@ -675,18 +724,17 @@ impl TaskKernel for FrontEnd<'_> {
     }
 }
 
-/// One tile's work in the back end: (chunk, entry within the chunk's bin, global setup index).
+/// One tile's work in the back end: (chunk, entry within the chunk's bin, setup index within the
+/// chunk); the setups stay where their front-end task put them.
 type BinEntry = (u32, u32, u32);
 
 struct BackEnd<'a, K> {
     kernel: &'a K,
     pipeline: Pipeline,
     target: Target,
-    setups: &'a [Setup],
+    binned: &'a [Binned],
     bins: &'a [Vec<BinEntry>],
     front: &'a FrontEnd<'a>,
-    /// Global setup index → (chunk, index within chunk), for modelled addresses.
-    setup_home: &'a [(u32, u32)],
     depth: Option<&'a Surface>,
     color: Option<&'a Surface>,
 }
@@ -742,16 +790,15 @@ impl<K: FragmentKernel> TaskKernel for BackEnd<'_, K> {
         }
         let mut state = self.kernel.begin_tile(r);
         for &(chunk, k, si) in &self.bins[tile] {
-            let s = &self.setups[si as usize];
+            let s = &self.binned[chunk as usize].setups[si as usize];
             p.read(
                 self.front.bins_buf.0,
                 self.front.bin_addr(chunk as usize, tile as u32, k as usize),
                 4,
             );
-            let (hc, hi) = self.setup_home[si as usize];
             p.read(
                 self.front.setup_buf.0,
-                self.front.setup_addr(hc as usize, hi as usize),
+                self.front.setup_addr(chunk as usize, si as usize),
                 SETUP_BYTES,
             );
             p.scalar(cost::TRI_TILE_SCALAR);
@@ -1005,12 +1052,9 @@ pub fn draw<K: FragmentKernel>(
         .collect();
     let binned = m.run_step("binning", &front, &weights);
 
-    let mut setups = Vec::new();
-    let mut setup_home = Vec::new();
     let mut bins: Vec<Vec<BinEntry>> = vec![Vec::new(); target.tiles()];
     let (mut culled, mut clipped) = (0, 0);
     for (c, b) in binned.iter().enumerate() {
-        let base = setups.len() as u32;
         let mut fill = vec![
             0u32;
             if b.entries.is_empty() {
@@ -1021,11 +1065,9 @@ pub fn draw<K: FragmentKernel>(
         ];
         for &(tile, si) in &b.entries {
             let k = &mut fill[tile as usize];
-            bins[tile as usize].push((c as u32, *k, base + si));
+            bins[tile as usize].push((c as u32, *k, si));
             *k += 1;
         }
-        setup_home.extend((0..b.setups.len() as u32).map(|i| (c as u32, i)));
-        setups.extend_from_slice(&b.setups);
         culled += b.culled;
         clipped += b.clipped;
     }
@@ -1058,10 +1100,9 @@ pub fn draw<K: FragmentKernel>(
         kernel,
         pipeline,
         target,
-        setups: &setups,
+        binned: &binned,
         bins: &bins,
         front: &front,
-        setup_home: &setup_home,
         depth: depth.as_ref(),
         color: color.as_ref(),
     };
@@ -1120,9 +1161,52 @@ pub fn draw<K: FragmentKernel>(
 }
 
 #[cfg(test)]
-mod half_rounding_tests {
-    use super::HalfRounding::{NearestEven, TowardZero};
+mod tests {
     use super::*;
+
+    /// The snap without `round` is `f64::round` on the grid, to the bit: exact halves of a
+    /// sub-pixel both ways, their neighbours one f32 step away, zeros of both signs, tiny
+    /// values and the largest coordinates admitted.
+    #[test]
+    fn snapping_rounds_half_away_from_zero_as_round_does() {
+        let mut values = vec![0.0f32, -0.0, 1e-30, -1e-30, 999_999.9, -999_999.9];
+        for k in -2000i32..2000 {
+            let half = (k as f32 + 0.5) / 256.0;
+            for v in [
+                half,
+                f32::from_bits(half.to_bits() + 1),
+                f32::from_bits(half.to_bits() - 1),
+            ] {
+                values.extend([v, v * 1021.0, v * 3.7e3]);
+            }
+        }
+        for v in values {
+            let round = (f64::from(v) * SUBPIXELS).round() / SUBPIXELS;
+            assert_eq!(snap(v).to_bits(), round.to_bits(), "{v}");
+        }
+    }
+
+    /// The bounding box's pixel bounds without `floor`/`ceil` are theirs, clamped: whole and
+    /// half pixels, one f32 step either side, negatives and values past the edge.
+    #[test]
+    fn pixel_bounds_are_floor_and_ceil_clamped() {
+        let size = 640u32;
+        for k in -400i32..1400 {
+            let base = k as f32 * 0.5;
+            for x in [
+                base,
+                f32::from_bits(base.to_bits() + 1),
+                f32::from_bits(base.to_bits().saturating_sub(1)),
+                -base,
+            ] {
+                let s = size as f32;
+                assert_eq!(pixel_floor(x, size), x.floor().clamp(0.0, s) as u32, "{x}");
+                assert_eq!(pixel_ceil(x, size), x.ceil().clamp(0.0, s) as u32, "{x}");
+            }
+        }
+    }
+
+    use super::HalfRounding::{NearestEven, TowardZero};
 
     /// A half's step at 1 is 2⁻¹⁰; between 1 and 2 every sum lies on a grid of that step.
     const ULP: f32 = 1.0 / 1024.0;

@@ -55,10 +55,24 @@ pub fn lex_positive(c: [f64; 3]) -> bool {
 /// `d · ((p − o) × (q − o))`, evaluated from the lexicographically smaller endpoint, so that
 /// `edge_function(o, d, q, p) == -edge_function(o, d, p, q)` exactly.
 pub fn edge_function(o: Vec3, d: Vec3, p: Vec3, q: Vec3) -> f32 {
-    if precedes(q, p) {
-        -d.dot((q - o).cross(p - o))
+    let (cross, negate) = edge_plane(o, p, q);
+    let v = d.dot(cross);
+    if negate {
+        -v
     } else {
-        d.dot((p - o).cross(q - o))
+        v
+    }
+}
+
+/// The plane of the edge function of `p → q` for lines from `o` ([`edge_function`] is
+/// `d · cross`, negated when `negate`): the cross product of the endpoints' offsets from `o`,
+/// taken from the lexicographically smaller endpoint as [`edge_function`] takes it, so that
+/// `d · cross` is its value to the bit for every direction `d`.
+pub fn edge_plane(o: Vec3, p: Vec3, q: Vec3) -> (Vec3, bool) {
+    if precedes(q, p) {
+        ((q - o).cross(p - o), true)
+    } else {
+        ((p - o).cross(q - o), false)
     }
 }
 

@@ -207,15 +207,10 @@ impl<L: Lookup> EyePass<'_, L> {
     fn receivers<P: Probe>(&self, p: &mut P, x0: u32, y0: u32) -> Receivers {
         let g = &self.frame.gbuffer;
         let (w, h) = (g.width, g.height);
-        let mut r = Receivers {
-            mask: Mask::NONE,
-            averted: Mask::NONE,
-            position: [Vec3::ZERO; LANES],
-            normal: [Vec3::ZERO; LANES],
-            uv: [Vec2::ZERO; LANES],
-            z: [0.0; LANES],
-            bias: [0.0; LANES],
-        };
+        // The block's inputs as structure of arrays; lanes outside the image stay invalid.
+        let mut q = [[0.0f32; LANES]; 3];
+        let mut nq = [[0.0f32; LANES]; 3];
+        let mut valid = [false; LANES];
         for row in 0..BLOCK {
             let y = y0 + row;
             if y >= h {
@@ -225,24 +220,64 @@ impl<L: Lookup> EyePass<'_, L> {
             let i = (y * w + x0) as usize;
             let pos = self.position.load_run(p, i, n);
             let nrm = self.normal.load_run(p, i, n);
-            // Every lane of the row computed, its results selected in by its mask (no branch
-            // per lane); the lanes a receiver does not need keep the zeros they start with.
             for c in 0..n {
                 let lane = (row * BLOCK) as usize + c;
-                let (q, nq) = (pos[c], nrm[c]);
-                let (uv, _, z, front) = self.map.view.project_lane(q);
-                let n_dot_l = nq.dot((self.light - q).normalize_or_zero());
-                let seen = g.is_hit(i + c) && self.map.face.owns(q) && front;
-                let averted = seen && n_dot_l <= 0.0;
-                let active = seen && (!averted || !L::AVERTED_IN_SHADOW);
-                r.averted.0 |= u16::from(averted) << lane;
-                r.mask.0 |= u16::from(active) << lane;
-                let bias = self.bias.at(&self.map.view, z, n_dot_l);
-                r.position[lane] = if active { q } else { Vec3::ZERO };
-                r.normal[lane] = if active { nq } else { Vec3::ZERO };
-                r.uv[lane] = if active { uv } else { Vec2::ZERO };
-                r.z[lane] = if active { z } else { 0.0 };
-                r.bias[lane] = if active { bias } else { 0.0 };
+                [q[0][lane], q[1][lane], q[2][lane]] = pos[c].to_array();
+                [nq[0][lane], nq[1][lane], nq[2][lane]] = nrm[c].to_array();
+                valid[lane] = g.is_hit(i + c) && self.map.face.owns(pos[c]);
+            }
+        }
+        // Every lane computed (no branch per lane), one stage per loop over the 16 lanes so
+        // that each compiles to packed instructions; the same operations in the same order as
+        // `LightView::project_lane`, `Vec3::normalize_or_zero` and `Bias::at`, so the values
+        // are theirs to the bit.
+        let m = &self.map.view.view_proj;
+        let (mx, my, mz, mw) = (m.x_axis, m.y_axis, m.z_axis, m.w_axis);
+        // NDC x and y, and the clip w: the linear depth from the light.
+        let mut ndc = [[0.0f32; LANES]; 2];
+        let mut depth = [0.0f32; LANES];
+        for l in 0..LANES {
+            let (x, y, z) = (q[0][l], q[1][l], q[2][l]);
+            // The matrix–vector product of the columns, w = 1.
+            let cx = ((mx.x * x + my.x * y) + mz.x * z) + mw.x;
+            let cy = ((mx.y * x + my.y * y) + mz.y * z) + mw.y;
+            let cw = ((mx.w * x + my.w * y) + mz.w * z) + mw.w;
+            ndc[0][l] = cx / cw;
+            ndc[1][l] = cy / cw;
+            depth[l] = cw;
+        }
+        let light = self.light;
+        let mut n_dot_l = [0.0f32; LANES];
+        for l in 0..LANES {
+            let d = [light.x - q[0][l], light.y - q[1][l], light.z - q[2][l]];
+            let rcp = 1.0 / ((d[0] * d[0]) + (d[1] * d[1]) + (d[2] * d[2])).sqrt();
+            let ok = rcp.is_finite() && rcp > 0.0;
+            let u = d.map(|v| if ok { v * rcp } else { 0.0 });
+            n_dot_l[l] = (nq[0][l] * u[0]) + (nq[1][l] * u[1]) + (nq[2][l] * u[2]);
+        }
+        let view = &self.map.view;
+        let bias: Lanes<f32> = std::array::from_fn(|l| self.bias.at(view, depth[l], n_dot_l[l]));
+        let mut r = Receivers {
+            mask: Mask::NONE,
+            averted: Mask::NONE,
+            position: [Vec3::ZERO; LANES],
+            normal: [Vec3::ZERO; LANES],
+            uv: [Vec2::ZERO; LANES],
+            z: [0.0; LANES],
+            bias: [0.0; LANES],
+        };
+        for lane in 0..LANES {
+            let seen = valid[lane] && depth[lane] > 0.0;
+            let averted = seen && n_dot_l[lane] <= 0.0;
+            let active = seen && (!averted || !L::AVERTED_IN_SHADOW);
+            r.averted.0 |= u16::from(averted) << lane;
+            r.mask.0 |= u16::from(active) << lane;
+            if active {
+                r.position[lane] = Vec3::new(q[0][lane], q[1][lane], q[2][lane]);
+                r.normal[lane] = Vec3::new(nq[0][lane], nq[1][lane], nq[2][lane]);
+                r.uv[lane] = Vec2::new(ndc[0][lane] * 0.5 + 0.5, 0.5 - ndc[1][lane] * 0.5);
+                r.z[lane] = depth[lane];
+                r.bias[lane] = bias[lane];
             }
         }
         p.vector(RECEIVER_OPS, r.mask);
@@ -305,7 +340,7 @@ pub fn eye_lookup<L: Lookup>(
         lookup,
         position: m.memory.borrowed("gbuffer.position", &g.position),
         normal: m.memory.borrowed("gbuffer.normal", &g.normal),
-        visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
+        visibility: m.memory.unbacked("visibility", g.len()),
     };
     let weights = eye_tiles(frame).tile_weights(|i| g.is_hit(i) && map.face.owns(g.position[i]));
     eye_lookup_step(m, frame, &pass, &weights)

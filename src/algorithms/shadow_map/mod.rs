@@ -251,7 +251,10 @@ impl LightView {
         memory: Option<&CasterBuffers>,
         range: std::ops::Range<usize>,
     ) -> CastersPart {
-        let mut part = CastersPart::default();
+        let mut part = CastersPart {
+            triangles: Vec::with_capacity(range.len()),
+            positions: Vec::new(),
+        };
         let to_world = self.view.inverse();
         let first = range.start as u64;
         let memory = memory.filter(|_| P::ENABLED);
@@ -342,6 +345,7 @@ impl LightView {
     }
 
     /// World size of one map texel at linear depth `z`.
+    #[inline]
     pub fn texel_world(&self, z: f32) -> f32 {
         2.0 * z * self.tan_half_fov / self.resolution as f32
     }
@@ -696,6 +700,7 @@ impl Bias {
         crate::error::InputError::check_non_negative(field("slope"), self.slope)
     }
 
+    #[inline]
     pub fn at(&self, view: &LightView, z: f32, n_dot_l: f32) -> f32 {
         let c = n_dot_l.clamp(1e-4, 1.0);
         let tan = ((1.0 - c * c).sqrt() / c).min(10.0);

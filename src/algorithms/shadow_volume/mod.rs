@@ -116,14 +116,14 @@ impl ShadowQuad {
     /// `b → a` (the quad `a`, far `a`, far `b`, `b` wound around `normal`), so a ray through the
     /// line from the light through a vertex shared by two quads crosses exactly one of them.
     pub fn ray_hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
-        let n = self.normal;
-        let nd = n.dot(d);
-        if nd.abs() < 1e-12 * n.length() {
-            return None;
-        }
-        let t = n.dot(self.light - o) / nd;
+        self.from(o).hit(d)
+    }
+
+    /// The quad's ray test for rays from `o` with everything that does not depend on the ray's
+    /// direction computed once.
+    pub fn from(&self, o: Vec3) -> FaceFrom {
         let (l, a, b) = (self.light, self.a, self.b);
-        (t > 0.0 && coverage::line_crosses(o, d, n, &[(l, a), (b, l), (b, a)])).then_some(t)
+        FaceFrom::new(o, self.normal, l, &[(l, a), (b, l), (b, a)])
     }
 
     /// Corners of the quad cut at distance `reach` (the scene size) beyond its edge.
@@ -210,11 +210,106 @@ fn segment_hits_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
     t > 0.0 && t < 1.0
 }
 
-/// Vector instructions per block of a shadow quad: the ray–plane intersection (two 3-term dots,
-/// a divide, a multiply-add per coordinate), the three edge tests (a cross product and a dot
-/// each, with a compare), and the scene-bounds slab test (per axis a reciprocal, two
-/// multiply-adds, a min, a max; then the interval compares).
-pub const QUAD_HIT_OPS: u32 = 2 * 5 + 1 + 3 + 3 * (9 + 5 + 1) + 3 * 5 + 4;
+/// A face's ray test ([`ShadowQuad::ray_hit`], [`VolumeFace::ray_hit`]) for the rays from one
+/// origin `o` (the eye): what does not depend on the ray's direction `d` is computed once per
+/// face, as a rasterizer sets up a triangle's edge equations once. Every ray from `o` lies in
+/// the plane through `o`, `p`, `q` on the side [`coverage::edge_function`] gives by
+/// `d · ((p − o) × (q − o))`, so per edge only that cross product is kept (taken from the
+/// lexicographically smaller endpoint, as `edge_function` takes it, so the values are the same
+/// to the bit), and per ray remain a dot product per edge and the plane's.
+#[derive(Clone, Copy, Debug)]
+pub struct FaceFrom {
+    normal: Vec3,
+    /// `1e-12 · |normal|`: rays nearer parallel to the face than this miss it.
+    parallel: f32,
+    /// `normal · (corner − o)`: a ray meets the plane at this over `normal · d`.
+    plane: f32,
+    edges: [FromEdge; 4],
+    sides: usize,
+}
+
+/// One directed boundary edge `p → q` of a [`FaceFrom`].
+#[derive(Clone, Copy, Debug, Default)]
+struct FromEdge {
+    /// `(p − o) × (q − o)`, or `(q − o) × (p − o)` where `q` precedes `p` (then `negate`).
+    cross: Vec3,
+    negate: bool,
+    p: Vec3,
+    q: Vec3,
+}
+
+impl FaceFrom {
+    /// The face of `normal` through `corner` bounded by the directed `edges` (at most 4), seen
+    /// from `o`.
+    fn new(o: Vec3, normal: Vec3, corner: Vec3, edges: &[(Vec3, Vec3)]) -> FaceFrom {
+        let mut e = [FromEdge::default(); 4];
+        for (out, &(p, q)) in e.iter_mut().zip(edges) {
+            let (cross, negate) = coverage::edge_plane(o, p, q);
+            *out = FromEdge {
+                cross,
+                negate,
+                p,
+                q,
+            };
+        }
+        FaceFrom {
+            normal,
+            parallel: 1e-12 * normal.length(),
+            plane: normal.dot(corner - o),
+            edges: e,
+            sides: edges.len(),
+        }
+    }
+
+    /// Distance along `o + t·d` to the face, if the ray meets it, under the one tie rule
+    /// ([`coverage::line_crosses`]).
+    #[inline]
+    pub fn hit(&self, d: Vec3) -> Option<f32> {
+        let nd = self.normal.dot(d);
+        if nd.abs() < self.parallel {
+            return None;
+        }
+        let t = self.plane / nd;
+        (t > 0.0 && self.crosses(d, nd)).then_some(t)
+    }
+
+    /// [`coverage::line_crosses`] for the ray along `d` with `s = d · normal`: with `s > 0`
+    /// every edge function positive, with `s < 0` every one of the reversed edges (the
+    /// negated value, its tie decided for `q → p`).
+    #[inline]
+    fn crosses(&self, d: Vec3, s: f32) -> bool {
+        let edges = &self.edges[..self.sides];
+        let value = |e: &FromEdge| {
+            let v = d.dot(e.cross);
+            if e.negate {
+                -v
+            } else {
+                v
+            }
+        };
+        if s > 0.0 {
+            edges.iter().all(|e| {
+                let v = value(e);
+                v > 0.0 || (v == 0.0 && coverage::tie_owner(d, e.p, e.q))
+            })
+        } else if s < 0.0 {
+            edges.iter().all(|e| {
+                let v = value(e);
+                v < 0.0 || (v == 0.0 && coverage::tie_owner(d, e.q, e.p))
+            })
+        } else {
+            false
+        }
+    }
+}
+
+/// Vector instructions per block of a shadow quad seen from the eye ([`FaceFrom`], set up once
+/// per quad on the host with its footprint): the ray–plane intersection (a 3-term dot, the
+/// edge-on test as an absolute value and a compare, a divide, the sign test), the three edge
+/// tests (a 3-term dot with the edge's precomputed plane, the orientation's sign select and a
+/// compare each), and the scene-bounds slab test (per axis a reciprocal, two multiply-adds, a
+/// min, a max; then the interval compares).
+pub const QUAD_HIT_OPS: u32 = 5 + 2 + 1 + 1 + 3 * (5 + 1 + 1) + 3 * 5 + 4;
 /// The depth test: compare with the visible surface's depth, mask and.
 pub const DEPTH_TEST_OPS: u32 = 2;
 /// The count update: select the quad's ±1, add.
@@ -237,16 +332,16 @@ impl VolumeFace {
     /// share their corners exactly, so a ray through an edge or corner crosses the volume's
     /// boundary once per entry or exit.
     pub fn ray_hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
-        let n = self.normal;
-        let nd = n.dot(d);
-        if nd.abs() < 1e-12 * n.length() {
-            return None;
-        }
+        self.from(o).hit(d)
+    }
+
+    /// The face's ray test for rays from `o` with everything that does not depend on the ray's
+    /// direction computed once.
+    pub fn from(&self, o: Vec3) -> FaceFrom {
         let c = &self.corners;
-        let t = n.dot(c[0] - o) / nd;
         let k = self.sides as usize;
         let edges: [(Vec3, Vec3); 4] = std::array::from_fn(|i| (c[i % k], c[(i + 1) % k]));
-        (t > 0.0 && coverage::line_crosses(o, d, n, &edges[..k])).then_some(t)
+        FaceFrom::new(o, self.normal, c[0], &edges[..k])
     }
 
     /// +1 on the outer side of the face's plane, −1 on the inner side.
@@ -260,7 +355,7 @@ impl VolumeFace {
 
     /// Vector instructions per block: [`QUAD_HIT_OPS`] with one edge test per side.
     pub fn hit_ops(&self) -> u32 {
-        QUAD_HIT_OPS + (self.sides - 3) * (9 + 5 + 1)
+        QUAD_HIT_OPS + (self.sides - 3) * (5 + 1 + 1)
     }
 }
 
@@ -335,33 +430,10 @@ pub struct CountTarget {
     pub clear: bool,
 }
 
-/// A primitive of a hard pass: a z-pass shadow quad or a z-fail volume face.
-trait CountedFace: Sync {
-    fn hit(&self, o: Vec3, d: Vec3) -> Option<f32>;
-    fn ops(&self) -> u32;
-}
-
-impl CountedFace for ShadowQuad {
-    fn hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
-        self.ray_hit(o, d)
-    }
-    fn ops(&self) -> u32 {
-        QUAD_HIT_OPS
-    }
-}
-
-impl CountedFace for VolumeFace {
-    fn hit(&self, o: Vec3, d: Vec3) -> Option<f32> {
-        self.ray_hit(o, d)
-    }
-    fn ops(&self) -> u32 {
-        self.hit_ops()
-    }
-}
-
-struct QuadPass<'a, F> {
+struct QuadPass<'a> {
     rays: &'a EyeRays,
-    faces: &'a [F],
+    /// Per face its ray test from the eye and its vector instructions per block.
+    faces: Vec<(FaceFrom, u32)>,
     /// Per face the count change of a passing fragment: z-pass +1 for a face whose outer side
     /// the eye is on, z-fail the opposite.
     steps: Vec<i32>,
@@ -377,7 +449,7 @@ struct QuadTile {
     passed: u64,
 }
 
-impl<F: CountedFace> TilePass for QuadPass<'_, F> {
+impl TilePass for QuadPass<'_> {
     type State = QuadTile;
 
     fn begin<P: Probe>(&self, p: &mut P, rect: ScreenRect) -> QuadTile {
@@ -396,8 +468,8 @@ impl<F: CountedFace> TilePass for QuadPass<'_, F> {
 
     fn block<P: Probe>(&self, p: &mut P, s: &mut QuadTile, k: usize, b: &Block) {
         let rays = self.rays;
-        let face = &self.faces[k];
-        p.vector(face.ops(), b.mask);
+        let (face, ops) = &self.faces[k];
+        p.vector(*ops, b.mask);
         let mut hit = [f32::INFINITY; LANES];
         // Lanes outside the mask may lie past the image edge: never index with them.
         let fill = Mask::from_fn(|l| {
@@ -410,7 +482,7 @@ impl<F: CountedFace> TilePass for QuadPass<'_, F> {
                 Counting::ZPass => t1,
                 Counting::ZFail => f32::INFINITY,
             };
-            match face.hit(rays.eye, rays.dir[i]) {
+            match face.hit(rays.dir[i]) {
                 Some(t) if t >= t0 && t <= t1 => {
                     hit[l] = t;
                     true
@@ -493,7 +565,10 @@ pub fn render_hard(
             let footprints = quad_footprints(rays, quads);
             let pass = QuadPass {
                 rays,
-                faces: quads,
+                faces: quads
+                    .iter()
+                    .map(|q| (q.from(rays.eye), QUAD_HIT_OPS))
+                    .collect(),
                 steps: quads.iter().map(|q| q.side(rays.eye) as i32).collect(),
                 counting: Counting::ZPass,
                 eye_count,
@@ -506,7 +581,10 @@ pub fn render_hard(
             let footprints = face_footprints(rays, &faces);
             let pass = QuadPass {
                 rays,
-                faces: &faces,
+                faces: faces
+                    .iter()
+                    .map(|f| (f.from(rays.eye), f.hit_ops()))
+                    .collect(),
                 steps: faces.iter().map(|f| -(f.side(rays.eye) as i32)).collect(),
                 counting: Counting::ZFail,
                 eye_count: 0,
@@ -518,13 +596,13 @@ pub fn render_hard(
     }
 }
 
-fn collect<F: CountedFace>(
+fn collect(
     m: &mut Machine,
     step: &str,
     rays: &EyeRays,
     footprints: &[Option<ScreenRect>],
     tile: u32,
-    pass: &QuadPass<'_, F>,
+    pass: &QuadPass<'_>,
     caps: u64,
 ) -> HardPass {
     let tiles = raster_pass(m, step, rays, footprints, tile, pass);
@@ -623,6 +701,91 @@ mod tests {
             .filter(|&&i| pass.count[i] != eye_count(&occluders, light, rays.point[i]))
             .count();
         (wrong, hits.len())
+    }
+
+    /// The ray test set up once per face ([`FaceFrom`]) gives, for every direction, the
+    /// distance and coverage of the plane intersection and the general line–face test of
+    /// `scene::coverage` ([`coverage::line_crosses`] over the face's boundary) to the bit:
+    /// directions scattered over the sphere, and directions through the faces' corners and
+    /// edge midpoints, where the tie rule decides.
+    #[test]
+    fn a_face_set_up_from_the_eye_hits_what_the_general_line_test_hits() {
+        // A fixed sequence in [-1, 1) (xorshift), so the test is the same every run.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 23) as f32 - 1.0
+        };
+        let mut v3 = || Vec3::new(next(), next(), next());
+        let o = Vec3::new(0.25, 3.0, -0.5);
+        let mut checked = (0, 0);
+        for _ in 0..40 {
+            let light = v3() * 4.0 + Vec3::Y * 6.0;
+            let (a, b) = (v3(), v3());
+            let quad = ShadowQuad {
+                a,
+                b,
+                light,
+                normal: (a - light).cross(b - light),
+            };
+            let corners = [v3(), v3(), v3(), v3()];
+            let face = VolumeFace {
+                corners: [corners[0], corners[1], corners[2], corners[2]],
+                sides: 3,
+                normal: (corners[1] - corners[0]).cross(corners[2] - corners[0]),
+            };
+            let faces = [
+                (
+                    quad.from(o),
+                    quad.normal,
+                    light,
+                    vec![(light, a), (b, light), (b, a)],
+                ),
+                (
+                    face.from(o),
+                    face.normal,
+                    corners[0],
+                    vec![
+                        (corners[0], corners[1]),
+                        (corners[1], corners[2]),
+                        (corners[2], corners[0]),
+                    ],
+                ),
+            ];
+            for (from, n, corner, edges) in &faces {
+                let mut dirs: Vec<Vec3> = (0..200).map(|_| v3()).collect();
+                for &(p, q) in edges {
+                    dirs.extend([p - o, q - o, (p + q) * 0.5 - o, a + (a - light) - o]);
+                }
+                // Towards a point inside the face: a hit unless the face is seen edge-on.
+                let mid = (a + b) * 0.5;
+                dirs.push(if *corner == light {
+                    mid + (mid - light) * 0.5 - o
+                } else {
+                    (corners[0] + corners[1] + corners[2]) / 3.0 - o
+                });
+                for d in dirs {
+                    let nd = n.dot(d);
+                    let expected = if nd.abs() < 1e-12 * n.length() {
+                        None
+                    } else {
+                        let t = n.dot(*corner - o) / nd;
+                        (t > 0.0 && coverage::line_crosses(o, d, *n, edges)).then_some(t)
+                    };
+                    let got = from.hit(d);
+                    assert_eq!(got.map(f32::to_bits), expected.map(f32::to_bits), "d {d}");
+                    checked.0 += 1;
+                    checked.1 += usize::from(got.is_some());
+                }
+            }
+        }
+        // Both outcomes occur often enough to mean something (80 faces aimed at).
+        assert!(
+            checked.1 >= 80 && checked.0 - checked.1 >= 80,
+            "{checked:?}"
+        );
     }
 
     /// z-fail over the capped volumes (Paper II §5) counts, at every visible point, the volumes

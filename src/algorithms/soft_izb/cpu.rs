@@ -12,9 +12,9 @@
 use glam::Vec2;
 
 use super::{
-    clip_coords, combined_visibility, in_front, light_point, light_radius_uv, object_occluders,
-    quad_half_width, wedge_entry_inv_z, Grid, LightPoint, LightTriangle, Occluders, PenumbraQuad,
-    ProjectedEdge, SoftIzbOptions,
+    clip_coords, combined_visibility, in_front, light_point, light_radius_uv, object_adjacency,
+    occluders_of, quad_half_width, wedge_entry_inv_z, Grid, LightPoint, LightTriangle, Occluders,
+    PenumbraQuad, ProjectedEdge, SoftIzbOptions,
 };
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
@@ -22,6 +22,7 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Buffer, BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::scene::adjacency::EdgeAdjacency;
 use crate::visibility::VisibilityBuffer;
 
 /// Pixels per task of the construction steps (a multiple of the 16 lanes).
@@ -475,13 +476,18 @@ struct Setup<'a> {
     frame: &'a Frame,
     view: &'a LightView,
     opts: &'a SoftIzbOptions,
+    /// Per object its edge adjacency (`None` for objects that do not occlude).
+    adjacency: &'a [Option<EdgeAdjacency>],
 }
 
 impl TaskKernel for Setup<'_> {
     type Out = Occluders;
 
     fn run<P: Probe>(&self, p: &mut P, o: usize) -> Occluders {
-        let occ = object_occluders(self.frame, self.view, self.opts, o);
+        let occ = match &self.adjacency[o] {
+            Some(adj) => occluders_of(self.frame, self.view, self.opts, o, adj),
+            None => Occluders::default(),
+        };
         let faces = self.frame.scene.objects[o].mesh.triangles.len() as u32;
         p.scalar(FACE_SETUP_OPS * faces + EDGE_SETUP_OPS * occ.edges.len() as u32);
         occ
@@ -521,6 +527,7 @@ fn occluders(
     frame: &Frame,
     view: &LightView,
     opts: &SoftIzbOptions,
+    adjacency: &[Option<EdgeAdjacency>],
 ) -> (Occluders, Region, Region) {
     m.phase("geometry");
     let objects = &frame.scene.objects;
@@ -528,7 +535,12 @@ fn occluders(
         .iter()
         .map(|o| o.mesh.triangles.len() as u64)
         .collect();
-    let setup = Setup { frame, view, opts };
+    let setup = Setup {
+        frame,
+        view,
+        opts,
+        adjacency,
+    };
     let per_object = m.run_step("setup", &setup, &weights);
     let mut occ = Occluders {
         triangles: vec![],
@@ -1057,9 +1069,14 @@ pub fn render(
     let view = *views.single();
     let r_uv = light_radius_uv(&view, light.size());
 
+    // The occluders' adjacency is the meshes' (as the other algorithms build theirs before
+    // their phases); the geometry phase detects silhouettes with it.
+    let adjacency: Vec<Option<EdgeAdjacency>> = (0..frame.scene.objects.len())
+        .map(|o| object_adjacency(frame, o))
+        .collect();
     let mut m = machine(backend, frame, ctx);
     let (izb, outside) = construct(&mut m, frame, &view, opts);
-    let (occ, triangles, edges) = occluders(&mut m, frame, &view, opts);
+    let (occ, triangles, edges) = occluders(&mut m, frame, &view, opts, &adjacency);
     let depth_complexity = umbra(&mut m, &izb, &occ, triangles);
     let data = penumbra(
         &mut m,

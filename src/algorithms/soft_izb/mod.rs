@@ -360,19 +360,36 @@ pub fn object_occluders(
     opts: &SoftIzbOptions,
     o: usize,
 ) -> Occluders {
-    let centre = frame.scene.light.center();
-    let object = &frame.scene.objects[o];
-    if !object.role.occluder {
-        return Occluders {
-            triangles: vec![],
-            edges: vec![],
-        };
+    match object_adjacency(frame, o) {
+        Some(adj) => occluders_of(frame, view, opts, o, &adj),
+        None => Occluders::default(),
     }
+}
+
+/// The edge adjacency of object `o`'s mesh ([`EdgeAdjacency::build`]), `None` for an object
+/// that does not occlude: a property of the mesh, built once before the frame's phases.
+pub fn object_adjacency(frame: &Frame, o: usize) -> Option<EdgeAdjacency> {
+    let object = &frame.scene.objects[o];
+    object
+        .role
+        .occluder
+        .then(|| EdgeAdjacency::build(&object.mesh))
+}
+
+/// [`object_occluders`] of occluding object `o` from its adjacency `adj`
+/// ([`object_adjacency`]).
+pub fn occluders_of(
+    frame: &Frame,
+    view: &LightView,
+    opts: &SoftIzbOptions,
+    o: usize,
+    adj: &EdgeAdjacency,
+) -> Occluders {
+    let centre = frame.scene.light.center();
     let base = frame
         .flat
         .object_of_triangle
         .partition_point(|&x| (x as usize) < o) as u32;
-    let adj = EdgeAdjacency::build(&object.mesh);
     let closed = adj.count(EdgeKind::Boundary) == 0 && adj.count(EdgeKind::NonManifold) == 0;
     let mut tris = Vec::new();
     let mut edges = Vec::new();

@@ -234,19 +234,31 @@ impl FragmentKernel for Splat<'_> {
         r.buf.record_load(p, block, LANES);
         p.vector(FRAGMENT_OPS, f.mask);
         // Every lane computed and kept by mask (no branch per lane): lanes without a receiver
-        // (depth 1) or that the patch does not hide are dropped.
+        // (depth 1) or that the patch does not hide are dropped. Structure of arrays, one
+        // branch-free loop per stage over the 16 lanes (`occlusion` selects its early zero),
+        // so that each compiles to packed instructions.
+        let lf = self.lf;
         let on = f.mask.to_lanes();
         let depth = &r.buf.data[block..block + LANES];
+        let (mut tan_x, mut tan_y) = ([0.0f32; LANES], [0.0f32; LANES]);
+        for l in 0..LANES {
+            let (x, y) = f.pixel(l);
+            let c = lf.texel_center(x, y);
+            (tan_x[l], tan_y[l]) = (c.x, c.y);
+        }
+        let mut hidden = [0.0f32; LANES];
+        for l in 0..LANES {
+            let z_r = lf.linear_depth(depth[l]);
+            let bias = bias_at(lf, self.bias_texels, z_r);
+            let centre = Vec2::new(tan_x[l], tan_y[l]);
+            hidden[l] = occlusion(lf, &patch, centre, z_r, bias);
+        }
         let mut value = [0.0f32; LANES];
         let mut keep = [false; LANES];
         for l in 0..LANES {
             let d = depth[l];
-            let (x, y) = f.pixel(l);
-            let z_r = self.lf.linear_depth(d);
-            let bias = bias_at(self.lf, self.bias_texels, z_r);
-            let v = occlusion(self.lf, &patch, self.lf.texel_center(x, y), z_r, bias);
-            keep[l] = on[l] & (d < 1.0 || d.is_nan()) & (v > 0.0);
-            value[l] = if keep[l] { v } else { 0.0 };
+            keep[l] = on[l] & (d < 1.0 || d.is_nan()) & (hidden[l] > 0.0);
+            value[l] = if keep[l] { hidden[l] } else { 0.0 };
         }
         let shade = Shade {
             value,
@@ -546,7 +558,7 @@ fn project(
         object: m
             .memory
             .borrowed("object_of_triangle", &frame.flat.object_of_triangle),
-        visibility: m.memory.buffer("visibility", vec![1.0f32; g.len()]),
+        visibility: m.memory.unbacked("visibility", g.len()),
     };
     let weights = eye_tiles(frame).tile_weights(|i| g.is_hit(i));
     eye_lookup_step(m, frame, &pass, &weights)

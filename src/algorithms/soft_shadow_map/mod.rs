@@ -301,11 +301,13 @@ impl LightFrame {
     }
 
     /// Size of a texel in tan space (`dx`, `dy`).
+    #[inline]
     pub fn texel_tan(&self) -> Vec2 {
         Vec2::new(self.x1 - self.x0, self.y1 - self.y0) / self.resolution as f32
     }
 
     /// Tan coordinates of the centre of texel (i, j).
+    #[inline]
     pub fn texel_center(&self, i: u32, j: u32) -> Vec2 {
         let d = self.texel_tan();
         Vec2::new(
@@ -329,6 +331,7 @@ impl LightFrame {
     }
 
     /// Depth from the light plane for a map's NDC depth.
+    #[inline]
     pub fn linear_depth(&self, ndc: f32) -> f32 {
         self.near * self.far / (self.far - ndc * (self.far - self.near))
     }
@@ -388,6 +391,7 @@ pub fn penumbra_extent(f: &LightFrame, p: &MicroPatch, z_r: f32) -> (Vec2, Vec2)
 }
 
 /// §4.2: the overlap of `[a, b]` with the light's `[0, 1]` (the paper's `MOV_SAT; SUB`).
+#[inline]
 pub fn overlap(a: f32, b: f32) -> f32 {
     b.clamp(0.0, 1.0) - a.clamp(0.0, 1.0)
 }
@@ -397,16 +401,22 @@ pub fn overlap(a: f32, b: f32) -> f32 {
 /// `l = R + (P − R) · z_R/(z_R − z_O)`, and scaled so that the light is `[0, 1]²`; the hidden
 /// fraction is the product of the two interval overlaps. Zero unless the patch lies nearer the
 /// light than the receiver by more than `bias`.
+///
+/// Branch-free (the overlap is computed on every receiver and the zero selected), so that a
+/// loop over a block's lanes compiles to packed instructions.
+#[inline]
 pub fn occlusion(f: &LightFrame, p: &MicroPatch, t_r: Vec2, z_r: f32, bias: f32) -> f32 {
-    if z_r - p.z_o <= bias {
-        return 0.0;
-    }
     let r = t_r * z_r;
     let k = z_r / (z_r - p.z_o);
     let inv = Vec2::ONE / (f.half * 2.0);
     let a = ((r + (p.lo - r) * k) + f.half) * inv;
     let b = ((r + (p.hi - r) * k) + f.half) * inv;
-    overlap(a.x, b.x) * overlap(a.y, b.y)
+    let hidden = overlap(a.x, b.x) * overlap(a.y, b.y);
+    if z_r - p.z_o <= bias {
+        0.0
+    } else {
+        hidden
+    }
 }
 
 /// What a wgpu run records of its adapter's half-float blend (`sums`, `Gpu::half_blend_sums`)
@@ -437,6 +447,7 @@ pub fn half_rounding(sums: [f32; 2], option: HalfRounding) -> (&'static str, Opt
 }
 
 /// Bias in light-frame depth at receiver depth `z_r`: `bias_texels` map texels.
+#[inline]
 pub fn bias_at(f: &LightFrame, bias_texels: f32, z_r: f32) -> f32 {
     bias_texels * f.texel_tan().x * z_r
 }
