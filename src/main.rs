@@ -1072,8 +1072,7 @@ fn main() -> ExitCode {
     };
     if let Some(name) = &adapter {
         if let Err(e) = shadowbench::gpu::prefer_adapter(name) {
-            eprintln!("error: {e}");
-            return ExitCode::from(e.exit_code() as u8);
+            return failed(e);
         }
     }
     // An adapter asked for by name (the option, else the environment) that is not there is bad
@@ -1087,16 +1086,12 @@ fn main() -> ExitCode {
     };
     if let Some(field) = named.filter(|_| uses_gpu) {
         if let Err(e) = shadowbench::gpu::gpu() {
-            let e = Error::from(InputError::new(field, e.to_string()));
-            eprintln!("error: {e}");
-            return ExitCode::from(e.exit_code() as u8);
+            return failed(InputError::new(field, e.to_string()).into());
         }
     }
     if let Ok(spec) = std::env::var(shadowbench::gpu::fault::FAULT_ENV) {
         if let Err(e) = shadowbench::gpu::fault::parse(&spec) {
-            let e = Error::from(InputError::new(shadowbench::gpu::fault::FAULT_ENV, e));
-            eprintln!("error: {e}");
-            return ExitCode::from(e.exit_code() as u8);
+            return failed(InputError::new(shadowbench::gpu::fault::FAULT_ENV, e).into());
         }
     }
     let result = match cli.command {
@@ -1132,9 +1127,12 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(e.exit_code() as u8)
-        }
+        Err(e) => failed(e),
     }
+}
+
+/// Prints `e` and gives its exit code (2 for bad input, 1 otherwise).
+fn failed(e: Error) -> ExitCode {
+    eprintln!("error: {e}");
+    ExitCode::from(e.exit_code() as u8)
 }

@@ -1233,6 +1233,13 @@ mod tests {
     }
 
     #[test]
+    fn rounding_names_are_the_option_values() {
+        for r in [TowardZero, NearestEven] {
+            assert_eq!(serde_json::to_value(r).unwrap(), r.name());
+        }
+    }
+
+    #[test]
     fn the_probe_sums_name_their_rounding() {
         let of = HalfRounding::of_sums;
         assert_eq!(of([1.0, 1.0]), Some(TowardZero));
