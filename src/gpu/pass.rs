@@ -757,7 +757,7 @@ impl<'a> Pass<'a> {
 
     /// Records the pass, timed as `timer`'s pass `index` and with its statistics in `stats`
     /// when given.
-    fn record(
+    pub(super) fn record(
         &self,
         e: &mut wgpu::CommandEncoder,
         timer: Option<&PassTimer>,

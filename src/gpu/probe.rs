@@ -7,6 +7,7 @@
 //!   much it loses depends on it. Mesa's lavapipe rounds toward zero; NVIDIA's driver (H200,
 //!   580.159) to nearest.
 
+use super::pass::{Onto, Pass, Program, Raster, Work};
 use super::readback::Staging;
 use super::{additive_red, Gpu};
 use crate::error::{Error, Result};
@@ -46,35 +47,13 @@ impl Gpu {
 
     fn probe_half_blend(&self) -> Result<[f32; 2]> {
         let format = wgpu::TextureFormat::R16Float;
-        let module = self
-            .device
-            .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("half-float blend probe"),
-                source: wgpu::ShaderSource::Wgsl(WGSL.into()),
-            });
-        let pipeline = self
-            .device
-            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("half-float blend probe"),
-                layout: None,
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: Default::default(),
-                depth_stencil: None,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(additive_red(format))],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+        let program = Program::new(self, "half-float blend probe", &[WGSL], &[]);
+        let raster = Raster {
+            depth: None,
+            color: Some(additive_red(format)),
+            ..Raster::default()
+        };
+        let pipeline = program.render(self, &raster);
         let target = self.texture(
             "half-float blend probe",
             (PROBES, 1),
@@ -82,29 +61,22 @@ impl Gpu {
             wgpu::TextureUsages::COPY_SRC,
         );
         let view = target.create_view(&Default::default());
+        let onto = Onto {
+            pipeline: &pipeline,
+            color: &view,
+            clear: Some(1.0),
+            depth: None,
+            vertices: None,
+            range: 0..3,
+        };
+        let pass = Pass {
+            label: "half-float blend probe",
+            groups: vec![],
+            work: Work::Onto(onto),
+        };
         let staging = Staging::new(self, "half-float blend probe", 256);
         self.submit(|e| {
-            let mut pass = e.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("half-float blend probe"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color {
-                            r: 1.0,
-                            g: 0.0,
-                            b: 0.0,
-                            a: 0.0,
-                        }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                ..Default::default()
-            });
-            pass.set_pipeline(&pipeline);
-            pass.draw(0..3, 0..1);
-            drop(pass);
+            pass.record(e, None, None, 0);
             staging.copy_texture(e, &target, 256);
         })?;
         let bytes = staging.read(self)?;
