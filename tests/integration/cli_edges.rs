@@ -239,8 +239,9 @@ fn render_of_a_scenario_names_what_it_does_not_use() {
 }
 
 /// `--adapter` (or `SHADOWBENCH_ADAPTER`) naming no adapter there is bad input (exit 2, naming
-/// the option or the variable), in `render` and in `run`, before anything is written: before, `run` skipped its wgpu runs with a note and
-/// exited 0, so the runs meant for that GPU silently did not happen.
+/// the option or the variable), in `render` and in `run`, before anything is written: before,
+/// `run` skipped its wgpu runs with a note and exited 0, so the runs meant for that GPU silently
+/// did not happen.
 #[test]
 fn an_adapter_that_is_not_there_is_an_input_error() {
     let dir = tempfile::tempdir().unwrap();
