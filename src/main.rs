@@ -123,15 +123,21 @@ enum Command {
     },
     /// Measure this machine's costs with small kernels (vector arithmetic, scalar chains, line
     /// loads and stores, gathers, atomics, pointer-chasing latency per cache level, memory
-    /// parallelism, DRAM bandwidth, the fork-join barrier) and write the `host` machine with
-    /// them as a machine .json file for --machine (every figure's method in `sources`).
+    /// parallelism, DRAM bandwidth, the fork-join barrier), fit the issue costs to a training
+    /// sweep of the algorithms on scenes validate-model does not use, and write the `host`
+    /// machine with them as a machine .json file for --machine (every figure's method in
+    /// `sources`).
     Calibrate {
         /// The machine .json file to write.
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
-        /// Fewer and shorter kernel runs (seconds instead of tens of seconds; noisier figures).
+        /// Fewer and shorter kernel runs and a smaller training sweep (320x240 only, one timed
+        /// run per case): seconds instead of a minute; noisier figures.
         #[arg(long)]
         quick: bool,
+        /// Keep the issue costs the kernels measured (no training sweep).
+        #[arg(long)]
+        kernels_only: bool,
     },
     /// Run a fixed sweep (every CPU algorithm, 3 scenes, 2 image sizes) on cpu-native and on
     /// cpu-model with the calibrated host machine, and write per run and per phase the modelled
@@ -292,6 +298,10 @@ struct ValidateArgs {
     /// Timed cpu-native runs per case, after one warm-up run (the median is used).
     #[arg(long, default_value_t = 3)]
     repeats: usize,
+    /// When calibrating (no --machine): keep the issue costs the kernels measured instead of
+    /// fitting them to the training sweep.
+    #[arg(long)]
+    kernels_only: bool,
 }
 
 #[derive(clap::Args)]
@@ -882,7 +892,8 @@ fn diff(a: PathBuf, b: PathBuf, out: PathBuf) -> Result<()> {
     Ok(())
 }
 
-fn calibrate(out: PathBuf, quick: bool) -> Result<()> {
+fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
+    use shadowbench::harness::validate;
     if out
         .extension()
         .is_none_or(|e| !e.eq_ignore_ascii_case("json"))
@@ -891,18 +902,13 @@ fn calibrate(out: PathBuf, quick: bool) -> Result<()> {
             InputError::new("--out", format!("'{}' is not a .json file", out.display())).into(),
         );
     }
-    let base = MachineConfig::resolve("host", "host", Path::new("."))?;
-    let settings = if quick {
-        model::calibrate::Settings {
-            scale: 0.1,
-            repeats: 3,
-        }
-    } else {
-        model::calibrate::Settings::default()
-    };
-    println!("calibrating {} ({})", base.name, base.describe());
+    let mut training = validate::Sweep::default();
+    if quick {
+        training.images = vec![[320, 240]];
+        training.repeats = 1;
+    }
     let start = std::time::Instant::now();
-    let (machine, _) = model::calibrate::calibrate(&base, settings, |line| println!("{line}"));
+    let (machine, _) = calibrated_host(quick, (!kernels_only).then_some(&training))?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
@@ -915,6 +921,51 @@ fn calibrate(out: PathBuf, quick: bool) -> Result<()> {
         out.display()
     );
     Ok(())
+}
+
+/// The `host` machine with the kernels' figures (`quick`: fewer, shorter kernel runs) and,
+/// given a sweep, the issue costs fitted on its training scenes (`harness::fit`).
+fn calibrated_host(
+    quick: bool,
+    sweep: Option<&shadowbench::harness::validate::Sweep>,
+) -> Result<(MachineConfig, Option<harness::fit::CostFit>)> {
+    let base = MachineConfig::resolve("host", "host", Path::new("."))?;
+    let settings = if quick {
+        model::calibrate::Settings {
+            scale: 0.1,
+            repeats: 3,
+        }
+    } else {
+        model::calibrate::Settings::default()
+    };
+    println!("calibrating {} ({})", base.name, base.describe());
+    let (kernels, _) = model::calibrate::calibrate(&base, settings, |line| println!("{line}"));
+    let Some(sweep) = sweep else {
+        return Ok((kernels, None));
+    };
+    let training = harness::fit::training_sweep(sweep);
+    println!(
+        "fitting the issue costs to a training sweep on {}",
+        training.scenes.join(", ")
+    );
+    let (m, fit) = harness::fit::fit(&kernels, &training, |line| println!("{line}"))?;
+    let k = &m.costs;
+    println!(
+        "fitted (cycles): vector {:.3}, lane {:.3}, scalar {:.3}, line {:.3}, gather line {:.3}, \
+         gather {:.3}, atomic {:.3}, phase {:.0}; the fit predicts the training runs at MAPE \
+         {:.1}%, phases {:.1}%",
+        k.vector,
+        k.lane,
+        k.scalar,
+        k.vector_memory,
+        k.gather_line,
+        k.gather,
+        k.atomic,
+        k.phase,
+        fit.runs_mape,
+        fit.phases_mape
+    );
+    Ok((m, Some(fit)))
 }
 
 fn validate_model(a: ValidateArgs) -> Result<()> {
@@ -966,23 +1017,19 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
         .map(|m| MachineConfig::resolve("--machine", m, Path::new(".")))
         .transpose()?;
     let _lock = harness::outdir::lock("--out", &a.out)?;
-    let machine = match machine {
-        Some(m) => m,
+    let (machine, cost_fit) = match machine {
+        Some(m) => (m, None),
         None => {
-            let base = MachineConfig::resolve("--machine", "host", Path::new("."))?;
-            println!("calibrating {} ({})", base.name, base.describe());
-            let (m, _) =
-                model::calibrate::calibrate(&base, model::calibrate::Settings::default(), |line| {
-                    println!("{line}")
-                });
+            let (m, fit) = calibrated_host(false, (!a.kernels_only).then_some(&sweep))?;
             let path = a.out.join("machine.json");
             let text = serde_json::to_vec_pretty(&m).expect("machine configs serialize");
             shadowbench::visibility::write_atomic(&path, &text)?;
             println!("wrote {}", path.display());
-            m
+            (m, fit)
         }
     };
-    let v = validate::run(&sweep, &machine, |line| println!("{line}"))?;
+    let mut v = validate::run(&sweep, &machine, |line| println!("{line}"))?;
+    v.cost_fit = cost_fit;
     let mut written = validate::write(&a.out, &v)?;
     written.extend(report::validation::chart(
         &a.out,
@@ -1114,7 +1161,11 @@ fn main() -> ExitCode {
             command: SceneCommand::Export(a),
         } => scene_export(a),
         Command::Diff { a, b, out } => diff(a, b, out),
-        Command::Calibrate { out, quick } => calibrate(out, quick),
+        Command::Calibrate {
+            out,
+            quick,
+            kernels_only,
+        } => calibrate(out, quick, kernels_only),
         Command::ValidateModel(a) => validate_model(a),
         Command::Compare {
             baseline,

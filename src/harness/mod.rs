@@ -1,6 +1,7 @@
 //! The sweep runner: scenario → cases → frames → runs → results, written as they complete.
 
 pub mod cache;
+pub mod fit;
 pub mod images;
 pub mod limits;
 pub mod outdir;

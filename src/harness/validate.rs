@@ -112,7 +112,7 @@ pub struct Row {
 
 /// The cpu-model counters of a run or phase that the timing model turns into time
 /// (`docs/model.md`, "Timing"), kept in each [`Row`] to relate a phase's ratio to its work.
-pub const WORK_COUNTERS: [&str; 14] = [
+pub const WORK_COUNTERS: [&str; 16] = [
     "vector_ops",
     "active_lanes",
     "scalar_ops",
@@ -124,16 +124,24 @@ pub const WORK_COUNTERS: [&str; 14] = [
     "scatter_lines",
     "atomics",
     "cache.l1_misses",
+    "cache.l2_hits",
     "cache.l2_misses",
+    "cache.l3_hits",
     "cache.l3_misses",
     "dram_read_bytes",
 ];
 
-/// The [`WORK_COUNTERS`] among `c`.
+/// The [`WORK_COUNTERS`] among `c`, and `steps`: how many distinct steps it ran (its
+/// `step.<name>.model_ms` counters).
 fn work_of(c: &crate::record::Counters) -> BTreeMap<String, f64> {
+    let steps =
+        c.0.keys()
+            .filter(|k| k.starts_with("step.") && k.ends_with(".model_ms"))
+            .count();
     WORK_COUNTERS
         .iter()
         .filter_map(|k| c.get(k).map(|v| (k.to_string(), v)))
+        .chain(std::iter::once(("steps".to_string(), steps as f64)))
         .collect()
 }
 
@@ -294,6 +302,9 @@ pub struct Validation {
     /// absent elsewhere): above the core count, other processes shared the cores and the
     /// measured times are longer than the machine's own.
     pub load_average: Option<[f64; 2]>,
+    /// Where the machine's issue costs were fitted ([`super::fit`]), when they were.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cost_fit: Option<super::fit::CostFit>,
 }
 
 /// The 1-minute load average (`/proc/loadavg`), where the OS states it.
@@ -399,6 +410,7 @@ pub fn run(
         failures,
         seconds: start.elapsed().as_secs_f64(),
         load_average: load_start.zip(load_average()).map(|(a, b)| [a, b]),
+        cost_fit: None,
     })
 }
 
@@ -584,6 +596,30 @@ pub fn summary_text(v: &Validation) -> String {
     s += "against the fastest timed run instead of the median:\n";
     s += &line("all runs", &v.runs_agreement_fastest);
     s += &line("all phases", &v.phases_agreement_fastest);
+    if let Some(f) = &v.cost_fit {
+        s += &format!(
+            "issue costs fitted on {} ({} runs, {} phases; the fit predicts them at MAPE {:.1}% \
+             for runs, {:.1}% for phases)\n",
+            f.scenes.join(", "),
+            f.runs,
+            f.phases,
+            f.runs_mape,
+            f.phases_mape
+        );
+        let shared: Vec<&str> = v
+            .sweep
+            .scenes
+            .iter()
+            .filter(|x| f.scenes.contains(x))
+            .map(String::as_str)
+            .collect();
+        if !shared.is_empty() {
+            s += &format!(
+                "warning: {} also in the training sweep: those runs are not held out\n",
+                shared.join(", ")
+            );
+        }
+    }
     if let Some([a, b]) = v.load_average {
         s += &format!(
             "host load average {a:.2} at the start, {b:.2} at the end ({} cores)\n",

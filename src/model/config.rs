@@ -65,6 +65,11 @@ pub struct OpCosts {
     pub lane: f64,
     /// Cycles of an atomic read-modify-write in L2 (an assumption: an L2 round trip).
     pub atomic: f64,
+    /// Cycles a phase costs once, besides its steps' work and barriers: what the host spends
+    /// around a phase's steps (its buffers' allocation and first touches, waking the workers).
+    /// 0, absent from the JSON, on Larrabee (not a figure of the papers).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub phase: f64,
 }
 
 fn is_zero(v: &f64) -> bool {
@@ -159,6 +164,7 @@ impl MachineConfig {
                 gather: 0.0,
                 lane: 0.0,
                 atomic: 20.0,
+                phase: 0.0,
             },
             clock_source: None,
             l3: None,
@@ -368,6 +374,7 @@ impl MachineConfig {
             ("costs.gather", k.gather),
             ("costs.lane", k.lane),
             ("costs.atomic", k.atomic),
+            ("costs.phase", k.phase),
         ] {
             non_negative(name, v)?;
         }

@@ -147,6 +147,7 @@ pub fn machine_from(cpu_dir: &Path, logical: u32, simd: Simd, clock_ghz: f64) ->
             gather: 0.0,
             lane: 0.0,
             atomic: 20.0,
+            phase: 0.0,
         },
         clock_source: None,
         l3,

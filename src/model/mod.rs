@@ -270,12 +270,18 @@ impl Machine {
                 self.current = i;
             }
             None => {
+                // The modelled phase starts with its once-per-phase cost (`costs.phase`).
+                let start_ms = if self.is_model() {
+                    self.config.costs.phase / (self.config.clock_ghz * 1e6)
+                } else {
+                    0.0
+                };
                 self.phases.push(PhaseRecord {
                     name: name.to_string(),
                     start: Instant::now(),
                     wall_ms: 0.0,
                     steps_wall_ms: 0.0,
-                    model_ms: 0.0,
+                    model_ms: start_ms,
                     counters: Counters::default(),
                 });
                 self.current = self.phases.len() - 1;
