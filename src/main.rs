@@ -131,7 +131,7 @@ enum Command {
         /// The machine .json file to write.
         #[arg(long, value_name = "FILE")]
         out: PathBuf,
-        /// Fewer and shorter kernel runs and a smaller training sweep (320x240 only, one timed
+        /// Fewer and shorter kernel runs and a smaller training sweep (160x120 only, one timed
         /// run per case): seconds instead of a minute; noisier figures.
         #[arg(long)]
         quick: bool,
@@ -904,7 +904,7 @@ fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
     }
     let mut training = validate::Sweep::default();
     if quick {
-        training.images = vec![[320, 240]];
+        training.images = vec![[160, 120]];
         training.repeats = 1;
     }
     let start = std::time::Instant::now();
@@ -1016,6 +1016,13 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
         .as_deref()
         .map(|m| MachineConfig::resolve("--machine", m, Path::new(".")))
         .transpose()?;
+    if a.kernels_only && machine.is_some() {
+        return Err(InputError::new(
+            "--kernels-only",
+            "applies when validate-model calibrates; --machine gives the machine instead",
+        )
+        .into());
+    }
     let _lock = harness::outdir::lock("--out", &a.out)?;
     let (machine, cost_fit) = match machine {
         Some(m) => (m, None),

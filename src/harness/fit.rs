@@ -83,43 +83,11 @@ pub fn fit(
     progress: impl FnMut(&str),
 ) -> Result<(MachineConfig, CostFit)> {
     let training = validate::run(sweep, kernels, progress)?;
-    let rows = &training.phases;
-    if rows.len() < FITTED.len() {
-        return Err(Error::Other(format!(
-            "the training sweep measured {} phases; fitting {} costs needs at least as many",
-            rows.len(),
-            FITTED.len()
-        )));
-    }
-    let cycles_per_ms = kernels.clock_ghz * 1e6;
-    let cores = f64::from(kernels.cores);
-    let mut a = Array2::<f64>::zeros((rows.len(), FITTED.len()));
-    let mut b = Array1::<f64>::zeros(rows.len());
-    for (i, r) in rows.iter().enumerate() {
-        let weight = 1.0 / (r.measured_ms * cycles_per_ms);
-        for (j, x) in features(r, cores).into_iter().enumerate() {
-            a[[i, j]] = x * weight;
-        }
-        b[i] = (r.measured_ms * cycles_per_ms - fixed_cycles(kernels, r)) * weight;
-    }
-    // Columns to unit length (the counts span eight orders of magnitude), solved, scaled back.
-    let norms: Vec<f64> = a
-        .columns()
-        .into_iter()
-        .map(|c| c.dot(&c).sqrt().max(f64::MIN_POSITIVE))
-        .collect();
-    for (mut c, n) in a.columns_mut().into_iter().zip(&norms) {
-        c /= *n;
-    }
-    let (x, _) = nnls::nnls(a.view(), b.view());
-    let costs: [f64; FITTED.len()] = std::array::from_fn(|j| x[j] / norms[j]);
-
-    let mut m = kernels.clone();
     let method = format!(
         "fitted by non-negative least squares (relative error) to the measured phases of the \
          training sweep ({} runs, {} phases: {} on {} at {}; none of validate-model's scenes)",
         training.runs.len(),
-        rows.len(),
+        training.phases.len(),
         sweep.algorithms.join(", "),
         sweep.scenes.join(", "),
         sweep
@@ -129,6 +97,8 @@ pub fn fit(
             .collect::<Vec<_>>()
             .join(", ")
     );
+    let costs = fit_rows(kernels, &training.phases)?;
+    let mut m = kernels.clone();
     let k = &mut m.costs;
     let kernel_costs = [
         k.vector,
@@ -159,17 +129,14 @@ pub fn fit(
         m.sources
             .insert(field.to_string(), format!("{method}{kernel}"));
     }
-    let predicted = |r: &Row| {
-        let x = features(r, cores);
-        (x.iter().zip(&costs).map(|(x, c)| x * c).sum::<f64>() + fixed_cycles(kernels, r))
-            / cycles_per_ms
-    };
-    let phases_mape = mape(rows.iter().map(|r| (predicted(r), r.measured_ms)));
+    let ms = |r: &Row| predicted_ms(kernels, &costs, r);
+    let rows = &training.phases;
+    let phases_mape = mape(rows.iter().map(|r| (ms(r), r.measured_ms)));
     let runs_mape = mape(training.runs.iter().map(|run| {
         let of_run = rows.iter().filter(|p| {
             p.algorithm == run.algorithm && p.scene == run.scene && p.image == run.image
         });
-        (of_run.map(predicted).sum::<f64>(), run.measured_ms)
+        (of_run.map(ms).sum::<f64>(), run.measured_ms)
     }));
     let fit = CostFit {
         scenes: sweep.scenes.clone(),
@@ -179,6 +146,60 @@ pub fn fit(
         phases_mape,
     };
     Ok((m, fit))
+}
+
+/// The [`FITTED`] costs (cycles, in its order) that best predict the measured time of `rows`
+/// (phases) on `m`'s cores, clock, latencies and barrier. Errors: fewer rows than costs, or a
+/// row whose measured time is not a positive number.
+pub fn fit_rows(m: &MachineConfig, rows: &[Row]) -> Result<[f64; FITTED.len()]> {
+    if rows.len() < FITTED.len() {
+        return Err(Error::Other(format!(
+            "the training sweep measured {} phases; fitting {} costs needs at least as many",
+            rows.len(),
+            FITTED.len()
+        )));
+    }
+    if let Some(r) = rows
+        .iter()
+        .find(|r| !(r.measured_ms.is_finite() && r.measured_ms > 0.0))
+    {
+        return Err(Error::Other(format!(
+            "phase '{}' of {} on {} measured {} ms: cannot fit to it",
+            r.phase.as_deref().unwrap_or("(run)"),
+            r.algorithm,
+            r.scene,
+            r.measured_ms
+        )));
+    }
+    let cycles_per_ms = m.clock_ghz * 1e6;
+    let cores = f64::from(m.cores);
+    let mut a = Array2::<f64>::zeros((rows.len(), FITTED.len()));
+    let mut b = Array1::<f64>::zeros(rows.len());
+    for (i, r) in rows.iter().enumerate() {
+        let weight = 1.0 / (r.measured_ms * cycles_per_ms);
+        for (j, x) in features(r, cores).into_iter().enumerate() {
+            a[[i, j]] = x * weight;
+        }
+        b[i] = (r.measured_ms * cycles_per_ms - fixed_cycles(m, r)) * weight;
+    }
+    // Columns to unit length (the counts span eight orders of magnitude), solved, scaled back.
+    let norms: Vec<f64> = a
+        .columns()
+        .into_iter()
+        .map(|c| c.dot(&c).sqrt().max(f64::MIN_POSITIVE))
+        .collect();
+    for (mut c, n) in a.columns_mut().into_iter().zip(&norms) {
+        c /= *n;
+    }
+    let (x, _) = nnls::nnls(a.view(), b.view());
+    Ok(std::array::from_fn(|j| x[j] / norms[j]))
+}
+
+/// The fit's prediction of a phase's time with `costs` ([`FITTED`] order), ms.
+fn predicted_ms(m: &MachineConfig, costs: &[f64; FITTED.len()], r: &Row) -> f64 {
+    let x = features(r, f64::from(m.cores));
+    let issue: f64 = x.iter().zip(costs).map(|(x, c)| x * c).sum();
+    (issue + fixed_cycles(m, r)) / (m.clock_ghz * 1e6)
 }
 
 /// The phase's work per core for each [`FITTED`] cost.
@@ -219,4 +240,90 @@ fn fixed_cycles(m: &MachineConfig, r: &Row) -> f64 {
 fn mape(pairs: impl Iterator<Item = (f64, f64)>) -> f64 {
     let (p, y): (Vec<f64>, Vec<f64>) = pairs.unzip();
     validate::mape(&p, &y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+
+    /// A phase row with `work` and a measured time.
+    fn row(work: BTreeMap<String, f64>, measured_ms: f64) -> Row {
+        Row {
+            algorithm: "a".into(),
+            scene: "s".into(),
+            image: [8, 8],
+            phase: Some("p".into()),
+            modelled_ms: 1.0,
+            measured_ms,
+            measured_min_ms: measured_ms,
+            measured_max_ms: measured_ms,
+            steps_ms: measured_ms,
+            ratio: 1.0,
+            run_wall_ms: None,
+            cpu_ms: None,
+            work,
+        }
+    }
+
+    /// Phases of varied work (a fixed pseudo-random sequence), timed by a known cost table
+    /// through the fit's formula: the fit gives the table back.
+    #[test]
+    fn the_fit_recovers_the_cost_table_that_timed_the_phases() {
+        let m = MachineConfig::larrabee(2);
+        let truth = [3.0, 0.0, 2.0, 40.0, 15.0, 0.0, 20.0, 50_000.0];
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |scale: f64| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * scale
+        };
+        let rows: Vec<Row> = (0..40)
+            .map(|_| {
+                let vector = next(1e7);
+                let work: BTreeMap<String, f64> = [
+                    ("vector_ops", vector),
+                    ("active_lanes", vector * (4.0 + next(12.0))),
+                    ("scalar_ops", next(1e6)),
+                    ("loads", next(1e5)),
+                    ("stores", next(1e5)),
+                    ("gathers", next(1e4)),
+                    ("gather_lines", next(1e5)),
+                    ("atomics", next(1e4)),
+                    ("cache.l2_hits", next(1e5)),
+                    ("cache.l2_misses", next(1e4)),
+                    ("steps", (1.0 + next(4.0)).floor()),
+                ]
+                .into_iter()
+                .map(|(k, v)| (k.to_string(), v))
+                .collect();
+                let r = row(work, 1.0);
+                let t = predicted_ms(&m, &truth, &r);
+                row(r.work, t)
+            })
+            .collect();
+        let fitted = fit_rows(&m, &rows).unwrap();
+        for (i, (f, t)) in fitted.iter().zip(truth).enumerate() {
+            assert!(
+                (f - t).abs() <= 1e-6 * t.max(1.0),
+                "{}: fitted {f}, truth {t}",
+                FITTED[i].0
+            );
+        }
+    }
+
+    #[test]
+    fn too_few_phases_or_a_bad_time_is_an_error() {
+        let m = MachineConfig::larrabee(2);
+        let work: BTreeMap<String, f64> = [("vector_ops".to_string(), 1e3)].into();
+        let few: Vec<Row> = (0..FITTED.len() - 1)
+            .map(|_| row(work.clone(), 1.0))
+            .collect();
+        assert!(fit_rows(&m, &few).is_err());
+        let mut enough: Vec<Row> = (0..FITTED.len()).map(|_| row(work.clone(), 1.0)).collect();
+        enough[3].measured_ms = f64::NAN;
+        let e = fit_rows(&m, &enough).unwrap_err().to_string();
+        assert!(e.contains("NaN"), "{e}");
+    }
 }

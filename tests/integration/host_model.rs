@@ -29,17 +29,43 @@ fn calibrate_writes_a_machine_that_render_accepts() {
     let m = json(&file);
     assert_eq!(m["name"], "host-calibrated");
     let sources = m["sources"].as_object().unwrap();
-    for k in [
-        "costs.vector",
-        "costs.scalar",
-        "l1.latency_cycles",
-        "barrier_cycles",
-    ] {
+    // The memory figures as the kernels measured them; the issue costs fitted to the training
+    // sweep, each source naming the kernel's figure beside it.
+    for k in ["l1.latency_cycles", "dram_gb_per_s", "barrier_cycles"] {
         assert!(
             sources[k].as_str().unwrap().starts_with("measured"),
             "{k}: {}",
             sources[k]
         );
+    }
+    for k in [
+        "costs.vector",
+        "costs.scalar",
+        "costs.vector_memory",
+        "costs.phase",
+    ] {
+        let s = sources[k].as_str().unwrap();
+        assert!(
+            s.starts_with("fitted") && s.contains("box-on-plane"),
+            "{k}: {s}"
+        );
+    }
+    assert!(out.contains("fitting the issue costs"), "{out}");
+    // --kernels-only: the kernels' figures, no training sweep.
+    let kernels = dir.path().join("kernels.json");
+    let o = shadowbench(&[
+        "calibrate",
+        "--quick",
+        "--kernels-only",
+        "--out",
+        kernels.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(!text(&o.stdout).contains("fitting"));
+    let k = json(&kernels);
+    for f in ["costs.vector", "costs.scalar", "costs.vector_memory"] {
+        let s = k["sources"][f].as_str().unwrap();
+        assert!(s.starts_with("measured"), "{f}: {s}");
     }
     // The sizes are the host preset's (read from the OS), only costs are measured.
     let o = shadowbench(&["list", "--machine", "host"]);
@@ -170,6 +196,7 @@ fn validate_model_refuses_bad_sweep_settings_naming_the_flag() {
         ("--scenes", "no-such-scene"),
         ("--repeats", "0"),
         ("--machine", "larabee-24"),
+        ("--kernels-only", "--machine=larrabee-24"),
     ] {
         let o = shadowbench(&[
             "validate-model",
