@@ -67,7 +67,16 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, v: &Validation) -> Dr
         .map_err(err)?;
     header
         .draw(&Text::new(
-            "grey line: modelled = measured; dotted: ±30%".to_string(),
+            format!(
+                "grey line: modelled = measured; dotted: ±30%{}",
+                v.cost_fit
+                    .as_ref()
+                    .map(|f| format!(
+                        "; issue costs fitted on other scenes ({})",
+                        f.scenes.join(", ")
+                    ))
+                    .unwrap_or_default()
+            ),
             (14, 34),
             (FONT, 13).into_font().color(&RGBColor(90, 90, 90)),
         ))
