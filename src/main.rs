@@ -140,7 +140,8 @@ enum Command {
         kernels_only: bool,
     },
     /// Run a fixed sweep (every CPU algorithm, 3 scenes, 2 image sizes) on cpu-native and on
-    /// cpu-model with the calibrated host machine, and write per run and per phase the modelled
+    /// cpu-model with the calibrated host machine (calibrated first unless --machine, its
+    /// issue costs fitted on other scenes), and write per run and per phase the modelled
     /// and measured times, their ratio, the agreement (geometric mean ratio, mean absolute
     /// percentage error, Spearman's ρ) and a log-log chart into DIR.
     ValidateModel(ValidateArgs),
@@ -299,7 +300,8 @@ struct ValidateArgs {
     #[arg(long, default_value_t = 3)]
     repeats: usize,
     /// When calibrating (no --machine): keep the issue costs the kernels measured instead of
-    /// fitting them to the training sweep.
+    /// fitting them to the training sweep (every algorithm on box-on-plane, cylinder-on-plane
+    /// and sphere-grid at 320x240 and 640x480, whatever --only, --scenes and --images say).
     #[arg(long)]
     kernels_only: bool,
 }
@@ -1027,7 +1029,10 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     let (machine, cost_fit) = match machine {
         Some(m) => (m, None),
         None => {
-            let (m, fit) = calibrated_host(false, (!a.kernels_only).then_some(&sweep))?;
+            // The training sweep is the fixed one on the training scenes, whatever narrows the
+            // validation (`--only`, `--images`): one table for the machine.
+            let training = validate::Sweep::default();
+            let (m, fit) = calibrated_host(false, (!a.kernels_only).then_some(&training))?;
             let path = a.out.join("machine.json");
             let text = serde_json::to_vec_pretty(&m).expect("machine configs serialize");
             shadowbench::visibility::write_atomic(&path, &text)?;

@@ -85,7 +85,7 @@ pub fn fit(
     let training = validate::run(sweep, kernels, progress)?;
     let method = format!(
         "fitted by non-negative least squares (relative error) to the measured phases of the \
-         training sweep ({} runs, {} phases: {} on {} at {}; none of validate-model's scenes)",
+         training sweep ({} runs, {} phases: {} on {} at {}; none of validate-model's default scenes)",
         training.runs.len(),
         training.phases.len(),
         sweep.algorithms.join(", "),
