@@ -904,6 +904,20 @@ fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
             InputError::new("--out", format!("'{}' is not a .json file", out.display())).into(),
         );
     }
+    // The file must be writable before a minute of measuring: a folder there, or a parent
+    // that cannot hold it, is an input error now rather than a failure at the end.
+    if out.is_dir() {
+        return Err(InputError::new("--out", format!("'{}' is a folder", out.display())).into());
+    }
+    let parent = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let probe = harness::outdir::temp_path(&out);
+    std::fs::create_dir_all(parent)
+        .and_then(|()| std::fs::write(&probe, b""))
+        .and_then(|()| std::fs::remove_file(&probe))
+        .map_err(|e| InputError::new("--out", format!("cannot write '{}': {e}", out.display())))?;
     let mut training = validate::Sweep::default();
     if quick {
         training.images = vec![[160, 120]];
@@ -911,9 +925,6 @@ fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
     }
     let start = std::time::Instant::now();
     let (machine, _) = calibrated_host(quick, (!kernels_only).then_some(&training))?;
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
     let text = serde_json::to_vec_pretty(&machine).expect("machine configs serialize");
     shadowbench::visibility::write_atomic(&out, &text)?;
     println!(
@@ -1013,6 +1024,27 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
         .into());
     }
     sweep.repeats = a.repeats;
+    // A case named twice would be run and counted twice.
+    let images: Vec<String> = sweep
+        .images
+        .iter()
+        .map(|[w, h]| format!("{w}x{h}"))
+        .collect();
+    for (flag, list) in [
+        ("--only", &sweep.algorithms),
+        ("--scenes", &sweep.scenes),
+        ("--images", &images),
+    ] {
+        if let Some((i, v)) = list
+            .iter()
+            .enumerate()
+            .find(|(i, v)| list[..*i].contains(v))
+        {
+            return Err(
+                InputError::new(flag, format!("'{v}' is listed twice (entry {})", i + 1)).into(),
+            );
+        }
+    }
     let machine = a
         .machine
         .as_deref()
@@ -1032,14 +1064,14 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
             // The training sweep is the fixed one on the training scenes, whatever narrows the
             // validation (`--only`, `--images`): one table for the machine.
             let training = validate::Sweep::default();
-            let (m, fit) = calibrated_host(false, (!a.kernels_only).then_some(&training))?;
-            let path = a.out.join("machine.json");
-            let text = serde_json::to_vec_pretty(&m).expect("machine configs serialize");
-            shadowbench::visibility::write_atomic(&path, &text)?;
-            println!("wrote {}", path.display());
-            (m, fit)
+            calibrated_host(false, (!a.kernels_only).then_some(&training))?
         }
     };
+    // The machine the sweep runs with, given or calibrated (no earlier file left beside it).
+    let path = a.out.join("machine.json");
+    let text = serde_json::to_vec_pretty(&machine).expect("machine configs serialize");
+    shadowbench::visibility::write_atomic(&path, &text)?;
+    println!("wrote {}", path.display());
     let mut v = validate::run(&sweep, &machine, |line| println!("{line}"))?;
     v.cost_fit = cost_fit;
     let mut written = validate::write(&a.out, &v)?;

@@ -568,9 +568,15 @@ pub fn csv(rows: &[Row]) -> String {
 /// The summary table printed at the end and written as `summary.txt`.
 pub fn summary_text(v: &Validation) -> String {
     let line = |name: &str, a: &Agreement| {
+        // Spearman's ρ needs two runs at least (NaN, `null` in the JSON, otherwise).
+        let rho = if a.spearman.is_finite() {
+            format!("{:.3}", a.spearman)
+        } else {
+            "n/a".to_string()
+        };
         format!(
-            "{name:<22} {:>4}  {:>9.3}  {:>7.1}%  {:>8.3}\n",
-            a.n, a.geomean_ratio, a.mape_pct, a.spearman
+            "{name:<22} {:>4}  {:>9.3}  {:>7.1}%  {rho:>8}\n",
+            a.n, a.geomean_ratio, a.mape_pct
         )
     };
     let mut s = format!(

@@ -120,6 +120,9 @@ pub struct MachineConfig {
     pub sources: BTreeMap<String, String>,
 }
 
+/// The largest cycle figure (a cost, latency or barrier) a machine may state: a second at 1 GHz.
+pub const MAX_CYCLES: f64 = 1e9;
+
 /// The presets, by name.
 pub const PRESETS: &[&str] = &["larrabee-24", "larrabee-32", "larrabee-48", "host"];
 
@@ -270,26 +273,18 @@ impl MachineConfig {
     }
 
     pub fn validate(&self) -> Result<(), InputError> {
-        let positive = |field: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
+        let within = |field: &str, v: f64, lo: f64, hi: f64| {
+            if v.is_finite() && (lo..=hi).contains(&v) {
                 Ok(())
             } else {
                 Err(InputError::new(
                     format!("$.{field}"),
-                    format!("must be a finite number > 0, got {v}"),
+                    format!("must be a number in {lo}..={hi}, got {v}"),
                 ))
             }
         };
-        let non_negative = |field: &str, v: f64| {
-            if v.is_finite() && v >= 0.0 {
-                Ok(())
-            } else {
-                Err(InputError::new(
-                    format!("$.{field}"),
-                    format!("must be a finite number >= 0, got {v}"),
-                ))
-            }
-        };
+        // Cycle figures: at most a second at 1 GHz each, so that no sum of them overflows.
+        let non_negative = |field: &str, v: f64| within(field, v, 0.0, MAX_CYCLES);
         if !(1..=1024).contains(&self.cores) {
             return Err(InputError::new(
                 "$.cores",
@@ -361,8 +356,8 @@ impl MachineConfig {
                 ));
             }
         }
-        positive("clock_ghz", self.clock_ghz)?;
-        positive("dram_gb_per_s", self.dram_gb_per_s)?;
+        within("clock_ghz", self.clock_ghz, 0.001, 1000.0)?;
+        within("dram_gb_per_s", self.dram_gb_per_s, 0.001, 1e6)?;
         non_negative("dram_latency_cycles", self.dram_latency_cycles)?;
         non_negative("barrier_cycles", self.barrier_cycles)?;
         let k = &self.costs;
@@ -526,6 +521,27 @@ mod tests {
         std::fs::write(&path, m.to_string()).unwrap();
         let e = MachineConfig::resolve("$.machine", "m.json", dir.path()).unwrap_err();
         assert_eq!(e.field.as_deref(), Some("$.clock_ghz"), "{e}");
+        // Figures so large that a run's modelled time would overflow to inf are refused,
+        // naming the field and the value.
+        m["clock_ghz"] = serde_json::json!(1.0);
+        for (field, value) in [
+            ("costs.vector", 1.7e308),
+            ("costs.phase", 1e300),
+            ("barrier_cycles", 2e9),
+            ("dram_gb_per_s", 1e300),
+        ] {
+            let mut bad = m.clone();
+            let (head, tail) = field.split_once('.').unwrap_or((field, ""));
+            if tail.is_empty() {
+                bad[head] = serde_json::json!(value);
+            } else {
+                bad[head][tail] = serde_json::json!(value);
+            }
+            std::fs::write(&path, bad.to_string()).unwrap();
+            let e = MachineConfig::resolve("$.machine", "m.json", dir.path()).unwrap_err();
+            assert_eq!(e.field.as_deref(), Some(&*format!("$.{field}")), "{e}");
+            assert!(e.to_string().contains(&format!("{value}")), "{e}");
+        }
     }
 
     #[test]

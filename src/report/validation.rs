@@ -68,13 +68,21 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, v: &Validation) -> Dr
     header
         .draw(&Text::new(
             format!(
-                "grey line: modelled = measured; dotted: ±30%{}",
+                "grey line: modelled = measured; dashed: ±30%{}",
                 v.cost_fit
                     .as_ref()
-                    .map(|f| format!(
-                        "; issue costs fitted on other scenes ({})",
-                        f.scenes.join(", ")
-                    ))
+                    .map(|f| {
+                        let held_out = !v.sweep.scenes.iter().any(|x| f.scenes.contains(x));
+                        format!(
+                            "; issue costs fitted on {}{}",
+                            f.scenes.join(", "),
+                            if held_out {
+                                " (not in this sweep)"
+                            } else {
+                                " (partly this sweep's scenes: not held out)"
+                            }
+                        )
+                    })
                     .unwrap_or_default()
             ),
             (14, 34),
@@ -152,7 +160,7 @@ fn panel<DB: DrawingBackend>(
         .draw_series(LineSeries::new([(lo, lo), (hi, hi)], grey.stroke_width(1)))
         .map_err(err)?;
     for k in [0.7, 1.3] {
-        // ±30% as dotted lines: short segments along y = k·x.
+        // ±30% as dashed lines: short segments along y = k·x.
         let steps = 60;
         let ratio = (hi / lo).powf(1.0 / steps as f64);
         for i in (0..steps).step_by(2) {

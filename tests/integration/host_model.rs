@@ -9,6 +9,13 @@ fn calibrate_writes_a_machine_that_render_accepts() {
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("machine.json");
     let f = file.to_str().unwrap();
+    // A folder where the file should go is refused before anything is measured.
+    let folder = dir.path().join("folder.json");
+    std::fs::create_dir(&folder).unwrap();
+    let o = shadowbench(&["calibrate", "--out", folder.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("--out"), "{}", text(&o.stderr));
+    assert!(!text(&o.stdout).contains("calibrating"));
     let o = shadowbench(&["calibrate", "--quick", "--out", f]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let out = text(&o.stdout);
@@ -130,6 +137,8 @@ fn validate_model_agrees_with_render_on_its_modelled_times() {
     for f in shadowbench::harness::validate::FILES {
         assert!(out.join(f).is_file(), "{f} not written");
     }
+    // The machine used, given by --machine, is written beside the results.
+    assert_eq!(json(&out.join("machine.json"))["name"], "larrabee-24");
     let v = json(&out.join("validation.json"));
     let runs = v["runs"].as_array().unwrap();
     assert_eq!(runs.len(), 2);
@@ -197,6 +206,8 @@ fn validate_model_refuses_bad_sweep_settings_naming_the_flag() {
         ("--repeats", "0"),
         ("--machine", "larabee-24"),
         ("--kernels-only", "--machine=larrabee-24"),
+        ("--scenes", "sphere-on-plane,sphere-on-plane"),
+        ("--images", "32x24,32x24"),
     ] {
         let o = shadowbench(&[
             "validate-model",
