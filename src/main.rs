@@ -952,6 +952,7 @@ fn calibrated_host(
         model::calibrate::Settings::default()
     };
     println!("calibrating {} ({})", base.name, base.describe());
+    let start = std::time::Instant::now();
     let (kernels, _) = model::calibrate::calibrate(&base, settings, |line| println!("{line}"));
     let Some(sweep) = sweep else {
         return Ok((kernels, None));
@@ -964,9 +965,10 @@ fn calibrated_host(
     let (m, fit) = harness::fit::fit(&kernels, &training, |line| println!("{line}"))?;
     let k = &m.costs;
     println!(
-        "fitted (cycles): vector {:.3}, lane {:.3}, scalar {:.3}, line {:.3}, gather line {:.3}, \
-         gather {:.3}, atomic {:.3}, phase {:.0}; the fit predicts the training runs at MAPE \
-         {:.1}%, phases {:.1}%",
+        "fitted in {:.0} s (cycles): vector {:.3}, lane {:.3}, scalar {:.3}, line {:.3}, gather \
+         line {:.3}, gather {:.3}, atomic {:.3}, phase {:.0}; the fit predicts the training runs \
+         at MAPE {:.1}%, phases {:.1}%",
+        start.elapsed().as_secs_f64(),
         k.vector,
         k.lane,
         k.scalar,

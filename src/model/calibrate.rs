@@ -533,7 +533,7 @@ fn memory_costs(m: &mut MachineConfig, rec: &mut Recorder) {
         "cycles",
         format!(
             "pointer chase over {} MiB (4× the last cache level): {lat_dram:.1} cycles, less \
-             the last level's",
+             the last level's (at least 0), fastest of {r}",
             dram_bytes >> 20
         ),
     );
