@@ -963,20 +963,15 @@ fn calibrated_host(
         training.scenes.join(", ")
     );
     let (m, fit) = harness::fit::fit(&kernels, &training, |line| println!("{line}"))?;
-    let k = &m.costs;
+    let costs: Vec<String> = harness::fit::fitted_costs(&m.costs)
+        .iter()
+        .map(|(field, v)| format!("{} {v:.3}", field.trim_start_matches("costs.")))
+        .collect();
     println!(
-        "fitted in {:.0} s (cycles): vector {:.3}, lane {:.3}, scalar {:.3}, line {:.3}, gather \
-         line {:.3}, gather {:.3}, atomic {:.3}, phase {:.0}; the fit predicts the training runs \
-         at MAPE {:.1}%, phases {:.1}%",
+        "fitted in {:.0} s (cycles): {}; the fit predicts the training runs at MAPE {:.1}%, \
+         phases {:.1}%",
         start.elapsed().as_secs_f64(),
-        k.vector,
-        k.lane,
-        k.scalar,
-        k.vector_memory,
-        k.gather_line,
-        k.gather,
-        k.atomic,
-        k.phase,
+        costs.join(", "),
         fit.runs_mape,
         fit.phases_mape
     );

@@ -28,6 +28,7 @@ use ndarray::{Array1, Array2};
 use super::validate::{self, Row, Sweep};
 use crate::error::{Error, Result};
 use crate::model::cache::CacheStats;
+use crate::model::config::OpCosts;
 use crate::model::timing::CoreWork;
 use crate::model::MachineConfig;
 
@@ -99,36 +100,17 @@ pub fn fit(
     );
     let costs = fit_rows(kernels, &training.phases)?;
     let mut m = kernels.clone();
-    let k = &mut m.costs;
-    let kernel_costs = [
-        k.vector,
-        k.lane,
-        k.scalar,
-        k.vector_memory,
-        k.gather_line,
-        k.gather,
-        k.atomic,
-        k.phase,
-    ];
-    [
-        k.vector,
-        k.lane,
-        k.scalar,
-        k.vector_memory,
-        k.gather_line,
-        k.gather,
-        k.atomic,
-        k.phase,
-    ] = costs;
-    for ((field, _), was) in FITTED.iter().zip(kernel_costs) {
-        let kernel = m
+    let mut sources = Vec::new();
+    for (((field, _), slot), c) in FITTED.iter().zip(slots(&mut m.costs)).zip(costs) {
+        let kernel = kernels
             .sources
             .get(*field)
-            .map(|s| format!("; the kernel measured {was:.3} ({s})"))
+            .map(|s| format!("; the kernel measured {:.3} ({s})", *slot))
             .unwrap_or_default();
-        m.sources
-            .insert(field.to_string(), format!("{method}{kernel}"));
+        *slot = c;
+        sources.push((field.to_string(), format!("{method}{kernel}")));
     }
+    m.sources.extend(sources);
     let ms = |r: &Row| predicted_ms(kernels, &costs, r);
     let rows = &training.phases;
     let phases_mape = mape(rows.iter().map(|r| (ms(r), r.measured_ms)));
@@ -146,6 +128,30 @@ pub fn fit(
         phases_mape,
     };
     Ok((m, fit))
+}
+
+/// The fields of `k` the fit sets, in [`FITTED`] order.
+fn slots(k: &mut OpCosts) -> [&mut f64; FITTED.len()] {
+    [
+        &mut k.vector,
+        &mut k.lane,
+        &mut k.scalar,
+        &mut k.vector_memory,
+        &mut k.gather_line,
+        &mut k.gather,
+        &mut k.atomic,
+        &mut k.phase,
+    ]
+}
+
+/// The costs the fit sets, by machine field (`costs.vector`, ...), in cycles.
+pub fn fitted_costs(k: &OpCosts) -> Vec<(&'static str, f64)> {
+    let mut k = k.clone();
+    FITTED
+        .iter()
+        .zip(slots(&mut k))
+        .map(|((field, _), v)| (*field, *v))
+        .collect()
 }
 
 /// The [`FITTED`] costs (cycles, in its order) that best predict the measured time of `rows`

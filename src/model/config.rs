@@ -72,6 +72,21 @@ pub struct OpCosts {
     pub phase: f64,
 }
 
+impl OpCosts {
+    /// Larrabee's issue costs (`MachineConfig::larrabee` states the sources): one cycle per
+    /// vector instruction, scalar instruction, line access and gathered line; 20 per atomic.
+    pub const LARRABEE: OpCosts = OpCosts {
+        vector: 1.0,
+        scalar: 1.0,
+        vector_memory: 1.0,
+        gather_line: 1.0,
+        gather: 0.0,
+        lane: 0.0,
+        atomic: 20.0,
+        phase: 0.0,
+    };
+}
+
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
 }
@@ -159,16 +174,7 @@ impl MachineConfig {
             dram_latency_cycles: 200.0,
             dram_gb_per_s: 128.0,
             barrier_cycles: 2000.0,
-            costs: OpCosts {
-                vector: 1.0,
-                scalar: 1.0,
-                vector_memory: 1.0,
-                gather_line: 1.0,
-                gather: 0.0,
-                lane: 0.0,
-                atomic: 20.0,
-                phase: 0.0,
-            },
+            costs: OpCosts::LARRABEE,
             clock_source: None,
             l3: None,
             memory_parallelism: None,

@@ -141,13 +141,8 @@ pub fn machine_from(cpu_dir: &Path, logical: u32, simd: Simd, clock_ghz: f64) ->
         barrier_cycles: 2000.0,
         costs: OpCosts {
             vector: per_vector,
-            scalar: 1.0,
             vector_memory: per_vector,
-            gather_line: 1.0,
-            gather: 0.0,
-            lane: 0.0,
-            atomic: 20.0,
-            phase: 0.0,
+            ..OpCosts::LARRABEE
         },
         clock_source: None,
         l3,
