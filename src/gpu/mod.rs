@@ -322,6 +322,18 @@ impl Gpu {
             .create_view(&Default::default())
     }
 
+    /// Fails ([`Error::Unsupported`]) where the adapter cannot blend into R32Float (no
+    /// `FLOAT32_BLENDABLE`), naming `instead` (the options that avoid it).
+    pub fn require_float32_blend(&self, instead: &str) -> Result<()> {
+        match self.float32_blendable {
+            true => Ok(()),
+            false => Err(Error::Unsupported(format!(
+                "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use {instead}",
+                self.info.name
+            ))),
+        }
+    }
+
     /// Checks what algorithm `id` needs against the adapter's limits; the error
     /// ([`Error::Resource`]) names the need, its size and the adapter's limit.
     pub fn check_limits(&self, id: &str, needs: Needs) -> Result<()> {

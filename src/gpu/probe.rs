@@ -7,7 +7,7 @@
 //!   much it loses depends on it. Mesa's lavapipe rounds toward zero; NVIDIA's driver (H200,
 //!   580.159) to nearest.
 
-use super::pass::{Onto, Pass, Program, Raster, Work};
+use super::pass::{Onto, Pass, Program, Raster, Stencil, Work};
 use super::readback::Staging;
 use super::{additive_red, Gpu};
 use crate::error::{Error, Result};
@@ -62,12 +62,13 @@ impl Gpu {
         );
         let view = target.create_view(&Default::default());
         let onto = Onto {
-            pipeline: &pipeline,
             color: &view,
             clear: Some(1.0),
             depth: None,
+            stencil: Stencil::Off,
             vertices: None,
-            range: 0..3,
+            pipelines: std::slice::from_ref(&pipeline),
+            draws: vec![(0, 0..3, 0)],
         };
         let pass = Pass {
             label: "half-float blend probe",

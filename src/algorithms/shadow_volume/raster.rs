@@ -50,7 +50,7 @@ use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
     gpu_struct, per_vertex, slot64, tiles, view, Bind, Draw, Layout, Onto, Pass, Program, Raster,
-    Stenciled, Step,
+    Stencil, Step,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{additive_red, unwritten, Gpu};
@@ -382,25 +382,31 @@ impl<'g> HardRaster<'g> {
         eye_count: i32,
         instrument: bool,
     ) -> Pass<'a> {
-        if let (Some((quads, _)), false) = (&self.stencil, instrument) {
-            let stenciled = Stenciled {
-                color: &self.count,
-                clear: None,
-                depth_stencil: &self.depth,
-                stencil_clear: Some(eye_count.rem_euclid(256) as u32),
-                vertices: Some(vertices),
-                pipelines: quads,
-                draws: vec![(0, range.clone(), 0), (1, range, 0)],
-            };
-            return Pass::stenciled("hard", &self.groups(false), stenciled);
-        }
+        let (pipelines, draws, stencil, clear) = match (&self.stencil, instrument) {
+            (Some((quads, _)), false) => {
+                let stencil = Stencil::Clear(eye_count.rem_euclid(256) as u32);
+                let draws = vec![(0, range.clone(), 0), (1, range, 0)];
+                (&quads[..], draws, stencil, None)
+            }
+            _ => {
+                let quad = std::slice::from_ref(&self.quad[usize::from(instrument)]);
+                (
+                    quad,
+                    vec![(0, range, 0)],
+                    Stencil::Off,
+                    Some(f64::from(eye_count)),
+                )
+            }
+        };
+        let (color, depth, vertices) = (&self.count, Some(&self.depth), Some(vertices));
         let onto = Onto {
-            pipeline: &self.quad[usize::from(instrument)],
-            color: &self.count,
-            clear: Some(f64::from(eye_count)),
-            depth: Some(&self.depth),
-            vertices: Some(vertices),
-            range,
+            color,
+            clear,
+            depth,
+            stencil,
+            vertices,
+            pipelines,
+            draws,
         };
         Pass::onto("hard", &self.groups(false), onto)
     }
@@ -408,26 +414,20 @@ impl<'g> HardRaster<'g> {
     /// The accumulation of the lit pixels of the last count pass; `first` clears the
     /// accumulation first.
     pub fn accumulate_pass(&self, first: bool) -> Pass<'_> {
+        let (pipelines, depth, stencil) = match &self.stencil {
+            Some((_, lit)) => (&lit[..], Some(&self.depth), Stencil::Keep),
+            None => (std::slice::from_ref(&self.accumulate), None, Stencil::Off),
+        };
         let (color, clear) = (&self.accumulation, first.then_some(0.0));
-        if let Some((_, lit)) = &self.stencil {
-            let stenciled = Stenciled {
-                color,
-                clear,
-                depth_stencil: &self.depth,
-                stencil_clear: None,
-                vertices: None,
-                pipelines: lit,
-                draws: vec![(0, 0..3, 0)],
-            };
-            return Pass::stenciled("accumulate", &self.groups(true), stenciled);
-        }
+        let (vertices, draws) = (None, vec![(0, 0..3, 0)]);
         let onto = Onto {
-            pipeline: &self.accumulate,
             color,
             clear,
-            depth: None,
-            vertices: None,
-            range: 0..3,
+            depth,
+            stencil,
+            vertices,
+            pipelines,
+            draws,
         };
         Pass::onto("accumulate", &self.groups(true), onto)
     }

@@ -25,7 +25,7 @@ use bytemuck::{Pod, Zeroable};
 use super::cpu::{extent_quad, micro_patch};
 use super::{half_rounding, LightFrame, Precision, SoftShadowMapOptions, Split, ID};
 use crate::algorithms::{ExecContext, FrameOutput};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::meshes::positions;
 use crate::gpu::pass::{
@@ -99,11 +99,8 @@ pub fn render(
     _ctx: &ExecContext,
     o: &SoftShadowMapOptions,
 ) -> Result<FrameOutput> {
-    if o.precision == Precision::Fp32 && !gpu.float32_blendable {
-        return Err(Error::Unsupported(format!(
-            "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use precision fp16",
-            gpu.info.name
-        )));
+    if o.precision == Precision::Fp32 {
+        gpu.require_float32_blend("precision fp16")?;
     }
     gpu.check_limits(ID, Needs::map(frame.params.map_resolution))?;
     let split = Split::of(&frame.flat);

@@ -299,25 +299,6 @@ pub(super) struct Replayed<'a> {
     pub stat: Box<dyn Fn(Stat) -> f64 + 'a>,
 }
 
-impl<'a> Replayed<'a> {
-    pub fn new(
-        fill: f64,
-        passed: f64,
-        caps: u64,
-        index: (&'static str, f64),
-        stat: impl Fn(Stat) -> f64 + 'a,
-    ) -> Replayed<'a> {
-        let stat = Box::new(stat);
-        Replayed {
-            fill,
-            passed,
-            caps,
-            index,
-            stat,
-        }
-    }
-}
-
 /// Runs pipeline `p` over `runs` (the loops of every sub-light) on the frame resources `res`:
 /// per loop the hard phase (III §3.2.1), the wedges (III §3.1, IV §4.1, on the host) and the
 /// soft phase (III §3.2.2) timed, then every loop's instrumented replay; `setup_ms` of host
@@ -467,8 +448,15 @@ impl Pipeline for Gather<'_> {
         ];
         let vbuffer = (VBUFFER_BYTES * pixels) as f64;
         k.add_traffic("mem_est", &reads, &[("vbuffer", vbuffer)]);
-        let index = ("wedge_bins", self.bin_bytes(soft.1));
-        Ok(Replayed::new(fill, passed, h.caps, index, stat))
+        let (caps, index) = (h.caps, ("wedge_bins", self.bin_bytes(soft.1)));
+        let stat = Box::new(stat);
+        Ok(Replayed {
+            fill,
+            passed,
+            caps,
+            index,
+            stat,
+        })
     }
 }
 
