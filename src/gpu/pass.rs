@@ -217,6 +217,9 @@ impl Layout {
     }
 }
 
+/// Bytes of one Depth32Float texel.
+pub const DEPTH_TEXEL_BYTES: f64 = 4.0;
+
 /// An indexed triangle list on the GPU: its vertex buffer, its `u32` index buffer and their
 /// counts.
 pub struct Mesh {
@@ -241,6 +244,34 @@ impl Mesh {
             vertex_count: vertices.len() as u32,
             index_count: indices.len() as u32,
         }
+    }
+
+    /// Adds to `k` the estimated traffic (`mem_est.*`) of a depth-tested draw of the mesh
+    /// (`(name, bytes a vertex)`: its vertices and `u32` indices read as `<name>_vertices`,
+    /// `<name>_indices`) into a Depth32Float map of `resolution`² texels (`(map, resolution,
+    /// fragments tested)`): a depth read per fragment tested, writes bounded by the clear plus
+    /// one per fragment; and `reads`.
+    pub fn depth_traffic(
+        &self,
+        k: &mut Counters,
+        (name, vertex_bytes): (&str, f64),
+        (map, resolution, tested): (&str, u32, f64),
+        reads: &[(&str, f64)],
+    ) {
+        let vertices = format!("{name}_vertices");
+        let indices = format!("{name}_indices");
+        let mut all = vec![
+            (&vertices[..], f64::from(self.vertex_count) * vertex_bytes),
+            (&indices[..], f64::from(self.index_count) * 4.0),
+        ];
+        all.extend(reads.iter().copied());
+        all.push((map, tested * DEPTH_TEXEL_BYTES));
+        let clear = f64::from(resolution).powi(2) * DEPTH_TEXEL_BYTES;
+        k.add_traffic(
+            "mem_est",
+            &all,
+            &[(map, clear + tested * DEPTH_TEXEL_BYTES)],
+        );
     }
 
     /// One draw of the whole mesh with `pipeline` into `color` and `depth`.

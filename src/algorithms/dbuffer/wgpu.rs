@@ -14,9 +14,8 @@
 //! 2. `eye_lookup` — a compute pass over the shared gbuffer (the shadow-map family's kernel in
 //!    `shadow_map/light_view.wgsl`): eq. 2, 3 and 4 (`shade` in `wgpu.wgsl`).
 //!
-//! The timed submission runs the passes with timestamps and pipeline statistics; a second,
-//! instrumented submission counts the volume fragments (`fill`) and the D-buffer texels they
-//! left covered (`fill − covered = overdraw`) with WGSL atomics, as the shadow-map family does.
+//! The instrumented replay ([`crate::gpu::pass`]) counts the volume fragments (`fill`) and the
+//! D-buffer texels they left covered (`fill − covered = overdraw`), as the shadow-map family.
 
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff, ID};

@@ -53,7 +53,7 @@ use crate::gpu::pass::{
     Stencil, Step,
 };
 use crate::gpu::readback::words;
-use crate::gpu::{additive_red, unwritten, Gpu};
+use crate::gpu::{additive_red, stencil_test, unwritten, Gpu};
 use crate::scene::Mesh;
 
 /// The WGSL of the passes.
@@ -458,30 +458,6 @@ impl<'g> HardRaster<'g> {
         steps.push(Step::Read(&self.stats));
         let raw: Vec<u32> = words(&crate::gpu::pass::replay(self.gpu, &steps)?[0]);
         Ok((slot64(&raw, 0), slot64(&raw, 1)))
-    }
-}
-
-/// A stencil test (both faces, all 8 bits) of `compare` against the reference, writing `pass`
-/// where the fragment passes it and the depth test and `other` where it fails either: the
-/// stencil count (`Always`, increment or decrement, `Keep`), its accumulation (`Equal`, `Keep`,
-/// `Keep`), and `soft_shadow_volume`'s wedge-half culling (`Always`, `Replace`, `Keep` to mark;
-/// `Equal`, `Zero`, `Zero` to test, clearing every mark its faces cover).
-pub(crate) fn stencil_test(
-    compare: wgpu::CompareFunction,
-    pass: wgpu::StencilOperation,
-    other: wgpu::StencilOperation,
-) -> wgpu::StencilState {
-    let face = wgpu::StencilFaceState {
-        compare,
-        fail_op: other,
-        depth_fail_op: other,
-        pass_op: pass,
-    };
-    wgpu::StencilState {
-        front: face,
-        back: face,
-        read_mask: 0xff,
-        write_mask: 0xff,
     }
 }
 

@@ -14,9 +14,8 @@
 //! 3. `project` — a compute pass over the gbuffer looks the merged (max, §3.5) SSM up with
 //!    bilinear weights.
 //!
-//! The timed submission runs the passes with timestamps; an instrumented replay of `splat`
-//! counts fragments (`fill`) and those that hide nothing (`overdraw`) with WGSL atomics, one
-//! per fragment, through a pipeline that writes no colour (no blending to pay for twice).
+//! The instrumented replay of `splat` counts fragments (`fill`) and those that hide nothing
+//! (`overdraw`), through a pipeline that writes no colour (no blending to pay for twice).
 
 use std::time::Instant;
 

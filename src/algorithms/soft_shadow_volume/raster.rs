@@ -64,7 +64,7 @@ use super::wgpu::{run_loops, LoopRun, Pipeline, Replayed, WedgeRecords, WGSL as 
 use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{
-    eye_projection, hard_triangles, stencil_test, DepthTarget, HardRaster,
+    eye_projection, hard_triangles, DepthTarget, HardRaster,
 };
 use crate::algorithms::shadow_volume::wgpu::{
     quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
@@ -79,7 +79,8 @@ use crate::gpu::pass::{
 };
 use crate::gpu::readback::read_texels;
 use crate::gpu::{
-    additive, counters_mode, record_execution, unwritten, Gpu, GpuCounters, EMPTY_BYTES,
+    additive, counters_mode, record_execution, stencil_test, unwritten, Gpu, GpuCounters,
+    EMPTY_BYTES,
 };
 use crate::record::Counters;
 use crate::scene::{Bounds, Mesh};

@@ -31,11 +31,9 @@
 //!
 //! A pixel "rasterizes" a primitive when its eye ray meets it, exactly as on the cpu
 //! executions; the wedge-half culling of IV §4.4 is done by the extra plane of the half, and the
-//! stencil traffic it would cost is counted as the cpu-model counts it. A timed submission
-//! (timestamps and pipeline statistics per GPU pass) is followed by an instrumented replay with
-//! WGSL atomics counting fragments. Not built on the GPU: silhouette detection and wedge
-//! construction (host, as on the cpu executions), the z-fail caps (host; z-fail is counted on
-//! the GPU).
+//! stencil traffic it would cost is counted as the cpu-model counts it. Not built on the GPU:
+//! silhouette detection and wedge construction (host, as on the cpu executions), the z-fail
+//! caps (host; z-fail is counted on the GPU).
 //!
 //! Textured lights (III §3.3): the RGB coverage texture is uploaded (three bytes a texel) and
 //! the soft pass accumulates one f32 per channel (III §4.1), writing the light received per
