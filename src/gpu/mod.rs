@@ -346,10 +346,10 @@ impl Gpu {
             .create_view(&Default::default())
     }
 
-    /// Fails ([`Error::Unsupported`]) where the adapter cannot blend into R32Float (no
-    /// `FLOAT32_BLENDABLE`), naming `instead` (the options that avoid it).
-    pub fn require_float32_blend(&self, instead: &str) -> Result<()> {
-        match self.float32_blendable {
+    /// Fails ([`Error::Unsupported`]) where a run blends into R32Float (`blends`) and the
+    /// adapter cannot (no `FLOAT32_BLENDABLE`), naming `instead` (the options that avoid it).
+    pub fn check_float32_blend(&self, blends: bool, instead: &str) -> Result<()> {
+        match !blends || self.float32_blendable {
             true => Ok(()),
             false => Err(Error::Unsupported(format!(
                 "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use {instead}",

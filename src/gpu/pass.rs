@@ -643,6 +643,27 @@ pub struct Onto<'a> {
     pub draws: Vec<(usize, std::ops::Range<u32>, u32)>,
 }
 
+impl<'a> Onto<'a> {
+    /// The draws `draws` of `pipelines` onto `color`, cleared to `clear` or kept, with no depth
+    /// target, stencil or vertex buffer (which a pass sets by struct update).
+    pub fn new(
+        pipelines: &'a [wgpu::RenderPipeline],
+        draws: Vec<(usize, std::ops::Range<u32>, u32)>,
+        color: &'a wgpu::TextureView,
+        clear: Option<f64>,
+    ) -> Onto<'a> {
+        Onto {
+            color,
+            clear,
+            depth: None,
+            stencil: Stencil::Off,
+            vertices: None,
+            pipelines,
+            draws,
+        }
+    }
+}
+
 /// A draw: `count` vertices (or indices, with an index buffer) times `instances`, into a colour
 /// target cleared to 0 and a depth target cleared to 1.
 #[derive(Clone)]

@@ -7,7 +7,7 @@
 //!   much it loses depends on it. Mesa's lavapipe rounds toward zero; NVIDIA's driver (H200,
 //!   580.159) to nearest.
 
-use super::pass::{Onto, Pass, Program, Raster, Stencil, Work};
+use super::pass::{Onto, Pass, Program, Raster, Work};
 use super::readback::Staging;
 use super::{additive_red, Gpu};
 use crate::error::{Error, Result};
@@ -61,15 +61,8 @@ impl Gpu {
             wgpu::TextureUsages::COPY_SRC,
         );
         let view = target.create_view(&Default::default());
-        let onto = Onto {
-            color: &view,
-            clear: Some(1.0),
-            depth: None,
-            stencil: Stencil::Off,
-            vertices: None,
-            pipelines: std::slice::from_ref(&pipeline),
-            draws: vec![(0, 0..3, 0)],
-        };
+        let pipelines = std::slice::from_ref(&pipeline);
+        let onto = Onto::new(pipelines, vec![(0, 0..3, 0)], &view, Some(1.0));
         let pass = Pass {
             label: "half-float blend probe",
             groups: vec![],

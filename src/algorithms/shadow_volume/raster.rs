@@ -398,15 +398,11 @@ impl<'g> HardRaster<'g> {
                 )
             }
         };
-        let (color, depth, vertices) = (&self.count, Some(&self.depth), Some(vertices));
         let onto = Onto {
-            color,
-            clear,
-            depth,
+            depth: Some(&self.depth),
             stencil,
-            vertices,
-            pipelines,
-            draws,
+            vertices: Some(vertices),
+            ..Onto::new(pipelines, draws, &self.count, clear)
         };
         Pass::onto("hard", &self.groups(false), onto)
     }
@@ -418,16 +414,11 @@ impl<'g> HardRaster<'g> {
             Some((_, lit)) => (&lit[..], Some(&self.depth), Stencil::Keep),
             None => (std::slice::from_ref(&self.accumulate), None, Stencil::Off),
         };
-        let (color, clear) = (&self.accumulation, first.then_some(0.0));
-        let (vertices, draws) = (None, vec![(0, 0..3, 0)]);
+        let clear = first.then_some(0.0);
         let onto = Onto {
-            color,
-            clear,
             depth,
             stencil,
-            vertices,
-            pipelines,
-            draws,
+            ..Onto::new(pipelines, vec![(0, 0..3, 0)], &self.accumulation, clear)
         };
         Pass::onto("accumulate", &self.groups(true), onto)
     }

@@ -98,9 +98,7 @@ pub fn render(
     _ctx: &ExecContext,
     o: &SoftShadowMapOptions,
 ) -> Result<FrameOutput> {
-    if o.precision == Precision::Fp32 {
-        gpu.require_float32_blend("precision fp16")?;
-    }
+    gpu.check_float32_blend(o.precision == Precision::Fp32, "precision fp16")?;
     gpu.check_limits(ID, Needs::map(frame.params.map_resolution))?;
     let split = Split::of(&frame.flat);
     let mut out = Ssm::new(gpu, frame, o, &split).run()?;

@@ -67,8 +67,8 @@ use crate::algorithms::shadow_volume::raster::{
     eye_projection, hard_triangles, DepthTarget, HardRaster,
 };
 use crate::algorithms::shadow_volume::wgpu::{
-    quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
-    WGSL as FAMILY_WGSL,
+    hard_fill, quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES,
+    VBUFFER_BYTES, WGSL as FAMILY_WGSL,
 };
 use crate::algorithms::shadow_volume::ShadowQuad;
 use crate::algorithms::FrameOutput;
@@ -188,15 +188,11 @@ impl LoopRaster {
         } else {
             Stencil::Off
         };
-        let (clear, depth, vertices) = (Some(0.0), Some(depth), Some(&self.wedge));
         let onto = Onto {
-            color,
-            clear,
-            depth,
+            depth: Some(depth),
             stencil,
-            vertices,
-            pipelines,
-            draws,
+            vertices: Some(&self.wedge),
+            ..Onto::new(pipelines, draws, color, Some(0.0))
         };
         Pass::onto("soft", &[Some(&self.group)], onto)
     }
@@ -434,9 +430,8 @@ pub(super) fn run(
     runs: &[LoopRun],
     setup_ms: f64,
 ) -> Result<FrameOutput> {
-    if opts.vbuffer == VBufferPrecision::F32 {
-        gpu.require_float32_blend("vbuffer \"split12\" or gpu_pipeline \"gather\"")?;
-    }
+    let instead = "vbuffer \"split12\" or gpu_pipeline \"gather\"";
+    gpu.check_float32_blend(opts.vbuffer == VBufferPrecision::F32, instead)?;
     let start = std::time::Instant::now();
     let objects_ms = gpu.cache.run_objects_ms();
     let occluders = frame.scene.occluders();
@@ -588,14 +583,11 @@ impl Pipeline for Rasterized<'_> {
             (Stat::SoftInside, Some(n)) => n,
             _ => stat(s),
         });
-        let vertex_bytes = VERTEX_BYTES as f64 * f64::from(l.wedge_vertices);
-        let (caps, index) = (h.caps, ("wedge_vertices", vertex_bytes));
-        Ok(Replayed {
-            fill,
-            passed,
-            caps,
-            index,
-            stat,
-        })
+        hard_fill(k, self.opts.counting, fill, passed, h.caps);
+        let index = (
+            "wedge_vertices",
+            VERTEX_BYTES as f64 * f64::from(l.wedge_vertices),
+        );
+        Ok(Replayed { index, stat })
     }
 }

@@ -277,7 +277,8 @@ pub(super) trait Pipeline {
         hard: &Self::Hard,
     ) -> Self::Soft;
     fn soft_passes<'a>(&'a self, soft: &'a Self::Soft) -> Vec<Pass<'a>>;
-    /// The loop's instrumented replay: `hard`'s counters of this pipeline's own added to `k`.
+    /// The loop's instrumented replay: `hard`'s counters (fill, overdraw, z-fail caps
+    /// ([`hard_fill`]) and this pipeline's own) added to `k`.
     fn replay<'a>(
         &'a self,
         hard: &'a Self::Hard,
@@ -286,13 +287,9 @@ pub(super) trait Pipeline {
     ) -> Result<Replayed<'a>>;
 }
 
-/// What a loop's instrumented replay gave: the hard pass's fill and passed fragments and
-/// z-fail caps, what finds the wedge primitives ([`soft_counters`]: name, bytes) and the soft
-/// pass's statistics.
+/// What a loop's instrumented replay gave for the soft phase: what finds the wedge primitives
+/// ([`soft_counters`]: name, bytes) and the soft pass's statistics.
 pub(super) struct Replayed<'a> {
-    pub fill: f64,
-    pub passed: f64,
-    pub caps: u64,
     pub index: (&'static str, f64),
     pub stat: Box<dyn Fn(Stat) -> f64 + 'a>,
 }
@@ -346,7 +343,6 @@ pub(super) fn run_loops<P: Pipeline>(
             k.add("silhouette_edges", n as f64);
         }
         k.add("shadow_quads", *quads as f64);
-        hard_fill(k, opts.counting, r.fill, r.passed, r.caps);
         per_phase[1].add("wedges", w.wedges as f64);
         per_phase[1].add("wedges_degenerate", w.degenerate as f64);
         let pixels = rays.len() as u64;
@@ -446,15 +442,9 @@ impl Pipeline for Gather<'_> {
         ];
         let vbuffer = (VBUFFER_BYTES * pixels) as f64;
         k.add_traffic("mem_est", &reads, &[("vbuffer", vbuffer)]);
-        let (caps, index) = (h.caps, ("wedge_bins", self.bin_bytes(soft.1)));
-        let stat = Box::new(stat);
-        Ok(Replayed {
-            fill,
-            passed,
-            caps,
-            index,
-            stat,
-        })
+        hard_fill(k, self.v.counting, fill, passed, h.caps);
+        let (index, stat) = (("wedge_bins", self.bin_bytes(soft.1)), Box::new(stat));
+        Ok(Replayed { index, stat })
     }
 }
 
