@@ -276,8 +276,7 @@ impl<'g> Passes<'g> {
         let mut dbuffer = Counters::default();
         let fill = f64::from(c.umbra_fragments) + f64::from(c.penumbra_fragments);
         let covered = f64::from(c.umbra_covered) + f64::from(c.penumbra_covered);
-        dbuffer.set("fill", fill);
-        dbuffer.set("overdraw", fill - covered);
+        dbuffer.add_fill(fill, fill - covered);
         dbuffer.set("dbuffer.scene_fill", f64::from(c.scene_fragments));
         dbuffer.set("dbuffer.bytes", super::dbuffer_bytes(&frame.params) as f64);
         let note = "fill/overdraw from an instrumented replay (WGSL atomics); phases silhouettes \

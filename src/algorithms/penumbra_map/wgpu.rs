@@ -211,8 +211,7 @@ impl<'g> PenumbraPasses<'g> {
         let discarded = f64::from(c.discarded);
         let kept = fragments - discarded;
         let mut k = Counters::default();
-        k.set("fill", fragments);
-        k.set("overdraw", discarded);
+        k.add_fill(fragments, discarded);
         let cone_triangles = s.vertices.len() as f64 * f64::from(o.cone_segments);
         k.set("penumbra.cone_triangles", cone_triangles);
         let sheet_triangles = f64::from(cones.index_count / 3) - cone_triangles;

@@ -310,8 +310,7 @@ impl<'g> Passes<'g> {
     pub fn raster_counters(&self, c: &Counts) -> Counters {
         let fragments = f64::from(c.fragments);
         let mut k = Counters::default();
-        k.set("fill", fragments);
-        k.set("overdraw", fragments - f64::from(c.covered));
+        k.add_fill(fragments, fragments - f64::from(c.covered));
         k.set("shadow_map.covered_texels", f64::from(c.covered));
         let map = ("shadow_map", self.resolution, fragments);
         (self.occluders).depth_traffic(&mut k, ("occluder", VERTEX_BYTES), map, &[]);

@@ -478,8 +478,7 @@ impl<'g> Passes<'g> {
         k.set("bin_culled_quads", stat(Stat::BinCulled));
         k.set("quad_fragments", fragments);
         k.set("wedge_culled_fragments", stat(Stat::WedgeCulled));
-        k.set("fill", fill);
-        k.set("overdraw", fill - contributing);
+        k.add_fill(fill, fill - contributing);
         k.set("atomics", contributing);
         let edges = EDGE_BYTES as f64 * f64::from(self.params.edges);
         let grid = 2.0 * w * fragments;

@@ -403,8 +403,7 @@ impl<'g> Ssm<'g> {
             maps_c.set("transfer.bytes", transfer.bytes as f64);
         }
         let mut splat_c = Counters::default();
-        splat_c.set("fill", f64::from(c.kept) + f64::from(c.zero));
-        splat_c.set("overdraw", f64::from(c.zero));
+        splat_c.add_fill(f64::from(c.kept) + f64::from(c.zero), f64::from(c.zero));
         let (patches, extents) = match host {
             true => (transfer.patches as f64, "host (occluder map transferred)"),
             false => (f64::from(c.patches), "device (vertex shader)"),

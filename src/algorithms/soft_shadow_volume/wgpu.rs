@@ -476,8 +476,7 @@ fn soft_counters(
     } else {
         (fill, front, 0.0, 0.0, 0.0)
     };
-    k.add("fill", raster_fill);
-    k.add("overdraw", raster_fill - contributing);
+    k.add_fill(raster_fill, raster_fill - contributing);
     k.add("shader_invocations", shaded);
     k.add("culled_fragments", culled);
     k.add("fragments_inside_wedges", covered);
