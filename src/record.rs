@@ -28,6 +28,13 @@ impl Counters {
         self.0.get(name).copied()
     }
 
+    /// Adds `fill` (fragments rasterized) and `overdraw` (those of them that changed nothing in
+    /// the result).
+    pub fn add_fill(&mut self, fill: f64, overdraw: f64) {
+        self.add("fill", fill);
+        self.add("overdraw", overdraw);
+    }
+
     /// Adds memory traffic of kind `kind` (`mem_est` or `mem_model`): `<kind>.<buffer>.read_bytes`
     /// for each of `reads`, `<kind>.<buffer>.write_bytes` for each of `writes`, and their sums to
     /// `<kind>.read_bytes` and `<kind>.write_bytes`, so a total is always the sum of its

@@ -76,6 +76,30 @@ pub fn unwritten(format: wgpu::TextureFormat) -> wgpu::ColorTargetState {
     }
 }
 
+/// A stencil test (both faces, all 8 bits) of `compare` against the reference, writing `pass`
+/// where the fragment passes it and the depth test and `other` where it fails either: a stencil
+/// shadow-volume count (`Always`, increment or decrement, `Keep`), a pass shading where the
+/// count is 0 (`Equal`, `Keep`, `Keep`), a mark (`Always`, `Replace`, `Keep`) and a test that
+/// clears every mark it covers (`Equal`, `Zero`, `Zero`).
+pub fn stencil_test(
+    compare: wgpu::CompareFunction,
+    pass: wgpu::StencilOperation,
+    other: wgpu::StencilOperation,
+) -> wgpu::StencilState {
+    let face = wgpu::StencilFaceState {
+        compare,
+        fail_op: other,
+        depth_fail_op: other,
+        pass_op: pass,
+    };
+    wgpu::StencilState {
+        front: face,
+        back: face,
+        read_mask: 0xff,
+        write_mask: 0xff,
+    }
+}
+
 /// The query features this crate asks for, and whether the adapter offered them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct QueryFeatures {
@@ -320,6 +344,18 @@ impl Gpu {
     ) -> wgpu::TextureView {
         self.texture(label, size, format, wgpu::TextureUsages::empty())
             .create_view(&Default::default())
+    }
+
+    /// Fails ([`Error::Unsupported`]) where a run blends into R32Float (`blends`) and the
+    /// adapter cannot (no `FLOAT32_BLENDABLE`), naming `instead` (the options that avoid it).
+    pub fn check_float32_blend(&self, blends: bool, instead: &str) -> Result<()> {
+        match !blends || self.float32_blendable {
+            true => Ok(()),
+            false => Err(Error::Unsupported(format!(
+                "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use {instead}",
+                self.info.name
+            ))),
+        }
     }
 
     /// Checks what algorithm `id` needs against the adapter's limits; the error

@@ -217,6 +217,9 @@ impl Layout {
     }
 }
 
+/// Bytes of one Depth32Float texel.
+pub const DEPTH_TEXEL_BYTES: f64 = 4.0;
+
 /// An indexed triangle list on the GPU: its vertex buffer, its `u32` index buffer and their
 /// counts.
 pub struct Mesh {
@@ -241,6 +244,34 @@ impl Mesh {
             vertex_count: vertices.len() as u32,
             index_count: indices.len() as u32,
         }
+    }
+
+    /// Adds to `k` the estimated traffic (`mem_est.*`) of a depth-tested draw of the mesh
+    /// (`(name, bytes a vertex)`: its vertices and `u32` indices read as `<name>_vertices`,
+    /// `<name>_indices`) into a Depth32Float map of `resolution`² texels (`(map, resolution,
+    /// fragments tested)`): a depth read per fragment tested, writes bounded by the clear plus
+    /// one per fragment; and `reads`.
+    pub fn depth_traffic(
+        &self,
+        k: &mut Counters,
+        (name, vertex_bytes): (&str, f64),
+        (map, resolution, tested): (&str, u32, f64),
+        reads: &[(&str, f64)],
+    ) {
+        let vertices = format!("{name}_vertices");
+        let indices = format!("{name}_indices");
+        let mut all = vec![
+            (&vertices[..], f64::from(self.vertex_count) * vertex_bytes),
+            (&indices[..], f64::from(self.index_count) * 4.0),
+        ];
+        all.extend(reads.iter().copied());
+        all.push((map, tested * DEPTH_TEXEL_BYTES));
+        let clear = f64::from(resolution).powi(2) * DEPTH_TEXEL_BYTES;
+        k.add_traffic(
+            "mem_est",
+            &all,
+            &[(map, clear + tested * DEPTH_TEXEL_BYTES)],
+        );
     }
 
     /// One draw of the whole mesh with `pipeline` into `color` and `depth`.
@@ -574,24 +605,35 @@ pub enum Work<'a> {
     Dispatch(Vec<(&'a wgpu::ComputePipeline, (u32, u32))>),
     /// One draw into cleared targets.
     Draw(Draw<'a>),
-    /// One draw onto kept targets.
+    /// Draws onto kept targets.
     Onto(Onto<'a>),
-    /// Draws onto kept targets with a stencil.
-    Stenciled(Stenciled<'a>),
 }
 
-/// Draws of vertex ranges of one buffer onto a colour target cleared to `clear` (red) or kept,
-/// each with its own pipeline and stencil reference, testing against a kept depth whose stencil
-/// (Depth32FloatStencil8) is cleared to `stencil_clear` first or kept: the two-pass culling of a
-/// wedge half (paper 001 IV §4.4) draws its front faces setting the stencil, then its back faces
+/// What a pass onto a kept depth target ([`Onto`]) does with its stencil.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Stencil {
+    /// No stencil: the depth is only read.
+    Off,
+    /// The stencil (Depth32FloatStencil8) as earlier passes left it.
+    Keep,
+    /// The stencil cleared to this value first.
+    Clear(u32),
+}
+
+/// Draws of vertex ranges of one buffer onto a colour target cleared to `clear` (red; the
+/// other channels 0) or, when `None`, kept as earlier passes drew it (accumulation by
+/// blending), each with its own pipeline and stencil reference, testing against a depth target
+/// that earlier passes drew and these only read (the pipelines' `depth_write` off), with its
+/// [`Stencil`]: a shadow-volume count or an accumulation pass; the two-pass culling of a wedge
+/// half (paper 001 IV §4.4) draws its front faces setting the stencil, then its back faces
 /// testing it; a stencil shadow-volume pass increments and decrements it, and a later pass
 /// shades where it is 0.
 #[derive(Clone)]
-pub struct Stenciled<'a> {
+pub struct Onto<'a> {
     pub color: &'a wgpu::TextureView,
     pub clear: Option<f64>,
-    pub depth_stencil: &'a wgpu::TextureView,
-    pub stencil_clear: Option<u32>,
+    pub depth: Option<&'a wgpu::TextureView>,
+    pub stencil: Stencil,
     /// The vertex buffer, if the pipelines read one.
     pub vertices: Option<&'a wgpu::Buffer>,
     /// The pipelines the draws use (at least one).
@@ -601,18 +643,25 @@ pub struct Stenciled<'a> {
     pub draws: Vec<(usize, std::ops::Range<u32>, u32)>,
 }
 
-/// A draw of the vertices `range` onto a colour target that is cleared to `clear` (red; the
-/// other channels 0) or, when `None`, keeps what earlier passes drew there (accumulation by
-/// blending), testing against a depth target that earlier passes drew and this one only reads
-/// (the pipeline's `depth_write` off): a shadow-volume count or an accumulation pass.
-#[derive(Clone)]
-pub struct Onto<'a> {
-    pub pipeline: &'a wgpu::RenderPipeline,
-    pub color: &'a wgpu::TextureView,
-    pub clear: Option<f64>,
-    pub depth: Option<&'a wgpu::TextureView>,
-    pub vertices: Option<&'a wgpu::Buffer>,
-    pub range: std::ops::Range<u32>,
+impl<'a> Onto<'a> {
+    /// The draws `draws` of `pipelines` onto `color`, cleared to `clear` or kept, with no depth
+    /// target, stencil or vertex buffer (which a pass sets by struct update).
+    pub fn new(
+        pipelines: &'a [wgpu::RenderPipeline],
+        draws: Vec<(usize, std::ops::Range<u32>, u32)>,
+        color: &'a wgpu::TextureView,
+        clear: Option<f64>,
+    ) -> Onto<'a> {
+        Onto {
+            color,
+            clear,
+            depth: None,
+            stencil: Stencil::Off,
+            vertices: None,
+            pipelines,
+            draws,
+        }
+    }
 }
 
 /// A draw: `count` vertices (or indices, with an index buffer) times `instances`, into a colour
@@ -697,12 +746,7 @@ impl<'a> Pass<'a> {
         Pass::new(label, groups, Work::Draw(draw))
     }
 
-    /// A render pass of draws with a stencil ([`Stenciled`]).
-    pub fn stenciled(label: &'a str, groups: &Groups<'a>, draws: Stenciled<'a>) -> Pass<'a> {
-        Pass::new(label, groups, Work::Stenciled(draws))
-    }
-
-    /// A render pass of one draw onto kept targets.
+    /// A render pass of draws onto kept targets.
     pub fn onto(label: &'a str, groups: &Groups<'a>, onto: Onto<'a>) -> Pass<'a> {
         Pass::new(label, groups, Work::Onto(onto))
     }
@@ -826,29 +870,22 @@ impl<'a> Pass<'a> {
             }
             Work::Onto(d) => {
                 let colors = [Some(kept_color(d.color, d.clear))];
+                let stencil_ops = |load| {
+                    Some(wgpu::Operations {
+                        load,
+                        store: wgpu::StoreOp::Store,
+                    })
+                };
                 let depth = d.depth.map(|view| wgpu::RenderPassDepthStencilAttachment {
                     view,
                     depth_ops: None,
-                    stencil_ops: None,
+                    stencil_ops: match d.stencil {
+                        Stencil::Off => None,
+                        Stencil::Keep => stencil_ops(wgpu::LoadOp::Load),
+                        Stencil::Clear(s) => stencil_ops(wgpu::LoadOp::Clear(s)),
+                    },
                 });
                 let desc = self.kept(&colors, depth);
-                let mut pass = timing::render_pass(e, desc, timed);
-                let draw = |pass: &mut wgpu::RenderPass<'_>| pass.draw(d.range.clone(), 0..1);
-                self.draw_in(&mut pass, stats, index, d.pipeline, d.vertices, draw);
-            }
-            Work::Stenciled(d) => {
-                let colors = [Some(kept_color(d.color, d.clear))];
-                let depth = wgpu::RenderPassDepthStencilAttachment {
-                    view: d.depth_stencil,
-                    depth_ops: None,
-                    stencil_ops: Some(wgpu::Operations {
-                        load: d
-                            .stencil_clear
-                            .map_or(wgpu::LoadOp::Load, wgpu::LoadOp::Clear),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                };
-                let desc = self.kept(&colors, Some(depth));
                 let mut pass = timing::render_pass(e, desc, timed);
                 let draw = |pass: &mut wgpu::RenderPass<'_>| {
                     let mut bound = 0;
@@ -857,7 +894,9 @@ impl<'a> Pass<'a> {
                             pass.set_pipeline(&d.pipelines[*pipeline]);
                             bound = *pipeline;
                         }
-                        pass.set_stencil_reference(*reference);
+                        if d.stencil != Stencil::Off {
+                            pass.set_stencil_reference(*reference);
+                        }
                         pass.draw(range.clone(), 0..1);
                     }
                 };

@@ -61,14 +61,8 @@ impl Gpu {
             wgpu::TextureUsages::COPY_SRC,
         );
         let view = target.create_view(&Default::default());
-        let onto = Onto {
-            pipeline: &pipeline,
-            color: &view,
-            clear: Some(1.0),
-            depth: None,
-            vertices: None,
-            range: 0..3,
-        };
+        let pipelines = std::slice::from_ref(&pipeline);
+        let onto = Onto::new(pipelines, vec![(0, 0..3, 0)], &view, Some(1.0));
         let pass = Pass {
             label: "half-float blend probe",
             groups: vec![],

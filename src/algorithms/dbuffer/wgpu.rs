@@ -14,9 +14,8 @@
 //! 2. `eye_lookup` — a compute pass over the shared gbuffer (the shadow-map family's kernel in
 //!    `shadow_map/light_view.wgsl`): eq. 2, 3 and 4 (`shade` in `wgpu.wgsl`).
 //!
-//! The timed submission runs the passes with timestamps and pipeline statistics; a second,
-//! instrumented submission counts the volume fragments (`fill`) and the D-buffer texels they
-//! left covered (`fill − covered = overdraw`) with WGSL atomics, as the shadow-map family does.
+//! The instrumented replay ([`crate::gpu::pass`]) counts the volume fragments (`fill`) and the
+//! D-buffer texels they left covered (`fill − covered = overdraw`), as the shadow-map family.
 
 use super::cpu::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff, ID};
@@ -277,8 +276,7 @@ impl<'g> Passes<'g> {
         let mut dbuffer = Counters::default();
         let fill = f64::from(c.umbra_fragments) + f64::from(c.penumbra_fragments);
         let covered = f64::from(c.umbra_covered) + f64::from(c.penumbra_covered);
-        dbuffer.set("fill", fill);
-        dbuffer.set("overdraw", fill - covered);
+        dbuffer.add_fill(fill, fill - covered);
         dbuffer.set("dbuffer.scene_fill", f64::from(c.scene_fragments));
         dbuffer.set("dbuffer.bytes", super::dbuffer_bytes(&frame.params) as f64);
         let note = "fill/overdraw from an instrumented replay (WGSL atomics); phases silhouettes \

@@ -10,10 +10,9 @@
 //! 4. `eye_lookup`: the family's lookup over the gbuffer with `wgpu_lookup.wgsl`: umbra where
 //!    the shadow map shadows the receiver, else the penumbra map's intensity.
 //!
-//! As in the family, a timed submission (timestamps and pipeline statistics per GPU pass) is
-//! followed by an instrumented replay whose atomics count the cone and sheet fragments (`fill`)
-//! and those discarded behind the shadow-map surface (`overdraw`, as on the cpu executions),
-//! and the penumbra-map taps of the lookup. The geometry upload is part of the
+//! As in the family, the instrumented replay's atomics count the cone and sheet fragments
+//! (`fill`), those discarded behind the shadow-map surface (`overdraw`, as on the cpu
+//! executions) and the lookup's penumbra-map taps. The geometry upload is part of the
 //! `penumbra_map` phase's wall time. The edge adjacency of the occluders is per-model
 //! preprocessing, built before the first phase, as is the optional simplified mesh.
 
@@ -22,8 +21,7 @@ use super::{
     Silhouettes, ID,
 };
 use crate::algorithms::shadow_map::wgpu::{
-    self as shadow_map_wgpu, Counts, Lookup, Passes, DEPTH_TEXEL_BYTES, LIGHT_RASTER_WGSL, NOTE,
-    PRELUDE,
+    self as shadow_map_wgpu, Counts, Lookup, Passes, LIGHT_RASTER_WGSL, NOTE, PRELUDE,
 };
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
 use crate::algorithms::{ExecContext, FrameOutput};
@@ -31,7 +29,7 @@ use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
     gpu_struct, replay_each, view as view_resource, Bind, Layout, Mesh, Pass, Program, Raster,
-    Statistics, Timed,
+    Statistics, Timed, DEPTH_TEXEL_BYTES,
 };
 use crate::gpu::readback::first;
 use crate::gpu::Gpu;
@@ -213,16 +211,14 @@ impl<'g> PenumbraPasses<'g> {
         let discarded = f64::from(c.discarded);
         let kept = fragments - discarded;
         let mut k = Counters::default();
-        k.set("fill", fragments);
-        k.set("overdraw", discarded);
+        k.add_fill(fragments, discarded);
         let cone_triangles = s.vertices.len() as f64 * f64::from(o.cone_segments);
         k.set("penumbra.cone_triangles", cone_triangles);
         let sheet_triangles = f64::from(cones.index_count / 3) - cone_triangles;
         k.set("penumbra.sheet_triangles", sheet_triangles);
         let shadow = [("shadow_map", fragments * DEPTH_TEXEL_BYTES)];
-        let mesh = ("penumbra", cones, VERTEX_BYTES);
-        self.passes
-            .draw_traffic(&mut k, mesh, ("penumbra_map", kept), &shadow);
+        let map = ("penumbra_map", self.passes.resolution, kept);
+        cones.depth_traffic(&mut k, ("penumbra", VERTEX_BYTES), map, &shadow);
         k
     }
 }

@@ -8,12 +8,10 @@
 //!    writes the visibility buffer with the algorithm's `visibility_at` (the kernel in
 //!    `light_view.wgsl`, shared with dbuffer; `eye_lookup.wgsl` and each algorithm's `wgpu.wgsl`).
 //!
-//! The timed submission runs the passes as an engine would, with timestamp queries and
-//! pipeline statistics around each. A second, instrumented submission runs the same passes
-//! with WGSL atomics that count the fragments of the light raster and the texels they cover,
-//! which gives `fill` and `overdraw` in the same terms as the cpu-model (every rasterized
-//! fragment; those that did not end up in the map), and the shadow-map taps of the lookup. Memory traffic is estimated from formats and
-//! those counts (`mem_est.<buffer>.*`): a GPU does not report it.
+//! Timed, then replayed instrumented ([`crate::gpu::pass`]): WGSL atomics count the light
+//! raster's fragments and the texels they cover (`fill` and `overdraw` in the cpu-model's terms:
+//! every rasterized fragment; those that did not end up in the map) and the lookup's taps.
+//! Memory traffic is estimated from formats and those counts (`mem_est.<buffer>.*`).
 
 use super::{Bias, FaceView, LightViews, ViewFit};
 use crate::algorithms::FrameOutput;
@@ -21,7 +19,7 @@ use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
     gpu_struct, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers, Layout, Mesh,
-    Pass, Program, Raster, Shared, Statistics, Timed,
+    Pass, Program, Raster, Shared, Statistics, Timed, DEPTH_TEXEL_BYTES,
 };
 use crate::gpu::readback::first;
 use crate::gpu::{Gpu, Needs};
@@ -37,13 +35,10 @@ pub(crate) const EYE_LOOKUP_WGSL: &str = include_str!("eye_lookup.wgsl");
 
 /// Side of the square compute workgroups (`@workgroup_size(8, 8)` in light_view.wgsl).
 const WORKGROUP: u32 = 8;
-/// Bytes of one texel of the Depth32Float shadow map.
-pub(crate) const DEPTH_TEXEL_BYTES: f64 = 4.0;
 /// Bytes of one gbuffer entry (a `vec4<f32>`, position or normal).
 const GBUFFER_ENTRY_BYTES: f64 = 16.0;
-/// Bytes of one occluder vertex (`vec3<f32>`) and one index (`u32`).
+/// Bytes of one occluder vertex (`vec3<f32>`).
 const VERTEX_BYTES: f64 = 12.0;
-const INDEX_BYTES: f64 = 4.0;
 
 /// What an algorithm of the family adds to the shared passes.
 pub struct Lookup<'a> {
@@ -315,40 +310,11 @@ impl<'g> Passes<'g> {
     pub fn raster_counters(&self, c: &Counts) -> Counters {
         let fragments = f64::from(c.fragments);
         let mut k = Counters::default();
-        k.set("fill", fragments);
-        k.set("overdraw", fragments - f64::from(c.covered));
+        k.add_fill(fragments, fragments - f64::from(c.covered));
         k.set("shadow_map.covered_texels", f64::from(c.covered));
-        let mesh = ("occluder", &self.occluders, VERTEX_BYTES);
-        self.draw_traffic(&mut k, mesh, ("shadow_map", fragments), &[]);
+        let map = ("shadow_map", self.resolution, fragments);
+        (self.occluders).depth_traffic(&mut k, ("occluder", VERTEX_BYTES), map, &[]);
         k
-    }
-
-    /// Adds the estimated traffic of a depth-tested draw of a mesh (`(name, mesh, bytes a
-    /// vertex)`, its vertices and `u32` indices read as `<name>_vertices`, `<name>_indices`)
-    /// into a Depth32Float map of the view's resolution (`(map, fragments tested)`): a depth
-    /// read per fragment tested, writes bounded by the clear plus one per fragment; and
-    /// `reads`.
-    pub fn draw_traffic(
-        &self,
-        k: &mut Counters,
-        (name, mesh, vertex_bytes): (&str, &Mesh, f64),
-        (map, tested): (&str, f64),
-        reads: &[(&str, f64)],
-    ) {
-        let vertices = (
-            format!("{name}_vertices"),
-            f64::from(mesh.vertex_count) * vertex_bytes,
-        );
-        let indices = (
-            format!("{name}_indices"),
-            f64::from(mesh.index_count) * INDEX_BYTES,
-        );
-        let clear = f64::from(self.resolution).powi(2) * DEPTH_TEXEL_BYTES;
-        let mut all = vec![(&vertices.0[..], vertices.1), (&indices.0[..], indices.1)];
-        all.extend(reads.iter().copied());
-        all.push((map, tested * DEPTH_TEXEL_BYTES));
-        let write = [(map, clear + tested * DEPTH_TEXEL_BYTES)];
-        k.add_traffic("mem_est", &all, &write);
     }
 
     /// `eye_lookup`: no fill (nothing is rasterized); the shadow-map taps, and the PCF taps of

@@ -50,10 +50,10 @@ use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
     gpu_struct, per_vertex, slot64, tiles, view, Bind, Draw, Layout, Onto, Pass, Program, Raster,
-    Stenciled, Step,
+    Stencil, Step,
 };
 use crate::gpu::readback::words;
-use crate::gpu::{additive_red, unwritten, Gpu};
+use crate::gpu::{additive_red, stencil_test, unwritten, Gpu};
 use crate::scene::Mesh;
 
 /// The WGSL of the passes.
@@ -382,25 +382,27 @@ impl<'g> HardRaster<'g> {
         eye_count: i32,
         instrument: bool,
     ) -> Pass<'a> {
-        if let (Some((quads, _)), false) = (&self.stencil, instrument) {
-            let stenciled = Stenciled {
-                color: &self.count,
-                clear: None,
-                depth_stencil: &self.depth,
-                stencil_clear: Some(eye_count.rem_euclid(256) as u32),
-                vertices: Some(vertices),
-                pipelines: quads,
-                draws: vec![(0, range.clone(), 0), (1, range, 0)],
-            };
-            return Pass::stenciled("hard", &self.groups(false), stenciled);
-        }
+        let (pipelines, draws, stencil, clear) = match (&self.stencil, instrument) {
+            (Some((quads, _)), false) => {
+                let stencil = Stencil::Clear(eye_count.rem_euclid(256) as u32);
+                let draws = vec![(0, range.clone(), 0), (1, range, 0)];
+                (&quads[..], draws, stencil, None)
+            }
+            _ => {
+                let quad = std::slice::from_ref(&self.quad[usize::from(instrument)]);
+                (
+                    quad,
+                    vec![(0, range, 0)],
+                    Stencil::Off,
+                    Some(f64::from(eye_count)),
+                )
+            }
+        };
         let onto = Onto {
-            pipeline: &self.quad[usize::from(instrument)],
-            color: &self.count,
-            clear: Some(f64::from(eye_count)),
             depth: Some(&self.depth),
+            stencil,
             vertices: Some(vertices),
-            range,
+            ..Onto::new(pipelines, draws, &self.count, clear)
         };
         Pass::onto("hard", &self.groups(false), onto)
     }
@@ -408,26 +410,15 @@ impl<'g> HardRaster<'g> {
     /// The accumulation of the lit pixels of the last count pass; `first` clears the
     /// accumulation first.
     pub fn accumulate_pass(&self, first: bool) -> Pass<'_> {
-        let (color, clear) = (&self.accumulation, first.then_some(0.0));
-        if let Some((_, lit)) = &self.stencil {
-            let stenciled = Stenciled {
-                color,
-                clear,
-                depth_stencil: &self.depth,
-                stencil_clear: None,
-                vertices: None,
-                pipelines: lit,
-                draws: vec![(0, 0..3, 0)],
-            };
-            return Pass::stenciled("accumulate", &self.groups(true), stenciled);
-        }
+        let (pipelines, depth, stencil) = match &self.stencil {
+            Some((_, lit)) => (&lit[..], Some(&self.depth), Stencil::Keep),
+            None => (std::slice::from_ref(&self.accumulate), None, Stencil::Off),
+        };
+        let clear = first.then_some(0.0);
         let onto = Onto {
-            pipeline: &self.accumulate,
-            color,
-            clear,
-            depth: None,
-            vertices: None,
-            range: 0..3,
+            depth,
+            stencil,
+            ..Onto::new(pipelines, vec![(0, 0..3, 0)], &self.accumulation, clear)
         };
         Pass::onto("accumulate", &self.groups(true), onto)
     }
@@ -458,30 +449,6 @@ impl<'g> HardRaster<'g> {
         steps.push(Step::Read(&self.stats));
         let raw: Vec<u32> = words(&crate::gpu::pass::replay(self.gpu, &steps)?[0]);
         Ok((slot64(&raw, 0), slot64(&raw, 1)))
-    }
-}
-
-/// A stencil test (both faces, all 8 bits) of `compare` against the reference, writing `pass`
-/// where the fragment passes it and the depth test and `other` where it fails either: the
-/// stencil count (`Always`, increment or decrement, `Keep`), its accumulation (`Equal`, `Keep`,
-/// `Keep`), and `soft_shadow_volume`'s wedge-half culling (`Always`, `Replace`, `Keep` to mark;
-/// `Equal`, `Zero`, `Zero` to test, clearing every mark its faces cover).
-pub(crate) fn stencil_test(
-    compare: wgpu::CompareFunction,
-    pass: wgpu::StencilOperation,
-    other: wgpu::StencilOperation,
-) -> wgpu::StencilState {
-    let face = wgpu::StencilFaceState {
-        compare,
-        fail_op: other,
-        depth_fail_op: other,
-        pass_op: pass,
-    };
-    wgpu::StencilState {
-        front: face,
-        back: face,
-        read_mask: 0xff,
-        write_mask: 0xff,
     }
 }
 

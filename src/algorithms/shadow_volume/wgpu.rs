@@ -200,8 +200,7 @@ impl FrameResources {
 /// cpu-model's terms, from its `fill` and `passed` fragments, and counting z-fail the volumes'
 /// `volume_caps`.
 pub(crate) fn hard_fill(k: &mut Counters, counting: Counting, fill: f64, passed: f64, caps: u64) {
-    k.add("fill", fill);
-    k.add("overdraw", fill - passed);
+    k.add_fill(fill, fill - passed);
     if counting == Counting::ZFail {
         k.add("volume_caps", caps as f64);
     }

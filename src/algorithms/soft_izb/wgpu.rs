@@ -30,13 +30,11 @@
 //!   term rounded by at most 2^-21). A last step applies eq. 4 per sample and writes the
 //!   sample's eye pixel; pixels with no sample stay lit.
 //!
-//! The timed submission runs the passes as an engine would, with timestamps and pipeline
-//! statistics per phase. A second, instrumented submission runs `hard` and `soft` again (on the
-//! grid the timed `construct` left; `construct` and `resolve` count nothing) with WGSL
-//! atomics counting what the cpu-model counts: grid columns and sample tests of the umbra,
-//! quads, bin entries and per-bin culls, quad fragments, wedge-culled fragments, fill (eq. 3
-//! evaluations) and overdraw (those that returned 0). Memory traffic is estimated from these
-//! counts and the record sizes (`mem_est.*`).
+//! The instrumented replay ([`crate::gpu::pass`]) runs `hard` and `soft` again (on the grid
+//! the timed `construct` left; `construct` and `resolve` count nothing), counting what the
+//! cpu-model counts: grid columns and sample tests of the umbra, quads, bin entries and per-bin
+//! culls, quad fragments, wedge-culled fragments, fill (eq. 3 evaluations) and overdraw (those
+//! that returned 0). Memory traffic is estimated from these counts and the record sizes.
 //!
 //! Not built: binning on the GPU (the per-bin width is applied per column of each quad instead
 //! of by dropping the quad from a bin's list; the counts of bin entries and culls are the
@@ -382,11 +380,8 @@ impl<'g> Passes<'g> {
         // The samples stored: the prefix sum's total, after the last cell.
         let samples = f64::from(words::<u32>(&timing.readback[1])[self.params.cells as usize]);
 
-        // The instrumented submission: `hard` and `soft` again, counting with atomics. They read
-        // the grid, the samples and the bin depths that the timed `construct` left (nothing
-        // after it writes them) and add into the occlusion accumulators, which nothing reads
-        // after the timed `resolve`; `construct` and `resolve` count nothing, so they are not
-        // run again.
+        // The instrumented replay: `hard` and `soft` read what the timed `construct` left
+        // (nothing after it writes it) and add into accumulators nothing reads after `resolve`.
         let passes = (2..PHASES.len()).map(|i| self.pass(i, true));
         let slot = replay_slots(self.gpu, &self.stats, passes)?;
         let stat = |s: Stat| slot.get(s as usize);
@@ -483,8 +478,7 @@ impl<'g> Passes<'g> {
         k.set("bin_culled_quads", stat(Stat::BinCulled));
         k.set("quad_fragments", fragments);
         k.set("wedge_culled_fragments", stat(Stat::WedgeCulled));
-        k.set("fill", fill);
-        k.set("overdraw", fill - contributing);
+        k.add_fill(fill, fill - contributing);
         k.set("atomics", contributing);
         let edges = EDGE_BYTES as f64 * f64::from(self.params.edges);
         let grid = 2.0 * w * fragments;

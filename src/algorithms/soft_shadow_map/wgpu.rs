@@ -14,9 +14,8 @@
 //! 3. `project` — a compute pass over the gbuffer looks the merged (max, §3.5) SSM up with
 //!    bilinear weights.
 //!
-//! The timed submission runs the passes with timestamps; an instrumented replay of `splat`
-//! counts fragments (`fill`) and those that hide nothing (`overdraw`) with WGSL atomics, one
-//! per fragment, through a pipeline that writes no colour (no blending to pay for twice).
+//! The instrumented replay of `splat` counts fragments (`fill`) and those that hide nothing
+//! (`overdraw`), through a pipeline that writes no colour (no blending to pay for twice).
 
 use std::time::Instant;
 
@@ -25,7 +24,7 @@ use bytemuck::{Pod, Zeroable};
 use super::cpu::{extent_quad, micro_patch};
 use super::{half_rounding, LightFrame, Precision, SoftShadowMapOptions, Split, ID};
 use crate::algorithms::{ExecContext, FrameOutput};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::meshes::positions;
 use crate::gpu::pass::{
@@ -99,12 +98,7 @@ pub fn render(
     _ctx: &ExecContext,
     o: &SoftShadowMapOptions,
 ) -> Result<FrameOutput> {
-    if o.precision == Precision::Fp32 && !gpu.float32_blendable {
-        return Err(Error::Unsupported(format!(
-            "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use precision fp16",
-            gpu.info.name
-        )));
-    }
+    gpu.check_float32_blend(o.precision == Precision::Fp32, "precision fp16")?;
     gpu.check_limits(ID, Needs::map(frame.params.map_resolution))?;
     let split = Split::of(&frame.flat);
     let mut out = Ssm::new(gpu, frame, o, &split).run()?;
@@ -409,8 +403,7 @@ impl<'g> Ssm<'g> {
             maps_c.set("transfer.bytes", transfer.bytes as f64);
         }
         let mut splat_c = Counters::default();
-        splat_c.set("fill", f64::from(c.kept) + f64::from(c.zero));
-        splat_c.set("overdraw", f64::from(c.zero));
+        splat_c.add_fill(f64::from(c.kept) + f64::from(c.zero), f64::from(c.zero));
         let (patches, extents) = match host {
             true => (transfer.patches as f64, "host (occluder map transferred)"),
             false => (f64::from(c.patches), "device (vertex shader)"),

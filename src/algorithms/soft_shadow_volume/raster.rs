@@ -24,7 +24,7 @@
 //!   each half separately, its front faces marking the stencil with the half's reference where
 //!   the point is behind them (no colour), then its back faces, with the shader, where the point
 //!   is in front of them and the stencil holds the reference — the point inside the half, the
-//!   shader run for no other; every back-face fragment clears the stencil ([`LoopRaster::culled`]).
+//!   shader run for no other; every back-face fragment clears the stencil ([`LoopRaster::pass`]).
 //!   The split format draws the inner halves into the additive buffer and the outer halves
 //!   into the subtractive one. The shader still tests the point against the half's planes, as
 //!   the cpu executions do, so the image does not depend on the culling. Without the format the
@@ -64,22 +64,23 @@ use super::wgpu::{run_loops, LoopRun, Pipeline, Replayed, WedgeRecords, WGSL as 
 use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{
-    eye_projection, hard_triangles, stencil_test, DepthTarget, HardRaster,
+    eye_projection, hard_triangles, DepthTarget, HardRaster,
 };
 use crate::algorithms::shadow_volume::wgpu::{
-    quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES, VBUFFER_BYTES,
-    WGSL as FAMILY_WGSL,
+    hard_fill, quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES,
+    VBUFFER_BYTES, WGSL as FAMILY_WGSL,
 };
 use crate::algorithms::shadow_volume::ShadowQuad;
 use crate::algorithms::FrameOutput;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    view, Bind, Layout, Onto, Pass, Program, Raster, Statistics, Stenciled, Step,
+    view, Bind, Layout, Onto, Pass, Program, Raster, Statistics, Stencil, Step,
 };
 use crate::gpu::readback::read_texels;
 use crate::gpu::{
-    additive, counters_mode, record_execution, unwritten, Gpu, GpuCounters, EMPTY_BYTES,
+    additive, counters_mode, record_execution, stencil_test, unwritten, Gpu, GpuCounters,
+    EMPTY_BYTES,
 };
 use crate::record::Counters;
 use crate::scene::{Bounds, Mesh};
@@ -155,59 +156,45 @@ struct LoopRaster {
 }
 
 impl LoopRaster {
-    /// A wedge pass of `pipeline` over the front faces into `color`, cleared to 0, with the
-    /// eye's depth `depth`.
-    fn onto<'a>(
-        &'a self,
-        pipeline: &'a wgpu::RenderPipeline,
-        color: &'a wgpu::TextureView,
-        depth: &'a wgpu::TextureView,
-    ) -> Pass<'a> {
-        let range = 0..self.wedge_vertices;
-        let (clear, depth, vertices) = (Some(0.0), Some(depth), Some(&self.wedge));
-        let onto = Onto {
-            pipeline,
-            color,
-            clear,
-            depth,
-            vertices,
-            range,
-        };
-        Pass::onto("soft", &[Some(&self.group)], onto)
-    }
-
-    /// The wedge pass with the culling of IV §4.4 over the halves `keep` lets through into
-    /// `color`, cleared to 0: per half, its front faces mark the stencil of `depth` with the
+    /// A wedge pass into `color`, cleared to 0, with the eye's depth `depth`: with one of
+    /// `pipelines` over the front faces; with two, the culling of IV §4.4 over the halves
+    /// `keep` lets through: per half, its front faces mark the stencil of `depth` with the
     /// half's reference where the point is behind them (`pipelines[0]`), then its back faces
     /// shade where the point is in front of them and the stencil holds the reference
     /// (`pipelines[1]`), clearing it. References run 1..=255 and the back faces clear what the
     /// front faces marked, so no half sees another's marks.
-    fn culled<'a>(
+    fn pass<'a>(
         &'a self,
         pipelines: &'a [wgpu::RenderPipeline],
         color: &'a wgpu::TextureView,
         depth: &'a wgpu::TextureView,
         keep: impl Fn(&Half) -> bool,
     ) -> Pass<'a> {
-        let draws = (self.halves.iter().filter(|h| keep(h)).enumerate())
-            .flat_map(|(i, h)| {
-                let reference = (i % 255) as u32 + 1;
-                [
-                    (0, h.front.clone(), reference),
-                    (1, h.back.clone(), reference),
-                ]
-            })
-            .collect();
-        let stenciled = Stenciled {
-            color,
-            clear: Some(0.0),
-            depth_stencil: depth,
-            stencil_clear: Some(0),
-            vertices: Some(&self.wedge),
-            pipelines,
-            draws,
+        let culled = pipelines.len() == 2;
+        let draws = match culled {
+            false => vec![(0, 0..self.wedge_vertices, 0)],
+            true => (self.halves.iter().filter(|h| keep(h)).enumerate())
+                .flat_map(|(i, h)| {
+                    let reference = (i % 255) as u32 + 1;
+                    [
+                        (0, h.front.clone(), reference),
+                        (1, h.back.clone(), reference),
+                    ]
+                })
+                .collect(),
         };
-        Pass::stenciled("soft", &[Some(&self.group)], stenciled)
+        let stencil = if culled {
+            Stencil::Clear(0)
+        } else {
+            Stencil::Off
+        };
+        let onto = Onto {
+            depth: Some(depth),
+            stencil,
+            vertices: Some(&self.wedge),
+            ..Onto::new(pipelines, draws, color, Some(0.0))
+        };
+        Pass::onto("soft", &[Some(&self.group)], onto)
     }
 }
 
@@ -227,8 +214,8 @@ struct WedgePass {
     vbuffers: Vec<wgpu::TextureView>,
     /// Per V-buffer: the timed pipeline, or with the stencil the marking and shading ones.
     timed: Vec<Vec<wgpu::RenderPipeline>>,
-    /// The counting pipeline (depth test off, `INSTRUMENT` on).
-    counting: wgpu::RenderPipeline,
+    /// The counting pipeline (depth test off, `INSTRUMENT` on), alone.
+    counting: [wgpu::RenderPipeline; 1],
     /// With the stencil and the counters: an R32Float target and the culled pipelines that add
     /// 1 per fragment passing both tests.
     culled_count: Option<(wgpu::Texture, wgpu::TextureView, Vec<wgpu::RenderPipeline>)>,
@@ -320,7 +307,7 @@ impl WedgePass {
                 .map(|e| gpu.target_view(e, size, format))
                 .collect(),
             timed,
-            counting: pipeline(entries[0], format, Always, Default::default()),
+            counting: [pipeline(entries[0], format, Always, Default::default())],
             culled_count,
             projection: eye_projection(rays, camera),
             near: (-forward, -forward.dot(rays.eye) - reach),
@@ -368,11 +355,10 @@ impl WedgePass {
     fn passes<'a>(&'a self, lg: &'a LoopRaster, depth: &'a wgpu::TextureView) -> Vec<Pass<'a>> {
         let split = self.split;
         (self.timed.iter().zip(&self.vbuffers).enumerate())
-            .map(|(j, (pipelines, color))| match self.stencil {
-                false => lg.onto(&pipelines[0], color, depth),
-                true => lg.culled(pipelines, color, depth, |h| {
+            .map(|(j, (pipelines, color))| {
+                lg.pass(pipelines, color, depth, |h| {
                     !split || (h.side < 0.0) == (j == 0)
-                }),
+                })
             })
             .collect()
     }
@@ -383,7 +369,7 @@ impl WedgePass {
         let Some((target, view, pipelines)) = &self.culled_count else {
             return Ok(None);
         };
-        let pass = lg.culled(pipelines, view, depth, |_| true);
+        let pass = lg.pass(pipelines, view, depth, |_| true);
         crate::gpu::pass::replay(gpu, &[Step::Run(pass)])?;
         let texels = read_texels::<f32>(gpu, std::slice::from_ref(target))?;
         Ok(Some(texels[0].iter().map(|&n| f64::from(n)).sum()))
@@ -444,13 +430,8 @@ pub(super) fn run(
     runs: &[LoopRun],
     setup_ms: f64,
 ) -> Result<FrameOutput> {
-    if opts.vbuffer == VBufferPrecision::F32 && !gpu.float32_blendable {
-        return Err(Error::Unsupported(format!(
-            "adapter {} cannot blend into R32Float (no FLOAT32_BLENDABLE): use vbuffer \
-             \"split12\" or gpu_pipeline \"gather\"",
-            gpu.info.name
-        )));
-    }
+    let instead = "vbuffer \"split12\" or gpu_pipeline \"gather\"";
+    gpu.check_float32_blend(opts.vbuffer == VBufferPrecision::F32, instead)?;
     let start = std::time::Instant::now();
     let objects_ms = gpu.cache.run_objects_ms();
     let occluders = frame.scene.occluders();
@@ -596,16 +577,17 @@ impl Pipeline for Rasterized<'_> {
         let (wp, depth) = (&self.wp, &self.hard.depth);
         let stat = self
             .v
-            .replay(vec![l.onto(&wp.counting, &wp.vbuffers[0], depth)])?;
+            .replay(vec![l.pass(&wp.counting, &wp.vbuffers[0], depth, |_| true)])?;
         let shaded = wp.shaded(self.gpu, l, depth)?;
-        let stat = move |s: Stat| match (s, shaded) {
+        let stat = Box::new(move |s: Stat| match (s, shaded) {
             (Stat::SoftInside, Some(n)) => n,
             _ => stat(s),
-        };
+        });
+        hard_fill(k, self.opts.counting, fill, passed, h.caps);
         let index = (
             "wedge_vertices",
             VERTEX_BYTES as f64 * f64::from(l.wedge_vertices),
         );
-        Ok(Replayed::new(fill, passed, h.caps, index, stat))
+        Ok(Replayed { index, stat })
     }
 }

@@ -31,11 +31,9 @@
 //!
 //! A pixel "rasterizes" a primitive when its eye ray meets it, exactly as on the cpu
 //! executions; the wedge-half culling of IV §4.4 is done by the extra plane of the half, and the
-//! stencil traffic it would cost is counted as the cpu-model counts it. A timed submission
-//! (timestamps and pipeline statistics per GPU pass) is followed by an instrumented replay with
-//! WGSL atomics counting fragments. Not built on the GPU: silhouette detection and wedge
-//! construction (host, as on the cpu executions), the z-fail caps (host; z-fail is counted on
-//! the GPU).
+//! stencil traffic it would cost is counted as the cpu-model counts it. Not built on the GPU:
+//! silhouette detection and wedge construction (host, as on the cpu executions), the z-fail
+//! caps (host; z-fail is counted on the GPU).
 //!
 //! Textured lights (III §3.3): the RGB coverage texture is uploaded (three bytes a texel) and
 //! the soft pass accumulates one f32 per channel (III §4.1), writing the light received per
@@ -279,7 +277,8 @@ pub(super) trait Pipeline {
         hard: &Self::Hard,
     ) -> Self::Soft;
     fn soft_passes<'a>(&'a self, soft: &'a Self::Soft) -> Vec<Pass<'a>>;
-    /// The loop's instrumented replay: `hard`'s counters of this pipeline's own added to `k`.
+    /// The loop's instrumented replay: `hard`'s counters (fill, overdraw, z-fail caps
+    /// ([`hard_fill`]) and this pipeline's own) added to `k`.
     fn replay<'a>(
         &'a self,
         hard: &'a Self::Hard,
@@ -288,34 +287,11 @@ pub(super) trait Pipeline {
     ) -> Result<Replayed<'a>>;
 }
 
-/// What a loop's instrumented replay gave: the hard pass's fill and passed fragments and
-/// z-fail caps, what finds the wedge primitives ([`soft_counters`]: name, bytes) and the soft
-/// pass's statistics.
+/// What a loop's instrumented replay gave for the soft phase: what finds the wedge primitives
+/// ([`soft_counters`]: name, bytes) and the soft pass's statistics.
 pub(super) struct Replayed<'a> {
-    pub fill: f64,
-    pub passed: f64,
-    pub caps: u64,
     pub index: (&'static str, f64),
     pub stat: Box<dyn Fn(Stat) -> f64 + 'a>,
-}
-
-impl<'a> Replayed<'a> {
-    pub fn new(
-        fill: f64,
-        passed: f64,
-        caps: u64,
-        index: (&'static str, f64),
-        stat: impl Fn(Stat) -> f64 + 'a,
-    ) -> Replayed<'a> {
-        let stat = Box::new(stat);
-        Replayed {
-            fill,
-            passed,
-            caps,
-            index,
-            stat,
-        }
-    }
 }
 
 /// Runs pipeline `p` over `runs` (the loops of every sub-light) on the frame resources `res`:
@@ -367,7 +343,6 @@ pub(super) fn run_loops<P: Pipeline>(
             k.add("silhouette_edges", n as f64);
         }
         k.add("shadow_quads", *quads as f64);
-        hard_fill(k, opts.counting, r.fill, r.passed, r.caps);
         per_phase[1].add("wedges", w.wedges as f64);
         per_phase[1].add("wedges_degenerate", w.degenerate as f64);
         let pixels = rays.len() as u64;
@@ -467,8 +442,9 @@ impl Pipeline for Gather<'_> {
         ];
         let vbuffer = (VBUFFER_BYTES * pixels) as f64;
         k.add_traffic("mem_est", &reads, &[("vbuffer", vbuffer)]);
-        let index = ("wedge_bins", self.bin_bytes(soft.1));
-        Ok(Replayed::new(fill, passed, h.caps, index, stat))
+        hard_fill(k, self.v.counting, fill, passed, h.caps);
+        let (index, stat) = (("wedge_bins", self.bin_bytes(soft.1)), Box::new(stat));
+        Ok(Replayed { index, stat })
     }
 }
 
@@ -500,8 +476,7 @@ fn soft_counters(
     } else {
         (fill, front, 0.0, 0.0, 0.0)
     };
-    k.add("fill", raster_fill);
-    k.add("overdraw", raster_fill - contributing);
+    k.add_fill(raster_fill, raster_fill - contributing);
     k.add("shader_invocations", shaded);
     k.add("culled_fragments", culled);
     k.add("fragments_inside_wedges", covered);
