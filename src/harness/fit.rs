@@ -66,6 +66,17 @@ pub struct CostFit {
     pub phases_mape: f64,
 }
 
+impl CostFit {
+    /// The scenes of `scenes` the fit was trained on (their runs are not held out).
+    pub fn trained_on<'a>(&self, scenes: &'a [String]) -> Vec<&'a str> {
+        scenes
+            .iter()
+            .filter(|x| self.scenes.contains(x))
+            .map(String::as_str)
+            .collect()
+    }
+}
+
 /// The training sweep: `sweep` (algorithms, image sizes, maps, options, repeats) on
 /// [`TRAINING_SCENES`].
 pub fn training_sweep(sweep: &Sweep) -> Sweep {
@@ -170,7 +181,7 @@ pub fn fit_rows(m: &MachineConfig, rows: &[Row]) -> Result<[f64; FITTED.len()]> 
             FITTED.len()
         )));
     }
-    let cycles_per_ms = m.clock_ghz * 1e6;
+    let cycles_per_ms = m.cycles_per_ms();
     let cores = f64::from(m.cores);
     let mut a = Array2::<f64>::zeros((rows.len(), FITTED.len()));
     let mut b = Array1::<f64>::zeros(rows.len());
@@ -198,7 +209,7 @@ pub fn fit_rows(m: &MachineConfig, rows: &[Row]) -> Result<[f64; FITTED.len()]> 
 fn predicted_ms(m: &MachineConfig, costs: &[f64; FITTED.len()], r: &Row) -> f64 {
     let x = features(r, f64::from(m.cores));
     let issue: f64 = x.iter().zip(costs).map(|(x, c)| x * c).sum();
-    (issue + fixed_cycles(m, r)) / (m.clock_ghz * 1e6)
+    (issue + fixed_cycles(m, r)) / m.cycles_per_ms()
 }
 
 /// The phase's work per core for each [`FITTED`] cost.

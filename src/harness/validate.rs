@@ -612,13 +612,7 @@ pub fn summary_text(v: &Validation) -> String {
             f.runs_mape,
             f.phases_mape
         );
-        let shared: Vec<&str> = v
-            .sweep
-            .scenes
-            .iter()
-            .filter(|x| f.scenes.contains(x))
-            .map(String::as_str)
-            .collect();
+        let shared = f.trained_on(&v.sweep.scenes);
         if !shared.is_empty() {
             s += &format!(
                 "warning: {} also in the training sweep: those runs are not held out\n",

@@ -273,6 +273,11 @@ impl MachineConfig {
         self.memory_parallelism.unwrap_or(1.0)
     }
 
+    /// Cycles of the machine's clock in one millisecond (modelled cycles to `model_ms`).
+    pub fn cycles_per_ms(&self) -> f64 {
+        self.clock_ghz * 1e6
+    }
+
     /// DRAM bytes the chip moves per cycle.
     pub fn dram_bytes_per_cycle(&self) -> f64 {
         self.dram_gb_per_s / self.clock_ghz
@@ -290,7 +295,7 @@ impl MachineConfig {
             }
         };
         // Cycle figures: at most a second at 1 GHz each, so that no sum of them overflows.
-        let non_negative = |field: &str, v: f64| within(field, v, 0.0, MAX_CYCLES);
+        let cycles = |field: &str, v: f64| within(field, v, 0.0, MAX_CYCLES);
         if !(1..=1024).contains(&self.cores) {
             return Err(InputError::new(
                 "$.cores",
@@ -344,7 +349,7 @@ impl MachineConfig {
                     ),
                 ));
             }
-            non_negative(&format!("{name}.latency_cycles"), c.latency_cycles)?;
+            cycles(&format!("{name}.latency_cycles"), c.latency_cycles)?;
         }
         if let Some(p) = self.memory_parallelism {
             if !(p.is_finite() && (1.0..=64.0).contains(&p)) {
@@ -364,8 +369,8 @@ impl MachineConfig {
         }
         within("clock_ghz", self.clock_ghz, 0.001, 1000.0)?;
         within("dram_gb_per_s", self.dram_gb_per_s, 0.001, 1e6)?;
-        non_negative("dram_latency_cycles", self.dram_latency_cycles)?;
-        non_negative("barrier_cycles", self.barrier_cycles)?;
+        cycles("dram_latency_cycles", self.dram_latency_cycles)?;
+        cycles("barrier_cycles", self.barrier_cycles)?;
         let k = &self.costs;
         for (name, v) in [
             ("costs.vector", k.vector),
@@ -377,7 +382,7 @@ impl MachineConfig {
             ("costs.atomic", k.atomic),
             ("costs.phase", k.phase),
         ] {
-            non_negative(name, v)?;
+            cycles(name, v)?;
         }
         Ok(())
     }

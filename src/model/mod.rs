@@ -272,7 +272,7 @@ impl Machine {
             None => {
                 // The modelled phase starts with its once-per-phase cost (`costs.phase`).
                 let start_ms = if self.is_model() {
-                    self.config.costs.phase / (self.config.clock_ghz * 1e6)
+                    self.config.costs.phase / self.config.cycles_per_ms()
                 } else {
                     0.0
                 };

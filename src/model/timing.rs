@@ -112,7 +112,7 @@ impl StepTime {
     }
 
     pub fn ms(&self, m: &MachineConfig) -> f64 {
-        self.cycles / (m.clock_ghz * 1e6)
+        self.cycles / m.cycles_per_ms()
     }
 
     /// Busiest core over the mean core (1 = perfectly balanced).

@@ -72,7 +72,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, v: &Validation) -> Dr
                 v.cost_fit
                     .as_ref()
                     .map(|f| {
-                        let held_out = !v.sweep.scenes.iter().any(|x| f.scenes.contains(x));
+                        let held_out = f.trained_on(&v.sweep.scenes).is_empty();
                         format!(
                             "; issue costs fitted on {}{}",
                             f.scenes.join(", "),
