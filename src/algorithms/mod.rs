@@ -47,6 +47,13 @@ pub enum MethodLimit {
     /// One light-space map: receivers outside it are lit (`light_view.receivers_outside`, with
     /// its own warning).
     OneMap,
+    /// The shadow map holds every surface, receiver-only objects too (eq. 1 of 000 needs the
+    /// receiver's depth `Z_P`), so they cast hard shadows like occluders.
+    ReceiversCast,
+    /// Only the occluders' shadow volumes (or their occlusion) shadow a point; no facing test,
+    /// so a receiver-only surface facing away from the light is lit (a closed occluder's own
+    /// volume holds its averted side).
+    AvertedReceiversLit,
 }
 
 impl MethodLimit {
@@ -60,6 +67,12 @@ impl MethodLimit {
             }
             MethodLimit::NoPenumbra => "no penumbra: the hard shadow of the light centre",
             MethodLimit::OneMap => "one light-space map: receivers outside it are lit",
+            MethodLimit::ReceiversCast => {
+                "receiver-only objects cast shadows: the shadow map holds every surface"
+            }
+            MethodLimit::AvertedReceiversLit => {
+                "receiver-only surfaces facing away from the light are lit: no facing test"
+            }
         }
     }
 }

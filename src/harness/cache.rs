@@ -80,6 +80,11 @@ impl ReferenceCache {
         if let Some(t) = &s.light_texture {
             h.u64(t.hash());
         }
+        // Shadow rays pass through receiver-only objects (`SceneBvh::occluded`); images cached
+        // before that, when such objects blocked them, must not be found under the same key.
+        if s.objects.iter().any(|o| !o.role.occluder) {
+            h.bytes(b"receiver-only objects cast no shadow");
+        }
         h.finish()
     }
 

@@ -206,7 +206,10 @@ pub fn run_one(
 /// matter in this frame, judged on the `reference`: pixels on occluders in shadow when the
 /// method shadows receiver-only objects only; penumbra pixels (partly lit) inside the hard
 /// shadow of the light centre for an outer-penumbra method; any penumbra for a hard-shadow
-/// method. `OneMap` warns from the run itself (`light_view.receivers_outside`).
+/// method; for a method whose shadow map holds receivers, pixels facing the light centre
+/// whose ray to it only receiver-only objects block; for a method without a facing test,
+/// shadowed pixels of receiver-only surfaces facing away from the light centre. `OneMap` warns from the run itself
+/// (`light_view.receivers_outside`).
 pub fn limit_warnings(
     frame: &Frame,
     info: &algorithms::AlgorithmInfo,
@@ -219,6 +222,7 @@ pub fn limit_warnings(
     let penumbra = |i: usize| in_shadow(i) && reference.data[i] > 0.0;
     let has_receivers_only = frame.flat.roles.iter().any(|r| r.receiver && !r.occluder);
     let centre = frame.scene.light.center();
+    let lifted = |i: usize| g.position[i] + g.normal[i] * frame.epsilon;
     let mut warnings = Vec::new();
     for &limit in info.limits {
         let n = match limit {
@@ -226,17 +230,32 @@ pub fn limit_warnings(
                 .filter(|&i| frame.flat.role_of(g.triangle[i] as usize).occluder && in_shadow(i))
                 .count(),
             MethodLimit::OuterPenumbraOnly => hits()
-                .filter(|&i| {
-                    penumbra(i)
-                        && frame
-                            .bvh
-                            .occluded(g.position[i] + g.normal[i] * frame.epsilon, centre)
-                })
+                .filter(|&i| penumbra(i) && frame.bvh.occluded(lifted(i), centre))
                 .count(),
             MethodLimit::NoPenumbra => hits().filter(|&i| penumbra(i)).count(),
+            MethodLimit::AvertedReceiversLit if has_receivers_only => hits()
+                .filter(|&i| {
+                    let role = frame.flat.role_of(g.triangle[i] as usize);
+                    !role.occluder && in_shadow(i) && g.normal[i].dot(centre - lifted(i)) <= 0.0
+                })
+                .count(),
+            MethodLimit::ReceiversCast if has_receivers_only => hits()
+                .filter(|&i| {
+                    let p = lifted(i);
+                    let facing = g.normal[i].dot(centre - p) > 0.0;
+                    facing && !frame.bvh.occluded(p, centre) && frame.bvh.blocked_by_any(p, centre)
+                })
+                .count(),
             _ => 0,
         };
-        if n > 0 {
+        if n > 0 && limit == MethodLimit::ReceiversCast {
+            warnings.push(format!(
+                "method limit ({}): {n} pixels that no occluder hides from the light centre are \
+                 shadowed by receiver-only objects in '{}'",
+                limit.describe(),
+                info.id
+            ));
+        } else if n > 0 {
             warnings.push(format!(
                 "method limit ({}): {n} pixels the reference shadows this way are not computed \
                  by '{}'; error.mae_shadow_receivers gives the error on receiver-only surfaces",

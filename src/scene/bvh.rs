@@ -1,6 +1,8 @@
 //! Ray casting against the scene with a compressed wide BVH (obvhs).
 //!
-//! Used by the ground-truth reference (shadow rays) and by the eye pass (primary rays). The
+//! Used by the ground-truth reference (shadow rays) and by the eye pass (primary rays). Shadow
+//! rays test the occluders only (objects whose role has `occluder`: a receiver-only object casts
+//! no shadow, as in every algorithm that honours the role); primary rays see every object. The
 //! any-hit answer of a shadow ray depends only on the triangle tests, never on the tree's shape,
 //! so results are identical whatever the build's thread count.
 //!
@@ -28,6 +30,8 @@ pub struct SceneBvh {
     bvh: CwBvh,
     /// Triangles in the BVH's leaf order, so traversal indexes them directly (local coordinates).
     triangles: Vec<Triangle>,
+    /// Per triangle in leaf order: whether its object is an occluder (casts shadows).
+    casts: Vec<bool>,
     origin: Vec3,
     scale: f32,
 }
@@ -73,14 +77,16 @@ impl SceneBvh {
         };
         // Leaves refer to primitives through `primitive_indices`; store the triangles in that
         // order so the intersection callback indexes them directly.
-        let triangles = bvh
-            .primitive_indices
+        let order = &bvh.primitive_indices;
+        let casts = order
             .iter()
-            .map(|&i| triangles[i as usize])
+            .map(|&i| flat.role_of(i as usize).occluder)
             .collect();
+        let triangles = order.iter().map(|&i| triangles[i as usize]).collect();
         SceneBvh {
             bvh,
             triangles,
+            casts,
             origin,
             scale,
         }
@@ -95,8 +101,20 @@ impl SceneBvh {
         self.triangles.len()
     }
 
-    /// Whether any triangle blocks the open segment from `from` to `to`.
+    /// Whether an occluder's triangle blocks the open segment from `from` to `to` (a shadow
+    /// ray: receiver-only objects let it through).
     pub fn occluded(&self, from: Vec3, to: Vec3) -> bool {
+        self.blocked(from, to, true)
+    }
+
+    /// Whether any triangle blocks the open segment from `from` to `to`, receiver-only objects'
+    /// too (what a shadow map holding every surface sees).
+    pub fn blocked_by_any(&self, from: Vec3, to: Vec3) -> bool {
+        self.blocked(from, to, false)
+    }
+
+    /// Whether a triangle blocks the segment: an occluder's, or with `casters_only` false any.
+    fn blocked(&self, from: Vec3, to: Vec3, casters_only: bool) -> bool {
         if self.triangles.is_empty() {
             return false;
         }
@@ -109,7 +127,10 @@ impl SceneBvh {
         let ray = Ray::new(Vec3A::from(from), Vec3A::from(d / len), 0.0, len);
         !self
             .bvh
-            .ray_traverse_miss(ray, |r, id| intersect(&self.triangles[id], r))
+            .ray_traverse_miss(ray, |r, id| match casters_only && !self.casts[id] {
+                true => f32::INFINITY,
+                false => intersect(&self.triangles[id], r),
+            })
     }
 
     /// The closest hit along a ray, if any.

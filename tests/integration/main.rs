@@ -25,6 +25,7 @@ mod precision;
 mod reference;
 mod registry;
 mod robustness;
+mod roles;
 mod scenario_errors;
 mod scene_files;
 mod shard_merge;

@@ -66,7 +66,7 @@ fn straight_edge_under_a_sphere_light_matches_the_circular_segment() {
         let g_perp = g - g.dot(w) * w;
         let s = (xp * h - (xp * c.y + h * c.x)) / g_perp.length();
         let expected = segment_fraction(s, r);
-        let got = visible_fraction(&bvh, &light, p + Vec3::Y * 1e-4, k, 17 + i as u64);
+        let got = visible_fraction(&bvh, &light, (p + Vec3::Y * 1e-4, None), k, 17 + i as u64);
         assert!(
             (got - expected).abs() <= 0.01,
             "x = {xp}: reference {got}, analytic {expected}"

@@ -142,8 +142,10 @@ fn records_carry_gpu_times_statistics_and_the_adapter() {
     let covered = raster.get("shadow_map.covered_texels").unwrap();
     assert!(covered > 0.0 && fill >= covered, "{raster:?}");
     if gpu.queries.pipeline_statistics {
-        // The scene is drawn once: one clipper invocation per triangle.
-        let occluder_triangles = f.flat.mesh.triangles.len() as f64;
+        // The occluders are drawn once (the receiver-only ground casts nothing): one clipper
+        // invocation per triangle.
+        let occluders = f.scene.occluders();
+        let occluder_triangles = occluders.triangles.len() as f64;
         assert_eq!(
             raster.get("pipeline.clipper_invocations"),
             Some(occluder_triangles)
@@ -152,7 +154,7 @@ fn records_carry_gpu_times_statistics_and_the_adapter() {
         // driver skips it and reports 0 (Vulkan leaves this to the implementation), so only
         // the vertex stage is checked: every vertex the triangles use is shaded at least once.
         let used: std::collections::HashSet<u32> =
-            f.flat.mesh.triangles.iter().flatten().copied().collect();
+            occluders.triangles.iter().flatten().copied().collect();
         let vertices = raster.get("pipeline.vertex_shader_invocations").unwrap();
         assert!(
             vertices >= used.len() as f64,

@@ -16,7 +16,8 @@ use serde::{Deserialize, Serialize};
 use super::shadow_volume::ShadowQuad;
 pub use super::shadow_volume::{Counting, GpuPipeline};
 use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, ExecContext, WgpuEntry, WgpuParity, WorkEstimate,
+    work, Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
+    WorkEstimate,
 };
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
@@ -144,6 +145,7 @@ impl Algorithm for AccumHard {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "001 §1.3, Paper III §5";
     const SUMMARY: &'static str = "average of N hard shadow-volume shadows from N light samples";
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedReceiversLit];
     type Options = AccumHardOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::accum_hard;

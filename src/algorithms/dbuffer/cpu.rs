@@ -6,7 +6,7 @@
 //! 2. `volumes`: extrusion points per silhouette edge (step `extrude`), the quads, umbra quads
 //!    trimmed at convex corners (step `quads`), the closing triangles of the penumbra volume and the silhouette faces of the umbra volume (step
 //!    `close`);
-//! 3. `dbuffer`: three draws from the light centre on the binned rasterizer: the scene's depth,
+//! 3. `dbuffer`: three draws from the light centre on the binned rasterizer: the occluders' depth,
 //!    the umbra volume and the penumbra volume, each volume fragment writing the depth of its
 //!    silhouette edge below the light plane (the rule of [`super::DEPTH_RULE`]);
 //! 4. `eye_lookup`: eq. 2, eq. 3 and eq. 4 per eye sample.
@@ -788,7 +788,8 @@ fn draw_volume(
 /// Phase `dbuffer`.
 pub fn dbuffer(m: &mut Machine, frame: &Frame, face: &FaceView, v: &Volumes) -> DBuffer {
     m.phase("dbuffer");
-    let mesh = casters(m, &face.view, &frame.flat.mesh);
+    // |cx_o|: the occluders only (a receiver-only object casts no shadow).
+    let mesh = casters(m, &face.view, &frame.scene.occluders());
     let scene = raster_shadow_map(m, frame, face, mesh);
     // The scene's draw is the |cx_o| channel; fill and overdraw count the volumes.
     let (scene_fill, scene_over) = (m.counter("fill"), m.counter("overdraw"));

@@ -12,7 +12,8 @@
 //!    penumbra quad away from `p_p`; penumbra quads meeting at a vertex are closed by triangles extruded from disc
 //!    points interpolated on the rim between their `p_p` ([`rim_arc`]); silhouette faces whose
 //!    plane has the light centre behind it are drawn with the umbra volume (§3.3, Figure 6).
-//! 3. **D-buffer** (§3): rendered from the light centre `c`: the scene (`|cx_o|`), the umbra
+//! 3. **D-buffer** (§3): rendered from the light centre `c`: the occluders (`|cx_o|`; objects
+//!    whose role is receiver only are left out: they cast no shadow), the umbra
 //!    volume (`|cx_uv|`) and the penumbra volume (`|cx_pv|`), each volume fragment also carrying
 //!    the depth of its silhouette edge below the light plane, from which eq. 2 gives `|cx_s|`.
 //! 4. **Eye lookup** (§4): per eye sample `x`, `t` by eq. 3 ([`t_umbra`], [`t_penumbra`]) and

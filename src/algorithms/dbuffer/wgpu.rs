@@ -4,9 +4,10 @@
 //! single_core`, the paper's single CPU); then:
 //!
 //! 1. `dbuffer` — three render passes from the light centre into `map_resolution`² targets:
-//!    the scene's depth (Depth32Float, `|cx_o|`); the umbra volume (its own Depth32Float for
-//!    `|cx_uv|` and an R32Float colour target for the edge depth behind `|cx_s|`), whose
-//!    fragment shader reads the scene's depth and discards fragments in front of it; the
+//!    the occluders' depth (Depth32Float, `|cx_o|`; a receiver-only object casts no shadow);
+//!    the umbra volume (its own Depth32Float for `|cx_uv|` and an R32Float colour target for
+//!    the edge depth behind `|cx_s|`), whose fragment shader reads the occluders' depth and
+//!    discards fragments in front of it; the
 //!    penumbra volume (Depth32Float and R32Float likewise). The D-buffer is thus five
 //!    single-channel textures rather than one RGBA target: each volume needs its own depth
 //!    test (nearest surface, [`super::DEPTH_RULE`]) and the edge depth must come from the same
@@ -94,12 +95,14 @@ pub fn render(
     // threads, or on one host thread with `volume_build: single_core`.
     let mut m = machine(Backend::CpuNative, frame, ctx);
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
-    let adj = EdgeAdjacency::build(&frame.scene.occluders());
+    let occluders = frame.scene.occluders();
+    let adj = EdgeAdjacency::build(&occluders);
     let views = LightViews::fit(frame, ViewFit::Single);
     let view = *views.single();
     let v = build_volumes(&mut m, frame, &adj, disc, &view, o);
     let host = m.finish();
-    let mut out = Passes::new(gpu, frame, &view, disc, &v.umbra, &v.penumbra, o).run(frame)?;
+    let volumes = [&v.umbra, &v.penumbra];
+    let mut out = Passes::new(gpu, frame, (&view, disc), &occluders, volumes, o).run(frame)?;
     let volume_build = o.volume_build.describe();
     record_execution(&mut out.execution, json!({ "volume_build": volume_build }));
     let mut phases = host.phases;
@@ -134,13 +137,14 @@ struct Passes<'g> {
 }
 
 impl<'g> Passes<'g> {
+    /// The passes from light view `view` of `disc`: the D-buffer of `occluders` (`|cx_o|`) and
+    /// of the umbra and penumbra volumes, then the eye lookup.
     fn new(
         gpu: &'g Gpu,
         frame: &Frame,
-        view: &LightView,
-        disc: Disc,
-        umbra: &VolumeMesh,
-        penumbra: &VolumeMesh,
+        (view, disc): (&LightView, Disc),
+        occluders: &crate::scene::Mesh,
+        [umbra, penumbra]: [&VolumeMesh; 2],
         o: &DbufferOptions,
     ) -> Passes<'g> {
         let (width, height) = (frame.width(), frame.height());
@@ -171,7 +175,7 @@ impl<'g> Passes<'g> {
             Mesh::with_w(gpu, label, &v.positions, z_e, &v.triangles)
         };
         let meshes = [
-            Mesh::of(gpu, "scene", &frame.flat.mesh),
+            Mesh::of(gpu, "scene", occluders),
             volume("umbra volume", umbra),
             volume("penumbra volume", penumbra),
         ];

@@ -23,7 +23,7 @@ override INSTRUMENT: bool = false;
 // `project`, `linear_depth`, `texel_world` and `bias_at`: shadow_map/light_view.wgsl, joined
 // before this file.
 
-// Phase `dbuffer`, the scene's depth (|cx_o|): every triangle, depth only.
+// Phase `dbuffer`, the scene's depth (|cx_o|): every occluder triangle, depth only.
 @vertex
 fn vs_scene(@location(0) p: vec3<f32>) -> @builtin(position) vec4<f32> {
     return light.view_proj * vec4<f32>(p, 1.0);

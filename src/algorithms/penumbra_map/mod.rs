@@ -202,8 +202,9 @@ impl Sheet {
 }
 
 /// What the shadows are generated from: the triangles rasterized into the shadow map (every
-/// triangle of the scene, receivers too, as the hard shadow map draws them) and the occluders
-/// whose silhouette makes the penumbra map.
+/// triangle of the scene, receivers too: eq. 1 takes the receiver's depth `Z_P` from the map,
+/// so a receiver-only object casts a hard shadow too, [`MethodLimit::ReceiversCast`]) and the
+/// occluders whose silhouette makes the penumbra map.
 pub struct ShadowGeometry<'f> {
     pub shadow_map: Cow<'f, Mesh>,
     pub occluders: Mesh,
@@ -420,7 +421,11 @@ impl Algorithm for PenumbraMap {
     const SUMMARY: &'static str =
         "shadow map + penumbra map of cones and sheets on the light-centre silhouette";
     const LIGHTS: &'static [LightKind] = &[LightKind::Sphere];
-    const LIMITS: &'static [MethodLimit] = &[MethodLimit::OuterPenumbraOnly, MethodLimit::OneMap];
+    const LIMITS: &'static [MethodLimit] = &[
+        MethodLimit::OuterPenumbraOnly,
+        MethodLimit::OneMap,
+        MethodLimit::ReceiversCast,
+    ];
     type Options = PenumbraMapOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::penumbra_map;

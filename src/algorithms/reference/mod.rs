@@ -4,8 +4,10 @@
 //! The light is divided into k×k strata (N = k² samples, 256 by default, 1024 for paper runs),
 //! each sampled once at a jittered position; a shadow ray from the surface point (moved off the
 //! surface robustly along the eye-facing normal, `GBuffer::shading_point`) to the sample either
-//! reaches it or not. Jitter is a pure function of (seed, pixel, sample), so the image is identical for any
-//! host thread count.
+//! reaches it or not; only occluders block it (a receiver-only object casts no shadow, not even
+//! on itself, `SceneBvh::occluded`, but its surface hides the part of the light behind its own
+//! plane: [`ShadingPoint`]). Jitter is a pure function of (seed, pixel, sample), so the image is
+//! identical for any host thread count.
 //!
 //! A textured light ([`crate::scene::light_texture`]) weights each sample by the texture's
 //! colour at its place on the light; the output then also holds the light received per channel.
@@ -39,34 +41,52 @@ pub fn strata_side(samples: u32) -> Option<u32> {
     (k >= 1 && k * k == samples).then_some(k)
 }
 
-/// Fraction of `light` visible from `p` (already moved off its surface), from k×k stratified
-/// samples of stream `seed`.
-pub fn visible_fraction(bvh: &SceneBvh, light: &Light, p: Vec3, k: u32, seed: u64) -> f32 {
-    let n = k * k;
-    let visible = light
-        .stratified_samples(p, k, seed)
-        .filter(|&q| !bvh.occluded(p, q))
-        .count();
-    visible as f32 / n as f32
+/// A shading point (moved off its surface) and, on a receiver-only surface, the normal of the
+/// side it is seen from: such a surface casts no shadow, its own triangles let shadow rays
+/// through, but it still hides the light behind its own plane (an occluder's surface does that
+/// with its own triangles).
+pub type ShadingPoint = (Vec3, Option<Vec3>);
+
+/// Whether light sample `q` is visible from shading point `(p, horizon)`: in front of the
+/// receiver-only surface's plane, and no occluder on the way.
+fn sees(bvh: &SceneBvh, (p, horizon): ShadingPoint, q: Vec3) -> bool {
+    horizon.is_none_or(|n| n.dot(q - p) > 0.0) && !bvh.occluded(p, q)
 }
 
-/// Light received from a textured `light` at `p` (moved off its surface), from k×k stratified
-/// samples of stream `seed`, each weighted by the texture's colour where it lies on the light:
+/// The shading point of pixel `i` of `frame` ([`ShadingPoint`]).
+fn shading_point(frame: &Frame, i: usize) -> ShadingPoint {
+    let g = &frame.gbuffer;
+    let receiver_only = !frame.flat.role_of(g.triangle[i] as usize).occluder;
+    (g.shading_point(i), receiver_only.then_some(g.normal[i]))
+}
+
+/// Fraction of `light` visible from shading point `p`, from k×k stratified samples of stream
+/// `seed`.
+pub fn visible_fraction(bvh: &SceneBvh, light: &Light, p: ShadingPoint, k: u32, seed: u64) -> f32 {
+    let visible = light
+        .stratified_samples(p.0, k, seed)
+        .filter(|&q| sees(bvh, p, q))
+        .count();
+    visible as f32 / (k * k) as f32
+}
+
+/// Light received from a textured `light` at shading point `p`, from k×k stratified samples of
+/// stream `seed`, each weighted by the texture's colour where it lies on the light:
 /// per channel the visible samples' mean colour over all samples, and the luminance fraction
 /// of the visible samples over all of them ([`LightTexture::visibility`]'s quantity).
 pub fn received_light(
     bvh: &SceneBvh,
     light: &Light,
     texture: &LightTexture,
-    p: Vec3,
+    p: ShadingPoint,
     k: u32,
     seed: u64,
 ) -> ([f32; 3], f32) {
     let n = k * k;
     let (mut visible, mut all) = ([0.0f64; 3], [0.0f64; 3]);
-    for (i, q) in (0..n).zip(light.stratified_samples(p, k, seed)) {
+    for (i, q) in (0..n).zip(light.stratified_samples(p.0, k, seed)) {
         let c = texture.at(light.stratified_coords(i, k, seed));
-        let lit = !bvh.occluded(p, q);
+        let lit = sees(bvh, p, q);
         for ch in 0..3 {
             all[ch] += f64::from(c[ch]);
             if lit {
@@ -103,7 +123,7 @@ pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) 
             if !g.is_hit(i) {
                 return (1.0, unoccluded);
             }
-            let p = g.shading_point(i);
+            let p = shading_point(frame, i);
             let stream = mix64(seed ^ i as u64);
             match texture {
                 Some(t) => {

@@ -28,11 +28,16 @@ pub struct ShadowMap {
     pub map: Surface,
 }
 
-/// Phase `light_raster` (`light_raster[+x]` per cube face): NDC depth of every triangle that
-/// meets `face`'s frustum, nearest kept.
-pub fn light_raster(m: &mut Machine, frame: &Frame, face: &FaceView) -> ShadowMap {
+/// Phase `light_raster` (`light_raster[+x]` per cube face): NDC depth of every triangle of
+/// `occluders` (the scene's occluder objects) that meets `face`'s frustum, nearest kept.
+pub fn light_raster(
+    m: &mut Machine,
+    frame: &Frame,
+    face: &FaceView,
+    occluders: &Mesh,
+) -> ShadowMap {
     m.phase(&face.phase("light_raster"));
-    let mesh = casters(m, &face.view, &frame.flat.mesh);
+    let mesh = casters(m, &face.view, occluders);
     raster_shadow_map(m, frame, face, mesh)
 }
 
@@ -359,8 +364,10 @@ pub fn render_views<L: Lookup>(
     let mut m = machine(backend, frame, ctx);
     let views = LightViews::fit(frame, ViewFit::CubeWhenWide);
     let mut vis = VisibilityBuffer::lit(frame.width(), frame.height());
+    // Only occluders cast: a receiver-only object is left out of the map.
+    let occluders = frame.scene.occluders();
     for face in &views.views {
-        let map = light_raster(&mut m, frame, face);
+        let map = light_raster(&mut m, frame, face, &occluders);
         let part = eye_lookup(&mut m, frame, &map, bias, lookup);
         face.take_owned(frame, &part, &mut vis);
     }

@@ -1,6 +1,7 @@
-// Phase `light_raster`: the depth-only shadow map of every triangle of the scene from the light
-// centre (`LightView` in src/algorithms/shadow_map/mod.rs). The depth attachment (Depth32Float,
-// cleared to 1, compare Less) holds NDC depth, the same value `LightView::project` returns.
+// Phase `light_raster`: the depth-only shadow map of the casters (the occluders; penumbra_map:
+// every triangle of the scene) from the light centre (`LightView` in
+// src/algorithms/shadow_map/mod.rs). The depth attachment (Depth32Float, cleared to 1, compare
+// Less) holds NDC depth, the same value `LightView::project` returns.
 
 @vertex
 fn vs(@location(0) p: vec3<f32>) -> @builtin(position) vec4<f32> {

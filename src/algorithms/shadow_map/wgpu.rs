@@ -1,8 +1,9 @@
 //! The wgpu execution of the shadow-map family (`hard_shadow_map`, `pcss`): two GPU passes.
 //! `penumbra_map` builds on the same passes ([`Passes`]), with its penumbra map between them.
 //!
-//! 1. `light_raster` — a render pass draws every triangle of the scene from the light centre
-//!    ([`LightView`]) into a `map_resolution`² Depth32Float map (see `light_raster.wgsl`).
+//! 1. `light_raster` — a render pass draws the occluders' triangles (penumbra_map: every
+//!    triangle, receivers too) from the light centre ([`LightView`]) into a `map_resolution`²
+//!    Depth32Float map (see `light_raster.wgsl`).
 //! 2. `eye_lookup` — a compute pass over the frame's gbuffer, uploaded as storage buffers (the
 //!    eye pass is shared by all executions, so parity is about the shadow algorithm alone),
 //!    writes the visibility buffer with the algorithm's `visibility_at` (the kernel in
@@ -115,8 +116,10 @@ pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> 
     check_limits(gpu, frame, lookup.id)?;
     let views = LightViews::fit(frame, ViewFit::CubeWhenWide);
     let mut merged: Option<FrameOutput> = None;
+    // Only occluders cast: a receiver-only object is left out of the map.
+    let occluders = frame.scene.occluders();
     for face in &views.views {
-        let casters = face.view.casters(&frame.flat.mesh);
+        let casters = face.view.casters(&occluders);
         let mut out = Passes::new(gpu, frame, lookup, face, &casters, None).run(frame)?;
         for p in &mut out.phases {
             p.name = face.phase(&p.name);
@@ -211,8 +214,7 @@ impl<'g> Passes<'g> {
             face: face.face_code(),
             pad: 0,
         };
-        // Every triangle of the scene can cast a shadow into the map (receivers shadow each
-        // other too), indexed as in `occluders`, as the cpu executions draw it.
+        // The casters of the view, indexed as in `occluders`, as the cpu executions draw them.
         let occluders = Mesh::of(gpu, "occluders", occluders);
         // The gbuffer (position with the hit flag in w, the eye-facing normal), the visibility.
         let eye = EyeBuffers::new(gpu, &frame.gbuffer, |_| 0.0);

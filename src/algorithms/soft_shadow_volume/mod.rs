@@ -35,7 +35,7 @@ use serde::{Deserialize, Serialize};
 use super::eye_raster::ConvexVolume;
 pub use super::shadow_volume::{Counting, GpuPipeline};
 use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WgpuParity, WorkEstimate,
+    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
 };
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
@@ -789,6 +789,7 @@ impl Algorithm for SoftShadowVolume {
     const SUMMARY: &'static str =
         "hard shadow quads plus penumbra wedges adding or subtracting light coverage";
     const LIGHTS: &'static [LightKind] = &[LightKind::Rect, LightKind::Sphere];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedReceiversLit];
     type Options = SoftShadowVolumeOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_shadow_volume;
