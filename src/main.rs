@@ -793,18 +793,21 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
         .map(|p| report::read_results(p))
         .collect::<std::result::Result<Vec<_>, _>>()?;
     let several = files.len() > 1;
-    let _lock = harness::outdir::lock("--out", &out)?;
-    let mut reports: Vec<(String, harness::output::ResultsFile)> = Vec::new();
-    for (path, file) in results.iter().zip(files) {
-        // Each file's folder under OUT: its scenario name as one safe file name component.
-        let name = slug(&file.scenario);
-        if reports.iter().any(|(d, _)| *d == name) {
+    // Each file's folder under OUT: its scenario name as one safe file name component, checked
+    // for every file before anything is written.
+    let names: Vec<String> = files.iter().map(|f| slug(&f.scenario)).collect();
+    for (i, (path, file)) in results.iter().zip(&files).enumerate() {
+        if names[..i].contains(&names[i]) {
             return Err(InputError::file(
                 path,
                 format!("scenario '{}' is given twice", file.scenario),
             )
             .into());
         }
+    }
+    let _lock = harness::outdir::lock("--out", &out)?;
+    let mut reports: Vec<(String, harness::output::ResultsFile)> = Vec::new();
+    for ((path, file), name) in results.iter().zip(files).zip(names) {
         let dir = if several {
             out.join(&name)
         } else {

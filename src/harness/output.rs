@@ -26,12 +26,19 @@ pub struct ResultsFile {
 }
 
 impl ResultsFile {
-    /// Refuses a file in which one run (one [`RunRecord::case_id`]) appears more than once,
-    /// naming the second one: which of the two counts is undecidable, so neither `report` nor
-    /// `compare` nor `merge` picks one.
-    pub fn check_unique_runs(&self) -> std::result::Result<(), crate::error::InputError> {
+    /// Refuses a file in which a run names an execution that does not exist (chart file names
+    /// and charts are built from it), or in which one run (one [`RunRecord::case_id`]) appears
+    /// more than once, naming the second one: which of the two counts is undecidable, so
+    /// neither `report` nor `compare` nor `merge` picks one.
+    pub fn check_runs(&self) -> std::result::Result<(), crate::error::InputError> {
         let mut seen = std::collections::HashSet::new();
         for (i, r) in self.runs.iter().enumerate() {
+            if let Err(e) = crate::backend::Backend::parse(&r.backend) {
+                return Err(crate::error::InputError::new(
+                    format!("$.runs[{i}].backend"),
+                    e,
+                ));
+            }
             if !seen.insert(r.case_id()) {
                 return Err(crate::error::InputError::new(
                     format!("$.runs[{i}]"),

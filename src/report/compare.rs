@@ -257,7 +257,7 @@ fn by_case<'a>(
     path: &Path,
     file: &'a ResultsFile,
 ) -> Result<BTreeMap<String, &'a RunRecord>, InputError> {
-    file.check_unique_runs().map_err(|e| e.in_file(path))?;
+    file.check_runs().map_err(|e| e.in_file(path))?;
     Ok(file.runs.iter().map(|r| (r.case_id(), r)).collect())
 }
 

@@ -30,13 +30,14 @@ pub fn read_results(path: &Path) -> Result<ResultsFile, InputError> {
 /// Parses and checks the text of a results file; `path` names it in errors. `report`,
 /// `compare` and `merge` all read through here, so they accept and refuse the same files: the
 /// `scenario` must be a plain name ([`crate::util::paths::check_name`]: it names a folder of
-/// `report`) and no run may appear twice ([`ResultsFile::check_unique_runs`]). Counters of older
-/// versions are read under their current names ([`ResultsFile::upgraded`]).
+/// `report`), every run must name a known execution and none may appear twice
+/// ([`ResultsFile::check_runs`]). Counters of older versions are read under their current
+/// names ([`ResultsFile::upgraded`]).
 pub fn parse_results(text: &str, path: &Path) -> Result<ResultsFile, InputError> {
     let file: ResultsFile = serde_json::from_str(text)
         .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))?;
     crate::util::paths::check_name("$.scenario", &file.scenario).map_err(|e| e.in_file(path))?;
-    file.check_unique_runs().map_err(|e| e.in_file(path))?;
+    file.check_runs().map_err(|e| e.in_file(path))?;
     Ok(file.upgraded())
 }
 

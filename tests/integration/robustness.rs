@@ -534,6 +534,41 @@ fn compare_against_a_baseline_with_no_runs_fails() {
 }
 
 #[test]
+fn report_compare_and_merge_refuse_an_unknown_execution_and_report_writes_nothing_for_a_repeated_scenario(
+) {
+    let dir = tempfile::tempdir().unwrap();
+    let good = real_results(dir.path());
+    // The execution names chart files: a value that is not one is refused before any is drawn.
+    let mut bad = good.clone();
+    bad["runs"][0]["backend"] = json!("a/b");
+    let file = dir.path().join("bad.json");
+    write(&file, &bad);
+    let out = dir.path().join("out");
+    for args in [
+        vec!["report", s(&file), "--out", s(&out)],
+        vec!["compare", s(&file), s(&file)],
+        vec!["merge", s(&file), "--out", s(&out)],
+    ] {
+        let o = shadowbench(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let e = error_line(&o);
+        assert!(
+            e.contains("bad.json") && e.contains("$.runs[0].backend") && e.contains("a/b"),
+            "{e}"
+        );
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    }
+    // Two files of one scenario: refused before the first one's report is written.
+    let (f1, f2) = (dir.path().join("one.json"), dir.path().join("two.json"));
+    write(&f1, &good);
+    write(&f2, &good);
+    let o = shadowbench(&["report", s(&f1), s(&f2), "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(error_line(&o).contains("given twice"), "{}", error_line(&o));
+    assert!(!out.exists(), "report wrote {}", out.display());
+}
+
+#[test]
 fn report_compare_and_merge_refuse_a_duplicated_run_alike() {
     let dir = tempfile::tempdir().unwrap();
     let mut dup = real_results(dir.path());
