@@ -74,6 +74,9 @@ impl VisibilityBuffer {
         w.finish().map_err(|e| Error::io(path, e))
     }
 
+    /// Reads a visibility buffer written by [`Self::write_npy`]: a 2-D `f32` array (rows by
+    /// columns) of values in [0, 1]. Another shape or type, or a value outside [0, 1] (NaN and
+    /// infinities included), is an input error naming the file and the pixel.
     pub fn read_npy(path: &Path) -> Result<VisibilityBuffer> {
         let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
         let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| Error::io(path, e))?;
@@ -85,11 +88,14 @@ impl VisibilityBuffer {
             )));
         }
         let data: Vec<f32> = npy.into_vec().map_err(|e| Error::io(path, e))?;
-        Ok(VisibilityBuffer {
+        let v = VisibilityBuffer {
             width: shape[1] as u32,
             height: shape[0] as u32,
             data,
-        })
+        };
+        v.check_range()
+            .map_err(|e| crate::error::InputError::file(path, e))?;
+        Ok(v)
     }
 }
 

@@ -275,3 +275,53 @@ fn an_adapter_that_is_not_there_is_an_input_error() {
     assert!(stderr(&o).contains("SHADOWBENCH_ADAPTER"), "{}", stderr(&o));
     assert!(!Path::new(out).exists(), "run wrote {out}");
 }
+
+/// `diff` of a run whose `visibility.npy` holds a value outside [0, 1] (NaN, infinity, 5) is
+/// an input error naming the file and the pixel, not a NaN mean.
+#[test]
+fn diff_refuses_a_visibility_outside_zero_to_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a");
+    let o = shadowbench(&[
+        "render",
+        "--algorithm",
+        "pcss",
+        "--image",
+        "16x12",
+        "--map-resolution",
+        "32",
+        "--no-reference",
+        "--out",
+        a.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let b = dir.path().join("b");
+    std::fs::create_dir(&b).unwrap();
+    for name in ["visibility.npy", "mask.npy"] {
+        std::fs::copy(a.join(name), b.join(name)).unwrap();
+    }
+    let npy = b.join("visibility.npy");
+    let good = std::fs::read(&npy).unwrap();
+    for bad in [f32::NAN, f32::INFINITY, 5.0] {
+        // The last pixel (15, 11): the array's last four bytes, little-endian f32.
+        let mut bytes = good.clone();
+        let n = bytes.len();
+        bytes[n - 4..].copy_from_slice(&bad.to_le_bytes());
+        std::fs::write(&npy, bytes).unwrap();
+        let png = dir.path().join("d.png");
+        let o = shadowbench(&[
+            "diff",
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--out",
+            png.to_str().unwrap(),
+        ]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{bad}: {e}");
+        assert!(
+            e.contains("visibility.npy") && e.contains("(15, 11)") && e.contains(&bad.to_string()),
+            "{bad}: {e}"
+        );
+        assert!(!png.exists());
+    }
+}
