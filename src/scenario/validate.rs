@@ -94,8 +94,13 @@ pub fn triangles(field: &str, v: u32) -> Check {
     InputError::check_range(field, v, 1..=50_000_000)
 }
 
+/// Largest occluder height accepted, in scene units above the ground: beyond it the occluder
+/// is far above every built-in scene and its light (and far past what f32 keeps of the
+/// scene's detail at 1e30).
+pub const MAX_OCCLUDER_HEIGHT: f32 = 100.0;
+
 pub fn occluder_height(field: &str, v: f32) -> Check {
-    InputError::check_non_negative(field, v)
+    InputError::check_range(field, v, 0.0..=MAX_OCCLUDER_HEIGHT)
 }
 
 /// Largest lateral occluder offset accepted, in scene units either way: beyond it the occluder

@@ -186,6 +186,14 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             vec!["$.params.occluder_offset", "-250"],
         ),
         (
+            "occluder height out of range",
+            mutate(
+                r#""map_resolution": 64"#,
+                r#""map_resolution": 64, "occluder_height": 250"#,
+            ),
+            vec!["$.params.occluder_height", "250"],
+        ),
+        (
             "occluder offset for a scene without a moving occluder",
             mutate(r#""sweep": {"#, r#""sweep": { "occluder_offset": [1],"#).replacen(
                 "sphere-on-plane",
