@@ -565,6 +565,13 @@ fn render(a: RenderArgs) -> Result<()> {
 }
 
 fn scene_export(a: ExportArgs) -> Result<()> {
+    if let Some(path) = a.scenario.as_ref().filter(|p| same_path(p, &a.out)) {
+        let why = format!(
+            "'{}' is the --out file the scene is written to; give the scenario its own file",
+            path.display()
+        );
+        return Err(InputError::new("--scenario", why).into());
+    }
     let generator = a.generator.params(a.seed.unwrap_or(1))?;
     let (scene, notes) = scenario::scene_from_arg(&a.scene, generator)?;
     for w in &notes.warnings {
@@ -587,6 +594,13 @@ fn scene_export(a: ExportArgs) -> Result<()> {
         println!("wrote {}", path.display());
     }
     Ok(())
+}
+
+/// Whether `a` and `b` name one file: the same absolute path, or both existing and the same
+/// file once links are resolved.
+fn same_path(a: &Path, b: &Path) -> bool {
+    let canonical = |p: &Path| p.canonicalize().or_else(|_| std::path::absolute(p));
+    matches!((canonical(a), canonical(b)), (Ok(x), Ok(y)) if x == y)
 }
 
 /// The files `run` writes into each scenario's folder (besides images, charts and the cache).

@@ -157,7 +157,10 @@ pub fn write_scene(scene: &Scene, path: &Path, field: &str) -> Result<()> {
         }
     };
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        std::fs::create_dir_all(dir).map_err(|e| {
+            let why = format!("cannot create the folder '{}': {e}", dir.display());
+            InputError::new(field, why)
+        })?;
     }
     crate::visibility::write_atomic(path, &bytes)
 }

@@ -635,3 +635,39 @@ fn render_of_a_mesh_file_reports_what_it_added() {
         "{record}"
     );
 }
+
+/// `scene export` refuses a `--scenario` that is the `--out` file (it would replace the mesh
+/// it points at) and an `--out` whose folder cannot be made, each naming the flag, exit 2,
+/// nothing written.
+#[test]
+fn scene_export_refuses_a_scenario_on_its_mesh_and_an_out_under_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("a.obj");
+    let m = mesh.to_str().unwrap();
+    let o = super::common::shadowbench(&[
+        "scene",
+        "export",
+        "sphere-on-plane",
+        "--out",
+        m,
+        "--scenario",
+        m,
+    ]);
+    let e = super::common::stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("--scenario") && e.contains("a.obj"), "{e}");
+    assert!(!mesh.exists());
+    let file = dir.path().join("afile");
+    std::fs::write(&file, "x").unwrap();
+    let under = file.join("a.obj");
+    let o = super::common::shadowbench(&[
+        "scene",
+        "export",
+        "sphere-on-plane",
+        "--out",
+        under.to_str().unwrap(),
+    ]);
+    let e = super::common::stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("--out") && e.contains("afile"), "{e}");
+}
