@@ -341,19 +341,22 @@ fn camera(c: &crate::scene::Camera) -> Check {
 }
 
 /// `$.algorithms`, `$.backends`, `$.options` and the light texture: known names, at least one
-/// of each, options each algorithm accepts.
+/// of each and none twice (the plan would count a run it never makes), options each algorithm
+/// accepts.
 fn algorithms_and_backends(s: &Scenario) -> Check {
     if s.algorithms.is_empty() {
         return fail("$.algorithms", "needs at least one algorithm".into());
     }
     for (i, a) in s.algorithms.iter().enumerate() {
         algorithm(&format!("$.algorithms[{i}]"), a)?;
+        once("$.algorithms", &s.algorithms, i)?;
     }
     if s.backends.is_empty() {
         return fail("$.backends", "needs at least one backend".into());
     }
     for (i, b) in s.backends.iter().enumerate() {
         backend(&format!("$.backends[{i}]"), b)?;
+        once("$.backends", &s.backends, i)?;
     }
     for k in s.options.keys() {
         algorithm(&format!("$.options.{k}"), k)?;
@@ -384,6 +387,17 @@ fn params(p: &super::BaseParams) -> Check {
         occluder_offset,
     )?;
     optional("$.params.cores", p.cores, cores)
+}
+
+/// Entry `i` of list `field` is not an earlier entry's repeat.
+fn once<T: PartialEq + std::fmt::Display>(field: &str, list: &[T], i: usize) -> Check {
+    match list[..i].iter().position(|x| *x == list[i]) {
+        Some(j) => fail(
+            &format!("{field}[{i}]"),
+            format!("'{}' is already {field}[{j}]", list[i]),
+        ),
+        None => Ok(()),
+    }
 }
 
 /// `$.sweep`: every swept value in the range of its parameter.

@@ -186,6 +186,11 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             vec!["$.params.occluder_offset", "-250"],
         ),
         (
+            "an algorithm listed twice",
+            mutate(r#""algorithms": ["#, r#""algorithms": ["pcss", "pcss", "#),
+            vec!["$.algorithms[1]", "pcss", "$.algorithms[0]"],
+        ),
+        (
             "occluder height out of range",
             mutate(
                 r#""map_resolution": 64"#,
