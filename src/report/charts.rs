@@ -121,7 +121,9 @@ impl Axis {
             Axis::ImagePixels => Some(p.image[0] as f64 * p.image[1] as f64),
             Axis::OccluderHeight => p.occluder_height.map(f64::from),
             Axis::OccluderOffset => p.occluder_offset.map(f64::from),
-            Axis::Cores => p.cores.map(f64::from),
+            // The modelled machine's core count: a cpu-native or wgpu run's time does not
+            // depend on it, so those runs are not plotted against it.
+            Axis::Cores => p.cores.filter(|_| r.backend == "cpu-model").map(f64::from),
         }
     }
 }
@@ -1360,6 +1362,21 @@ fn draw_legend<DB: DrawingBackend>(
 mod tests {
     use super::*;
     use crate::report::testdata::record;
+
+    /// Only the modelled machine has a core count: runs of other executions are left off the
+    /// cores axis, so no chart plots their times against a parameter they ignore.
+    #[test]
+    fn only_cpu_model_runs_are_placed_on_the_cores_axis() {
+        for (backend, want) in [
+            ("cpu-model", Some(16.0)),
+            ("cpu-native", None),
+            ("wgpu", None),
+        ] {
+            let mut r = record("soft_izb", backend, 100, 32);
+            r.params.cores = Some(16);
+            assert_eq!(Axis::Cores.value(&r), want, "{backend}");
+        }
+    }
 
     #[test]
     fn figures_a_chart_cannot_show_are_left_out_naming_the_run_and_figure() {
