@@ -43,9 +43,10 @@ impl InputError {
         Err(InputError::new(
             field,
             format!(
-                "must be in {}..={}, got {value}",
+                "must be in {}..={}, got {}",
                 range.start(),
-                range.end()
+                range.end(),
+                compact(value.to_string())
             ),
         ))
     }
@@ -66,6 +67,15 @@ impl InputError {
             self.file = Some(file.to_path_buf());
         }
         self
+    }
+}
+
+/// A number as the user can read it: one of more than 12 characters (`1e30` printed in full has
+/// 31) in scientific notation, any other text unchanged.
+fn compact(text: String) -> String {
+    match text.parse::<f64>() {
+        Ok(v) if text.len() > 12 => format!("{v:e}"),
+        _ => text,
     }
 }
 
