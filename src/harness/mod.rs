@@ -864,7 +864,9 @@ pub fn summary_table(records: &[RunRecord]) -> String {
 /// pixel sees no surface), visibility.npy, mask.npy (1 where the pixel sees a surface),
 /// shaded.png (visibility × a Lambertian term, [`images::write_shaded`]), run.json,
 /// visibility_rgb.png (the light received per channel) under a textured light and, with a
-/// reference, reference.png, reference_shaded.png and error.png.
+/// reference, reference.png, reference_shaded.png and error.png. Those of them an earlier
+/// frame left in `dir` and this one does not write are removed, so the folder holds one
+/// frame's files.
 pub fn write_frame_files(
     dir: &Path,
     record: &RunRecord,
@@ -874,8 +876,10 @@ pub fn write_frame_files(
     frame: &Frame,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut written = Vec::new();
     if let Some(c) = rgb {
-        c.write_png(&dir.join("visibility_rgb.png"))?;
+        c.write_png(&dir.join(FRAME_FILES[0]))?;
+        written.push(FRAME_FILES[0]);
     }
     if let Some(v) = visibility {
         let mask = frame.gbuffer.mask();
@@ -883,16 +887,37 @@ pub fn write_frame_files(
         v.write_npy(&dir.join("visibility.npy"))?;
         images::write_mask_npy(&mask, v.width, v.height, &dir.join("mask.npy"))?;
         images::write_shaded(v, frame, &dir.join("shaded.png"))?;
+        written.extend(&FRAME_FILES[1..5]);
         if let Some(r) = reference.filter(|_| record.algorithm != crate::algorithms::reference::ID)
         {
             images::write_masked_png(r, &mask, &dir.join("reference.png"))?;
             images::write_shaded(r, frame, &dir.join("reference_shaded.png"))?;
             metrics::write_error_heatmap(v, r, &mask, &dir.join("error.png"))?;
+            written.extend(&FRAME_FILES[5..]);
+        }
+    }
+    for stale in FRAME_FILES.iter().filter(|f| !written.contains(f)) {
+        let path = dir.join(stale);
+        match std::fs::remove_file(&path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(Error::io(&path, e)),
+            _ => {}
         }
     }
     let json = serde_json::to_vec_pretty(record).expect("records serialize");
     crate::visibility::write_atomic(&dir.join("run.json"), &json)
 }
+
+/// The image files [`write_frame_files`] writes besides run.json, in the order it writes them.
+const FRAME_FILES: [&str; 8] = [
+    "visibility_rgb.png",
+    "visibility.png",
+    "visibility.npy",
+    "mask.npy",
+    "shaded.png",
+    "reference.png",
+    "reference_shaded.png",
+    "error.png",
+];
 
 #[cfg(test)]
 mod tests {

@@ -325,3 +325,27 @@ fn diff_refuses_a_visibility_outside_zero_to_one() {
         assert!(!png.exists());
     }
 }
+
+/// A second `render` into the same folder leaves one frame's files: the reference images of
+/// the first are removed when the second has no reference.
+#[test]
+fn render_into_a_used_folder_removes_the_earlier_frames_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r");
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", "--image", "16x12", "--map-resolution", "32"];
+        args.extend(extra);
+        args.extend(["--out", out.to_str().unwrap()]);
+        let o = shadowbench(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    };
+    render(&["--algorithm", "pcss", "--samples", "4"]);
+    for f in ["reference.png", "reference_shaded.png", "error.png"] {
+        assert!(out.join(f).exists(), "{f}");
+    }
+    render(&["--algorithm", "hard_shadow_map", "--no-reference"]);
+    for f in ["reference.png", "reference_shaded.png", "error.png"] {
+        assert!(!out.join(f).exists(), "{f} left from the first render");
+    }
+    assert!(out.join("visibility.png").exists() && out.join("run.json").exists());
+}
