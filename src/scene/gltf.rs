@@ -39,7 +39,14 @@ pub fn load_gltf(path: &Path, node: Option<&str>) -> Result<MeshFile, InputError
                         .decode_utf8_lossy()
                         .as_ref(),
                 );
-                if file.exists() && !file.is_file() {
+                if !file.exists() {
+                    return Err(err(format!(
+                        "buffer {} ('{uri}'): '{}' not found",
+                        b.index(),
+                        file.display()
+                    )));
+                }
+                if !file.is_file() {
                     return Err(err(format!(
                         "buffer {} ('{uri}') is not a regular file",
                         b.index()

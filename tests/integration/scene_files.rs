@@ -502,6 +502,13 @@ fn gltf_and_ply_shadow_like_the_same_obj() {
     assert_eq!(b_only.mesh.triangles.len(), 12);
     let bb = b_only.mesh.bounds();
     assert!((bb.min - Vec3::new(1.0, 0.0, -1.0)).abs().max_element() < 1e-6);
+    // Without its .bin the error names the file that is missing.
+    std::fs::remove_file(dir.path().join("scene.bin")).unwrap();
+    let e = load_mesh(&dir.path().join("scene.gltf"), None).unwrap_err();
+    assert!(
+        e.to_string().contains("scene.bin") && e.to_string().contains("not found"),
+        "{e}"
+    );
 }
 
 /// `scene export` of every built-in generator, loaded back through the scenario it writes
