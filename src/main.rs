@@ -577,6 +577,16 @@ fn scene_export(a: ExportArgs) -> Result<()> {
     for w in &notes.warnings {
         eprintln!("warning: {w}");
     }
+    // The scenario's folder first: one that cannot be made stops the export before the mesh.
+    if let Some(dir) = (a.scenario.as_ref())
+        .and_then(|p| p.parent())
+        .filter(|d| !d.as_os_str().is_empty())
+    {
+        std::fs::create_dir_all(dir).map_err(|e| {
+            let why = format!("cannot create the folder '{}': {e}", dir.display());
+            InputError::new("--scenario", why)
+        })?;
+    }
     shadowbench::scene::export::write_scene(&scene, &a.out, "--out")?;
     println!(
         "wrote {} ({} objects, {} triangles)",
@@ -586,9 +596,6 @@ fn scene_export(a: ExportArgs) -> Result<()> {
     );
     if let Some(path) = &a.scenario {
         let json = scenario::export_scenario(&scene, &a.out, path)?;
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        }
         let text = serde_json::to_vec_pretty(&json).expect("JSON values serialize");
         shadowbench::visibility::write_atomic(path, &text)?;
         println!("wrote {}", path.display());
@@ -596,11 +603,26 @@ fn scene_export(a: ExportArgs) -> Result<()> {
     Ok(())
 }
 
-/// Whether `a` and `b` name one file: the same absolute path, or both existing and the same
-/// file once links are resolved.
+/// Whether `a` and `b` name one file: the same file once links are resolved when it exists,
+/// else the same absolute path once `.` and `..` are folded away.
 fn same_path(a: &Path, b: &Path) -> bool {
-    let canonical = |p: &Path| p.canonicalize().or_else(|_| std::path::absolute(p));
-    matches!((canonical(a), canonical(b)), (Ok(x), Ok(y)) if x == y)
+    let resolved = |p: &Path| -> Option<PathBuf> {
+        if let Ok(c) = p.canonicalize() {
+            return Some(c);
+        }
+        let mut out = PathBuf::new();
+        for c in std::path::absolute(p).ok()?.components() {
+            match c {
+                std::path::Component::CurDir => {}
+                std::path::Component::ParentDir => {
+                    out.pop();
+                }
+                c => out.push(c),
+            }
+        }
+        Some(out)
+    };
+    matches!((resolved(a), resolved(b)), (Some(x), Some(y)) if x == y)
 }
 
 /// The files `run` writes into each scenario's folder (besides images, charts and the cache).

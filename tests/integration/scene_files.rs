@@ -664,6 +664,30 @@ fn scene_export_refuses_a_scenario_on_its_mesh_and_an_out_under_a_file() {
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("--scenario") && e.contains("a.obj"), "{e}");
     assert!(!mesh.exists());
+    // The same file by another spelling, and in a folder not made yet.
+    let sub = dir.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    for (out, scenario) in [
+        (mesh.clone(), sub.join("..").join("a.obj")),
+        (
+            dir.path().join("new").join("b.obj"),
+            dir.path().join("new").join(".").join("b.obj"),
+        ),
+    ] {
+        let (o_s, s_s) = (out.to_str().unwrap(), scenario.to_str().unwrap());
+        let args = [
+            "scene",
+            "export",
+            "sphere-on-plane",
+            "--out",
+            o_s,
+            "--scenario",
+            s_s,
+        ];
+        let o = super::common::shadowbench(&args);
+        assert_eq!(o.status.code(), Some(2), "{}", super::common::stderr(&o));
+        assert!(!out.exists());
+    }
     let file = dir.path().join("afile");
     std::fs::write(&file, "x").unwrap();
     let under = file.join("a.obj");
@@ -677,4 +701,20 @@ fn scene_export_refuses_a_scenario_on_its_mesh_and_an_out_under_a_file() {
     let e = super::common::stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{e}");
     assert!(e.contains("--out") && e.contains("afile"), "{e}");
+    // A scenario under a regular file: refused naming --scenario before the mesh is written.
+    let ok = dir.path().join("ok.obj");
+    let under = file.join("s.json");
+    let args = [
+        "scene",
+        "export",
+        "sphere-on-plane",
+        "--out",
+        ok.to_str().unwrap(),
+    ];
+    let o =
+        super::common::shadowbench(&[&args[..], &["--scenario", under.to_str().unwrap()]].concat());
+    let e = super::common::stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("--scenario") && e.contains("afile"), "{e}");
+    assert!(!ok.exists());
 }
