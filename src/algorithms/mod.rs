@@ -47,13 +47,13 @@ pub enum MethodLimit {
     /// One light-space map: receivers outside it are lit (`light_view.receivers_outside`, with
     /// its own warning).
     OneMap,
-    /// The shadow map holds every surface, receiver-only objects too (eq. 1 of 000 needs the
-    /// receiver's depth `Z_P`), so they cast hard shadows like occluders.
-    ReceiversCast,
+    /// The shadow map holds every surface, those of objects that are not occluders too (eq. 1
+    /// of 000 needs the receiver's depth `Z_P`), so they cast hard shadows like occluders.
+    NonOccludersCast,
     /// Only the occluders' shadow volumes (or their occlusion) shadow a point; no facing test,
-    /// so a receiver-only surface facing away from the light is lit (a closed occluder's own
-    /// volume holds its averted side).
-    AvertedReceiversLit,
+    /// so a surface of an object that is not an occluder is lit where it faces away from the
+    /// light (a closed occluder's own volume holds its averted side).
+    AvertedNonOccludersLit,
 }
 
 impl MethodLimit {
@@ -67,11 +67,11 @@ impl MethodLimit {
             }
             MethodLimit::NoPenumbra => "no penumbra: the hard shadow of the light centre",
             MethodLimit::OneMap => "one light-space map: receivers outside it are lit",
-            MethodLimit::ReceiversCast => {
-                "receiver-only objects cast shadows: the shadow map holds every surface"
+            MethodLimit::NonOccludersCast => {
+                "objects that are not occluders cast shadows: the shadow map holds every surface"
             }
-            MethodLimit::AvertedReceiversLit => {
-                "receiver-only surfaces facing away from the light are lit: no facing test"
+            MethodLimit::AvertedNonOccludersLit => {
+                "surfaces of non-occluders facing away from the light are lit: no facing test"
             }
         }
     }

@@ -206,9 +206,9 @@ pub fn run_one(
 /// matter in this frame, judged on the `reference`: pixels on occluders in shadow when the
 /// method shadows receiver-only objects only; penumbra pixels (partly lit) inside the hard
 /// shadow of the light centre for an outer-penumbra method; any penumbra for a hard-shadow
-/// method; for a method whose shadow map holds receivers, pixels facing the light centre
-/// whose ray to it only receiver-only objects block; for a method without a facing test,
-/// shadowed pixels of receiver-only surfaces facing away from the light centre. `OneMap` warns from the run itself
+/// method; for a method whose shadow map holds every surface, pixels facing the light centre
+/// whose ray to it only objects that are not occluders block; for a method without a facing
+/// test, shadowed pixels of such objects' surfaces facing away from the light centre. `OneMap` warns from the run itself
 /// (`light_view.receivers_outside`).
 pub fn limit_warnings(
     frame: &Frame,
@@ -221,6 +221,7 @@ pub fn limit_warnings(
     let in_shadow = |i: usize| reference.data[i] < metrics::SHADOW_THRESHOLD;
     let penumbra = |i: usize| in_shadow(i) && reference.data[i] > 0.0;
     let has_receivers_only = frame.flat.roles.iter().any(|r| r.receiver && !r.occluder);
+    let has_non_occluders = frame.flat.roles.iter().any(|r| !r.occluder);
     let centre = frame.scene.light.center();
     let lifted = |i: usize| g.position[i] + g.normal[i] * frame.epsilon;
     let mut warnings = Vec::new();
@@ -233,13 +234,13 @@ pub fn limit_warnings(
                 .filter(|&i| penumbra(i) && frame.bvh.occluded(lifted(i), centre))
                 .count(),
             MethodLimit::NoPenumbra => hits().filter(|&i| penumbra(i)).count(),
-            MethodLimit::AvertedReceiversLit if has_receivers_only => hits()
+            MethodLimit::AvertedNonOccludersLit if has_non_occluders => hits()
                 .filter(|&i| {
                     let role = frame.flat.role_of(g.triangle[i] as usize);
                     !role.occluder && in_shadow(i) && g.normal[i].dot(centre - lifted(i)) <= 0.0
                 })
                 .count(),
-            MethodLimit::ReceiversCast if has_receivers_only => hits()
+            MethodLimit::NonOccludersCast if has_non_occluders => hits()
                 .filter(|&i| {
                     let p = lifted(i);
                     let facing = g.normal[i].dot(centre - p) > 0.0;
@@ -248,10 +249,10 @@ pub fn limit_warnings(
                 .count(),
             _ => 0,
         };
-        if n > 0 && limit == MethodLimit::ReceiversCast {
+        if n > 0 && limit == MethodLimit::NonOccludersCast {
             warnings.push(format!(
                 "method limit ({}): {n} pixels that no occluder hides from the light centre are \
-                 shadowed by receiver-only objects in '{}'",
+                 shadowed by objects that are not occluders in '{}'",
                 limit.describe(),
                 info.id
             ));

@@ -1,6 +1,6 @@
 //! Object roles: an object whose role lacks `occluder` casts no shadow. The reference and every
 //! method that honours roles leave the ground under such an object lit; a method whose shadow
-//! map must hold every surface declares `MethodLimit::ReceiversCast`, and a run where it matters
+//! map must hold every surface declares `MethodLimit::NonOccludersCast`, and a run where it matters
 //! says so.
 
 use glam::Vec3;
@@ -91,9 +91,9 @@ fn a_receiver_only_object_shadows_nothing_in_the_reference_or_a_method_that_hono
         // without a facing test leave it lit and say so.
         let warnings = limit_warnings(&frame, info, &truth.visibility);
         for (limit, text) in [
-            (MethodLimit::ReceiversCast, "receiver-only objects cast"),
+            (MethodLimit::NonOccludersCast, "not occluders cast shadows"),
             (
-                MethodLimit::AvertedReceiversLit,
+                MethodLimit::AvertedNonOccludersLit,
                 "facing away from the light are lit",
             ),
         ] {
@@ -105,7 +105,7 @@ fn a_receiver_only_object_shadows_nothing_in_the_reference_or_a_method_that_hono
                 info.id
             );
         }
-        let casts = info.limits.contains(&MethodLimit::ReceiversCast);
+        let casts = info.limits.contains(&MethodLimit::NonOccludersCast);
         let gpu = have_gpu() && info.backends.contains(&Backend::Wgpu);
         for backend in [Backend::CpuNative, Backend::Wgpu]
             .into_iter()

@@ -145,7 +145,7 @@ impl Algorithm for AccumHard {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "001 §1.3, Paper III §5";
     const SUMMARY: &'static str = "average of N hard shadow-volume shadows from N light samples";
-    const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedReceiversLit];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedNonOccludersLit];
     type Options = AccumHardOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::accum_hard;

@@ -210,7 +210,7 @@ impl Sheet {
 
 /// What the shadows are generated from: the triangles rasterized into the shadow map (every
 /// triangle of the scene, receivers too: eq. 1 takes the receiver's depth `Z_P` from the map,
-/// so a receiver-only object casts a hard shadow too, [`MethodLimit::ReceiversCast`]) and the
+/// so a receiver-only object casts a hard shadow too, [`MethodLimit::NonOccludersCast`]) and the
 /// occluders whose silhouette makes the penumbra map.
 pub struct ShadowGeometry<'f> {
     pub shadow_map: Cow<'f, Mesh>,
@@ -431,7 +431,7 @@ impl Algorithm for PenumbraMap {
     const LIMITS: &'static [MethodLimit] = &[
         MethodLimit::OuterPenumbraOnly,
         MethodLimit::OneMap,
-        MethodLimit::ReceiversCast,
+        MethodLimit::NonOccludersCast,
     ];
     type Options = PenumbraMapOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;

@@ -649,13 +649,13 @@ impl LightViews {
         );
         if self.receivers_outside > 0 {
             out.warnings.push(format!(
-                "{} visible receiver pixels lie outside the light view (behind the light or                  beyond {MAX_HALF_FOV_DEG}° from its axis) and are taken as lit",
+                "{} visible receiver pixels lie outside the light view (behind the light or beyond {MAX_HALF_FOV_DEG}° from its axis) and are taken as lit",
                 self.receivers_outside
             ));
         }
         if self.casters_near_clipped > 0 {
             out.warnings.push(format!(
-                "{} occluding triangles reach nearer the light than {MIN_NEAR_RATIO} of the                  light view's far plane and are clipped there",
+                "{} occluding triangles reach nearer the light than {MIN_NEAR_RATIO} of the light view's far plane and are clipped there",
                 self.casters_near_clipped
             ));
         }

@@ -1099,7 +1099,7 @@ pub fn render(
     views.record(&mut out);
     if outside > 0 {
         out.warnings.push(format!(
-            "{outside} receiver points lie at or behind the light's view plane and are taken              as lit"
+            "{outside} receiver points lie at or behind the light's view plane and are taken as lit"
         ));
     }
     for (k, v) in [

@@ -590,7 +590,8 @@ impl Algorithm for SoftIzb {
     // the disc there (normal along its view axis), so a sphere is converted to that disc and
     // the reference is computed for it.
     const LIGHTS: &'static [LightKind] = &[LightKind::Disc];
-    const LIMITS: &'static [MethodLimit] = &[MethodLimit::OneMap, MethodLimit::AvertedReceiversLit];
+    const LIMITS: &'static [MethodLimit] =
+        &[MethodLimit::OneMap, MethodLimit::AvertedNonOccludersLit];
     type Options = SoftIzbOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = cpu::memory_estimate;
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_izb;

@@ -789,7 +789,7 @@ impl Algorithm for SoftShadowVolume {
     const SUMMARY: &'static str =
         "hard shadow quads plus penumbra wedges adding or subtracting light coverage";
     const LIGHTS: &'static [LightKind] = &[LightKind::Rect, LightKind::Sphere];
-    const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedReceiversLit];
+    const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedNonOccludersLit];
     type Options = SoftShadowVolumeOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
     const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_shadow_volume;
