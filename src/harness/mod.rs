@@ -208,8 +208,8 @@ pub fn run_one(
 /// shadow of the light centre for an outer-penumbra method; any penumbra for a hard-shadow
 /// method; for a method whose shadow map holds every surface, pixels facing the light centre
 /// whose ray to it only objects that are not occluders block; for a method without a facing
-/// test, shadowed pixels of such objects' surfaces facing away from the light centre. `OneMap` warns from the run itself
-/// (`light_view.receivers_outside`).
+/// test, shadowed pixels of such objects' surfaces facing away from the light centre. `OneMap`
+/// warns from the run itself (`light_view.receivers_outside`).
 pub fn limit_warnings(
     frame: &Frame,
     info: &algorithms::AlgorithmInfo,
@@ -224,6 +224,7 @@ pub fn limit_warnings(
     let has_non_occluders = frame.flat.roles.iter().any(|r| !r.occluder);
     let centre = frame.scene.light.center();
     let lifted = |i: usize| g.position[i] + g.normal[i] * frame.epsilon;
+    let facing = |i: usize| g.normal[i].dot(centre - lifted(i)) > 0.0;
     let mut warnings = Vec::new();
     for &limit in info.limits {
         let n = match limit {
@@ -237,14 +238,15 @@ pub fn limit_warnings(
             MethodLimit::AvertedNonOccludersLit if has_non_occluders => hits()
                 .filter(|&i| {
                     let role = frame.flat.role_of(g.triangle[i] as usize);
-                    !role.occluder && in_shadow(i) && g.normal[i].dot(centre - lifted(i)) <= 0.0
+                    !role.occluder && in_shadow(i) && !facing(i)
                 })
                 .count(),
             MethodLimit::NonOccludersCast if has_non_occluders => hits()
                 .filter(|&i| {
                     let p = lifted(i);
-                    let facing = g.normal[i].dot(centre - p) > 0.0;
-                    facing && !frame.bvh.occluded(p, centre) && frame.bvh.blocked_by_any(p, centre)
+                    facing(i)
+                        && !frame.bvh.occluded(p, centre)
+                        && frame.bvh.blocked_by_any(p, centre)
                 })
                 .count(),
             _ => 0,

@@ -544,20 +544,7 @@ fn report_compare_and_merge_refuse_an_unknown_execution_and_report_writes_nothin
     let file = dir.path().join("bad.json");
     write(&file, &bad);
     let out = dir.path().join("out");
-    for args in [
-        vec!["report", s(&file), "--out", s(&out)],
-        vec!["compare", s(&file), s(&file)],
-        vec!["merge", s(&file), "--out", s(&out)],
-    ] {
-        let o = shadowbench(&args);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
-        let e = error_line(&o);
-        assert!(
-            e.contains("bad.json") && e.contains("$.runs[0].backend") && e.contains("a/b"),
-            "{e}"
-        );
-        assert!(!out.exists(), "{args:?} wrote {}", out.display());
-    }
+    refused_alike(&file, &out, &["bad.json", "$.runs[0].backend", "a/b"]);
     // Two files of one scenario: refused before the first one's report is written.
     let (f1, f2) = (dir.path().join("one.json"), dir.path().join("two.json"));
     write(&f1, &good);
@@ -577,18 +564,22 @@ fn report_compare_and_merge_refuse_a_duplicated_run_alike() {
     let file = dir.path().join("dup.json");
     write(&file, &dup);
     let out = dir.path().join("out");
+    refused_alike(&file, &out, &["dup.json", "$.runs[1]", "more than once"]);
+}
+
+/// `report`, `compare` and `merge` of results `file` each exit 2 with an error line holding
+/// every one of `needles`, and write nothing into `out`.
+fn refused_alike(file: &Path, out: &Path, needles: &[&str]) {
     for args in [
-        vec!["report", s(&file), "--out", s(&out)],
-        vec!["compare", s(&file), s(&file)],
-        vec!["merge", s(&file), "--out", s(&out)],
+        vec!["report", s(file), "--out", s(out)],
+        vec!["compare", s(file), s(file)],
+        vec!["merge", s(file), "--out", s(out)],
     ] {
         let o = shadowbench(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         let e = error_line(&o);
-        assert!(
-            e.contains("dup.json") && e.contains("$.runs[1]") && e.contains("more than once"),
-            "{e}"
-        );
+        assert!(needles.iter().all(|n| e.contains(n)), "{args:?}: {e}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
     }
 }
 

@@ -41,6 +41,7 @@ use crate::model::raster::{Surface, Target, TileRect};
 use crate::model::{lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe};
 use crate::model::{TaskKernel, LANES};
 use crate::scene::adjacency::EdgeAdjacency;
+use crate::scene::Mesh;
 
 /// Faces per task of the facing test.
 const FACE_CHUNK: usize = 1024;
@@ -785,11 +786,17 @@ fn draw_volume(
     )
 }
 
-/// Phase `dbuffer`.
-pub fn dbuffer(m: &mut Machine, frame: &Frame, face: &FaceView, v: &Volumes) -> DBuffer {
+/// Phase `dbuffer`; `occluders` (the scene's occluder objects, a receiver-only object casts no
+/// shadow) give `|cx_o|`.
+pub fn dbuffer(
+    m: &mut Machine,
+    frame: &Frame,
+    face: &FaceView,
+    occluders: &Mesh,
+    v: &Volumes,
+) -> DBuffer {
     m.phase("dbuffer");
-    // |cx_o|: the occluders only (a receiver-only object casts no shadow).
-    let mesh = casters(m, &face.view, &frame.scene.occluders());
+    let mesh = casters(m, &face.view, occluders);
     let scene = raster_shadow_map(m, frame, face, mesh);
     // The scene's draw is the |cx_o| channel; fill and overdraw count the volumes.
     let (scene_fill, scene_over) = (m.counter("fill"), m.counter("overdraw"));
@@ -918,11 +925,12 @@ pub fn render(
     o: &DbufferOptions,
 ) -> Result<FrameOutput> {
     let disc = Disc::of(&frame.scene.light, frame.scene.bounds().center());
-    let adj = EdgeAdjacency::build(&frame.scene.occluders());
+    let occluders = frame.scene.occluders();
+    let adj = EdgeAdjacency::build(&occluders);
     let mut m = machine(backend, frame, ctx);
     let views = LightViews::fit(frame, ViewFit::Single);
     let v = build_volumes(&mut m, frame, &adj, disc, views.single(), o);
-    let d = dbuffer(&mut m, frame, &views.views[0], &v);
+    let d = dbuffer(&mut m, frame, &views.views[0], &occluders, &v);
     let lookup = DLookup {
         d: &d,
         disc,
