@@ -14,7 +14,7 @@ use shadowbench::model::{self, MachineConfig};
 use shadowbench::report;
 use shadowbench::scenario::{self, validate as check, Loaded};
 use shadowbench::scene::generators::{self, GeneratorParams};
-use shadowbench::util::paths::slug;
+use shadowbench::util::paths::{same_file, slug};
 
 #[derive(Parser)]
 #[command(
@@ -565,7 +565,7 @@ fn render(a: RenderArgs) -> Result<()> {
 }
 
 fn scene_export(a: ExportArgs) -> Result<()> {
-    if let Some(path) = a.scenario.as_ref().filter(|p| same_path(p, &a.out)) {
+    if let Some(path) = a.scenario.as_ref().filter(|p| same_file(p, &a.out)) {
         let why = format!(
             "'{}' is the --out file the scene is written to; give the scenario its own file",
             path.display()
@@ -603,41 +603,16 @@ fn scene_export(a: ExportArgs) -> Result<()> {
     Ok(())
 }
 
-/// Whether `a` and `b` name one file: the same file once links are resolved when it exists,
-/// else the same absolute path once `.` and `..` are folded away.
-fn same_path(a: &Path, b: &Path) -> bool {
-    let resolved = |p: &Path| -> Option<PathBuf> {
-        if let Ok(c) = p.canonicalize() {
-            return Some(c);
-        }
-        let mut out = PathBuf::new();
-        for c in std::path::absolute(p).ok()?.components() {
-            match c {
-                std::path::Component::CurDir => {}
-                std::path::Component::ParentDir => {
-                    out.pop();
-                }
-                c => out.push(c),
-            }
-        }
-        Some(out)
-    };
-    matches!((resolved(a), resolved(b)), (Some(x), Some(y)) if x == y)
-}
-
 /// The files `run` writes into each scenario's folder (besides images, charts and the cache).
 const RESULT_FILES: [&str; 3] = ["results.json", "results.csv", "index.html"];
 
 /// Refuses an input file that the command would overwrite: one of `outputs` (when it exists,
 /// compared as canonical paths).
 fn not_an_output(input: &Path, outputs: &[PathBuf]) -> std::result::Result<(), InputError> {
-    let Ok(canonical) = input.canonicalize() else {
+    if !input.exists() {
         return Ok(());
-    };
-    match outputs
-        .iter()
-        .find(|o| o.canonicalize().is_ok_and(|o| o == canonical))
-    {
+    }
+    match outputs.iter().find(|o| same_file(input, o)) {
         Some(o) => Err(InputError::file(
             input,
             format!(
@@ -851,7 +826,7 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
         };
         std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
         report::import_images(report::results_dir(path), &dir, &file.runs)?;
-        if several && !report::same_dir(report::results_dir(path), &dir) {
+        if several && !same_file(report::results_dir(path), &dir) {
             harness::output::write_results(&dir, &file)?;
         }
         print_report(&report::write_report(&dir, &file)?);

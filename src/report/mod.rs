@@ -107,7 +107,7 @@ pub fn write_claims(out: &Path, reports: &[(String, ResultsFile)], index: bool) 
 /// so a report written to `out` is self-contained. Runs without images are skipped; nothing is
 /// copied when both are the same folder.
 pub fn import_images(from: &Path, out: &Path, records: &[RunRecord]) -> Result<()> {
-    if same_dir(from, out) {
+    if crate::util::paths::same_file(from, out) {
         return Ok(());
     }
     for r in records {
@@ -128,14 +128,6 @@ pub fn import_images(from: &Path, out: &Path, records: &[RunRecord]) -> Result<(
         }
     }
     Ok(())
-}
-
-/// Whether two paths name the same folder (compared canonically when both exist).
-pub fn same_dir(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
-    }
 }
 
 /// The folder a results file lives in (where its `images/` are).

@@ -14,6 +14,8 @@
 //!   had to change gets a short hash of the original appended, so two names that differ only in
 //!   unsafe characters still get different folders.
 
+use std::path::{Component, Path, PathBuf};
+
 use crate::error::InputError;
 use crate::util::hash::Fnv64;
 
@@ -78,6 +80,28 @@ pub fn check_name(field: &str, name: &str) -> Result<(), InputError> {
     }
 }
 
+/// Whether `a` and `b` name one file or folder: the same one once links are resolved when it
+/// exists, else the same absolute path once `.` and `..` are folded away.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    let resolved = |p: &Path| -> Option<PathBuf> {
+        if let Ok(c) = p.canonicalize() {
+            return Some(c);
+        }
+        let mut out = PathBuf::new();
+        for c in std::path::absolute(p).ok()?.components() {
+            match c {
+                Component::CurDir => {}
+                Component::ParentDir => {
+                    out.pop();
+                }
+                c => out.push(c),
+            }
+        }
+        Some(out)
+    };
+    matches!((resolved(a), resolved(b)), (Some(x), Some(y)) if x == y)
+}
+
 /// A new temporary folder and the path `name` in it (tests: the folder is removed when the
 /// returned guard drops).
 #[cfg(test)]
@@ -123,10 +147,7 @@ mod tests {
             let p = std::path::Path::new(&s);
             let comps: Vec<_> = p.components().collect();
             assert_eq!(comps.len(), 1, "{n:?} -> {s:?}");
-            assert!(
-                matches!(comps[0], std::path::Component::Normal(_)),
-                "{n:?} -> {s:?}"
-            );
+            assert!(matches!(comps[0], Component::Normal(_)), "{n:?} -> {s:?}");
             assert!(!s.starts_with('.') && s.len() <= MAX_SLUG, "{n:?} -> {s:?}");
             assert!(s.chars().all(safe_char), "{n:?} -> {s:?}");
         }
