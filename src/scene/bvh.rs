@@ -13,6 +13,7 @@
 use std::time::Duration;
 
 use glam::{Vec3, Vec3A};
+use obvhs::aabb::Aabb;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
@@ -69,8 +70,13 @@ impl SceneBvh {
         let bvh = if triangles.is_empty() {
             CwBvh::default()
         } else {
-            obvhs::cwbvh::builder::build_cwbvh_from_tris(
-                &triangles,
+            let boxes: Vec<Aabb> = triangles
+                .iter()
+                .enumerate()
+                .map(|(i, t)| tie_breaking_box(t, i))
+                .collect();
+            obvhs::cwbvh::builder::build_cwbvh(
+                &boxes,
                 BvhBuildParams::medium_build(),
                 &mut Duration::default(),
             )
@@ -147,6 +153,36 @@ impl SceneBvh {
                 triangle: self.bvh.primitive_indices[hit.primitive_id as usize],
             })
     }
+}
+
+/// Widening of a triangle's box in [`tie_breaking_box`], in local units (the scene's diagonal
+/// is in [1, 2)): 2⁻¹⁸ ≈ 3.8·10⁻⁶, 32 `f32` steps at 1, far below any texel or sample spacing.
+const TIE_BREAK: f32 = 1.0 / 262_144.0;
+
+/// The box the BVH is built over for triangle `index`: its bounds widened on each of the six
+/// sides by a different fraction of [`TIE_BREAK`] (a hash of the index and the side). The
+/// PLOC builder merges only nodes that choose each other as the cheapest neighbour; among
+/// neighbours of equal cost it always chooses the farthest one to the right, so a run of
+/// nodes with identical boxes (N copies of one triangle, many zero-area triangles at one
+/// place) merges one pair per pass and the build takes O(n²). Boxes that differ a little
+/// break every tie, the passes merge a constant share of the nodes again and the build is
+/// O(n log n) whatever the input. A wider box still holds its triangle, so traversal finds
+/// the same hits; the boxes are deterministic, so the tree is the same on every run.
+fn tie_breaking_box(tri: &Triangle, index: usize) -> Aabb {
+    let mut h = (index as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut side = || {
+        // splitmix64: six well-mixed fractions in [0.5, 1) from one index.
+        h = h.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = h;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        TIE_BREAK * (0.5 + (z >> 40) as f32 / (1u64 << 25) as f32)
+    };
+    let b = tri.aabb();
+    let low = Vec3A::new(side(), side(), side());
+    let high = Vec3A::new(side(), side(), side());
+    Aabb::new(b.min - low, b.max + high)
 }
 
 /// Distance along `ray` to `tri` within `[tmin, tmax]`, or infinity: whether the ray crosses

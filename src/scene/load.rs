@@ -27,9 +27,50 @@ pub fn mesh_extension(path: &Path) -> Option<String> {
 /// (the default scene, node transforms applied) or `.ply`. `part` selects one named part: an
 /// OBJ object or group (`o`/`g`), a glTF node (with its children); PLY files have no parts.
 ///
+/// Every reader's mesh then goes through [`Mesh::drop_degenerate`]: triangles with no area are
+/// dropped and exact duplicate triangles welded, with one warning counting each (naming the
+/// file).
+///
 /// Errors: a missing or unreadable file, an unknown extension, malformed content (naming the
-/// line, accessor or element), or no triangles.
+/// line, accessor or element), or no triangles (none in the file or part, or none with area).
 pub fn load_mesh(path: &Path, part: Option<&str>) -> Result<MeshFile, InputError> {
+    let mut file = read_mesh(path, part)?;
+    let total = file.mesh.triangles.len();
+    let found = file.mesh.drop_degenerate();
+    let plural = |n: usize| if n == 1 { "" } else { "s" };
+    if file.mesh.triangles.is_empty() {
+        let within = part.map_or(String::new(), |p| format!(" of object or group '{p}'"));
+        return Err(InputError::file(
+            path,
+            format!(
+                "no triangles with area: the {total} triangle{}{within} all have collinear \
+                 or coincident vertices",
+                plural(total)
+            ),
+        ));
+    }
+    if found.no_area > 0 {
+        file.warnings.push(format!(
+            "{}: dropped {} triangle{} with no area (collinear or coincident vertices)",
+            path.display(),
+            found.no_area,
+            plural(found.no_area)
+        ));
+    }
+    if found.duplicates > 0 {
+        file.warnings.push(format!(
+            "{}: welded {} duplicate triangle{} (the same three positions and winding as an \
+             earlier triangle)",
+            path.display(),
+            found.duplicates,
+            plural(found.duplicates)
+        ));
+    }
+    Ok(file)
+}
+
+/// The reader of `path`'s format, by extension.
+fn read_mesh(path: &Path, part: Option<&str>) -> Result<MeshFile, InputError> {
     // A folder, a device or a link loop is named as such before its extension is judged (a
     // missing file of an unknown format is an unknown format).
     if mesh_extension(path).is_some() || std::fs::symlink_metadata(path).is_ok() {

@@ -50,6 +50,83 @@ impl Mesh {
         let [a, b, c] = self.triangle(t);
         (b - a).cross(c - a)
     }
+
+    /// Whether triangle `t` has no area: its vertices are collinear or two of them coincide.
+    /// Decided exactly on the `f32` coordinates (the cross product of two edges is zero when
+    /// each of its components, the orientation of the triangle projected on the yz, zx and xy
+    /// planes, is zero; each is computed with Shewchuk's adaptive exact `orient2d`), so no
+    /// tolerance moves a thin but real triangle into this class.
+    pub fn has_no_area(&self, t: usize) -> bool {
+        let [a, b, c] = self.triangle(t);
+        let orient = |u: fn(Vec3) -> (f32, f32)| {
+            let c2 = |p: Vec3| {
+                let (x, y) = u(p);
+                robust::Coord {
+                    x: x as f64,
+                    y: y as f64,
+                }
+            };
+            robust::orient2d(c2(a), c2(b), c2(c))
+        };
+        orient(|p| (p.y, p.z)) == 0.0
+            && orient(|p| (p.z, p.x)) == 0.0
+            && orient(|p| (p.x, p.y)) == 0.0
+    }
+
+    /// Drops the triangles with no area ([`Mesh::has_no_area`]) and welds exact duplicates:
+    /// a triangle with the same three positions in the same cyclic order (the same winding,
+    /// from any starting vertex) as an earlier one is dropped. A copy of opposite winding is
+    /// kept: with its twin it bounds a closed sheet of no thickness (a two-sided face), which
+    /// the shadow-volume counts need. Positions compare by value (`-0.0` equals `0.0`), not by
+    /// index, so copies that repeat their vertices are found too. Vertices no kept triangle
+    /// uses are removed (so a dropped triangle does not widen the bounds). O(n) expected time
+    /// (one hash set).
+    pub fn drop_degenerate(&mut self) -> Degenerate {
+        let key = |p: Vec3| p.to_array().map(|x| if x == 0.0 { 0 } else { x.to_bits() });
+        let mut seen = std::collections::HashSet::with_capacity(self.triangles.len());
+        let mut found = Degenerate::default();
+        let mut kept = Vec::with_capacity(self.triangles.len());
+        for t in 0..self.triangles.len() {
+            if self.has_no_area(t) {
+                found.no_area += 1;
+                continue;
+            }
+            let k = self.triangle(t).map(key);
+            // The rotation starting at the smallest position: one key per cyclic order.
+            let first = (0..3).min_by_key(|&i| k[i]).unwrap_or(0);
+            if !seen.insert([k[first], k[(first + 1) % 3], k[(first + 2) % 3]]) {
+                found.duplicates += 1;
+                continue;
+            }
+            kept.push(self.triangles[t]);
+        }
+        if found.no_area + found.duplicates > 0 {
+            let mut remap = vec![u32::MAX; self.positions.len()];
+            let mut positions = Vec::new();
+            for t in &mut kept {
+                for i in t.iter_mut() {
+                    let slot = &mut remap[*i as usize];
+                    if *slot == u32::MAX {
+                        *slot = positions.len() as u32;
+                        positions.push(self.positions[*i as usize]);
+                    }
+                    *i = *slot;
+                }
+            }
+            self.positions = positions;
+        }
+        self.triangles = kept;
+        found
+    }
+}
+
+/// What [`Mesh::drop_degenerate`] removed: counts of triangles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Degenerate {
+    /// Triangles with no area (collinear or coincident vertices).
+    pub no_area: usize,
+    /// Exact copies (same positions, same winding) of an earlier triangle.
+    pub duplicates: usize,
 }
 
 /// An axis-aligned bounding box.

@@ -16,6 +16,7 @@ mod interrupt;
 mod light_definition;
 mod light_view;
 mod limits;
+mod meshes_as_they_come;
 mod model;
 mod occluder_offset;
 mod open_occluders;
