@@ -300,7 +300,8 @@ pub struct Fragments<'a> {
     pub mask: Mask,
     /// Interpolated depth.
     pub z: &'a Lanes<f32>,
-    /// Screen-space barycentric weights of the triangle's three vertices.
+    /// Screen-space barycentric weights of the triangle's three vertices (of the whole
+    /// triangle also where the near plane cut it: they may then lie outside [0, 1]).
     pub bary: &'a [Lanes<f32>; 3],
 }
 
@@ -313,7 +314,16 @@ impl Fragments<'_> {
     /// (value, 1/w) per vertex: the screen-space weights times 1/w, normalized; the first
     /// vertex's value where the weights sum to zero.
     pub fn perspective_value(&self, lane: usize, attr: &[Vec2; 3]) -> f32 {
-        let w: [f32; 3] = std::array::from_fn(|k| self.bary[k][lane] * attr[k].y);
+        // A vertex of no weight adds nothing, even with 1/w infinite (on the eye's plane, cut
+        // away by the near plane).
+        let w: [f32; 3] = std::array::from_fn(|k| {
+            let b = self.bary[k][lane];
+            if b == 0.0 {
+                0.0
+            } else {
+                b * attr[k].y
+            }
+        });
         let sum = w[0] + w[1] + w[2];
         if sum > 0.0 {
             (w[0] * attr[0].x + w[1] * attr[1].x + w[2] * attr[2].x) / sum
@@ -435,6 +445,11 @@ struct Setup {
     zmin: f32,
     /// Pixels [x0, x1) × [y0, y1) that may be covered.
     bbox: [u32; 4],
+    /// For a piece of a triangle cut by the near plane: row `j` maps the piece's vertex `j` to
+    /// the triangle's vertices, `M[j][k] = β_jk · w_k / w_j` (β the clip-space weights of the
+    /// cut, `w` the clip-space w), so that `b_k = Σ_j b'_j M[j][k]` turns the piece's
+    /// screen-space weights `b'` into the triangle's. `None` for a whole triangle.
+    to_triangle: Option<[[f32; 3]; 3]>,
 }
 
 /// Bytes of a setup record on the modelled machine: three edge equations (a, b, c), three
@@ -488,6 +503,7 @@ impl Setup {
             // pixel centre by (ε, ε²) decides an edge value of exactly 0 (the top-left rule).
             top_left[k] = coverage::lex_positive([a[k], b[k], 0.0]);
         }
+        let to_triangle = None;
         let grow = if coverage == Coverage::Conservative {
             1.0
         } else {
@@ -516,6 +532,7 @@ impl Setup {
             inv_area: 1.0 / screen_area.abs(),
             zmin: s[0].z.min(s[1].z).min(s[2].z),
             bbox,
+            to_triangle,
         })
     }
 
@@ -570,17 +587,27 @@ fn pixel_ceil(x: f32, size: u32) -> u32 {
 fn clip_near(v: [Vec4; 3]) -> Polygon {
     let mut out = Polygon {
         v: [Vec4::ZERO; 4],
+        beta: [[0.0; 3]; 4],
         n: 0,
     };
+    let unit = |i: usize| std::array::from_fn(|k| f32::from(k == i));
     for i in 0..3 {
-        let (p, q) = (v[i], v[(i + 1) % 3]);
+        let j = (i + 1) % 3;
+        let (p, q) = (v[i], v[j]);
         if p.z >= 0.0 {
-            out.push(p);
+            out.push(p, unit(i));
         }
         if (p.z >= 0.0) != (q.z >= 0.0) {
-            let (inside, outside) = if p.z >= 0.0 { (p, q) } else { (q, p) };
+            let ((inside, a), (outside, b)) = if p.z >= 0.0 {
+                ((p, i), (q, j))
+            } else {
+                ((q, j), (p, i))
+            };
             let t = inside.z / (inside.z - outside.z);
-            out.push(inside + (outside - inside) * t);
+            let mut beta = [0.0; 3];
+            beta[a] = 1.0 - t;
+            beta[b] = t;
+            out.push(inside + (outside - inside) * t, beta);
         }
     }
     out
@@ -590,13 +617,22 @@ fn clip_near(v: [Vec4; 3]) -> Polygon {
 /// stack (the front end makes no allocation per triangle).
 struct Polygon {
     v: [Vec4; 4],
+    /// Per vertex, its clip-space weights over the cut triangle's vertices.
+    beta: [[f32; 3]; 4],
     n: usize,
 }
 
 impl Polygon {
-    fn push(&mut self, c: Vec4) {
+    fn push(&mut self, c: Vec4, beta: [f32; 3]) {
         self.v[self.n] = c;
+        self.beta[self.n] = beta;
         self.n += 1;
+    }
+
+    /// [`Setup::to_triangle`] of the piece of vertices `piece` of this cut of the triangle
+    /// whose clip-space vertices are `whole`.
+    fn to_triangle(&self, piece: [usize; 3], whole: &[Vec4; 3]) -> [[f32; 3]; 3] {
+        piece.map(|j| std::array::from_fn(|k| self.beta[j][k] * whole[k].w / self.v[j].w))
     }
 
     fn vertices(&self) -> &[Vec4] {
@@ -680,24 +716,26 @@ impl TaskKernel for FrontEnd<'_> {
             for l in 0..n {
                 let prim = (group + l) as u32;
                 let clip = verts.map(|v| g.view_proj * v[l].extend(1.0));
-                let clipped;
-                let polygon: &[Vec4] = if clip.iter().all(|c| c.z >= 0.0) {
+                let clipped = if clip.iter().all(|c| c.z >= 0.0) {
                     setup_mask.0 |= 1 << l;
-                    &clip
+                    None
                 } else {
                     out.clipped += 1;
                     p.scalar(cost::CLIP_SCALAR);
-                    clipped = clip_near(clip);
-                    clipped.vertices()
+                    Some(clip_near(clip))
                 };
+                let polygon: &[Vec4] = clipped.as_ref().map_or(&clip, |c| c.vertices());
                 let mut any = false;
                 for i in 1..polygon.len().saturating_sub(1) {
                     let s = [polygon[0], polygon[i], polygon[i + 1]].map(|c| to_screen(c, t));
-                    let Some(setup) =
+                    let Some(mut setup) =
                         Setup::new(prim, s, self.pipeline.cull, self.pipeline.coverage, t)
                     else {
                         continue;
                     };
+                    setup.to_triangle = clipped
+                        .as_ref()
+                        .map(|c| c.to_triangle([0, i, i + 1], &clip));
                     any = true;
                     let si = out.setups.len();
                     p.write(self.setup_buf.0, self.setup_addr(chunk, si), SETUP_BYTES);
@@ -893,11 +931,19 @@ impl<K: FragmentKernel> BackEnd<'_, K> {
             return;
         }
         let inv_area = s.inv_area;
-        let bary: [Lanes<f32>; 3] = e.map(|ek| ek.map(|v| (v * inv_area) as f32));
+        let mut bary: [Lanes<f32>; 3] = e.map(|ek| ek.map(|v| (v * inv_area) as f32));
         let (lo, hi) = (s.zmin, s.z[0].max(s.z[1]).max(s.z[2]));
         let z: Lanes<f32> = std::array::from_fn(|l| {
             (bary[0][l] * s.z[0] + bary[1][l] * s.z[1] + bary[2][l] * s.z[2]).clamp(lo, hi)
         });
+        // The depth is the piece's; the weights the kernel interpolates attributes with are
+        // the whole triangle's.
+        if let Some(m) = &s.to_triangle {
+            let piece = bary;
+            bary = std::array::from_fn(|k| {
+                std::array::from_fn(|l| (0..3).map(|j| piece[j][l] * m[j][k]).sum())
+            });
+        }
         let mut mask = covered;
         if let Some(d) = self.depth {
             p.scalar(2);
