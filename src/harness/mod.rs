@@ -53,11 +53,32 @@ pub fn light_as(light: Light, kind: LightKind, toward: glam::Vec3) -> Light {
             let (u, v) = normal.any_orthonormal_pair();
             Light::Rect {
                 center: c,
-                half_u: u * r,
-                half_v: v * r,
+                half_u: of_length(u, r),
+                half_v: of_length(v, r),
             }
         }
     }
+}
+
+/// `u` (a unit vector) scaled to length exactly `r` in `f32` where that is reachable, so that a
+/// converted rectangle's size ([`Light::size`], `|half_u|`) is the size it was given (`u · r`
+/// alone rounds: a light of size 1 became 0.99999994 and the run fell beside its sweep point).
+/// The largest component is stepped by units in the last place until the length is `r`.
+fn of_length(u: glam::Vec3, r: f32) -> glam::Vec3 {
+    let mut w = u * r;
+    let axis = (0..3)
+        .max_by(|&a, &b| w[a].abs().total_cmp(&w[b].abs()))
+        .unwrap_or(0);
+    for _ in 0..64 {
+        let len = w.length();
+        if len == r || !len.is_finite() || w[axis] == 0.0 {
+            break;
+        }
+        // One unit in the last place away from zero lengthens, towards zero shortens.
+        let bits = w[axis].to_bits();
+        w[axis] = f32::from_bits(if len < r { bits + 1 } else { bits - 1 });
+    }
+    w
 }
 
 /// The light a run of algorithm `info` in `scene` uses: the scene's own when the algorithm takes

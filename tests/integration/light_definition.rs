@@ -262,3 +262,101 @@ fn emitters_meet_the_triangles_they_cross_and_no_others() {
     assert!(rect(0.5).meets_triangle(tri));
     assert!(!rect(1.5).meets_triangle(tri));
 }
+
+/// accum_hard casts its hard shadows from points of one fixed emitter, so it takes a sphere as
+/// the disc facing the scene's centre: the conversion is the harness's (said in the run's
+/// warnings, the reference computed for that disc), and against the exact answer for that disc
+/// (the circular segment) its penumbra is right to its sampling.
+#[test]
+fn accum_hard_takes_a_sphere_as_a_converted_disc_and_matches_that_disc() {
+    let sphere = Light::Sphere {
+        center: Vec3::new(0.0, H, 0.0),
+        radius: R,
+    };
+    let mut scene = edge_scene(sphere);
+    let info = algorithms::find("accum_hard").unwrap();
+    assert_eq!(info.light_for(LightKind::Sphere), LightKind::Disc);
+    scene.light = light_for_run(&scene, info).unwrap();
+    assert_eq!(scene.light.kind(), LightKind::Disc);
+    assert_eq!(scene.light.size(), R);
+    let params = RunParams::of_scene(&scene, [64, 48], 256, 16);
+    let frame = Frame::new(scene, params);
+    let g = &frame.gbuffer;
+    let penumbra: Vec<(usize, f32)> = (0..g.len())
+        .filter(|&i| g.is_hit(i) && g.position[i].y.abs() < 1e-4)
+        .map(|i| (i, analytic_visible(g.position[i].x)))
+        .filter(|&(_, v)| v > 0.02 && v < 0.98)
+        .collect();
+    assert!(penumbra.len() > 100, "{} penumbra pixels", penumbra.len());
+    let ctx = ExecContext {
+        options: [(
+            "accum_hard".to_string(),
+            serde_json::json!({ "samples": 256 }),
+        )]
+        .into(),
+        ..Default::default()
+    };
+    for backend in [Backend::CpuNative, Backend::CpuModel] {
+        let out = algorithms::run("accum_hard", backend, &frame, &ctx).unwrap();
+        let e = penumbra
+            .iter()
+            .map(|&(i, v)| (out.visibility.data[i] - v).abs())
+            .sum::<f32>()
+            / penumbra.len() as f32;
+        assert!(e < 0.01, "accum_hard {backend}: penumbra mae {e}");
+    }
+    // The command says so: a sphere scene rendered with accum_hard warns of the conversion.
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out = super::common::shadowbench(&[
+        "render",
+        "--scene",
+        "sphere-on-plane",
+        "--algorithm",
+        "accum_hard",
+        "--image",
+        "16x12",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", super::common::stderr(&out));
+    let run = super::common::json(&out_dir.join("run.json"));
+    assert_eq!(run["light"], "disc", "{run}");
+    assert!(
+        run["warnings"].as_array().unwrap().iter().any(|w| w
+            .as_str()
+            .unwrap()
+            .contains("light converted from sphere to disc")),
+        "{run}"
+    );
+}
+
+/// A converted light keeps its size exactly: a sphere or disc of size s made a rectangle has
+/// |half_u| = s in `f32` (a size of 1 was recorded as 0.99999994), and back again.
+#[test]
+fn converted_light_sizes_round_trip_exactly() {
+    let rect_taker = algorithms::find("soft_shadow_map").unwrap();
+    let sphere_taker = algorithms::find("penumbra_map").unwrap();
+    for size in [1.0f32, 0.3, 0.7, 0.1, 1.5, 0.123_456_7] {
+        for center in [
+            Vec3::new(0.0, H, 0.0),
+            Vec3::new(1.3, H, -0.7),
+            Vec3::new(-2.0, H + 0.5, 1.1),
+        ] {
+            let mut scene = edge_scene(Light::Sphere {
+                center,
+                radius: size,
+            });
+            let rect = light_for_run(&scene, rect_taker).unwrap();
+            assert_eq!(rect.kind(), LightKind::Rect);
+            assert_eq!(
+                rect.size(),
+                size,
+                "sphere {size} at {center} as a rectangle"
+            );
+            scene.light = rect;
+            let back = light_for_run(&scene, sphere_taker).unwrap();
+            assert_eq!(back.size(), size, "and back");
+        }
+    }
+}

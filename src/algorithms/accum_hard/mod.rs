@@ -22,7 +22,7 @@ use crate::algorithms::{
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::EdgeAdjacency;
-use crate::scene::{Light, Mesh};
+use crate::scene::{Light, LightKind, Mesh};
 
 pub const ID: &str = "accum_hard";
 
@@ -145,6 +145,10 @@ impl Algorithm for AccumHard {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "001 §1.3, Paper III §5";
     const SUMMARY: &'static str = "average of N hard shadow-volume shadows from N light samples";
+    /// Its N hard shadows are cast from points of one fixed emitter; a sphere, which the
+    /// reference takes as the disc facing each receiver point, is converted (with the run's
+    /// warning) to the disc facing the scene's centre, and the reference is that disc's.
+    const LIGHTS: &'static [LightKind] = &[LightKind::Disc, LightKind::Rect];
     const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedNonOccludersLit];
     type Options = AccumHardOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
