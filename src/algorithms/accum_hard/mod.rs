@@ -165,7 +165,9 @@ impl Algorithm for AccumHard {
     /// within 3% of the fill.
     const WGPU_PARITY: WgpuParity = WgpuParity {
         mae: 2.5e-3,
+        max: 0.5,
         frac_over_0_1: 0.01,
+        frac_differing: 0.05,
         differ: &[("fill", Some(0.03)), ("overdraw", Some(0.03))],
     };
     const CPU: CpuEntry<AccumHardOptions> = cpu::render;

@@ -373,6 +373,13 @@ pub fn dark_cap_distance(bounds: &Bounds, light: Vec3) -> f32 {
         .max(1e-3)
 }
 
+/// Vertex `v` projected from `light` to distance `reach` ([`dark_cap_distance`]): computed
+/// from `v` and `light` alone, so every face through `v` (the sides of two adjacent shadow
+/// quads, a cap) gets the same point to the bit and the faces close up exactly.
+pub fn far_point(light: Vec3, v: Vec3, reach: f32) -> Vec3 {
+    light + (v - light) * (reach / (v - light).length().max(1e-20))
+}
+
 /// Whether triangle `t` of `occluders` faces `light` (the predicate of [`eye_count`]).
 fn faces_light(occluders: &Mesh, t: usize, light: Vec3) -> bool {
     let [a, b, c] = occluders.triangle(t);
@@ -391,7 +398,7 @@ pub fn zfail_faces(
     bounds: &Bounds,
 ) -> Vec<VolumeFace> {
     let reach = dark_cap_distance(bounds, light);
-    let far = |v: Vec3| light + (v - light) * (reach / (v - light).length().max(1e-20));
+    let far = |v: Vec3| far_point(light, v, reach);
     let mut faces: Vec<VolumeFace> = quads
         .iter()
         .map(|q| VolumeFace {
@@ -701,6 +708,39 @@ mod tests {
             .filter(|&&i| pass.count[i] != eye_count(&occluders, light, rays.point[i]))
             .count();
         (wrong, hits.len())
+    }
+
+    /// The raster pipeline's z-pass quads cut their side lines at one point per silhouette
+    /// vertex: two quads through a vertex share that side to the bit (as z-fail's volumes do),
+    /// so the rasterizer covers a pixel along it once. The distinct corners of the triangles
+    /// are the silhouette's vertices and one far point each.
+    #[test]
+    fn neighbouring_raster_quads_share_their_sides_to_the_bit() {
+        let f = frame("box-on-plane", None);
+        let rays = EyeRays::new(&f);
+        let occluders = f.scene.occluders();
+        let light = f.scene.light.center() + Vec3::new(0.123, 0.0, -0.071);
+        let quads: Vec<ShadowQuad> = EdgeAdjacency::build(&occluders)
+            .silhouette_from(light)
+            .edges
+            .iter()
+            .map(|e| ShadowQuad::new(e, light))
+            .collect();
+        let (vertices, _) =
+            raster::hard_triangles(&rays, &quads, Counting::ZPass, &occluders, light);
+        let bits = |p: Vec3| p.to_array().map(f32::to_bits);
+        let mut silhouette: Vec<[u32; 3]> =
+            quads.iter().flat_map(|q| [bits(q.a), bits(q.b)]).collect();
+        silhouette.sort_unstable();
+        silhouette.dedup();
+        let mut corners: Vec<[u32; 3]> = vertices
+            .iter()
+            .map(|v| bits(Vec3::from_slice(&v.position[..3])))
+            .collect();
+        corners.sort_unstable();
+        corners.dedup();
+        assert!(quads.len() >= 4, "{} quads", quads.len());
+        assert_eq!(corners.len(), 2 * silhouette.len());
     }
 
     /// The ray test set up once per face ([`FaceFrom`]) gives, for every direction, the

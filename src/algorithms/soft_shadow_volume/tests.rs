@@ -370,3 +370,33 @@ fn front_and_back_faces_are_the_faces_the_eye_sees_and_the_far_ones() {
     let cut_far = raster::faces(&cube, &bounds(3.0), near, Vec3::new(0.0, 0.0, 0.9), false);
     assert!((area(&cut_far) - 16.0).abs() < 1e-3, "{}", area(&cut_far));
 }
+
+/// The faces of a volume turned off the axes (so that the clipping rounds) share their corners
+/// to the bit, front and back alike: the corners of every face, front and back, are the eight
+/// corners of the turned cube and no near-copies of them, so the rasterizer covers a pixel on
+/// an edge between two faces once and the culling's front and back faces cover the same
+/// pixels.
+#[test]
+fn front_and_back_faces_share_their_corners_to_the_bit() {
+    use crate::algorithms::eye_raster::ConvexVolume;
+    use crate::scene::Bounds;
+    let turn = glam::Quat::from_euler(glam::EulerRot::XYZ, 0.3, 0.7, 0.2);
+    let axes = [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z];
+    let cube = ConvexVolume {
+        planes: axes.iter().map(|&n| (turn * n, 1.0)).collect(),
+    };
+    let bounds = Bounds {
+        min: Vec3::splat(-3.0),
+        max: Vec3::splat(3.0),
+    };
+    let no_near = (Vec3::Z, 100.0);
+    let eye = Vec3::new(4.0, 3.0, 5.0);
+    let mut corners: Vec<[u32; 3]> = [true, false]
+        .iter()
+        .flat_map(|&front| raster::faces(&cube, &bounds, no_near, eye, front))
+        .map(|p| p.to_array().map(f32::to_bits))
+        .collect();
+    corners.sort_unstable();
+    corners.dedup();
+    assert_eq!(corners.len(), 8, "{corners:?}");
+}
