@@ -137,13 +137,17 @@ impl WgpuParity {
     pub const ROUNDING: f64 = 1e-4;
 
     /// The same formulas in f32 and the same counts on both: MAE under 1e-3, no pixel more than
-    /// MAX_SAME apart, at most 0.5% of the pixels over 0.1 and FRAC_SAME differing beyond
-    /// rounding, every counter equal.
+    /// 0.05 apart (a PCF tap of 32 that changes hands), at most 0.5% of the pixels over 0.1
+    /// and 6% beyond rounding, every counter equal. Measured on lavapipe over the registry's
+    /// scenes and option sets (48×36): largest difference 0 (`hard_shadow_map`, `soft_izb`) to
+    /// 0.031 (`pcss`, one tap), pixels beyond rounding 0 to 4.2% (`penumbra_map`'s and
+    /// `dbuffer`'s intensities, under 0.016 apart; `soft_shadow_map` in FP16 1.3%), none over
+    /// 0.1.
     pub const SAME_FORMULAS: WgpuParity = WgpuParity {
         mae: 1e-3,
-        max: 1.0,
+        max: 0.05,
         frac_over_0_1: 0.005,
-        frac_differing: 0.05,
+        frac_differing: 0.06,
         differ: &[],
     };
 

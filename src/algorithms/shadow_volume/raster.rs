@@ -36,6 +36,13 @@
 //! (cut per quad at a distance beyond its edge, the two sides differed in rounding and pixels
 //! along the line from the light through the vertex were counted twice or missed).
 //!
+//! **The silhouette edge.** A z-pass quad starts on the occluder's surface, so a pixel whose
+//! centre lies just before the silhouette edge and whose shaded point just beyond it (or the
+//! reverse) would change its count on every light sample: each quad is drawn a little past its
+//! edge towards the light ([`SILHOUETTE_MARGIN`]) and the fragment shader decides the edge
+//! itself for the pixel's ray under the one tie rule ([`crate::scene::coverage`]), as the cpu
+//! does.
+//!
 //! How coverage still differs from the cpu executions' ray casting
 //! ([`super::ShadowQuad::ray_hit`]): the rasterizer decides which faces cover a pixel at its
 //! centre, by its own fixed-point top-left rule, where the cpu rays go through the shaded point
@@ -121,14 +128,19 @@ pub fn hard_triangles(
 ) -> (Vec<HardVertex>, u64) {
     let mut out = Vec::new();
     let eye = rays.eye;
-    // A face's corners (a fan), its count change and its plane as `FaceFrom` sets it up.
-    let mut polygon = |corners: &[Vec3], step: f32, normal: Vec3, on: Vec3| {
+    // A face's corners (a fan), its count change, its plane as `FaceFrom` sets it up and the
+    // edge the fragment shader decides (`None`: the rasterizer decides every edge).
+    let mut polygon = |corners: &[Vec3], step: f32, normal: Vec3, on: Vec3, edge: Option<_>| {
         let plane = normal.extend(normal.dot(on - eye)).to_array();
+        let (p, q): (Vec3, Vec3) = edge.unwrap_or_default();
+        let tested = f32::from(u8::from(edge.is_some()));
         for k in 1..corners.len() - 1 {
             for c in [corners[0], corners[k], corners[k + 1]] {
                 out.push(HardVertex {
                     position: c.extend(step).to_array(),
                     plane,
+                    edge_p: p.extend(tested).to_array(),
+                    edge_q: q.extend(0.0).to_array(),
                 });
             }
         }
@@ -136,10 +148,19 @@ pub fn hard_triangles(
     match counting {
         Counting::ZPass => {
             let reach = dark_cap_distance(&rays.bounds, light);
+            // How far towards the light a quad reaches past its silhouette edge.
+            let past = SILHOUETTE_MARGIN * rays.bounds.diagonal();
             for q in quads {
                 let far = |v| far_point(q.light, v, reach);
-                let corners = [q.a, q.b, far(q.b), far(q.a)];
-                polygon(&corners, q.side(eye), q.normal, q.light);
+                let near = |v: Vec3| {
+                    let to_light = q.light - v;
+                    let s = (past / to_light.length().max(1e-20)).clamp(1e-3, 0.5);
+                    v + to_light * s
+                };
+                let corners = [near(q.a), near(q.b), far(q.b), far(q.a)];
+                // The quad's boundary edge `b → a` (`ShadowQuad::from`).
+                let edge = Some((q.b, q.a));
+                polygon(&corners, q.side(eye), q.normal, q.light, edge);
             }
             (out, 0)
         }
@@ -147,7 +168,7 @@ pub fn hard_triangles(
             let faces = zfail_faces(quads, occluders, light, &rays.bounds);
             for f in &faces {
                 let corners = &f.corners[..f.sides as usize];
-                polygon(corners, -f.side(eye), f.normal, f.corners[0]);
+                polygon(corners, -f.side(eye), f.normal, f.corners[0], None);
             }
             let caps = (faces.len() - quads.len()) as u64;
             (out, caps)
@@ -155,16 +176,26 @@ pub fn hard_triangles(
     }
 }
 
-/// A vertex of a hard pass's triangles: the corner (xyz) with the face's count change (w), and
-/// the face's plane as the cpu's ray test sets it up from the eye `o` ([`super::FaceFrom`]):
-/// the normal (xyz) and `normal · (corner − o)` (w), so that the fragment shader finds where
-/// the pixel's own ray meets the face as the cpu does.
+/// A vertex of a hard pass's triangles: the corner (xyz) with the face's count change (w); the
+/// face's plane as the cpu's ray test sets it up from the eye `o` ([`super::FaceFrom`]): the
+/// normal (xyz) and `normal · (corner − o)` (w), so that the fragment shader finds where the
+/// pixel's own ray meets the face as the cpu does; and the boundary edge `p → q` the shader
+/// tests under the one tie rule (`edge_p.w` 1; 0 where the rasterizer decides every edge).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct HardVertex {
     pub position: [f32; 4],
     pub plane: [f32; 4],
+    pub edge_p: [f32; 4],
+    pub edge_q: [f32; 4],
 }
+
+/// How far, as a fraction of the scene's diagonal, a z-pass quad is drawn past its silhouette
+/// edge towards the light (at least 1e-3 and at most half of the way to the light): 8 times
+/// the shaded points' offset off their surfaces (`frame::offset_point`, 1e-4 of the diagonal),
+/// so that every pixel whose ray through its shaded point crosses the quad beside the edge has
+/// a fragment, and the shader decides the edge.
+const SILHOUETTE_MARGIN: f32 = 8e-4;
 
 /// The eye's depth target of a [`HardRaster`], and where its count pass counts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -281,7 +312,7 @@ impl<'g> HardRaster<'g> {
         let program = Program::new(
             gpu,
             "shadow_volume/raster.wgsl",
-            &[RasterParams::WGSL, WGSL],
+            &[RasterParams::WGSL, crate::scene::coverage::WGSL, WGSL],
             &[Some(&layout0), Some(&layout1)],
         );
         let depth = gpu.target_view("eye depth", size, depth_format);
@@ -289,7 +320,9 @@ impl<'g> HardRaster<'g> {
         let accumulation = gpu.target_view("accumulation", size, TARGET_FORMAT);
         let blend = Some(additive_red(TARGET_FORMAT));
         // A vertex: position and the count change, the face's plane.
-        let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4];
+        let attributes = wgpu::vertex_attr_array![
+            0 => Float32x4, 1 => Float32x4, 2 => Float32x4, 3 => Float32x4
+        ];
         // The count passes: every fragment of a face reaches the fragment shader, which makes
         // the depth test along the pixel's own ray (`fs_quad`); the eye's depth is left as is.
         let count_pipeline = |vs, stencil, color, instrument| {
@@ -476,4 +509,6 @@ impl<'g> HardRaster<'g> {
 }
 
 #[cfg(test)]
-crate::gpu::wgsl_layout::layout_test!([RasterParams::WGSL, WGSL] => RasterParams);
+crate::gpu::wgsl_layout::layout_test!(
+    [RasterParams::WGSL, crate::scene::coverage::WGSL, WGSL] => RasterParams
+);

@@ -76,44 +76,56 @@ struct QuadOut {
     @location(1) world: vec3f,
     // The face's plane from the eye (`HardVertex::plane`): normal, normal · (corner − eye).
     @location(2) @interpolate(flat) plane: vec4f,
+    // The boundary edge p → q the shader decides (`HardVertex::edge_p`, `edge_q`; p.w 1).
+    @location(3) @interpolate(flat) edge_p: vec4f,
+    @location(4) @interpolate(flat) edge_q: vec4f,
 }
 
 // A corner of a shadow quad or volume face: xyz, w the count change (`shadow_volume::QuadPass`
 // steps: z-pass +1 for a face whose outer side the eye is on, z-fail the opposite), and the
-// face's plane.
-fn quad_vertex(v: vec4f, plane: vec4f) -> QuadOut {
+// face's plane and the edge the shader decides.
+struct QuadIn {
+    @location(0) v: vec4f,
+    @location(1) plane: vec4f,
+    @location(2) edge_p: vec4f,
+    @location(3) edge_q: vec4f,
+}
+
+fn quad_vertex(in: QuadIn) -> QuadOut {
     var out: QuadOut;
-    out.pos = view_proj() * vec4f(v.xyz, 1.0);
-    out.step = v.w;
-    out.world = v.xyz;
-    out.plane = plane;
+    out.pos = view_proj() * vec4f(in.v.xyz, 1.0);
+    out.step = in.v.w;
+    out.world = in.v.xyz;
+    out.plane = in.plane;
+    out.edge_p = in.edge_p;
+    out.edge_q = in.edge_q;
     return out;
 }
 
 @vertex
-fn vs_quad(@location(0) v: vec4f, @location(1) plane: vec4f) -> QuadOut {
-    return quad_vertex(v, plane);
+fn vs_quad(in: QuadIn) -> QuadOut {
+    return quad_vertex(in);
 }
 
 // The count pass into the stencil (`DepthTarget::StencilCount`): the faces of one count change,
 // drawn by the pipeline that increments (+1) or decrements (−1); a face of the other change has
 // every corner at one point behind the near plane and draws nothing.
-fn signed_vertex(v: vec4f, plane: vec4f, change: f32) -> QuadOut {
-    var out = quad_vertex(v, plane);
-    if v.w != change {
+fn signed_vertex(in: QuadIn, change: f32) -> QuadOut {
+    var out = quad_vertex(in);
+    if in.v.w != change {
         out.pos = vec4f(0.0, 0.0, 2.0, 1.0);
     }
     return out;
 }
 
 @vertex
-fn vs_quad_up(@location(0) v: vec4f, @location(1) plane: vec4f) -> QuadOut {
-    return signed_vertex(v, plane, 1.0);
+fn vs_quad_up(in: QuadIn) -> QuadOut {
+    return signed_vertex(in, 1.0);
 }
 
 @vertex
-fn vs_quad_down(@location(0) v: vec4f, @location(1) plane: vec4f) -> QuadOut {
-    return signed_vertex(v, plane, -1.0);
+fn vs_quad_down(in: QuadIn) -> QuadOut {
+    return signed_vertex(in, -1.0);
 }
 
 // Where the ray of pixel i meets the face's plane (`FaceFrom::hit` without the edges, which the
@@ -148,6 +160,15 @@ fn fs_quad(in: QuadOut) -> @location(0) vec4f {
         passes = t >= r.dir.w;
     }
     passes = passes && t > 0.0;
+    // A z-pass quad is drawn a little past its silhouette edge towards the light: the edge
+    // itself is decided here for the pixel's ray, under the one tie rule (`FaceFrom::crosses`),
+    // as the cpu decides it; fragments of the margin beyond it are not the quad's.
+    if in.edge_p.w == 1.0 {
+        let s = dot(r.dir.xyz, in.plane.xyz);
+        if !cov_edge_covers_oriented(R.eye.xyz, r.dir.xyz, in.edge_p.xyz, in.edge_q.xyz, s) {
+            discard;
+        }
+    }
     if INSTRUMENT != 0u {
         let along = length(in.world - R.eye.xyz);
         let inside = along >= r.point.w && (zfail || along <= r.extra.x);

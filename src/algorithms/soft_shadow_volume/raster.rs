@@ -10,8 +10,9 @@
 //! - `wedges` (III §3.1, IV §4.1): on the host with the cpu executions' code, as the gather
 //!   ([`super::wgpu::WedgeRecords`]); each wedge primitive (the wedge, or with culling each
 //!   half) is cut to the enlarged scene bounds and its front faces seen from the eye are
-//!   triangulated and projected on the host ([`faces`], their corners welded so that
-//!   neighbouring faces share their edges to the bit).
+//!   triangulated and projected on the host ([`faces`]: the primitive's planes pushed out by
+//!   [`WEDGE_MARGIN`], so that every pixel whose ray passes the primitive has a fragment, and
+//!   the corners welded, so that neighbouring faces share their edges to the bit).
 //! - `soft` (III §3.2.2, §4; IV §4.2-4.3): the front faces drawn, a fragment shader making the
 //!   depth tests along the pixel's ray to its shaded point (the visible point behind the
 //!   primitive's entry and in front of its exit) and computing the coverage of its pixel
@@ -96,8 +97,18 @@ const WGSL: &str = include_str!("raster.wgsl");
 /// Bytes of a wedge vertex: clip position and the primitive's index.
 const VERTEX_BYTES: u64 = 20;
 
+/// How far, as a fraction of the scene bounds' diagonal, the faces a wedge primitive is drawn
+/// with lie outside its planes ([`faces`]): 8 times the shaded points' offset off their
+/// surfaces (`frame::offset_point`, 1e-4 of the diagonal). The fragment shader tests the
+/// primitive's own planes along the pixel's ray to its shaded point, as the cpu does; drawn
+/// with that margin, every pixel whose ray passes the primitive has a fragment, also where the
+/// pixel's centre lies just outside its outline and its shaded point just inside (beside the
+/// silhouette edge, where the wedge is thin).
+pub const WEDGE_MARGIN: f32 = 8e-4;
+
 /// The front faces (the eye strictly outside their plane), or with `front` false the back
-/// faces (strictly inside), of `volume` cut to `bounds` and to the half-space in front of plane
+/// faces (strictly inside), of `volume` with its planes pushed out by [`WEDGE_MARGIN`], cut to
+/// `bounds` and to the half-space in front of plane
 /// `near` (`n·x ≤ d` kept, the eye outside: a primitive that contains the eye is entered
 /// through it), as triangles (three points each): each face is a square on its plane reaching
 /// past the bounds, clipped by every other plane (Sutherland–Hodgman), fanned from its first
@@ -116,12 +127,16 @@ pub fn faces(
     front: bool,
 ) -> Vec<Vec3> {
     let (lo, hi) = (bounds.min, bounds.max);
-    let mut planes = volume.planes.clone();
+    let (centre, reach) = (bounds.center(), bounds.diagonal());
+    // The primitive's own planes pushed out by the margin (the near plane and the bounds stay).
+    let margin = WEDGE_MARGIN * reach;
+    let mut planes: Vec<(Vec3, f32)> = (volume.planes.iter())
+        .map(|&(n, d)| (n, d + margin * n.length()))
+        .collect();
     planes.push(near);
     for (k, axis) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
         planes.extend([(axis, hi[k]), (-axis, -lo[k])]);
     }
-    let (centre, reach) = (bounds.center(), bounds.diagonal());
     let weld = 1e-5 * reach;
     let mut corners: Vec<Vec3> = Vec::new();
     let mut out = Vec::new();
