@@ -354,12 +354,7 @@ impl<'g> HardRaster<'g> {
         let stencil = (target == DepthTarget::StencilCount).then(|| {
             let unwritten = Some(unwritten(TARGET_FORMAT));
             let counted = |vs, op| {
-                count_pipeline(
-                    vs,
-                    stencil_test(Always, op, Keep),
-                    unwritten.clone(),
-                    false,
-                )
+                count_pipeline(vs, stencil_test(Always, op, Keep), unwritten.clone(), false)
             };
             let lit = Raster {
                 fs: "fs_lit",
