@@ -477,40 +477,35 @@ impl TilePass for QuadPass<'_> {
         let rays = self.rays;
         let (face, ops) = &self.faces[k];
         p.vector(*ops, b.mask);
-        let mut hit = [f32::INFINITY; LANES];
+        let mut passes = [false; LANES];
+        // Fill: the fragments within the scene bounds (z-fail: from the entry on) or passing
+        // the depth test. z-pass counts every crossing in front of the visible surface, also
+        // one before the ray enters the bounds (a volume reaching out of them towards the eye:
+        // the eye's count is the eye's, not the bounds'); z-fail the crossings at or behind it.
         // Lanes outside the mask may lie past the image edge: never index with them.
         let fill = Mask::from_fn(|l| {
             if !b.mask.get(l) {
                 return false;
             }
             let i = b.pixel[l] as usize;
-            let (t0, t1) = rays.bounds_interval(i);
-            let t1 = match self.counting {
-                Counting::ZPass => t1,
-                Counting::ZFail => f32::INFINITY,
+            let Some(t) = face.hit(rays.dir[i]) else {
+                return false;
             };
-            match face.hit(rays.dir[i]) {
-                Some(t) if t >= t0 && t <= t1 => {
-                    hit[l] = t;
-                    true
-                }
-                _ => false,
-            }
+            let (t0, t1) = rays.bounds_interval(i);
+            let depth = rays.depth[i];
+            let (inside, pass) = match self.counting {
+                Counting::ZPass => (t >= t0 && t <= t1, t < depth),
+                Counting::ZFail => (t >= t0, t >= t0 && t >= depth),
+            };
+            passes[l] = pass;
+            inside || pass
         });
         if !fill.any() {
             return;
         }
         self.target.depth.read(p, b, fill);
         p.vector(DEPTH_TEST_OPS, fill);
-        let passed = Mask::from_fn(|l| {
-            fill.get(l) && {
-                let depth = rays.depth[b.pixel[l] as usize];
-                match self.counting {
-                    Counting::ZPass => hit[l] < depth,
-                    Counting::ZFail => hit[l] >= depth,
-                }
-            }
-        });
+        let passed = Mask::from_fn(|l| fill.get(l) && passes[l]);
         s.fill += u64::from(fill.count());
         s.passed += u64::from(passed.count());
         if !passed.any() {

@@ -49,8 +49,9 @@
 //! with the one tie rule of [`crate::scene::coverage`]; a pixel whose centre and shaded point
 //! lie on two sides of a face's boundary (within the offset, a fraction of a pixel) can change
 //! hands by one face. The near plane (at 1e-4 of the scene's diagonal) cuts what lies closer
-//! to the eye, and z-pass fragments in front of the scene bounds count where the cpu cuts
-//! them. The count change of a face is its vertices' `w` (the face's side of the eye,
+//! to the eye; z-pass quads are cut on a sphere around the light, the cpu's run on (both count
+//! the crossings in front of the scene bounds too, where a volume reaches out towards the
+//! eye). The count change of a face is its vertices' `w` (the face's side of the eye,
 //! computed on the host exactly as the cpu does) rather than the rasterizer's front/back
 //! facing, which agrees with it for every face that covers a pixel.
 //!
