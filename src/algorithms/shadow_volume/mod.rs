@@ -146,8 +146,8 @@ impl ShadowQuad {
 pub struct HardPass {
     /// Per pixel: the number of shadow volumes its point is in (eye count included).
     pub count: Vec<i32>,
-    /// Volume fragments rasterized (z-pass: within the scene bounds; z-fail: from the entry
-    /// into the scene bounds on).
+    /// Volume fragments rasterized (z-pass: within the scene bounds or in front of the visible
+    /// surface; z-fail: from the entry into the scene bounds on).
     pub fill: u64,
     /// Fragments that passed the depth test (z-pass: in front, z-fail: at or behind the visible
     /// surface) and changed the count.
