@@ -5,6 +5,7 @@
 mod claims;
 mod cli_edges;
 mod common;
+mod conformance;
 mod coverage_ties;
 mod dbuffer;
 mod degenerate;

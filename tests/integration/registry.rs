@@ -2,12 +2,16 @@
 //! on each of its option sets ([`Algorithm::OPTION_SETS`]), on two generated scenes.
 //! `cpu-native` and `cpu-model` run the same kernels (only the probe differs), so their images
 //! are identical bit for bit; `wgpu` computes the same formulas through a GPU pipeline, so its
-//! image and counters are within the algorithm's stated [`WgpuParity`] of `cpu-model`.
+//! image and counters are within the algorithm's stated [`WgpuParity`] of `cpu-model`: its mean
+//! difference, its largest difference, and the share of pixels that differ beyond rounding and
+//! by more than 0.1.
 //!
 //! [`Algorithm::OPTION_SETS`]: shadowbench::algorithms::Algorithm::OPTION_SETS
 //! [`WgpuParity`]: shadowbench::algorithms::WgpuParity
 
-use shadowbench::algorithms::{self, AlgorithmInfo, Backend, ExecContext, FrameOutput, ALGORITHMS};
+use shadowbench::algorithms::{
+    self, AlgorithmInfo, Backend, ExecContext, FrameOutput, WgpuParity, ALGORITHMS,
+};
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::harness::light_as;
 use shadowbench::metrics;
@@ -116,10 +120,22 @@ fn wgpu_is_within_its_stated_parity_of_the_cpu_model_for_every_algorithm_and_opt
                 gpu.visibility.check_range().unwrap();
                 let e = metrics::compare(&gpu.visibility, &model.visibility, &mask);
                 let (mae, over) = (e.mae.unwrap(), e.frac_over_0_1.unwrap());
-                eprintln!("{what}: mae {mae:.2e}, frac>0.1 {over:.4}");
+                let d = super::conformance::Difference::of(
+                    &gpu.visibility,
+                    &model.visibility,
+                    &mask,
+                    WgpuParity::ROUNDING,
+                );
+                let differing = d.over as f64 / d.pixels as f64;
+                eprintln!(
+                    "{what}: mae {mae:.2e}, max {:.4}, frac>0.1 {over:.4}, differing {differing:.4}",
+                    d.max
+                );
                 assert!(e.shadow_pixels > 20, "{what}: no shadow on screen: {e:?}");
                 assert!(mae <= parity.mae, "{what}: {e:?}");
+                assert!(d.max <= parity.max, "{what}: {d:?}");
                 assert!(over <= parity.frac_over_0_1, "{what}: {e:?}");
+                assert!(differing <= parity.frac_differing, "{what}: {d:?}");
                 let fill = model.counters.get("fill").unwrap_or(0.0);
                 for (k, &m) in &model.counters.0 {
                     let Some(g) = gpu.counters.get(k) else {

@@ -10,7 +10,7 @@ fn visibility_at(uv: vec2<f32>, z_r: f32, bias: f32) -> f32 {
     var sum = 0.0;
     var blockers = 0u;
     for (var i = 0u; i < nb; i++) {
-        let z = occluder_depth(uv + vogel_disk(i, nb) * search);
+        let z = occluder_depth(uv + search_tap(i) * search);
         if z < z_r - bias {
             sum += z;
             blockers += 1u;
@@ -25,7 +25,7 @@ fn visibility_at(uv: vec2<f32>, z_r: f32, bias: f32) -> f32 {
     let np = light.pcf_samples;
     var lit = 0u;
     for (var j = 0u; j < np; j++) {
-        if occluder_depth(uv + vogel_disk(j, np) * filter_radius) >= z_r - bias {
+        if occluder_depth(uv + filter_tap(j) * filter_radius) >= z_r - bias {
             lit += 1u;
         }
     }

@@ -14,6 +14,9 @@ override INSTRUMENT: bool = false;
 @group(1) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(1) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 @group(1) @binding(3) var<storage, read_write> visibility: array<f32>;
+// The PCSS taps on the unit disc (`vogel_disk`, computed on the host): the blocker search's
+// `light.blocker_samples`, then the filter's `light.pcf_samples`.
+@group(1) @binding(4) var<storage, read> taps: array<vec2<f32>>;
 
 // shadow_map::cube_face
 fn cube_face(d: vec3<f32>) -> u32 {
@@ -37,12 +40,14 @@ fn world_to_uv(w: f32, z: f32) -> f32 {
     return w / (2.0 * z * light.tan_half_fov);
 }
 
-// vogel_disk
-fn vogel_disk(i: u32, n: u32) -> vec2<f32> {
-    let golden_angle = 2.3999633;
-    let r = sqrt((f32(i) + 0.5) / f32(n));
-    let theta = f32(i) * golden_angle;
-    return vec2<f32>(cos(theta), sin(theta)) * r;
+// vogel_disk(i, light.blocker_samples): tap i of the blocker search.
+fn search_tap(i: u32) -> vec2<f32> {
+    return taps[i];
+}
+
+// vogel_disk(j, light.pcf_samples): tap j of the filter.
+fn filter_tap(j: u32) -> vec2<f32> {
+    return taps[light.blocker_samples + j];
 }
 
 // pcss_search_radius_uv

@@ -14,7 +14,7 @@
 //! every rasterized fragment; those that did not end up in the map) and the lookup's taps.
 //! Memory traffic is estimated from formats and those counts (`mem_est.<buffer>.*`).
 
-use super::{Bias, FaceView, LightViews, ViewFit};
+use super::{vogel_disk, Bias, FaceView, LightViews, ViewFit};
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
@@ -225,12 +225,20 @@ impl<'g> Passes<'g> {
         // Group 0 (both shaders): the light uniform and the counters; group 1 (eye lookup):
         // shadow map, gbuffer, visibility.
         let shared = Shared::new::<Counts>(gpu, "shadow map shared", &uniform);
-        let (lookup_layout, lookup_group) = Layout::bound(
-            gpu,
-            "eye lookup",
-            S::COMPUTE | S::FRAGMENT,
-            &eye.binds_after([(Depth, view_resource(&depth_view))]),
-        );
+        // The PCSS taps on the unit disc (the blocker search's, then the filter's), computed on
+        // the host as the cpu executions compute them: a GPU's sine and cosine are not the
+        // host's (Vulkan bounds their error only by 2⁻¹¹ on [−π, π], and the golden angle's
+        // multiples run far past π), and a tap moved across a texel's edge changes a pixel.
+        let (nb, np) = (lookup.blocker_samples, lookup.pcf_samples);
+        let mut taps: Vec<[f32; 2]> = (0..nb).map(|i| vogel_disk(i, nb).to_array()).collect();
+        taps.extend((0..np).map(|j| vogel_disk(j, np).to_array()));
+        // A binding holds at least one element.
+        taps.resize(taps.len().max(1), [0.0; 2]);
+        let taps = gpu.upload("pcss taps", &taps, wgpu::BufferUsages::STORAGE);
+        let mut binds = eye.binds_after([(Depth, view_resource(&depth_view))]);
+        binds.push((ReadOnly, taps.as_entire_binding()));
+        let (lookup_layout, lookup_group) =
+            Layout::bound(gpu, "eye lookup", S::COMPUTE | S::FRAGMENT, &binds);
         let sources = [&PRELUDE[..], &[LIGHT_RASTER_WGSL]].concat();
         let raster = Program::new(gpu, "light_raster.wgsl", &sources, &[Some(&shared.layout)]);
         let mut sources = PRELUDE.to_vec();

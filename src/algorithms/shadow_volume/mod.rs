@@ -146,8 +146,8 @@ impl ShadowQuad {
 pub struct HardPass {
     /// Per pixel: the number of shadow volumes its point is in (eye count included).
     pub count: Vec<i32>,
-    /// Volume fragments rasterized (z-pass: within the scene bounds; z-fail: from the entry
-    /// into the scene bounds on).
+    /// Volume fragments rasterized (z-pass: within the scene bounds or in front of the visible
+    /// surface; z-fail: from the entry into the scene bounds on).
     pub fill: u64,
     /// Fragments that passed the depth test (z-pass: in front, z-fail: at or behind the visible
     /// surface) and changed the count.
@@ -373,6 +373,13 @@ pub fn dark_cap_distance(bounds: &Bounds, light: Vec3) -> f32 {
         .max(1e-3)
 }
 
+/// Vertex `v` projected from `light` to distance `reach` ([`dark_cap_distance`]): computed
+/// from `v` and `light` alone, so every face through `v` (the sides of two adjacent shadow
+/// quads, a cap) gets the same point to the bit and the faces close up exactly.
+pub fn far_point(light: Vec3, v: Vec3, reach: f32) -> Vec3 {
+    light + (v - light) * (reach / (v - light).length().max(1e-20))
+}
+
 /// Whether triangle `t` of `occluders` faces `light` (the predicate of [`eye_count`]).
 fn faces_light(occluders: &Mesh, t: usize, light: Vec3) -> bool {
     let [a, b, c] = occluders.triangle(t);
@@ -391,7 +398,7 @@ pub fn zfail_faces(
     bounds: &Bounds,
 ) -> Vec<VolumeFace> {
     let reach = dark_cap_distance(bounds, light);
-    let far = |v: Vec3| light + (v - light) * (reach / (v - light).length().max(1e-20));
+    let far = |v: Vec3| far_point(light, v, reach);
     let mut faces: Vec<VolumeFace> = quads
         .iter()
         .map(|q| VolumeFace {
@@ -470,40 +477,35 @@ impl TilePass for QuadPass<'_> {
         let rays = self.rays;
         let (face, ops) = &self.faces[k];
         p.vector(*ops, b.mask);
-        let mut hit = [f32::INFINITY; LANES];
+        let mut passes = [false; LANES];
+        // Fill: the fragments within the scene bounds (z-fail: from the entry on) or passing
+        // the depth test. z-pass counts every crossing in front of the visible surface, also
+        // one before the ray enters the bounds (a volume reaching out of them towards the eye:
+        // the eye's count is the eye's, not the bounds'); z-fail the crossings at or behind it.
         // Lanes outside the mask may lie past the image edge: never index with them.
         let fill = Mask::from_fn(|l| {
             if !b.mask.get(l) {
                 return false;
             }
             let i = b.pixel[l] as usize;
-            let (t0, t1) = rays.bounds_interval(i);
-            let t1 = match self.counting {
-                Counting::ZPass => t1,
-                Counting::ZFail => f32::INFINITY,
+            let Some(t) = face.hit(rays.dir[i]) else {
+                return false;
             };
-            match face.hit(rays.dir[i]) {
-                Some(t) if t >= t0 && t <= t1 => {
-                    hit[l] = t;
-                    true
-                }
-                _ => false,
-            }
+            let (t0, t1) = rays.bounds_interval(i);
+            let depth = rays.depth[i];
+            let (inside, pass) = match self.counting {
+                Counting::ZPass => (t >= t0 && t <= t1, t < depth),
+                Counting::ZFail => (t >= t0, t >= t0 && t >= depth),
+            };
+            passes[l] = pass;
+            inside || pass
         });
         if !fill.any() {
             return;
         }
         self.target.depth.read(p, b, fill);
         p.vector(DEPTH_TEST_OPS, fill);
-        let passed = Mask::from_fn(|l| {
-            fill.get(l) && {
-                let depth = rays.depth[b.pixel[l] as usize];
-                match self.counting {
-                    Counting::ZPass => hit[l] < depth,
-                    Counting::ZFail => hit[l] >= depth,
-                }
-            }
-        });
+        let passed = Mask::from_fn(|l| fill.get(l) && passes[l]);
         s.fill += u64::from(fill.count());
         s.passed += u64::from(passed.count());
         if !passed.any() {
@@ -701,6 +703,39 @@ mod tests {
             .filter(|&&i| pass.count[i] != eye_count(&occluders, light, rays.point[i]))
             .count();
         (wrong, hits.len())
+    }
+
+    /// The raster pipeline's z-pass quads cut their side lines at one point per silhouette
+    /// vertex: two quads through a vertex share that side to the bit (as z-fail's volumes do),
+    /// so the rasterizer covers a pixel along it once. The distinct corners of the triangles
+    /// are the silhouette's vertices and one far point each.
+    #[test]
+    fn neighbouring_raster_quads_share_their_sides_to_the_bit() {
+        let f = frame("box-on-plane", None);
+        let rays = EyeRays::new(&f);
+        let occluders = f.scene.occluders();
+        let light = f.scene.light.center() + Vec3::new(0.123, 0.0, -0.071);
+        let quads: Vec<ShadowQuad> = EdgeAdjacency::build(&occluders)
+            .silhouette_from(light)
+            .edges
+            .iter()
+            .map(|e| ShadowQuad::new(e, light))
+            .collect();
+        let (vertices, _) =
+            raster::hard_triangles(&rays, &quads, Counting::ZPass, &occluders, light);
+        let bits = |p: Vec3| p.to_array().map(f32::to_bits);
+        let mut silhouette: Vec<[u32; 3]> =
+            quads.iter().flat_map(|q| [bits(q.a), bits(q.b)]).collect();
+        silhouette.sort_unstable();
+        silhouette.dedup();
+        let mut corners: Vec<[u32; 3]> = vertices
+            .iter()
+            .map(|v| bits(Vec3::from_slice(&v.position[..3])))
+            .collect();
+        corners.sort_unstable();
+        corners.dedup();
+        assert!(quads.len() >= 4, "{} quads", quads.len());
+        assert_eq!(corners.len(), 2 * silhouette.len());
     }
 
     /// The ray test set up once per face ([`FaceFrom`]) gives, for every direction, the

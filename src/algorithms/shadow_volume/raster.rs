@@ -6,9 +6,9 @@
 //!    the volumes (an infinite, reversed-depth perspective: no far plane cuts the z-fail dark
 //!    caps, and depth keeps its relative precision far away);
 //! 2. **count pass** (per light point): the shadow quads (z-pass) or the capped volumes' faces
-//!    (z-fail, [`zfail_faces`]) drawn as triangles with the depth test and no depth write into
-//!    a count target (R16Float, exact integers up to ±2048) cleared to the eye's count
-//!    (z-pass, [`super::eye_count`]) or 0 (z-fail); each fragment passing the test adds its
+//!    (z-fail, [`zfail_faces`]) drawn as triangles with no depth write into a count target
+//!    (R16Float, exact integers up to ±2048) cleared to the eye's count (z-pass,
+//!    [`super::eye_count`]) or 0 (z-fail); each fragment passing the depth test adds its
 //!    face's count change by additive blending: the stencil pass with increment and decrement
 //!    as one float target, which a later pass can read as a texture ([`HardRaster::count`];
 //!    pass 1 of `soft_shadow_volume`'s raster pipeline, `soft_shadow_volume::raster`); or, for
@@ -20,17 +20,38 @@
 //!    samples allowed: the paper's 16-bit accumulation buffer) by additive blending; then
 //!    **resolve** divides by the number of samples into the visibility buffer.
 //!
-//! How coverage differs from the cpu executions' ray casting ([`super::ShadowQuad::ray_hit`]):
-//! the rasterizer samples each pixel's centre (the cpu rays go through the shaded point, which
-//! the G-buffer may jitter inside the pixel: [`crate::algorithms::eye_raster::EyeRays`]) and
-//! decides edge pixels by its own fixed-point top-left rule instead of the one tie rule of
-//! [`crate::scene::coverage`] (a pixel on an edge shared by two faces is still covered by
-//! exactly one); the depth test compares the interpolated depth of the face with the depth
-//! buffer (f32 z/w of the shaded point) where the cpu compares distances along the ray, so
-//! fragments within rounding of the surface (the occluder's own silhouette, the contact with
-//! the receiver) can change hands; the near plane (at 1e-4 of the scene's diagonal) cuts what
-//! lies closer to the eye, and z-pass fragments in front of the scene bounds count where the
-//! cpu cuts them. The count change of a face is its vertices' `w` (the face's side of the eye,
+//! **The depth test is made in the fragment shader** (`fs_quad`), along the pixel's own ray
+//! to its shaded point, as the cpu executions make it ([`super::FaceFrom`]: where the ray
+//! meets the face's plane, against the point's distance), not by the depth buffer at the
+//! pixel's centre. The shaded point is moved off its surface (`GBuffer::shading_point`), so it
+//! does not lie on the centre's ray, and the quad of a silhouette edge starts on the surface
+//! beside that edge and runs along it within the offset: compared at the centre, a whole row of
+//! pixels along the edge (a straight edge seen straight) changed its count for some light
+//! samples. The eye's depth buffer is still written (the wedge pass of `soft_shadow_volume`
+//! and the stencil share it).
+//!
+//! **Shared edges.** The quads are cut where their side lines reach [`dark_cap_distance`] from
+//! the light ([`far_point`], as z-fail's volumes), so two quads through one silhouette vertex
+//! share that side to the bit and the rasterizer's own tie rule covers a pixel along it once
+//! (cut per quad at a distance beyond its edge, the two sides differed in rounding and pixels
+//! along the line from the light through the vertex were counted twice or missed).
+//!
+//! **The silhouette edge.** A z-pass quad starts on the occluder's surface, so a pixel whose
+//! centre lies just before the silhouette edge and whose shaded point just beyond it (or the
+//! reverse) would change its count on every light sample: each quad is drawn a little past its
+//! edge towards the light ([`SILHOUETTE_MARGIN`]) and the fragment shader decides the edge
+//! itself for the pixel's ray under the one tie rule ([`crate::scene::coverage`]), as the cpu
+//! does.
+//!
+//! How coverage still differs from the cpu executions' ray casting
+//! ([`super::ShadowQuad::ray_hit`]): the rasterizer decides which faces cover a pixel at its
+//! centre, by its own fixed-point top-left rule, where the cpu rays go through the shaded point
+//! with the one tie rule of [`crate::scene::coverage`]; a pixel whose centre and shaded point
+//! lie on two sides of a face's boundary (within the offset, a fraction of a pixel) can change
+//! hands by one face. The near plane (at 1e-4 of the scene's diagonal) cuts what lies closer
+//! to the eye; z-pass quads are cut on a sphere around the light, the cpu's run on (both count
+//! the crossings in front of the scene bounds too, where a volume reaches out towards the
+//! eye). The count change of a face is its vertices' `w` (the face's side of the eye,
 //! computed on the host exactly as the cpu does) rather than the rasterizer's front/back
 //! facing, which agrees with it for every face that covers a pixel.
 //!
@@ -41,11 +62,11 @@
 //! makes).
 
 use glam::{Mat4, Vec3};
-use wgpu::CompareFunction::{Always, Equal, Greater, LessEqual};
+use wgpu::CompareFunction::{Always, Equal};
 use wgpu::StencilOperation::{DecrementWrap, IncrementWrap, Keep};
 
 use super::wgpu::ray_records;
-use super::{zfail_faces, Counting, ShadowQuad};
+use super::{dark_cap_distance, far_point, zfail_faces, Counting, ShadowQuad};
 use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
@@ -94,43 +115,88 @@ pub fn eye_projection(rays: &EyeRays, camera: &crate::scene::camera::Camera) -> 
     ) * view
 }
 
-/// The triangles of a hard pass for light point `light`, as vertices (xyz, the count change):
-/// z-pass the shadow quads cut at twice the scene's diagonal beyond their edges (as
-/// [`super::quad_footprints`]), z-fail the faces of the capped volumes ([`zfail_faces`]); and
-/// the number of cap faces.
+/// The triangles of a hard pass for light point `light`, as vertices ([`HardVertex`]): z-pass
+/// the shadow quads cut where their side lines reach [`dark_cap_distance`] from the light
+/// ([`far_point`], so two quads through one silhouette vertex share their side to the bit and
+/// the rasterizer covers each pixel along it once), z-fail the faces of the capped volumes
+/// ([`zfail_faces`]); and the number of cap faces.
 pub fn hard_triangles(
     rays: &EyeRays,
     quads: &[ShadowQuad],
     counting: Counting,
     occluders: &Mesh,
     light: Vec3,
-) -> (Vec<[f32; 4]>, u64) {
+) -> (Vec<HardVertex>, u64) {
     let mut out = Vec::new();
-    let mut polygon = |corners: &[Vec3], step: f32| {
+    let eye = rays.eye;
+    // A face's corners (a fan), its count change, its plane as `FaceFrom` sets it up and the
+    // edge the fragment shader decides (`None`: the rasterizer decides every edge).
+    let mut polygon = |corners: &[Vec3], step: f32, normal: Vec3, on: Vec3, edge: Option<_>| {
+        let plane = normal.extend(normal.dot(on - eye)).to_array();
+        let (p, q): (Vec3, Vec3) = edge.unwrap_or_default();
+        let tested = f32::from(u8::from(edge.is_some()));
         for k in 1..corners.len() - 1 {
             for c in [corners[0], corners[k], corners[k + 1]] {
-                out.push(c.extend(step).to_array());
+                out.push(HardVertex {
+                    position: c.extend(step).to_array(),
+                    plane,
+                    edge_p: p.extend(tested).to_array(),
+                    edge_q: q.extend(0.0).to_array(),
+                });
             }
         }
     };
     match counting {
         Counting::ZPass => {
-            let reach = 2.0 * rays.bounds.diagonal();
+            let reach = dark_cap_distance(&rays.bounds, light);
+            // How far towards the light a quad reaches past its silhouette edge.
+            let past = SILHOUETTE_MARGIN * rays.bounds.diagonal();
             for q in quads {
-                polygon(&q.hull(reach), q.side(rays.eye));
+                let far = |v| far_point(q.light, v, reach);
+                let near = |v: Vec3| {
+                    let to_light = q.light - v;
+                    let s = (past / to_light.length().max(1e-20)).clamp(1e-3, 0.5);
+                    v + to_light * s
+                };
+                let corners = [near(q.a), near(q.b), far(q.b), far(q.a)];
+                // The quad's boundary edge `b → a` (`ShadowQuad::from`).
+                let edge = Some((q.b, q.a));
+                polygon(&corners, q.side(eye), q.normal, q.light, edge);
             }
             (out, 0)
         }
         Counting::ZFail => {
             let faces = zfail_faces(quads, occluders, light, &rays.bounds);
             for f in &faces {
-                polygon(&f.corners[..f.sides as usize], -f.side(rays.eye));
+                let corners = &f.corners[..f.sides as usize];
+                polygon(corners, -f.side(eye), f.normal, f.corners[0], None);
             }
             let caps = (faces.len() - quads.len()) as u64;
             (out, caps)
         }
     }
 }
+
+/// A vertex of a hard pass's triangles: the corner (xyz) with the face's count change (w); the
+/// face's plane as the cpu's ray test sets it up from the eye `o` ([`super::FaceFrom`]): the
+/// normal (xyz) and `normal · (corner − o)` (w), so that the fragment shader finds where the
+/// pixel's own ray meets the face as the cpu does; and the boundary edge `p → q` the shader
+/// tests under the one tie rule (`edge_p.w` 1; 0 where the rasterizer decides every edge).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct HardVertex {
+    pub position: [f32; 4],
+    pub plane: [f32; 4],
+    pub edge_p: [f32; 4],
+    pub edge_q: [f32; 4],
+}
+
+/// How far, as a fraction of the scene's diagonal, a z-pass quad is drawn past its silhouette
+/// edge towards the light (at least 1e-3 and at most half of the way to the light): 8 times
+/// the shaded points' offset off their surfaces (`frame::offset_point`, 1e-4 of the diagonal),
+/// so that every pixel whose ray through its shaded point crosses the quad beside the edge has
+/// a fragment, and the shader decides the edge.
+const SILHOUETTE_MARGIN: f32 = 8e-4;
 
 /// The eye's depth target of a [`HardRaster`], and where its count pass counts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -247,26 +313,25 @@ impl<'g> HardRaster<'g> {
         let program = Program::new(
             gpu,
             "shadow_volume/raster.wgsl",
-            &[RasterParams::WGSL, WGSL],
+            &[RasterParams::WGSL, crate::scene::coverage::WGSL, WGSL],
             &[Some(&layout0), Some(&layout1)],
         );
         let depth = gpu.target_view("eye depth", size, depth_format);
         let count = gpu.target_view("count", size, TARGET_FORMAT);
         let accumulation = gpu.target_view("accumulation", size, TARGET_FORMAT);
         let blend = Some(additive_red(TARGET_FORMAT));
-        // A vertex: position and the count change.
-        let attributes = wgpu::vertex_attr_array![0 => Float32x4];
-        let test = match counting {
-            Counting::ZPass => Greater,
-            Counting::ZFail => LessEqual,
-        };
-        // The count passes: the faces tested against the eye's depth, which they leave.
-        let count_pipeline = |vs, depth, stencil, color, instrument| {
+        // A vertex: position and the count change, the face's plane.
+        let attributes = wgpu::vertex_attr_array![
+            0 => Float32x4, 1 => Float32x4, 2 => Float32x4, 3 => Float32x4
+        ];
+        // The count passes: every fragment of a face reaches the fragment shader, which makes
+        // the depth test along the pixel's own ray (`fs_quad`); the eye's depth is left as is.
+        let count_pipeline = |vs, stencil, color, instrument| {
             let r = Raster {
                 vs,
                 fs: "fs_quad",
                 vertex: per_vertex(&attributes),
-                depth: Some(depth),
+                depth: Some(Always),
                 depth_format,
                 stencil,
                 depth_write: false,
@@ -277,14 +342,7 @@ impl<'g> HardRaster<'g> {
             program.render(gpu, &r)
         };
         let quad = [false, true].map(|instrument| {
-            let depth = if instrument { Always } else { test };
-            count_pipeline(
-                "vs_quad",
-                depth,
-                Default::default(),
-                blend.clone(),
-                instrument,
-            )
+            count_pipeline("vs_quad", Default::default(), blend.clone(), instrument)
         });
         // The screen-covering passes: the depth pre-pass, the accumulation of the lit pixels.
         let full = Raster {
@@ -297,13 +355,7 @@ impl<'g> HardRaster<'g> {
         let stencil = (target == DepthTarget::StencilCount).then(|| {
             let unwritten = Some(unwritten(TARGET_FORMAT));
             let counted = |vs, op| {
-                count_pipeline(
-                    vs,
-                    test,
-                    stencil_test(Always, op, Keep),
-                    unwritten.clone(),
-                    false,
-                )
+                count_pipeline(vs, stencil_test(Always, op, Keep), unwritten.clone(), false)
             };
             let lit = Raster {
                 fs: "fs_lit",
@@ -347,7 +399,7 @@ impl<'g> HardRaster<'g> {
     }
 
     /// The vertex buffer of `vertices` ([`hard_triangles`], every light point's in one).
-    pub fn vertices(&self, vertices: &[[f32; 4]]) -> wgpu::Buffer {
+    pub fn vertices(&self, vertices: &[HardVertex]) -> wgpu::Buffer {
         self.gpu.upload(
             "shadow volume vertices",
             vertices,
@@ -453,4 +505,6 @@ impl<'g> HardRaster<'g> {
 }
 
 #[cfg(test)]
-crate::gpu::wgsl_layout::layout_test!([RasterParams::WGSL, WGSL] => RasterParams);
+crate::gpu::wgsl_layout::layout_test!(
+    [RasterParams::WGSL, crate::scene::coverage::WGSL, WGSL] => RasterParams
+);

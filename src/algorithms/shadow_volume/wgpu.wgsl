@@ -190,10 +190,20 @@ fn hard(@builtin(global_invocation_id) id: vec3u) {
         } else {
             t = quad_hit(quads[k], P.eye.xyz, ray.dir.xyz);
         }
-        // z-pass fragments end at the scene bounds' exit; z-fail ones pass behind the surface.
-        if t >= 0.0 && t >= ray.point.w && (zfail || t <= ray.extra.x) {
-            fill++;
-            if (t >= ray.dir.w) == zfail {
+        // Fill: the fragments within the scene bounds (z-fail: from the entry on) or passing.
+        // z-pass counts every crossing in front of the visible surface, also one before the
+        // ray enters the bounds (a volume reaching out towards the eye); z-fail the crossings
+        // at or behind it.
+        if t >= 0.0 {
+            let inside = t >= ray.point.w && (zfail || t <= ray.extra.x);
+            var passes = t < ray.dir.w;
+            if zfail {
+                passes = inside && t >= ray.dir.w;
+            }
+            if inside || passes {
+                fill++;
+            }
+            if passes {
                 passed++;
                 c += i32(step);
             }

@@ -3,17 +3,21 @@
 //!
 //! - `hard` (III §3.2.1): the eye's depth once, then the shadow quads of the silhouette seen
 //!   from the light centre (z-pass, cleared to the eye's count) or the capped volumes' faces
-//!   (z-fail) drawn with the depth test into the count target by additive blending
+//!   (z-fail) drawn into the count target by additive blending, the depth test made in the
+//!   fragment shader along each pixel's ray to its shaded point
 //!   ([`crate::algorithms::shadow_volume::raster::HardRaster`], which states how its coverage
 //!   differs from the cpu's ray casting).
 //! - `wedges` (III §3.1, IV §4.1): on the host with the cpu executions' code, as the gather
 //!   ([`super::wgpu::WedgeRecords`]); each wedge primitive (the wedge, or with culling each
 //!   half) is cut to the enlarged scene bounds and its front faces seen from the eye are
-//!   triangulated and projected on the host ([`faces`]).
-//! - `soft` (III §3.2.2, §4; IV §4.2-4.3): the front faces drawn with the depth test (reversed
-//!   depth `Greater`: the visible point behind the face), a fragment shader computing the
-//!   coverage of its pixel exactly as the gather does (`wedge_sample` of `wgpu.wgsl`: the
-//!   point inside the primitive, the edge projected onto the light, exact clipping or the 4D
+//!   triangulated and projected on the host ([`faces`]: the primitive's planes pushed out by
+//!   [`WEDGE_MARGIN`], so that every pixel whose ray passes the primitive has a fragment, and
+//!   the corners welded, so that neighbouring faces share their edges to the bit).
+//! - `soft` (III §3.2.2, §4; IV §4.2-4.3): the front faces drawn, a fragment shader making the
+//!   depth tests along the pixel's ray to its shaded point (the visible point behind the
+//!   primitive's entry and in front of its exit) and computing the coverage of its pixel
+//!   exactly as the gather does (`wedge_sample` of `wgpu.wgsl`: the point inside the
+//!   primitive, the edge projected onto the light, exact clipping or the 4D
 //!   texture) and adding or subtracting it into the V-buffer by additive blending: R32Float
 //!   (Rgba32Float, one f32 per channel, under a textured light, III §4.1), or the split 12-bit
 //!   format (IV §4.3) as two rgba8 buffers, the inner side's digits drawn into the additive
@@ -22,9 +26,13 @@
 //!   loops' and sub-lights' combination (`combine`, shared with the gather).
 //! - Wedge-half culling (IV §4.4, `wedge_culling`, where the adapter has Depth32FloatStencil8):
 //!   each half separately, its front faces marking the stencil with the half's reference where
-//!   the point is behind them (no colour), then its back faces, with the shader, where the point
-//!   is in front of them and the stencil holds the reference — the point inside the half, the
-//!   shader run for no other; every back-face fragment clears the stencil ([`LoopRaster::pass`]).
+//!   the point is behind them and in front of the half's back faces (no colour; the marking
+//!   shader `fs_mark` makes these depth tests along the pixel's ray, `wedge_reach`), then its
+//!   back faces, with the coverage shader, where the stencil holds the reference — the point
+//!   inside the half, the coverage shader run for no other; every back-face fragment clears the
+//!   stencil ([`LoopRaster::pass`]). The depth tests are not the depth buffer's: the shaded
+//!   point is moved off its surface, off the pixel centre's ray, and a half's face that runs
+//!   along the occluder beside its silhouette edge passes between the two.
 //!   The split format draws the inner halves into the additive buffer and the outer halves
 //!   into the subtractive one. The shader still tests the point against the half's planes, as
 //!   the cpu executions do, so the image does not depend on the culling. Without the format the
@@ -34,13 +42,12 @@
 //! A wedge primitive that contains the eye has no front face and draws nothing (the gather and
 //! the cpu executions still shade its pixels).
 //!
-//! How the image differs from the cpu's: the hard pass as [`HardRaster`] states (at 640×480 on
-//! sphere-on-plane the visible difference is a thin line along the sphere's own terminator,
-//! where the quads graze the surface they start on); the wedges' pixels are decided by the
-//! rasterizer's coverage of their front faces (top-left rule) and the depth test, so a pixel
-//! whose ray grazes a primitive's silhouette or whose point lies within rounding of a face can
-//! change hands; the V-buffer sums in rasterization order (f32 rounding); the coverage of a
-//! pixel the wedge covers is the gather's, operation for operation.
+//! How the image differs from the cpu's: the hard pass as [`HardRaster`] states; the wedges'
+//! pixels are decided by the rasterizer's coverage of their faces at the pixel's centre
+//! (top-left rule), so a pixel whose centre and shaded point lie on two sides of a primitive's
+//! outline (within the point's offset, a fraction of a pixel) can change hands; the V-buffer
+//! sums in rasterization order (f32 rounding); the coverage of a pixel the wedge covers is the
+//! gather's, operation for operation.
 //!
 //! Counters: the hard pass's fill and overdraw from [`HardRaster::replay`] (rasterized
 //! fragments, in the cpu-model's terms). The wedge pass's from an instrumented replay of its own
@@ -49,7 +56,7 @@
 //! cpu-model's terms (`SoftPass::block`): fill, its ray meets the primitive within the scene
 //! bounds (doubled with culling: the front and the back faces of the half are rasterized);
 //! shader invocations, its point is behind the entry, or with culling the fragments that pass
-//! the culled passes' depth and stencil tests, counted by those passes themselves (each adds 1
+//! the culled passes' stencil tests, counted by those passes themselves (each adds 1
 //! into an R32Float target; `execution.shader_invocations` says which); fragments inside
 //! wedges, the coverage was computed; overdraw, fill less the fragments adding a non-zero
 //! coverage; `wedge_tests`, every rasterized fragment. A pixel whose ray grazes a primitive can
@@ -57,7 +64,7 @@
 //! cpu-model's by a small fraction of the fill ([`super::SoftShadowVolume`]'s `WGPU_PARITY`).
 
 use glam::Vec3;
-use wgpu::CompareFunction::{Always, Equal, Greater, Less};
+use wgpu::CompareFunction::{Always, Equal};
 use wgpu::StencilOperation::{Keep, Replace, Zero};
 
 use super::wgpu::{run_loops, LoopRun, Pipeline, Replayed, WedgeRecords, WGSL as SOFT_WGSL};
@@ -90,12 +97,28 @@ const WGSL: &str = include_str!("raster.wgsl");
 /// Bytes of a wedge vertex: clip position and the primitive's index.
 const VERTEX_BYTES: u64 = 20;
 
+/// How far, as a fraction of the scene bounds' diagonal, the faces a wedge primitive is drawn
+/// with lie outside its planes ([`faces`]): 8 times the shaded points' offset off their
+/// surfaces (`frame::offset_point`, 1e-4 of the diagonal). The fragment shader tests the
+/// primitive's own planes along the pixel's ray to its shaded point, as the cpu does; drawn
+/// with that margin, every pixel whose ray passes the primitive has a fragment, also where the
+/// pixel's centre lies just outside its outline and its shaded point just inside (beside the
+/// silhouette edge, where the wedge is thin).
+pub const WEDGE_MARGIN: f32 = 8e-4;
+
 /// The front faces (the eye strictly outside their plane), or with `front` false the back
-/// faces (strictly inside), of `volume` cut to `bounds` and to the half-space in front of plane
+/// faces (strictly inside), of `volume` with its planes pushed out by [`WEDGE_MARGIN`], cut to
+/// `bounds` and to the half-space in front of plane
 /// `near` (`n·x ≤ d` kept, the eye outside: a primitive that contains the eye is entered
 /// through it), as triangles (three points each): each face is a square on its plane reaching
 /// past the bounds, clipped by every other plane (Sutherland–Hodgman), fanned from its first
 /// corner.
+///
+/// Every face's corners are welded to one point per corner of the volume (corners within
+/// 1e-5 of the bounds' diagonal of one another, what the clipping of two faces through one
+/// corner rounds apart), whichever face computed it first, so that neighbouring faces — front
+/// and back, whose union the culling's two passes must cover alike — share their edges to the
+/// bit and the rasterizer covers a pixel along a shared edge once.
 pub fn faces(
     volume: &ConvexVolume,
     bounds: &Bounds,
@@ -104,19 +127,25 @@ pub fn faces(
     front: bool,
 ) -> Vec<Vec3> {
     let (lo, hi) = (bounds.min, bounds.max);
-    let mut planes = volume.planes.clone();
+    let (centre, reach) = (bounds.center(), bounds.diagonal());
+    // The primitive's own planes pushed out by the margin (the near plane and the bounds stay).
+    let margin = WEDGE_MARGIN * reach;
+    let mut planes: Vec<(Vec3, f32)> = (volume.planes.iter())
+        .map(|&(n, d)| (n, d + margin * n.length()))
+        .collect();
     planes.push(near);
     for (k, axis) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
         planes.extend([(axis, hi[k]), (-axis, -lo[k])]);
     }
-    let (centre, reach) = (bounds.center(), bounds.diagonal());
+    let weld = 1e-5 * reach;
+    let mut corners: Vec<Vec3> = Vec::new();
     let mut out = Vec::new();
     for (i, &(n, d)) in planes.iter().enumerate() {
         let len = n.length();
-        let facing = n.dot(eye) - d;
-        if len == 0.0 || (front && facing <= 0.0) || (!front && facing >= 0.0) {
+        if len == 0.0 {
             continue;
         }
+        let facing = n.dot(eye) - d;
         let (n, d) = (n / len, d / len);
         let (u, v) = n.any_orthonormal_pair();
         let c = centre - n * (n.dot(centre) - d);
@@ -127,6 +156,16 @@ pub fn faces(
             if j != i && poly.len() >= 3 {
                 poly = clip_half_plane(&poly, |x| e - m.dot(x));
             }
+        }
+        // Every face is welded (the faces of the other facing too), so both calls weld alike.
+        for x in &mut poly {
+            match corners.iter().find(|c| c.distance(*x) <= weld) {
+                Some(&c) => *x = c,
+                None => corners.push(*x),
+            }
+        }
+        if (front && facing <= 0.0) || (!front && facing >= 0.0) {
+            continue;
         }
         for k in 1..poly.len().saturating_sub(1) {
             out.extend([poly[0], poly[k], poly[k + 1]]);
@@ -159,9 +198,8 @@ impl LoopRaster {
     /// A wedge pass into `color`, cleared to 0, with the eye's depth `depth`: with one of
     /// `pipelines` over the front faces; with two, the culling of IV §4.4 over the halves
     /// `keep` lets through: per half, its front faces mark the stencil of `depth` with the
-    /// half's reference where the point is behind them (`pipelines[0]`), then its back faces
-    /// shade where the point is in front of them and the stencil holds the reference
-    /// (`pipelines[1]`), clearing it. References run 1..=255 and the back faces clear what the
+    /// half's reference where the point is inside the half (`pipelines[0]`), then its back
+    /// faces shade where the stencil holds the reference (`pipelines[1]`), clearing it. References run 1..=255 and the back faces clear what the
     /// front faces marked, so no half sees another's marks.
     fn pass<'a>(
         &'a self,
@@ -209,7 +247,7 @@ struct Half {
 /// The wedge pass (pass 2): its V-buffers, pipelines and the host's cut of the primitives.
 struct WedgePass {
     split: bool,
-    /// Wedge-half culling by the depth and stencil tests (IV §4.4).
+    /// Wedge-half culling by the stencil test (IV §4.4).
     stencil: bool,
     vbuffers: Vec<wgpu::TextureView>,
     /// Per V-buffer: the timed pipeline, or with the stencil the marking and shading ones.
@@ -247,14 +285,17 @@ impl WedgePass {
             (false, false) => (wgpu::TextureFormat::R32Float, &["fs_wedge"][..]),
         };
         let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32];
-        let pipeline = |fs: &str, format, depth, test: wgpu::StencilState| {
+        // Every pipeline lets each fragment of a face through to the fragment shader, which
+        // makes the depth tests along the pixel's ray to its shaded point (`wedge_sample`,
+        // `fs_mark`): the depth buffer at the pixel's centre is not where that point lies.
+        let pipeline = |fs: &str, format, test: wgpu::StencilState, instrument: bool| {
             program.render(
                 gpu,
                 &Raster {
                     vs: "vs_wedge",
                     fs,
                     vertex: Some((VERTEX_BYTES, wgpu::VertexStepMode::Vertex, &attributes)),
-                    depth: Some(depth),
+                    depth: Some(Always),
                     depth_format: depth_target(stencil).format(),
                     stencil: test,
                     depth_write: false,
@@ -263,27 +304,26 @@ impl WedgePass {
                         "fs_mark" => unwritten(format),
                         _ => additive(format),
                     }),
-                    // The counting pipeline is the one without a depth test.
-                    instrument: Some(depth == Always),
+                    instrument: Some(instrument),
                     ..Raster::default()
                 },
             )
         };
         // Per half (IV §4.4): the front faces mark the stencil (`fs_mark`, no colour) where the
-        // point is behind them (reversed depth `Greater`), the back faces shade where it is in
-        // front of them (`Less`) and the stencil holds the half's reference.
+        // point is behind them and in front of the back faces (inside the half), the back faces
+        // shade where the stencil holds the half's reference, clearing it.
         let culled = |fs: &str, format| {
             let mark = stencil_test(Always, Replace, Keep);
             let shade = stencil_test(Equal, Zero, Zero);
             vec![
-                pipeline("fs_mark", format, Greater, mark),
-                pipeline(fs, format, Less, shade),
+                pipeline("fs_mark", format, mark, false),
+                pipeline(fs, format, shade, false),
             ]
         };
         let timed = entries
             .iter()
             .map(|e| match stencil {
-                false => vec![pipeline(e, format, Greater, Default::default())],
+                false => vec![pipeline(e, format, Default::default(), false)],
                 true => culled(e, format),
             })
             .collect();
@@ -307,7 +347,7 @@ impl WedgePass {
                 .map(|e| gpu.target_view(e, size, format))
                 .collect(),
             timed,
-            counting: [pipeline(entries[0], format, Always, Default::default())],
+            counting: [pipeline(entries[0], format, Default::default(), true)],
             culled_count,
             projection: eye_projection(rays, camera),
             near: (-forward, -forward.dot(rays.eye) - reach),
@@ -363,7 +403,7 @@ impl WedgePass {
             .collect()
     }
 
-    /// The fragments of loop `lg` that pass the culled passes' depth and stencil tests, counted
+    /// The fragments of loop `lg` that pass the culled passes' stencil tests, counted
     /// by those passes; `None` without the stencil or the counters.
     fn shaded(&self, gpu: &Gpu, lg: &LoopRaster, depth: &wgpu::TextureView) -> Result<Option<f64>> {
         let Some((target, view, pipelines)) = &self.culled_count else {
@@ -380,14 +420,17 @@ impl WedgePass {
     fn record(&self, opts: &SoftShadowVolumeOptions) -> serde_json::Value {
         let culling = match (opts.wedge_culling, self.stencil) {
             (false, _) => "off",
-            (true, true) => "depth and stencil tests: front faces mark, back faces shade (IV §4.4)",
+            (true, true) => {
+                "stencil test: front faces mark the points inside the half (the depth tests in \
+                 the marking shader, along the pixel's ray), back faces shade (IV §4.4)"
+            }
             (true, false) => {
                 "the half's plane tested in the fragment shader (the adapter lacks \
                  DEPTH32FLOAT_STENCIL8)"
             }
         };
         let shaded = match self.culled_count {
-            Some(_) => "fragments passing the culled passes' depth and stencil tests",
+            Some(_) => "fragments passing the culled passes' stencil tests",
             None => "fragments whose point the shader finds inside the primitive",
         };
         serde_json::json!({ "wedge_culling": culling, "shader_invocations": shaded })

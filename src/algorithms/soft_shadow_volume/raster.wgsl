@@ -90,13 +90,22 @@ fn resolve_soft(@builtin(global_invocation_id) id: vec3u) {
     combine(i, hard_count, acc, v.xyz);
 }
 
-// The culling's first pass (IV §4.4): the front faces only mark the stencil; no colour.
+// The culling's first pass (IV §4.4): the front faces mark the stencil where the pixel's point
+// lies inside the half, no colour. The depth tests of the culling (the point behind the front
+// faces and in front of the back faces) are made here along the pixel's ray to its shaded
+// point (`wedge_reach`), as the cpu executions make them, not by the depth buffer at the
+// pixel's centre, off which the shaded point is moved: a half whose face runs along the
+// occluder's surface beside its silhouette edge culled points inside it.
 @fragment
 fn fs_mark(in: WedgeOut) -> @location(0) vec4f {
+    let i = u32(in.pos.y) * P.width + u32(in.pos.x);
+    if wedge_reach(rays[i], prims[in.prim]) != REACHED_INSIDE {
+        discard;
+    }
     return vec4f(0.0);
 }
 
-// The culling's count (counters only): one per fragment passing the depth and stencil tests.
+// The culling's count (counters only): one per fragment passing the stencil test.
 @fragment
 fn fs_one(in: WedgeOut) -> @location(0) vec4f {
     return vec4f(1.0);

@@ -306,25 +306,33 @@ struct WedgeSample {
     c3: vec3f,
 }
 
+// How far `wedge_sample` gets on the ray–primitive interval alone (the depth tests of
+// `SoftPass::block`): 0, REACHED_FILL (the ray meets the primitive within the scene bounds),
+// REACHED_FRONT (its visible point behind the entry) or REACHED_INSIDE (and in front of the
+// exit: the point inside the primitive). The raster pass's wedge-half culling marks with it.
+fn wedge_reach(ray: Ray, prim: Prim) -> u32 {
+    let iv = ray_interval(prim.info.y, prim.info.z, P.eye.xyz, ray.dir.xyz, ray.point.w, ray.extra.x);
+    if iv.x > iv.y {
+        return 0u;
+    }
+    let t_p = ray.dir.w;
+    if !(iv.x < t_p) {
+        return REACHED_FILL;
+    }
+    if !(t_p < iv.y) {
+        return REACHED_FRONT;
+    }
+    return REACHED_INSIDE;
+}
+
 // `SoftPass::block` for one pixel's ray and one wedge primitive (III §3.2.2, IV §4.4): the
 // ray–primitive interval, the depth tests, the side and the coverage by exact clipping or the
 // 4D texture. Shared by the gather (`soft`) and the raster pass (raster.wgsl).
 fn wedge_sample(ray: Ray, prim: Prim) -> WedgeSample {
-    var w = WedgeSample(0u, 0.0, vec3f(0.0));
-    let iv = ray_interval(prim.info.y, prim.info.z, P.eye.xyz, ray.dir.xyz, ray.point.w, ray.extra.x);
-    if iv.x > iv.y {
+    var w = WedgeSample(wedge_reach(ray, prim), 0.0, vec3f(0.0));
+    if w.reached < REACHED_INSIDE {
         return w;
     }
-    w.reached = REACHED_FILL;
-    let t_p = ray.dir.w;
-    if !(iv.x < t_p) {
-        return w;
-    }
-    w.reached = REACHED_FRONT;
-    if !(t_p < iv.y) {
-        return w;
-    }
-    w.reached = REACHED_INSIDE;
     let q = quads[prim.info.x];
     let p = ray.point.xyz;
     w.side = bitcast<f32>(prim.info.w);
