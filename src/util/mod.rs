@@ -2,5 +2,8 @@
 
 pub mod deadline;
 pub mod hash;
+pub mod console;
 pub mod input;
+pub mod json;
+pub mod npy;
 pub mod paths;
