@@ -427,7 +427,9 @@ fn list(scenarios: &std::path::Path) {
     for g in generators::GENERATORS {
         outln!(
             "  {:<18} ~{:>6} triangles  {}",
-            g.name, g.default_triangles, g.summary
+            g.name,
+            g.default_triangles,
+            g.summary
         );
     }
     outln!("scenarios ({}):", scenarios.display());
@@ -579,7 +581,8 @@ fn scene_export(a: ExportArgs) -> Result<()> {
         errln!("warning: {w}");
     }
     // Neither file written may be one the scene was read from (`b.obj --out b.obj`).
-    let outputs = std::iter::once(("--out", &a.out)).chain(a.scenario.iter().map(|p| ("--scenario", p)));
+    let outputs =
+        std::iter::once(("--out", &a.out)).chain(a.scenario.iter().map(|p| ("--scenario", p)));
     for (flag, out) in outputs {
         if let Some(input) = notes.inputs.iter().find(|i| same_file(i, out)) {
             let why = format!(
@@ -900,7 +903,10 @@ fn diff(a: PathBuf, b: PathBuf, out: PathBuf) -> Result<()> {
     }
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| {
-            InputError::new("--out", format!("cannot create the folder '{}': {e}", dir.display()))
+            InputError::new(
+                "--out",
+                format!("cannot create the folder '{}': {e}", dir.display()),
+            )
         })?;
     }
     let mut png = Vec::new();
@@ -1218,7 +1224,10 @@ fn main() -> ExitCode {
     // would otherwise fail a sweep at its report).
     if matches!(
         cli.command,
-        Command::Run(_) | Command::Report { .. } | Command::Merge { .. } | Command::ValidateModel(_)
+        Command::Run(_)
+            | Command::Report { .. }
+            | Command::Merge { .. }
+            | Command::ValidateModel(_)
     ) {
         if let Err(e) = report::font::ensure() {
             return failed(e);
@@ -1257,7 +1266,9 @@ fn main() -> ExitCode {
         } => match compare(baseline, current, threshold) {
             Ok(false) => {
                 return match shadowbench::util::console::finish() {
-                    Err(e) => failed(Error::Other(format!("cannot write to standard output: {e}"))),
+                    Err(e) => failed(Error::Other(format!(
+                        "cannot write to standard output: {e}"
+                    ))),
                     Ok(()) => ExitCode::from(1),
                 }
             }

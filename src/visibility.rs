@@ -78,7 +78,9 @@ impl VisibilityBuffer {
     /// columns, C or Fortran order: [`crate::util::npy::read_2d`]) of values in [0, 1]. Another
     /// shape or type, a side of 0, or a value outside [0, 1] (NaN and infinities included), is
     /// an input error naming the file (and the pixel).
-    pub fn read_npy(path: &Path) -> std::result::Result<VisibilityBuffer, crate::error::InputError> {
+    pub fn read_npy(
+        path: &Path,
+    ) -> std::result::Result<VisibilityBuffer, crate::error::InputError> {
         let a = crate::util::npy::read_2d::<f32>(path, "visibility array", "float32")?;
         let v = VisibilityBuffer {
             width: a.width,

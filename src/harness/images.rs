@@ -33,7 +33,11 @@ pub fn write_mask_npy(mask: &[bool], width: u32, height: u32, path: &Path) -> Re
 /// [`crate::util::npy::read_2d`]'s, naming the file.
 pub fn read_mask_npy(path: &Path) -> std::result::Result<(u32, u32, Vec<bool>), InputError> {
     let a = crate::util::npy::read_2d::<u8>(path, "mask", "uint8")?;
-    Ok((a.width, a.height, a.data.into_iter().map(|v| v != 0).collect()))
+    Ok((
+        a.width,
+        a.height,
+        a.data.into_iter().map(|v| v != 0).collect(),
+    ))
 }
 
 /// Visibility as an 8-bit grey + alpha PNG: grey 0 (no light) to 255 (fully lit), fully

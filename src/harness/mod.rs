@@ -558,35 +558,38 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             continue;
         }
         // A run stopped before its execution: failed, with its elapsed time and estimate.
-        let stopped = |c, phase: &str, sc: &Scene, params: crate::frame::RunParams, with_reference: bool| {
-            let extent = algorithms::work::SceneExtent::of(sc);
-            let estimate = algorithms::work::frame(&extent, &params)
-                + (info.work_estimate)(&extent, &params, &ctx)
-                + if with_reference {
-                    algorithms::work::reference(&extent, &params, &ctx, &())
-                } else {
-                    0.0
-                };
-            let mut record = RunRecord::new(&p.algorithm, p.backend, sc, params);
-            loaded.notes.annotate(&mut record);
-            record.wall_ms = deadline.elapsed().as_secs_f64() * 1e3;
-            record.failure = Some(timed_out(c, deadline.elapsed(), phase, Some(estimate)).to_string());
-            record
-        };
-        if !frames.contains_key(&kind) {
-            match within(|| Frame::new_until(sc.clone(), params.clone(), deadline)) {
-                Ok(f) => {
-                    frames.insert(kind, f);
-                }
-                Err(c) => {
-                    let record = stopped(c, "its frame (BVH, eye pass)", &sc, params, false);
-                    progress.finished(&record);
-                    writer.push(record, None, None, None, None)?;
-                    continue;
+        let stopped =
+            |c, phase: &str, sc: &Scene, params: crate::frame::RunParams, with_reference: bool| {
+                let extent = algorithms::work::SceneExtent::of(sc);
+                let estimate = algorithms::work::frame(&extent, &params)
+                    + (info.work_estimate)(&extent, &params, &ctx)
+                    + if with_reference {
+                        algorithms::work::reference(&extent, &params, &ctx, &())
+                    } else {
+                        0.0
+                    };
+                let mut record = RunRecord::new(&p.algorithm, p.backend, sc, params);
+                loaded.notes.annotate(&mut record);
+                record.wall_ms = deadline.elapsed().as_secs_f64() * 1e3;
+                record.failure =
+                    Some(timed_out(c, deadline.elapsed(), phase, Some(estimate)).to_string());
+                record
+            };
+        let frame = match frames.entry(kind) {
+            std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::btree_map::Entry::Vacant(e) => {
+                match within(|| Frame::new_until(sc.clone(), params.clone(), deadline)) {
+                    Ok(f) => e.insert(f),
+                    Err(c) => {
+                        let record = stopped(c, "its frame (BVH, eye pass)", &sc, params, false);
+                        progress.finished(&record);
+                        writer.push(record, None, None, None, None)?;
+                        continue;
+                    }
                 }
             }
-        }
-        let frame = &frames[&kind];
+        };
+        let frame = &*frame;
         let (reference, cache_warnings) = if s.reference.enabled {
             match within(|| refs.get_or_compute_until(frame, deadline)) {
                 Ok(r) => {
@@ -597,7 +600,8 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
                     (Some(r), w)
                 }
                 Err(c) => {
-                    let record = stopped(c, "its reference", &frame.scene, frame.params.clone(), true);
+                    let record =
+                        stopped(c, "its reference", &frame.scene, frame.params.clone(), true);
                     progress.finished(&record);
                     writer.push(record, None, None, None, None)?;
                     continue;
@@ -664,7 +668,12 @@ fn distinct_runs(
             let case = &cases[plan[i].case];
             scene.light = case.light_size.map_or(light, |size| light.with_size(size));
             let p = &plan[i];
-            ids[i] = case_id(&scene.name, &p.algorithm, p.backend.name(), &case.run_params(&scene));
+            ids[i] = case_id(
+                &scene.name,
+                &p.algorithm,
+                p.backend.name(),
+                &case.run_params(&scene),
+            );
         }
     }
     let mut seen = std::collections::HashSet::new();
@@ -718,7 +727,9 @@ fn sweep_work(
             } else {
                 0.0
             };
-            algorithms::work::frame(&extent, &params) + (info.work_estimate)(&extent, &params, ctx) + quality
+            algorithms::work::frame(&extent, &params)
+                + (info.work_estimate)(&extent, &params, ctx)
+                + quality
         })
         .sum()
 }
@@ -769,7 +780,6 @@ impl Progress {
         }
         self.bar.inc(1);
     }
-
 }
 
 /// `h:mm:ss` or `m:ss`.

@@ -76,7 +76,11 @@ pub fn ensure() -> Result<()> {
     READY
         .get_or_init(|| {
             let env = std::env::var_os("SHADOWBENCH_FONT");
-            let named = if env.is_some() { "SHADOWBENCH_FONT: " } else { "" };
+            let named = if env.is_some() {
+                "SHADOWBENCH_FONT: "
+            } else {
+                ""
+            };
             let source = choose(env, &CANDIDATES)?;
             let bytes: &'static [u8] = match load(&source).map_err(|e| format!("{named}{e}"))? {
                 Cow::Borrowed(b) => b,

@@ -407,7 +407,14 @@ impl Loaded {
             None => None,
         };
         let inputs = std::iter::once(path.to_path_buf())
-            .chain(scenario.scene.objects.iter().flatten().map(|o| base.join(&o.obj)))
+            .chain(
+                scenario
+                    .scene
+                    .objects
+                    .iter()
+                    .flatten()
+                    .map(|o| base.join(&o.obj)),
+            )
             .chain(
                 (scenario.light.as_ref())
                     .and_then(|l| l.texture.as_ref())

@@ -58,7 +58,11 @@ fn ascii_numbers(bytes: Vec<u8>) -> Vec<u8> {
             .split(|&b| b == b'\n')
             .take_while(|l| !l.starts_with(END))
             .any(|l| l.starts_with(b"format ascii"));
-    let Some(body) = bytes.windows(END.len()).position(|w| w == END).filter(|_| ascii) else {
+    let Some(body) = bytes
+        .windows(END.len())
+        .position(|w| w == END)
+        .filter(|_| ascii)
+    else {
         return bytes;
     };
     let digit = |b: Option<&u8>| b.is_some_and(u8::is_ascii_digit);

@@ -26,8 +26,9 @@ impl Deadline {
 
     /// The time since the deadline was set ([`Duration::ZERO`] for the default one).
     pub fn elapsed(&self) -> Duration {
-        self.0
-            .map_or(Duration::ZERO, |(at, limit)| (Instant::now() + limit).saturating_duration_since(at))
+        self.0.map_or(Duration::ZERO, |(at, limit)| {
+            (Instant::now() + limit).saturating_duration_since(at)
+        })
     }
 
     /// Whether the deadline has passed.

@@ -150,7 +150,11 @@ mod tests {
         ] {
             let e = err(text);
             assert_eq!(e.file.as_deref(), Some(Path::new("s.json")), "{text}");
-            assert!(e.message.starts_with("content after the JSON value at line "), "{e}");
+            assert!(
+                e.message
+                    .starts_with("content after the JSON value at line "),
+                "{e}"
+            );
         }
         assert!(parse::<Params>("{\"image\": [1, 2]}\n\n ", Path::new("s.json")).is_ok());
     }

@@ -29,7 +29,12 @@ pub fn read_2d<T: npyz::Deserialize + Copy>(
     what: &str,
     kind: &str,
 ) -> Result<Array2<T>, InputError> {
-    parse_2d(&crate::util::input::read_bytes(path, what)?, path, what, kind)
+    parse_2d(
+        &crate::util::input::read_bytes(path, what)?,
+        path,
+        what,
+        kind,
+    )
 }
 
 /// [`read_2d`] of the bytes of a `.npy` file; `path` names it in errors.
@@ -64,9 +69,12 @@ pub fn parse_2d<T: npyz::Deserialize + Copy>(
         )));
     }
     let npy = npyz::NpyFile::new(bytes).map_err(|e| bad(e.to_string()))?;
-    let reader = npy
-        .data::<T>()
-        .map_err(|_| bad(format!("expected a {kind} array, found dtype {}", dtype.descr())))?;
+    let reader = npy.data::<T>().map_err(|_| {
+        bad(format!(
+            "expected a {kind} array, found dtype {}",
+            dtype.descr()
+        ))
+    })?;
     let stored: Vec<T> = reader
         .collect::<std::io::Result<_>>()
         .map_err(|e| bad(e.to_string()))?;

@@ -145,7 +145,10 @@ fn the_largest_light_texture_run_keeps_its_budget_and_is_counted_in_the_estimate
     let (big, took, runs) = planned("big.png");
     // The texture's texels count: 4096² of them once per run beside the 48 × 36 × 16 samples.
     // (The planned line prints 4 significant digits.)
-    assert!(big - small > 0.999 * (4096.0 * 4096.0 - 64.0 * 64.0), "{small} {big}");
+    assert!(
+        big - small > 0.999 * (4096.0 * 4096.0 - 64.0 * 64.0),
+        "{small} {big}"
+    );
     // The documented maximum ends inside its budget (plus loading the texture), and is
     // recorded: finished, or failed with its elapsed time.
     assert!(took < Duration::from_secs(10), "{took:?}");
@@ -170,9 +173,21 @@ fn a_budget_spent_in_the_reference_fails_the_run_with_its_phase_and_time() {
     write(&scenario, &v);
     let out = dir.path().join("out");
     let start = Instant::now();
-    let o = shadowbench(&["run", s(&scenario), "--out", s(&out), "--run-timeout", "1", "-q"]);
+    let o = shadowbench(&[
+        "run",
+        s(&scenario),
+        "--out",
+        s(&out),
+        "--run-timeout",
+        "1",
+        "-q",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert!(start.elapsed() < Duration::from_secs(30), "{:?}", start.elapsed());
+    assert!(
+        start.elapsed() < Duration::from_secs(30),
+        "{:?}",
+        start.elapsed()
+    );
     let runs = results(&out);
     assert_eq!(runs.len(), 2);
     for r in &runs {
@@ -240,9 +255,7 @@ fn a_path_that_is_not_utf8_works_as_an_argument() {
     let dir = tempfile::tempdir().unwrap();
     let scenario = dir.path().join("s.json");
     write(&scenario, &tiny());
-    let out = dir
-        .path()
-        .join(std::ffi::OsStr::from_bytes(b"o\xe9"));
+    let out = dir.path().join(std::ffi::OsStr::from_bytes(b"o\xe9"));
     let o = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
         .arg("run")
         .arg(&scenario)
@@ -286,9 +299,21 @@ fn diff_reads_a_fortran_ordered_array_as_numpy_does() {
     // A Fortran-ordered mask beside it is transposed alike.
     let run = dir.path().join("run");
     std::fs::create_dir(&run).unwrap();
-    npy(&run.join("visibility.npy"), "<f4", true, &[2, 3], &f32_bytes(&cols));
+    npy(
+        &run.join("visibility.npy"),
+        "<f4",
+        true,
+        &[2, 3],
+        &f32_bytes(&cols),
+    );
     // Stored by columns, the 0 at index 1 is element (1, 0): row-major index 3.
-    npy(&run.join("mask.npy"), "|u1", true, &[2, 3], &[1, 0, 1, 1, 1, 1]);
+    npy(
+        &run.join("mask.npy"),
+        "|u1",
+        true,
+        &[2, 3],
+        &[1, 0, 1, 1, 1, 1],
+    );
     let (_, mask) = shadowbench::harness::images::load_run(&run).unwrap();
     assert_eq!(mask.unwrap(), [true, true, true, false, true, true]);
 }
@@ -316,7 +341,13 @@ fn a_huge_buffer_file_or_scenario_is_refused_by_its_size_not_read() {
     });
     let g = dir.path().join("tri.gltf");
     write(&g, &gltf);
-    let o = shadowbench(&["render", "--scene", s(&g), "--out", s(&dir.path().join("r"))]);
+    let o = shadowbench(&[
+        "render",
+        "--scene",
+        s(&g),
+        "--out",
+        s(&dir.path().join("r")),
+    ]);
     // Its three vertices are zeros: a triangle with no area, refused as a mesh without
     // triangles — by the mesh reader, after reading 44 bytes, not by an allocation of 40 GB.
     assert!(!stderr(&o).contains("memory allocation"), "{}", stderr(&o));
@@ -326,8 +357,24 @@ fn a_huge_buffer_file_or_scenario_is_refused_by_its_size_not_read() {
     let mut huge = gltf.clone();
     huge["buffers"][0]["byteLength"] = json!(40u64 << 30);
     write(&g, &huge);
-    let o = shadowbench(&["render", "--scene", s(&g), "--memory-limit", "1", "--out", s(&dir.path().join("r"))]);
-    refused(&o, &["tri.gltf", "buffer 0", "byteLength 42949672960", "memory limit"]);
+    let o = shadowbench(&[
+        "render",
+        "--scene",
+        s(&g),
+        "--memory-limit",
+        "1",
+        "--out",
+        s(&dir.path().join("r")),
+    ]);
+    refused(
+        &o,
+        &[
+            "tri.gltf",
+            "buffer 0",
+            "byteLength 42949672960",
+            "memory limit",
+        ],
+    );
     // A 40 GB scenario is too large, said before reading it.
     let scenario = dir.path().join("huge.json");
     std::fs::File::create(&scenario)
@@ -339,7 +386,13 @@ fn a_huge_buffer_file_or_scenario_is_refused_by_its_size_not_read() {
     // A .npy whose shape declares more than its bytes is refused before allocating.
     let lie = dir.path().join("lie.npy");
     npy(&lie, "<f4", false, &[16384, 16384], &f32_bytes(&[0.5; 4]));
-    let o = shadowbench(&["diff", s(&lie), s(&lie), "--out", s(&dir.path().join("d.png"))]);
+    let o = shadowbench(&[
+        "diff",
+        s(&lie),
+        s(&lie),
+        "--out",
+        s(&dir.path().join("d.png")),
+    ]);
     refused(&o, &["lie.npy", "needs 1073741824 bytes", "holds 16"]);
 }
 
@@ -387,7 +440,11 @@ fn errors_name_the_field_and_bad_input_exits_2() {
     let mut v = tiny();
     v["camera"] = json!({ "eye": [0, 1, 2, 3], "target": [0, 0, 0], "up": [0, 1, 0] });
     refused(&run(&v), &["$.camera.eye", "takes 3 values, got 4"]);
-    std::fs::write(dir.path().join("tri.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(
+        dir.path().join("tri.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
     let mut v = tiny();
     v["scene"] = json!({ "objects": [{ "obj": "tri.obj" }] });
     v["params"]["triangles"] = json!(500);
@@ -410,7 +467,13 @@ fn errors_name_the_field_and_bad_input_exits_2() {
     let a = dir.path().join("a");
     std::fs::create_dir(&a).unwrap();
     std::fs::copy(&good, a.join("visibility.npy")).unwrap();
-    npy(&a.join("mask.npy"), "<f4", false, &[1, 2], &f32_bytes(&[1.0, 1.0]));
+    npy(
+        &a.join("mask.npy"),
+        "<f4",
+        false,
+        &[1, 2],
+        &f32_bytes(&[1.0, 1.0]),
+    );
     refused(
         &shadowbench(&["diff", s(&a), s(&good), "--out", s(&png)]),
         &["mask.npy", "uint8", "<f4"],
@@ -428,7 +491,13 @@ fn errors_name_the_field_and_bad_input_exits_2() {
         let o = shadowbench(&["diff", s(&good), s(&good), "--out", s(&ro.join("d.png"))]);
         let e = refused(&o, &["--out", "ro/d.png"]);
         assert!(!e.contains(".tmp"), "{e}");
-        let o = shadowbench(&["scene", "export", "box-on-plane", "--out", s(&ro.join("b.obj"))]);
+        let o = shadowbench(&[
+            "scene",
+            "export",
+            "box-on-plane",
+            "--out",
+            s(&ro.join("b.obj")),
+        ]);
         let e = refused(&o, &["--out", "ro/b.obj"]);
         assert!(!e.contains(".tmp"), "{e}");
     }
@@ -437,7 +506,13 @@ fn errors_name_the_field_and_bad_input_exits_2() {
     std::fs::write(&file, b"").unwrap();
     let o = shadowbench(&["diff", s(&good), s(&good), "--out", s(&file.join("d.png"))]);
     refused(&o, &["--out", "file"]);
-    let o = shadowbench(&["scene", "export", "box-on-plane", "--out", s(&file.join("b.obj"))]);
+    let o = shadowbench(&[
+        "scene",
+        "export",
+        "box-on-plane",
+        "--out",
+        s(&file.join("b.obj")),
+    ]);
     refused(&o, &["--out", "file"]);
     // A bad SHADOWBENCH_FONT is bad input, refused before the sweep.
     write(&scenario, &tiny());
@@ -514,11 +589,15 @@ fn valid_ply_and_gltf_variants_are_read_or_named() {
     let dots = dir.path().join("dots.ply");
     std::fs::write(
         &dots,
-        header(4, "element face 1\nproperty list uchar int vertex_indices\n")
-            + "-.5 0 -.5\n.5 0. -.5\n.5 0 .5\n-.5 0 .5\n4 0 1 2 3\n",
+        header(
+            4,
+            "element face 1\nproperty list uchar int vertex_indices\n",
+        ) + "-.5 0 -.5\n.5 0. -.5\n.5 0 .5\n-.5 0 .5\n4 0 1 2 3\n",
     )
     .unwrap();
-    let mesh = shadowbench::scene::load::load_mesh(&dots, None).unwrap().mesh;
+    let mesh = shadowbench::scene::load::load_mesh(&dots, None)
+        .unwrap()
+        .mesh;
     let xs: Vec<f32> = mesh.positions.iter().map(|p| p.x).collect();
     assert_eq!(xs, [-0.5, 0.5, 0.5, -0.5]);
     assert_eq!(mesh.triangles.len(), 2);
@@ -526,11 +605,15 @@ fn valid_ply_and_gltf_variants_are_read_or_named() {
     let strip = dir.path().join("strip.ply");
     std::fs::write(
         &strip,
-        header(4, "element tristrips 1\nproperty list int int vertex_indices\n")
-            + "-0.5 0 -0.5\n0.5 0 -0.5\n0.5 0 0.5\n-0.5 0 0.5\n5 0 1 3 2 -1\n",
+        header(
+            4,
+            "element tristrips 1\nproperty list int int vertex_indices\n",
+        ) + "-0.5 0 -0.5\n0.5 0 -0.5\n0.5 0 0.5\n-0.5 0 0.5\n5 0 1 3 2 -1\n",
     )
     .unwrap();
-    let m = shadowbench::scene::load::load_mesh(&strip, None).unwrap().mesh;
+    let m = shadowbench::scene::load::load_mesh(&strip, None)
+        .unwrap()
+        .mesh;
     assert_eq!(m.triangles.len(), 2);
     let area: f32 = (0..2)
         .map(|t| {
@@ -564,8 +647,17 @@ fn valid_ply_and_gltf_variants_are_read_or_named() {
             "buffers": [{ "byteLength": 4, "uri": "data:application/octet-stream;base64,AAAAAA==" }]
         }),
     );
-    let o = shadowbench(&["render", "--scene", s(&draco), "--out", s(&dir.path().join("r"))]);
-    refused(&o, &["draco.gltf", "KHR_draco_mesh_compression", "not supported"]);
+    let o = shadowbench(&[
+        "render",
+        "--scene",
+        s(&draco),
+        "--out",
+        s(&dir.path().join("r")),
+    ]);
+    refused(
+        &o,
+        &["draco.gltf", "KHR_draco_mesh_compression", "not supported"],
+    );
 }
 
 // Fault 12: the progress counter counts what runs.
@@ -586,7 +678,10 @@ fn the_progress_counter_counts_the_runs_that_run() {
     let runs = results(&out).len();
     let e = stderr(&o);
     let planned = e.lines().find(|l| l.starts_with("planned")).unwrap();
-    assert!(planned.starts_with(&format!("planned {runs} runs")), "{planned} ({runs} runs)");
+    assert!(
+        planned.starts_with(&format!("planned {runs} runs")),
+        "{planned} ({runs} runs)"
+    );
     let lines: Vec<String> = stdout(&o)
         .lines()
         .filter(|l| l.starts_with('['))
@@ -594,7 +689,10 @@ fn the_progress_counter_counts_the_runs_that_run() {
         .collect();
     assert_eq!(lines.len(), runs, "{}", stdout(&o));
     assert!(
-        lines.last().unwrap().starts_with(&format!("[{runs}/{runs} ")),
+        lines
+            .last()
+            .unwrap()
+            .starts_with(&format!("[{runs}/{runs} ")),
         "{}",
         lines.last().unwrap()
     );
@@ -636,16 +734,24 @@ fn without_vulkan_list_render_and_run_agree_on_the_adapter_and_nothing_fails() {
     // Only the CPU runs, and none failed (a GL adapter would fail the shadow-map passes).
     let runs = results(&out);
     assert_eq!(runs.len(), 2);
-    assert!(runs.iter().all(|r| r["backend"] == "cpu-native" && r["failure"].is_null()));
+    assert!(runs
+        .iter()
+        .all(|r| r["backend"] == "cpu-native" && r["failure"].is_null()));
     // `list` marks no adapter as used and says why, in the same words.
     let l = without_vulkan(&["list"]);
     assert!(l.status.success(), "{}", stderr(&l));
     let listed = stdout(&l);
-    assert!(!listed.lines().any(|x| x.trim_start().starts_with("* ")), "{listed}");
+    assert!(
+        !listed.lines().any(|x| x.trim_start().starts_with("* ")),
+        "{listed}"
+    );
     assert!(listed.contains(&note), "{note}\n{listed}");
     // A GL adapter, where Mesa offers one, is listed with what it lacks.
     if listed.contains(", gl, ") {
-        assert!(listed.contains("not used: lacks WGSL textureLoad from depth textures"), "{listed}");
+        assert!(
+            listed.contains("not used: lacks WGSL textureLoad from depth textures"),
+            "{listed}"
+        );
         assert!(note.contains("lacks"), "{note}");
     }
     // `render` on wgpu fails with the same reason.
