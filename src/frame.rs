@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
 use crate::scene::bvh::SceneBvh;
 use crate::scene::{FlatMesh, Scene};
+use crate::util::deadline::Deadline;
 
 /// Parameters of one run (one point of a sweep).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -155,10 +156,21 @@ impl OccluderEdges {
 
 impl Frame {
     pub fn new(scene: Scene, params: RunParams) -> Frame {
+        Frame::new_until(scene, params, Deadline::default())
+    }
+
+    /// [`Frame::new`] within a run's budget: `deadline` is checked between the phases (the
+    /// flattened mesh, the BVH build, the eye pass, the occluders' edges) and before each pixel of the eye pass; past
+    /// it the build unwinds with [`crate::util::deadline::Cancelled`].
+    pub fn new_until(scene: Scene, params: RunParams, deadline: Deadline) -> Frame {
+        deadline.check();
         let flat = scene.flatten();
+        deadline.check();
         let bvh = SceneBvh::build(&flat);
+        deadline.check();
         let epsilon = scene.bounds().diagonal() * 1e-4;
-        let gbuffer = eye_pass(&scene, &flat, &bvh, params.image, epsilon);
+        let gbuffer = eye_pass(&scene, &flat, &bvh, params.image, epsilon, deadline);
+        deadline.check();
         let occluder_edges = OccluderEdges::of(&scene);
         let precision_warning = precision_warning(&scene);
         Frame {
@@ -286,12 +298,14 @@ fn eye_pass(
     bvh: &SceneBvh,
     [w, h]: [u32; 2],
     epsilon: f32,
+    deadline: Deadline,
 ) -> GBuffer {
     let cam = scene.camera;
     let n = (w * h) as usize;
     let rows: Vec<(Vec3, Vec3, u32, Vec3)> = (0..n)
         .into_par_iter()
         .map(|i| {
+            deadline.check();
             let (x, y) = (i as u32 % w, i as u32 / w);
             let d = cam.ray_direction(x, y, w, h);
             match bvh.closest(cam.eye, d) {

@@ -15,6 +15,7 @@ use shadowbench::report;
 use shadowbench::scenario::{self, validate as check, Loaded};
 use shadowbench::scene::generators::{self, GeneratorParams};
 use shadowbench::util::paths::{same_file, slug};
+use shadowbench::{errln, out, outln};
 
 #[derive(Parser)]
 #[command(
@@ -387,7 +388,7 @@ fn parse_image(s: &str) -> std::result::Result<[u32; 2], InputError> {
 /// `list --machine NAME`: the machine's parameters as pretty JSON.
 fn list_machine(name: &str) -> Result<()> {
     let m = MachineConfig::resolve("--machine", name, Path::new("."))?;
-    println!(
+    outln!(
         "{}",
         serde_json::to_string_pretty(&m).expect("machine configs serialize")
     );
@@ -395,11 +396,11 @@ fn list_machine(name: &str) -> Result<()> {
 }
 
 fn list(scenarios: &std::path::Path) {
-    println!("algorithms:");
+    outln!("algorithms:");
     for a in algorithms::ALGORITHMS {
         let b: Vec<&str> = a.backends.iter().map(|b| b.name()).collect();
         let l: Vec<String> = a.lights.iter().map(|l| l.to_string()).collect();
-        println!(
+        outln!(
             "  {:<20} [{}] lights: {}  ({}) {}",
             a.id,
             b.join(", "),
@@ -408,28 +409,30 @@ fn list(scenarios: &std::path::Path) {
             a.summary
         );
     }
-    println!("executions:");
-    println!("  cpu-native   host kernels, uninstrumented");
-    println!("  cpu-model    modelled many-core SIMD machine (see machines)");
-    println!("  wgpu         GPU passes; adapters (* = used):");
+    outln!("executions:");
+    outln!("  cpu-native   host kernels, uninstrumented");
+    outln!("  cpu-model    modelled many-core SIMD machine (see machines)");
+    outln!("  wgpu         GPU passes; adapters (* = used):");
     for line in shadowbench::gpu::adapter_report() {
-        println!("               {line}");
+        outln!("               {line}");
     }
-    println!("machines (--machine, scenario `machine`; or a machine .json file):");
+    outln!("machines (--machine, scenario `machine`; or a machine .json file):");
     for name in model::config::PRESETS {
         match MachineConfig::preset(name).expect("listed presets exist") {
-            Ok(m) => println!("  {:<14} {}", name, m.describe()),
-            Err(why) => println!("  {name:<14} unavailable: {why}"),
+            Ok(m) => outln!("  {:<14} {}", name, m.describe()),
+            Err(why) => outln!("  {name:<14} unavailable: {why}"),
         }
     }
-    println!("scenes:");
+    outln!("scenes:");
     for g in generators::GENERATORS {
-        println!(
+        outln!(
             "  {:<18} ~{:>6} triangles  {}",
-            g.name, g.default_triangles, g.summary
+            g.name,
+            g.default_triangles,
+            g.summary
         );
     }
-    println!("scenarios ({}):", scenarios.display());
+    outln!("scenarios ({}):", scenarios.display());
     match std::fs::read_dir(scenarios) {
         Ok(rd) => {
             let mut names: Vec<PathBuf> = rd
@@ -441,10 +444,10 @@ fn list(scenarios: &std::path::Path) {
                 let desc = Loaded::from_file(&p)
                     .map(|l| l.scenario.description.unwrap_or_default())
                     .unwrap_or_else(|e| format!("INVALID: {e}"));
-                println!("  {:<28} {}", p.display(), desc);
+                outln!("  {:<28} {}", p.display(), desc);
             }
         }
-        Err(e) => println!("  (cannot read: {e})"),
+        Err(e) => outln!("  (cannot read: {e})"),
     }
 }
 
@@ -485,10 +488,10 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     let (mut scene, notes) = scenario::scene_from_arg(&a.scene, generator)?;
     for line in notes.framing.iter().flat_map(|f| f.describe()) {
-        println!("{line}");
+        outln!("{line}");
     }
     for w in &notes.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     if let Some(s) = a.light_size {
         scene.light = scene.light.with_size(s);
@@ -497,7 +500,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let converted =
         (kind != scene.light.kind()).then(|| harness::light_converted(scene.light.kind(), kind));
     if let Some(w) = &converted {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
     }
     scene.light = harness::light_for_run(&scene, info).map_err(|e| {
         // A scene from a file: the error names it.
@@ -554,11 +557,11 @@ fn render(a: RenderArgs) -> Result<()> {
         reference.as_ref(),
         &frame,
     )?;
-    print!("{}", harness::summary_table(std::slice::from_ref(&record)));
+    out!("{}", harness::summary_table(std::slice::from_ref(&record)));
     match record.failure {
         Some(f) => Err(Error::Other(f)),
         None => {
-            println!("wrote {}", a.out.display());
+            outln!("wrote {}", a.out.display());
             Ok(())
         }
     }
@@ -575,7 +578,21 @@ fn scene_export(a: ExportArgs) -> Result<()> {
     let generator = a.generator.params(a.seed.unwrap_or(1))?;
     let (scene, notes) = scenario::scene_from_arg(&a.scene, generator)?;
     for w in &notes.warnings {
-        eprintln!("warning: {w}");
+        errln!("warning: {w}");
+    }
+    // Neither file written may be one the scene was read from (`b.obj --out b.obj`).
+    let outputs =
+        std::iter::once(("--out", &a.out)).chain(a.scenario.iter().map(|p| ("--scenario", p)));
+    for (flag, out) in outputs {
+        if let Some(input) = notes.inputs.iter().find(|i| same_file(i, out)) {
+            let why = format!(
+                "'{}' is the file the scene is read from ('{}'), so it would be overwritten; \
+                 write the export elsewhere",
+                out.display(),
+                input.display()
+            );
+            return Err(InputError::new(flag, why).into());
+        }
     }
     // The scenario's folder first: one that cannot be made stops the export before the mesh.
     if let Some(dir) = (a.scenario.as_ref())
@@ -588,7 +605,7 @@ fn scene_export(a: ExportArgs) -> Result<()> {
         })?;
     }
     shadowbench::scene::export::write_scene(&scene, &a.out, "--out")?;
-    println!(
+    outln!(
         "wrote {} ({} objects, {} triangles)",
         a.out.display(),
         scene.objects.len(),
@@ -597,8 +614,8 @@ fn scene_export(a: ExportArgs) -> Result<()> {
     if let Some(path) = &a.scenario {
         let json = scenario::export_scenario(&scene, &a.out, path)?;
         let text = serde_json::to_vec_pretty(&json).expect("JSON values serialize");
-        shadowbench::visibility::write_atomic(path, &text)?;
-        println!("wrote {}", path.display());
+        shadowbench::visibility::write_output(path, &text, "--scenario")?;
+        outln!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -669,7 +686,7 @@ fn run(a: RunArgs) -> Result<()> {
     let shard = match shard {
         Some(s) => Some(Shard::parse("--shard", &s)?),
         None => Shard::from_env(|k| std::env::var(k).ok(), shard_count)?.map(|(s, var)| {
-            eprintln!("note: running shard {s} (from {var})");
+            errln!("note: running shard {s} (from {var})");
             s
         }),
     };
@@ -720,7 +737,7 @@ fn run(a: RunArgs) -> Result<()> {
     for (l, dir) in loaded.iter().zip(&dirs) {
         let out_dir = if several { out.join(dir) } else { out.clone() };
         if several {
-            println!("== {dir}");
+            outln!("== {dir}");
         }
         let results = harness::run_scenario(
             l,
@@ -742,7 +759,7 @@ fn run(a: RunArgs) -> Result<()> {
             },
         )?;
         if verbosity != harness::Verbosity::Quiet {
-            print!("{}", harness::grouped_summary(&results.runs));
+            out!("{}", harness::grouped_summary(&results.runs));
         }
         let written = report::write_report(&out_dir, &results)?;
         let failed = results.runs.iter().filter(|r| r.failure.is_some()).count();
@@ -751,7 +768,7 @@ fn run(a: RunArgs) -> Result<()> {
             .iter()
             .filter(|r| !r.warnings.is_empty())
             .count();
-        println!(
+        outln!(
             "{} runs ({} failed, {} with warnings); results in {}",
             results.runs.len(),
             failed,
@@ -773,7 +790,7 @@ fn run(a: RunArgs) -> Result<()> {
 
 /// Says where a report was written.
 fn print_report(written: &report::Report) {
-    println!(
+    outln!(
         "report: {} ({} charts)",
         written.index.display(),
         written.charts.len()
@@ -790,10 +807,10 @@ fn write_claims(
 ) -> Result<()> {
     let claims = report::write_claims(out, reports, several)?;
     if print_claims {
-        print!("{claims}");
+        out!("{claims}");
     }
     if several {
-        println!("index: {}", out.join("index.html").display());
+        outln!("index: {}", out.join("index.html").display());
     }
     Ok(())
 }
@@ -843,7 +860,7 @@ fn merge(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
     report::merge(&inputs)?;
     let _lock = harness::outdir::lock("--out", &out)?;
     let written = report::write_merged(&out, &inputs)?;
-    println!(
+    outln!(
         "merged {} files into {}; report: {}",
         inputs.len(),
         out.join("results.json").display(),
@@ -885,11 +902,18 @@ fn diff(a: PathBuf, b: PathBuf, out: PathBuf) -> Result<()> {
         );
     }
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        std::fs::create_dir_all(dir).map_err(|e| {
+            InputError::new(
+                "--out",
+                format!("cannot create the folder '{}': {e}", dir.display()),
+            )
+        })?;
     }
-    img.save(&out)
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .map_err(|e| Error::Other(format!("{}: {e}", out.display())))?;
-    println!(
+    shadowbench::visibility::write_output(&out, &png, "--out")?;
+    outln!(
         "{} − {}: {} pixels compared{}; mean |A−B| {:.4}, largest {:.4}, {:.2}% differ by more \
          than 0.1; wrote {}",
         a.display(),
@@ -941,7 +965,7 @@ fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
     let (machine, _) = calibrated_host(quick, (!kernels_only).then_some(&training))?;
     let text = serde_json::to_vec_pretty(&machine).expect("machine configs serialize");
     shadowbench::visibility::write_atomic(&out, &text)?;
-    println!(
+    outln!(
         "wrote {} in {:.1} s (use it with --machine {})",
         out.display(),
         start.elapsed().as_secs_f64(),
@@ -965,23 +989,23 @@ fn calibrated_host(
     } else {
         model::calibrate::Settings::default()
     };
-    println!("calibrating {} ({})", base.name, base.describe());
+    outln!("calibrating {} ({})", base.name, base.describe());
     let start = std::time::Instant::now();
-    let (kernels, _) = model::calibrate::calibrate(&base, settings, |line| println!("{line}"));
+    let (kernels, _) = model::calibrate::calibrate(&base, settings, |line| outln!("{line}"));
     let Some(sweep) = sweep else {
         return Ok((kernels, None));
     };
     let training = harness::fit::training_sweep(sweep);
-    println!(
+    outln!(
         "fitting the issue costs to a training sweep on {}",
         training.scenes.join(", ")
     );
-    let (m, fit) = harness::fit::fit(&kernels, &training, |line| println!("{line}"))?;
+    let (m, fit) = harness::fit::fit(&kernels, &training, |line| outln!("{line}"))?;
     let costs: Vec<String> = harness::fit::fitted_costs(&m.costs)
         .iter()
         .map(|(field, v)| format!("{} {v:.3}", field.trim_start_matches("costs.")))
         .collect();
-    println!(
+    outln!(
         "fitted in {:.0} s (cycles): {}; the fit predicts the training runs at MAPE {:.1}%, \
          phases {:.1}%",
         start.elapsed().as_secs_f64(),
@@ -1082,8 +1106,8 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     let path = a.out.join("machine.json");
     let text = serde_json::to_vec_pretty(&machine).expect("machine configs serialize");
     shadowbench::visibility::write_atomic(&path, &text)?;
-    println!("wrote {}", path.display());
-    let mut v = validate::run(&sweep, &machine, |line| println!("{line}"))?;
+    outln!("wrote {}", path.display());
+    let mut v = validate::run(&sweep, &machine, |line| outln!("{line}"))?;
     v.cost_fit = cost_fit;
     let mut written = validate::write(&a.out, &v)?;
     written.extend(report::validation::chart(
@@ -1091,8 +1115,8 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
         "modelled_vs_measured",
         &v,
     )?);
-    print!("{}", validate::summary_text(&v));
-    println!(
+    out!("{}", validate::summary_text(&v));
+    outln!(
         "{} runs, {} phases in {:.0} s; wrote {}",
         v.runs.len(),
         v.phases.len(),
@@ -1111,7 +1135,7 @@ fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> 
     let old = report::read_results(&baseline)?;
     let new = report::read_results(&current)?;
     let c = report::compare::compare((&baseline, &old), (&current, &new), threshold)?;
-    print!("{}", c.render());
+    out!("{}", c.render());
     Ok(!c.regressed())
 }
 
@@ -1196,12 +1220,25 @@ fn main() -> ExitCode {
             return failed(InputError::new(shadowbench::gpu::fault::FAULT_ENV, e).into());
         }
     }
+    // Commands that draw charts check the chart font before any work (a bad SHADOWBENCH_FONT
+    // would otherwise fail a sweep at its report).
+    if matches!(
+        cli.command,
+        Command::Run(_)
+            | Command::Report { .. }
+            | Command::Merge { .. }
+            | Command::ValidateModel(_)
+    ) {
+        if let Err(e) = report::font::ensure() {
+            return failed(e);
+        }
+    }
     let result = match cli.command {
         Command::List {
             machine: Some(m), ..
         } => list_machine(&m),
         Command::List { counters: true, .. } => {
-            print!("{}", shadowbench::counters::glossary());
+            out!("{}", shadowbench::counters::glossary());
             Ok(())
         }
         Command::List { scenarios, .. } => {
@@ -1227,18 +1264,31 @@ fn main() -> ExitCode {
             current,
             threshold,
         } => match compare(baseline, current, threshold) {
-            Ok(false) => return ExitCode::from(1),
+            Ok(false) => {
+                return match shadowbench::util::console::finish() {
+                    Err(e) => failed(Error::Other(format!(
+                        "cannot write to standard output: {e}"
+                    ))),
+                    Ok(()) => ExitCode::from(1),
+                }
+            }
             other => other.map(|_| ()),
         },
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => failed(e),
+    // Output that could not be written (`> /dev/full`) fails the command after its work is
+    // done and written (`util::console`); an error of its own comes first.
+    let printed = shadowbench::util::console::finish();
+    match (result, printed) {
+        (Err(e), _) => failed(e),
+        (Ok(()), Err(e)) => failed(Error::Other(format!(
+            "cannot write to standard output: {e}"
+        ))),
+        (Ok(()), Ok(())) => ExitCode::SUCCESS,
     }
 }
 
 /// Prints `e` and gives its exit code (2 for bad input, 1 otherwise).
 fn failed(e: Error) -> ExitCode {
-    eprintln!("error: {e}");
+    errln!("error: {e}");
     ExitCode::from(e.exit_code() as u8)
 }

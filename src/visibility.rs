@@ -74,24 +74,18 @@ impl VisibilityBuffer {
         w.finish().map_err(|e| Error::io(path, e))
     }
 
-    /// Reads a visibility buffer written by [`Self::write_npy`]: a 2-D `f32` array (rows by
-    /// columns) of values in [0, 1]. Another shape or type, or a value outside [0, 1] (NaN and
-    /// infinities included), is an input error naming the file and the pixel.
-    pub fn read_npy(path: &Path) -> Result<VisibilityBuffer> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| Error::io(path, e))?;
-        let shape = npy.shape().to_vec();
-        if shape.len() != 2 {
-            return Err(Error::Other(format!(
-                "{}: expected a 2-D array, found shape {shape:?}",
-                path.display()
-            )));
-        }
-        let data: Vec<f32> = npy.into_vec().map_err(|e| Error::io(path, e))?;
+    /// Reads a visibility buffer written by [`Self::write_npy`]: a 2-D `float32` array (rows by
+    /// columns, C or Fortran order: [`crate::util::npy::read_2d`]) of values in [0, 1]. Another
+    /// shape or type, a side of 0, or a value outside [0, 1] (NaN and infinities included), is
+    /// an input error naming the file (and the pixel).
+    pub fn read_npy(
+        path: &Path,
+    ) -> std::result::Result<VisibilityBuffer, crate::error::InputError> {
+        let a = crate::util::npy::read_2d::<f32>(path, "visibility array", "float32")?;
         let v = VisibilityBuffer {
-            width: shape[1] as u32,
-            height: shape[0] as u32,
-            data,
+            width: a.width,
+            height: a.height,
+            data: a.data,
         };
         v.check_range()
             .map_err(|e| crate::error::InputError::file(path, e))?;
@@ -135,6 +129,27 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// [`write_atomic`] of a file the user named with option `field` (`--out`): an error names
+/// `path`, not the temporary file, and one that comes from the path (no permission, a
+/// read-only file system, a folder in the way) is an input error on `field` (exit 2).
+pub fn write_output(path: &Path, bytes: &[u8], field: &str) -> Result<()> {
+    write_atomic(path, bytes).map_err(|e| match e {
+        Error::Io { source, .. } => {
+            use std::io::ErrorKind as K;
+            let why = format!("cannot write '{}': {source}", path.display());
+            match source.kind() {
+                K::PermissionDenied
+                | K::ReadOnlyFilesystem
+                | K::NotADirectory
+                | K::IsADirectory
+                | K::NotFound => crate::error::InputError::new(field, why).into(),
+                _ => Error::Other(why),
+            }
+        }
+        e => e,
+    })
 }
 
 /// Writes `bytes` to `tmp`, syncs it and renames it to `path`.

@@ -25,11 +25,13 @@ use super::ExecContext;
 use crate::frame::RunParams;
 use crate::scene::{Light, Scene};
 
-/// What the estimates look at in a scene: its light and the centre of its bounds.
+/// What the estimates look at in a scene: its light, the centre of its bounds and the texels
+/// of its light texture (0 without one).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneExtent {
     pub light: Light,
     pub center: Vec3,
+    pub light_texels: f64,
 }
 
 impl SceneExtent {
@@ -37,8 +39,24 @@ impl SceneExtent {
         SceneExtent {
             light: scene.light,
             center: scene.bounds().center(),
+            light_texels: texture_texels(scene),
         }
     }
+}
+
+/// The texels of `scene`'s light texture, 0 without one.
+pub fn texture_texels(scene: &Scene) -> f64 {
+    scene
+        .light_texture
+        .as_ref()
+        .map_or(0.0, |t| f64::from(t.width) * f64::from(t.height))
+}
+
+/// What every run of a frame does besides its algorithm, in the same unit: the eye pass (one
+/// ray per pixel) and one pass over the light texture's texels (its mean, its hash in cache
+/// keys, its filtering), which a 4096² texture makes 1.7·10⁷.
+pub fn frame(scene: &SceneExtent, p: &RunParams) -> f64 {
+    pixels(p) + scene.light_texels
 }
 
 /// Width in texels of the penumbra of a typical occluder, in a map of `resolution` texels that
@@ -168,6 +186,30 @@ mod tests {
             occluder_offset: None,
             cores: None,
         }
+    }
+
+    #[test]
+    fn a_runs_work_grows_with_its_light_texture() {
+        let ctx = ExecContext {
+            reference_samples: 16,
+            ..Default::default()
+        };
+        let p = RunParams {
+            image: [48, 36],
+            ..params(64)
+        };
+        let with = |side: f64| {
+            let e = SceneExtent {
+                light_texels: side * side,
+                ..scene(0.5)
+            };
+            frame(&e, &p) + reference(&e, &p, &ctx, &())
+        };
+        // The eye pass and the samples: 48 × 36 × (1 + 16).
+        assert_eq!(with(0.0), 48.0 * 36.0 * 17.0);
+        // Each texel once more.
+        assert_eq!(with(4096.0) - with(0.0), 4096.0 * 4096.0);
+        assert!(with(4096.0) > with(1024.0) && with(1024.0) > with(64.0));
     }
 
     #[test]

@@ -71,12 +71,12 @@ pub(super) fn inject(gpu: &Gpu) {
     let faults = match parse(&spec) {
         Ok(f) => f,
         Err(e) => {
-            eprintln!("{FAULT_ENV}: {e}; no fault injected");
+            crate::errln!("{FAULT_ENV}: {e}; no fault injected");
             return;
         }
     };
     for (fault, _) in faults.into_iter().filter(|&(_, at)| at == run) {
-        eprintln!("wgpu run {run}: injecting {fault:?}");
+        crate::errln!("wgpu run {run}: injecting {fault:?}");
         match fault {
             Fault::DeviceLost => gpu.device.destroy(),
             Fault::ShaderError => {

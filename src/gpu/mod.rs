@@ -514,7 +514,7 @@ fn gpu_acquired() -> Result<(&'static Gpu, bool)> {
     let mut current = GPU.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(Ok(g)) = current.as_ref() {
         if let Some(why) = g.lost() {
-            eprintln!("wgpu: the device was lost ({why}); acquiring a new one");
+            crate::errln!("wgpu: the device was lost ({why}); acquiring a new one");
             *current = None;
         }
     }
@@ -577,6 +577,46 @@ fn adapters() -> Vec<wgpu::Adapter> {
     Vec::new()
 }
 
+/// What adapter `a` lacks that the wgpu executions need, or `None` when it has it all: the
+/// full WebGPU feature level (wgpu's downlevel flags, limits and shader model 5: storage
+/// buffers and textures in every stage, compute, depth-texture copies, ...), and a backend
+/// whose shading language can express the executions' WGSL (`textureLoad` from depth
+/// textures, which naga cannot write as GLSL: on GL the shadow-map family's passes fail to
+/// build). `list`, `render` and `run` choose adapters by it alike.
+fn lacks(a: &wgpu::Adapter) -> Option<String> {
+    let info = a.get_info();
+    let d = a.get_downlevel_capabilities();
+    let mut missing: Vec<String> = Vec::new();
+    if info.backend == wgpu::Backend::Gl {
+        missing.push("WGSL textureLoad from depth textures (not expressible in GLSL)".into());
+    }
+    let flags = wgpu::DownlevelFlags::compliant() - d.flags;
+    missing.extend(flags.iter_names().map(|(name, _)| name.to_lowercase()));
+    if d.shader_model < wgpu::ShaderModel::Sm5 {
+        missing.push(format!("shader model 5 (has {:?})", d.shader_model));
+    }
+    if d.limits != wgpu::DownlevelLimits::default() {
+        missing.push("WebGPU's downlevel limits".into());
+    }
+    (!missing.is_empty()).then(|| missing.join(", "))
+}
+
+/// The reason no found adapter can run the wgpu executions: each adapter and what it lacks.
+fn none_usable(found: &[wgpu::Adapter]) -> String {
+    let each: Vec<String> = found
+        .iter()
+        .map(|a| {
+            let lacks = lacks(a).unwrap_or_default();
+            format!("{} lacks {lacks}", describe(&a.get_info()))
+        })
+        .collect();
+    format!(
+        "no adapter can run the wgpu executions: {} (install a Vulkan driver, e.g. Mesa's \
+         software one, the Debian package mesa-vulkan-drivers)",
+        each.join("; ")
+    )
+}
+
 fn no_adapter_reason() -> String {
     let mut why = String::from(
         "no GPU adapter found (no Vulkan, Metal, DX12 or GL driver answered; on Linux without a \
@@ -596,10 +636,18 @@ fn acquire() -> std::result::Result<Gpu, String> {
         return Err(no_adapter_reason());
     }
     let adapter = match preference() {
-        None => found.into_iter().next().expect("not empty"),
+        None => {
+            if found.iter().all(|a| lacks(a).is_some()) {
+                return Err(none_usable(&found));
+            }
+            found
+                .into_iter()
+                .find(|a| lacks(a).is_none())
+                .expect("one is usable")
+        }
         Some(want) => {
             let names: Vec<String> = found.iter().map(|a| a.get_info().name).collect();
-            found
+            let a = found
                 .into_iter()
                 .find(|a| {
                     a.get_info()
@@ -613,7 +661,14 @@ fn acquire() -> std::result::Result<Gpu, String> {
                          found: {}",
                         names.join(", ")
                     )
-                })?
+                })?;
+            if let Some(l) = lacks(&a) {
+                return Err(format!(
+                    "adapter {} cannot run the wgpu executions: it lacks {l}",
+                    describe(&a.get_info())
+                ));
+            }
+            a
         }
     };
     let info = adapter.get_info();
@@ -639,7 +694,7 @@ fn acquire() -> std::result::Result<Gpu, String> {
     // Errors inside a run are caught by error scopes (see `scoped`); anything else is reported
     // rather than aborting the process.
     device.on_uncaptured_error(Arc::new(|e: wgpu::Error| {
-        eprintln!("wgpu: uncaptured error: {e}");
+        crate::errln!("wgpu: uncaptured error: {e}");
     }));
     let lost = Arc::new(Mutex::new(None));
     let lost_reason = Arc::clone(&lost);
@@ -810,6 +865,9 @@ pub fn adapter_report() -> Vec<String> {
             }
         ));
         lines.push(limits_line(a));
+        if let Some(l) = lacks(a) {
+            lines.push(format!("      not used: lacks {l}"));
+        }
     }
     if let Err(e) = chosen {
         lines.push(format!("no device: {e}"));

@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 use crate::algorithms::reference;
 use crate::error::Result;
 use crate::frame::Frame;
+use crate::util::deadline::Deadline;
 use crate::util::hash::Fnv64;
 use crate::visibility::{write_atomic, VisibilityBuffer};
 
@@ -161,15 +162,25 @@ impl ReferenceCache {
     /// and was recomputed instead. The cache folder is optional: when it cannot be written
     /// (full, read-only), a warning says so once and the cache goes on in memory only.
     pub fn get_or_compute(&mut self, frame: &Frame) -> Result<(VisibilityBuffer, Vec<String>)> {
+        self.get_or_compute_until(frame, Deadline::default())
+    }
+
+    /// [`Self::get_or_compute`], a reference computed now stopping at `deadline` (the run's
+    /// budget: it unwinds with [`crate::util::deadline::Cancelled`], and nothing is cached).
+    pub fn get_or_compute_until(
+        &mut self,
+        frame: &Frame,
+        deadline: Deadline,
+    ) -> Result<(VisibilityBuffer, Vec<String>)> {
         let mut warnings = Vec::new();
         match self.get(frame) {
             Ok(Some(b)) => return Ok((b, warnings)),
             Ok(None) => {}
             Err(why) => warnings.push(format!("reference cache: {why}; recomputed")),
         }
-        let b = reference::render(frame, self.samples, self.seed).visibility;
+        let b = reference::render_until(frame, self.samples, self.seed, deadline).visibility;
         if let Err(e) = self.put(frame, &b) {
-            eprintln!("warning: reference cache: {e}; going on without the cache folder");
+            crate::errln!("warning: reference cache: {e}; going on without the cache folder");
             self.dir = None;
         }
         Ok((b, warnings))

@@ -28,12 +28,16 @@ pub fn write_mask_npy(mask: &[bool], width: u32, height: u32, path: &Path) -> Re
     w.finish().map_err(|e| Error::io(path, e))
 }
 
-/// Reads a mask written by [`write_mask_npy`].
-pub fn read_mask_npy(path: &Path) -> Result<Vec<bool>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| Error::io(path, e))?;
-    let data: Vec<u8> = npy.into_vec().map_err(|e| Error::io(path, e))?;
-    Ok(data.into_iter().map(|v| v != 0).collect())
+/// Reads a mask written by [`write_mask_npy`]: a 2-D `uint8` array (C or Fortran order), true
+/// where non-zero, as (width, height, row-major mask). Errors as
+/// [`crate::util::npy::read_2d`]'s, naming the file.
+pub fn read_mask_npy(path: &Path) -> std::result::Result<(u32, u32, Vec<bool>), InputError> {
+    let a = crate::util::npy::read_2d::<u8>(path, "mask", "uint8")?;
+    Ok((
+        a.width,
+        a.height,
+        a.data.into_iter().map(|v| v != 0).collect(),
+    ))
 }
 
 /// Visibility as an 8-bit grey + alpha PNG: grey 0 (no light) to 255 (fully lit), fully
@@ -161,18 +165,18 @@ pub fn load_run(arg: &Path) -> Result<(VisibilityBuffer, Option<Vec<bool>>)> {
         )
         .into());
     }
-    let v = VisibilityBuffer::read_npy(&npy)
-        .map_err(|e| InputError::file(&npy, format!("not a visibility array: {e}")))?;
+    let v = VisibilityBuffer::read_npy(&npy)?;
     let mask_path = dir.join("mask.npy");
     let mask = if mask_path.is_file() {
-        let m = read_mask_npy(&mask_path)?;
-        if m.len() != v.data.len() {
+        let (w, h, m) = read_mask_npy(&mask_path)?;
+        if (w, h) != (v.width, v.height) {
             return Err(InputError::file(
                 &mask_path,
                 format!(
-                    "{} pixels, but the visibility has {}",
-                    m.len(),
-                    v.data.len()
+                    "mask is {w}×{h}, but the visibility {} is {}×{}",
+                    npy.display(),
+                    v.width,
+                    v.height
                 ),
             )
             .into());
@@ -194,7 +198,7 @@ mod tests {
         let (_dir, p) = crate::util::paths::temp_path("mask.npy");
         let mask = vec![true, false, false, true, true, false];
         write_mask_npy(&mask, 3, 2, &p).unwrap();
-        assert_eq!(read_mask_npy(&p).unwrap(), mask);
+        assert_eq!(read_mask_npy(&p).unwrap(), (3, 2, mask));
     }
 
     #[test]

@@ -20,6 +20,25 @@ pub fn default_limit() -> u64 {
     physical_memory().map_or(8 << 30, |m| m / 2)
 }
 
+/// The memory limit of this process in bytes, once a command sets it (`--memory-limit`).
+static PROCESS_LIMIT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Sets the memory limit of this process (bytes): what every allocation sized from a file
+/// ([`process_limit`]) is bounded by.
+pub fn set_process_limit(bytes: u64) {
+    PROCESS_LIMIT.store(bytes, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The memory limit of this process: the one [`set_process_limit`] set, else
+/// [`default_limit`]. Files read whole (scenarios, machines, results, meshes, glTF buffers,
+/// `.npy` arrays) larger than it are refused before they are read.
+pub fn process_limit() -> u64 {
+    match PROCESS_LIMIT.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => default_limit(),
+        n => n,
+    }
+}
+
 /// Peak bytes per scene triangle while a frame is built, whatever the algorithm: the scene's
 /// meshes, their flattened copy, the BVH with its build's temporaries and the occluders' edge
 /// adjacency. Measured as the peak resident memory of `render --no-reference` on
@@ -84,7 +103,7 @@ pub fn check(
 }
 
 /// A byte count in the largest binary unit that keeps it at least 1 (`1.50 GiB`, `12.00 KiB`).
-fn bytes(n: u64) -> String {
+pub fn bytes(n: u64) -> String {
     let units = ["bytes", "KiB", "MiB", "GiB", "TiB"];
     let mut v = n as f64;
     let mut unit = 0;

@@ -133,6 +133,30 @@ pub fn light_converted(from: LightKind, to: LightKind) -> String {
     format!("light converted from {from} to {to} (same centre and size) for this algorithm")
 }
 
+/// The failure of a run stopped by its budget in `phase` after `elapsed`, with its estimate.
+fn timed_out(
+    c: crate::util::deadline::Cancelled,
+    elapsed: Duration,
+    phase: &str,
+    estimate: Option<f64>,
+) -> Error {
+    let estimate = estimate.map_or_else(|| "unknown".into(), |w| format!("{w:.3e}"));
+    Error::Resource(format!(
+        "run timeout: stopped after {:.2} s in {phase}, over its budget of {} s (estimated work \
+         {estimate} fill; raise --run-timeout or the scenario's run_timeout_s)",
+        elapsed.as_secs_f64(),
+        c.limit.as_secs_f64()
+    ))
+}
+
+/// Runs `f`, turning an unwind at a deadline into `Err` (any other panic goes on unwinding).
+fn within<T>(f: impl FnOnce() -> T) -> std::result::Result<T, crate::util::deadline::Cancelled> {
+    catch_unwind(AssertUnwindSafe(f)).map_err(|panic| {
+        crate::util::deadline::cancelled(panic.as_ref())
+            .unwrap_or_else(|| std::panic::resume_unwind(panic))
+    })
+}
+
 /// Runs one algorithm on one frame and turns its output into a record, with quality against
 /// `reference` when given. Failures (errors, panics, invalid visibility, a run stopped at
 /// `ctx.deadline` with its work estimate and elapsed time) become a record with `failure` set,
@@ -150,18 +174,14 @@ pub fn run_one(
     }))
     .unwrap_or_else(|panic| {
         if let Some(c) = crate::util::deadline::cancelled(panic.as_ref()) {
-            let estimate = algorithms::find(algorithm)
-                .map(|info| {
-                    let extent = algorithms::work::SceneExtent::of(&frame.scene);
-                    (info.work_estimate)(&extent, &frame.params, ctx)
-                })
-                .map_or_else(|_| "unknown".into(), |w| format!("{w:.3e}"));
-            return Err(Error::Resource(format!(
-                "run timeout: stopped after {:.2} s, over its budget of {} s (estimated work \
-                 {estimate} fill; raise --run-timeout or the scenario's run_timeout_s)",
-                start.elapsed().as_secs_f64(),
-                c.limit.as_secs_f64()
-            )));
+            let estimate = algorithms::find(algorithm).ok().map(|info| {
+                let extent = algorithms::work::SceneExtent::of(&frame.scene);
+                algorithms::work::frame(&extent, &frame.params)
+                    + (info.work_estimate)(&extent, &frame.params, ctx)
+            });
+            // The budget covers the run's earlier phases (its frame, its reference) too.
+            let elapsed = ctx.deadline.elapsed().max(start.elapsed());
+            return Err(timed_out(c, elapsed, "the run", estimate));
         }
         Err(Error::Other(format!(
             "internal error (panic): {}",
@@ -422,7 +442,7 @@ fn plan_runs(
         .collect();
     if backends.contains(&Backend::Wgpu) {
         if let Err(e) = crate::gpu::gpu() {
-            eprintln!("note: skipping the wgpu execution: {e}");
+            crate::errln!("note: skipping the wgpu execution: {e}");
             backends.retain(|&b| b != Backend::Wgpu);
         }
     }
@@ -456,7 +476,7 @@ fn plan_runs(
             .collect();
     }
     for s in &skipped {
-        eprintln!("note: skipping {s} (no such execution)");
+        crate::errln!("note: skipping {s} (no such execution)");
     }
     Ok(plan)
 }
@@ -471,7 +491,7 @@ fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions) -> Referenc
     let mut refs = ReferenceCache::new(Some(cache_dir.clone()), s.reference.samples, s.seed);
     if s.reference.enabled {
         if let Err(e) = cache::describe(&cache_dir) {
-            eprintln!("warning: reference cache: {e}; going on without the cache folder");
+            crate::errln!("warning: reference cache: {e}; going on without the cache folder");
             refs.memory_only();
         }
     }
@@ -483,7 +503,7 @@ fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions) -> Referenc
 pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::ResultsFile> {
     let s = &loaded.scenario;
     let cases = loaded.cases(opts.max_cases)?;
-    let plan = plan_runs(loaded, opts, &cases)?;
+    let (plan, repeats) = distinct_runs(loaded, &cases, plan_runs(loaded, opts, &cases)?);
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
     let mut refs = reference_cache(s, opts);
     let mut ctx = ExecContext {
@@ -500,10 +520,14 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     let timeout = opts
         .run_timeout
         .or(s.run_timeout_s.map(std::time::Duration::from_secs_f64));
-    eprintln!(
-        "planned {} runs over {} cases; estimated work {:.3e} fill{}",
+    crate::errln!(
+        "planned {} runs over {} cases{}; estimated work {:.3e} fill{}",
         plan.len(),
         cases.len(),
+        match repeats {
+            0 => String::new(),
+            n => format!(" ({n} more would repeat an earlier run and are left out)"),
+        },
         sweep_work(loaded, &cases, &plan, &ctx),
         timeout.map_or(String::new(), |t| format!(
             "; each run stops after {} s",
@@ -516,7 +540,6 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     let mut writer = output::ResultsWriter::new(&opts.out, &loaded.name(), &s.claims);
     let mut current: Option<(usize, Scene)> = None;
     let mut frames: BTreeMap<LightKind, Frame> = BTreeMap::new();
-    let mut done = std::collections::HashSet::new();
     for p in &plan {
         let case = &cases[p.case];
         bar.set_message(format!(
@@ -527,6 +550,8 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             cases.len(),
             case_label(case)
         ));
+        // The run's budget covers each of its phases: the frame, the reference, the execution.
+        let deadline = timeout.map_or(Deadline::default(), Deadline::after);
         if current.as_ref().map(|c| c.0) != Some(p.case) {
             current = Some((p.case, loaded.build_scene(case.scene, case.light_size)));
             frames.clear();
@@ -553,28 +578,60 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             writer.push(record, None, None, None, None)?;
             continue;
         }
-        let frame = frames.entry(kind).or_insert_with(|| Frame::new(sc, params));
-        let id = case_id(
-            &frame.scene.name,
-            &p.algorithm,
-            p.backend.name(),
-            &frame.params,
-        );
-        if !done.insert(id) {
-            // Two sweep points resolved to the same run (e.g. a swept value equal to the base).
-            progress.skipped();
-            continue;
-        }
-        let (reference, cache_warnings) = if s.reference.enabled {
-            let (r, w) = refs.get_or_compute(frame)?;
-            for w in &w {
-                bar.suspend(|| eprintln!("warning: {w}"));
+        // A run stopped before its execution: failed, with its elapsed time and estimate.
+        let stopped =
+            |c, phase: &str, sc: &Scene, params: crate::frame::RunParams, with_reference: bool| {
+                let extent = algorithms::work::SceneExtent::of(sc);
+                let estimate = algorithms::work::frame(&extent, &params)
+                    + (info.work_estimate)(&extent, &params, &ctx)
+                    + if with_reference {
+                        algorithms::work::reference(&extent, &params, &ctx, &())
+                    } else {
+                        0.0
+                    };
+                let mut record = RunRecord::new(&p.algorithm, p.backend, sc, params);
+                loaded.notes.annotate(&mut record);
+                record.wall_ms = deadline.elapsed().as_secs_f64() * 1e3;
+                record.failure =
+                    Some(timed_out(c, deadline.elapsed(), phase, Some(estimate)).to_string());
+                record
+            };
+        let frame = match frames.entry(kind) {
+            std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::btree_map::Entry::Vacant(e) => {
+                match within(|| Frame::new_until(sc.clone(), params.clone(), deadline)) {
+                    Ok(f) => e.insert(f),
+                    Err(c) => {
+                        let record = stopped(c, "its frame (BVH, eye pass)", &sc, params, false);
+                        progress.finished(&record);
+                        writer.push(record, None, None, None, None)?;
+                        continue;
+                    }
+                }
             }
-            (Some(r), w)
+        };
+        let frame = &*frame;
+        let (reference, cache_warnings) = if s.reference.enabled {
+            match within(|| refs.get_or_compute_until(frame, deadline)) {
+                Ok(r) => {
+                    let (r, w) = r?;
+                    for w in &w {
+                        bar.suspend(|| crate::errln!("warning: {w}"));
+                    }
+                    (Some(r), w)
+                }
+                Err(c) => {
+                    let record =
+                        stopped(c, "its reference", &frame.scene, frame.params.clone(), true);
+                    progress.finished(&record);
+                    writer.push(record, None, None, None, None)?;
+                    continue;
+                }
+            }
         } else {
             (None, vec![])
         };
-        ctx.deadline = timeout.map_or(Deadline::default(), Deadline::after);
+        ctx.deadline = deadline;
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
         loaded.notes.annotate(&mut record);
         record.warnings.extend(cache_warnings);
@@ -596,7 +653,64 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     Ok(writer.into_results())
 }
 
-/// The estimated fill of the planned runs ([`algorithms::work`]), before anything runs. Builds
+/// `plan` without the runs that repeat an earlier one, and how many those were: two sweep
+/// points can resolve to one run (a swept value equal to the base, two triangle targets a
+/// generator meets with the same mesh), which has one case id ([`case_id`]). Builds the scene
+/// of each scene point of the plan once, for its name and triangle count.
+fn distinct_runs(
+    loaded: &Loaded,
+    cases: &[crate::scenario::Case],
+    plan: Vec<Planned>,
+) -> (Vec<Planned>, usize) {
+    // The runs of each scene point, in order of first appearance.
+    let key = |c: &crate::scenario::Case| {
+        let p = c.scene;
+        (
+            p.triangles,
+            p.occluder_height.map(f32::to_bits),
+            p.occluder_offset.map(f32::to_bits),
+        )
+    };
+    let mut points: Vec<(_, Vec<usize>)> = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    for (i, p) in plan.iter().enumerate() {
+        let k = key(&cases[p.case]);
+        let at = *index.entry(k).or_insert_with(|| {
+            points.push((cases[p.case].scene, Vec::new()));
+            points.len() - 1
+        });
+        points[at].1.push(i);
+    }
+    let mut ids = vec![String::new(); plan.len()];
+    for (point, runs) in points {
+        let mut scene = loaded.build_scene(point, None);
+        let light = scene.light;
+        for i in runs {
+            let case = &cases[plan[i].case];
+            scene.light = case.light_size.map_or(light, |size| light.with_size(size));
+            let p = &plan[i];
+            ids[i] = case_id(
+                &scene.name,
+                &p.algorithm,
+                p.backend.name(),
+                &case.run_params(&scene),
+            );
+        }
+    }
+    let mut seen = std::collections::HashSet::new();
+    let before = plan.len();
+    let plan: Vec<Planned> = plan
+        .into_iter()
+        .zip(ids)
+        .filter(|(_, id)| seen.insert(id.clone()))
+        .map(|(p, _)| p)
+        .collect();
+    let repeats = before - plan.len();
+    (plan, repeats)
+}
+
+/// The estimated fill of the planned runs ([`algorithms::work`]): each run's frame and
+/// algorithm, and the reference of each case when the scenario has one. Builds
 /// only the first case's scene (geometry dominates its cost); each case differs from it in its
 /// light size and parameters, which is what the estimates depend on most.
 fn sweep_work(
@@ -610,6 +724,7 @@ fn sweep_work(
     };
     let base = loaded.build_scene(cases[first.case].scene, None);
     let center = base.bounds().center();
+    let mut cases_seen = std::collections::HashSet::new();
     plan.iter()
         .map(|p| {
             let case = &cases[p.case];
@@ -620,12 +735,22 @@ fn sweep_work(
             let extent = algorithms::work::SceneExtent {
                 light: light_as(light, info.light_for(light.kind()), center),
                 center,
+                light_texels: algorithms::work::texture_texels(&base),
             };
             let params = crate::frame::RunParams {
                 light_size: extent.light.size(),
                 ..case.run_params(&base)
             };
-            (info.work_estimate)(&extent, &params, ctx)
+            // The reference of a case is computed once, by its first run.
+            let first_of_case = cases_seen.insert(p.case);
+            let quality = if loaded.scenario.reference.enabled && first_of_case {
+                algorithms::work::reference(&extent, &params, ctx, &())
+            } else {
+                0.0
+            };
+            algorithms::work::frame(&extent, &params)
+                + (info.work_estimate)(&extent, &params, ctx)
+                + quality
         })
         .sum()
 }
@@ -672,14 +797,8 @@ impl Progress {
         self.done += 1;
         if self.lines {
             let line = progress_line(self.done, self.total, self.started.elapsed(), record);
-            self.bar.suspend(|| println!("{line}"));
+            self.bar.suspend(|| crate::outln!("{line}"));
         }
-        self.bar.inc(1);
-    }
-
-    /// A planned run that repeats one already done.
-    fn skipped(&mut self) {
-        self.done += 1;
         self.bar.inc(1);
     }
 }

@@ -95,7 +95,10 @@ pub fn lock(field: &str, out: &Path) -> Result<OutLock> {
     let since = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
-    let args: Vec<String> = std::env::args().collect();
+    // Paths are bytes on Linux: an argument that is not UTF-8 is recorded lossily (`U+FFFD`).
+    let args: Vec<String> = std::env::args_os()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
     let note = format!(
         "pid {}\nsince {since}\ncommand {}\n",
         std::process::id(),
@@ -103,6 +106,17 @@ pub fn lock(field: &str, out: &Path) -> Result<OutLock> {
     );
     replace_contents(&mut file, note.as_bytes()).map_err(|e| Error::io(&path, e))?;
     remove_orphaned_temps(out, 4);
+    if let Some(link) = find_link(out, 5) {
+        let to = std::fs::read_link(&link).unwrap_or_default();
+        let why = format!(
+            "'{}' inside the output folder is a symbolic link (to '{}'): what the command writes \
+             there would land outside '{}'; remove the link or choose another folder",
+            link.display(),
+            to.display(),
+            out.display()
+        );
+        return Err(InputError::new(field, why).into());
+    }
     Ok(OutLock {
         _file: file,
         dir: out.to_path_buf(),
@@ -174,6 +188,26 @@ fn alive(pid: u32) -> bool {
     }
     let proc = Path::new("/proc");
     !proc.is_dir() || proc.join(pid.to_string()).exists()
+}
+
+/// The first symbolic link in `dir` and its folders down to `depth` levels (links are not
+/// followed), if any: a command writes only inside its output folder, and a link planted there
+/// (`OUT/images -> elsewhere`) would carry its files outside.
+pub fn find_link(dir: &Path, depth: usize) -> Option<PathBuf> {
+    let mut entries: Vec<_> = std::fs::read_dir(dir).ok()?.flatten().collect();
+    entries.sort_by_key(|e| e.file_name());
+    for e in entries {
+        let Ok(t) = e.file_type() else { continue };
+        if t.is_symlink() {
+            return Some(e.path());
+        }
+        if t.is_dir() && depth > 0 {
+            if let Some(l) = find_link(&e.path(), depth - 1) {
+                return Some(l);
+            }
+        }
+    }
+    None
 }
 
 /// Removes, in `dir` and its folders down to `depth` levels, the files [`temp_path`] names

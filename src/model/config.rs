@@ -238,19 +238,7 @@ impl MachineConfig {
 
     /// Parses and validates the text of a JSON configuration; `path` names it in errors.
     pub fn from_json(text: &str, path: &Path) -> Result<MachineConfig, InputError> {
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let m: MachineConfig = serde_path_to_error::deserialize(de).map_err(|e| {
-            let field = e.path().to_string();
-            InputError {
-                file: Some(path.to_path_buf()),
-                field: Some(if field == "." {
-                    "$".into()
-                } else {
-                    format!("$.{field}")
-                }),
-                message: e.into_inner().to_string(),
-            }
-        })?;
+        let m: MachineConfig = crate::util::json::parse(text, path)?;
         m.validate().map_err(|e| e.in_file(path))?;
         Ok(m)
     }

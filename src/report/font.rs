@@ -69,21 +69,41 @@ pub fn load(source: &Source) -> std::result::Result<Cow<'static, [u8]>, String> 
     }
 }
 
-/// Registers the chart font under [`FAMILY`] once per process.
+/// Registers the chart font under [`FAMILY`] once per process. Errors (an input error, exit 2):
+/// `SHADOWBENCH_FONT` names no file, or one that is not a font.
 pub fn ensure() -> Result<()> {
     static READY: OnceLock<std::result::Result<(), String>> = OnceLock::new();
     READY
         .get_or_init(|| {
-            let source = choose(std::env::var_os("SHADOWBENCH_FONT"), &CANDIDATES)?;
-            let bytes: &'static [u8] = match load(&source)? {
+            let env = std::env::var_os("SHADOWBENCH_FONT");
+            let named = if env.is_some() {
+                "SHADOWBENCH_FONT: "
+            } else {
+                ""
+            };
+            let source = choose(env, &CANDIDATES)?;
+            let bytes: &'static [u8] = match load(&source).map_err(|e| format!("{named}{e}"))? {
                 Cow::Borrowed(b) => b,
                 Cow::Owned(v) => Box::leak(v.into_boxed_slice()),
             };
-            plotters::style::register_font(FAMILY, FontStyle::Normal, bytes)
-                .map_err(|_| format!("chart font {source:?}: not a TrueType/OpenType font"))
+            plotters::style::register_font(FAMILY, FontStyle::Normal, bytes).map_err(|_| {
+                let what = match &source {
+                    Source::File(p) => p.display().to_string(),
+                    Source::Embedded => "DejaVu Sans (embedded)".into(),
+                };
+                format!("{named}chart font {what}: not a TrueType/OpenType font")
+            })
         })
         .clone()
-        .map_err(Error::Other)
+        // A font file that is missing or not a font: bad input (`SHADOWBENCH_FONT`, or the
+        // system's font, which the variable can replace).
+        .map_err(|message| {
+            Error::Input(crate::error::InputError {
+                file: None,
+                field: None,
+                message,
+            })
+        })
 }
 
 #[cfg(test)]

@@ -58,7 +58,7 @@ pub fn write_report(out: &Path, results: &ResultsFile) -> Result<Report> {
     let mut written = Vec::new();
     let (chartable, left_out) = charts::chartable(&results.runs);
     for w in &left_out {
-        eprintln!("warning: {w}");
+        crate::errln!("warning: {w}");
     }
     for spec in charts::plan(&chartable) {
         written.push(charts::render(&spec, &chart_dir)?);

@@ -299,6 +299,9 @@ impl Framing {
 pub struct SceneNotes {
     pub warnings: Vec<String>,
     pub framing: Option<Framing>,
+    /// The files the scene was read from: the mesh file or scenario named, a scenario's
+    /// `scene.objects` files and its light texture PNG (what a command must not overwrite).
+    pub inputs: Vec<PathBuf>,
 }
 
 impl SceneNotes {
@@ -335,25 +338,7 @@ impl Loaded {
 
     /// Parses and validates scenario text; `path` names it in errors and anchors relative paths.
     pub fn from_str(text: &str, path: &Path) -> Result<Loaded, InputError> {
-        let de = &mut serde_json::Deserializer::from_str(text);
-        let scenario: Scenario = serde_path_to_error::deserialize(de).map_err(|e| {
-            let inner = e.inner();
-            let field = e.path().to_string();
-            let malformed = inner.is_syntax() || inner.is_eof();
-            InputError {
-                file: Some(path.to_path_buf()),
-                field: match field.as_str() {
-                    _ if malformed => None,
-                    "." => Some("$".into()),
-                    f => Some(format!("$.{f}")),
-                },
-                message: if malformed {
-                    format!("malformed JSON: {inner}")
-                } else {
-                    inner.to_string()
-                },
-            }
-        })?;
+        let scenario: Scenario = crate::util::json::parse(text, path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         validate(&scenario).map_err(|e| e.in_file(path))?;
         let mut objects = Vec::new();
@@ -421,11 +406,31 @@ impl Loaded {
             )),
             None => None,
         };
+        let inputs = std::iter::once(path.to_path_buf())
+            .chain(
+                scenario
+                    .scene
+                    .objects
+                    .iter()
+                    .flatten()
+                    .map(|o| base.join(&o.obj)),
+            )
+            .chain(
+                (scenario.light.as_ref())
+                    .and_then(|l| l.texture.as_ref())
+                    .and_then(|t| t.png.as_ref())
+                    .map(|p| base.join(p)),
+            )
+            .collect();
         Ok(Loaded {
             path: path.to_path_buf(),
             scenario,
             objects,
-            notes: SceneNotes { warnings, framing },
+            notes: SceneNotes {
+                warnings,
+                framing,
+                inputs,
+            },
             machine,
             light_texture,
         })
@@ -718,6 +723,7 @@ pub fn scene_from_arg(
             SceneNotes {
                 warnings: file.warnings,
                 framing: Some(framing),
+                inputs: vec![path.to_path_buf()],
             },
         ));
     }

@@ -302,9 +302,15 @@ fn scene(s: &Scenario) -> Check {
                     finite_positive(&f("scale"), "scale", sc)?;
                 }
             }
-            if !s.sweep.triangles.is_empty() || s.params.triangles.is_some() {
+            // The field the count was given in: `params` first, as a sweep extends it.
+            let given = if s.params.triangles.is_some() {
+                Some("$.params.triangles")
+            } else {
+                (!s.sweep.triangles.is_empty()).then_some("$.sweep.triangles")
+            };
+            if let Some(field) = given {
                 return fail(
-                    "$.sweep.triangles",
+                    field,
                     "a triangle count needs a generator scene (user meshes have a fixed count)"
                         .into(),
                 );

@@ -162,5 +162,5 @@ pub fn write_scene(scene: &Scene, path: &Path, field: &str) -> Result<()> {
             InputError::new(field, why)
         })?;
     }
-    crate::visibility::write_atomic(path, &bytes)
+    crate::visibility::write_output(path, &bytes, field)
 }

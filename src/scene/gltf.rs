@@ -25,38 +25,30 @@ use crate::error::{names_or_none, InputError};
 /// Loads the default scene's triangles of the glTF file `path`; with `node`, only those of the
 /// node of that name and its descendants.
 pub fn load_gltf(path: &Path, node: Option<&str>) -> Result<MeshFile, InputError> {
+    parse_gltf(&super::load::read_file(path)?, path, node)
+}
+
+/// [`load_gltf`] of the bytes of a `.gltf` or `.glb` file; `path` names it in errors and
+/// locates its external buffers.
+pub fn parse_gltf(bytes: &[u8], path: &Path, node: Option<&str>) -> Result<MeshFile, InputError> {
     let err = |m: String| InputError::file(path, m);
-    let bytes = super::load::read_file(path)?;
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes)
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| err(format!("cannot parse glTF: {e}")))?;
-    validate(&document).map_err(err)?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    for b in document.buffers() {
-        if let gltf::buffer::Source::Uri(uri) = b.source() {
-            if !uri.starts_with("data:") {
-                let file = base.join(
-                    percent_encoding::percent_decode_str(uri)
-                        .decode_utf8_lossy()
-                        .as_ref(),
-                );
-                if !file.exists() {
-                    return Err(err(format!(
-                        "buffer {} ('{uri}'): '{}' not found",
-                        b.index(),
-                        file.display()
-                    )));
-                }
-                if !file.is_file() {
-                    return Err(err(format!(
-                        "buffer {} ('{uri}') is not a regular file",
-                        b.index()
-                    )));
-                }
-            }
-        }
+    // Draco-compressed primitives keep their data in the extension, which is not decoded here:
+    // named, rather than reported as the accessors' missing data.
+    let draco = "KHR_draco_mesh_compression";
+    let required = document.extensions_required().any(|e| e == draco);
+    let used = document.extensions_used().any(|e| e == draco);
+    let checked = validate(&document);
+    if required || (used && checked.is_err()) {
+        return Err(err(format!(
+            "meshes compressed with {draco} are not supported (decompress the file, e.g. \
+             `gltf-transform copy IN OUT` or Blender's glTF export without Draco)"
+        )));
     }
-    let buffers = gltf::import_buffers(&document, Some(base), blob)
-        .map_err(|e| err(format!("cannot load glTF buffers: {e}")))?;
+    checked.map_err(err)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let buffers = read_buffers(&document, base, blob).map_err(err)?;
     let scene = document
         .default_scene()
         .or_else(|| document.scenes().next())
@@ -120,6 +112,63 @@ pub fn load_gltf(path: &Path, node: Option<&str>) -> Result<MeshFile, InputError
     }
     if out.mesh.triangles.is_empty() {
         return Err(err("no triangles in the default scene".into()));
+    }
+    Ok(out)
+}
+
+/// The data of every buffer: the GLB's binary chunk, a data URI, or a file beside `base`'s
+/// glTF of which only the declared `byteLength` is read (a buffer file may be any size; a
+/// 40 GB file named by a 44-byte buffer reads 44 bytes). A `byteLength` over the memory limit
+/// ([`crate::harness::limits::process_limit`]), a missing or short file, are errors naming
+/// the buffer.
+fn read_buffers(
+    document: &gltf::Document,
+    base: &Path,
+    mut blob: Option<Vec<u8>>,
+) -> Result<Vec<gltf::buffer::Data>, String> {
+    use std::io::Read;
+    let limit = crate::harness::limits::process_limit();
+    let mut out = Vec::new();
+    for b in document.buffers() {
+        let (i, len) = (b.index(), b.length() as u64);
+        if len > limit {
+            return Err(format!(
+                "buffer {i}: byteLength {len} is over the memory limit of {} (raise it with \
+                 --memory-limit, in GiB)",
+                crate::harness::limits::bytes(limit)
+            ));
+        }
+        let data = match b.source() {
+            gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
+                let rel = uri
+                    .strip_prefix("file://")
+                    .or_else(|| uri.strip_prefix("file:"))
+                    .unwrap_or(uri);
+                let file = base.join(
+                    percent_encoding::percent_decode_str(rel)
+                        .decode_utf8_lossy()
+                        .as_ref(),
+                );
+                let name = format!("buffer {i} ('{uri}')");
+                let f = crate::util::input::open(&file, "glTF buffer")
+                    .map_err(|e| format!("{name}: '{}': {}", file.display(), e.message))?;
+                let held = f.metadata().map_or(0, |m| m.len());
+                let mut bytes = Vec::with_capacity(len.min(held) as usize);
+                f.take(len)
+                    .read_to_end(&mut bytes)
+                    .map_err(|e| format!("{name}: cannot read '{}': {e}", file.display()))?;
+                gltf::buffer::Data(bytes)
+            }
+            source => gltf::buffer::Data::from_source_and_blob(source, Some(base), &mut blob)
+                .map_err(|e| format!("cannot load buffer {i}: {e}"))?,
+        };
+        if (data.len() as u64) < len {
+            return Err(format!(
+                "buffer {i}: holds {} bytes, its byteLength says {len}",
+                data.len()
+            ));
+        }
+        out.push(data);
     }
     Ok(out)
 }

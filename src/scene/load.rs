@@ -103,13 +103,9 @@ fn read_mesh(path: &Path, part: Option<&str>) -> Result<MeshFile, InputError> {
 
 /// Reads a whole regular file (not a device, pipe or folder, which could be endless).
 pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, InputError> {
-    use std::io::Read;
-    // A missing file, a folder, a device such as /dev/zero or a link loop, named as such.
-    let mut bytes = Vec::new();
-    crate::util::input::open(path, "mesh file")?
-        .read_to_end(&mut bytes)
-        .map_err(|e| InputError::file(path, format!("cannot read mesh file: {e}")))?;
-    Ok(bytes)
+    // A missing file, a folder, a device such as /dev/zero or a link loop, named as such; a
+    // file larger than the memory limit refused before it is read.
+    crate::util::input::read_bytes(path, "mesh file")
 }
 
 /// Largest magnitude of a scene coordinate, 2⁴⁰ ≈ 1.1·10¹²: the algorithms form products of up

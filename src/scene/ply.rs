@@ -1,8 +1,8 @@
 //! PLY meshes (ASCII, binary little and big endian; the Stanford scanning repository's format)
 //! through the `ply-rs-bw` crate: the `vertex` element's `x`, `y`, `z` (any numeric type) and
 //! the `face` element's `vertex_indices` (or `vertex_index`) lists, polygons of any size
-//! triangulated on their plane ([`super::polygon`]). Other elements and properties (colours,
-//! normals, edges) are ignored.
+//! triangulated on their plane ([`super::polygon`]), and the `tristrips` element's strips
+//! (-1 ends a strip). Other elements and properties (colours, normals, edges) are ignored.
 
 use std::path::Path;
 
@@ -48,10 +48,50 @@ fn index_list(p: &Property) -> Option<Vec<u64>> {
     })
 }
 
+/// An ASCII PLY's numbers in the form the parser takes: `.5` and `-.5` as `0.5` and `-0.5`,
+/// `5.` as `5.0` (C's `strtod` and OBJ readers take them; the parser's grammar wants digits on
+/// both sides of the point). Binary files, and ASCII ones without such numbers, are unchanged.
+fn ascii_numbers(bytes: Vec<u8>) -> Vec<u8> {
+    const END: &[u8] = b"end_header";
+    let ascii = bytes.starts_with(b"ply")
+        && bytes
+            .split(|&b| b == b'\n')
+            .take_while(|l| !l.starts_with(END))
+            .any(|l| l.starts_with(b"format ascii"));
+    let Some(body) = bytes
+        .windows(END.len())
+        .position(|w| w == END)
+        .filter(|_| ascii)
+    else {
+        return bytes;
+    };
+    let digit = |b: Option<&u8>| b.is_some_and(u8::is_ascii_digit);
+    let mut out = Vec::with_capacity(bytes.len() + bytes.len() / 8);
+    out.extend_from_slice(&bytes[..body]);
+    let rest = &bytes[body..];
+    for (i, &b) in rest.iter().enumerate() {
+        let prev = i.checked_sub(1).map(|j| &rest[j]);
+        let next = rest.get(i + 1);
+        if b == b'.' && !digit(prev) && digit(next) {
+            out.push(b'0');
+        }
+        out.push(b);
+        if b == b'.' && digit(prev) && !digit(next) {
+            out.push(b'0');
+        }
+    }
+    out
+}
+
 /// Loads the triangles of the PLY file `path`.
 pub fn load_ply(path: &Path) -> Result<MeshFile, InputError> {
+    parse_ply(super::load::read_file(path)?, path)
+}
+
+/// [`load_ply`] of the bytes of a PLY file; `path` names it in errors.
+pub fn parse_ply(bytes: Vec<u8>, path: &Path) -> Result<MeshFile, InputError> {
     let err = |m: String| InputError::file(path, m);
-    let bytes = super::load::read_file(path)?;
+    let bytes = ascii_numbers(bytes);
     let ply = Parser::<DefaultElement>::new()
         .read_ply(&mut bytes.as_slice())
         .map_err(|e| err(format!("cannot parse PLY: {e}")))?;
@@ -75,20 +115,47 @@ pub fn load_ply(path: &Path) -> Result<MeshFile, InputError> {
         }
         positions.push(p);
     }
-    let faces = ply
-        .payload
-        .get("face")
-        .ok_or_else(|| err("no 'face' element (a point cloud has no surface)".into()))?;
+    let faces = ply.payload.get("face");
+    let strips = ply.payload.get("tristrips");
+    if faces.is_none() && strips.is_none() {
+        return Err(err(
+            "no 'face' or 'tristrips' element (a point cloud has no surface)".into(),
+        ));
+    }
+    // Triangle strips as the faces they stand for: each strip's list, cut at every negative
+    // index (-1 ends a strip), gives triangles (i, i+1, i+2), every second one turned back to
+    // the strip's winding.
+    let mut strip_faces: Vec<Vec<u64>> = Vec::new();
+    for (k, strip) in strips.into_iter().flatten().enumerate() {
+        let list = strip
+            .get("vertex_indices")
+            .or_else(|| strip.get("vertex_index"))
+            .and_then(index_list)
+            .ok_or_else(|| err(format!("tristrips {k}: no integer list 'vertex_indices'")))?;
+        for run in list.split(|&i| i == u64::MAX) {
+            for (t, w) in run.windows(3).enumerate() {
+                strip_faces.push(if t % 2 == 0 {
+                    w.to_vec()
+                } else {
+                    vec![w[1], w[0], w[2]]
+                });
+            }
+        }
+    }
     let mut mesh = Mesh::default();
     let mut remap = vec![u32::MAX; positions.len()];
     let mut dropped = 0usize;
-    for (f, face) in faces.iter().enumerate() {
+    let lists = faces.into_iter().flatten().enumerate().map(|(f, face)| {
         let list = face
             .get("vertex_indices")
             .or_else(|| face.get("vertex_index"))
             .ok_or_else(|| err(format!("face {f}: no 'vertex_indices' list")))?;
-        let list = index_list(list)
-            .ok_or_else(|| err(format!("face {f}: 'vertex_indices' is not an integer list")))?;
+        index_list(list)
+            .ok_or_else(|| err(format!("face {f}: 'vertex_indices' is not an integer list")))
+    });
+    let from_strips = strip_faces.into_iter().map(Ok);
+    for (f, list) in lists.chain(from_strips).enumerate() {
+        let list = list?;
         if list.len() < 3 {
             return Err(err(format!(
                 "face {f}: a face needs at least 3 vertices, got {}",

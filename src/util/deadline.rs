@@ -24,6 +24,13 @@ impl Deadline {
         Deadline(Some((Instant::now() + limit, limit)))
     }
 
+    /// The time since the deadline was set ([`Duration::ZERO`] for the default one).
+    pub fn elapsed(&self) -> Duration {
+        self.0.map_or(Duration::ZERO, |(at, limit)| {
+            (Instant::now() + limit).saturating_duration_since(at)
+        })
+    }
+
     /// Whether the deadline has passed.
     pub fn expired(&self) -> bool {
         self.0.is_some_and(|(at, _)| Instant::now() >= at)

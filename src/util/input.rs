@@ -30,12 +30,43 @@ pub fn open(path: &Path, what: &str) -> Result<File, InputError> {
         .map_err(|e| InputError::file(path, format!("cannot read {what}: {}", describe(&e, path))))
 }
 
-/// Reads `path` as UTF-8 text (see [`open`]); a leading byte order mark is dropped.
-pub fn read_text(path: &Path, what: &str) -> Result<String, InputError> {
-    let mut bytes = Vec::new();
-    open(path, what)?
+/// Refuses a file of `len` bytes that is larger than the memory limit
+/// ([`crate::harness::limits::process_limit`]), before it is read: a 40 GB (sparse) file named
+/// as a scenario or a glTF buffer.
+pub fn check_size(path: &Path, what: &str, len: u64) -> Result<(), InputError> {
+    let limit = crate::harness::limits::process_limit();
+    if len > limit {
+        return Err(InputError::file(
+            path,
+            format!(
+                "cannot read {what}: the file is too large ({}, over the memory limit of {}; \
+                 raise it with --memory-limit, in GiB)",
+                crate::harness::limits::bytes(len),
+                crate::harness::limits::bytes(limit)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Reads the whole of `path` (see [`open`]) after checking its size ([`check_size`]).
+pub fn read_bytes(path: &Path, what: &str) -> Result<Vec<u8>, InputError> {
+    let file = open(path, what)?;
+    let len = file
+        .metadata()
+        .map_err(|e| InputError::file(path, format!("cannot read {what}: {e}")))?
+        .len();
+    check_size(path, what, len)?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    file.take(len)
         .read_to_end(&mut bytes)
         .map_err(|e| InputError::file(path, format!("cannot read {what}: {e}")))?;
+    Ok(bytes)
+}
+
+/// Reads `path` as UTF-8 text (see [`read_bytes`]); a leading byte order mark is dropped.
+pub fn read_text(path: &Path, what: &str) -> Result<String, InputError> {
+    let bytes = read_bytes(path, what)?;
     let body = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
     match std::str::from_utf8(body) {
         Ok(s) => Ok(s.to_string()),

@@ -1,5 +1,6 @@
 //! Ctrl-C during a sweep leaves a valid results.json holding the runs that finished.
 
+use std::os::unix::process::CommandExt;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -20,7 +21,20 @@ fn sigint_mid_sweep_keeps_finished_runs() {
     )
     .unwrap();
     let out = dir.path().join("out");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
+    let mut command = Command::new(env!("CARGO_BIN_EXE_shadowbench"));
+    // SIGINT's disposition is inherited: a test started from a background job (or under
+    // `trap "" INT`) would give the child an ignored SIGINT, and the interrupt below would do
+    // nothing. The child gets the default action whatever started the test.
+    // SAFETY: `signal` is async-signal-safe, as `pre_exec` requires; nothing else runs there.
+    unsafe {
+        command.pre_exec(|| {
+            if libc::signal(libc::SIGINT, libc::SIG_DFL) == libc::SIG_ERR {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let mut child = command
         .args([
             "run",
             scenario.to_str().unwrap(),

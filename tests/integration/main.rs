@@ -13,6 +13,7 @@ mod every_algorithm;
 mod gpu_check;
 mod gpu_sweep;
 mod host_model;
+mod hostile;
 mod interrupt;
 mod light_definition;
 mod light_view;

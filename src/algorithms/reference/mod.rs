@@ -115,11 +115,12 @@ pub fn render_until(frame: &Frame, samples: u32, seed: u64, deadline: Deadline) 
     let g = &frame.gbuffer;
     let light = frame.scene.light;
     let texture = frame.scene.light_texture.as_deref();
+    // What an unoccluded point receives: once per frame (a pass over every texel).
+    let unoccluded = texture.map_or([1.0; 3], LightTexture::mean);
     let pixels: Vec<(f32, [f32; 3])> = (0..g.len())
         .into_par_iter()
         .map(|i| {
             deadline.check();
-            let unoccluded = texture.map_or([1.0; 3], LightTexture::mean);
             if !g.is_hit(i) {
                 return (1.0, unoccluded);
             }

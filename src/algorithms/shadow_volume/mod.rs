@@ -861,10 +861,12 @@ mod tests {
             let (wrong_fail, n) = wrong_pixels(&f, &zfail);
             let (wrong_pass, _) = wrong_pixels(&f, &zpass);
             let (wrong_pass_0, _) = wrong_pixels(&f, &zpass_0);
-            eprintln!(
+            crate::errln!(
                 "{name} eye count {eye}: of {n} pixels z-fail {wrong_fail}, z-pass {wrong_pass}, \
                  z-pass from 0 {wrong_pass_0} wrong; fill z-fail {} z-pass {}, caps {}",
-                zfail.fill, zpass.fill, zfail.caps
+                zfail.fill,
+                zpass.fill,
+                zfail.caps
             );
             let shadowed = zfail.count.iter().filter(|&&c| c > 0).count();
             assert!(shadowed > n / 50, "{name}: too little shadow ({shadowed})");

@@ -71,14 +71,18 @@ const WEDGES_PER_TASK: usize = 4 * LANES;
 
 /// Coverage textures are precomputed once per (shape, n, light texture), as the paper does
 /// offline; a textured light's is RGB.
+/// The run's `deadline` is checked after the light texture's hash and while a textured one is
+/// built (a run stopped there caches nothing).
 pub(super) fn coverage_texture(
     shape: EmitterShape,
     n: u32,
     light: Option<&LightTexture>,
+    deadline: crate::util::deadline::Deadline,
 ) -> Arc<CoverageTexture> {
     static CACHE: Mutex<Vec<Arc<CoverageTexture>>> = Mutex::new(Vec::new());
-    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
     let hash = light.map(LightTexture::hash);
+    deadline.check();
+    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(t) = cache
         .iter()
         .find(|t| t.shape == shape && t.n == n && t.light == hash)
@@ -86,7 +90,7 @@ pub(super) fn coverage_texture(
         return t.clone();
     }
     let t = Arc::new(match light {
-        Some(l) => CoverageTexture::build_textured(l, n),
+        Some(l) => CoverageTexture::build_textured_until(l, n, deadline),
         None => CoverageTexture::build(shape, n),
     });
     cache.push(t.clone());
@@ -200,7 +204,7 @@ pub fn render(
     for phase in ["hard", "wedges", "soft"] {
         m.phase(phase);
     }
-    let setup = Setup::new(&mut m, frame, opts);
+    let setup = Setup::new(&mut m, frame, opts, ctx.deadline);
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
     let occluders = frame.scene.occluders();
     let n = setup.rays.len();
@@ -294,7 +298,12 @@ pub fn render(
 impl Setup {
     /// The frame's eye rays and buffers (depth, V-buffer, stencil; reserved in `m`'s memory),
     /// and the coverage texture when the options ask for it.
-    fn new(m: &mut Machine, frame: &Frame, opts: &SoftShadowVolumeOptions) -> Setup {
+    fn new(
+        m: &mut Machine,
+        frame: &Frame,
+        opts: &SoftShadowVolumeOptions,
+        deadline: crate::util::deadline::Deadline,
+    ) -> Setup {
         let light = frame.scene.light;
         let rays = EyeRays::new(frame);
         let depth = EyeBuffer::new(m, &rays, "depth", DEPTH_BYTES as u32);
@@ -312,7 +321,12 @@ impl Setup {
         let stencil = EyeBuffer::new(m, &rays, "stencil", STENCIL_BYTES);
         let light_texture = frame.scene.light_texture.as_deref();
         let texture = (opts.coverage == CoverageMethod::Texture).then(|| {
-            let texture = coverage_texture(EmitterShape::of(&light), opts.texture_n, light_texture);
+            let texture = coverage_texture(
+                EmitterShape::of(&light),
+                opts.texture_n,
+                light_texture,
+                deadline,
+            );
             let (id, base) = m.memory.reserve("coverage_texture", texture.bytes());
             TextureBuffer { texture, id, base }
         });

@@ -43,6 +43,7 @@ use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 pub(crate) use crate::scene::polygon::clip_half_plane;
 use crate::scene::LightKind;
 use crate::scene::{Light, LightTexture};
+use crate::util::deadline::Deadline;
 
 /// The shape of the emitter in light coordinates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -282,6 +283,17 @@ impl CoverageTexture {
 
     /// The RGB coverage texture of a square light with texture `light`.
     pub fn build_textured(light: &LightTexture, n: u32) -> CoverageTexture {
+        Self::build_textured_until(light, n, Deadline::default())
+    }
+
+    /// [`Self::build_textured`] within a run's budget: `deadline` is checked after the light
+    /// texture is filtered and before each texel; past it the build unwinds with
+    /// [`crate::util::deadline::Cancelled`].
+    pub fn build_textured_until(
+        light: &LightTexture,
+        n: u32,
+        deadline: Deadline,
+    ) -> CoverageTexture {
         use rayon::prelude::*;
         let shape = EmitterShape::Square;
         let filtered = light.resampled(n);
@@ -289,6 +301,7 @@ impl CoverageTexture {
         let texels = (0..side * side)
             .into_par_iter()
             .flat_map_iter(|k| {
+                deadline.check();
                 let (q0, q1) = Self::end_points(n, k);
                 let c = shape
                     .clip(q0, q1)

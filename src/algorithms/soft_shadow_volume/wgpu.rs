@@ -73,7 +73,7 @@ pub(super) const WGSL: &str = include_str!("wgpu.wgsl");
 pub fn render(
     gpu: &Gpu,
     frame: &Frame,
-    _ctx: &ExecContext,
+    ctx: &ExecContext,
     opts: &SoftShadowVolumeOptions,
 ) -> Result<FrameOutput> {
     let sub_lights = split_light(&frame.scene.light, opts.light_split)?;
@@ -83,7 +83,7 @@ pub fn render(
     let light_texture = frame.scene.light_texture.as_deref();
     let shape = EmitterShape::of(&frame.scene.light);
     let texture = (opts.coverage == CoverageMethod::Texture)
-        .then(|| coverage_texture(shape, opts.texture_n, light_texture));
+        .then(|| coverage_texture(shape, opts.texture_n, light_texture, ctx.deadline));
     let mean = light_texture.map(LightTexture::mean);
     let texels = texture.as_ref().map_or(&[][..], |t| &t.texels[..]);
     let frame_res = FrameResources::new(gpu, &rays, texels, mean.is_some());

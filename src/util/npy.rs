@@ -1,0 +1,95 @@
+//! Reading 2-D NumPy arrays (`.npy`, format 1.0–3.0): the visibility buffers and masks that
+//! `diff`, `report` and the reference cache read. Every array is returned row-major (C order),
+//! whatever the file's `fortran_order` (what `np.save` writes for a transposed array); the
+//! declared shape is checked against the bytes the file holds before anything is allocated for
+//! it, and each side is bounded like an image side (1..=[`MAX_RESOLUTION`]).
+//!
+//! [`MAX_RESOLUTION`]: crate::scenario::validate::MAX_RESOLUTION
+
+use std::path::Path;
+
+use crate::error::InputError;
+use crate::scenario::validate::MAX_RESOLUTION;
+
+/// A 2-D array read from a `.npy` file: `height` rows of `width` values, row-major.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Array2<T> {
+    pub width: u32,
+    pub height: u32,
+    pub data: Vec<T>,
+}
+
+/// Reads `path` as a 2-D array of `T` (`f32` for NumPy's `float32`, `u8` for `uint8`; `kind`
+/// names that type in errors, e.g. "float32"). Errors, each naming the file: not a regular
+/// file, larger than the memory limit ([`crate::util::input::read_bytes`]), not a `.npy`
+/// header, another dtype, not 2-D, a side of 0 or over [`MAX_RESOLUTION`], or fewer data bytes
+/// than the shape needs.
+pub fn read_2d<T: npyz::Deserialize + Copy>(
+    path: &Path,
+    what: &str,
+    kind: &str,
+) -> Result<Array2<T>, InputError> {
+    parse_2d(
+        &crate::util::input::read_bytes(path, what)?,
+        path,
+        what,
+        kind,
+    )
+}
+
+/// [`read_2d`] of the bytes of a `.npy` file; `path` names it in errors.
+pub fn parse_2d<T: npyz::Deserialize + Copy>(
+    bytes: &[u8],
+    path: &Path,
+    what: &str,
+    kind: &str,
+) -> Result<Array2<T>, InputError> {
+    let bad = |m: String| InputError::file(path, format!("{what}: {m}"));
+    let npy = npyz::NpyFile::new(bytes).map_err(|e| bad(format!("not a .npy file: {e}")))?;
+    let shape = npy.shape().to_vec();
+    let [rows, cols] = shape[..] else {
+        return Err(bad(format!("expected a 2-D array, found shape {shape:?}")));
+    };
+    let side = 1..=MAX_RESOLUTION as u64;
+    if !side.contains(&rows) || !side.contains(&cols) {
+        return Err(bad(format!(
+            "shape ({rows}, {cols}): each side must be in 1..={MAX_RESOLUTION}"
+        )));
+    }
+    let dtype = npy.dtype();
+    let fortran = npy.order() == npyz::Order::Fortran;
+    // The data's size from the header, checked against the file before the reader allocates
+    // a vector of the declared length.
+    let held = npy.into_inner().len() as u64;
+    let need = (dtype.num_bytes()).map(|b| b as u64 * rows * cols);
+    if let Some(need) = need.filter(|&n| n > held) {
+        return Err(bad(format!(
+            "shape ({rows}, {cols}) of dtype {} needs {need} bytes of data, the file holds {held}",
+            dtype.descr()
+        )));
+    }
+    let npy = npyz::NpyFile::new(bytes).map_err(|e| bad(e.to_string()))?;
+    let reader = npy.data::<T>().map_err(|_| {
+        bad(format!(
+            "expected a {kind} array, found dtype {}",
+            dtype.descr()
+        ))
+    })?;
+    let stored: Vec<T> = reader
+        .collect::<std::io::Result<_>>()
+        .map_err(|e| bad(e.to_string()))?;
+    let (rows, cols) = (rows as usize, cols as usize);
+    let data = if fortran {
+        // Column-major: element (r, c) is at c * rows + r.
+        (0..rows * cols)
+            .map(|i| stored[(i % cols) * rows + i / cols])
+            .collect()
+    } else {
+        stored
+    };
+    Ok(Array2 {
+        width: cols as u32,
+        height: rows as u32,
+        data,
+    })
+}
