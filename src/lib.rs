@@ -31,6 +31,7 @@
 
 pub mod algorithms;
 pub mod backend;
+pub mod build;
 pub mod counters;
 pub mod error;
 pub mod frame;

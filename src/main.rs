@@ -37,6 +37,40 @@ struct AdapterArg {
     adapter: Option<String>,
 }
 
+/// The measurement protocol's options of `run` and `render` (each overrides the scenario's
+/// `measure` field; `shadowbench::harness::measure`).
+#[derive(clap::Args)]
+struct MeasureArgs {
+    /// Iterations before the timed ones; the first is timed apart as the cold iteration
+    /// (cold_wall_ms, cold_gpu_ms). Default 1.
+    #[arg(long, value_name = "N")]
+    warmup: Option<u32>,
+    /// Timed iterations of each run; its times are their median, every sample kept. Default 5.
+    #[arg(long, value_name = "N")]
+    repeats: Option<u32>,
+    /// Keep timing past --repeats until the timed iterations took this many seconds.
+    #[arg(long, value_name = "SECONDS")]
+    min_time: Option<f64>,
+    /// Start no timed iteration once they took this many seconds (one always runs). Default 1.
+    #[arg(long, value_name = "SECONDS")]
+    max_time: Option<f64>,
+}
+
+impl MeasureArgs {
+    /// The overrides, checked against the defaults so a bad flag is refused before anything
+    /// runs.
+    fn overrides(&self) -> std::result::Result<harness::measure::Overrides, InputError> {
+        let o = harness::measure::Overrides {
+            warmup: self.warmup,
+            repeats: self.repeats,
+            min_time_s: self.min_time,
+            max_time_s: self.max_time,
+        };
+        o.apply(harness::measure::Measure::default())?;
+        Ok(o)
+    }
+}
+
 /// The instrumented-replay option of the subcommands that run the wgpu execution.
 #[derive(clap::Args)]
 struct GpuCountersArg {
@@ -152,9 +186,25 @@ enum Command {
         baseline: PathBuf,
         /// The results.json to check.
         current: PathBuf,
-        /// Largest worsening allowed, in percent.
+        /// Largest worsening allowed of a deterministic figure, in percent.
         #[arg(long, default_value_t = report::compare::DEFAULT_THRESHOLD_PCT)]
         threshold: f64,
+        /// A figure's own threshold (deterministic) or minimum effect (measured), in percent:
+        /// FIGURE=PCT, by glossary name (fill, gpu_ms) or as compared (phase.soft.fill);
+        /// repeatable.
+        #[arg(long, value_name = "FIGURE=PCT")]
+        threshold_for: Vec<String>,
+        /// Smallest change of a measured figure's median that is flagged, in percent.
+        #[arg(long, default_value_t = report::measured::DEFAULT_MIN_EFFECT_PCT)]
+        min_effect: f64,
+        /// False-discovery rate of the measured figures' tests (Benjamini–Hochberg).
+        #[arg(long, default_value_t = report::measured::DEFAULT_Q)]
+        fdr: f64,
+        /// `measured`: measured figures that are significantly slower fail the gate too (by
+        /// default they are reported only, since shared runners are noisy).
+        #[arg(long, value_name = "deterministic|measured", default_value = "deterministic",
+              value_parser = clap::builder::PossibleValuesParser::new(["deterministic", "measured"]))]
+        gate: String,
     },
 }
 
@@ -273,6 +323,16 @@ struct RunArgs {
     adapter: AdapterArg,
     #[command(flatten)]
     gpu_counters: GpuCountersArg,
+    #[command(flatten)]
+    measure: MeasureArgs,
+    /// Replace the results already in --out (of any scenario or build). Without it, a sweep
+    /// into a folder holding results of the same scenario and build keeps them and runs only
+    /// what is missing; results of another scenario or build are refused.
+    #[arg(long)]
+    fresh: bool,
+    /// When resuming, run again the runs that failed (or timed out) in the results kept.
+    #[arg(long, conflicts_with = "fresh")]
+    retry_failed: bool,
 }
 
 #[derive(clap::Args)]
@@ -362,6 +422,8 @@ struct RenderArgs {
     adapter: AdapterArg,
     #[command(flatten)]
     gpu_counters: GpuCountersArg,
+    #[command(flatten)]
+    measure: MeasureArgs,
 }
 
 /// `--memory-limit` in bytes, validated.
@@ -482,6 +544,11 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     let seed = a.seed.unwrap_or(1);
     let generator = a.generator.params(seed)?;
+    // render measures by the protocol's defaults and its flags (not a scenario's `measure`).
+    let measure = a
+        .measure
+        .overrides()?
+        .apply(harness::measure::Measure::default())?;
     let machine = MachineConfig::resolve("--machine", &a.machine, Path::new("."))?;
     if let Some(c) = a.cores {
         check::cores("--cores", c)?;
@@ -534,6 +601,7 @@ fn render(a: RenderArgs) -> Result<()> {
         seed,
         machine,
         gpu_counters: a.gpu_counters.mode(),
+        measure,
         ..Default::default()
     };
     let reference = if a.no_reference || a.algorithm == "reference" {
@@ -659,8 +727,12 @@ fn run(a: RunArgs) -> Result<()> {
         verbose,
         adapter: _,
         gpu_counters,
+        measure,
+        fresh,
+        retry_failed,
     } = a;
     let gpu_counters = gpu_counters.mode();
+    let measure = measure.overrides()?;
     let verbosity = if quiet {
         harness::Verbosity::Quiet
     } else if verbose {
@@ -756,6 +828,9 @@ fn run(a: RunArgs) -> Result<()> {
                 run_timeout,
                 verbosity,
                 gpu_counters,
+                measure,
+                fresh,
+                retry_failed,
             },
         )?;
         if verbosity != harness::Verbosity::Quiet {
@@ -775,6 +850,24 @@ fn run(a: RunArgs) -> Result<()> {
             warned,
             out_dir.join("results.json").display()
         );
+        let doubtful: Vec<&str> = results
+            .runs
+            .iter()
+            .filter_map(|r| r.measured.as_ref())
+            .flat_map(|m| m.warnings.first())
+            .map(|w| w.split(':').next().unwrap_or_default())
+            .collect();
+        if !doubtful.is_empty() {
+            let mut kinds = doubtful.clone();
+            kinds.sort_unstable();
+            kinds.dedup();
+            outln!(
+                "note: the measured times of {} runs carry warnings ({}; measured.warnings in \
+                 results.json, the report's table of runs)",
+                doubtful.len(),
+                kinds.join(", ")
+            );
+        }
         if verbosity != harness::Verbosity::Quiet {
             print_report(&written);
         }
@@ -1130,11 +1223,36 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     Ok(())
 }
 
+/// The options of `compare`, checked.
+fn compare_options(
+    threshold: f64,
+    threshold_for: &[String],
+    min_effect: f64,
+    fdr: f64,
+    gate: &str,
+) -> Result<report::compare::Options> {
+    let mut o = report::compare::Options {
+        threshold_pct: report::compare::check_threshold(threshold)?,
+        min_effect_pct: report::compare::check_threshold(min_effect)
+            .map_err(|e| InputError::new("--min-effect", e.message))?,
+        gate_measured: gate == "measured",
+        ..Default::default()
+    };
+    if !(fdr > 0.0 && fdr < 1.0) {
+        return Err(
+            InputError::new("--fdr", format!("expected a rate in (0, 1), got {fdr}")).into(),
+        );
+    }
+    o.q = fdr;
+    o.set_per_figure(threshold_for)?;
+    Ok(o)
+}
+
 /// Prints what moved; `Ok(true)` when the gate passes.
-fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> {
+fn compare(baseline: PathBuf, current: PathBuf, options: report::compare::Options) -> Result<bool> {
     let old = report::read_results(&baseline)?;
     let new = report::read_results(&current)?;
-    let c = report::compare::compare((&baseline, &old), (&current, &new), threshold)?;
+    let c = report::compare::compare((&baseline, &old), (&current, &new), &options)?;
     out!("{}", c.render());
     Ok(!c.regressed())
 }
@@ -1263,17 +1381,24 @@ fn main() -> ExitCode {
             baseline,
             current,
             threshold,
-        } => match compare(baseline, current, threshold) {
-            Ok(false) => {
-                return match shadowbench::util::console::finish() {
-                    Err(e) => failed(Error::Other(format!(
-                        "cannot write to standard output: {e}"
-                    ))),
-                    Ok(()) => ExitCode::from(1),
+            threshold_for,
+            min_effect,
+            fdr,
+            gate,
+        } => {
+            let options = compare_options(threshold, &threshold_for, min_effect, fdr, &gate);
+            match options.and_then(|o| compare(baseline, current, o)) {
+                Ok(false) => {
+                    return match shadowbench::util::console::finish() {
+                        Err(e) => failed(Error::Other(format!(
+                            "cannot write to standard output: {e}"
+                        ))),
+                        Ok(()) => ExitCode::from(1),
+                    }
                 }
+                other => other.map(|_| ()),
             }
-            other => other.map(|_| ()),
-        },
+        }
     };
     // Output that could not be written (`> /dev/full`) fails the command after its work is
     // done and written (`util::console`); an error of its own comes first.

@@ -94,6 +94,17 @@ pub struct RunRecord {
     /// in `execution.gpu_setup`. Absent for the other executions.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gpu_setup_ms: Option<f64>,
+    /// Host milliseconds of the cold (first) iteration, timed apart from the samples of
+    /// `wall_ms` ([`crate::harness::measure`]); absent when the protocol had no warm-up.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cold_wall_ms: Option<f64>,
+    /// GPU milliseconds of the cold iteration (wgpu).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cold_gpu_ms: Option<f64>,
+    /// The measurement: protocol, every timed sample of the run and its phases, their medians
+    /// (which `wall_ms`, `gpu_ms` and the phases' times are), minimum, spread and interval.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measured: Option<crate::harness::measure::Measured>,
     pub error: Option<ErrorMetrics>,
     /// Where it ran: machine preset, adapter, host, sample counts.
     #[serde(default)]
@@ -144,6 +155,9 @@ impl RunRecord {
             model_ms: None,
             gpu_ms: None,
             gpu_setup_ms: None,
+            cold_wall_ms: None,
+            cold_gpu_ms: None,
+            measured: None,
             error: None,
             execution: [
                 (

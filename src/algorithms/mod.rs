@@ -415,6 +415,9 @@ pub struct ExecContext {
     pub deadline: Deadline,
     /// Whether wgpu runs make their instrumented replay (`--gpu-counters`).
     pub gpu_counters: crate::gpu::GpuCounters,
+    /// How `harness::run_one` measures a run (warm-up, repeats, budget); one timed iteration by
+    /// default.
+    pub measure: crate::harness::measure::Measure,
 }
 
 impl Default for ExecContext {
@@ -426,6 +429,7 @@ impl Default for ExecContext {
             machine: MachineConfig::default(),
             deadline: Deadline::default(),
             gpu_counters: crate::gpu::GpuCounters::On,
+            measure: crate::harness::measure::Measure::ONCE,
         }
     }
 }

@@ -4,6 +4,7 @@ pub mod cache;
 pub mod fit;
 pub mod images;
 pub mod limits;
+pub mod measure;
 pub mod outdir;
 pub mod output;
 pub mod shard;
@@ -157,10 +158,15 @@ fn within<T>(f: impl FnOnce() -> T) -> std::result::Result<T, crate::util::deadl
     })
 }
 
-/// Runs one algorithm on one frame and turns its output into a record, with quality against
-/// `reference` when given. Failures (errors, panics, invalid visibility, a run stopped at
-/// `ctx.deadline` with its work estimate and elapsed time) become a record with `failure` set,
-/// so a sweep keeps going.
+/// Runs one algorithm on one frame by the measurement protocol `ctx.measure`
+/// ([`measure`]) and turns its output into a record, with quality against `reference` when
+/// given. The record's counters, modelled times and image are the first iteration's, checked
+/// identical in every later one; its `wall_ms`, `gpu_ms` and phase times are the medians of the
+/// timed iterations, with every sample in `measured` and the cold iteration apart
+/// (`cold_wall_ms`, `cold_gpu_ms`). Failures of the first iteration (errors, panics, invalid
+/// visibility, a run stopped at `ctx.deadline` with its work estimate and elapsed time) become
+/// a record with `failure` set, so a sweep keeps going; a later iteration that fails ends the
+/// measurement with the samples before it, and says so.
 pub fn run_one(
     frame: &Frame,
     algorithm: &str,
@@ -168,6 +174,78 @@ pub fn run_one(
     ctx: &ExecContext,
     reference: Option<&VisibilityBuffer>,
 ) -> (RunRecord, Option<FrameOutput>) {
+    let load_before = measure::load_average();
+    let (result, first_ms) = iteration(frame, algorithm, backend, ctx);
+    let mut record = RunRecord::new(algorithm, backend, &frame.scene, frame.params.clone());
+    record.wall_ms = first_ms;
+    // The light the run (and its reference) used, in full: after a conversion it is not the
+    // scenario's.
+    if let Ok(light) = serde_json::to_value(frame.scene.light) {
+        record.execution.insert("light".into(), light);
+    }
+    if let Ok(info) = algorithms::find(algorithm) {
+        if !info.limits.is_empty() {
+            record.execution.insert(
+                "method_limits".into(),
+                serde_json::json!(info.limits.iter().map(|l| l.describe()).collect::<Vec<_>>()),
+            );
+        }
+    }
+    match result {
+        Ok(out) => {
+            record.counters = out.counters.clone();
+            record.phases = out.phases.clone();
+            record.model_ms = out.model_ms;
+            record.gpu_ms = out.gpu_ms;
+            // GPU setup is paid once per process, not by the frame: apart from its time.
+            record.gpu_setup_ms = out.gpu_setup_ms;
+            record.execution.extend(out.execution.clone());
+            record.warnings = out.warnings.clone();
+            let mut measured = repeat(frame, algorithm, backend, ctx, &out, first_ms);
+            apply_medians(
+                &mut record,
+                &measured,
+                &out,
+                first_ms,
+                ctx.measure.warmup > 0,
+            );
+            let load_after = measure::load_average();
+            measured.warnings = measure::warnings(&measured, [load_before, load_after]);
+            record.execution.insert(
+                "conditions".into(),
+                measure::conditions(load_before, load_after),
+            );
+            record.measured = Some(measured);
+            check_gpu_time(&mut record);
+            if let Some(r) = reference.filter(|_| algorithm != crate::algorithms::reference::ID) {
+                let e = metrics::compare_with_receivers(
+                    &out.visibility,
+                    r,
+                    &frame.gbuffer.mask(),
+                    &frame.receiver_only_mask(),
+                );
+                record.warnings.extend(e.warnings());
+                record.error = Some(e);
+                if let Ok(info) = algorithms::find(algorithm) {
+                    record.warnings.extend(limit_warnings(frame, info, r));
+                }
+            }
+            (record, Some(out))
+        }
+        Err(e) => {
+            record.failure = Some(e.to_string());
+            (record, None)
+        }
+    }
+}
+
+/// One iteration of a run: its output, and its host milliseconds without GPU setup.
+fn iteration(
+    frame: &Frame,
+    algorithm: &str,
+    backend: Backend,
+    ctx: &ExecContext,
+) -> (Result<FrameOutput>, f64) {
     let start = Instant::now();
     let result = catch_unwind(AssertUnwindSafe(|| {
         algorithms::run(algorithm, backend, frame, ctx)
@@ -194,52 +272,149 @@ pub fn run_one(
             .map_err(|m| Error::Other(format!("invalid result: {m}")))?;
         Ok(out)
     });
-    let mut record = RunRecord::new(algorithm, backend, &frame.scene, frame.params.clone());
-    record.wall_ms = start.elapsed().as_secs_f64() * 1e3;
-    // The light the run (and its reference) used, in full: after a conversion it is not the
-    // scenario's.
-    if let Ok(light) = serde_json::to_value(frame.scene.light) {
-        record.execution.insert("light".into(), light);
-    }
-    if let Ok(info) = algorithms::find(algorithm) {
-        if !info.limits.is_empty() {
-            record.execution.insert(
-                "method_limits".into(),
-                serde_json::json!(info.limits.iter().map(|l| l.describe()).collect::<Vec<_>>()),
-            );
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    let setup = result.as_ref().ok().and_then(|o| o.gpu_setup_ms);
+    (result, ms - setup.unwrap_or(0.0))
+}
+
+/// The times of one iteration: host and GPU milliseconds of the run and of each phase.
+struct Sample {
+    wall: f64,
+    gpu: Option<f64>,
+    phases: Vec<(f64, Option<f64>)>,
+}
+
+impl Sample {
+    fn of(out: &FrameOutput, wall: f64) -> Sample {
+        Sample {
+            wall,
+            gpu: out.gpu_ms,
+            phases: out.phases.iter().map(|p| (p.wall_ms, p.gpu_ms)).collect(),
         }
     }
-    match result {
-        Ok(out) => {
-            record.counters = out.counters.clone();
-            record.phases = out.phases.clone();
-            record.model_ms = out.model_ms;
-            record.gpu_ms = out.gpu_ms;
-            // GPU setup is paid once per process, not by the frame: apart from its time.
-            record.gpu_setup_ms = out.gpu_setup_ms;
-            record.wall_ms -= out.gpu_setup_ms.unwrap_or(0.0);
-            record.execution.extend(out.execution.clone());
-            record.warnings = out.warnings.clone();
-            check_gpu_time(&mut record);
-            if let Some(r) = reference.filter(|_| algorithm != crate::algorithms::reference::ID) {
-                let e = metrics::compare_with_receivers(
-                    &out.visibility,
-                    r,
-                    &frame.gbuffer.mask(),
-                    &frame.receiver_only_mask(),
-                );
-                record.warnings.extend(e.warnings());
-                record.error = Some(e);
-                if let Ok(info) = algorithms::find(algorithm) {
-                    record.warnings.extend(limit_warnings(frame, info, r));
-                }
+}
+
+/// Whether two iterations gave the same counters, modelled times and image (bit for bit).
+fn same_output(a: &FrameOutput, b: &FrameOutput) -> bool {
+    let phases = |o: &FrameOutput| {
+        o.phases
+            .iter()
+            .map(|p| (p.name.clone(), p.model_ms, p.counters.clone()))
+            .collect::<Vec<_>>()
+    };
+    a.counters == b.counters
+        && a.model_ms == b.model_ms
+        && phases(a) == phases(b)
+        && a.visibility.data.len() == b.visibility.data.len()
+        && a.visibility
+            .data
+            .iter()
+            .zip(&b.visibility.data)
+            .all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
+/// The iterations after the first (`first`, which took `first_ms`): untimed warm-ups, then the
+/// timed ones within the budget; their samples and whether they gave the first's output.
+fn repeat(
+    frame: &Frame,
+    algorithm: &str,
+    backend: Backend,
+    ctx: &ExecContext,
+    first: &FrameOutput,
+    first_ms: f64,
+) -> measure::Measured {
+    let m = ctx.measure;
+    let mut samples = Vec::new();
+    if m.warmup == 0 {
+        samples.push(Sample::of(first, first_ms));
+    }
+    let mut identical = true;
+    let mut stopped = None;
+    let mut warmup_runs = 0;
+    for _ in 1..m.warmup {
+        match iteration(frame, algorithm, backend, ctx) {
+            (Ok(o), _) => identical &= same_output(first, &o),
+            (Err(e), _) => {
+                stopped = Some(e.to_string());
+                break;
             }
-            (record, Some(out))
         }
-        Err(e) => {
-            record.failure = Some(e.to_string());
-            (record, None)
+        warmup_runs += 1;
+    }
+    let mut spent_s: f64 = samples.iter().map(|s| s.wall / 1e3).sum();
+    while stopped.is_none() && m.another(samples.len() as u32, spent_s) {
+        match iteration(frame, algorithm, backend, ctx) {
+            (Ok(o), ms) => {
+                identical &= same_output(first, &o);
+                spent_s += ms / 1e3;
+                samples.push(Sample::of(&o, ms));
+            }
+            (Err(e), _) => stopped = Some(e.to_string()),
         }
+    }
+    if samples.is_empty() {
+        // Every timed iteration failed: the cold one is the only sample.
+        samples.push(Sample::of(first, first_ms));
+    }
+    let all_gpu: Option<Vec<f64>> = samples.iter().map(|s| s.gpu).collect();
+    let same_phases = samples.iter().all(|s| s.phases.len() == first.phases.len());
+    let phases = if same_phases {
+        first
+            .phases
+            .iter()
+            .enumerate()
+            .filter_map(|(i, p)| {
+                let gpu: Option<Vec<f64>> = samples.iter().map(|s| s.phases[i].1).collect();
+                Some(measure::PhaseSpread {
+                    name: p.name.clone(),
+                    wall_ms: measure::Spread::of(samples.iter().map(|s| s.phases[i].0).collect())?,
+                    gpu_ms: gpu.and_then(measure::Spread::of),
+                })
+            })
+            .collect()
+    } else {
+        vec![]
+    };
+    let wall = measure::Spread::of(samples.iter().map(|s| s.wall).collect())
+        .unwrap_or_else(|| measure::Spread::of(vec![0.0]).expect("one finite sample"));
+    let mut warnings = Vec::new();
+    if let Some(e) = stopped {
+        warnings.push(format!(
+            "measurement stopped after {} timed iterations: an iteration failed: {e}",
+            samples.len()
+        ));
+    }
+    measure::Measured {
+        protocol: m,
+        iterations: samples.len() as u32,
+        warmup_runs,
+        wall_ms: wall,
+        gpu_ms: all_gpu.and_then(measure::Spread::of),
+        phases,
+        identical,
+        warnings,
+    }
+}
+
+/// The record's times from the measurement: medians of the timed samples, and the cold
+/// iteration apart when the protocol warmed up (`cold`).
+fn apply_medians(
+    record: &mut RunRecord,
+    m: &measure::Measured,
+    first: &FrameOutput,
+    first_ms: f64,
+    cold: bool,
+) {
+    record.wall_ms = m.wall_ms.median;
+    // A GPU median only where every timed iteration has a reading.
+    record.gpu_ms = m.gpu_ms.as_ref().map(|s| s.median);
+    for (p, s) in record.phases.iter_mut().zip(&m.phases) {
+        p.wall_ms = s.wall_ms.median;
+        p.gpu_ms = s.gpu_ms.as_ref().map(|g| g.median);
+    }
+    if cold {
+        record.cold_wall_ms = Some(first_ms);
+        record.cold_gpu_ms = first.gpu_ms;
     }
 }
 
@@ -360,6 +535,13 @@ pub struct RunOptions {
     pub verbosity: Verbosity,
     /// Whether wgpu runs make their instrumented replay (`--gpu-counters`).
     pub gpu_counters: crate::gpu::GpuCounters,
+    /// The measurement protocol's fields given on the command line (over the scenario's
+    /// `measure`).
+    pub measure: measure::Overrides,
+    /// Start afresh: results already in `out` (of any scenario or build) are replaced.
+    pub fresh: bool,
+    /// Run again the runs that failed in the results already in `out`.
+    pub retry_failed: bool,
 }
 
 /// What `run` prints while it works.
@@ -516,6 +698,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             .unwrap_or_else(|| loaded.machine.clone()),
         deadline: Deadline::default(),
         gpu_counters: opts.gpu_counters,
+        measure: opts.measure.apply(s.measure.unwrap_or_default())?,
     };
     let timeout = opts
         .run_timeout
@@ -535,9 +718,22 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         ))
     );
 
+    let origin = output::Origin {
+        scenario_digest: scenario_digest(loaded, &ctx),
+        build: crate::build::id(),
+    };
+    let kept = output::resumable(&opts.out, &origin, opts.fresh, opts.retry_failed)?;
+    if !kept.is_empty() {
+        crate::errln!(
+            "resuming: {} finished runs kept from {}; only the missing ones run",
+            kept.len(),
+            opts.out.join("results.json").display()
+        );
+    }
     let mut progress = Progress::new(plan.len(), opts.verbosity);
     let bar = progress.bar.clone();
-    let mut writer = output::ResultsWriter::new(&opts.out, &loaded.name(), &s.claims);
+    let mut writer =
+        output::ResultsWriter::new(&opts.out, &loaded.name(), &s.claims, Some(origin), kept);
     let mut current: Option<(usize, Scene)> = None;
     let mut frames: BTreeMap<LightKind, Frame> = BTreeMap::new();
     for p in &plan {
@@ -572,10 +768,19 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         });
         if let Some(e) = refused {
             let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
+            if writer.take_kept(&record.case_id()) {
+                progress.skipped();
+                continue;
+            }
             loaded.notes.annotate(&mut record);
             record.failure = Some(e);
             progress.finished(&record);
             writer.push(record, None, None, None, None)?;
+            continue;
+        }
+        // The run finished in the sweep this one resumes.
+        if writer.take_kept(&case_id(&sc.name, &p.algorithm, p.backend.name(), &params)) {
+            progress.skipped();
             continue;
         }
         // A run stopped before its execution: failed, with its elapsed time and estimate.
@@ -650,7 +855,22 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         )?;
     }
     bar.finish_and_clear();
-    Ok(writer.into_results())
+    writer.finish()
+}
+
+/// A digest of what a sweep's results depend on besides the build: the scenario as run, the
+/// resolved machine of cpu-model runs and the wgpu counter mode (CRC-32, hex). Mesh files a
+/// scenario names are not read into it.
+fn scenario_digest(loaded: &Loaded, ctx: &ExecContext) -> String {
+    let what = serde_json::json!({
+        "scenario": loaded.scenario,
+        "machine": ctx.machine,
+        "gpu_counters": format!("{:?}", ctx.gpu_counters),
+    });
+    format!(
+        "{:08x}",
+        crc32fast::hash(&serde_json::to_vec(&what).expect("scenarios serialize"))
+    )
 }
 
 /// `plan` without the runs that repeat an earlier one, and how many those were: two sweep
@@ -799,6 +1019,12 @@ impl Progress {
             let line = progress_line(self.done, self.total, self.started.elapsed(), record);
             self.bar.suspend(|| crate::outln!("{line}"));
         }
+        self.bar.inc(1);
+    }
+
+    /// A run kept from the sweep this one resumes.
+    fn skipped(&mut self) {
+        self.done += 1;
         self.bar.inc(1);
     }
 }

@@ -13,12 +13,29 @@ use crate::visibility::{write_atomic, RgbBuffer, VisibilityBuffer};
 pub struct ResultsWriter {
     out: PathBuf,
     file: ResultsFile,
+    /// Runs kept from an interrupted sweep of the same scenario and build, not yet reached in
+    /// this one's plan: written after the new runs until their turn comes ([`Self::take_kept`]),
+    /// so a second interruption loses none of them.
+    kept: Vec<RunRecord>,
+}
+
+/// What a sweep's results were made of: the scenario (a digest of it as run, with the resolved
+/// machine and the wgpu counter mode) and the build ([`crate::build::id`]). A sweep resumes
+/// into a folder only when both are its own.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Origin {
+    pub scenario_digest: String,
+    pub build: String,
 }
 
 /// The file `results.json` holds: the scenario name and its runs.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ResultsFile {
     pub scenario: String,
+    /// Written by `run`; absent in merged files and older results (which then cannot be
+    /// resumed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin: Option<Origin>,
     pub runs: Vec<RunRecord>,
     /// The paper claims the scenario states, evaluated by the report.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -66,14 +83,22 @@ impl ResultsFile {
 }
 
 impl ResultsWriter {
-    pub fn new(out: &Path, scenario: &str, claims: &[Claim]) -> ResultsWriter {
+    pub fn new(
+        out: &Path,
+        scenario: &str,
+        claims: &[Claim],
+        origin: Option<Origin>,
+        kept: Vec<RunRecord>,
+    ) -> ResultsWriter {
         ResultsWriter {
             out: out.to_path_buf(),
             file: ResultsFile {
                 scenario: scenario.to_string(),
+                origin,
                 runs: Vec::new(),
                 claims: claims.to_vec(),
             },
+            kept,
         }
     }
 
@@ -91,12 +116,94 @@ impl ResultsWriter {
             super::write_frame_files(&dir, &record, visibility, rgb, reference, frame)?;
         }
         self.file.runs.push(record);
-        write_results(&self.out, &self.file)
+        write_results(&self.out, &self.current())
     }
 
-    pub fn into_results(self) -> ResultsFile {
-        self.file
+    /// Moves the kept run `case_id` (with its images, already in place) to its turn in the
+    /// results; whether there was one.
+    pub fn take_kept(&mut self, case_id: &str) -> bool {
+        match self.kept.iter().position(|r| r.case_id() == case_id) {
+            Some(i) => {
+                let r = self.kept.remove(i);
+                self.file.runs.push(r);
+                true
+            }
+            None => false,
+        }
     }
+
+    /// How many kept runs have not had their turn yet.
+    pub fn kept_left(&self) -> usize {
+        self.kept.len()
+    }
+
+    /// The results so far: the runs in plan order, then the kept runs not reached yet.
+    fn current(&self) -> ResultsFile {
+        let mut f = self.file.clone();
+        f.runs.extend(self.kept.iter().cloned());
+        f
+    }
+
+    /// The results (writes them once more, so a sweep that only took kept runs leaves them in
+    /// plan order).
+    pub fn finish(self) -> Result<ResultsFile> {
+        let f = self.current();
+        write_results(&self.out, &f)?;
+        Ok(f)
+    }
+}
+
+/// The finished runs of an earlier sweep in `out` to keep (`results.json`), when it was of the
+/// same scenario and build (`origin`); empty when there is none or `fresh`. Failed runs are
+/// kept unless `retry_failed`. Results of another scenario or build, or without an origin,
+/// are an input error naming the file and saying how to start afresh.
+pub fn resumable(
+    out: &Path,
+    origin: &Origin,
+    fresh: bool,
+    retry_failed: bool,
+) -> std::result::Result<Vec<RunRecord>, crate::error::InputError> {
+    let path = out.join("results.json");
+    if fresh || !path.exists() {
+        return Ok(vec![]);
+    }
+    let refuse = |why: String| {
+        crate::error::InputError::file(
+            &path,
+            format!(
+                "{why}; pass --fresh to replace them, or choose another --out (a sweep resumes \
+                 only the results of its own scenario and build)"
+            ),
+        )
+    };
+    let text = std::fs::read(&path).map_err(|e| refuse(format!("cannot be read: {e}")))?;
+    let file: ResultsFile = serde_json::from_slice(&text)
+        .map_err(|e| refuse(format!("holds results that cannot be read ({e})")))?;
+    let mismatch = match &file.origin {
+        None => Some(format!(
+            "holds results of scenario '{}' that do not say what they were made of",
+            file.scenario
+        )),
+        Some(o) if o.scenario_digest != origin.scenario_digest => Some(format!(
+            "holds results of another scenario ('{}', digest {}; this one's is {})",
+            file.scenario, o.scenario_digest, origin.scenario_digest
+        )),
+        Some(o) if o.build != origin.build => Some(format!(
+            "holds results of scenario '{}' made by another build ({}; this is {})",
+            file.scenario, o.build, origin.build
+        )),
+        Some(_) => None,
+    };
+    if let Some(why) = mismatch {
+        return Err(refuse(why));
+    }
+    file.check_runs().map_err(|e| e.in_file(&path))?;
+    Ok(file
+        .upgraded()
+        .runs
+        .into_iter()
+        .filter(|r| r.failure.is_none() || !retry_failed)
+        .collect())
 }
 
 /// Writes `out/results.json`, `out/results.csv` and `out/phases.csv`, each atomically.
@@ -119,19 +226,26 @@ fn field(s: &str) -> String {
 
 /// Per-phase times in tidy (long) form, one row per run, phase and time kind: `case_id,
 /// algorithm, backend, scene, phase, time (wall_ms | model_ms | gpu_ms), ms`, so pandas and R
-/// can group them.
+/// can group them; measured times add the 95% interval of their median (`ci_lo`, `ci_hi`) and
+/// their samples (space-separated), empty for modelled ones.
 pub fn phases_csv(records: &[RunRecord]) -> String {
-    let mut s = String::from("case_id,algorithm,backend,scene,phase,time,ms\n");
+    let mut s = String::from("case_id,algorithm,backend,scene,phase,time,ms,ci_lo,ci_hi,samples\n");
     for r in records {
-        for p in &r.phases {
-            for (kind, v) in [
-                ("wall_ms", Some(p.wall_ms)),
-                ("model_ms", p.model_ms),
-                ("gpu_ms", p.gpu_ms),
+        for (i, p) in r.phases.iter().enumerate() {
+            let spread = r
+                .measured
+                .as_ref()
+                .and_then(|m| m.phases.get(i))
+                .filter(|s| s.name == p.name);
+            for (kind, v, sp) in [
+                ("wall_ms", Some(p.wall_ms), spread.map(|s| &s.wall_ms)),
+                ("model_ms", p.model_ms, None),
+                ("gpu_ms", p.gpu_ms, spread.and_then(|s| s.gpu_ms.as_ref())),
             ] {
                 if let Some(v) = v {
+                    let [lo, hi, samples] = spread_fields(sp);
                     s.push_str(&format!(
-                        "{},{},{},{},{},{kind},{v}\n",
+                        "{},{},{},{},{},{kind},{v},{lo},{hi},{samples}\n",
                         field(&r.case_id()),
                         field(&r.algorithm),
                         field(&r.backend),
@@ -143,6 +257,23 @@ pub fn phases_csv(records: &[RunRecord]) -> String {
         }
     }
     s
+}
+
+/// A measured figure's interval bounds and samples (space-separated) as CSV fields; empty
+/// without a measurement.
+fn spread_fields(s: Option<&crate::harness::measure::Spread>) -> [String; 3] {
+    match s {
+        Some(s) => [
+            s.ci[0].to_string(),
+            s.ci[1].to_string(),
+            s.samples
+                .iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(" "),
+        ],
+        None => Default::default(),
+    }
 }
 
 /// The counters `results.csv` has a column for: one kind of figure per column (modelled and
@@ -162,14 +293,15 @@ const CSV_COUNTERS: [&str; 7] = [
 /// results.json.
 pub fn csv(records: &[RunRecord]) -> String {
     let mut s = String::from(
-        "case_id,algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,occluder_offset,cores,wall_ms,model_ms,gpu_ms",
+        "case_id,algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,occluder_offset,cores,wall_ms,model_ms,gpu_ms,\
+         wall_ms_ci_lo,wall_ms_ci_hi,gpu_ms_ci_lo,gpu_ms_ci_hi,cold_wall_ms,cold_gpu_ms,samples,wall_ms_samples,gpu_ms_samples",
     );
     for c in CSV_COUNTERS {
         s.push(',');
         s.push_str(c);
     }
     s.push_str(
-        ",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,images,warnings,failure\n",
+        ",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,images,warnings,measure_warnings,failure\n",
     );
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for r in records {
@@ -193,6 +325,20 @@ pub fn csv(records: &[RunRecord]) -> String {
             opt(r.model_ms),
             opt(r.gpu_ms),
         ];
+        let m = r.measured.as_ref();
+        let [wall_lo, wall_hi, wall_samples] = spread_fields(m.map(|m| &m.wall_ms));
+        let [gpu_lo, gpu_hi, gpu_samples] = spread_fields(m.and_then(|m| m.gpu_ms.as_ref()));
+        row.extend([
+            wall_lo,
+            wall_hi,
+            gpu_lo,
+            gpu_hi,
+            opt(r.cold_wall_ms),
+            opt(r.cold_gpu_ms),
+            m.map(|m| m.iterations.to_string()).unwrap_or_default(),
+            wall_samples,
+            gpu_samples,
+        ]);
         row.extend(CSV_COUNTERS.iter().map(|c| opt(r.counters.get(c))));
         let e = r.error.as_ref();
         row.extend([
@@ -208,6 +354,7 @@ pub fn csv(records: &[RunRecord]) -> String {
                 String::new()
             },
             field(&r.warnings.join("; ")),
+            field(&m.map(|m| m.warnings.join("; ")).unwrap_or_default()),
             r.failure.as_deref().map(field).unwrap_or_default(),
         ]);
         s.push_str(&row.join(","));
@@ -282,7 +429,10 @@ mod tests {
                 "scene",
                 "phase",
                 "time",
-                "ms"
+                "ms",
+                "ci_lo",
+                "ci_hi",
+                "samples"
             ]
         );
         // Two phases, each with a wall and a modelled time, no GPU time.
@@ -303,5 +453,43 @@ mod tests {
             .collect();
         assert_eq!(got, expect);
         assert!(rows[1..].iter().all(|x| x[0] == r.case_id()));
+    }
+
+    #[test]
+    fn measured_times_carry_their_interval_and_samples_into_both_tables() {
+        use crate::harness::measure::{Measure, Measured, PhaseSpread, Spread};
+        let mut r = record("pcss", "wgpu", 100, 32);
+        let wall = Spread::of(vec![3.0, 1.0, 2.0, 5.0, 4.0, 6.0, 7.0]).unwrap();
+        r.cold_wall_ms = Some(30.0);
+        r.measured = Some(Measured {
+            protocol: Measure::default(),
+            iterations: 7,
+            warmup_runs: 0,
+            wall_ms: wall.clone(),
+            gpu_ms: None,
+            phases: vec![PhaseSpread {
+                name: "construct".into(),
+                wall_ms: Spread::of(vec![1.0, 1.5]).unwrap(),
+                gpu_ms: None,
+            }],
+            identical: true,
+            warnings: vec!["wide interval".into()],
+        });
+        let rows = parse(&csv(std::slice::from_ref(&r)));
+        let col = |name: &str| rows[0].iter().position(|c| c == name).unwrap();
+        assert_eq!(rows[1][col("wall_ms_ci_lo")], wall.ci[0].to_string());
+        assert_eq!(rows[1][col("wall_ms_ci_hi")], wall.ci[1].to_string());
+        assert_eq!(rows[1][col("cold_wall_ms")], "30");
+        assert_eq!(rows[1][col("samples")], "7");
+        assert_eq!(rows[1][col("wall_ms_samples")], "3 1 2 5 4 6 7");
+        assert_eq!(rows[1][col("gpu_ms_samples")], "");
+        assert_eq!(rows[1][col("measure_warnings")], "wide interval");
+        let rows = parse(&phases_csv(std::slice::from_ref(&r)));
+        assert_eq!(
+            rows[1][4..],
+            ["construct", "wall_ms", "1", "1", "1.5", "1 1.5"]
+        );
+        // Modelled times have no samples.
+        assert_eq!(rows[2][5..], ["model_ms", "0.4", "", "", ""]);
     }
 }

@@ -246,6 +246,21 @@ pub struct Series {
     pub backend: String,
     /// Sorted by x.
     pub points: Vec<(f64, f64)>,
+    /// Error bars `(x, low, high)`: the 95% interval of a measured median
+    /// ([`measured_interval`]); empty for other figures.
+    pub intervals: Vec<(f64, f64, f64)>,
+}
+
+/// The confidence interval of a run's measured median `id` (`wall_ms` or `gpu_ms`) from its
+/// samples ([`crate::harness::measure::Spread`]); `None` for one sample or none.
+pub fn measured_interval(r: &RunRecord, id: &str) -> Option<[f64; 2]> {
+    let m = r.measured.as_ref()?;
+    let s = match id {
+        "wall_ms" => Some(&m.wall_ms),
+        "gpu_ms" => m.gpu_ms.as_ref(),
+        _ => None,
+    }?;
+    (s.samples.len() > 1).then_some(s.ci)
 }
 
 /// A panel of points: lines through each series' points, or a scatter with a Pareto front.
@@ -335,15 +350,36 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
             continue;
         };
         for m in &METRICS {
-            let series = collect_series(&slice, |r| Some((axis.value(r)?, (m.value)(r)?)));
+            let mut series = collect_series(&slice, |r| Some((axis.value(r)?, (m.value)(r)?)));
             if series.is_empty() {
                 continue;
             }
+            let measured = crate::counters::kind(m.id) == Some(crate::counters::Kind::Measured);
+            if measured {
+                for s in &mut series {
+                    s.intervals = slice
+                        .iter()
+                        .filter(|r| series_name(r) == s.name)
+                        .filter_map(|r| {
+                            let [lo, hi] = measured_interval(r, m.id)?;
+                            Some((axis.value(r)?, lo, hi))
+                        })
+                        .filter(|&(x, lo, hi)| plottable(x) && plottable(lo) && plottable(hi))
+                        .collect();
+                }
+            }
+            let caption = if series.iter().any(|s| !s.intervals.is_empty()) {
+                "One panel per execution, one line per algorithm through the medians of its \
+                 timed iterations; bars: the 95% interval of each median (order statistics of \
+                 the samples)."
+            } else {
+                "One panel per execution, one line per algorithm."
+            };
             specs.push(Spec {
                 file: format!("{}_vs_{}", m.id, axis.id()),
                 title: format!("{} vs. {}{}", m.name, axis.name(), axis.meaning()),
                 case: fixed.clone(),
-                caption: "One panel per execution, one line per algorithm.".into(),
+                caption: caption.into(),
                 panels: per_execution(series, |_| XyChart {
                     x_label: axis.label().into(),
                     y_label: m.label.into(),
@@ -644,6 +680,7 @@ pub fn collect_series(
                 algorithm: r.algorithm.clone(),
                 backend: r.backend.clone(),
                 points: vec![p],
+                intervals: vec![],
             }),
         }
     }
@@ -1116,7 +1153,10 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
     let ys: Vec<f64> = c
         .series
         .iter()
-        .flat_map(|s| s.points.iter().map(|p| p.1))
+        .flat_map(|s| {
+            let bars = s.intervals.iter().flat_map(|b| [b.1, b.2]);
+            s.points.iter().map(|p| p.1).chain(bars)
+        })
         .collect();
     if xs.is_empty() {
         return Ok(());
@@ -1156,6 +1196,21 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
         let pts: Vec<(f64, f64)> = s.points.iter().map(|&(x, y)| (tx(x), ty(y))).collect();
         if c.lines && pts.len() > 1 {
             draw_line(&mut chart, &pts, col.stroke_width(2), dash)?;
+        }
+        for &(x, lo, hi) in &s.intervals {
+            // A vertical bar from the interval's low to its high end, with caps.
+            let (bx, by0) = chart.backend_coord(&(tx(x), ty(lo)));
+            let (_, by1) = chart.backend_coord(&(tx(x), ty(hi)));
+            let (x0, y0, y1) = (bx - ox, by0 - oy, by1 - oy);
+            let stroke = col.stroke_width(1);
+            for seg in [
+                [(x0, y0), (x0, y1)],
+                [(x0 - 4, y0), (x0 + 4, y0)],
+                [(x0 - 4, y1), (x0 + 4, y1)],
+            ] {
+                area.draw(&PathElement::new(seg.to_vec(), stroke))
+                    .map_err(err)?;
+            }
         }
         for &p in &pts {
             let (px, py) = chart.backend_coord(&p);
@@ -1575,6 +1630,67 @@ mod tests {
             .find(|s| s.file == "gpu_ms_vs_triangles")
             .unwrap();
         assert!(gpu.panels.iter().all(|p| p.title.starts_with("wgpu")));
+    }
+
+    #[test]
+    fn measured_times_are_drawn_with_the_interval_of_each_median() {
+        use crate::harness::measure::{Measure, Measured, Spread};
+        let mut runs = many();
+        for (i, r) in runs.iter_mut().enumerate() {
+            let base = 1.0 + i as f64;
+            let wall = Spread::of((0..7).map(|k| base * (1.0 + 0.01 * k as f64)).collect());
+            r.wall_ms = wall.as_ref().unwrap().median;
+            r.measured = Some(Measured {
+                protocol: Measure::default(),
+                iterations: 7,
+                warmup_runs: 0,
+                wall_ms: wall.unwrap(),
+                gpu_ms: None,
+                phases: vec![],
+                identical: true,
+                warnings: vec![],
+            });
+        }
+        let specs = plan(&runs);
+        let wall = specs
+            .iter()
+            .find(|s| s.file == "wall_ms_vs_triangles")
+            .unwrap();
+        assert!(wall.caption.contains("95% interval"), "{}", wall.caption);
+        for p in &wall.panels {
+            for s in &xy(p).series {
+                assert_eq!(s.intervals.len(), s.points.len(), "{}", s.name);
+                for (&(x, y), &(bx, lo, hi)) in s.points.iter().zip(&s.intervals) {
+                    assert!(x == bx && lo < y && y < hi, "{}: {lo} {y} {hi}", s.name);
+                }
+            }
+        }
+        // Drawn: the SVG has a bar and two caps per point beyond the chart without them.
+        let mut bare = wall.clone();
+        for p in &mut bare.panels {
+            if let Kind::Xy(c) = &mut p.kind {
+                c.series.iter_mut().for_each(|s| s.intervals.clear());
+            }
+        }
+        let paths = |svg: String| svg.matches("<polyline").count();
+        let points: usize = wall
+            .panels
+            .iter()
+            .map(|p| xy(p).series.iter().map(|s| s.points.len()).sum::<usize>())
+            .sum();
+        assert_eq!(
+            paths(draw_svg(wall).unwrap()) - paths(draw_svg(&bare).unwrap()),
+            3 * points
+        );
+        // Modelled time has no interval to draw.
+        let model = specs
+            .iter()
+            .find(|s| s.file == "model_ms_vs_triangles")
+            .unwrap();
+        assert!(model
+            .panels
+            .iter()
+            .all(|p| xy(p).series.iter().all(|s| s.intervals.is_empty())));
     }
 
     #[test]

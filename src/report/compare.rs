@@ -39,6 +39,73 @@ use crate::record::RunRecord;
 /// The default threshold of `shadowbench compare`, in percent.
 pub const DEFAULT_THRESHOLD_PCT: f64 = 2.0;
 
+/// How `compare` judges: the threshold of deterministic figures, thresholds of single figures
+/// (`--threshold-for FIGURE=PCT`: a deterministic figure's threshold, a measured figure's
+/// minimum effect), the minimum effect and false-discovery rate of measured figures, and
+/// whether measured regressions fail the gate (`--gate measured`).
+#[derive(Clone, Debug)]
+pub struct Options {
+    pub threshold_pct: f64,
+    /// By glossary name (`fill`, `gpu_ms`, `mem_model.<buffer>.read_bytes`) or by figure name
+    /// as compared (`phase.soft.fill`).
+    pub per_figure: BTreeMap<String, f64>,
+    pub min_effect_pct: f64,
+    pub q: f64,
+    pub gate_measured: bool,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            threshold_pct: DEFAULT_THRESHOLD_PCT,
+            per_figure: BTreeMap::new(),
+            min_effect_pct: super::measured::DEFAULT_MIN_EFFECT_PCT,
+            q: super::measured::DEFAULT_Q,
+            gate_measured: false,
+        }
+    }
+}
+
+impl Options {
+    /// The threshold of `figure`: its own (by figure name, then glossary name), or `default`.
+    pub fn threshold_of(&self, figure: &str, default: f64) -> f64 {
+        self.per_figure
+            .get(figure)
+            .or_else(|| crate::counters::figure(figure).and_then(|c| self.per_figure.get(c.name)))
+            .copied()
+            .unwrap_or(default)
+    }
+
+    /// Parses `--threshold-for FIGURE=PCT` values into `per_figure`: each figure must be in
+    /// the glossary and each percentage a number ≥ 0.
+    pub fn set_per_figure(&mut self, values: &[String]) -> Result<(), InputError> {
+        for v in values {
+            let bad = |why: String| InputError::new("--threshold-for", format!("'{v}': {why}"));
+            let (name, pct) = v
+                .split_once('=')
+                .ok_or_else(|| bad("expected FIGURE=PERCENT".into()))?;
+            let known = crate::counters::COUNTERS
+                .iter()
+                .chain(crate::counters::FIGURES)
+                .any(|c| c.name == name)
+                || crate::counters::figure(name).is_some();
+            if !known {
+                return Err(bad(format!(
+                    "'{name}' is not a figure of the glossary (shadowbench list --counters)"
+                )));
+            }
+            let pct: f64 = pct
+                .parse()
+                .map_err(|_| bad(format!("'{pct}' is not a number")))?;
+            self.per_figure.insert(
+                name.to_string(),
+                check_threshold(pct).map_err(|e| bad(e.message))?,
+            );
+        }
+        Ok(())
+    }
+}
+
 /// The figures of a successful run that `compare` judges, by name (see the module docs): its
 /// figures whose glossary kind is not measured, modelled ones of cpu-model runs only. Figures
 /// the glossary does not hold are kept, so the comparison can list them as not judged.
@@ -146,6 +213,10 @@ impl RunStatus {
 #[derive(Debug)]
 pub struct Comparison {
     pub threshold_pct: f64,
+    /// The measured figures' tests, in their own table.
+    pub measured: super::measured::MeasuredComparison,
+    /// Whether measured regressions fail the gate.
+    pub gate_measured: bool,
     /// Runs whose figures were compared.
     pub runs_compared: usize,
     pub figures_compared: usize,
@@ -169,6 +240,7 @@ impl Comparison {
             .iter()
             .any(|c| c.verdict == Verdict::Regression)
             || self.runs.iter().any(|(_, s)| s.fails_gate())
+            || (self.gate_measured && self.measured.regressions() > 0)
     }
 
     /// The table of what moved, and the verdict.
@@ -257,6 +329,13 @@ impl Comparison {
                 "note: {figure} is not in the glossary, so not judged ({n} runs)"
             );
         }
+        s.push_str(&self.measured.render());
+        if !self.gate_measured && self.measured.regressions() > 0 {
+            let _ = writeln!(
+                s,
+                "note: measured regressions do not fail the gate without --gate measured"
+            );
+        }
         let count = |v: Verdict| self.changes.iter().filter(|c| c.verdict == v).count();
         let _ = writeln!(
             s,
@@ -304,9 +383,9 @@ pub fn check_threshold(pct: f64) -> Result<f64, InputError> {
 pub fn compare(
     baseline: (&Path, &ResultsFile),
     current: (&Path, &ResultsFile),
-    threshold_pct: f64,
+    options: &Options,
 ) -> Result<Comparison, InputError> {
-    let threshold_pct = check_threshold(threshold_pct)?;
+    let threshold_pct = check_threshold(options.threshold_pct)?;
     if baseline.1.runs.is_empty() {
         // A gate that compared nothing must not pass.
         return Err(InputError {
@@ -319,6 +398,8 @@ pub fn compare(
     let new = by_case(current.0, current.1)?;
     let mut cmp = Comparison {
         threshold_pct,
+        measured: Default::default(),
+        gate_measured: options.gate_measured,
         runs_compared: 0,
         figures_compared: 0,
         changes: Vec::new(),
@@ -342,10 +423,17 @@ pub fn compare(
             (Some(_), Some(_)) => {}
             (None, None) => {
                 cmp.runs_compared += 1;
-                compare_run(&mut cmp, case, o, n);
+                compare_run(&mut cmp, options, case, o, n);
             }
         }
     }
+    let pairs = old.iter().filter_map(|(case, o)| {
+        let n = new.get(case)?;
+        Some((case.as_str(), *o, *n))
+    });
+    cmp.measured = super::measured::MeasuredComparison::of(pairs, options.q, |f| {
+        options.threshold_of(f, options.min_effect_pct)
+    });
     for case in new.keys().filter(|c| !old.contains_key(*c)) {
         cmp.runs.push((case.clone(), RunStatus::Added));
     }
@@ -354,7 +442,7 @@ pub fn compare(
     Ok(cmp)
 }
 
-fn compare_run(cmp: &mut Comparison, case: &str, o: &RunRecord, n: &RunRecord) {
+fn compare_run(cmp: &mut Comparison, options: &Options, case: &str, o: &RunRecord, n: &RunRecord) {
     let (fo, fnew) = (deterministic_figures(o), deterministic_figures(n));
     let first = cmp.changes.len();
     for (figure, &old) in &fo {
@@ -384,7 +472,8 @@ fn compare_run(cmp: &mut Comparison, case: &str, o: &RunRecord, n: &RunRecord) {
         };
         if worse {
             let pct = change.pct().abs();
-            change.verdict = if pct > cmp.threshold_pct || pct.is_nan() {
+            let threshold = options.threshold_of(figure, cmp.threshold_pct);
+            change.verdict = if pct > threshold || pct.is_nan() {
                 Verdict::Regression
             } else {
                 Verdict::Worse
@@ -440,6 +529,7 @@ mod tests {
 
     fn file(runs: Vec<RunRecord>) -> ResultsFile {
         ResultsFile {
+            origin: None,
             scenario: "ci".into(),
             runs,
             claims: vec![],
@@ -459,7 +549,7 @@ mod tests {
         compare(
             (Path::new("base.json"), old),
             (Path::new("cur.json"), new),
-            DEFAULT_THRESHOLD_PCT,
+            &Options::default(),
         )
         .unwrap()
     }
@@ -712,12 +802,113 @@ mod tests {
         assert!(c.render().contains("+inf%"), "{}", c.render());
     }
 
+    /// `r` measured with wall-time samples `wall` (and GPU samples `gpu`).
+    fn measured(mut r: RunRecord, wall: Vec<f64>, gpu: Option<Vec<f64>>) -> RunRecord {
+        use crate::harness::measure::{Measure, Measured, Spread};
+        r.measured = Some(Measured {
+            protocol: Measure::default(),
+            iterations: wall.len() as u32,
+            warmup_runs: 0,
+            wall_ms: Spread::of(wall).unwrap(),
+            gpu_ms: gpu.map(|g| Spread::of(g).unwrap()),
+            phases: vec![],
+            identical: true,
+            warnings: vec![],
+        });
+        r
+    }
+
+    /// Ten noisy samples around `ms` (a fixed pattern of ±3%), shifted by `phase` steps.
+    fn samples(ms: f64, phase: usize) -> Vec<f64> {
+        let noise = [
+            0.0, 0.02, -0.01, 0.03, -0.03, 0.01, -0.02, 0.025, -0.015, 0.005,
+        ];
+        (0..10)
+            .map(|i| ms * (1.0 + noise[(i + phase) % 10]))
+            .collect()
+    }
+
+    #[test]
+    fn a_measured_figure_twice_as_slow_is_flagged_alone_and_gates_only_when_asked() {
+        let mk = |slow: f64| {
+            file(
+                (0..8)
+                    .map(|i| {
+                        let r = record("pcss", "wgpu", 100 * (i + 1), 32);
+                        let f = if i == 3 { slow } else { 1.0 };
+                        measured(
+                            r,
+                            samples(10.0 * f, i as usize),
+                            Some(samples(4.0 * f, i as usize + 3)),
+                        )
+                    })
+                    .collect(),
+            )
+        };
+        let (b, same, slower) = (mk(1.0), mk(1.0), mk(2.0));
+        let c = run(&b, &same);
+        assert_eq!(c.measured.tests.len(), 16);
+        assert_eq!(c.measured.regressions(), 0, "{}", c.render());
+        let c = run(&b, &slower);
+        let flagged: Vec<_> = c
+            .measured
+            .tests
+            .iter()
+            .filter(|t| t.flagged(c.measured.q))
+            .collect();
+        assert_eq!(flagged.len(), 2, "{}", c.render());
+        for t in &flagged {
+            assert_eq!(t.case, b.runs[3].case_id());
+            assert!((t.ratio() - 2.0).abs() < 0.1 && t.q < 0.05, "{t:?}");
+        }
+        let text = c.render();
+        assert!(
+            text.contains("SLOWER") && text.contains("without --gate measured"),
+            "{text}"
+        );
+        // Reported, not gated, unless asked.
+        assert!(!c.regressed(), "{text}");
+        let gate = Options {
+            gate_measured: true,
+            ..Options::default()
+        };
+        let c = compare((Path::new("b"), &b), (Path::new("c"), &slower), &gate).unwrap();
+        assert!(c.regressed());
+        // A figure's own minimum effect above the change: not flagged.
+        let mut lenient = gate.clone();
+        lenient
+            .set_per_figure(&["wall_ms=150".into(), "gpu_ms=150".into()])
+            .unwrap();
+        let c = compare((Path::new("b"), &b), (Path::new("c"), &slower), &lenient).unwrap();
+        assert!(!c.regressed(), "{}", c.render());
+    }
+
+    #[test]
+    fn per_figure_thresholds_apply_by_glossary_name_and_are_checked() {
+        let mut o = Options::default();
+        o.set_per_figure(&["fill=10".into()]).unwrap();
+        let b = baseline();
+        let mut cur = baseline();
+        let fill = cur.runs[1].counters.get("fill").unwrap();
+        cur.runs[1].counters.set("fill", fill * 1.05);
+        let c = compare((Path::new("b"), &b), (Path::new("c"), &cur), &o).unwrap();
+        assert!(!c.regressed(), "{}", c.render());
+        assert_eq!(c.changes[0].verdict, Verdict::Worse);
+        for bad in ["fil=3", "fill", "fill=-1", "fill=x"] {
+            let e = Options::default()
+                .set_per_figure(&[bad.into()])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("--threshold-for") && e.contains(bad), "{e}");
+        }
+    }
+
     #[test]
     fn a_baseline_with_no_runs_is_refused() {
         let e = compare(
             (Path::new("base.json"), &file(vec![])),
             (Path::new("cur.json"), &baseline()),
-            2.0,
+            &Options::default(),
         )
         .unwrap_err()
         .to_string();
@@ -734,7 +925,7 @@ mod tests {
         let e = compare(
             (Path::new("base.json"), &baseline()),
             (Path::new("cur.json"), &dup),
-            2.0,
+            &Options::default(),
         )
         .unwrap_err()
         .to_string();

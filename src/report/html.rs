@@ -325,9 +325,9 @@ fn runs_table(runs: &[RunRecord]) -> String {
         "tile",
         "image",
         "cores",
-        "wall ms",
+        "wall ms (median ± half its 95% interval)",
         "model ms",
-        "GPU ms",
+        "GPU ms (median ± half its 95% interval)",
         "fill",
         "overdraw / fill",
         "modelled memory bytes",
@@ -343,17 +343,43 @@ fn runs_table(runs: &[RunRecord]) -> String {
     let opt = |v: Option<f64>| v.map(fmt_num).unwrap_or_else(|| "–".into());
     for r in runs {
         let p = &r.params;
+        // The run's warnings, then its measurement's (a loaded machine, a wide interval).
+        let warnings: Vec<&String> = r
+            .warnings
+            .iter()
+            .chain(r.measured.iter().flat_map(|m| &m.warnings))
+            .collect();
         let (class, status) = match &r.failure {
             Some(f) => (
                 " class=\"fail\"",
                 format!("<td class=\"status-fail\">FAILED: {}</td>", text(f)),
             ),
-            None if !r.warnings.is_empty() => (
+            None if !warnings.is_empty() => (
                 "",
-                format!("<td class=\"t\">ok ({})</td>", text(&r.warnings.join("; "))),
+                format!(
+                    "<td class=\"t\">ok ({})</td>",
+                    text(
+                        &warnings
+                            .iter()
+                            .map(|w| w.as_str())
+                            .collect::<Vec<_>>()
+                            .join("; ")
+                    )
+                ),
             ),
             None => ("", "<td class=\"t\">ok</td>".into()),
         };
+        // A measured median with half its 95% interval.
+        let timed = |median: Option<f64>, s: Option<&crate::harness::measure::Spread>| match (
+            median,
+            s.filter(|s| s.samples.len() > 1),
+        ) {
+            (Some(m), Some(s)) => {
+                format!("{} ± {}", fmt_num(m), fmt_num((s.ci[1] - s.ci[0]) / 2.0))
+            }
+            (m, _) => opt(m),
+        };
+        let measured = r.measured.as_ref();
         let _ = write!(h, "<tr{class}>");
         for t in [&r.algorithm, &r.backend, &r.scene, &r.light] {
             let _ = write!(h, "<td class=\"t\">{}</td>", text(t));
@@ -365,9 +391,9 @@ fn runs_table(runs: &[RunRecord]) -> String {
             p.tile_size.to_string(),
             format!("{}×{}", p.image[0], p.image[1]),
             opt(p.cores.map(f64::from)),
-            fmt_num(r.wall_ms),
+            timed(Some(r.wall_ms), measured.map(|m| &m.wall_ms)),
             opt(r.model_ms),
-            opt(r.gpu_ms),
+            timed(r.gpu_ms, measured.and_then(|m| m.gpu_ms.as_ref())),
             opt(r.counters.get("fill")),
             opt(r.counters.get("overdraw_ratio")),
             opt(charts::memory_bytes(r, "mem_model")),
@@ -618,6 +644,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let r = record("soft_shadow_volume", "cpu-model", 100, 32);
         let results = ResultsFile {
+            origin: None,
             scenario: "textured".into(),
             runs: vec![r.clone()],
             claims: vec![],
@@ -646,6 +673,7 @@ mod tests {
             std::fs::write(img.join(f), b"png").unwrap();
         }
         let results = ResultsFile {
+            origin: None,
             scenario: "ci & more".into(),
             runs: vec![ok.clone(), bad.clone()],
             claims: vec![],

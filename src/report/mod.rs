@@ -10,6 +10,7 @@ pub mod claims;
 pub mod compare;
 pub mod font;
 pub mod html;
+pub mod measured;
 pub mod style;
 pub mod summary;
 pub mod validation;
@@ -182,6 +183,7 @@ pub fn merge(inputs: &[(PathBuf, ResultsFile)]) -> Result<ResultsFile, InputErro
         }
     }
     Ok(ResultsFile {
+        origin: None,
         scenario: first.scenario.clone(),
         runs,
         claims: first.claims.clone(),
@@ -270,6 +272,9 @@ pub(crate) mod testdata {
             model_ms: Some(1.0 + triangles as f64 / 100.0),
             gpu_ms: None,
             gpu_setup_ms: None,
+            cold_wall_ms: None,
+            cold_gpu_ms: None,
+            measured: None,
             error: Some(ErrorMetrics {
                 mae: Some(0.01),
                 rmse: Some(0.02),
@@ -304,6 +309,7 @@ mod tests {
 
     fn file(runs: Vec<RunRecord>) -> ResultsFile {
         ResultsFile {
+            origin: None,
             scenario: "s".into(),
             runs,
             claims: vec![],

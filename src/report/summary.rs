@@ -243,6 +243,7 @@ impl Summary {
                             algorithm: r.algorithm.clone(),
                             backend: r.backend.clone(),
                             points: vec![(r.costs[c]?, r.mae_shadow?)],
+                            intervals: vec![],
                         })
                     })
                     .collect();

@@ -61,6 +61,11 @@ pub struct Scenario {
     /// is stopped and recorded as failed, and the sweep goes on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub run_timeout_s: Option<f64>,
+    /// How measured figures are measured (warm-up, repeats, time budget;
+    /// [`crate::harness::measure::Measure`]); `--warmup`, `--repeats`, `--min-time` and
+    /// `--max-time` override its fields. Absent: the protocol's defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measure: Option<crate::harness::measure::Measure>,
 }
 
 /// `$.light`: the light (`type` and its fields) and an optional `texture` (rectangular lights;

@@ -266,6 +266,9 @@ pub fn validate(s: &Scenario) -> Check {
     sweep(&s.sweep)?;
     occluder_axes(s)?;
     reference_samples("$.reference.samples", s.reference.samples)?;
+    if let Some(m) = &s.measure {
+        m.check("$.measure")?;
+    }
     optional("$.run_timeout_s", s.run_timeout_s, run_timeout)
 }
 

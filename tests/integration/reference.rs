@@ -130,6 +130,9 @@ fn cached_sweep(
             run_timeout: None,
             verbosity: shadowbench::harness::Verbosity::Quiet,
             gpu_counters: Default::default(),
+            measure: Default::default(),
+            fresh: false,
+            retry_failed: false,
         },
     )
     .unwrap()

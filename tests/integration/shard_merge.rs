@@ -24,6 +24,9 @@ fn run(loaded: &Loaded, out: &Path, cache: &Path, shard: Option<Shard>) -> Vec<R
             run_timeout: None,
             verbosity: harness::Verbosity::Quiet,
             gpu_counters: Default::default(),
+            measure: Default::default(),
+            fresh: false,
+            retry_failed: false,
         },
     )
     .unwrap()

@@ -377,6 +377,9 @@ fn a_textured_run_writes_the_rgb_image() {
             run_timeout: None,
             verbosity: shadowbench::harness::Verbosity::Quiet,
             gpu_counters: Default::default(),
+            measure: Default::default(),
+            fresh: false,
+            retry_failed: false,
         },
     )
     .unwrap();
