@@ -95,6 +95,10 @@ enum Command {
         /// Folder to write the report into.
         #[arg(long, value_name = "DIR")]
         out: PathBuf,
+        /// One report of the runs of every file together, charted on shared axes (levels of
+        /// detail or variants run as separate scenarios), with the joined results in DIR.
+        #[arg(long)]
+        combine: bool,
     },
     /// Join the results of shards into DIR: results.json, results.csv, images and report.
     Merge {
@@ -115,6 +119,20 @@ enum Command {
         /// PNG to write.
         #[arg(long, default_value = "out/diff.png", value_name = "FILE")]
         out: PathBuf,
+    },
+    /// Write a scenario for a mesh file: the mesh over a ground plane with a framing camera
+    /// and light, the soft-shadow methods and the reference on both CPU executions, a sweep of
+    /// three light sizes; `shadowbench run SCENARIO.json` runs it.
+    Init {
+        /// The mesh file (.obj, .gltf, .glb, .ply).
+        #[arg(long, value_name = "FILE")]
+        mesh: PathBuf,
+        /// The scenario file to write (the mesh is named relative to its folder).
+        #[arg(long, value_name = "SCENARIO.json")]
+        out: PathBuf,
+        /// Replace the file if it exists.
+        #[arg(long)]
+        force: bool,
     },
     /// Scene tools: `scene export`.
     Scene {
@@ -225,6 +243,15 @@ struct RunArgs {
     /// Folder for results.json, results.csv, summary.csv/.tex, images/, charts/, index.html.
     #[arg(long, default_value = "out/run", value_name = "DIR")]
     out: PathBuf,
+    /// Set a scenario field for this run, by its JSON path: `options.pcss.pcf_samples=16`,
+    /// `params.map_resolution=320`, `scene.objects[0].scale=2` (VALUE is JSON, or else text).
+    /// Repeatable; applied to every scenario before it is validated; results.json records it.
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    set: Vec<String>,
+    /// Sweep an axis with these values instead of the scenario's: `light_size=0.3,0.6`,
+    /// `image=[160,120],[320,240]` (sets `sweep.AXIS`). Repeatable; recorded as --set is.
+    #[arg(long = "sweep", value_name = "AXIS=V1,V2,...")]
+    sweep: Vec<String>,
     /// Only these algorithms (comma-separated); selecting no run of the scenario is an error.
     #[arg(long, value_delimiter = ',', value_name = "ALGORITHM",
           value_parser = clap::builder::PossibleValuesParser::new(algorithm_ids()))]
@@ -497,7 +524,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let converted =
         (kind != scene.light.kind()).then(|| harness::light_converted(scene.light.kind(), kind));
     if let Some(w) = &converted {
-        eprintln!("warning: {w}");
+        eprintln!("note: {w}");
     }
     scene.light = harness::light_for_run(&scene, info).map_err(|e| {
         // A scene from a file: the error names it.
@@ -545,7 +572,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let (mut record, out) =
         harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
     notes.annotate(&mut record);
-    record.warnings.extend(converted);
+    record.notes.extend(converted);
     harness::write_frame_files(
         &a.out,
         &record,
@@ -562,6 +589,34 @@ fn render(a: RenderArgs) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `init`: writes a scenario for `mesh` at `out` (refusing an existing file unless `force`).
+fn init(mesh: PathBuf, out: PathBuf, force: bool) -> Result<()> {
+    if out.exists() && !force {
+        return Err(InputError::new(
+            "--out",
+            format!("'{}' exists; pass --force to replace it", out.display()),
+        )
+        .into());
+    }
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let doc = scenario::init_scenario(&mesh, &out)?;
+    let text = serde_json::to_string_pretty(&doc).expect("JSON values serialize") + "\n";
+    shadowbench::visibility::write_atomic(&out, text.as_bytes())?;
+    println!(
+        "wrote {} ({}); run it with: shadowbench run {} --out out/{}",
+        out.display(),
+        doc["algorithms"]
+            .as_array()
+            .map(|a| format!("{} algorithms", a.len()))
+            .unwrap_or_default(),
+        out.display(),
+        doc["name"].as_str().unwrap_or("mesh")
+    );
+    Ok(())
 }
 
 fn scene_export(a: ExportArgs) -> Result<()> {
@@ -629,6 +684,8 @@ fn run(a: RunArgs) -> Result<()> {
     let RunArgs {
         scenario,
         out,
+        set,
+        sweep,
         only,
         backend,
         cache_dir,
@@ -651,10 +708,19 @@ fn run(a: RunArgs) -> Result<()> {
     } else {
         harness::Verbosity::Normal
     };
+    let overrides = set
+        .iter()
+        .map(|a| scenario::overrides::Override::set(a))
+        .chain(
+            sweep
+                .iter()
+                .map(|a| scenario::overrides::Override::sweep(a)),
+        )
+        .collect::<std::result::Result<Vec<_>, InputError>>()?;
     // Every scenario is checked before anything runs.
     let loaded = scenario
         .iter()
-        .map(|p| Loaded::from_file(p))
+        .map(|p| Loaded::from_file_with(p, &overrides))
         .collect::<std::result::Result<Vec<Loaded>, InputError>>()?;
     for l in &loaded {
         l.check_case_count(max_cases)?;
@@ -745,6 +811,11 @@ fn run(a: RunArgs) -> Result<()> {
             print!("{}", harness::grouped_summary(&results.runs));
         }
         let written = report::write_report(&out_dir, &results)?;
+        if verbosity != harness::Verbosity::Quiet {
+            for n in report::notes_by_algorithm(&results.runs) {
+                println!("note: {n}");
+            }
+        }
         let failed = results.runs.iter().filter(|r| r.failure.is_some()).count();
         let warned = results
             .runs
@@ -833,6 +904,28 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
         reports.push((name, file));
     }
     write_claims(&out, &reports, several, true)
+}
+
+/// `report --combine`: one report of several results files' runs.
+fn combine_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
+    let inputs = results
+        .into_iter()
+        .map(|p| report::read_results(&p).map(|f| (p, f)))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    report::combine(&inputs)?;
+    let outputs = RESULT_FILES.map(|f| out.join(f));
+    for (path, _) in &inputs {
+        not_an_output(path, &outputs)?;
+    }
+    let _lock = harness::outdir::lock("--out", &out)?;
+    let written = report::write_combined(&out, &inputs)?;
+    println!(
+        "combined {} files into {}",
+        inputs.len(),
+        out.join("results.json").display()
+    );
+    print_report(&written);
+    Ok(())
 }
 
 fn merge(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
@@ -1210,12 +1303,18 @@ fn main() -> ExitCode {
         }
         Command::Render(a) => render(a),
         Command::Run(a) => run(a),
-        Command::Report { results, out } => report_cmd(results, out),
+        Command::Report {
+            results,
+            out,
+            combine: true,
+        } => combine_cmd(results, out),
+        Command::Report { results, out, .. } => report_cmd(results, out),
         Command::Merge { results, out } => merge(results, out),
         Command::Scene {
             command: SceneCommand::Export(a),
         } => scene_export(a),
         Command::Diff { a, b, out } => diff(a, b, out),
+        Command::Init { mesh, out, force } => init(mesh, out, force),
         Command::Calibrate {
             out,
             quick,

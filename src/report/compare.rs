@@ -374,6 +374,7 @@ mod tests {
             scenario: "ci".into(),
             runs,
             claims: vec![],
+            ..Default::default()
         }
     }
 
