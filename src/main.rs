@@ -172,6 +172,12 @@ enum Command {
         /// Largest worsening allowed, in percent.
         #[arg(long, default_value_t = report::compare::DEFAULT_THRESHOLD_PCT)]
         threshold: f64,
+        /// Print the table of every figure that moved after the headline.
+        #[arg(long, short)]
+        verbose: bool,
+        /// Write the table of every figure that moved into FILE.
+        #[arg(long, value_name = "FILE")]
+        details: Option<PathBuf>,
     },
 }
 
@@ -1200,11 +1206,44 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
 }
 
 /// Prints what moved; `Ok(true)` when the gate passes.
-fn compare(baseline: PathBuf, current: PathBuf, threshold: f64) -> Result<bool> {
+/// `compare`: the headline (settings that differ, one line per run), then the verdict; the
+/// table of every figure with `verbose` or into `details`.
+fn compare(
+    baseline: PathBuf,
+    current: PathBuf,
+    threshold: f64,
+    verbose: bool,
+    details: Option<PathBuf>,
+) -> Result<bool> {
     let old = report::read_results(&baseline)?;
     let new = report::read_results(&current)?;
     let c = report::compare::compare((&baseline, &old), (&current, &new), threshold)?;
-    print!("{}", c.render());
+    let table = c.render();
+    if let Some(path) = &details {
+        not_an_output(&baseline, std::slice::from_ref(path))?;
+        not_an_output(&current, std::slice::from_ref(path))?;
+        shadowbench::visibility::write_atomic(path, table.as_bytes())?;
+    }
+    if !verbose {
+        if let Some(note) = table
+            .lines()
+            .find(|l| l.starts_with("note: different scenarios"))
+        {
+            println!("{note}");
+        }
+    }
+    print!("{}", report::headline::headline(&old, &new));
+    if verbose {
+        print!("{table}");
+    } else {
+        // The verdict is the table's last line.
+        let verdict = table.lines().last().unwrap_or_default();
+        match &details {
+            Some(p) => println!("every figure: {}", p.display()),
+            None => println!("every figure: --verbose or --details FILE"),
+        }
+        println!("{verdict}");
+    }
     Ok(!c.regressed())
 }
 
@@ -1325,7 +1364,9 @@ fn main() -> ExitCode {
             baseline,
             current,
             threshold,
-        } => match compare(baseline, current, threshold) {
+            verbose,
+            details,
+        } => match compare(baseline, current, threshold, verbose, details) {
             Ok(false) => return ExitCode::from(1),
             other => other.map(|_| ()),
         },

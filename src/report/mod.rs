@@ -9,6 +9,7 @@ pub mod charts;
 pub mod claims;
 pub mod compare;
 pub mod font;
+pub mod headline;
 pub mod html;
 pub mod style;
 pub mod summary;
@@ -410,7 +411,7 @@ mod tests {
     fn notes_are_listed_once_per_algorithm_and_kind_and_old_warnings_become_notes() {
         let mut runs = Vec::new();
         for (t, pixels) in [(100, 12), (200, 40), (400, 0)] {
-            let mut r = record("soft_shadow_map", "cpu-model", t, 32);
+            let mut r = testdata::record("soft_shadow_map", "cpu-model", t, 32);
             if pixels > 0 {
                 r.warnings.push(format!(
                     "method limit (no self-shadowing): {pixels} pixels the reference shadows"
@@ -421,7 +422,7 @@ mod tests {
             r.warnings.push("reader skipped 3 faces".into());
             runs.push(r);
         }
-        runs.push(record("pcss", "cpu-model", 100, 32));
+        runs.push(testdata::record("pcss", "cpu-model", 100, 32));
         let f = file(runs).upgraded();
         assert!(f.runs[..3]
             .iter()
@@ -440,9 +441,9 @@ mod tests {
 
     #[test]
     fn combine_joins_scenarios_and_refuses_a_run_in_two_files() {
-        let mut a = file(vec![record("pcss", "cpu-model", 100, 32)]);
+        let mut a = file(vec![testdata::record("pcss", "cpu-model", 100, 32)]);
         a.scenario = "lod0".into();
-        let mut b = file(vec![record("pcss", "cpu-model", 400, 32)]);
+        let mut b = file(vec![testdata::record("pcss", "cpu-model", 400, 32)]);
         b.scenario = "lod1".into();
         let c = combine(&[("a".into(), a.clone()), ("b".into(), b)]).unwrap();
         assert_eq!((c.scenario.as_str(), c.runs.len()), ("lod0 + lod1", 2));
