@@ -1,6 +1,12 @@
 //! The regression gate: compares the deterministic figures of two result sets run by run.
 //!
-//! Which figures are deterministic (the same input gives the same number on any host):
+//! Every figure's kind and direction come from one table, the glossary
+//! ([`crate::counters::figure`]): counters, times and quality metrics each say whether they are
+//! deterministic, modelled, measured or estimated, and whether lower or higher is better.
+//! Nothing is read from a figure's name; a figure the glossary does not hold is listed as not
+//! judged.
+//!
+//! Which figures are compared (the same input gives the same number on any host):
 //!
 //! - `cpu-model` runs: every counter, `model_ms`, each phase's `model_ms` and counters, and the
 //!   quality metrics `error.{mae,rmse,max,mae_shadow,frac_over_0_1}`.
@@ -10,14 +16,14 @@
 //!   images depend on the adapter and driver, so only whether the run is present and succeeded
 //!   is checked.
 //!
-//! Wall-clock and GPU times are never compared.
+//! Measured figures (wall-clock and GPU times) are not compared here.
 //!
-//! Every figure is a cost (larger is worse) except counters whose name says they are a rate of
-//! good outcomes: names containing `utilisation`, `utilization`, `hit_rate` or `efficiency`.
-//! Quality metrics are errors, so larger is worse too. A run fails the gate when a figure
-//! worsens by more than the threshold (in percent of the baseline; any increase from zero
-//! counts as infinite), when a baseline run is missing from the current results, or when a run
-//! that succeeded now fails. A baseline with no runs is refused as an input error: a gate that
+//! A run fails the gate when a figure worsens (in its glossary direction) by more than the
+//! threshold (in percent of the baseline; any worsening from zero counts as infinite), when a
+//! baseline run is missing from the current results, or when a run that succeeded now fails. A
+//! derived ratio ([`crate::counters::parts`]) is judged with its parts: it fails the gate only
+//! when one of its parts worsened too (`overdraw_ratio` rising because `fill` fell is listed as
+//! worse, not gated). A baseline with no runs is refused as an input error: a gate that
 //! compared nothing must not pass. Figures that appear or disappear are listed but do not fail it.
 
 use std::collections::BTreeMap;
@@ -25,6 +31,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::fmt_num;
+use crate::counters::{Direction, Kind};
 use crate::error::InputError;
 use crate::harness::output::ResultsFile;
 use crate::record::RunRecord;
@@ -32,14 +39,9 @@ use crate::record::RunRecord;
 /// The default threshold of `shadowbench compare`, in percent.
 pub const DEFAULT_THRESHOLD_PCT: f64 = 2.0;
 
-/// Whether a larger value of the figure `name` is better.
-pub fn higher_is_better(name: &str) -> bool {
-    ["utilisation", "utilization", "hit_rate", "efficiency"]
-        .iter()
-        .any(|w| name.contains(w))
-}
-
-/// The deterministic figures of a successful run, by name (see the module docs).
+/// The figures of a successful run that `compare` judges, by name (see the module docs): its
+/// figures whose glossary kind is not measured, modelled ones of cpu-model runs only. Figures
+/// the glossary does not hold are kept, so the comparison can list them as not judged.
 pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
     let mut f = BTreeMap::new();
     let model = match r.backend.as_str() {
@@ -52,10 +54,12 @@ pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
     for (k, v) in &r.counters.0 {
         f.insert(format!("counters.{}", current(k)), *v);
     }
-    if model {
-        if let Some(v) = r.model_ms {
-            f.insert("model_ms".into(), v);
-        }
+    if let Some(v) = r.model_ms {
+        f.insert("model_ms".into(), v);
+    }
+    f.insert("wall_ms".into(), r.wall_ms);
+    if let Some(v) = r.gpu_ms {
+        f.insert("gpu_ms".into(), v);
     }
     for p in &r.phases {
         let mut name = format!("phase.{}", p.name);
@@ -64,11 +68,10 @@ pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
             name = format!("phase.{}#{k}", p.name);
             k += 1;
         }
-        if model {
-            if let Some(v) = p.model_ms {
-                f.insert(format!("{name}.model_ms"), v);
-            }
+        if let Some(v) = p.model_ms {
+            f.insert(format!("{name}.model_ms"), v);
         }
+        f.insert(format!("{name}.wall_ms"), p.wall_ms);
         for (c, v) in &p.counters.0 {
             f.insert(format!("{name}.{}", current(c)), *v);
         }
@@ -80,6 +83,11 @@ pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
             }
         }
     }
+    f.retain(|name, _| match crate::counters::kind(name) {
+        Some(Kind::Measured) => false,
+        Some(Kind::Modelled) => model,
+        Some(Kind::Deterministic | Kind::Estimated) | None => true,
+    });
     f
 }
 
@@ -100,6 +108,9 @@ pub struct Change {
     pub figure: String,
     pub old: f64,
     pub new: f64,
+    /// Why a worsening beyond the threshold does not gate (a derived ratio whose parts did not
+    /// worsen).
+    pub note: Option<String>,
 }
 
 impl Change {
@@ -145,6 +156,8 @@ pub struct Comparison {
     pub dropped: BTreeMap<String, usize>,
     /// Figure names only in the current results, with how many runs.
     pub added: BTreeMap<String, usize>,
+    /// Figure names the glossary does not hold, so not judged, with how many runs.
+    pub unjudged: BTreeMap<String, usize>,
     /// The scenario names (baseline, current) when they differ.
     pub scenarios_differ: Option<(String, String)>,
 }
@@ -195,8 +208,12 @@ impl Comparison {
                     w[i] = w[i].max(c.chars().count());
                 }
             }
-            for r in std::iter::once(head.map(String::from)).chain(rows) {
-                let _ = writeln!(
+            let notes = std::iter::once(None).chain(self.changes.iter().map(|c| c.note.as_ref()));
+            for (r, note) in std::iter::once(head.map(String::from))
+                .chain(rows)
+                .zip(notes)
+            {
+                let _ = write!(
                     s,
                     "{:<w0$}  {:<w1$}  {:<w2$}  {:>w3$}  {:>w4$}  {:>w5$}",
                     r[0],
@@ -212,6 +229,10 @@ impl Comparison {
                     w4 = w[4],
                     w5 = w[5]
                 );
+                let _ = match note {
+                    Some(n) => writeln!(s, "  ({n})"),
+                    None => writeln!(s),
+                };
             }
         }
         for (case, status) in &self.runs {
@@ -229,6 +250,12 @@ impl Comparison {
             for (figure, n) in map {
                 let _ = writeln!(s, "note: {figure} only in the {what} ({n} runs)");
             }
+        }
+        for (figure, n) in &self.unjudged {
+            let _ = writeln!(
+                s,
+                "note: {figure} is not in the glossary, so not judged ({n} runs)"
+            );
         }
         let count = |v: Verdict| self.changes.iter().filter(|c| c.verdict == v).count();
         let _ = writeln!(
@@ -298,6 +325,7 @@ pub fn compare(
         runs: Vec::new(),
         dropped: BTreeMap::new(),
         added: BTreeMap::new(),
+        unjudged: BTreeMap::new(),
         scenarios_differ: (baseline.1.scenario != current.1.scenario)
             .then(|| (baseline.1.scenario.clone(), current.1.scenario.clone())),
     };
@@ -328,19 +356,23 @@ pub fn compare(
 
 fn compare_run(cmp: &mut Comparison, case: &str, o: &RunRecord, n: &RunRecord) {
     let (fo, fnew) = (deterministic_figures(o), deterministic_figures(n));
+    let first = cmp.changes.len();
     for (figure, &old) in &fo {
         let Some(&new) = fnew.get(figure) else {
             *cmp.dropped.entry(figure.clone()).or_default() += 1;
+            continue;
+        };
+        let Some(direction) = crate::counters::direction(figure) else {
+            *cmp.unjudged.entry(figure.clone()).or_default() += 1;
             continue;
         };
         cmp.figures_compared += 1;
         if new == old || (new.is_nan() && old.is_nan()) {
             continue;
         }
-        let worse = if higher_is_better(figure) {
-            new < old
-        } else {
-            new > old
+        let worse = match direction {
+            Direction::Higher => new < old,
+            Direction::Lower => new > old,
         } || new.is_nan();
         let mut change = Change {
             verdict: Verdict::Better,
@@ -348,6 +380,7 @@ fn compare_run(cmp: &mut Comparison, case: &str, o: &RunRecord, n: &RunRecord) {
             figure: figure.clone(),
             old,
             new,
+            note: None,
         };
         if worse {
             let pct = change.pct().abs();
@@ -359,8 +392,44 @@ fn compare_run(cmp: &mut Comparison, case: &str, o: &RunRecord, n: &RunRecord) {
         }
         cmp.changes.push(change);
     }
+    judge_ratios_with_their_parts(&mut cmp.changes[first..], |f| {
+        fo.contains_key(f) && fnew.contains_key(f)
+    });
     for figure in fnew.keys().filter(|f| !fo.contains_key(*f)) {
         *cmp.added.entry(figure.clone()).or_default() += 1;
+    }
+}
+
+/// A derived ratio's regression stands only when one of its parts (in the same record or
+/// phase) worsened too; otherwise it moved because a part improved, and it is listed as worse
+/// with a note naming the parts. A ratio whose parts are not both in the two records (`both`)
+/// stands on its own.
+fn judge_ratios_with_their_parts(changes: &mut [Change], both: impl Fn(&str) -> bool) {
+    let worse: Vec<String> = changes
+        .iter()
+        .filter(|c| c.verdict != Verdict::Better)
+        .map(|c| c.figure.clone())
+        .collect();
+    for c in changes
+        .iter_mut()
+        .filter(|c| c.verdict == Verdict::Regression)
+    {
+        let Some((prefix, [num, den])) = crate::counters::DERIVED.iter().find_map(|d| {
+            let prefix = c.figure.strip_suffix(d)?.strip_suffix('.')?;
+            Some((prefix.to_string(), crate::counters::parts(d)?))
+        }) else {
+            continue;
+        };
+        let [num_f, den_f] = [num, den].map(|p| format!("{prefix}.{p}"));
+        if !(both(&num_f) && both(&den_f)) {
+            continue;
+        }
+        if !worse.contains(&num_f) && !worse.contains(&den_f) {
+            c.verdict = Verdict::Worse;
+            c.note = Some(format!(
+                "judged with its parts: neither {num} nor {den} worsened"
+            ));
+        }
     }
 }
 
@@ -548,7 +617,93 @@ mod tests {
         assert_eq!(c.changes[0].figure, "counters.simd_utilization");
         // The name the model writes is in the glossary, as a rate of good outcomes.
         assert!(crate::counters::find("simd_utilization").is_some());
-        assert!(higher_is_better("simd_utilization"));
+        // Its parts (active_lanes / vector_ops × 16) worsened with it: vector_ops rose.
+        let mut b = baseline();
+        let (lanes, ops) = (800.0, 100.0);
+        b.runs[0].counters.set("active_lanes", lanes);
+        b.runs[0].counters.set("vector_ops", ops);
+        crate::counters::derive(&mut b.runs[0].counters);
+        let mut cur = b.clone();
+        cur.runs[0].counters.set("vector_ops", ops * 1.2);
+        crate::counters::derive(&mut cur.runs[0].counters);
+        let c = run(&b, &cur);
+        let util = c
+            .changes
+            .iter()
+            .find(|c| c.figure == "counters.simd_utilization")
+            .unwrap();
+        assert_eq!(util.verdict, Verdict::Regression, "{}", c.render());
+    }
+
+    #[test]
+    fn cache_hits_worsen_downwards_and_misses_upwards() {
+        for (name, before, after, regressed) in [
+            ("cache.l1_hits", 1000.0, 900.0, true),
+            ("cache.l1_hits", 1000.0, 1100.0, false),
+            ("cache.l2_misses", 100.0, 110.0, true),
+            ("cache.l2_misses", 100.0, 90.0, false),
+        ] {
+            let c = counter_change(name, before, after);
+            assert_eq!(c.regressed(), regressed, "{name}: {}", c.render());
+            assert_eq!(c.changes.len(), 1, "{}", c.render());
+        }
+    }
+
+    #[test]
+    fn a_derived_ratio_is_judged_with_its_parts() {
+        let b = baseline();
+        let (fill, overdraw) = (
+            b.runs[1].counters.get("fill").unwrap(),
+            b.runs[1].counters.get("overdraw").unwrap(),
+        );
+        assert!(b.runs[1].counters.get("overdraw_ratio").is_some());
+        // Fill falls by a fifth, overdraw stays: the ratio rises 25%, but nothing got worse.
+        let mut cur = b.clone();
+        cur.runs[1].counters.set("fill", fill * 0.8);
+        crate::counters::derive(&mut cur.runs[1].counters);
+        let c = run(&b, &cur);
+        assert!(!c.regressed(), "{}", c.render());
+        let ratio = c
+            .changes
+            .iter()
+            .find(|c| c.figure == "counters.overdraw_ratio")
+            .unwrap();
+        assert_eq!(ratio.verdict, Verdict::Worse);
+        assert!((ratio.pct() - 25.0).abs() < 1e-6, "{}", ratio.pct());
+        let text = c.render();
+        assert!(text.contains("judged with its parts"), "{text}");
+        // Overdraw rises a quarter: the ratio's regression stands beside its part's.
+        let mut cur = b.clone();
+        cur.runs[1].counters.set("overdraw", overdraw * 1.25);
+        crate::counters::derive(&mut cur.runs[1].counters);
+        let c = run(&b, &cur);
+        let gated: Vec<&str> = c
+            .changes
+            .iter()
+            .filter(|c| c.verdict == Verdict::Regression)
+            .map(|c| c.figure.as_str())
+            .collect();
+        assert_eq!(
+            gated,
+            ["counters.overdraw", "counters.overdraw_ratio"],
+            "{}",
+            c.render()
+        );
+    }
+
+    #[test]
+    fn a_figure_outside_the_glossary_is_listed_not_judged() {
+        // The name sounds like a rate of good outcomes; nothing is guessed from it.
+        let c = counter_change("texture_hit_rate", 0.9, 0.1);
+        assert!(!c.regressed(), "{}", c.render());
+        assert!(c.changes.is_empty());
+        assert_eq!(c.unjudged.get("counters.texture_hit_rate"), Some(&1));
+        assert!(
+            c.render()
+                .contains("counters.texture_hit_rate is not in the glossary"),
+            "{}",
+            c.render()
+        );
     }
 
     #[test]

@@ -98,9 +98,25 @@ fn every_algorithm_is_deterministic_across_host_threads() {
 }
 
 /// Every counter name of every record (and phase) is in the glossary (`shadowbench::counters`)
-/// and recorded by that execution; every record that counts fill and overdraw carries the
+/// and recorded by that execution; every figure `compare` reads, and every time, takes its kind
+/// and direction from the glossary; every record that counts fill and overdraw carries the
 /// derived `overdraw_ratio` = overdraw / fill.
 fn check_counter_names(record: &shadowbench::record::RunRecord) {
+    let judged = shadowbench::report::compare::deterministic_figures(record);
+    let times = ["wall_ms", "gpu_ms", "model_ms"].map(String::from);
+    let phase_times = record
+        .phases
+        .iter()
+        .map(|p| format!("phase.{}.wall_ms", p.name));
+    for figure in judged.keys().chain(&times).cloned().chain(phase_times) {
+        assert!(
+            shadowbench::counters::direction(&figure).is_some()
+                && shadowbench::counters::kind(&figure).is_some(),
+            "{} {}: figure '{figure}' has no direction and kind in the glossary",
+            record.algorithm,
+            record.backend
+        );
+    }
     let all = std::iter::once(&record.counters).chain(record.phases.iter().map(|p| &p.counters));
     for c in all {
         for name in c.0.keys() {
