@@ -130,6 +130,10 @@ enum Command {
         /// Folder to write the report into.
         #[arg(long, value_name = "DIR")]
         out: PathBuf,
+        /// One report of the runs of every file together, charted on shared axes (levels of
+        /// detail or variants run as separate scenarios), with the joined results in DIR.
+        #[arg(long)]
+        combine: bool,
     },
     /// Join the results of shards into DIR: results.json, results.csv, images and report.
     Merge {
@@ -150,6 +154,20 @@ enum Command {
         /// PNG to write.
         #[arg(long, default_value = "out/diff.png", value_name = "FILE")]
         out: PathBuf,
+    },
+    /// Write a scenario for a mesh file: the mesh over a ground plane with a framing camera
+    /// and light, the soft-shadow methods and the reference on both CPU executions, a sweep of
+    /// three light sizes; `shadowbench run SCENARIO.json` runs it.
+    Init {
+        /// The mesh file (.obj, .gltf, .glb, .ply).
+        #[arg(long, value_name = "FILE")]
+        mesh: PathBuf,
+        /// The scenario file to write (the mesh is named relative to its folder).
+        #[arg(long, value_name = "SCENARIO.json")]
+        out: PathBuf,
+        /// Replace the file if it exists.
+        #[arg(long)]
+        force: bool,
     },
     /// Scene tools: `scene export`.
     Scene {
@@ -205,6 +223,12 @@ enum Command {
         #[arg(long, value_name = "deterministic|measured", default_value = "deterministic",
               value_parser = clap::builder::PossibleValuesParser::new(["deterministic", "measured"]))]
         gate: String,
+        /// Print the table of every figure that moved after the headline.
+        #[arg(long, short)]
+        verbose: bool,
+        /// Write the table of every figure that moved into FILE.
+        #[arg(long, value_name = "FILE")]
+        details: Option<PathBuf>,
     },
 }
 
@@ -276,6 +300,15 @@ struct RunArgs {
     /// Folder for results.json, results.csv, summary.csv/.tex, images/, charts/, index.html.
     #[arg(long, default_value = "out/run", value_name = "DIR")]
     out: PathBuf,
+    /// Set a scenario field for this run, by its JSON path: `options.pcss.pcf_samples=16`,
+    /// `params.map_resolution=320`, `scene.objects[0].scale=2` (VALUE is JSON, or else text).
+    /// Repeatable; applied to every scenario before it is validated; results.json records it.
+    #[arg(long = "set", value_name = "PATH=VALUE")]
+    set: Vec<String>,
+    /// Sweep an axis with these values instead of the scenario's: `light_size=0.3,0.6`,
+    /// `image=[160,120],[320,240]` (sets `sweep.AXIS`). Repeatable; recorded as --set is.
+    #[arg(long = "sweep", value_name = "AXIS=V1,V2,...")]
+    sweep: Vec<String>,
     /// Only these algorithms (comma-separated); selecting no run of the scenario is an error.
     #[arg(long, value_delimiter = ',', value_name = "ALGORITHM",
           value_parser = clap::builder::PossibleValuesParser::new(algorithm_ids()))]
@@ -567,7 +600,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let converted =
         (kind != scene.light.kind()).then(|| harness::light_converted(scene.light.kind(), kind));
     if let Some(w) = &converted {
-        errln!("warning: {w}");
+        errln!("note: {w}");
     }
     scene.light = harness::light_for_run(&scene, info).map_err(|e| {
         // A scene from a file: the error names it.
@@ -616,7 +649,7 @@ fn render(a: RenderArgs) -> Result<()> {
     let (mut record, out) =
         harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
     notes.annotate(&mut record);
-    record.warnings.extend(converted);
+    record.notes.extend(converted);
     harness::write_frame_files(
         &a.out,
         &record,
@@ -633,6 +666,34 @@ fn render(a: RenderArgs) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `init`: writes a scenario for `mesh` at `out` (refusing an existing file unless `force`).
+fn init(mesh: PathBuf, out: PathBuf, force: bool) -> Result<()> {
+    if out.exists() && !force {
+        return Err(InputError::new(
+            "--out",
+            format!("'{}' exists; pass --force to replace it", out.display()),
+        )
+        .into());
+    }
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let doc = scenario::init_scenario(&mesh, &out)?;
+    let text = serde_json::to_string_pretty(&doc).expect("JSON values serialize") + "\n";
+    shadowbench::visibility::write_atomic(&out, text.as_bytes())?;
+    println!(
+        "wrote {} ({}); run it with: shadowbench run {} --out out/{}",
+        out.display(),
+        doc["algorithms"]
+            .as_array()
+            .map(|a| format!("{} algorithms", a.len()))
+            .unwrap_or_default(),
+        out.display(),
+        doc["name"].as_str().unwrap_or("mesh")
+    );
+    Ok(())
 }
 
 fn scene_export(a: ExportArgs) -> Result<()> {
@@ -714,6 +775,8 @@ fn run(a: RunArgs) -> Result<()> {
     let RunArgs {
         scenario,
         out,
+        set,
+        sweep,
         only,
         backend,
         cache_dir,
@@ -740,10 +803,19 @@ fn run(a: RunArgs) -> Result<()> {
     } else {
         harness::Verbosity::Normal
     };
+    let overrides = set
+        .iter()
+        .map(|a| scenario::overrides::Override::set(a))
+        .chain(
+            sweep
+                .iter()
+                .map(|a| scenario::overrides::Override::sweep(a)),
+        )
+        .collect::<std::result::Result<Vec<_>, InputError>>()?;
     // Every scenario is checked before anything runs.
     let loaded = scenario
         .iter()
-        .map(|p| Loaded::from_file(p))
+        .map(|p| Loaded::from_file_with(p, &overrides))
         .collect::<std::result::Result<Vec<Loaded>, InputError>>()?;
     for l in &loaded {
         l.check_case_count(max_cases)?;
@@ -837,6 +909,11 @@ fn run(a: RunArgs) -> Result<()> {
             out!("{}", harness::grouped_summary(&results.runs));
         }
         let written = report::write_report(&out_dir, &results)?;
+        if verbosity != harness::Verbosity::Quiet {
+            for n in report::notes_by_algorithm(&results.runs) {
+                println!("note: {n}");
+            }
+        }
         let failed = results.runs.iter().filter(|r| r.failure.is_some()).count();
         let warned = results
             .runs
@@ -943,6 +1020,28 @@ fn report_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
         reports.push((name, file));
     }
     write_claims(&out, &reports, several, true)
+}
+
+/// `report --combine`: one report of several results files' runs.
+fn combine_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
+    let inputs = results
+        .into_iter()
+        .map(|p| report::read_results(&p).map(|f| (p, f)))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    report::combine(&inputs)?;
+    let outputs = RESULT_FILES.map(|f| out.join(f));
+    for (path, _) in &inputs {
+        not_an_output(path, &outputs)?;
+    }
+    let _lock = harness::outdir::lock("--out", &out)?;
+    let written = report::write_combined(&out, &inputs)?;
+    println!(
+        "combined {} files into {}",
+        inputs.len(),
+        out.join("results.json").display()
+    );
+    print_report(&written);
+    Ok(())
 }
 
 fn merge(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
@@ -1249,11 +1348,44 @@ fn compare_options(
 }
 
 /// Prints what moved; `Ok(true)` when the gate passes.
-fn compare(baseline: PathBuf, current: PathBuf, options: report::compare::Options) -> Result<bool> {
+/// `compare`: the headline (settings that differ, one line per run), then the verdict; the
+/// table of every figure with `verbose` or into `details`.
+fn compare(
+    baseline: PathBuf,
+    current: PathBuf,
+    options: report::compare::Options,
+    verbose: bool,
+    details: Option<PathBuf>,
+) -> Result<bool> {
     let old = report::read_results(&baseline)?;
     let new = report::read_results(&current)?;
     let c = report::compare::compare((&baseline, &old), (&current, &new), &options)?;
-    out!("{}", c.render());
+    let table = c.render();
+    if let Some(path) = &details {
+        not_an_output(&baseline, std::slice::from_ref(path))?;
+        not_an_output(&current, std::slice::from_ref(path))?;
+        shadowbench::visibility::write_atomic(path, table.as_bytes())?;
+    }
+    if !verbose {
+        if let Some(note) = table
+            .lines()
+            .find(|l| l.starts_with("note: different scenarios"))
+        {
+            outln!("{note}");
+        }
+    }
+    out!("{}", report::headline::headline(&old, &new));
+    if verbose {
+        out!("{table}");
+    } else {
+        // The verdict is the table's last line.
+        let verdict = table.lines().last().unwrap_or_default();
+        match &details {
+            Some(p) => outln!("every figure: {}", p.display()),
+            None => outln!("every figure: --verbose or --details FILE"),
+        }
+        outln!("{verdict}");
+    }
     Ok(!c.regressed())
 }
 
@@ -1365,12 +1497,18 @@ fn main() -> ExitCode {
         }
         Command::Render(a) => render(a),
         Command::Run(a) => run(a),
-        Command::Report { results, out } => report_cmd(results, out),
+        Command::Report {
+            results,
+            out,
+            combine: true,
+        } => combine_cmd(results, out),
+        Command::Report { results, out, .. } => report_cmd(results, out),
         Command::Merge { results, out } => merge(results, out),
         Command::Scene {
             command: SceneCommand::Export(a),
         } => scene_export(a),
         Command::Diff { a, b, out } => diff(a, b, out),
+        Command::Init { mesh, out, force } => init(mesh, out, force),
         Command::Calibrate {
             out,
             quick,
@@ -1385,9 +1523,11 @@ fn main() -> ExitCode {
             min_effect,
             fdr,
             gate,
+            verbose,
+            details,
         } => {
             let options = compare_options(threshold, &threshold_for, min_effect, fdr, &gate);
-            match options.and_then(|o| compare(baseline, current, o)) {
+            match options.and_then(|o| compare(baseline, current, o, verbose, details)) {
                 Ok(false) => {
                     return match shadowbench::util::console::finish() {
                         Err(e) => failed(Error::Other(format!(

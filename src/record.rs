@@ -111,6 +111,12 @@ pub struct RunRecord {
     pub execution: BTreeMap<String, serde_json::Value>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// Remarks that are expected and do not question the figures: the light converted to a
+    /// kind the algorithm takes, a method limit of the paper's design that shows in this frame
+    /// (`harness::limit_notes`). Not counted as warnings; the report lists them once per
+    /// algorithm ([`note_kind`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
     /// What was added around user meshes (ground plane, camera, light), when the scene was made
     /// from mesh files.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -171,6 +177,7 @@ impl RunRecord {
             ]
             .into(),
             warnings: vec![],
+            notes: vec![],
             framing: None,
             failure: None,
         }
@@ -180,6 +187,31 @@ impl RunRecord {
     pub fn case_id(&self) -> String {
         case_id(&self.scene, &self.algorithm, &self.backend, &self.params)
     }
+}
+
+/// What a note says without the figures of its run (every digit run as `N`), so the notes of
+/// many runs group by what they say: `method limit (…): N pixels the reference shadows …`.
+pub fn note_kind(note: &str) -> String {
+    let mut out = String::with_capacity(note.len());
+    let mut in_number = false;
+    for c in note.chars() {
+        if c.is_ascii_digit() {
+            if !in_number {
+                out.push('N');
+            }
+            in_number = true;
+        } else {
+            in_number = false;
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// Whether a record's warning written by an older version is what is now a note (a light
+/// conversion or a method limit), for [`crate::harness::output::ResultsFile::upgraded`].
+pub fn is_note(warning: &str) -> bool {
+    warning.starts_with("light converted from ") || warning.starts_with("method limit (")
 }
 
 /// A light size as written in case ids (folder names), `results.csv` and progress lines: the

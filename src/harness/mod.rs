@@ -129,7 +129,7 @@ pub fn light_for_run(
     Err(crate::error::InputError::new("$.light", why))
 }
 
-/// The warning a run gets when its algorithm needs another light kind than the scene's.
+/// The note a run gets when its algorithm needs another light kind than the scene's.
 pub fn light_converted(from: LightKind, to: LightKind) -> String {
     format!("light converted from {from} to {to} (same centre and size) for this algorithm")
 }
@@ -227,7 +227,7 @@ pub fn run_one(
                 record.warnings.extend(e.warnings());
                 record.error = Some(e);
                 if let Ok(info) = algorithms::find(algorithm) {
-                    record.warnings.extend(limit_warnings(frame, info, r));
+                    record.notes.extend(limit_notes(frame, info, r));
                 }
             }
             (record, Some(out))
@@ -418,7 +418,7 @@ fn apply_medians(
     }
 }
 
-/// Warnings for the declared limits of `info`'s method ([`algorithms::MethodLimit`]) that
+/// Notes for the declared limits of `info`'s method ([`algorithms::MethodLimit`]) that
 /// matter in this frame, judged on the `reference`: pixels on occluders in shadow when the
 /// method shadows receiver-only objects only; penumbra pixels (partly lit) inside the hard
 /// shadow of the light centre for an outer-penumbra method; any penumbra for a hard-shadow
@@ -426,7 +426,7 @@ fn apply_medians(
 /// whose ray to it only objects that are not occluders block; for a method without a facing
 /// test, shadowed pixels of such objects' surfaces facing away from the light centre. `OneMap`
 /// warns from the run itself (`light_view.receivers_outside`).
-pub fn limit_warnings(
+pub fn limit_notes(
     frame: &Frame,
     info: &algorithms::AlgorithmInfo,
     reference: &VisibilityBuffer,
@@ -609,7 +609,7 @@ fn plan_runs(
     loaded: &Loaded,
     opts: &RunOptions,
     cases: &[crate::scenario::Case],
-) -> Result<Vec<Planned>> {
+) -> Result<(Vec<Planned>, usize)> {
     let s = &loaded.scenario;
     let algorithms: Vec<&String> = s
         .algorithms
@@ -640,7 +640,9 @@ fn plan_runs(
                         algorithm: a.clone(),
                         backend: b,
                     });
-                } else if ci == 0 {
+                } else if ci == 0 && opts.backends.as_ref().is_some_and(|o| o.contains(&b)) {
+                    // Only where --backend asked for it: a scenario's list of executions
+                    // covers every algorithm, and which each has is in `list`.
                     skipped.push(format!("{a} on {b}"));
                 }
             }
@@ -649,6 +651,7 @@ fn plan_runs(
     if plan.is_empty() {
         return Err(nothing_selected(loaded, opts, &backends).into());
     }
+    let (mut plan, repeats) = without_repeats(loaded, cases, plan);
     if let Some(shard) = opts.shard {
         plan = plan
             .into_iter()
@@ -660,7 +663,46 @@ fn plan_runs(
     for s in &skipped {
         crate::errln!("note: skipping {s} (no such execution)");
     }
-    Ok(plan)
+    Ok((plan, repeats))
+}
+
+/// `plan` without the runs that repeat an earlier one: two sweep points that resolve to the
+/// same run (a swept value equal to the base point's, a light size left to the scene that
+/// equals a swept one) have one [`case_id`], computed here as the run will compute it, so the
+/// planned count is what runs; with how many were left out. Builds each scene point's scene
+/// once.
+fn without_repeats(
+    loaded: &Loaded,
+    cases: &[crate::scenario::Case],
+    plan: Vec<Planned>,
+) -> (Vec<Planned>, usize) {
+    let before = plan.len();
+    let mut scenes: Vec<(crate::scenario::ScenePoint, String, u32, Light, glam::Vec3)> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    let plan = plan
+        .into_iter()
+        .filter(|p| {
+            let case = &cases[p.case];
+            let at = match scenes.iter().position(|s| s.0 == case.scene) {
+                Some(i) => i,
+                None => {
+                    let sc = loaded.build_scene(case.scene, None);
+                    let center = sc.bounds().center();
+                    let tris = sc.triangle_count() as u32;
+                    scenes.push((case.scene, sc.name, tris, sc.light, center));
+                    scenes.len() - 1
+                }
+            };
+            let (_, name, tris, light, center) = &scenes[at];
+            let light = case.light_size.map_or(*light, |s| light.with_size(s));
+            let info = algorithms::find(&p.algorithm).expect("validated");
+            let used = light_as(light, info.light_for(light.kind()), *center);
+            let params = case.params_with(*tris, used.size());
+            seen.insert(case_id(name, &p.algorithm, p.backend.name(), &params))
+        })
+        .collect::<Vec<_>>();
+    let repeats = before - plan.len();
+    (plan, repeats)
 }
 
 /// The reference cache of a sweep: in `--cache-dir`, or `reference-cache` under `--out`; in
@@ -685,7 +727,7 @@ fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions) -> Referenc
 pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::ResultsFile> {
     let s = &loaded.scenario;
     let cases = loaded.cases(opts.max_cases)?;
-    let (plan, repeats) = distinct_runs(loaded, &cases, plan_runs(loaded, opts, &cases)?);
+    let (plan, repeats) = plan_runs(loaded, opts, &cases)?;
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
     let mut refs = reference_cache(s, opts);
     let mut ctx = ExecContext {
@@ -732,8 +774,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     }
     let mut progress = Progress::new(plan.len(), opts.verbosity);
     let bar = progress.bar.clone();
-    let mut writer =
-        output::ResultsWriter::new(&opts.out, &loaded.name(), &s.claims, Some(origin), kept);
+    let mut writer = output::ResultsWriter::new(&opts.out, loaded, Some(origin), kept);
     let mut current: Option<(usize, Scene)> = None;
     let mut frames: BTreeMap<LightKind, Frame> = BTreeMap::new();
     for p in &plan {
@@ -841,9 +882,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         loaded.notes.annotate(&mut record);
         record.warnings.extend(cache_warnings);
         if kind != scene.light.kind() {
-            record
-                .warnings
-                .push(light_converted(scene.light.kind(), kind));
+            record.notes.push(light_converted(scene.light.kind(), kind));
         }
         progress.finished(&record);
         writer.push(
@@ -871,62 +910,6 @@ fn scenario_digest(loaded: &Loaded, ctx: &ExecContext) -> String {
         "{:08x}",
         crc32fast::hash(&serde_json::to_vec(&what).expect("scenarios serialize"))
     )
-}
-
-/// `plan` without the runs that repeat an earlier one, and how many those were: two sweep
-/// points can resolve to one run (a swept value equal to the base, two triangle targets a
-/// generator meets with the same mesh), which has one case id ([`case_id`]). Builds the scene
-/// of each scene point of the plan once, for its name and triangle count.
-fn distinct_runs(
-    loaded: &Loaded,
-    cases: &[crate::scenario::Case],
-    plan: Vec<Planned>,
-) -> (Vec<Planned>, usize) {
-    // The runs of each scene point, in order of first appearance.
-    let key = |c: &crate::scenario::Case| {
-        let p = c.scene;
-        (
-            p.triangles,
-            p.occluder_height.map(f32::to_bits),
-            p.occluder_offset.map(f32::to_bits),
-        )
-    };
-    let mut points: Vec<(_, Vec<usize>)> = Vec::new();
-    let mut index = std::collections::HashMap::new();
-    for (i, p) in plan.iter().enumerate() {
-        let k = key(&cases[p.case]);
-        let at = *index.entry(k).or_insert_with(|| {
-            points.push((cases[p.case].scene, Vec::new()));
-            points.len() - 1
-        });
-        points[at].1.push(i);
-    }
-    let mut ids = vec![String::new(); plan.len()];
-    for (point, runs) in points {
-        let mut scene = loaded.build_scene(point, None);
-        let light = scene.light;
-        for i in runs {
-            let case = &cases[plan[i].case];
-            scene.light = case.light_size.map_or(light, |size| light.with_size(size));
-            let p = &plan[i];
-            ids[i] = case_id(
-                &scene.name,
-                &p.algorithm,
-                p.backend.name(),
-                &case.run_params(&scene),
-            );
-        }
-    }
-    let mut seen = std::collections::HashSet::new();
-    let before = plan.len();
-    let plan: Vec<Planned> = plan
-        .into_iter()
-        .zip(ids)
-        .filter(|(_, id)| seen.insert(id.clone()))
-        .map(|(p, _)| p)
-        .collect();
-    let repeats = before - plan.len();
-    (plan, repeats)
 }
 
 /// The estimated fill of the planned runs ([`algorithms::work`]): each run's frame and
@@ -1044,6 +1027,9 @@ fn case_label(c: &crate::scenario::Case) -> String {
     let mut s = Vec::new();
     if let Some(t) = c.scene.triangles {
         s.push(format!("{t} tris"));
+    }
+    if let Some(m) = c.scene.mesh {
+        s.push(format!("mesh {}", m + 1));
     }
     if let Some(l) = c.light_size {
         s.push(format!("light {l}"));
@@ -1333,6 +1319,47 @@ mod tests {
         // A range from the smallest to the largest wall time of the group's successful runs.
         let first = lines[1];
         assert!(first.contains(" 5.00e5-8.00e6 "), "{first}");
+    }
+
+    #[test]
+    fn the_planned_runs_of_quick_are_what_runs_the_base_point_merged_once() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick.json");
+        let loaded = Loaded::from_file(&path).unwrap();
+        let cases = loaded.cases(1000).unwrap();
+        // The base point (2000 triangles, the scene's light) and five swept points.
+        assert_eq!(cases.len(), 6);
+        let scene = loaded.build_scene(cases[0].scene, None);
+        // The light sweep holds the scene's own size: that point is the base point again.
+        assert!(loaded
+            .scenario
+            .sweep
+            .light_size
+            .contains(&scene.light.size()));
+        let cpu = [Backend::CpuNative, Backend::CpuModel];
+        let opts = RunOptions {
+            out: PathBuf::from("unused"),
+            only: None,
+            backends: Some(cpu.to_vec()),
+            cache_dir: None,
+            memory_limit: u64::MAX,
+            machine: None,
+            shard: None,
+            max_cases: 1000,
+            run_timeout: None,
+            verbosity: Verbosity::Quiet,
+            gpu_counters: Default::default(),
+        };
+        let per_case: usize = loaded
+            .scenario
+            .algorithms
+            .iter()
+            .map(|a| {
+                let info = algorithms::find(a).unwrap();
+                cpu.iter().filter(|b| info.backends.contains(b)).count()
+            })
+            .sum();
+        let (plan, _) = plan_runs(&loaded, &opts, &cases).unwrap();
+        assert_eq!(plan.len(), 5 * per_case);
     }
 
     #[test]

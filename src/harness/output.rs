@@ -29,7 +29,7 @@ pub struct Origin {
 }
 
 /// The file `results.json` holds: the scenario name and its runs.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ResultsFile {
     pub scenario: String,
     /// Written by `run`; absent in merged files and older results (which then cannot be
@@ -40,6 +40,14 @@ pub struct ResultsFile {
     /// The paper claims the scenario states, evaluated by the report.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub claims: Vec<Claim>,
+    /// The command line's overrides of the scenario (`run --set` / `--sweep`) as `PATH=VALUE`;
+    /// empty when the file ran as written.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub overrides: Vec<String>,
+    /// The scenario as it ran (its file with the overrides applied), as JSON; absent in files
+    /// of older versions. `compare` names the settings that differ between two files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub config: Option<serde_json::Value>,
 }
 
 impl ResultsFile {
@@ -71,6 +79,11 @@ impl ResultsFile {
     /// ([`crate::counters::derive`]), so old and new results chart and compare alike.
     pub fn upgraded(mut self) -> ResultsFile {
         for r in &mut self.runs {
+            let (notes, warnings) = std::mem::take(&mut r.warnings)
+                .into_iter()
+                .partition::<Vec<String>, _>(|w| crate::record::is_note(w));
+            r.notes.extend(notes);
+            r.warnings = warnings;
             crate::counters::upgrade(&r.backend, &mut r.counters);
             crate::counters::derive(&mut r.counters);
             for p in &mut r.phases {
@@ -83,20 +96,23 @@ impl ResultsFile {
 }
 
 impl ResultsWriter {
+    /// A writer of the results of scenario `loaded` into `out`, from `origin` (what a resumed
+    /// sweep must match), keeping the runs `kept` from the sweep it resumes.
     pub fn new(
         out: &Path,
-        scenario: &str,
-        claims: &[Claim],
+        loaded: &crate::scenario::Loaded,
         origin: Option<Origin>,
         kept: Vec<RunRecord>,
     ) -> ResultsWriter {
         ResultsWriter {
             out: out.to_path_buf(),
             file: ResultsFile {
-                scenario: scenario.to_string(),
+                scenario: loaded.name(),
                 origin,
                 runs: Vec::new(),
-                claims: claims.to_vec(),
+                claims: loaded.scenario.claims.clone(),
+                overrides: loaded.overrides.clone(),
+                config: serde_json::to_value(&loaded.scenario).ok(),
             },
             kept,
         }

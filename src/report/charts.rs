@@ -346,47 +346,68 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
         specs.extend(summary.charts());
     }
     for axis in Axis::ALL {
-        let Some((slice, fixed)) = axis_slice(&ok, axis) else {
+        let Some(slices) = axis_slices(&ok, axis) else {
             continue;
         };
         for m in &METRICS {
-            let mut series = collect_series(&slice, |r| Some((axis.value(r)?, (m.value)(r)?)));
-            if series.is_empty() {
-                continue;
-            }
             let measured = crate::counters::kind(m.id) == Some(crate::counters::Kind::Measured);
-            if measured {
-                for s in &mut series {
-                    s.intervals = slice
-                        .iter()
-                        .filter(|r| series_name(r) == s.name)
-                        .filter_map(|r| {
-                            let [lo, hi] = measured_interval(r, m.id)?;
-                            Some((axis.value(r)?, lo, hi))
-                        })
-                        .filter(|&(x, lo, hi)| plottable(x) && plottable(lo) && plottable(hi))
-                        .collect();
+            let mut panels = Vec::new();
+            let mut intervals = false;
+            for (label, slice) in &slices.slices {
+                let mut series = collect_series(slice, |r| Some((axis.value(r)?, (m.value)(r)?)));
+                if measured {
+                    for s in &mut series {
+                        s.intervals = slice
+                            .iter()
+                            .filter(|r| series_name(r) == s.name)
+                            .filter_map(|r| {
+                                let [lo, hi] = measured_interval(r, m.id)?;
+                                Some((axis.value(r)?, lo, hi))
+                            })
+                            .filter(|&(x, lo, hi)| plottable(x) && plottable(lo) && plottable(hi))
+                            .collect();
+                        intervals |= !s.intervals.is_empty();
+                    }
                 }
-            }
-            let caption = if series.iter().any(|s| !s.intervals.is_empty()) {
-                "One panel per execution, one line per algorithm through the medians of its \
-                 timed iterations; bars: the 95% interval of each median (order statistics of \
-                 the samples)."
-            } else {
-                "One panel per execution, one line per algorithm."
-            };
-            specs.push(Spec {
-                file: format!("{}_vs_{}", m.id, axis.id()),
-                title: format!("{} vs. {}{}", m.name, axis.name(), axis.meaning()),
-                case: fixed.clone(),
-                caption: caption.into(),
-                panels: per_execution(series, |_| XyChart {
+                let mut ps = per_execution(series, |_| XyChart {
                     x_label: axis.label().into(),
                     y_label: m.label.into(),
                     series: vec![],
                     lines: true,
                     front: None,
-                }),
+                });
+                if slices.slices.len() > 1 {
+                    for p in &mut ps {
+                        p.title = format!("{}, {label}", p.title);
+                    }
+                }
+                panels.extend(ps);
+            }
+            if panels.is_empty() {
+                continue;
+            }
+            let mut caption = if slices.slices.len() > 1 {
+                format!(
+                    "One panel per execution and per value of the other swept parameters \
+                     ({} of {} such slices with two or more points), one line per algorithm",
+                    slices.slices.len(),
+                    slices.of
+                )
+            } else {
+                "One panel per execution, one line per algorithm".into()
+            };
+            caption.push_str(if intervals {
+                " through the medians of its timed iterations; bars: the 95% interval of each \
+                 median (order statistics of the samples)."
+            } else {
+                "."
+            });
+            specs.push(Spec {
+                file: format!("{}_vs_{}", m.id, axis.id()),
+                title: format!("{} vs. {}{}", m.name, axis.name(), axis.meaning()),
+                case: slices.fixed.clone(),
+                caption,
+                panels,
             });
         }
     }
@@ -596,12 +617,28 @@ fn axis_value(axis: Axis, r: &RunRecord) -> String {
     }
 }
 
-/// The parameters of `r` other than `except`, for a title: `scene; light size 0.5, map 256, …`.
-pub fn describe_case(r: &RunRecord, except: Option<Axis>) -> String {
+/// Most slices of a chart against an axis ([`axis_slices`]); each is a row of panels.
+pub const MAX_SLICES: usize = 6;
+
+/// The slices of runs along one axis ([`axis_slices`]).
+struct Slices<'a> {
+    /// What every slice holds fixed: `scene; light size 0.5, map 256, …`.
+    fixed: String,
+    /// Per slice, what sets it apart from the others (empty for one slice) and its runs.
+    slices: Vec<(String, Vec<&'a RunRecord>)>,
+    /// How many slices had two or more values of the axis (more than [`MAX_SLICES`] are cut
+    /// to those with the most values).
+    of: usize,
+}
+
+/// The parameters of `r` other than `except`, one entry per axis of [`Axis::ALL`] (`None`
+/// where the run has no value for it).
+fn case_fields(r: &RunRecord, except: Option<Axis>) -> Vec<Option<String>> {
     let p = &r.params;
-    let mut fixed = Vec::new();
-    for a in Axis::ALL.iter().filter(|a| Some(**a) != except) {
-        let v = match a {
+    Axis::ALL
+        .iter()
+        .map(|a| match a {
+            _ if Some(*a) == except => None,
             Axis::Triangles => Some(format!("{} triangles", p.triangles)),
             Axis::LightSize => Some(format!("light size {}", fmt_num(p.light_size as f64))),
             Axis::MapResolution => Some(format!("map {}", p.map_resolution)),
@@ -614,24 +651,42 @@ pub fn describe_case(r: &RunRecord, except: Option<Axis>) -> String {
                 .occluder_offset
                 .map(|d| format!("occluder offset {}", fmt_num(d as f64))),
             Axis::Cores => p.cores.map(|c| format!("{c} cores")),
-        };
-        fixed.extend(v);
-    }
+        })
+        .collect()
+}
+
+/// The parameters of `r` other than `except`, for a title: `scene; light size 0.5, map 256, …`.
+pub fn describe_case(r: &RunRecord, except: Option<Axis>) -> String {
+    let fixed: Vec<String> = case_fields(r, except).into_iter().flatten().collect();
     format!("{}; {}", r.scene, fixed.join(", "))
 }
 
-/// The runs along which `axis` varies with every other axis (and the scene) fixed: of all such
-/// slices, the one with the most distinct values of `axis` (the first on a tie, which for a
-/// sweep is the one through its base point), and the fixed parameters. `None` when no slice
-/// has two values.
-fn axis_slice<'a>(runs: &[&'a RunRecord], axis: Axis) -> Option<(Vec<&'a RunRecord>, String)> {
+/// The runs along which `axis` varies with every other axis (and the scene) fixed, one slice
+/// per combination of the other parameters that has two or more values of `axis`: one for a
+/// sweep of one axis at a time (through its base point), one per value of the other axes for
+/// a grid sweep, so every point is on a line. When each scene has one triangle count (levels
+/// of detail as scenarios, [`super::combine`]), the scene does not split the slices along
+/// the triangle axis. `None` when no slice has two values.
+fn axis_slices<'a>(runs: &[&'a RunRecord], axis: Axis) -> Option<Slices<'a>> {
+    let scene_sets_triangles = axis == Axis::Triangles && {
+        let mut seen: Vec<(&str, u32)> = Vec::new();
+        runs.iter()
+            .all(|r| match seen.iter().find(|(s, _)| *s == r.scene) {
+                Some((_, t)) => *t == r.params.triangles,
+                None => {
+                    seen.push((&r.scene, r.params.triangles));
+                    true
+                }
+            })
+    };
     let rest = |r: &RunRecord| -> String {
         let others: Vec<String> = Axis::ALL
             .iter()
             .filter(|a| **a != axis)
             .map(|a| format!("{:?}", a.value(r)))
             .collect();
-        format!("{}|{}", r.scene, others.join("|"))
+        let scene = if scene_sets_triangles { "" } else { &r.scene };
+        format!("{scene}|{}", others.join("|"))
     };
     let mut slices: Vec<(String, Vec<f64>)> = Vec::new();
     for r in runs {
@@ -643,23 +698,55 @@ fn axis_slice<'a>(runs: &[&'a RunRecord], axis: Axis) -> Option<(Vec<&'a RunReco
             None => slices.push((key, vec![x])),
         }
     }
-    let mut best: Option<&(String, Vec<f64>)> = None;
-    for s in &slices {
-        if best.is_none_or(|b| s.1.len() > b.1.len()) {
-            best = Some(s);
-        }
-    }
-    let (key, xs) = best?;
-    if xs.len() < 2 {
+    slices.retain(|s| s.1.len() >= 2);
+    let of = slices.len();
+    if of == 0 {
         return None;
     }
-    let members: Vec<&RunRecord> = runs
+    // The slices with the most values, in the order first seen (a sweep's base point first).
+    let mut by_size: Vec<usize> = (0..of).collect();
+    by_size.sort_by_key(|&i| std::cmp::Reverse(slices[i].1.len()));
+    by_size.truncate(MAX_SLICES);
+    by_size.sort();
+    let members: Vec<Vec<&RunRecord>> = by_size
         .iter()
-        .copied()
-        .filter(|r| axis.value(r).is_some() && rest(r) == *key)
+        .map(|&i| {
+            runs.iter()
+                .copied()
+                .filter(|r| axis.value(r).is_some() && rest(r) == slices[i].0)
+                .collect()
+        })
         .collect();
-    let fixed = describe_case(members[0], Some(axis));
-    Some((members, fixed))
+    let fields: Vec<Vec<Option<String>>> = members
+        .iter()
+        .map(|m| case_fields(m[0], Some(axis)))
+        .collect();
+    let common = |k: usize| fields.iter().all(|f| f[k] == fields[0][k]);
+    let fixed: Vec<String> = (0..Axis::ALL.len())
+        .filter(|&k| common(k))
+        .filter_map(|k| fields[0][k].clone())
+        .collect();
+    let scenes = |m: &[&RunRecord]| {
+        let mut v: Vec<&str> = m.iter().map(|r| r.scene.as_str()).collect();
+        v.dedup();
+        v.join(", ")
+    };
+    let slices = members
+        .iter()
+        .zip(&fields)
+        .map(|(m, f)| {
+            let own: Vec<String> = (0..Axis::ALL.len())
+                .filter(|&k| !common(k))
+                .filter_map(|k| f[k].clone())
+                .collect();
+            (own.join(", "), m.clone())
+        })
+        .collect();
+    Some(Slices {
+        fixed: format!("{}; {}", scenes(&members[0]), fixed.join(", ")),
+        slices,
+        of,
+    })
 }
 
 /// Groups points by series (in order of first appearance), each sorted by x.
@@ -1420,6 +1507,74 @@ mod tests {
 
     /// Only the modelled machine has a core count: runs of other executions are left off the
     /// cores axis, so no chart plots their times against a parameter they ignore.
+    #[test]
+    fn a_grid_sweep_charts_every_point_on_a_line_one_row_of_panels_per_other_value() {
+        let mut runs = Vec::new();
+        for t in [500, 2000, 8000] {
+            for l in [0.3f32, 0.6] {
+                for b in ["cpu-native", "cpu-model"] {
+                    let mut r = record("pcss", b, t, 32);
+                    r.params.light_size = l;
+                    runs.push(r);
+                }
+            }
+        }
+        let specs = plan(&runs);
+        let points = |file: &str| -> (usize, Vec<String>) {
+            let s = specs.iter().find(|s| s.file == file).unwrap();
+            let mut n = 0;
+            for p in &s.panels {
+                if let Kind::Xy(c) = &p.kind {
+                    for ser in &c.series {
+                        assert!(ser.points.len() >= 2, "{}: {:?}", p.title, ser.points);
+                        n += ser.points.len();
+                    }
+                }
+            }
+            (n, s.panels.iter().map(|p| p.title.clone()).collect())
+        };
+        // 6 grid points per execution, each on a line of its row.
+        let (n, titles) = points("wall_ms_vs_triangles");
+        assert_eq!(n, 12, "{titles:?}");
+        assert_eq!(titles.len(), 4, "{titles:?}");
+        assert!(
+            titles.contains(&"cpu-model, light size 0.6".to_string()),
+            "{titles:?}"
+        );
+        let (n, titles) = points("wall_ms_vs_light_size");
+        assert_eq!((n, titles.len()), (12, 6), "{titles:?}");
+        assert!(
+            titles.contains(&"cpu-native, 8000 triangles".to_string()),
+            "{titles:?}"
+        );
+    }
+
+    #[test]
+    fn scenes_of_one_triangle_count_each_join_on_the_triangle_axis() {
+        let runs: Vec<RunRecord> = [500, 2000, 8000]
+            .iter()
+            .map(|&t| {
+                let mut r = record("pcss", "cpu-model", t, 32);
+                r.scene = format!("lod-{t}");
+                r
+            })
+            .collect();
+        let specs = plan(&runs);
+        let s = specs
+            .iter()
+            .find(|s| s.file == "wall_ms_vs_triangles")
+            .unwrap();
+        let Kind::Xy(c) = &s.panels[0].kind else {
+            panic!()
+        };
+        assert_eq!(c.series[0].points.len(), 3);
+        assert!(
+            s.case.starts_with("lod-500, lod-2000, lod-8000;"),
+            "{}",
+            s.case
+        );
+    }
+
     #[test]
     fn only_cpu_model_runs_are_placed_on_the_cores_axis() {
         for (backend, want) in [

@@ -533,6 +533,7 @@ mod tests {
             scenario: "ci".into(),
             runs,
             claims: vec![],
+            ..Default::default()
         }
     }
 

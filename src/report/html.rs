@@ -141,9 +141,35 @@ pub fn page(
     for c in other_charts {
         h.push_str(&figure(c));
     }
+    h.push_str(&notes_section(runs));
     h.push_str(&gallery(out, runs));
     h.push_str(&runs_table(runs));
     h.push_str("</body></html>\n");
+    h
+}
+
+/// The runs' notes (expected remarks, not warnings) once per algorithm and kind.
+fn notes_section(runs: &[RunRecord]) -> String {
+    let lines = super::notes_by_algorithm(runs);
+    if lines.is_empty() {
+        return String::new();
+    }
+    let mut h = String::from(
+        "<h2 id=\"notes\">Notes</h2>\n<p>Expected remarks, once per algorithm (each run's own \
+         figures are in results.json): a light converted to a kind the method takes, a limit \
+         of the method's design that shows in these frames. They are not warnings.</p>\n<ul>",
+    );
+    for l in lines {
+        let _ = write!(
+            h,
+            "<li><b>{}</b>: {} <span class=\"none\">({} of {} runs)</span></li>",
+            text(&l.algorithm),
+            text(&l.note),
+            l.runs,
+            l.of
+        );
+    }
+    h.push_str("</ul>\n");
     h
 }
 
@@ -199,6 +225,14 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
                 text(&r.label),
                 opt(r.mae_shadow)
             );
+            if !r.limits.is_empty() {
+                let at = h.rfind("</td><td>").expect("the row's first two cells");
+                let mark = format!(
+                    " <sup title=\"{}\">†</sup>",
+                    attr(&format!("method limit: {}", r.limits.join("; ")))
+                );
+                h.insert_str(at, &mark);
+            }
             if s.has_restricted {
                 let _ = write!(h, "<td>{}</td>", opt(r.restricted));
             }
@@ -221,6 +255,39 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
             );
         }
         h.push_str("</table>\n");
+        let limited: Vec<&summary::Row> = e.rows.iter().filter(|r| !r.limits.is_empty()).collect();
+        if !limited.is_empty() {
+            h.push_str("<p class=\"t\">");
+            for r in limited {
+                let rank = |q: &dyn Fn(&summary::Row) -> Option<f64>| {
+                    let mine = q(r)?;
+                    Some(
+                        1 + e
+                            .rows
+                            .iter()
+                            .filter(|o| q(o).is_some_and(|v| v < mine))
+                            .count(),
+                    )
+                };
+                let _ = write!(
+                    h,
+                    "† <b>{}</b>: method limit of its paper's design ({}); its mae_shadow counts \
+                     pixels it does not compute by design, so compare it on {}{}. ",
+                    text(&r.label),
+                    text(&r.limits.join("; ")),
+                    summary::RESTRICTED,
+                    match (rank(&|o| o.mae_shadow), rank(&|o| o.restricted)) {
+                        (Some(a), Some(b)) => format!(
+                            ": rank {a} of {} on mae_shadow, {b} on {}",
+                            e.rows.len(),
+                            summary::RESTRICTED
+                        ),
+                        _ => String::new(),
+                    }
+                );
+            }
+            h.push_str("</p>\n");
+        }
         if let Some(c) = charts
             .iter()
             .find(|c| c.file == format!("quality_vs_cost_{}", e.backend))
@@ -648,6 +715,7 @@ mod tests {
             scenario: "textured".into(),
             runs: vec![r.clone()],
             claims: vec![],
+            ..Default::default()
         };
         let img = dir.path().join("images").join(r.case_id());
         std::fs::create_dir_all(&img).unwrap();
@@ -677,6 +745,7 @@ mod tests {
             scenario: "ci & more".into(),
             runs: vec![ok.clone(), bad.clone()],
             claims: vec![],
+            ..Default::default()
         };
         let charts = [Written {
             file: "a b".into(),

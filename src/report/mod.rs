@@ -9,6 +9,7 @@ pub mod charts;
 pub mod claims;
 pub mod compare;
 pub mod font;
+pub mod headline;
 pub mod html;
 pub mod measured;
 pub mod style;
@@ -131,6 +132,58 @@ pub fn import_images(from: &Path, out: &Path, records: &[RunRecord]) -> Result<(
     Ok(())
 }
 
+/// One kind of note ([`crate::record::note_kind`]) of one algorithm's runs: the note as its
+/// first such run has it, and how many of the algorithm's runs carry it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NoteLine {
+    pub algorithm: String,
+    pub note: String,
+    pub runs: usize,
+    pub of: usize,
+}
+
+impl std::fmt::Display for NoteLine {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        let e_g = if self.runs > 1 { "e.g. " } else { "" };
+        write!(
+            f,
+            "{}: {e_g}{} ({} of {} runs)",
+            self.algorithm, self.note, self.runs, self.of
+        )
+    }
+}
+
+/// The notes of `runs` once per algorithm and kind, in the order first seen.
+pub fn notes_by_algorithm(runs: &[RunRecord]) -> Vec<NoteLine> {
+    let mut lines: Vec<(String, NoteLine)> = Vec::new();
+    for r in runs {
+        let mut kinds: Vec<String> = Vec::new();
+        for n in &r.notes {
+            let kind = crate::record::note_kind(n);
+            if kinds.contains(&kind) {
+                continue;
+            }
+            match lines
+                .iter_mut()
+                .find(|(k, l)| *k == kind && l.algorithm == r.algorithm)
+            {
+                Some((_, l)) => l.runs += 1,
+                None => lines.push((
+                    kind.clone(),
+                    NoteLine {
+                        algorithm: r.algorithm.clone(),
+                        note: n.clone(),
+                        runs: 1,
+                        of: runs.iter().filter(|x| x.algorithm == r.algorithm).count(),
+                    },
+                )),
+            }
+            kinds.push(kind);
+        }
+    }
+    lines.into_iter().map(|(_, l)| l).collect()
+}
+
 /// The folder a results file lives in (where its `images/` are).
 pub fn results_dir(path: &Path) -> &Path {
     match path.parent() {
@@ -187,7 +240,58 @@ pub fn merge(inputs: &[(PathBuf, ResultsFile)]) -> Result<ResultsFile, InputErro
         scenario: first.scenario.clone(),
         runs,
         claims: first.claims.clone(),
+        overrides: first.overrides.clone(),
+        config: first.config.clone(),
     })
+}
+
+/// Joins the results of different scenarios into one (`report --combine`), so their runs are
+/// charted on shared axes: every run of each file in the order given, under the scenario name
+/// `a + b + …`, with every file's claims. A run in two files (one case id) is an error naming
+/// it and both files.
+pub fn combine(inputs: &[(PathBuf, ResultsFile)]) -> Result<ResultsFile, InputError> {
+    if inputs.is_empty() {
+        return Err(InputError::new("report", "no results files given"));
+    }
+    let mut seen: BTreeMap<String, &Path> = BTreeMap::new();
+    let mut out = ResultsFile {
+        scenario: inputs
+            .iter()
+            .map(|(_, f)| f.scenario.as_str())
+            .collect::<Vec<_>>()
+            .join(" + "),
+        ..Default::default()
+    };
+    for (path, file) in inputs {
+        for r in &file.runs {
+            if let Some(other) = seen.insert(r.case_id(), path) {
+                return Err(InputError::file(
+                    path,
+                    format!(
+                        "run '{}' is also in {}; --combine joins different runs",
+                        r.case_id(),
+                        other.display()
+                    ),
+                ));
+            }
+            out.runs.push(r.clone());
+        }
+        out.claims.extend(file.claims.iter().cloned());
+        out.overrides.extend(file.overrides.iter().cloned());
+    }
+    Ok(out)
+}
+
+/// Writes combined results ([`combine`]: `results.json`, `results.csv`), the images of every
+/// run and one report of them all into `out`.
+pub fn write_combined(out: &Path, inputs: &[(PathBuf, ResultsFile)]) -> Result<Report> {
+    let combined = combine(inputs)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    for (path, file) in inputs {
+        import_images(results_dir(path), out, &file.runs)?;
+    }
+    output::write_results(out, &combined)?;
+    write_report(out, &combined)
 }
 
 /// Writes merged results (`results.json`, `results.csv`), the images of every run and the
@@ -287,6 +391,7 @@ pub(crate) mod testdata {
             }),
             execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
             warnings: vec![],
+            notes: vec![],
             framing: None,
             failure: None,
         }
@@ -307,12 +412,57 @@ mod tests {
         assert_eq!(fmt_num(-3.0), "-3");
     }
 
+    #[test]
+    fn notes_are_listed_once_per_algorithm_and_kind_and_old_warnings_become_notes() {
+        let mut runs = Vec::new();
+        for (t, pixels) in [(100, 12), (200, 40), (400, 0)] {
+            let mut r = testdata::record("soft_shadow_map", "cpu-model", t, 32);
+            if pixels > 0 {
+                r.warnings.push(format!(
+                    "method limit (no self-shadowing): {pixels} pixels the reference shadows"
+                ));
+            }
+            r.warnings
+                .push("light converted from sphere to disc".into());
+            r.warnings.push("reader skipped 3 faces".into());
+            runs.push(r);
+        }
+        runs.push(testdata::record("pcss", "cpu-model", 100, 32));
+        let f = file(runs).upgraded();
+        assert!(f.runs[..3]
+            .iter()
+            .all(|r| r.warnings == ["reader skipped 3 faces"]));
+        let lines = notes_by_algorithm(&f.runs);
+        assert_eq!(lines.len(), 2, "{lines:?}");
+        assert_eq!((lines[0].runs, lines[0].of), (2, 3));
+        assert!(lines[0].note.contains("12 pixels"));
+        assert_eq!((lines[1].runs, lines[1].of), (3, 3));
+        assert_eq!(
+            lines[0].to_string(),
+            "soft_shadow_map: e.g. method limit (no self-shadowing): 12 pixels the reference \
+             shadows (2 of 3 runs)"
+        );
+    }
+
+    #[test]
+    fn combine_joins_scenarios_and_refuses_a_run_in_two_files() {
+        let mut a = file(vec![testdata::record("pcss", "cpu-model", 100, 32)]);
+        a.scenario = "lod0".into();
+        let mut b = file(vec![testdata::record("pcss", "cpu-model", 400, 32)]);
+        b.scenario = "lod1".into();
+        let c = combine(&[("a".into(), a.clone()), ("b".into(), b)]).unwrap();
+        assert_eq!((c.scenario.as_str(), c.runs.len()), ("lod0 + lod1", 2));
+        let e = combine(&[("a".into(), a.clone()), ("b".into(), a)]).unwrap_err();
+        assert!(e.message.contains("is also in a"), "{e}");
+    }
+
     fn file(runs: Vec<RunRecord>) -> ResultsFile {
         ResultsFile {
             origin: None,
             scenario: "s".into(),
             runs,
             claims: vec![],
+            ..Default::default()
         }
     }
 

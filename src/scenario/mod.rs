@@ -3,6 +3,7 @@
 //! path and the bad value.
 
 pub mod claims;
+pub mod overrides;
 pub mod validate;
 
 use std::collections::BTreeMap;
@@ -163,6 +164,11 @@ pub struct Sweep {
     pub occluder_height: Vec<f32>,
     pub occluder_offset: Vec<f32>,
     pub cores: Vec<u32>,
+    /// Mesh files (relative to the scenario file, as `scene.objects[].obj`), each in turn in
+    /// place of the first object's mesh (`scene.objects[0]`: its part, transform and roles
+    /// kept): levels of detail of one model, charted against the scene's triangle count. Needs
+    /// `scene.objects`; two files whose scenes have the same triangle count are refused.
+    pub meshes: Vec<PathBuf>,
 }
 
 /// How sweep axes combine.
@@ -198,6 +204,8 @@ impl Default for ReferenceSpec {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScenePoint {
     pub triangles: Option<u32>,
+    /// The mesh of `sweep.meshes` in place of the first object's (its index), if any.
+    pub mesh: Option<usize>,
     pub occluder_height: Option<f32>,
     pub occluder_offset: Option<f32>,
 }
@@ -219,11 +227,12 @@ pub const MAX_CASES: u64 = 100_000;
 impl Case {
     /// A hashable key equal for two cases exactly when they are equal (`-0.0` and `0.0` are
     /// one value, as `==` has it; NaN cannot occur in a validated scenario).
-    fn key(&self) -> [u64; 9] {
+    fn key(&self) -> [u64; 10] {
         let f = |v: Option<f32>| v.map_or(0, |v| (1 << 32) | (v + 0.0).to_bits() as u64);
         let u = |v: Option<u32>| v.map_or(0, |v| (1 << 32) | v as u64);
         [
             u(self.scene.triangles),
+            u(self.scene.mesh.map(|i| i as u32)),
             f(self.scene.occluder_height),
             f(self.scene.occluder_offset),
             f(self.light_size),
@@ -237,11 +246,21 @@ impl Case {
 
     /// Run parameters for this case in `scene` (whose light already has the case's size).
     pub fn run_params(&self, scene: &Scene) -> RunParams {
+        self.params_with(scene.triangle_count() as u32, scene.light.size())
+    }
+
+    /// Run parameters for this case in a scene of `triangles` whose light has size
+    /// `light_size` ([`Case::run_params`] without the scene).
+    pub fn params_with(&self, triangles: u32, light_size: f32) -> RunParams {
         RunParams {
+            triangles,
+            light_size,
+            map_resolution: self.map_resolution,
+            tile_size: self.tile_size,
+            image: self.image,
             occluder_height: self.scene.occluder_height,
             occluder_offset: self.scene.occluder_offset,
             cores: self.cores,
-            ..RunParams::of_scene(scene, self.image, self.map_resolution, self.tile_size)
         }
     }
 }
@@ -326,12 +345,17 @@ pub struct Loaded {
     pub scenario: Scenario,
     /// Objects of `scene.objects`, loaded, transformed and checked during validation.
     objects: Vec<Object>,
+    /// The meshes of `sweep.meshes`, each as the first object it replaces.
+    swept: Vec<Object>,
     /// Readers' warnings and the framing of `scene.objects` (empty for generators).
     pub notes: SceneNotes,
     /// The machine `$.machine` names, resolved during validation.
     pub machine: MachineConfig,
     /// The texture `$.light.texture` describes, resolved during validation.
     pub light_texture: Option<Arc<LightTexture>>,
+    /// The command-line overrides applied to the file (`run --set` / `--sweep`), as
+    /// `PATH=VALUE` ([`overrides::Override::describe`]); empty when read as written.
+    pub overrides: Vec<String>,
 }
 
 impl Loaded {
@@ -341,9 +365,36 @@ impl Loaded {
         Loaded::from_str(&text, path)
     }
 
+    /// Reads a scenario file with command-line `overrides` applied to its JSON before it is
+    /// validated ([`overrides`]); an error in an overridden field names the flag and the field.
+    pub fn from_file_with(
+        path: &Path,
+        overrides: &[overrides::Override],
+    ) -> Result<Loaded, InputError> {
+        if overrides.is_empty() {
+            return Loaded::from_file(path);
+        }
+        let text = crate::util::input::read_text(path, "scenario")?;
+        let mut doc: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| malformed(path, e))?;
+        overrides::apply_all(&mut doc, overrides).map_err(|e| e.in_file(path))?;
+        let scenario: Scenario = serde_path_to_error::deserialize(doc)
+            .map_err(|e| parse_error(path, e))
+            .map_err(|e| overrides::attribute(e, overrides))?;
+        let mut loaded = Loaded::from_scenario(scenario, path)
+            .map_err(|e| overrides::attribute(e, overrides))?;
+        loaded.overrides = overrides.iter().map(|o| o.describe()).collect();
+        Ok(loaded)
+    }
+
     /// Parses and validates scenario text; `path` names it in errors and anchors relative paths.
     pub fn from_str(text: &str, path: &Path) -> Result<Loaded, InputError> {
         let scenario: Scenario = crate::util::json::parse(text, path)?;
+        Loaded::from_scenario(scenario, path)
+    }
+
+    /// Validates a parsed scenario read from `path` (which anchors its relative paths).
+    fn from_scenario(scenario: Scenario, path: &Path) -> Result<Loaded, InputError> {
         let base = path.parent().unwrap_or(Path::new("."));
         validate(&scenario).map_err(|e| e.in_file(path))?;
         let mut objects = Vec::new();
@@ -389,6 +440,7 @@ impl Loaded {
                 f.message
             ),
         })?;
+        let swept = swept_meshes(&scenario, &objects, path)?;
         let framing = scenario.scene.objects.as_ref().map(|_| {
             let (_, mut framing) =
                 framed_scene(objects.clone(), scenario.scene.ground.unwrap_or(true));
@@ -438,6 +490,8 @@ impl Loaded {
             },
             machine,
             light_texture,
+            overrides: Vec::new(),
+            swept,
         })
     }
 
@@ -465,6 +519,7 @@ impl Loaded {
             w.tile_size.len(),
             w.image.len(),
             w.cores.len(),
+            w.meshes.len(),
         ];
         match self.scenario.sweep_mode {
             SweepMode::Each => 1 + lens.iter().map(|&n| n as u128).sum::<u128>(),
@@ -508,6 +563,7 @@ impl Loaded {
         let base = Case {
             scene: ScenePoint {
                 triangles: b.triangles,
+                mesh: None,
                 occluder_height: b.occluder_height,
                 occluder_offset: b.occluder_offset,
             },
@@ -551,6 +607,9 @@ impl Loaded {
             w.cores
                 .iter()
                 .map(|&v| Box::new(move |c: &mut Case| c.cores = Some(v)) as Apply)
+                .collect(),
+            (0..w.meshes.len())
+                .map(|i| Box::new(move |c: &mut Case| c.scene.mesh = Some(i)) as Apply)
                 .collect(),
         ];
         let mut cases: Vec<Case> = match s.sweep_mode {
@@ -602,7 +661,13 @@ impl Loaded {
                         occluder_offset: point.occluder_offset,
                     })
             }
-            None => framed_scene(self.objects.clone(), s.scene.ground.unwrap_or(true)).0,
+            None => {
+                let mut objects = self.objects.clone();
+                if let Some(i) = point.mesh {
+                    objects[0] = self.swept[i].clone();
+                }
+                framed_scene(objects, s.scene.ground.unwrap_or(true)).0
+            }
         };
         scene.name = s.scene.generator.clone().unwrap_or_else(|| self.name());
         if let Some(c) = s.camera {
@@ -616,6 +681,87 @@ impl Loaded {
             scene.light = scene.light.with_size(size);
         }
         scene
+    }
+}
+
+/// The meshes of `sweep.meshes`, each loaded as `scene.objects[0]` (`objects[0]` loaded) with
+/// that object's part, transform and roles; errors name `$.sweep.meshes[i]`. Two files whose
+/// scenes (with the other objects) have the same triangle count, or one with the count of the
+/// base point's mesh that is another file, are refused: a run is known by its triangle count.
+fn swept_meshes(s: &Scenario, objects: &[Object], path: &Path) -> Result<Vec<Object>, InputError> {
+    let (Some(specs), Some(first)) = (&s.scene.objects, objects.first()) else {
+        return Ok(Vec::new());
+    };
+    let base = path.parent().unwrap_or(Path::new("."));
+    let spec = &specs[0];
+    let others: usize = objects[1..].iter().map(|o| o.mesh.triangles.len()).sum();
+    let mut counts: Vec<(usize, PathBuf, String)> = vec![(
+        others + first.mesh.triangles.len(),
+        base.join(&spec.obj),
+        "the base point's mesh (scene.objects[0])".into(),
+    )];
+    let mut out = Vec::new();
+    for (i, file) in s.sweep.meshes.iter().enumerate() {
+        let field = format!("$.sweep.meshes[{i}]");
+        let err = |message: String| InputError {
+            file: Some(path.to_path_buf()),
+            field: Some(field.clone()),
+            message,
+        };
+        let MeshFile { mesh, .. } = load::load_mesh(&base.join(file), spec.part.as_deref())
+            .map_err(|e| err(e.to_string()))?;
+        let object = Object {
+            mesh: mesh.transformed(object_transform(spec)),
+            ..first.clone()
+        };
+        load::check_extent(std::slice::from_ref(&object)).map_err(|f| {
+            err(format!(
+                "{} after its transform: {}",
+                file.display(),
+                f.message
+            ))
+        })?;
+        let n = others + object.mesh.triangles.len();
+        let here = base.join(file);
+        let clash = counts
+            .iter()
+            .find(|(c, p, _)| *c == n && !crate::util::paths::same_file(p, &here));
+        if let Some((_, _, what)) = clash {
+            return Err(err(format!(
+                "{}: its scene has {n} triangles, as {what} has; each mesh of a sweep needs \
+                 its own triangle count (runs are known by it)",
+                file.display()
+            )));
+        }
+        counts.push((n, here, field.clone()));
+        out.push(object);
+    }
+    Ok(out)
+}
+
+/// The error of a scenario's JSON that does not parse.
+fn malformed(path: &Path, inner: serde_json::Error) -> InputError {
+    InputError {
+        file: Some(path.to_path_buf()),
+        field: None,
+        message: format!("malformed JSON: {inner}"),
+    }
+}
+
+/// The error of a scenario that does not deserialize, naming the JSON path.
+fn parse_error(path: &Path, e: serde_path_to_error::Error<serde_json::Error>) -> InputError {
+    let field = e.path().to_string();
+    let inner = e.into_inner();
+    if inner.is_syntax() || inner.is_eof() {
+        return malformed(path, inner);
+    }
+    InputError {
+        file: Some(path.to_path_buf()),
+        field: Some(match field.as_str() {
+            "." => "$".into(),
+            f => format!("$.{f}"),
+        }),
+        message: inner.to_string(),
     }
 }
 
@@ -739,6 +885,7 @@ pub fn scene_from_arg(
             let scene = l.build_scene(
                 ScenePoint {
                     triangles: params.triangles.or(l.scenario.params.triangles),
+                    mesh: None,
                     occluder_height: params.occluder_height.or(l.scenario.params.occluder_height),
                     occluder_offset: params.occluder_offset.or(l.scenario.params.occluder_offset),
                 },
@@ -782,6 +929,7 @@ fn unused_by_render(s: &Scenario, path: &Path) -> Option<String> {
         ("sweep.occluder_height", !w.occluder_height.is_empty()),
         ("sweep.occluder_offset", !w.occluder_offset.is_empty()),
         ("sweep.cores", !w.cores.is_empty()),
+        ("sweep.meshes", !w.meshes.is_empty()),
     ] {
         if differs {
             unused.push(name.to_string());
@@ -843,4 +991,136 @@ pub fn export_scenario(
         "algorithms": ["reference"],
         "backends": ["cpu-native"],
     }))
+}
+
+/// The path of `file` as a scenario at `scenario` names it: relative to the scenario's folder
+/// (scenario paths are, [`ObjectSpec::obj`]), through `..` where needed; absolute when the two
+/// share no root (another drive).
+pub fn relative_to_scenario(file: &Path, scenario: &Path) -> Result<PathBuf, InputError> {
+    let abs = |p: &Path| std::path::absolute(p).map_err(|e| InputError::file(p, e.to_string()));
+    let file = abs(file)?;
+    let dir = abs(scenario)?;
+    let dir = dir.parent().unwrap_or(Path::new("/"));
+    let (f, d): (Vec<_>, Vec<_>) = (file.components().collect(), dir.components().collect());
+    let common = f.iter().zip(&d).take_while(|(a, b)| a == b).count();
+    if common == 0 {
+        return Ok(file);
+    }
+    let mut out = PathBuf::new();
+    for _ in common..d.len() {
+        out.push("..");
+    }
+    out.extend(&f[common..]);
+    Ok(out)
+}
+
+/// The algorithms a scenario written by [`init_scenario`] compares: the soft-shadow methods
+/// that take the sphere light it places (and the reference, for the quality metrics).
+pub const INIT_ALGORITHMS: [&str; 5] = [
+    "reference",
+    "pcss",
+    "penumbra_map",
+    "soft_shadow_volume",
+    "soft_shadow_map",
+];
+
+/// A scenario (as JSON) for the mesh at `mesh`, to be saved at `scenario`: the mesh as one
+/// object (named relative to the scenario's folder), a ground plane, the framing camera and
+/// light ([`framed_scene`]), [`INIT_ALGORITHMS`] on both CPU executions at 320 × 240 and a
+/// sweep of three light sizes around the framed light's. The mesh is read (so a bad file is an
+/// error now, naming it) and the scenario is validated as `run` will read it.
+pub fn init_scenario(mesh: &Path, scenario: &Path) -> Result<serde_json::Value, InputError> {
+    let file = load::load_mesh(mesh, None).map_err(|e| e.in_file(mesh))?;
+    let name = mesh
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "mesh".into());
+    let objects = vec![Object {
+        name: name.clone(),
+        mesh: file.mesh,
+        role: Role::BOTH,
+    }];
+    load::check_extent(&objects).map_err(|f| InputError::file(mesh, f.message))?;
+    let (scene, _) = framed_scene(objects, true);
+    let size = scene.light.size();
+    // Three significant digits: the file stays readable.
+    let round = |v: f32| format!("{v:.3e}").parse::<f32>().unwrap_or(v);
+    let doc = serde_json::json!({
+        "name": name,
+        "description": format!(
+            "soft-shadow methods on {}: mesh path relative to this file",
+            mesh.file_name().unwrap_or_default().to_string_lossy()
+        ),
+        "scene": {
+            "objects": [{ "mesh": relative_to_scenario(mesh, scenario)? }],
+            "ground": true
+        },
+        "algorithms": INIT_ALGORITHMS,
+        "backends": ["cpu-native", "cpu-model"],
+        "params": { "image": [320, 240], "map_resolution": 512, "tile_size": 32 },
+        "sweep": { "light_size": [round(size * 0.5), round(size), round(size * 2.0)] },
+        "reference": { "samples": 256 },
+    });
+    Loaded::from_str(&doc.to_string(), scenario)?;
+    Ok(doc)
+}
+
+#[cfg(test)]
+mod init_tests {
+    use super::*;
+
+    #[test]
+    fn a_path_relative_to_the_scenario_goes_up_where_needed() {
+        let r = |f: &str, s: &str| relative_to_scenario(Path::new(f), Path::new(s)).unwrap();
+        assert_eq!(r("/a/m/x.obj", "/a/s/t.json"), PathBuf::from("../m/x.obj"));
+        assert_eq!(r("/a/x.obj", "/a/t.json"), PathBuf::from("x.obj"));
+        assert_eq!(r("/a/x.obj", "/a/b/c/t.json"), PathBuf::from("../../x.obj"));
+    }
+
+    #[test]
+    fn init_writes_a_scenario_that_loads_its_mesh_from_the_scenario_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let mesh = dir.path().join("models/tri.obj");
+        std::fs::create_dir_all(mesh.parent().unwrap()).unwrap();
+        std::fs::write(&mesh, "v 0 0 0\nv 1 0 0\nv 0 1 0.5\nf 1 2 3\n").unwrap();
+        let out = dir.path().join("studies/tri.json");
+        std::fs::create_dir_all(out.parent().unwrap()).unwrap();
+        let doc = init_scenario(&mesh, &out).unwrap();
+        assert_eq!(doc["scene"]["objects"][0]["mesh"], "../models/tri.obj");
+        std::fs::write(&out, doc.to_string()).unwrap();
+        let l = Loaded::from_file(&out).unwrap();
+        // The mesh's triangle and the ground's.
+        let scene = l.build_scene(l.cases(100).unwrap()[0].scene, None);
+        assert!(scene.objects.iter().any(|o| o.name == "tri"));
+        assert_eq!(l.scenario.sweep.light_size.len(), 3);
+        let bad = dir.path().join("models/bad.obj");
+        std::fs::write(&bad, "f 1 2 3\n").unwrap();
+        assert!(init_scenario(&bad, &out).is_err());
+    }
+
+    #[test]
+    fn overrides_are_validated_as_the_file_and_recorded() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/quick.json");
+        let o = [
+            overrides::Override::set("options.pcss.pcf_samples=16").unwrap(),
+            overrides::Override::sweep("light_size=0.3,0.6").unwrap(),
+        ];
+        let l = Loaded::from_file_with(&path, &o).unwrap();
+        assert_eq!(l.scenario.sweep.light_size, [0.3, 0.6]);
+        assert_eq!(l.scenario.options["pcss"]["pcf_samples"], 16);
+        assert_eq!(
+            l.overrides,
+            ["options.pcss.pcf_samples=16", "sweep.light_size=[0.3,0.6]"]
+        );
+        let bad = [overrides::Override::sweep("light_size=0.3,-1").unwrap()];
+        let e = Loaded::from_file_with(&path, &bad).unwrap_err();
+        assert!(
+            e.field
+                .as_deref()
+                .unwrap()
+                .starts_with("--sweep sweep.light_size="),
+            "{e}"
+        );
+        assert!(e.to_string().contains("$.sweep.light_size[1]"), "{e}");
+    }
 }

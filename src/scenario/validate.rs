@@ -280,6 +280,12 @@ fn optional<T>(field: &str, value: Option<T>, check: fn(&str, T) -> Check) -> Ch
 /// `$.scene`: a known generator, or user objects with finite placements (and then no triangle
 /// count).
 fn scene(s: &Scenario) -> Check {
+    if !s.sweep.meshes.is_empty() && s.scene.objects.is_none() {
+        return fail(
+            "$.sweep.meshes",
+            "a mesh sweep replaces the mesh of scene.objects[0]; the scene has no objects".into(),
+        );
+    }
     match (&s.scene.generator, &s.scene.objects) {
         (Some(_), Some(_)) => fail(
             "$.scene",
@@ -314,7 +320,8 @@ fn scene(s: &Scenario) -> Check {
             if let Some(field) = given {
                 return fail(
                     field,
-                    "a triangle count needs a generator scene (user meshes have a fixed count)"
+                    "a triangle count needs a generator scene (user meshes have a fixed count; \
+                     sweep.meshes sweeps over mesh files, e.g. levels of detail)"
                         .into(),
                 );
             }

@@ -110,13 +110,14 @@ fn render_warns_when_it_converts_the_light() {
     let e = stderr(&o);
     assert!(o.status.success(), "{e}");
     assert!(
-        e.contains("warning: light converted from sphere to disc"),
+        e.contains("note: light converted from sphere to disc"),
         "{e}"
     );
     let run: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("run.json")).unwrap()).unwrap();
-    let w = run["warnings"].to_string();
+    let w = run["notes"].to_string();
     assert!(w.contains("light converted from sphere to disc"), "{w}");
+    assert!(run.get("warnings").is_none(), "{run}");
     // Without a conversion, no warning.
     let o = shadowbench(&[
         "render",

@@ -6,7 +6,7 @@
 use glam::Vec3;
 use shadowbench::algorithms::{reference, Backend, MethodLimit, ALGORITHMS};
 use shadowbench::frame::{Frame, RunParams};
-use shadowbench::harness::{light_as, limit_warnings};
+use shadowbench::harness::{light_as, limit_notes};
 use shadowbench::scene::bvh::SceneBvh;
 use shadowbench::scene::generators::primitives;
 use shadowbench::scene::{Light, Mesh, Object, Role, Scene};
@@ -89,7 +89,7 @@ fn a_receiver_only_object_shadows_nothing_in_the_reference_or_a_method_that_hono
 
         // The box's front face (seen from the camera) faces away from the light: the methods
         // without a facing test leave it lit and say so.
-        let warnings = limit_warnings(&frame, info, &truth.visibility);
+        let warnings = limit_notes(&frame, info, &truth.visibility);
         for (limit, text) in [
             (MethodLimit::NonOccludersCast, "not occluders cast shadows"),
             (

@@ -531,6 +531,7 @@ fn export_round_trip_of_every_generator() {
             let back = l.build_scene(
                 ScenePoint {
                     triangles: None,
+                    mesh: None,
                     occluder_height: None,
                     occluder_offset: None,
                 },
