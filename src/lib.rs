@@ -36,6 +36,7 @@ pub mod error;
 pub mod frame;
 pub mod gpu;
 pub mod harness;
+pub mod history;
 pub mod metrics;
 pub mod model;
 pub mod record;
