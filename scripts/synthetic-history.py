@@ -5,12 +5,12 @@
 Commit k (1..N) gets the runs of one of the given results files, drawn at random (seeded), so
 measured times vary as much as the real runs did; with a single file, --noise multiplies every
 measured time (`*_ms` but `model_ms`, run and phases) by a normal factor 1 + noise * N(0, 1).
---step CASE:FIGURE multiplies one figure of the runs whose case id contains CASE by --factor
+--step CASE:FIGURE multiplies one figure of the one run whose case id contains CASE by --factor
 from commit --step-at on (FIGURE: a top-level field such as model_ms, or counters.NAME,
 error.NAME).
 
     scripts/synthetic-history.py --db h.sqlite --commits 30 --step-at 20 \\
-        --step pcss_cpu-model:model_ms --factor 1.05 out/ci-*/results.json
+        --step pcss_cpu-model_t1964:model_ms --factor 1.05 out/ci-*/results.json
 
 Prints the commit ids, one a line, first to last.
 """
@@ -73,7 +73,10 @@ def main():
                     continue
                 if a.noise > 0:
                     jitter(run, rng, a.noise)
-                cid = f"{run['scene']}_{run['algorithm']}_{run['backend']}"
+                p = run["params"]
+                cid = (f"{run['scene']}_{run['algorithm']}_{run['backend']}_t{p['triangles']}"
+                       f"_l{p['light_size']}_m{p['map_resolution']}_b{p['tile_size']}"
+                       f"_{p['image'][0]}x{p['image'][1]}")
                 if a.step and k >= a.step_at and case in cid:
                     step(run, figure, a.factor)
                     hit += 1

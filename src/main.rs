@@ -1263,7 +1263,11 @@ fn history_record(a: HistoryRecordArgs) -> Result<()> {
                 done.runs,
                 done.points,
                 commit.sha,
-                if commit.branch.is_empty() { "no branch" } else { &commit.branch },
+                if commit.branch.is_empty() {
+                    "no branch"
+                } else {
+                    &commit.branch
+                },
                 a.db.display()
             );
         }

@@ -235,7 +235,12 @@ pub struct Change {
 /// The change of a fitted series since the point `since` (the last point at or before the
 /// commit; `None` when the series starts after it: then it is compared from its first
 /// point), up to its last point. `None` when nothing reached `min_effect`.
-pub fn since(fit: &Fit, since: Option<usize>, direction: Direction, min_effect: f64) -> Option<Change> {
+pub fn since(
+    fit: &Fit,
+    since: Option<usize>,
+    direction: Direction,
+    min_effect: f64,
+) -> Option<Change> {
     let last = fit.levels.len().checked_sub(1)?;
     let start = since.unwrap_or(0).min(last);
     let steps: Vec<Step> = fit.steps.iter().filter(|s| s.at > start).cloned().collect();
@@ -316,7 +321,9 @@ mod tests {
     fn measured_noise_alone_makes_no_step_in_a_thousand_series() {
         let mut false_steps = 0;
         for seed in 0..1000u64 {
-            let v: Vec<f64> = (0..30).map(|i| 10.0 * (1.0 + 0.03 * normal(seed, i))).collect();
+            let v: Vec<f64> = (0..30)
+                .map(|i| 10.0 * (1.0 + 0.03 * normal(seed, i)))
+                .collect();
             false_steps += fit(&points(&v), true, 0.0).steps.len();
         }
         assert!(false_steps <= 2, "{false_steps} steps in pure noise");
@@ -347,7 +354,9 @@ mod tests {
 
     #[test]
     fn one_outlier_is_not_a_step_and_a_point_s_own_spread_widens_its_noise() {
-        let mut v: Vec<f64> = (0..30).map(|i| 10.0 * (1.0 + 0.01 * normal(7, i))).collect();
+        let mut v: Vec<f64> = (0..30)
+            .map(|i| 10.0 * (1.0 + 0.01 * normal(7, i)))
+            .collect();
         v[12] = 20.0;
         assert!(fit(&points(&v), true, 0.02).steps.is_empty());
         // A 5% shift whose points carry intervals of ±20%: not distinguishable.

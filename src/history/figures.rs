@@ -226,7 +226,9 @@ mod tests {
         let f = of_record(&r);
         let names: Vec<&str> = f.iter().map(|(n, _)| n.as_str()).collect();
         // Identity and conditions are not figures.
-        assert!(!names.iter().any(|n| n.starts_with("params") || n.starts_with("execution")));
+        assert!(!names
+            .iter()
+            .any(|n| n.starts_with("params") || n.starts_with("execution")));
         for c in r.counters.0.keys() {
             assert!(names.contains(&format!("counters.{c}").as_str()), "{c}");
         }
@@ -236,7 +238,9 @@ mod tests {
         assert!(names.contains(&"error.mae_shadow"));
         for p in &r.phases {
             assert!(
-                names.iter().any(|n| n.starts_with(&format!("phase.{}.", p.name))),
+                names
+                    .iter()
+                    .any(|n| n.starts_with(&format!("phase.{}.", p.name))),
                 "{}",
                 p.name
             );
@@ -259,7 +263,10 @@ mod tests {
         out.sort_by(|a, b| a.0.cmp(&b.0));
         let get = |n: &str| out.iter().find(|(k, _)| k == n).unwrap().1.clone();
         let gpu = get("phase.x.gpu");
-        assert_eq!((gpu.value, gpu.lower, gpu.upper), (2.0, Some(1.9), Some(2.3)));
+        assert_eq!(
+            (gpu.value, gpu.lower, gpu.upper),
+            (2.0, Some(1.9), Some(2.3))
+        );
         assert_eq!(gpu.samples, vec![1.9, 2.0, 2.3]);
         assert!((gpu.sigma() - 0.4 / 2.0 / 1.96).abs() < 1e-12);
         let wall = get("phase.x.wall_ms");

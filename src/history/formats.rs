@@ -47,7 +47,7 @@ fn pct(e: f64) -> String {
 /// The run of a series as one label: `scenario / case id`, and the machine when the history
 /// has several.
 fn run_label(h: &History, s: &Series) -> String {
-    if h.machines.len() > 1 {
+    if h.runs_on_several_machines() {
         format!("{} / {} @{}", s.scenario, s.case_id, s.machine)
     } else {
         format!("{} / {}", s.scenario, s.case_id)
@@ -182,19 +182,23 @@ pub fn figures_at(h: &History, head: usize, all: bool) -> Vec<(&Series, &Point)>
         .collect()
 }
 
-/// The machines that recorded commit `head`.
-fn machines_at(figures: &[(&Series, &Point)]) -> usize {
-    figures
+/// Whether a run of commit `head` was recorded there on more than one machine.
+fn several_machines(figures: &[(&Series, &Point)]) -> bool {
+    let runs: BTreeSet<(&str, &str)> = figures
         .iter()
-        .map(|(s, _)| s.machine.as_str())
-        .collect::<BTreeSet<_>>()
-        .len()
+        .map(|(s, _)| (s.scenario.as_str(), s.case_id.as_str()))
+        .collect();
+    let with_machine: BTreeSet<(&str, &str, &str)> = figures
+        .iter()
+        .map(|(s, _)| (s.scenario.as_str(), s.case_id.as_str(), s.machine.as_str()))
+        .collect();
+    with_machine.len() > runs.len()
 }
 
 /// The figures of commit `head` in Bencher Metric Format.
 pub fn bmf(h: &History, head: usize, all: bool) -> Value {
     let figures = figures_at(h, head, all);
-    let several = machines_at(&figures) > 1;
+    let several = several_machines(&figures);
     let mut out = Map::new();
     for (s, p) in figures {
         let mut bench = format!("{}/{}", s.scenario, s.case_id);
@@ -221,7 +225,7 @@ pub fn bmf(h: &History, head: usize, all: bool) -> Value {
 /// `customBiggerIsBetter`).
 pub fn github_action_benchmark(h: &History, head: usize, all: bool) -> (Value, Value) {
     let figures = figures_at(h, head, all);
-    let several = machines_at(&figures) > 1;
+    let several = several_machines(&figures);
     let sha = &h.commits[head].sha;
     let (mut smaller, mut bigger) = (Vec::new(), Vec::new());
     for (s, p) in figures {
@@ -235,7 +239,10 @@ pub fn github_action_benchmark(h: &History, head: usize, all: bool) -> (Value, V
         e.insert("unit".into(), json!(unit(&s.figure)));
         e.insert("value".into(), json!(p.value));
         if let (Some(lo), Some(hi)) = (p.lower, p.upper) {
-            e.insert("range".into(), json!(format!("± {}", fmt_num((hi - lo) / 2.0))));
+            e.insert(
+                "range".into(),
+                json!(format!("± {}", fmt_num((hi - lo) / 2.0))),
+            );
         }
         e.insert(
             "extra".into(),

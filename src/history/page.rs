@@ -85,11 +85,20 @@ fn marker<DB: DrawingBackend>(
             fill,
         )),
         Marker::Triangle => area.draw(&Polygon::new(
-            vec![(x, y - size - 1), (x + size + 1, y + size), (x - size - 1, y + size)],
+            vec![
+                (x, y - size - 1),
+                (x + size + 1, y + size),
+                (x - size - 1, y + size),
+            ],
             fill,
         )),
         Marker::Diamond => area.draw(&Polygon::new(
-            vec![(x, y - size - 1), (x + size + 1, y), (x, y + size + 1), (x - size - 1, y)],
+            vec![
+                (x, y - size - 1),
+                (x + size + 1, y),
+                (x, y + size + 1),
+                (x - size - 1, y),
+            ],
             fill,
         )),
     }
@@ -115,7 +124,9 @@ fn draw(c: &Chart) -> std::result::Result<String, String> {
             .collect();
         let (lo, hi) = ys
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         if !lo.is_finite() {
             return Ok(String::new());
         }
@@ -187,7 +198,9 @@ fn draw(c: &Chart) -> std::result::Result<String, String> {
             let pts: Vec<(f64, f64)> = l.points.iter().map(|p| (p.0, p.1)).collect();
             let s = l.color.stroke_width(2);
             match l.dash {
-                Dash::Solid => chart.draw_series(LineSeries::new(pts.clone(), s)).map(|_| ()),
+                Dash::Solid => chart
+                    .draw_series(LineSeries::new(pts.clone(), s))
+                    .map(|_| ()),
                 Dash::Dashed => chart
                     .draw_series(DashedLineSeries::new(pts.clone(), 9, 5, s))
                     .map(|_| ()),
@@ -323,7 +336,7 @@ fn step_chart<'a>(x: &'a SeriesChange, labels: &'a [String]) -> Chart<'a> {
     }
 }
 
-/// The panels of the trends: per algorithm × execution (× machine where there are several),
+/// The panels of the trends: per algorithm × execution × machine,
 /// each headline figure's geometric mean over the runs of value / first value, in percent.
 fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>)> {
     type Key = ((usize, String), (usize, String), String);
@@ -333,11 +346,7 @@ fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>
             continue;
         };
         let base = s.algorithm.split(' ').next().unwrap_or(&s.algorithm);
-        let machine = if h.machines.len() > 1 {
-            s.machine.clone()
-        } else {
-            String::new()
-        };
+        let machine = s.machine.clone();
         groups
             .entry((
                 style::algorithm_rank(base),
@@ -349,15 +358,25 @@ fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>
             .or_default()
             .push(s);
     }
+    // A panel per machine; named by its machine where an algorithm × execution has several.
+    let mut panels_of: BTreeMap<(String, String), usize> = BTreeMap::new();
+    for (a, e, _) in groups.keys() {
+        *panels_of.entry((a.1.clone(), e.1.clone())).or_default() += 1;
+    }
     let mut out = Vec::new();
-    for ((_, (_, exec), machine), figures) in groups {
+    for (((_, alg_key), (_, exec), machine), figures) in groups {
+        let named = panels_of[&(alg_key, exec.clone())] > 1;
         let algorithm = figures
             .values()
             .flat_map(|v| v.iter())
             .map(|s| s.algorithm.clone())
             .next()
             .unwrap_or_default();
-        let base = algorithm.split(' ').next().unwrap_or(&algorithm).to_string();
+        let base = algorithm
+            .split(' ')
+            .next()
+            .unwrap_or(&algorithm)
+            .to_string();
         let color = style::algorithm_color(&base);
         let (m, d) = style::execution_style(&exec);
         let mut lines = Vec::new();
@@ -388,8 +407,13 @@ fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>
             lines.push(Line {
                 label: format!("{f} ({} runs)", series.len()),
                 color: style::tint(color, [0.0, 0.45, 0.25, 0.6, 0.7][k % 5]),
-                marker: [m, Marker::Diamond, Marker::Circle, Marker::Square, Marker::Triangle]
-                    [k % 5],
+                marker: [
+                    m,
+                    Marker::Diamond,
+                    Marker::Circle,
+                    Marker::Square,
+                    Marker::Triangle,
+                ][k % 5],
                 dash: d,
                 points,
             });
@@ -397,7 +421,7 @@ fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>
         if lines.is_empty() {
             continue;
         }
-        let title = if machine.is_empty() {
+        let title = if !named {
             format!("{algorithm} / {exec}")
         } else {
             format!("{algorithm} / {exec} @{machine}")
@@ -424,12 +448,22 @@ pub fn page(
     c: &Check,
     commit_url: Option<&str>,
 ) -> std::result::Result<String, String> {
-    let labels: Vec<String> = h.commits.iter().map(|c| short(&c.sha)[..7.min(c.sha.len())].to_string()).collect();
+    let labels: Vec<String> = h
+        .commits
+        .iter()
+        .map(|c| short(&c.sha)[..7.min(c.sha.len())].to_string())
+        .collect();
     let mut p = String::new();
     let (from, to) = (&h.commits[c.since], &h.commits[c.head]);
     let (reg, imp) = (
-        c.changes.iter().filter(|x| x.change.verdict == Verdict::Regression).count(),
-        c.changes.iter().filter(|x| x.change.verdict == Verdict::Improvement).count(),
+        c.changes
+            .iter()
+            .filter(|x| x.change.verdict == Verdict::Regression)
+            .count(),
+        c.changes
+            .iter()
+            .filter(|x| x.change.verdict == Verdict::Improvement)
+            .count(),
     );
     let _ = write!(
         p,
@@ -513,8 +547,10 @@ pub fn page(
     for (_, chart) in trend_charts(h, &labels) {
         let _ = writeln!(p, "<figure>{}</figure>", draw(&chart)?);
     }
-    p.push_str("</div>\n<h2 id=\"commits\">Commits</h2>\n<table><tr><th>#</th><th>commit</th>\
-                <th>date (UTC)</th><th>branch</th><th class=\"t\">subject</th></tr>\n");
+    p.push_str(
+        "</div>\n<h2 id=\"commits\">Commits</h2>\n<table><tr><th>#</th><th>commit</th>\
+                <th>date (UTC)</th><th>branch</th><th class=\"t\">subject</th></tr>\n",
+    );
     for (i, k) in h.commits.iter().enumerate() {
         let _ = writeln!(
             p,

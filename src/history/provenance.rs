@@ -167,7 +167,10 @@ pub fn this_host() -> BTreeMap<String, Value> {
 /// mixed.
 pub fn machine(r: &RunRecord, host: &BTreeMap<String, Value>) -> (String, String) {
     let mut m: BTreeMap<String, Value> = BTreeMap::new();
-    m.insert("host".into(), Value::Object(host.clone().into_iter().collect()));
+    m.insert(
+        "host".into(),
+        Value::Object(host.clone().into_iter().collect()),
+    );
     m.insert("execution".into(), Value::from(r.backend.clone()));
     for k in MACHINE_KEYS {
         if let Some(v) = r.execution.get(k) {

@@ -207,9 +207,13 @@ impl Store {
         let app: i64 = c
             .query_row("PRAGMA application_id", [], |r| r.get(0))
             .map_err(|e| self.err(e))?;
-        if app == 0 && create {
+        let tables: i64 = c
+            .query_row("SELECT count(*) FROM sqlite_master", [], |r| r.get(0))
+            .map_err(|e| self.err(e))?;
+        if app == 0 && tables == 0 && create {
             // A new file: WAL first (it needs no transaction), then the schema, made by
-            // whichever writer takes the lock first.
+            // whichever writer takes the lock first. Another application's file is left as
+            // it is.
             c.query_row("PRAGMA journal_mode = WAL", [], |_| Ok(()))
                 .map_err(|e| self.err(e))?;
             c.execute_batch("BEGIN IMMEDIATE")
@@ -223,8 +227,11 @@ impl Store {
             .query_row("PRAGMA application_id", [], |r| r.get(0))
             .map_err(|e| self.err(e))?;
         let foreign = |why: String| -> Error {
-            InputError::file(&self.path, format!("not a shadowbench history database: {why}"))
-                .into()
+            InputError::file(
+                &self.path,
+                format!("not a shadowbench history database: {why}"),
+            )
+            .into()
         };
         if app != APPLICATION_ID {
             let tables: Vec<String> = c
@@ -254,10 +261,6 @@ impl Store {
         if version < 1 {
             return Err(foreign(format!("schema version {version}")));
         }
-        if create {
-            c.query_row("PRAGMA journal_mode = WAL", [], |_| Ok(()))
-                .map_err(|e| self.err(e))?;
-        }
         Ok(())
     }
 
@@ -286,8 +289,11 @@ impl Store {
                 format!("shadowbench {}", env!("CARGO_PKG_VERSION")),
             ),
         ] {
-            c.execute("INSERT INTO meta (key, value) VALUES (?1, ?2)", params![k, v])
-                .map_err(|e| self.err(e))?;
+            c.execute(
+                "INSERT INTO meta (key, value) VALUES (?1, ?2)",
+                params![k, v],
+            )
+            .map_err(|e| self.err(e))?;
         }
         Ok(())
     }
@@ -573,6 +579,18 @@ fn db_error(path: &Path, e: rusqlite::Error) -> Error {
 }
 
 impl History {
+    /// Whether some run (scenario and case id) was recorded on more than one machine, so
+    /// outputs must name the machine beside the run.
+    pub fn runs_on_several_machines(&self) -> bool {
+        let mut seen: HashMap<(&str, &str), &str> = HashMap::new();
+        self.series.iter().any(|s| {
+            let m = seen
+                .entry((s.scenario.as_str(), s.case_id.as_str()))
+                .or_insert(s.machine.as_str());
+            *m != s.machine
+        })
+    }
+
     /// The index of the commit `sha` names: a full id or a prefix of at least 4 digits that
     /// only one commit has. Errors name `field`.
     pub fn find_commit(&self, field: &str, sha: &str) -> Result<usize, InputError> {
@@ -585,11 +603,17 @@ impl History {
             [i] => Ok(*i),
             [] => Err(InputError::new(
                 field,
-                format!("commit '{sha}' is not in the history ({} commits)", self.commits.len()),
+                format!(
+                    "commit '{sha}' is not in the history ({} commits)",
+                    self.commits.len()
+                ),
             )),
             _ => Err(InputError::new(
                 field,
-                format!("commit prefix '{sha}' names {} commits; give more digits", found.len()),
+                format!(
+                    "commit prefix '{sha}' names {} commits; give more digits",
+                    found.len()
+                ),
             )),
         }
     }
@@ -621,16 +645,37 @@ mod tests {
         let host = provenance::this_host();
         let src = Path::new("results.json");
         let b = s
-            .record(&commit("bbbb", "2026-01-02T00:00:00Z"), "ci", src, "t", &runs, &host)
+            .record(
+                &commit("bbbb", "2026-01-02T00:00:00Z"),
+                "ci",
+                src,
+                "t",
+                &runs,
+                &host,
+            )
             .unwrap();
         assert!(!b.already);
         assert!(b.points > 10);
         let again = s
-            .record(&commit("bbbb", "2026-01-02T00:00:00Z"), "ci", src, "t", &runs, &host)
+            .record(
+                &commit("bbbb", "2026-01-02T00:00:00Z"),
+                "ci",
+                src,
+                "t",
+                &runs,
+                &host,
+            )
             .unwrap();
         assert!(again.already);
         let a = s
-            .record(&commit("aaaa", "2026-01-01T12:00:00+02:00"), "ci", src, "t", &runs, &host)
+            .record(
+                &commit("aaaa", "2026-01-01T12:00:00+02:00"),
+                "ci",
+                src,
+                "t",
+                &runs,
+                &host,
+            )
             .unwrap();
         assert_eq!(a.points, b.points);
         drop(s);
@@ -641,7 +686,13 @@ mod tests {
         assert_eq!(h.commits[0].branches, ["main"]);
         assert_eq!(h.series.len(), b.points);
         assert!(h.series.iter().all(|s| s.points.len() == 2));
-        assert_eq!(h.find_commit("--since", "bbb").unwrap_err().field.as_deref(), Some("--since"));
+        assert_eq!(
+            h.find_commit("--since", "bbb")
+                .unwrap_err()
+                .field
+                .as_deref(),
+            Some("--since")
+        );
         assert_eq!(h.find_commit("--since", "bbbb").unwrap(), 1);
     }
 
@@ -659,7 +710,10 @@ mod tests {
         let e = Store::open(&text, true).err().unwrap();
         assert_eq!(e.exit_code(), 2);
         assert!(e.to_string().contains("results.json"), "{e}");
-        assert_eq!(std::fs::read_to_string(&text).unwrap(), "{\"scenario\": \"x\"}");
+        assert_eq!(
+            std::fs::read_to_string(&text).unwrap(),
+            "{\"scenario\": \"x\"}"
+        );
 
         let other = dir.path().join("other.db");
         Connection::open(&other)
@@ -668,7 +722,18 @@ mod tests {
             .unwrap();
         let e = Store::open(&other, true).err().unwrap();
         assert_eq!(e.exit_code(), 2);
-        assert!(e.to_string().contains("other.db") && e.to_string().contains("tables t"), "{e}");
+        assert!(
+            e.to_string().contains("other.db") && e.to_string().contains("tables t"),
+            "{e}"
+        );
+        let mode: String = Connection::open(&other)
+            .unwrap()
+            .query_row("PRAGMA journal_mode", [], |r| r.get(0))
+            .unwrap();
+        assert_eq!(
+            mode, "delete",
+            "another application's file is left as it was"
+        );
 
         let newer = dir.path().join("newer.sqlite");
         drop(Store::open(&newer, true).unwrap());
@@ -693,7 +758,9 @@ mod tests {
                 &provenance::this_host(),
             )
             .unwrap();
-            s.conn.execute_batch("PRAGMA wal_checkpoint(TRUNCATE)").unwrap();
+            s.conn
+                .execute_batch("PRAGMA wal_checkpoint(TRUNCATE)")
+                .unwrap();
         }
         let mut bytes = std::fs::read(&damaged).unwrap();
         for b in bytes.iter_mut().skip(100) {

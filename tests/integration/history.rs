@@ -54,14 +54,18 @@ fn sha(tag: &str, k: usize) -> String {
 }
 
 /// Writes commit `k` of a history: the baseline's runs with measured noise (3%), and the
-/// `model_ms` of the pcss cpu-model run times `factor` from commit 20 on.
+/// `model_ms` of one pcss cpu-model run (1964 triangles) times `factor` from commit 20 on.
 fn commit_file(dir: &Path, tag: &str, k: usize, factor: f64) -> PathBuf {
     let mut data = baseline();
     let mut counter = 0;
     let mut stepped = 0;
     for r in data["runs"].as_array_mut().unwrap() {
         jitter(r, k as u64, 0.03, &mut counter);
-        if k >= 20 && r["algorithm"] == "pcss" && r["backend"] == "cpu-model" {
+        if k >= 20
+            && r["algorithm"] == "pcss"
+            && r["backend"] == "cpu-model"
+            && r["params"]["triangles"] == 1964
+        {
             let m = r["model_ms"].as_f64().unwrap();
             r["model_ms"] = Value::from(m * factor);
             stepped += 1;
@@ -79,7 +83,14 @@ fn record(db: &Path, file: &Path, tag: &str, k: usize) -> Output {
         .arg(file)
         .arg("--db")
         .arg(db)
-        .args(["--commit", &sha(tag, k), "--branch", "main", "--machine", "ci"])
+        .args([
+            "--commit",
+            &sha(tag, k),
+            "--branch",
+            "main",
+            "--machine",
+            "ci",
+        ])
         .args(["--date", &format!("2026-01-01T00:00:{k:02}Z")])
         .args(["--subject", &format!("commit {k}")])
         .output()
@@ -121,18 +132,42 @@ fn a_five_percent_step_at_commit_20_is_the_one_change_reported_and_an_improvemen
     assert_eq!(h.commits.len(), 30);
     let c = check::check(&h, 0, 29, &[]);
     assert!(c.series_checked > 1000, "{}", c.series_checked);
-    assert_eq!(c.changes.len(), 1, "{:#?}", c.changes.iter().map(|x| (&x.series.case_id, &x.series.figure)).collect::<Vec<_>>());
+    assert_eq!(
+        c.changes.len(),
+        1,
+        "{:#?}",
+        c.changes
+            .iter()
+            .map(|x| (&x.series.case_id, &x.series.figure))
+            .collect::<Vec<_>>()
+    );
     let x = &c.changes[0];
     assert_eq!(x.change.verdict, Verdict::Regression);
     assert_eq!(x.series.figure, "model_ms");
-    assert!(x.series.case_id.contains("_pcss_cpu-model_"), "{}", x.series.case_id);
-    assert_eq!(x.step_commits(), [19], "the first stepped commit is commit 20");
+    assert!(
+        x.series.case_id.contains("_pcss_cpu-model_t1964_"),
+        "{}",
+        x.series.case_id
+    );
+    assert_eq!(
+        x.step_commits(),
+        [19],
+        "the first stepped commit is commit 20"
+    );
     assert!((x.change.effect - 0.05).abs() < 1e-9, "{}", x.change.effect);
 
     let o = check_cli(&db, &["--since", &sha("up", 1)]);
-    assert_eq!(o.status.code(), Some(1), "{}", String::from_utf8_lossy(&o.stdout));
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("REGRESSION") && out.contains("+5.00%"), "{out}");
+    assert!(
+        out.contains("REGRESSION") && out.contains("+5.00%"),
+        "{out}"
+    );
     assert!(out.contains(&sha("up", 20)[..10]), "{out}");
     assert!(out.contains("1 regressions, 0 improvements"), "{out}");
     // By default against the commit before the newest on main: nothing moved there.
@@ -146,11 +181,17 @@ fn a_five_percent_step_at_commit_20_is_the_one_change_reported_and_an_improvemen
     let o = check_cli(&db, &["--since", &sha("down", 1)]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert_eq!(o.status.code(), Some(0), "{out}");
-    assert!(out.contains("improvement") && out.contains("-5.00%"), "{out}");
+    assert!(
+        out.contains("improvement") && out.contains("-5.00%"),
+        "{out}"
+    );
     assert!(out.contains("0 regressions, 1 improvements"), "{out}");
     let md = check_cli(&db, &["--since", &sha("down", 1), "--format", "markdown"]);
     let md = String::from_utf8_lossy(&md.stdout);
-    assert!(md.contains("| improvement |") && md.contains("`model_ms`"), "{md}");
+    assert!(
+        md.contains("| improvement |") && md.contains("`model_ms`"),
+        "{md}"
+    );
 }
 
 #[test]
@@ -186,9 +227,15 @@ fn two_recorders_at_once_lose_nothing() {
     }
     let h = Store::open(&db, false).unwrap().load().unwrap();
     assert_eq!(h.commits.len(), 16);
-    assert_eq!(h.machines.len(), 2);
-    let per_machine = h.series.len() / 2;
-    assert!(per_machine > 1000);
+    // Two hosts, each with a cpu-native and a cpu-model machine.
+    assert_eq!(h.machines.len(), 4);
+    let a = h
+        .series
+        .iter()
+        .filter(|s| h.machines[&s.machine].contains("\"name\":\"a\""))
+        .count();
+    assert_eq!(2 * a, h.series.len());
+    assert!(a > 1000);
     for s in &h.series {
         assert_eq!(s.points.len(), 8, "{} {}", s.case_id, s.figure);
     }
@@ -222,7 +269,11 @@ fn a_file_that_is_not_a_history_is_exit_2_naming_it() {
         let o = c.arg("--db").arg(results).output().unwrap();
         assert_eq!(o.status.code(), Some(2), "{cmd:?}");
         let err = String::from_utf8_lossy(&o.stderr);
-        assert!(err.contains("reports/baseline/results.json") && err.contains("not a shadowbench history"), "{err}");
+        assert!(
+            err.contains("reports/baseline/results.json")
+                && err.contains("not a shadowbench history"),
+            "{err}"
+        );
     }
     let o = bin()
         .args(["history", "record"])
@@ -247,11 +298,17 @@ fn assert_bmf(v: &Value) -> usize {
     let mut n = 0;
     for (bench, measures) in v.as_object().expect("BMF is a JSON object") {
         assert!(!bench.is_empty());
-        for (measure, m) in measures.as_object().expect("a benchmark is an object of measures") {
+        for (measure, m) in measures
+            .as_object()
+            .expect("a benchmark is an object of measures")
+        {
             let m = m.as_object().unwrap();
             assert!(!measure.is_empty());
             for k in m.keys() {
-                assert!(["value", "lower_value", "upper_value"].contains(&k.as_str()), "{k}");
+                assert!(
+                    ["value", "lower_value", "upper_value"].contains(&k.as_str()),
+                    "{k}"
+                );
             }
             let value = m["value"].as_f64().expect("value is a number");
             if let Some(lo) = m.get("lower_value") {
@@ -273,7 +330,10 @@ fn assert_gab(v: &Value) -> Vec<String> {
     for e in v.as_array().expect("an array") {
         let e = e.as_object().unwrap();
         for k in e.keys() {
-            assert!(["name", "unit", "value", "range", "extra"].contains(&k.as_str()), "{k}");
+            assert!(
+                ["name", "unit", "value", "range", "extra"].contains(&k.as_str()),
+                "{k}"
+            );
         }
         names.push(e["name"].as_str().unwrap().to_string());
         assert!(e["unit"].is_string());
@@ -298,7 +358,11 @@ fn dashboard_formats_have_their_shapes_and_the_summary_is_empty_when_nothing_mov
     }
     let o = check_cli(&db, &["--format", "markdown"]);
     assert_eq!(o.status.code(), Some(0));
-    assert!(o.stdout.is_empty(), "{}", String::from_utf8_lossy(&o.stdout));
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
 
     let o = check_cli(&db, &["--format", "bmf"]);
     assert_eq!(o.status.code(), Some(0));
@@ -322,7 +386,12 @@ fn dashboard_formats_have_their_shapes_and_the_summary_is_empty_when_nothing_mov
     let o = bin()
         .args(["history", "check", "--db"])
         .arg(&db)
-        .args(["--format", "github-action-benchmark", "--all-figures", "--output"])
+        .args([
+            "--format",
+            "github-action-benchmark",
+            "--all-figures",
+            "--output",
+        ])
         .arg(&out)
         .output()
         .unwrap();
@@ -333,7 +402,9 @@ fn dashboard_formats_have_their_shapes_and_the_summary_is_empty_when_nothing_mov
     let smaller = assert_gab(&read("customSmallerIsBetter.json"));
     let bigger = assert_gab(&read("customBiggerIsBetter.json"));
     assert!(smaller.iter().any(|n| n.ends_with("/model_ms")));
-    assert!(bigger.iter().any(|n| n.ends_with("/counters.simd_utilization")));
+    assert!(bigger
+        .iter()
+        .any(|n| n.ends_with("/counters.simd_utilization")));
     assert!(!smaller.iter().any(|n| n.ends_with("simd_utilization")));
 }
 
