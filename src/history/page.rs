@@ -44,13 +44,16 @@ figcaption{font-size:13px;color:#444;max-width:720px}\
 .grid{display:flex;flex-wrap:wrap}.grid figure{margin:0 .6em .8em 0}\
 .none{color:#777}code{font-size:12px}";
 
-/// One line of a chart: its points (commit index, value, interval).
+/// A point of a chart line: commit index, value, and the value's interval where it has one.
+type ChartPoint = (f64, f64, Option<(f64, f64)>);
+
+/// One line of a chart.
 struct Line {
     label: String,
     color: RGBColor,
     marker: Marker,
     dash: Dash,
-    points: Vec<(f64, f64, Option<(f64, f64)>)>,
+    points: Vec<ChartPoint>,
 }
 
 /// A chart over commits.
