@@ -37,6 +37,7 @@ pub mod error;
 pub mod frame;
 pub mod gpu;
 pub mod harness;
+pub mod history;
 pub mod metrics;
 pub mod model;
 pub mod record;

@@ -230,6 +230,113 @@ enum Command {
         #[arg(long, value_name = "FILE")]
         details: Option<PathBuf>,
     },
+    /// Results across commits: record them in a history database, check where figures
+    /// stepped, write the trend page.
+    History {
+        #[command(subcommand)]
+        command: HistoryCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum HistoryCommand {
+    /// Add every figure of results files to a history database (made if missing), as of one
+    /// commit; recording the same results again changes nothing.
+    Record(HistoryRecordArgs),
+    /// Find the commits where each series stepped and report the regressions and improvements
+    /// since a commit; exit 1 on a regression.
+    Check(HistoryCheckArgs),
+    /// Write the trend page, DIR/index.html (self-contained): the steps since a commit, worst
+    /// first, each plotted over the commits, then a panel per algorithm × execution.
+    Report(HistoryReportArgs),
+}
+
+/// The commits `history check` and `history report` compare.
+#[derive(clap::Args)]
+struct HistoryRange {
+    /// The commit to check (a full id or a unique prefix; default: the newest recorded).
+    #[arg(long, value_name = "SHA")]
+    commit: Option<String>,
+    /// The commit to compare against (default: the last one before --commit recorded on
+    /// --main-branch; the first commit when there is none).
+    #[arg(long, value_name = "SHA")]
+    since: Option<String>,
+    /// The branch whose last commit --since defaults to.
+    #[arg(long, default_value = "main", value_name = "NAME")]
+    main_branch: String,
+    /// Smallest change that counts, in percent: for every figure (PERCENT) or for figures
+    /// matching FIGURE (a name, a last part such as model_ms, or a prefix ending in *);
+    /// repeatable, the last match wins. Defaults: 1% for deterministic, modelled and
+    /// estimated figures, 10% for measured times.
+    #[arg(long = "min-effect", value_name = "[FIGURE=]PERCENT")]
+    min_effect: Vec<String>,
+}
+
+#[derive(clap::Args)]
+struct HistoryReportArgs {
+    /// The history database (SQLite).
+    #[arg(long, value_name = "FILE")]
+    db: PathBuf,
+    /// Folder to write index.html into.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    #[command(flatten)]
+    range: HistoryRange,
+    /// Link commits here, {sha} replaced by the commit id (default on GitHub Actions:
+    /// $GITHUB_SERVER_URL/$GITHUB_REPOSITORY/commit/{sha}; else the page's commit table).
+    #[arg(long, value_name = "URL")]
+    commit_url: Option<String>,
+}
+
+#[derive(clap::Args)]
+struct HistoryRecordArgs {
+    /// results.json files written by `run` or `merge`.
+    #[arg(required = true)]
+    results: Vec<PathBuf>,
+    /// The history database (SQLite).
+    #[arg(long, value_name = "FILE")]
+    db: PathBuf,
+    /// The commit the results are of (default: GITHUB_SHA, CI_COMMIT_SHA, else git's HEAD).
+    #[arg(long, value_name = "SHA")]
+    commit: Option<String>,
+    /// The branch (default: GITHUB_HEAD_REF, GITHUB_REF_NAME, CI_COMMIT_REF_NAME, else git's).
+    #[arg(long)]
+    branch: Option<String>,
+    /// The commit's date, ISO 8601 (default: git's committer date, CI_COMMIT_TIMESTAMP, else
+    /// now). Commits are ordered by it.
+    #[arg(long)]
+    date: Option<String>,
+    /// The commit's subject line (default: git's).
+    #[arg(long)]
+    subject: Option<String>,
+    /// A name for this machine (e.g. the CI runner's label) instead of the host's CPU, CPU
+    /// count and OS; series of different machines are never mixed.
+    #[arg(long, value_name = "NAME")]
+    machine: Option<String>,
+}
+
+#[derive(clap::Args)]
+struct HistoryCheckArgs {
+    /// The history database (SQLite).
+    #[arg(long, value_name = "FILE")]
+    db: PathBuf,
+    #[command(flatten)]
+    range: HistoryRange,
+    /// text: the verdict; markdown: a summary, empty unless something crossed; bmf (Bencher
+    /// Metric Format) or github-action-benchmark: the checked commit's figures (the verdict
+    /// then goes to standard error).
+    #[arg(long, default_value = "text",
+          value_parser = clap::builder::PossibleValuesParser::new(
+              ["text", "markdown", "bmf", "github-action-benchmark"]))]
+    format: String,
+    /// Write the output here instead of standard output; for github-action-benchmark a
+    /// folder (required), receiving customSmallerIsBetter.json and customBiggerIsBetter.json.
+    #[arg(long, value_name = "PATH")]
+    output: Option<PathBuf>,
+    /// bmf and github-action-benchmark: every figure, not only the headline ones (time,
+    /// mae_shadow, fill).
+    #[arg(long)]
+    all_figures: bool,
 }
 
 #[derive(Subcommand)]
@@ -683,7 +790,7 @@ fn init(mesh: PathBuf, out: PathBuf, force: bool) -> Result<()> {
     let doc = scenario::init_scenario(&mesh, &out)?;
     let text = serde_json::to_string_pretty(&doc).expect("JSON values serialize") + "\n";
     shadowbench::visibility::write_atomic(&out, text.as_bytes())?;
-    println!(
+    outln!(
         "wrote {} ({}); run it with: shadowbench run {} --out out/{}",
         out.display(),
         doc["algorithms"]
@@ -911,7 +1018,7 @@ fn run(a: RunArgs) -> Result<()> {
         let written = report::write_report(&out_dir, &results)?;
         if verbosity != harness::Verbosity::Quiet {
             for n in report::notes_by_algorithm(&results.runs) {
-                println!("note: {n}");
+                outln!("note: {n}");
             }
         }
         let failed = results.runs.iter().filter(|r| r.failure.is_some()).count();
@@ -1035,7 +1142,7 @@ fn combine_cmd(results: Vec<PathBuf>, out: PathBuf) -> Result<()> {
     }
     let _lock = harness::outdir::lock("--out", &out)?;
     let written = report::write_combined(&out, &inputs)?;
-    println!(
+    outln!(
         "combined {} files into {}",
         inputs.len(),
         out.join("results.json").display()
@@ -1389,6 +1496,162 @@ fn compare(
     Ok(!c.regressed())
 }
 
+/// `history record`: every results file into the database, one transaction each.
+fn history_record(a: HistoryRecordArgs) -> Result<()> {
+    use shadowbench::history::{provenance, store::Store};
+    let inputs: Vec<(PathBuf, String, harness::output::ResultsFile)> = a
+        .results
+        .iter()
+        .map(|p| {
+            let text = shadowbench::util::input::read_text(p, "results")?;
+            let file = report::parse_results(&text, p)?;
+            Ok((p.clone(), text, file))
+        })
+        .collect::<std::result::Result<_, InputError>>()?;
+    let commit = provenance::commit(&provenance::Given {
+        commit: a.commit,
+        branch: a.branch,
+        date: a.date,
+        subject: a.subject,
+    })?;
+    let host = match &a.machine {
+        Some(name) if name.trim().is_empty() => {
+            return Err(InputError::new("--machine", "must not be empty").into())
+        }
+        Some(name) => [("name".to_string(), serde_json::Value::from(name.clone()))].into(),
+        None => provenance::this_host(),
+    };
+    let mut store = Store::open(&a.db, true)?;
+    for (path, text, file) in &inputs {
+        let done = store.record(&commit, &file.scenario, path, text, &file.runs, &host)?;
+        if done.already {
+            outln!(
+                "{}: already recorded for {}; nothing changed",
+                path.display(),
+                &commit.sha
+            );
+        } else {
+            outln!(
+                "{}: {} runs, {} figures recorded for {} ({}) in {}",
+                path.display(),
+                done.runs,
+                done.points,
+                commit.sha,
+                if commit.branch.is_empty() {
+                    "no branch"
+                } else {
+                    &commit.branch
+                },
+                a.db.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The history in `db` and its check over `range`.
+fn history_checked(
+    db: &Path,
+    range: &HistoryRange,
+) -> Result<(
+    shadowbench::history::store::History,
+    shadowbench::history::check::Check,
+)> {
+    use shadowbench::history::{check, formats, store::Store};
+    let overrides = range
+        .min_effect
+        .iter()
+        .map(|s| check::MinEffect::parse(s))
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let h = Store::open(db, false)?.load()?;
+    if h.commits.is_empty() {
+        return Err(InputError::file(db, "the history has no commits").into());
+    }
+    let head = match &range.commit {
+        Some(c) => h.find_commit("--commit", c)?,
+        None => h.commits.len() - 1,
+    };
+    let since = match &range.since {
+        Some(c) => h.find_commit("--since", c)?,
+        None => check::default_since(&h, head, &range.main_branch),
+    };
+    if since > head {
+        return Err(InputError::new(
+            "--since",
+            format!(
+                "commit {} comes after the checked commit {}",
+                formats::short(&h.commits[since].sha),
+                formats::short(&h.commits[head].sha)
+            ),
+        )
+        .into());
+    }
+    let c = check::check(&h, since, head, &overrides);
+    Ok((h, c))
+}
+
+/// `history report`: the trend page.
+fn history_report(a: HistoryReportArgs) -> Result<()> {
+    let (h, c) = history_checked(&a.db, &a.range)?;
+    let _lock = harness::outdir::lock("--out", &a.out)?;
+    let url = a.commit_url.or_else(|| {
+        let server = std::env::var("GITHUB_SERVER_URL").ok()?;
+        let repo = std::env::var("GITHUB_REPOSITORY").ok()?;
+        Some(format!("{server}/{repo}/commit/{{sha}}"))
+    });
+    let path = shadowbench::history::page::write(&a.out, &h, &c, url.as_deref())?;
+    outln!(
+        "{}: {} commits, {} series, {} steps since {}",
+        path.display(),
+        h.commits.len(),
+        h.series.len(),
+        c.changes.len(),
+        shadowbench::history::formats::short(&h.commits[c.since].sha)
+    );
+    Ok(())
+}
+
+/// `history check`: prints or writes the verdict; `Ok(false)` on a regression.
+fn history_check(a: HistoryCheckArgs) -> Result<bool> {
+    use shadowbench::history::formats;
+    if a.format == "github-action-benchmark" && a.output.is_none() {
+        return Err(InputError::new(
+            "--output",
+            "github-action-benchmark writes two files: give the folder for them",
+        )
+        .into());
+    }
+    let (h, c) = history_checked(&a.db, &a.range)?;
+    let head = c.head;
+    let json = |v: &serde_json::Value| {
+        serde_json::to_string_pretty(v).expect("JSON values serialize") + "\n"
+    };
+    let out = match a.format.as_str() {
+        "text" => formats::text(&h, &c),
+        "markdown" => formats::markdown(&h, &c),
+        "bmf" => json(&formats::bmf(&h, head, a.all_figures)),
+        _ => String::new(),
+    };
+    if a.format != "text" {
+        errln!("{}", formats::text(&h, &c).trim_end());
+    }
+    match (&a.output, a.format.as_str()) {
+        (Some(dir), "github-action-benchmark") => {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            let (smaller, bigger) = formats::github_action_benchmark(&h, head, a.all_figures);
+            for (name, v) in [
+                ("customSmallerIsBetter.json", smaller),
+                ("customBiggerIsBetter.json", bigger),
+            ] {
+                shadowbench::visibility::write_atomic(&dir.join(name), json(&v).as_bytes())?;
+            }
+        }
+        (Some(file), _) => shadowbench::visibility::write_atomic(file, out.as_bytes())?,
+        (None, _) => out!("{out}"),
+    }
+    Ok(!c.regressed())
+}
+
 /// Gives the process a private `XDG_RUNTIME_DIR` when it has none (or one that is not an
 /// absolute path to a folder), as in containers and CI: the Vulkan loader and Mesa's
 /// window-system code otherwise print "XDG_RUNTIME_DIR is invalid or not set" while the GPU is
@@ -1539,6 +1802,25 @@ fn main() -> ExitCode {
                 other => other.map(|_| ()),
             }
         }
+        Command::History {
+            command: HistoryCommand::Record(a),
+        } => history_record(a),
+        Command::History {
+            command: HistoryCommand::Check(a),
+        } => match history_check(a) {
+            Ok(false) => {
+                return match shadowbench::util::console::finish() {
+                    Err(e) => failed(Error::Other(format!(
+                        "cannot write to standard output: {e}"
+                    ))),
+                    Ok(()) => ExitCode::from(1),
+                }
+            }
+            other => other.map(|_| ()),
+        },
+        Command::History {
+            command: HistoryCommand::Report(a),
+        } => history_report(a),
     };
     // Output that could not be written (`> /dev/full`) fails the command after its work is
     // done and written (`util::console`); an error of its own comes first.

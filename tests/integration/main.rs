@@ -12,6 +12,7 @@ mod degenerate;
 mod every_algorithm;
 mod gpu_check;
 mod gpu_sweep;
+mod history;
 mod host_model;
 mod hostile;
 mod interrupt;
