@@ -1348,6 +1348,9 @@ mod tests {
             run_timeout: None,
             verbosity: Verbosity::Quiet,
             gpu_counters: Default::default(),
+            measure: Default::default(),
+            fresh: false,
+            retry_failed: false,
         };
         let per_case: usize = loaded
             .scenario

@@ -132,7 +132,7 @@ pub fn check(h: &History, since: usize, head: usize, overrides: &[MinEffect]) ->
         let dir = direction(&s.figure);
         let me = min_effect(&s.figure, overrides);
         let pts: Vec<super::figures::Point> = upto.iter().map(|(_, p)| p.clone()).collect();
-        let fit = detect::fit(&pts, k.is_noisy(), me);
+        let fit = detect::fit(&pts, k == Kind::Measured, me);
         let start = upto.iter().rposition(|(c, _)| *c <= since);
         let Some(change) = detect::since(&fit, start, dir, me) else {
             continue;

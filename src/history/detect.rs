@@ -248,8 +248,8 @@ pub fn since(
     let net = effect(from, to);
     let verdict = if net.abs() >= min_effect && (net != 0.0) {
         let worse = match direction {
-            Direction::LowerIsBetter => net > 0.0,
-            Direction::HigherIsBetter => net < 0.0,
+            Direction::Lower => net > 0.0,
+            Direction::Higher => net < 0.0,
         };
         if worse {
             Verdict::Regression
@@ -298,12 +298,12 @@ mod tests {
         assert!((f.steps[0].effect - 0.05).abs() < 1e-12);
         // Below the minimum effect: no step.
         assert!(fit(&points(&v), false, 0.06).steps.is_empty());
-        let c = since(&f, Some(0), Direction::LowerIsBetter, 0.01).unwrap();
+        let c = since(&f, Some(0), Direction::Lower, 0.01).unwrap();
         assert_eq!(c.verdict, Verdict::Regression);
-        let c = since(&f, Some(0), Direction::HigherIsBetter, 0.01).unwrap();
+        let c = since(&f, Some(0), Direction::Higher, 0.01).unwrap();
         assert_eq!(c.verdict, Verdict::Improvement);
         // Since after the step: nothing.
-        assert!(since(&f, Some(19), Direction::LowerIsBetter, 0.01).is_none());
+        assert!(since(&f, Some(19), Direction::Lower, 0.01).is_none());
     }
 
     #[test]
@@ -313,7 +313,7 @@ mod tests {
         v[6] = 11.0;
         let f = fit(&points(&v), false, 0.01);
         assert_eq!(f.steps.len(), 2);
-        let c = since(&f, Some(2), Direction::LowerIsBetter, 0.01).unwrap();
+        let c = since(&f, Some(2), Direction::Lower, 0.01).unwrap();
         assert_eq!(c.verdict, Verdict::MovedAndBack);
     }
 

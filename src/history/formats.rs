@@ -249,10 +249,10 @@ pub fn github_action_benchmark(h: &History, head: usize, all: bool) -> (Value, V
             json!(format!(
                 "{}; {}; {} / {}; machine {}; commit {}",
                 match dir {
-                    Direction::LowerIsBetter => "lower is better",
-                    Direction::HigherIsBetter => "higher is better",
+                    Direction::Lower => "lower is better",
+                    Direction::Higher => "higher is better",
                 },
-                kind(&s.figure).name(),
+                kind(&s.figure).label(),
                 s.algorithm,
                 s.execution,
                 s.machine,
@@ -260,8 +260,8 @@ pub fn github_action_benchmark(h: &History, head: usize, all: bool) -> (Value, V
             )),
         );
         match dir {
-            Direction::LowerIsBetter => smaller.push(Value::Object(e)),
-            Direction::HigherIsBetter => bigger.push(Value::Object(e)),
+            Direction::Lower => smaller.push(Value::Object(e)),
+            Direction::Higher => bigger.push(Value::Object(e)),
         }
     }
     (Value::Array(smaller), Value::Array(bigger))

@@ -24,41 +24,7 @@ pub mod page;
 pub mod provenance;
 pub mod store;
 
-/// Whether a larger or a smaller value of a figure is better.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Direction {
-    LowerIsBetter,
-    HigherIsBetter,
-}
-
-/// How a figure is obtained, which decides how its history is read ([`detect`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kind {
-    /// The same input gives the same number on any host: counters, quality metrics.
-    Deterministic,
-    /// Computed by the machine model (`model_ms`): deterministic too.
-    Modelled,
-    /// Computed from sizes and counts (`mem_est.*`): deterministic too.
-    Estimated,
-    /// Timed on the host or the GPU: noisy, read with its spread.
-    Measured,
-}
-
-impl Kind {
-    /// Whether two recordings of the same build can differ.
-    pub fn is_noisy(self) -> bool {
-        self == Kind::Measured
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Kind::Deterministic => "deterministic",
-            Kind::Modelled => "modelled",
-            Kind::Estimated => "estimated",
-            Kind::Measured => "measured",
-        }
-    }
-}
+pub use crate::counters::{Direction, Kind};
 
 /// The last dotted segment of a figure name (`phase.raster.model_ms` → `model_ms`), with the
 /// `counters.` part of a counter figure removed (`counters.cache.l1_hits` → `cache.l1_hits`).
@@ -69,32 +35,31 @@ fn leaf(figure: &str) -> &str {
     figure.rsplit('.').next().unwrap_or(figure)
 }
 
-/// The direction of figure `figure` (a name as [`figures::of_record`] gives it).
-pub fn direction(figure: &str) -> Direction {
-    if crate::report::compare::higher_is_better(leaf(figure)) {
-        Direction::HigherIsBetter
-    } else {
-        Direction::LowerIsBetter
-    }
+/// The glossary entry of figure `figure` (a name as [`figures::of_record`] gives it): the name
+/// itself ([`crate::counters::figure`]), else its last segment (`measured.wall_ms` → `wall_ms`).
+fn glossary(figure: &str) -> Option<&'static crate::counters::Counter> {
+    crate::counters::figure(figure).or_else(|| crate::counters::figure(leaf(figure)))
 }
 
-/// The kind of figure `figure`: times other than `model_ms` are measured, `mem_est.*` counters
-/// estimated, `model_ms` modelled, everything else deterministic.
+/// The direction of figure `figure`, from the glossary; lower is better for a figure it does not
+/// hold (every such figure of a record is a time or a count).
+pub fn direction(figure: &str) -> Direction {
+    glossary(figure).map_or(Direction::Lower, |c| c.better)
+}
+
+/// The kind of figure `figure`, from the glossary; for a figure it does not hold, measured for
+/// a time (`cold_wall_ms`) and deterministic otherwise.
 pub fn kind(figure: &str) -> Kind {
-    let leaf = leaf(figure);
-    if figure.contains("counters.") {
-        if leaf.starts_with("mem_est.") {
-            Kind::Estimated
-        } else {
-            Kind::Deterministic
-        }
-    } else if leaf == "model_ms" {
-        Kind::Modelled
-    } else if leaf.ends_with("_ms") {
-        Kind::Measured
-    } else {
-        Kind::Deterministic
-    }
+    glossary(figure).map_or_else(
+        || {
+            if leaf(figure).ends_with("_ms") {
+                Kind::Measured
+            } else {
+                Kind::Deterministic
+            }
+        },
+        |c| c.kind,
+    )
 }
 
 /// The unit of figure `figure`, for dashboards: the glossary's for counters, `ms` for times,
@@ -115,7 +80,7 @@ pub fn unit(figure: &str) -> &'static str {
 /// deterministic kinds (they have no noise; below 1% is rounding and float order), 10% for
 /// measured times (run-to-run spread on shared CI runners is several percent).
 pub fn default_min_effect_pct(kind: Kind) -> f64 {
-    if kind.is_noisy() {
+    if kind == Kind::Measured {
         10.0
     } else {
         1.0
@@ -138,12 +103,12 @@ mod tests {
 
     #[test]
     fn directions_and_kinds_follow_the_figure_not_its_prefix() {
-        assert_eq!(direction("counters.fill"), Direction::LowerIsBetter);
+        assert_eq!(direction("counters.fill"), Direction::Lower);
         assert_eq!(
             direction("phase.raster.counters.simd_utilization"),
-            Direction::HigherIsBetter
+            Direction::Higher
         );
-        assert_eq!(direction("error.mae_shadow"), Direction::LowerIsBetter);
+        assert_eq!(direction("error.mae_shadow"), Direction::Lower);
         assert_eq!(kind("model_ms"), Kind::Modelled);
         assert_eq!(kind("phase.raster.model_ms"), Kind::Modelled);
         assert_eq!(kind("wall_ms"), Kind::Measured);

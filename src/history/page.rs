@@ -280,8 +280,8 @@ fn pct(e: f64) -> String {
 /// Whether a step from `a` to `b` is a worsening of a figure of direction `d`.
 fn worse(d: super::Direction, a: f64, b: f64) -> bool {
     match d {
-        super::Direction::LowerIsBetter => b > a,
-        super::Direction::HigherIsBetter => b < a,
+        super::Direction::Lower => b > a,
+        super::Direction::Higher => b < a,
     }
 }
 
@@ -513,7 +513,7 @@ pub fn page(
                 text(&x.series.scenario),
                 text(&x.series.case_id),
                 text(&x.series.figure),
-                x.kind.name(),
+                x.kind.label(),
                 fmt_num(x.change.from),
                 fmt_num(x.change.to),
                 pct(x.change.effect),
@@ -534,7 +534,7 @@ pub fn page(
                 fmt_num(x.change.from),
                 fmt_num(x.change.to),
                 pct(x.change.effect),
-                x.kind.name(),
+                x.kind.label(),
                 fmt_num(x.min_effect * 100.0),
             );
         }

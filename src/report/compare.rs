@@ -575,7 +575,9 @@ mod tests {
         let expect: usize = b.runs.iter().map(|r| deterministic_figures(r).len()).sum();
         assert_eq!(c.figures_compared, expect);
         assert_eq!(deterministic_figures(&b.runs[3]).len(), 0);
-        assert!(c.render().starts_with("PASS"), "{}", c.render());
+        // The verdict is the last line (`compare` prints it after the headline).
+        let verdict = c.render().lines().last().map(str::to_string);
+        assert!(verdict.is_some_and(|l| l.starts_with("PASS")), "{}", c.render());
     }
 
     #[test]
