@@ -286,7 +286,6 @@ pub struct Bar {
 pub struct Stacked {
     pub y_label: String,
     pub bars: Vec<Bar>,
-    pub color: RGBColor,
 }
 
 #[derive(Clone, Debug)]
@@ -375,6 +374,12 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
                     series: vec![],
                     lines: true,
                     front: None,
+                });
+                // A panel whose every line is one point shows no trend against the axis (an
+                // execution that ran at one value only): its value is in the tables.
+                ps.retain(|p| match &p.kind {
+                    Kind::Xy(c) => c.series.iter().any(|s| s.points.len() > 1),
+                    Kind::Stacked(_) => true,
                 });
                 if slices.slices.len() > 1 {
                     for p in &mut ps {
@@ -490,7 +495,6 @@ fn phase_charts(ok: &[&RunRecord]) -> Vec<Spec> {
                     kind: Kind::Stacked(Stacked {
                         y_label: format!("{name} (ms)"),
                         bars: vec![bar],
-                        color: style::algorithm_color(&r.algorithm),
                     }),
                 }),
             }
@@ -589,7 +593,6 @@ fn phase_grids(ok: &[&RunRecord]) -> Vec<Spec> {
                     kind: Kind::Stacked(Stacked {
                         y_label: format!("{label} (ms)"),
                         bars,
-                        color: style::algorithm_color(&runs[0].algorithm),
                     }),
                 }],
             });
@@ -933,7 +936,9 @@ impl Spec {
     /// Panel grid columns and rows, and one panel's width.
     fn grid(&self) -> (u32, u32, u32) {
         let n = self.panels.len().max(1) as u32;
-        let cols = n.min(3);
+        // Two columns at most: a figure of 2 × 540 px and its legend fits a 1400 px page at
+        // full size (three columns were scaled to 70%, their text too small to read).
+        let cols = n.min(2);
         let rows = n.div_ceil(cols);
         let width = match self.panels.first().map(|p| &p.kind) {
             Some(Kind::Stacked(s)) if n == 1 => {
@@ -1092,7 +1097,7 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, spec: &Spec) -> DrawR
                     .enumerate()
                     .map(|(i, p)| LegendEntry {
                         label: p,
-                        color: phase_color(s, i),
+                        color: style::phase_color(i),
                         marker: None,
                         dash: None,
                         square: true,
@@ -1217,17 +1222,51 @@ fn tick_axis(values: &[f64], from_zero: bool) -> (TickAxis, bool) {
     )
 }
 
-/// A tick label: the value (10^v on a log axis), short.
-fn tick_label(v: f64, log: bool) -> String {
-    if !log {
-        return fmt_num(v);
+/// How an axis labels its ticks: one notation for every tick, so labels never mix `1e7`,
+/// `5.00e6` and `500000`. Decimal (`500`, `0.02`) while every tick value lies in
+/// [1e-3, 1e5), else `m×10^k` written `5e6` on a log axis and `1.5e6` on a linear one.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct TickFormat {
+    log: bool,
+    scientific: bool,
+}
+
+impl TickFormat {
+    fn of(axis: &TickAxis, log: bool) -> TickFormat {
+        let value = |v: f64| if log { 10f64.powf(v) } else { v };
+        let scientific = axis
+            .bold
+            .iter()
+            .map(|&v| value(v).abs())
+            .filter(|&a| a > 0.0)
+            .any(|a| !(1e-3..1e5).contains(&a));
+        TickFormat { log, scientific }
     }
-    let x = 10f64.powf(v);
-    let k = v.round();
-    if (v - k).abs() < 1e-9 && !(-3.0..=5.0).contains(&k) {
-        format!("1e{}", k as i32)
-    } else {
-        fmt_num(x)
+
+    /// The label of tick `v` (log10 of the value on a log axis).
+    fn label(self, v: f64) -> String {
+        if self.log {
+            let k = v.floor();
+            // The mantissa of a tick at m×10^k is a whole number (ticks sit at 1..9 × 10^k).
+            let mut m = 10f64.powf(v - k).round();
+            let mut k = k as i32;
+            if m >= 10.0 {
+                m = 1.0;
+                k += 1;
+            }
+            return if self.scientific {
+                format!("{m}e{k}")
+            } else {
+                fmt_num(m * 10f64.powi(k))
+            };
+        }
+        if v == 0.0 || !self.scientific {
+            return fmt_num(v);
+        }
+        let k = v.abs().log10().floor() as i32;
+        let m = format!("{:.2}", v / 10f64.powi(k));
+        let m = m.trim_end_matches('0').trim_end_matches('.');
+        format!("{m}e{k}")
     }
 }
 
@@ -1250,6 +1289,7 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
     }
     let (xa, xlog) = tick_axis(&xs, false);
     let (ya, ylog) = tick_axis(&ys, true);
+    let (xf, yf) = (TickFormat::of(&xa, xlog), TickFormat::of(&ya, ylog));
     let tx = move |v: f64| if xlog { v.log10() } else { v };
     let ty = move |v: f64| if ylog { v.log10() } else { v };
     let mut chart = ChartBuilder::on(area)
@@ -1271,24 +1311,43 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
             .configure_mesh()
             .x_desc(log_note(&c.x_label, xlog))
             .y_desc(log_note(&c.y_label, ylog))
-            .x_label_formatter(&|v| tick_label(*v, xlog))
-            .y_label_formatter(&|v| tick_label(*v, ylog)),
+            .x_label_formatter(&|v| xf.label(*v))
+            .y_label_formatter(&|v| yf.label(*v)),
     )
     .draw()
     .map_err(err)?;
     let (ox, oy) = area.get_base_pixel();
+    let size = if c.lines { 5 } else { 7 };
     for s in &c.series {
         let col = style::algorithm_color(&s.algorithm);
-        let (marker, dash) = style::execution_style(&s.backend);
+        let (_, dash) = style::execution_style(&s.backend);
         let pts: Vec<(f64, f64)> = s.points.iter().map(|&(x, y)| (tx(x), ty(y))).collect();
         if c.lines && pts.len() > 1 {
             draw_line(&mut chart, &pts, col.stroke_width(2), dash)?;
         }
+    }
+    // Every marker's pixel, then a sideways offset for markers that would cover each other.
+    let mut marks: Vec<(usize, (i32, i32))> = Vec::new();
+    for (si, s) in c.series.iter().enumerate() {
+        for &(x, y) in &s.points {
+            let (px, py) = chart.backend_coord(&(tx(x), ty(y)));
+            marks.push((si, (px - ox, py - oy)));
+        }
+    }
+    let dx = dodge(&marks.iter().map(|m| m.1).collect::<Vec<_>>(), size);
+    for (si, s) in c.series.iter().enumerate() {
+        let col = style::algorithm_color(&s.algorithm);
         for &(x, lo, hi) in &s.intervals {
-            // A vertical bar from the interval's low to its high end, with caps.
+            // A vertical bar from the interval's low to its high end, with caps, beside its
+            // marker when that was moved.
             let (bx, by0) = chart.backend_coord(&(tx(x), ty(lo)));
             let (_, by1) = chart.backend_coord(&(tx(x), ty(hi)));
-            let (x0, y0, y1) = (bx - ox, by0 - oy, by1 - oy);
+            let shift = marks
+                .iter()
+                .zip(&dx)
+                .find(|((i, p), _)| *i == si && p.0 == bx - ox)
+                .map_or(0, |(_, d)| *d);
+            let (x0, y0, y1) = (bx - ox + shift, by0 - oy, by1 - oy);
             let stroke = col.stroke_width(1);
             for seg in [
                 [(x0, y0), (x0, y1)],
@@ -1299,11 +1358,12 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
                     .map_err(err)?;
             }
         }
-        for &p in &pts {
-            let (px, py) = chart.backend_coord(&p);
-            let size = if c.lines { 5 } else { 7 };
-            draw_marker(area, (px - ox, py - oy), marker, col, size)?;
-        }
+    }
+    for ((si, (x, y)), d) in marks.iter().zip(&dx) {
+        let s = &c.series[*si];
+        let (marker, _) = style::execution_style(&s.backend);
+        let col = style::algorithm_color(&s.algorithm);
+        draw_marker(area, (x + d, *y), marker, col, size)?;
     }
     if let Some(front) = &c.front {
         let pts: Vec<(f64, f64)> = front.iter().map(|&(x, y)| (tx(x), ty(y))).collect();
@@ -1319,6 +1379,39 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
 }
 
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<TickAxis, TickAxis>>;
+
+/// Sideways pixel offsets for markers of radius `size` at `at` (pixels) so that none covers
+/// another: markers in one column (the same x) whose centres are closer than a marker's width
+/// form a group, spread evenly about the column, 2·size + 1 pixels apart, in the order given.
+/// Markers alone keep offset 0. The offsets are at most ±(n − 1)/2 · (2·size + 1) for a group
+/// of n.
+fn dodge(at: &[(i32, i32)], size: i32) -> Vec<i32> {
+    let mut dx = vec![0; at.len()];
+    let mut order: Vec<usize> = (0..at.len()).collect();
+    order.sort_by_key(|&i| (at[i].0, at[i].1, i));
+    let apart = 2 * size + 1;
+    let mut start = 0;
+    while start < order.len() {
+        // A group: same column, each within a marker's width of the one above it.
+        let mut end = start + 1;
+        while end < order.len() {
+            let (a, b) = (at[order[end - 1]], at[order[end]]);
+            if a.0 != b.0 || b.1 - a.1 >= apart {
+                break;
+            }
+            end += 1;
+        }
+        let mut group: Vec<usize> = order[start..end].to_vec();
+        group.sort_unstable();
+        let n = group.len() as i32;
+        for (k, &i) in group.iter().enumerate() {
+            // Centred: 0 for one, ±apart/2 for two, -apart, 0, apart for three, ...
+            dx[i] = (2 * k as i32 - (n - 1)) * apart / 2;
+        }
+        start = end;
+    }
+    dx
+}
 
 fn draw_line<DB: DrawingBackend>(
     chart: &mut Chart<'_, DB>,
@@ -1388,12 +1481,6 @@ fn phase_names(bars: &[Bar]) -> Vec<String> {
     names
 }
 
-/// The colour of the `i`-th phase: the algorithm's colour, lighter for later phases.
-fn phase_color(s: &Stacked, i: usize) -> RGBColor {
-    let n = phase_names(&s.bars).len().max(2) - 1;
-    style::tint(s.color, 0.65 * i as f64 / n as f64)
-}
-
 fn draw_stacked<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, s: &Stacked) -> DrawResult {
     let bars = &s.bars;
     let phases = phase_names(bars);
@@ -1422,7 +1509,7 @@ fn draw_stacked<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, s: &Stacked) 
     .draw()
     .map_err(err)?;
     for (pi, phase) in phases.iter().enumerate() {
-        let col = phase_color(s, pi);
+        let col = style::phase_color(pi);
         let rects = bars.iter().enumerate().filter_map(|(bi, b)| {
             let k = b.parts.iter().position(|p| p.0 == *phase)?;
             let below: f64 = b.parts[..k].iter().map(|p| p.1).sum();
@@ -2023,21 +2110,51 @@ mod tests {
     }
 
     #[test]
+    fn markers_that_would_cover_each_other_are_spread_sideways_and_others_stay() {
+        // Three markers on one pixel, one just below them, one in another column, one far
+        // down the same column.
+        let at = [(100, 50), (100, 50), (100, 50), (100, 55), (140, 50), (100, 200)];
+        let dx = dodge(&at, 5);
+        assert_eq!(dx[4], 0);
+        assert_eq!(dx[5], 0);
+        let mut group = dx[..4].to_vec();
+        group.sort_unstable();
+        // Four in a group, 11 px apart, centred on the column.
+        assert_eq!(group, [-16, -5, 5, 16]);
+        for i in 0..4 {
+            for j in 0..i {
+                assert!((dx[i] - dx[j]).abs() >= 10, "{dx:?}");
+            }
+        }
+        assert_eq!(dodge(&[(3, 3)], 5), [0]);
+    }
+
+    #[test]
     fn log_axes_only_for_positive_values_spanning_a_decade_with_ticks_at_decades() {
         assert!(wants_log(&[100.0, 1000.0, 10000.0]));
         assert!(!wants_log(&[16.0, 32.0, 64.0]));
         assert!(!wants_log(&[0.0, 10.0, 1000.0]));
         let (a, log) = tick_axis(&[100.0, 1000.0, 10000.0], false);
         assert!(log);
-        let labels: Vec<String> = a.bold.iter().map(|v| tick_label(*v, true)).collect();
+        let labels = |a: &TickAxis, log: bool| -> Vec<String> {
+            let f = TickFormat::of(a, log);
+            a.bold.iter().map(|v| f.label(*v)).collect()
+        };
         // Two decades: decades and 2×, 5× between.
         assert_eq!(
-            labels,
+            labels(&a, true),
             ["100", "200", "500", "1000", "2000", "5000", "10000"]
         );
+        // One notation on every tick of an axis.
         let (a, _) = tick_axis(&[1e-6, 1e3], false);
-        let labels: Vec<String> = a.bold.iter().map(|v| tick_label(*v, true)).collect();
-        assert_eq!(labels, ["1e-6", "1e-4", "0.01", "1", "100"]);
+        assert_eq!(labels(&a, true), ["1e-6", "1e-4", "1e-2", "1e0", "1e2"]);
+        let (a, _) = tick_axis(&[3e5, 2e7], false);
+        let l = labels(&a, true);
+        assert!(l.iter().all(|t| t.contains('e')), "{l:?}");
+        assert!(l.contains(&"5e5".to_string()) && l.contains(&"1e7".to_string()), "{l:?}");
+        let (a, log) = tick_axis(&[0.0, 2.5e6], true);
+        assert!(!log);
+        assert_eq!(labels(&a, false), ["0", "1e6", "2e6"]);
         // Linear: round steps from zero.
         let (a, log) = tick_axis(&[16.0, 32.0, 64.0], true);
         assert!(!log);

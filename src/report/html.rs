@@ -37,7 +37,7 @@ th{background:#f0f0f0}td.t{text-align:left}\
 tr.fail td{background:#fde8e8}td.status-fail{color:#b00;font-weight:bold;text-align:left}\
 figure{display:block;margin:0 0 2em 0;max-width:1800px}\
 figure img{max-width:100%;border:1px solid #ddd}figcaption{font-size:13px;color:#555}\
-.gallery td{text-align:center;vertical-align:top;padding:2px}.gallery img{image-rendering:pixelated;width:160px;border:1px solid #bbb;\
+.gallery td{text-align:center;vertical-align:top;padding:2px}.gallery img{image-rendering:pixelated;width:min(160px,calc((100vw - 16em) / var(--cols,3)));border:1px solid #bbb;\
 background:repeating-conic-gradient(#28303a 0% 25%,#343c48 0% 50%) 50%/12px 12px}.gallery th{text-align:center}.gallery td.t{text-align:left;white-space:nowrap}\
 details.case{margin:0 0 1em 0}details.case>summary{cursor:pointer;margin:.4em 0}\
 .none{color:#999}nav{background:#f7f7f7;border:1px solid #ddd;padding:.5em 1em;max-width:1200px}nav li{margin:.15em 0}\
@@ -608,13 +608,16 @@ fn reference_grid(out: &Path, at: &[&RunRecord]) -> String {
 }
 
 /// One case's grid of runs `at` (sorted by algorithm, then execution): a row per algorithm, per
-/// execution a column per image kind.
+/// execution a column per image kind. Executions whose images are byte-identical for every
+/// algorithm (cpu-native and cpu-model run the same kernels) share one set of columns, headed
+/// by both names. The thumbnails shrink to fit the page's width (`--cols`: the image columns).
 fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
     let mut backends: Vec<&str> = at.iter().map(|r| r.backend.as_str()).collect();
     backends.sort_by_key(|b| style::execution_rank(b));
     backends.dedup();
     let mut algs: Vec<&str> = at.iter().map(|r| r.algorithm.as_str()).collect();
     algs.dedup();
+    algs.retain(|a| *a != crate::algorithms::reference::ID);
     let mut files = vec![
         ("shaded.png", "shaded"),
         ("visibility.png", "visibility"),
@@ -626,30 +629,63 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
     }) {
         files.push(("visibility_rgb.png", "light received (rgb)"));
     }
-    let mut h = String::from("<table class=\"gallery\"><tr><th rowspan=\"2\">algorithm</th>");
+    let run = |alg: &str, b: &str| {
+        at.iter()
+            .find(|r| r.algorithm == alg && r.backend == b)
+            .copied()
+    };
+    // The bytes of every image of `b`'s runs, in row order; `None` where one is missing.
+    let images = |b: &str| -> Option<Vec<Vec<u8>>> {
+        let mut all = Vec::new();
+        for alg in &algs {
+            let r = run(alg, b).filter(|r| r.failure.is_none())?;
+            for (f, _) in &files {
+                all.push(std::fs::read(out.join(format!("images/{}/{f}", r.case_id()))).ok()?);
+            }
+        }
+        Some(all)
+    };
+    let mut groups: Vec<(Vec<&str>, Option<Vec<Vec<u8>>>)> = Vec::new();
     for b in &backends {
-        let _ = write!(h, "<th colspan=\"{}\">{}</th>", files.len(), text(b));
+        let mine = images(b);
+        match groups
+            .iter_mut()
+            .find(|(_, theirs)| mine.is_some() && *theirs == mine)
+        {
+            Some(g) => g.0.push(b),
+            None => groups.push((vec![b], mine)),
+        }
+    }
+    let mut h = format!(
+        "<table class=\"gallery\" style=\"--cols:{}\"><tr><th rowspan=\"2\">algorithm</th>",
+        groups.len() * files.len()
+    );
+    for (names, _) in &groups {
+        let head = match names.as_slice() {
+            [one] => text(one),
+            many => format!(
+                "{} <span class=\"none\">(identical images)</span>",
+                text(&many.join(" = "))
+            ),
+        };
+        let _ = write!(h, "<th colspan=\"{}\">{head}</th>", files.len());
     }
     h.push_str("</tr><tr>");
-    for _ in &backends {
+    for _ in &groups {
         for (_, label) in &files {
             let _ = write!(h, "<th>{}</th>", text(label));
         }
     }
     h.push_str("</tr>\n");
-    for alg in algs
-        .iter()
-        .filter(|a| **a != crate::algorithms::reference::ID)
-    {
+    for alg in &algs {
         let _ = write!(
             h,
             "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td>",
             style::hex(style::algorithm_color(alg)),
             text(alg)
         );
-        for b in &backends {
-            let run = at.iter().find(|r| r.algorithm == *alg && r.backend == *b);
-            h.push_str(&gallery_cells(out, run.copied(), &files));
+        for (names, _) in &groups {
+            h.push_str(&gallery_cells(out, run(alg, names[0]), &files));
         }
         h.push_str("</tr>\n");
     }
@@ -727,6 +763,40 @@ mod tests {
         assert!(textured.contains("light received (rgb)"), "{textured}");
         let rgb = format!("images/{}/visibility_rgb.png", r.case_id());
         assert!(sources(&textured).contains(&rgb));
+    }
+
+    #[test]
+    fn executions_with_identical_images_share_columns_and_others_keep_their_own() {
+        let dir = tempfile::tempdir().unwrap();
+        let runs: Vec<RunRecord> = ["cpu-native", "cpu-model", "wgpu"]
+            .into_iter()
+            .map(|b| record("pcss", b, 100, 32))
+            .collect();
+        for r in &runs {
+            let img = dir.path().join("images").join(r.case_id());
+            std::fs::create_dir_all(&img).unwrap();
+            // The CPU executions wrote the same bytes; wgpu's differ.
+            let bytes: &[u8] = if r.backend == "wgpu" { b"gpu" } else { b"cpu" };
+            for f in ["shaded.png", "visibility.png", "error.png"] {
+                std::fs::write(img.join(f), bytes).unwrap();
+            }
+        }
+        let at: Vec<&RunRecord> = runs.iter().collect();
+        let grid = case_grid(dir.path(), &at);
+        assert!(
+            grid.contains("cpu-native = cpu-model <span class=\"none\">(identical images)"),
+            "{grid}"
+        );
+        assert!(grid.contains("<th colspan=\"3\">wgpu</th>"), "{grid}");
+        assert!(grid.contains("--cols:6"), "{grid}");
+        // One cell set per group: 6 images, not 9.
+        assert_eq!(grid.matches("<img ").count(), 6, "{grid}");
+        // One differing image splits them again.
+        let native = dir.path().join("images").join(runs[0].case_id());
+        std::fs::write(native.join("error.png"), b"other").unwrap();
+        let grid = case_grid(dir.path(), &at);
+        assert!(!grid.contains("identical images"), "{grid}");
+        assert_eq!(grid.matches("<img ").count(), 9, "{grid}");
     }
 
     #[test]

@@ -57,6 +57,25 @@ pub fn algorithm_color(algorithm: &str) -> RGBColor {
     }
 }
 
+/// The colours of the phases of a stacked bar, in phase order: ColorBrewer's Dark2 (Brewer,
+/// colorbrewer2.org), a qualitative palette of eight hues that stay apart side by side and
+/// on white. A ninth phase reuses the first colour.
+const PHASES: [RGBColor; 8] = [
+    RGBColor(0x1b, 0x9e, 0x77),
+    RGBColor(0xd9, 0x5f, 0x02),
+    RGBColor(0x75, 0x70, 0xb3),
+    RGBColor(0xe7, 0x29, 0x8a),
+    RGBColor(0x66, 0xa6, 0x1e),
+    RGBColor(0xe6, 0xab, 0x02),
+    RGBColor(0xa6, 0x76, 0x1d),
+    RGBColor(0x66, 0x66, 0x66),
+];
+
+/// The colour of the `i`-th phase of a stacked bar chart ([`PHASES`]).
+pub fn phase_color(i: usize) -> RGBColor {
+    PHASES[i % PHASES.len()]
+}
+
 /// `c` as `#rrggbb`, for HTML.
 pub fn hex(c: RGBColor) -> String {
     format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
