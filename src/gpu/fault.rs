@@ -1,8 +1,9 @@
 //! Deliberate GPU faults, for testing that a sweep survives them.
 //!
 //! `SHADOWBENCH_INJECT_FAULT` holds a comma-separated list of `KIND@N`: the fault `KIND` happens
-//! at the start of the `N`-th wgpu run of the process (counting from 1), inside that run's error
-//! scopes, exactly as if the algorithm had caused it:
+//! at the start of the `N`-th wgpu execution of the process (counting from 1; every iteration of
+//! the measurement protocol is one, so with `--warmup 0 --repeats 1` the `N`-th run), inside
+//! that execution's error scopes, exactly as if the algorithm had caused it:
 //!
 //! - `device-lost`: the device is destroyed, as a driver reset or a removed GPU would;
 //! - `shader-error`: a shader module with a WGSL syntax error is created;

@@ -577,7 +577,11 @@ mod tests {
         assert_eq!(deterministic_figures(&b.runs[3]).len(), 0);
         // The verdict is the last line (`compare` prints it after the headline).
         let verdict = c.render().lines().last().map(str::to_string);
-        assert!(verdict.is_some_and(|l| l.starts_with("PASS")), "{}", c.render());
+        assert!(
+            verdict.is_some_and(|l| l.starts_with("PASS")),
+            "{}",
+            c.render()
+        );
     }
 
     #[test]

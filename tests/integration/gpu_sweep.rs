@@ -82,8 +82,9 @@ fn a_sweep_creates_pipelines_once_and_its_images_match_a_fresh_process() {
     if !have_gpu() {
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
     for algorithm in ALGORITHMS {
+        // A folder per algorithm: a sweep into another scenario's results is refused.
+        let dir = tempfile::tempdir().unwrap();
         let runs = sweep(dir.path(), &[algorithm], "on");
         assert_eq!(runs.len(), 2, "{algorithm}");
         let setup = |r: &Value| r["execution"]["gpu_setup"].clone();

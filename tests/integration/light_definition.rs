@@ -305,7 +305,7 @@ fn accum_hard_takes_a_sphere_as_a_converted_disc_and_matches_that_disc() {
             / penumbra.len() as f32;
         assert!(e < 0.01, "accum_hard {backend}: penumbra mae {e}");
     }
-    // The command says so: a sphere scene rendered with accum_hard warns of the conversion.
+    // The command says so: a sphere scene rendered with accum_hard notes the conversion.
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("out");
     let out = super::common::shadowbench(&[
@@ -323,7 +323,7 @@ fn accum_hard_takes_a_sphere_as_a_converted_disc_and_matches_that_disc() {
     let run = super::common::json(&out_dir.join("run.json"));
     assert_eq!(run["light"], "disc", "{run}");
     assert!(
-        run["warnings"].as_array().unwrap().iter().any(|w| w
+        run["notes"].as_array().unwrap().iter().any(|w| w
             .as_str()
             .unwrap()
             .contains("light converted from sphere to disc")),

@@ -184,7 +184,11 @@ fn a_corrupted_reference_cache_is_recomputed_with_a_warning() {
             entry["crc32"] = serde_json::json!(format!("{crc:08x}"));
             std::fs::write(&sidecar, entry.to_string()).unwrap();
         }
-        let runs = cached_sweep(&tmp.path().join("corrupt"), &cache);
+        // A folder per case: into one folder, a sweep would resume the previous case's run.
+        let out = tmp
+            .path()
+            .join(format!("corrupt-{}", what.replace([' ', ','], "-")));
+        let runs = cached_sweep(&out, &cache);
         let r = &runs[0];
         assert!(r.failure.is_none(), "{what}: {:?}", r.failure);
         assert!(
@@ -197,7 +201,7 @@ fn a_corrupted_reference_cache_is_recomputed_with_a_warning() {
         assert_eq!(r.error, Some(fresh_error), "{what}");
         // The cache holds the recomputed image again, and it verifies.
         assert_eq!(VisibilityBuffer::read_npy(&npy).unwrap(), good, "{what}");
-        let csv = std::fs::read_to_string(tmp.path().join("corrupt/results.csv")).unwrap();
+        let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
         // No figure is NaN (the warnings column may name the NaN it found).
         assert!(
             !csv.split([',', '\n'])

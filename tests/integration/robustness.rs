@@ -451,7 +451,7 @@ fn a_run_past_its_timeout_is_stopped_and_the_sweep_goes_on() {
     let mut v = v;
     v["run_timeout_s"] = json!(1);
     write(&scenario, &v);
-    let o = shadowbench(&["run", s(&scenario), "--out", s(&out)]);
+    let o = shadowbench(&["run", s(&scenario), "--out", s(&out), "--fresh"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let f = results(&out)[0]["failure"].as_str().unwrap().to_string();
     assert!(f.contains("budget of 1 s"), "{f}");

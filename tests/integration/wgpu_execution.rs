@@ -262,6 +262,8 @@ fn sweep_with_fault(fault: &str) -> (Vec<serde_json::Value>, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_shadowbench"))
         .args(["run", scenario.to_str().unwrap(), "--out"])
         .arg(&out_dir)
+        // One iteration per run, so the fault's count is the run's.
+        .args(["--warmup", "0", "--repeats", "1"])
         .env("SHADOWBENCH_INJECT_FAULT", fault)
         .env("RUST_BACKTRACE", "0")
         .output()
