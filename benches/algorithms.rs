@@ -1,7 +1,14 @@
-//! Host speed of every registered algorithm, one group each, on every execution it has:
-//! `cpu-native` (the kernels alone) and `cpu-model` (the same kernels counted and
-//! cache-simulated; the ratio of the two is the model's overhead) always, `wgpu` when an adapter
-//! exists (skipped with a message otherwise). Small fixed scene so `cargo bench` stays short.
+//! `cargo bench`: the figure the harness measures for a run's `wall_ms` — the host time of one
+//! execution of an algorithm on a prepared frame (`algorithms::run`, its GPU setup included
+//! only on the first call: criterion's warm-up absorbs it as the harness's cold iteration
+//! does) — for every registered algorithm × execution: `cpu-native`, `cpu-model` (the same
+//! kernels counted and cache-simulated; the ratio of the two is the model's overhead) and
+//! `wgpu` where an adapter exists (skipped with a message otherwise).
+//!
+//! One small scene per family, the kind of scene its papers evaluate on ([`family_scene`]),
+//! 2,000 triangles at 160×120 with a 256² map. criterion warms up, samples, reports a
+//! confidence interval and draws its plots (with the report's chart font, registered first);
+//! `-- --save-baseline NAME` and `-- --baseline NAME` compare two commits.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion};
 use shadowbench::algorithms::{self, Backend, ExecContext, ALGORITHMS};
@@ -9,9 +16,24 @@ use shadowbench::frame::{Frame, RunParams};
 use shadowbench::harness::light_as;
 use shadowbench::scene::generators::{self, GeneratorParams};
 
-/// The fixed scene, with its light converted to a kind `algorithm` handles.
-fn small_frame(algorithm: &str) -> Frame {
-    let mut scene = generators::find("sphere-on-plane")
+/// The built-in scene of `algorithm`'s family: a sphere over a plane for the shadow-map family
+/// (the penumbra-map and soft-shadow-map papers' test scenes), a box for the shadow-volume
+/// family (silhouette edges that wedges and accumulated hard passes outline), the room for
+/// soft irregular shadow mapping (paper 004's indoor scene, receivers all around) and the
+/// torus over a plane for the D-buffer (an occluder with a hole: an umbra and two penumbrae).
+fn family_scene(algorithm: &str) -> &'static str {
+    match algorithm {
+        "soft_shadow_volume" | "accum_hard" => "box-on-plane",
+        "soft_izb" => "room",
+        "dbuffer" => "torus-on-plane",
+        _ => "sphere-on-plane",
+    }
+}
+
+/// The frame of `algorithm`'s family scene, its light converted to a kind the algorithm
+/// handles.
+fn family_frame(algorithm: &str) -> Frame {
+    let mut scene = generators::find(family_scene(algorithm))
         .expect("built-in scene")
         .build(&GeneratorParams {
             triangles: Some(2_000),
@@ -37,8 +59,8 @@ fn bench_algorithms(c: &mut Criterion) {
         eprintln!("skipping the wgpu benchmarks: {e}");
     }
     for info in ALGORITHMS {
-        let frame = small_frame(info.id);
-        let mut group = c.benchmark_group(info.id);
+        let frame = family_frame(info.id);
+        let mut group = c.benchmark_group(format!("{}/{}", info.id, family_scene(info.id)));
         group.sample_size(10);
         for &backend in info.backends {
             if backend == Backend::Wgpu && gpu.is_err() {
@@ -52,11 +74,15 @@ fn bench_algorithms(c: &mut Criterion) {
     }
 }
 
+/// criterion with its plots drawn in the report's chart font.
+fn criterion() -> Criterion {
+    shadowbench::report::font::ensure().expect("the chart font");
+    Criterion::default()
+}
+
 criterion_group! {
     name = benches;
-    // criterion's own plots would draw text through plotters' ab_glyph backend (the feature
-    // the report enables), which has no font registered for them; the figures are printed.
-    config = Criterion::default().without_plots();
+    config = criterion();
     targets = bench_algorithms
 }
 criterion_main!(benches);

@@ -25,11 +25,15 @@ fn bench_reference(c: &mut Criterion) {
     group.finish();
 }
 
+/// criterion with its plots drawn in the report's chart font.
+fn criterion() -> Criterion {
+    shadowbench::report::font::ensure().expect("the chart font");
+    Criterion::default()
+}
+
 criterion_group! {
     name = benches;
-    // criterion's own plots would draw text through plotters' ab_glyph backend (the feature
-    // the report enables), which has no font registered for them; the figures are printed.
-    config = Criterion::default().without_plots();
+    config = criterion();
     targets = bench_reference
 }
 criterion_main!(benches);

@@ -2113,7 +2113,14 @@ mod tests {
     fn markers_that_would_cover_each_other_are_spread_sideways_and_others_stay() {
         // Three markers on one pixel, one just below them, one in another column, one far
         // down the same column.
-        let at = [(100, 50), (100, 50), (100, 50), (100, 55), (140, 50), (100, 200)];
+        let at = [
+            (100, 50),
+            (100, 50),
+            (100, 50),
+            (100, 55),
+            (140, 50),
+            (100, 200),
+        ];
         let dx = dodge(&at, 5);
         assert_eq!(dx[4], 0);
         assert_eq!(dx[5], 0);
@@ -2151,7 +2158,10 @@ mod tests {
         let (a, _) = tick_axis(&[3e5, 2e7], false);
         let l = labels(&a, true);
         assert!(l.iter().all(|t| t.contains('e')), "{l:?}");
-        assert!(l.contains(&"5e5".to_string()) && l.contains(&"1e7".to_string()), "{l:?}");
+        assert!(
+            l.contains(&"5e5".to_string()) && l.contains(&"1e7".to_string()),
+            "{l:?}"
+        );
         let (a, log) = tick_axis(&[0.0, 2.5e6], true);
         assert!(!log);
         assert_eq!(labels(&a, false), ["0", "1e6", "2e6"]);

@@ -662,7 +662,7 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
     );
     for (names, _) in &groups {
         let head = match names.as_slice() {
-            [one] => text(one),
+            [one] => text(one).into_owned(),
             many => format!(
                 "{} <span class=\"none\">(identical images)</span>",
                 text(&many.join(" = "))

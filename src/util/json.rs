@@ -26,7 +26,10 @@ pub fn parse<T: DeserializeOwned>(text: &str, path: &Path) -> Result<T, InputErr
                 message: format!("takes {takes} values, got {got}"),
             };
         }
-        let malformed = inner.is_syntax() || inner.is_eof();
+        // A number beyond its field's type (`1e39` for an `f32`) is reported by serde_json as
+        // a syntax error, but it is the value at its path that is wrong.
+        let out_of_range = inner.to_string().starts_with("number out of range");
+        let malformed = (inner.is_syntax() && !out_of_range) || inner.is_eof();
         InputError {
             file: Some(path.to_path_buf()),
             field: (!malformed).then_some(field),
