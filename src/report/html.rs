@@ -645,7 +645,9 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
         }
         Some(all)
     };
-    let mut groups: Vec<(Vec<&str>, Option<Vec<Vec<u8>>>)> = Vec::new();
+    // Executions that share columns, with the image bytes they share.
+    type Group<'a> = (Vec<&'a str>, Option<Vec<Vec<u8>>>);
+    let mut groups: Vec<Group> = Vec::new();
     for b in &backends {
         let mine = images(b);
         match groups
