@@ -80,7 +80,11 @@ fuzz_target!(|data: &[u8]| {
         return;
     };
     // compare
-    if let Ok(c) = compare::compare((&old.0, &old.1), (&new.0, &new.1), 2.0) {
+    if let Ok(c) = compare::compare(
+        (&old.0, &old.1),
+        (&new.0, &new.1),
+        &compare::Options::default(),
+    ) {
         let _ = c.render();
         let _ = c.regressed();
     }

@@ -182,6 +182,27 @@ const HANDLED_EXTENSIONS: [&str; 1] = ["KHR_mesh_quantization"];
 fn validate(document: &gltf::Document) -> Result<(), String> {
     use gltf::json::validation::{Error, Validate};
     let root = document.as_json();
+    // The library's own validation indexes the accessor of POSITION without checking it
+    // (gltf-json 1.4 `mesh.rs`: a panic on an index past the end), so the indices of every
+    // primitive's attributes are checked first.
+    for (mi, mesh) in root.meshes.iter().enumerate() {
+        for (pi, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, accessor) in &prim.attributes {
+                if accessor.value() >= root.accessors.len() {
+                    let name = match semantic {
+                        gltf::json::validation::Checked::Valid(s) => s.to_string(),
+                        gltf::json::validation::Checked::Invalid => "?".into(),
+                    };
+                    return Err(format!(
+                        "invalid glTF: meshes[{mi}].primitives[{pi}].attributes.{name}: accessor \
+                         {} does not exist (the file has {})",
+                        accessor.value(),
+                        root.accessors.len()
+                    ));
+                }
+            }
+        }
+    }
     let mut errors: Vec<(String, Error)> = Vec::new();
     root.validate(root, gltf::json::Path::new, &mut |path, e| {
         errors.push((path().to_string(), e))
@@ -383,4 +404,26 @@ fn read(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A primitive whose POSITION names an accessor past the end (found by the `gltf` fuzz
+    /// target: the library's validation panicked on it) is an input error naming the field.
+    #[test]
+    fn an_attribute_naming_a_missing_accessor_is_an_error_naming_it() {
+        let text = r#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 1}}]}],
+            "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3"}]}"#;
+        let e = parse_gltf(text.as_bytes(), Path::new("m.gltf"), None).unwrap_err();
+        let m = e.to_string();
+        assert!(m.contains("m.gltf"), "{m}");
+        assert!(
+            m.contains("meshes[0].primitives[0].attributes.POSITION: accessor 1 does not exist"),
+            "{m}"
+        );
+    }
 }

@@ -37,6 +37,43 @@ pub fn read_2d<T: npyz::Deserialize + Copy>(
     )
 }
 
+/// The deepest nesting of brackets a `.npy` header may have: a 2-D array's header is a dict
+/// holding a dtype (at most a few levels for a structured one) and a shape tuple.
+const MAX_HEADER_NESTING: usize = 16;
+
+/// Refuses a header nested deeper than [`MAX_HEADER_NESTING`] before the header parser sees it:
+/// its Python-literal grammar takes time exponential in the depth (found by the `npy` fuzz
+/// target: 60 unclosed `(` took over 40 s). The header is the text after the 10- or 12-byte
+/// preamble, up to its newline.
+fn check_header_nesting(bytes: &[u8]) -> Result<(), String> {
+    let start = match bytes.get(6) {
+        Some(1) => 10,
+        _ => 12,
+    };
+    let header = bytes.get(start..).unwrap_or_default();
+    let end = header
+        .iter()
+        .position(|&b| b == b'\n')
+        .unwrap_or(header.len());
+    let mut depth = 0usize;
+    let mut deepest = 0;
+    for &b in &header[..end] {
+        match b {
+            b'(' | b'[' | b'{' => depth += 1,
+            b')' | b']' | b'}' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+        deepest = deepest.max(depth);
+    }
+    if deepest > MAX_HEADER_NESTING {
+        return Err(format!(
+            "not a .npy file: its header nests {deepest} brackets deep (at most \
+             {MAX_HEADER_NESTING})"
+        ));
+    }
+    Ok(())
+}
+
 /// [`read_2d`] of the bytes of a `.npy` file; `path` names it in errors.
 pub fn parse_2d<T: npyz::Deserialize + Copy>(
     bytes: &[u8],
@@ -45,6 +82,7 @@ pub fn parse_2d<T: npyz::Deserialize + Copy>(
     kind: &str,
 ) -> Result<Array2<T>, InputError> {
     let bad = |m: String| InputError::file(path, format!("{what}: {m}"));
+    check_header_nesting(bytes).map_err(&bad)?;
     let npy = npyz::NpyFile::new(bytes).map_err(|e| bad(format!("not a .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
     let [rows, cols] = shape[..] else {
@@ -92,4 +130,31 @@ pub fn parse_2d<T: npyz::Deserialize + Copy>(
         height: rows as u32,
         data,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A header of deeply nested brackets (exponential for the header's parser) is refused
+    /// at once, naming the file.
+    #[test]
+    fn a_deeply_nested_header_is_refused() {
+        let mut header = b"{'descr': '".to_vec();
+        header.extend(std::iter::repeat_n(b'(', 60));
+        header.extend(b"f8', 'fortran_order': False, 'shape': (1, 1), }\n");
+        let mut bytes = b"\x93NUMPY\x01\x00".to_vec();
+        bytes.extend((header.len() as u16).to_le_bytes());
+        bytes.extend(&header);
+        bytes.extend(0f64.to_le_bytes());
+        let start = std::time::Instant::now();
+        let e = parse_2d::<f32>(&bytes, Path::new("v.npy"), "visibility array", "float32")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("v.npy") && e.contains("brackets deep (at most 16)"),
+            "{e}"
+        );
+        assert!(start.elapsed().as_secs() < 5);
+    }
 }
