@@ -89,9 +89,11 @@ pub fn load_ply(path: &Path) -> Result<MeshFile, InputError> {
 }
 
 /// Refuses element counts the file cannot hold, before the PLY reader reserves memory for
-/// them: every element with a property takes at least one byte after the header (a digit, or
-/// a binary value), so a count beyond the bytes left is a damaged header (found by the `ply`
-/// fuzz target: `element face 08888888888888888` in a 400-byte file took over 4 GB).
+/// them: an element with a property takes at least one byte after the header (a digit, or a
+/// binary value), and the reader keeps a record per element even with none, so a count beyond
+/// the bytes left is a damaged header (found by the `ply` fuzz target:
+/// `element face 08888888888888888` in a 400-byte file took over 4 GB, with properties or
+/// without).
 fn check_element_counts(bytes: &[u8]) -> Result<(), String> {
     const END: &[u8] = b"end_header";
     let Some(body) = bytes.windows(END.len()).position(|w| w == END) else {
@@ -99,32 +101,21 @@ fn check_element_counts(bytes: &[u8]) -> Result<(), String> {
     };
     let left = (bytes.len() - body - END.len()) as u64;
     let header = String::from_utf8_lossy(&bytes[..body]);
-    let mut element: Option<(&str, u64, bool)> = None;
-    let check = |e: Option<(&str, u64, bool)>| match e {
-        Some((name, count, true)) if count > left => Err(format!(
-            "cannot parse PLY: element '{name}' declares {count} elements, but only {left} \
-             bytes follow the header"
-        )),
-        _ => Ok(()),
-    };
     for line in header.lines() {
         let mut words = line.split_whitespace();
-        match words.next() {
-            Some("element") => {
-                check(element)?;
-                let name = words.next().unwrap_or("?");
-                let count = words.next().and_then(|c| c.parse().ok()).unwrap_or(0);
-                element = Some((name, count, false));
-            }
-            Some("property") => {
-                if let Some(e) = &mut element {
-                    e.2 = true;
-                }
-            }
-            _ => {}
+        if words.next() != Some("element") {
+            continue;
+        }
+        let name = words.next().unwrap_or("?");
+        let count: u64 = words.next().and_then(|c| c.parse().ok()).unwrap_or(0);
+        if count > left {
+            return Err(format!(
+                "cannot parse PLY: element '{name}' declares {count} elements, but only {left} \
+                 bytes follow the header"
+            ));
         }
     }
-    check(element)
+    Ok(())
 }
 
 /// [`load_ply`] of the bytes of a PLY file; `path` names it in errors.
