@@ -1685,6 +1685,17 @@ fn private_runtime_dir() {
 #[cfg(not(unix))]
 fn private_runtime_dir() {}
 
+/// The exit of a gate that failed (`compare`, `history check`): 1 once its verdict is written,
+/// or a one-line error when standard output could not take it.
+fn gate_failed() -> ExitCode {
+    match shadowbench::util::console::finish() {
+        Err(e) => failed(Error::Other(format!(
+            "cannot write to standard output: {e}"
+        ))),
+        Ok(()) => ExitCode::from(1),
+    }
+}
+
 fn main() -> ExitCode {
     // Rust ignores SIGPIPE, which turns output into a closed pipe (`shadowbench list | head`)
     // into a panic in `println!`; the default action ends the process quietly instead, as other
@@ -1791,14 +1802,7 @@ fn main() -> ExitCode {
         } => {
             let options = compare_options(threshold, &threshold_for, min_effect, fdr, &gate);
             match options.and_then(|o| compare(baseline, current, o, verbose, details)) {
-                Ok(false) => {
-                    return match shadowbench::util::console::finish() {
-                        Err(e) => failed(Error::Other(format!(
-                            "cannot write to standard output: {e}"
-                        ))),
-                        Ok(()) => ExitCode::from(1),
-                    }
-                }
+                Ok(false) => return gate_failed(),
                 other => other.map(|_| ()),
             }
         }
@@ -1808,14 +1812,7 @@ fn main() -> ExitCode {
         Command::History {
             command: HistoryCommand::Check(a),
         } => match history_check(a) {
-            Ok(false) => {
-                return match shadowbench::util::console::finish() {
-                    Err(e) => failed(Error::Other(format!(
-                        "cannot write to standard output: {e}"
-                    ))),
-                    Ok(()) => ExitCode::from(1),
-                }
-            }
+            Ok(false) => return gate_failed(),
             other => other.map(|_| ()),
         },
         Command::History {
