@@ -82,6 +82,7 @@ fn occluder_depth(uv: vec2<f32>) -> f32 {
 
 // The shading of `eye_lookup` (light_view.wgsl): Receivers::averted, a surface facing away from
 // the light centre is in shadow; any other is looked up.
+const AVERTED_IN_SHADOW: bool = true;
 fn shade(n: vec3<f32>, p: vec3<f32>, m: vec4<f32>, n_dot_l: f32) -> f32 {
     if n_dot_l <= 0.0 {
         return 0.0;

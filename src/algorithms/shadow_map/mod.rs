@@ -532,7 +532,9 @@ impl FaceView {
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightViews {
     pub views: Vec<FaceView>,
-    /// Eye pixels that see a surface no view holds: the algorithm takes them as lit.
+    /// Eye pixels that see a surface facing the light centre that no view holds: the algorithm
+    /// takes them as lit (one facing away is shaded as the eye pass shades such surfaces
+    /// everywhere: in shadow, or by the part of the light in front of its plane).
     pub receivers_outside: u64,
     /// Triangles inside a view's frustum part of which lies nearer the light than its near
     /// plane (clamped at [`MIN_NEAR_RATIO`] × far): clipped there.
@@ -548,6 +550,13 @@ impl LightViews {
         let receivers: Vec<Vec3> = (0..g.len())
             .filter(|&i| g.is_hit(i))
             .map(|i| g.position[i])
+            .collect();
+        // Receivers facing away from the light centre are shaded by the eye pass's own rule
+        // (`cpu::Receivers::averted`) wherever they lie: only the others are taken as lit
+        // outside the views.
+        let facing: Vec<bool> = (0..g.len())
+            .filter(|&i| g.is_hit(i))
+            .map(|i| g.normal[i].dot(eye - g.position[i]) > 0.0)
             .collect();
         let nearest = receivers
             .iter()
@@ -624,7 +633,8 @@ impl LightViews {
                 view: LightView::looking(eye, dir, tan, near, far, resolution),
             });
         }
-        views.receivers_outside = held.iter().filter(|&&h| !h).count() as u64;
+        views.receivers_outside =
+            held.iter().zip(&facing).filter(|&(&h, &f)| !h && f).count() as u64;
         views
     }
 
@@ -649,7 +659,7 @@ impl LightViews {
         );
         if self.receivers_outside > 0 {
             out.warnings.push(format!(
-                "{} visible receiver pixels lie outside the light view (behind the light or beyond {MAX_HALF_FOV_DEG}° from its axis) and are taken as lit",
+                "{} visible receiver pixels facing the light lie outside the light view (behind the light or beyond {MAX_HALF_FOV_DEG}° from its axis) and are taken as lit",
                 self.receivers_outside
             ));
         }
