@@ -560,36 +560,22 @@ fn describe(info: &wgpu::AdapterInfo) -> String {
 }
 
 /// All adapters, best first: of the backends `WGPU_BACKEND` names, else of the primary APIs
-/// (Vulkan, Metal, DX12), else of GL. GL is probed only when no primary adapter answers, since
-/// probing it on a headless machine makes EGL print noise and it rarely wins.
+/// (Vulkan, and Metal or DX12 on their platforms). GL is not built in (Cargo.toml): naga cannot
+/// write the executions' WGSL (`textureLoad` from depth textures) as GLSL.
 fn adapters() -> Vec<wgpu::Adapter> {
-    let tiers = match wgpu::Backends::from_env() {
-        Some(b) => vec![b],
-        None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::GL],
-    };
-    for backends in tiers {
-        let mut found = pollster::block_on(instance(backends).enumerate_adapters(backends));
-        if !found.is_empty() {
-            found.sort_by_key(|a| rank(&a.get_info()));
-            return found;
-        }
-    }
-    Vec::new()
+    let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY);
+    let mut found = pollster::block_on(instance(backends).enumerate_adapters(backends));
+    found.sort_by_key(|a| rank(&a.get_info()));
+    found
 }
 
 /// What adapter `a` lacks that the wgpu executions need, or `None` when it has it all: the
 /// full WebGPU feature level (wgpu's downlevel flags, limits and shader model 5: storage
-/// buffers and textures in every stage, compute, depth-texture copies, ...), and a backend
-/// whose shading language can express the executions' WGSL (`textureLoad` from depth
-/// textures, which naga cannot write as GLSL: on GL the shadow-map family's passes fail to
-/// build). `list`, `render` and `run` choose adapters by it alike.
+/// buffers and textures in every stage, compute, depth-texture copies, ...). `list`, `render`
+/// and `run` choose adapters by it alike.
 fn lacks(a: &wgpu::Adapter) -> Option<String> {
-    let info = a.get_info();
     let d = a.get_downlevel_capabilities();
     let mut missing: Vec<String> = Vec::new();
-    if info.backend == wgpu::Backend::Gl {
-        missing.push("WGSL textureLoad from depth textures (not expressible in GLSL)".into());
-    }
     let flags = wgpu::DownlevelFlags::compliant() - d.flags;
     missing.extend(flags.iter_names().map(|(name, _)| name.to_lowercase()));
     if d.shader_model < wgpu::ShaderModel::Sm5 {
@@ -619,8 +605,9 @@ fn none_usable(found: &[wgpu::Adapter]) -> String {
 
 fn no_adapter_reason() -> String {
     let mut why = String::from(
-        "no GPU adapter found (no Vulkan, Metal, DX12 or GL driver answered; on Linux without a \
-         GPU install Mesa's software Vulkan driver, e.g. the Debian package mesa-vulkan-drivers)",
+        "no GPU adapter found (no Vulkan, Metal or DX12 driver answered; GL is not built in, its \
+         shading language cannot express the passes; on Linux without a GPU install Mesa's \
+         software Vulkan driver, e.g. the Debian package mesa-vulkan-drivers)",
     );
     for var in ["VK_ICD_FILENAMES", "VK_DRIVER_FILES", "WGPU_BACKEND"] {
         if let Ok(v) = std::env::var(var) {

@@ -626,7 +626,12 @@ fn plan_runs(
         .collect();
     if backends.contains(&Backend::Wgpu) {
         if let Err(e) = crate::gpu::gpu() {
-            crate::errln!("note: skipping the wgpu execution: {e}");
+            // The reason as `list` gives it, without the error's `wgpu: ` prefix.
+            let why = match &e {
+                crate::error::Error::Gpu(reason) => reason.clone(),
+                other => other.to_string(),
+            };
+            crate::errln!("note: skipping the wgpu execution: {why}");
             backends.retain(|&b| b != Backend::Wgpu);
         }
     }
