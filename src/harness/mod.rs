@@ -224,6 +224,13 @@ pub fn run_one(
                     &frame.gbuffer.mask(),
                     &frame.receiver_only_mask(),
                 );
+                let mut e = e;
+                let mask = frame.gbuffer.mask();
+                e.flip = metrics::perceptual::mean_over(
+                    &flip_map(&out.visibility, r, frame, ctx.flip_pixels_per_degree),
+                    &mask,
+                );
+                e.ssim = metrics::perceptual::ssim(&out.visibility, r, &mask);
                 record.warnings.extend(e.warnings());
                 record.error = Some(e);
                 if let Ok(info) = algorithms::find(algorithm) {
@@ -237,6 +244,21 @@ pub fn run_one(
             (record, None)
         }
     }
+}
+
+/// The ꟻLIP error map of the shaded view of `v` against the reference's shaded view `r` in
+/// `frame` ([`images::shaded_rgb`], [`metrics::perceptual::flip_map`]).
+pub fn flip_map(
+    v: &VisibilityBuffer,
+    r: &VisibilityBuffer,
+    frame: &Frame,
+    pixels_per_degree: f32,
+) -> Vec<f32> {
+    metrics::perceptual::flip_map(
+        &images::shaded_rgb(r, frame),
+        &images::shaded_rgb(v, frame),
+        pixels_per_degree,
+    )
 }
 
 /// One iteration of a run: its output, and its host milliseconds without GPU setup.
@@ -741,6 +763,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         deadline: Deadline::default(),
         gpu_counters: opts.gpu_counters,
         measure: opts.measure.apply(s.measure.unwrap_or_default())?,
+        flip_pixels_per_degree: s.reference.flip_pixels_per_degree(),
     };
     let timeout = opts
         .run_timeout
@@ -1219,7 +1242,8 @@ pub fn summary_table(records: &[RunRecord]) -> String {
 /// pixel sees no surface), visibility.npy, mask.npy (1 where the pixel sees a surface),
 /// shaded.png (visibility × a Lambertian term, [`images::write_shaded`]), run.json,
 /// visibility_rgb.png (the light received per channel) under a textured light and, with a
-/// reference, reference.png, reference_shaded.png and error.png. Those of them an earlier
+/// reference, reference.png, reference_shaded.png, error.png and flip.png (the ꟻLIP error map
+/// of the shaded views at `pixels_per_degree`, [`flip_map`]). Those of them an earlier
 /// frame left in `dir` and this one does not write are removed, so the folder holds one
 /// frame's files.
 pub fn write_frame_files(
@@ -1229,6 +1253,7 @@ pub fn write_frame_files(
     rgb: Option<&RgbBuffer>,
     reference: Option<&VisibilityBuffer>,
     frame: &Frame,
+    pixels_per_degree: f32,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let mut written = Vec::new();
@@ -1248,6 +1273,13 @@ pub fn write_frame_files(
             images::write_masked_png(r, &mask, &dir.join("reference.png"))?;
             images::write_shaded(r, frame, &dir.join("reference_shaded.png"))?;
             metrics::write_error_heatmap(v, r, &mask, &dir.join("error.png"))?;
+            metrics::perceptual::write_flip_map(
+                &flip_map(v, r, frame, pixels_per_degree),
+                &mask,
+                v.width,
+                v.height,
+                &dir.join("flip.png"),
+            )?;
             written.extend(&FRAME_FILES[5..]);
         }
     }
@@ -1263,7 +1295,7 @@ pub fn write_frame_files(
 }
 
 /// The image files [`write_frame_files`] writes besides run.json, in the order it writes them.
-const FRAME_FILES: [&str; 8] = [
+const FRAME_FILES: [&str; 9] = [
     "visibility_rgb.png",
     "visibility.png",
     "visibility.npy",
@@ -1272,6 +1304,7 @@ const FRAME_FILES: [&str; 8] = [
     "reference.png",
     "reference_shaded.png",
     "error.png",
+    "flip.png",
 ];
 
 #[cfg(test)]

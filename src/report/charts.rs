@@ -189,7 +189,7 @@ pub const ESTIMATED_MEMORY: Metric = Metric {
     value: |r| memory_bytes(r, "mem_est"),
 };
 
-pub const METRICS: [Metric; 8] = [
+pub const METRICS: [Metric; 10] = [
     WALL_TIME,
     GPU_TIME,
     MODELLED_TIME,
@@ -213,6 +213,19 @@ pub const METRICS: [Metric; 8] = [
         name: "shadow error",
         label: "mean absolute error in shadow (mae_shadow, 0–1)",
         value: |r| r.error.as_ref().and_then(|e| e.mae_shadow),
+    },
+    // The error where the papers compare (the reference's penumbra), and what a viewer sees.
+    Metric {
+        id: "mae_penumbra",
+        name: "penumbra error",
+        label: "mean absolute error in the reference's penumbra (mae_penumbra, 0–1)",
+        value: |r| r.error.as_ref().and_then(|e| e.mae_penumbra),
+    },
+    Metric {
+        id: "flip",
+        name: "FLIP",
+        label: "mean FLIP error of the shaded view (flip, 0–1)",
+        value: |r| r.error.as_ref().and_then(|e| e.flip),
     },
 ];
 

@@ -212,6 +212,9 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
         if s.has_restricted {
             let _ = write!(h, "<th>{}</th>", summary::RESTRICTED);
         }
+        for &q in &s.quality_shown {
+            let _ = write!(h, "<th>{}</th>", summary::QUALITY[q]);
+        }
         for &c in &costs {
             let _ = write!(h, "<th>{}</th>", text(summary::COSTS[c].metric.label));
         }
@@ -235,6 +238,9 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
             }
             if s.has_restricted {
                 let _ = write!(h, "<td>{}</td>", opt(r.restricted));
+            }
+            for &q in &s.quality_shown {
+                let _ = write!(h, "<td>{}</td>", opt(r.quality[q]));
             }
             for &c in &costs {
                 if r.pareto[c] {
@@ -623,6 +629,12 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
         ("visibility.png", "visibility"),
         ("error.png", "error"),
     ];
+    if at.iter().any(|r| {
+        out.join(format!("images/{}/flip.png", r.case_id()))
+            .is_file()
+    }) {
+        files.push(("flip.png", "ꟻLIP error"));
+    }
     if at.iter().any(|r| {
         out.join(format!("images/{}/visibility_rgb.png", r.case_id()))
             .is_file()

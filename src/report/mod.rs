@@ -388,6 +388,7 @@ pub(crate) mod testdata {
                 pixels: 6912,
                 shadow_pixels: 800,
                 mae_shadow_receivers: None,
+                ..Default::default()
             }),
             execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
             warnings: vec![],

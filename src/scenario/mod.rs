@@ -189,6 +189,20 @@ pub struct ReferenceSpec {
     pub enabled: bool,
     /// Light samples per pixel, a perfect square (256 default, 1024 for paper runs).
     pub samples: u32,
+    /// The viewing condition of the `flip` metric: pixels per degree of visual angle, in
+    /// [`crate::metrics::perceptual::PIXELS_PER_DEGREE_RANGE`] (absent: ꟻLIP's default 67.02,
+    /// a 0.7 m wide 3840-pixel monitor at 0.7 m). Fewer pixels per degree (a closer or larger
+    /// screen) make finer errors visible.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flip_pixels_per_degree: Option<f32>,
+}
+
+impl ReferenceSpec {
+    /// `flip_pixels_per_degree`, or ꟻLIP's default.
+    pub fn flip_pixels_per_degree(&self) -> f32 {
+        self.flip_pixels_per_degree
+            .unwrap_or(crate::metrics::perceptual::DEFAULT_PIXELS_PER_DEGREE)
+    }
 }
 
 impl Default for ReferenceSpec {
@@ -196,6 +210,7 @@ impl Default for ReferenceSpec {
         ReferenceSpec {
             enabled: true,
             samples: crate::algorithms::reference::DEFAULT_SAMPLES,
+            flip_pixels_per_degree: None,
         }
     }
 }

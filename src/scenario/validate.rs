@@ -266,6 +266,11 @@ pub fn validate(s: &Scenario) -> Check {
     sweep(&s.sweep)?;
     occluder_axes(s)?;
     reference_samples("$.reference.samples", s.reference.samples)?;
+    optional(
+        "$.reference.flip_pixels_per_degree",
+        s.reference.flip_pixels_per_degree,
+        crate::metrics::perceptual::check_pixels_per_degree,
+    )?;
     if let Some(m) = &s.measure {
         m.check("$.measure")?;
     }
