@@ -519,8 +519,11 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
          <i>shaded</i> view (visibility × a Lambertian term, so occluders stand out), the \
          <i>visibility</i> (black: no light, white: fully lit; pixels that see no surface are \
          transparent, in <code>mask.npy</code> they are 0) and the <i>error</i> against the \
-         reference (black 0, red, yellow ≥ 0.5; background blue-grey). The difference of any two \
-         runs: <code>shadowbench diff images/A images/B</code>.</p>\n",
+         reference (black 0, red, yellow ≥ 0.5; background blue-grey), and where there is one \
+         the <i>ꟻLIP error</i> of the shaded view against the reference's, what a viewer notices \
+         at the scenario's viewing distance (ꟻLIP's magma colours: black none, purple, orange, \
+         pale yellow 1). The difference of any two runs: \
+         <code>shadowbench diff images/A images/B</code>.</p>\n",
     );
     let ok: Vec<&RunRecord> = runs.iter().collect();
     let base = summary::base_case(&ok).map(|b| b.0);
