@@ -1016,6 +1016,15 @@ pub const COUNTERS: &[Counter] = &[
 /// time is named as the record's (`phase.<phase>.wall_ms` is a `wall_ms`).
 pub const FIGURES: &[Counter] = &[
     c(
+        "animation.flicker",
+        "visibility",
+        All,
+        Deterministic,
+        Lower,
+        "mean change between consecutive frames of an animated sweep that the reference does \
+         not have: |(V_t - V_t-1) - (R_t - R_t-1)| over pixels and frames",
+    ),
+    c(
         "error.flip",
         "FLIP",
         All,

@@ -1,5 +1,6 @@
 //! The sweep runner: scenario → cases → frames → runs → results, written as they complete.
 
+pub mod animation;
 pub mod cache;
 pub mod fit;
 pub mod images;
@@ -729,12 +730,12 @@ fn without_repeats(
 
 /// The reference cache of a sweep: in `--cache-dir`, or `reference-cache` under `--out`; in
 /// memory only when that folder cannot be used (the cache only saves time).
-fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions) -> ReferenceCache {
+fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions, seed: u64) -> ReferenceCache {
     let cache_dir = opts
         .cache_dir
         .clone()
         .unwrap_or_else(|| opts.out.join("reference-cache"));
-    let mut refs = ReferenceCache::new(Some(cache_dir.clone()), s.reference.samples, s.seed);
+    let mut refs = ReferenceCache::new(Some(cache_dir.clone()), s.reference.samples, seed);
     if s.reference.enabled {
         if let Err(e) = cache::describe(&cache_dir) {
             crate::errln!("warning: reference cache: {e}; going on without the cache folder");
@@ -751,7 +752,14 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     let cases = loaded.cases(opts.max_cases)?;
     let (plan, repeats) = plan_runs(loaded, opts, &cases)?;
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
-    let mut refs = reference_cache(s, opts);
+    let mut refs = reference_cache(s, opts, s.seed);
+    // The reference of another seed, for the floor of an animation's flicker; and that floor
+    // per case and light kind, computed once.
+    let mut floor_refs = s
+        .animation
+        .as_ref()
+        .map(|_| reference_cache(s, opts, s.seed.wrapping_add(1)));
+    let mut floors: BTreeMap<(usize, LightKind), Option<f64>> = BTreeMap::new();
     let mut ctx = ExecContext {
         reference_samples: s.reference.samples,
         seed: s.seed,
@@ -902,12 +910,29 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         };
         ctx.deadline = deadline;
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
+        let sequence = match (&s.animation, &out, &mut floor_refs) {
+            (Some(anim), Some(_), Some(floor_refs))
+                if p.algorithm != crate::algorithms::reference::ID && reference.is_some() =>
+            {
+                animate(
+                    anim,
+                    frame,
+                    (&p.algorithm, p.backend),
+                    &ctx,
+                    (&mut refs, floor_refs),
+                    floors.entry((p.case, kind)).or_default(),
+                    &mut record,
+                )
+            }
+            _ => None,
+        };
         loaded.notes.annotate(&mut record);
         record.warnings.extend(cache_warnings);
         if kind != scene.light.kind() {
             record.notes.push(light_converted(scene.light.kind(), kind));
         }
         progress.finished(&record);
+        let images = opts.out.join("images").join(record.case_id());
         writer.push(
             record,
             out.as_ref().map(|o| &o.visibility),
@@ -915,9 +940,58 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             reference.as_ref(),
             Some(frame),
         )?;
+        if let Some(seq) = sequence {
+            animation::write(&images, &seq)?;
+        }
     }
     bar.finish_and_clear();
     writer.finish()
+}
+
+/// The animated sequence of a run ([`animation`]) from `frame`: its temporal figures into
+/// `record.animation` (with the flicker floor `floor`, computed here once per case and light
+/// kind from `refs.1`, the reference of another seed), the sequence returned for its images.
+/// A sequence that fails leaves a warning and no figures.
+fn animate(
+    anim: &animation::Animation,
+    frame: &Frame,
+    (algorithm, backend): (&str, Backend),
+    ctx: &ExecContext,
+    refs: (&mut ReferenceCache, &mut ReferenceCache),
+    floor: &mut Option<f64>,
+    record: &mut RunRecord,
+) -> Option<animation::Rendered> {
+    let seq = match animation::render(
+        anim,
+        &frame.scene,
+        &frame.params,
+        algorithm,
+        backend,
+        ctx,
+        refs.0,
+    ) {
+        Ok(seq) => seq,
+        Err(e) => {
+            record.warnings.push(format!("animation not rendered: {e}"));
+            return None;
+        }
+    };
+    if floor.is_none() {
+        match animation::reference_sequence(anim, &frame.scene, &frame.params, refs.1) {
+            Ok(other) => *floor = animation::flicker(&other, &seq.reference, &seq.mask).0,
+            Err(e) => record.warnings.push(format!(
+                "animation: no flicker floor (reference of another seed: {e})"
+            )),
+        }
+    }
+    record.animation = Some(animation::record(
+        &seq.visibility,
+        &seq.reference,
+        &seq.mask,
+        *floor,
+        |v, r| metrics::compare_with_receivers(v, r, &seq.mask, &seq.receivers),
+    ));
+    Some(seq)
 }
 
 /// A digest of what a sweep's results depend on besides the build: the scenario as run, the

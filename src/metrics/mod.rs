@@ -217,6 +217,17 @@ pub fn write_error_heatmap(
     mask: &[bool],
     path: &Path,
 ) -> Result<()> {
+    error_heatmap(result, reference, mask)
+        .save(path)
+        .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+}
+
+/// The image [`write_error_heatmap`] writes.
+pub fn error_heatmap(
+    result: &VisibilityBuffer,
+    reference: &VisibilityBuffer,
+    mask: &[bool],
+) -> image::RgbImage {
     let mut img = image::RgbImage::new(result.width, result.height);
     for (i, px) in img.pixels_mut().enumerate() {
         *px = if mask[i] {
@@ -228,8 +239,7 @@ pub fn write_error_heatmap(
             image::Rgb([40, 44, 52])
         };
     }
-    img.save(path)
-        .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+    img
 }
 
 #[cfg(test)]

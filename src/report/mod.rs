@@ -390,6 +390,7 @@ pub(crate) mod testdata {
                 mae_shadow_receivers: None,
                 ..Default::default()
             }),
+            animation: None,
             execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
             warnings: vec![],
             notes: vec![],

@@ -67,6 +67,10 @@ pub struct Scenario {
     /// `--max-time` override its fields. Absent: the protocol's defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measure: Option<crate::harness::measure::Measure>,
+    /// An animated sweep: each run also renders a sequence of frames with the light's centre
+    /// moving along a path ([`crate::harness::animation`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation: Option<crate::harness::animation::Animation>,
 }
 
 /// `$.light`: the light (`type` and its fields) and an optional `texture` (rectangular lights;

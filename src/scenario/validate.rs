@@ -274,6 +274,17 @@ pub fn validate(s: &Scenario) -> Check {
     if let Some(m) = &s.measure {
         m.check("$.measure")?;
     }
+    if let Some(a) = &s.animation {
+        a.check("$.animation")?;
+        if !s.reference.enabled {
+            return fail(
+                "$.animation",
+                "an animation measures flicker against the reference: it needs \
+                 reference.enabled true"
+                    .into(),
+            );
+        }
+    }
     optional("$.run_timeout_s", s.run_timeout_s, run_timeout)
 }
 
