@@ -310,6 +310,7 @@ impl Summary {
                     series: vec![],
                     lines: false,
                     front: Some(front.clone()),
+                    linear_x: false,
                 }) {
                     let part = p.title.strip_prefix(e.backend.as_str()).unwrap_or("");
                     p.title = format!("{} cost{part}", COSTS[c].name);
