@@ -100,7 +100,7 @@ impl Animation {
     /// `light` (the run's light at frame 0) at frame `t`: its centre moved along the path.
     pub fn light_at(&self, light: Light, t: u32) -> Light {
         let from = light.center();
-        light.with_center(from.lerp(self.light_center.to, self.progress(t)))
+        light.with_center(from + (self.light_center.to - from) * self.progress(t))
     }
 }
 

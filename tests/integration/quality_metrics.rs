@@ -146,3 +146,114 @@ fn region_metrics_on_the_exact_answer_plate_match_the_geometry() {
         );
     }
 }
+
+/// An animated sweep of the light sliding over sphere-on-plane, on every execution: each frame
+/// a run wrote equals that frame rendered alone (its light placed by hand on the path), the
+/// record holds a flicker per frame transition with its floor, and the animated comparison is
+/// an APNG of every frame. The hard shadow map, whose edge jumps from texel to texel, flickers
+/// more than the soft shadow volume.
+#[test]
+fn an_animated_sweep_renders_each_frame_as_alone_and_measures_flicker() {
+    let mut backends = vec!["cpu-native", "cpu-model"];
+    if super::gpu_check::have_gpu() {
+        backends.push("wgpu");
+    }
+    let frames = 4u32;
+    let text = format!(
+        r#"{{"name": "slide", "scene": {{"generator": "sphere-on-plane"}},
+        "algorithms": ["hard_shadow_map", "soft_shadow_volume"], "backends": {backends:?},
+        "params": {{"image": [48, 36], "map_resolution": 256, "triangles": 200,
+                   "light_size": 0.6}},
+        "reference": {{"samples": 16}},
+        "animation": {{"frames": {frames}, "light_center": {{"to": [-1.0, 8.0, 0.5]}}}}}}"#
+    );
+    let loaded =
+        shadowbench::scenario::Loaded::from_str(&text, std::path::Path::new("s.json")).unwrap();
+    let out = tempfile::tempdir().unwrap();
+    let runs = shadowbench::harness::run_scenario(
+        &loaded,
+        &shadowbench::harness::RunOptions {
+            out: out.path().to_path_buf(),
+            only: None,
+            backends: None,
+            cache_dir: None,
+            memory_limit: shadowbench::harness::limits::default_limit(),
+            machine: None,
+            shard: None,
+            max_cases: shadowbench::scenario::MAX_CASES,
+            run_timeout: None,
+            verbosity: shadowbench::harness::Verbosity::Quiet,
+            gpu_counters: Default::default(),
+            measure: Default::default(),
+            fresh: false,
+            retry_failed: false,
+        },
+    )
+    .unwrap()
+    .runs;
+    assert_eq!(runs.len(), 2 * backends.len());
+    let case = &loaded.cases(16).unwrap()[0];
+    let scene = loaded.build_scene(case.scene, case.light_size);
+    let mut flicker = std::collections::BTreeMap::new();
+    for r in &runs {
+        assert!(r.failure.is_none(), "{}: {:?}", r.algorithm, r.failure);
+        let a = r.animation.as_ref().unwrap_or_else(|| panic!("{r:?}"));
+        assert_eq!((a.frames, a.per_frame.len()), (frames, frames as usize));
+        assert_eq!(a.flicker_per_frame.len(), frames as usize - 1);
+        let floor = a.flicker_floor.expect("a floor");
+        assert!(floor > 0.0, "references of two seeds differ in their noise");
+        flicker.insert((r.algorithm.clone(), r.backend.clone()), a.flicker.unwrap());
+        // Each frame as rendered alone: the run's light (converted as the run takes it), its
+        // centre moved linearly from the scenario's to the target.
+        let info = shadowbench::algorithms::find(&r.algorithm).unwrap();
+        let mut sc = scene.clone();
+        sc.light = shadowbench::harness::light_for_run(&scene, info).unwrap();
+        let params = case.run_params(&sc);
+        let (from, to) = (sc.light.center(), glam::Vec3::new(-1.0, 8.0, 0.5));
+        let dir = out.path().join("images").join(r.case_id());
+        let backend = Backend::parse(&r.backend).unwrap();
+        for t in 0..frames {
+            let mut alone = sc.clone();
+            alone.light = sc
+                .light
+                .with_center(from + (to - from) * (t as f32 / (frames - 1) as f32));
+            let f = shadowbench::frame::Frame::new(alone, params.clone());
+            let v = shadowbench::algorithms::run(
+                &r.algorithm,
+                backend,
+                &f,
+                &shadowbench::algorithms::ExecContext::default(),
+            )
+            .unwrap()
+            .visibility;
+            let written =
+                VisibilityBuffer::read_npy(&dir.join(format!("frames/visibility_{t:03}.npy")))
+                    .unwrap();
+            let bits =
+                |b: &VisibilityBuffer| b.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert!(
+                bits(&written) == bits(&v),
+                "{} on {}: frame {t} differs from the frame rendered alone",
+                r.algorithm,
+                r.backend
+            );
+        }
+        let apng = image::codecs::png::PngDecoder::new(std::io::BufReader::new(
+            std::fs::File::open(dir.join("animation.png")).unwrap(),
+        ))
+        .unwrap();
+        use image::AnimationDecoder;
+        assert!(apng.is_apng().unwrap());
+        assert_eq!(apng.apng().unwrap().into_frames().count(), frames as usize);
+    }
+    for b in &backends {
+        let (h, s) = (
+            flicker[&("hard_shadow_map".to_string(), b.to_string())],
+            flicker[&("soft_shadow_volume".to_string(), b.to_string())],
+        );
+        assert!(
+            h > s,
+            "{b}: hard_shadow_map flicker {h} not above soft_shadow_volume's {s}"
+        );
+    }
+}
