@@ -251,9 +251,9 @@ mod tests {
     #[test]
     fn ssim_is_absent_without_a_surface_or_with_a_nan_pixel() {
         let v = edge(16, 8);
-        assert_eq!(ssim(&v, &v, &vec![false; 128]), None);
+        assert_eq!(ssim(&v, &v, &[false; 128]), None);
         let mut nan = v.clone();
         nan.data[3] = f32::NAN;
-        assert_eq!(ssim(&nan, &v, &vec![true; 128]), None);
+        assert_eq!(ssim(&nan, &v, &[true; 128]), None);
     }
 }
