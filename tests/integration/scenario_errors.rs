@@ -230,6 +230,39 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             mutate(r#""sweep": {"#, r#""sweep": { "cores": [0],"#),
             vec!["$.sweep.cores[0]", "got 0"],
         ),
+        (
+            "one-frame animation",
+            mutate(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 1, "light_center": {"to": [0, 8, 0]}}, "sweep": {"#,
+            ),
+            vec!["$.animation.frames", "got 1"],
+        ),
+        (
+            "animation of a path not built",
+            mutate(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 4, "light_size": {"to": 1}}, "sweep": {"#,
+            ),
+            vec!["$.animation", "light_size"],
+        ),
+        (
+            "animation without the reference",
+            mutate(
+                r#""sweep": {"#,
+                r#""reference": {"enabled": false},
+                   "animation": {"frames": 4, "light_center": {"to": [0, 8, 0]}}, "sweep": {"#,
+            ),
+            vec!["$.animation", "reference.enabled"],
+        ),
+        (
+            "FLIP viewing condition out of range",
+            mutate(
+                r#""sweep": {"#,
+                r#""reference": {"flip_pixels_per_degree": 0}, "sweep": {"#,
+            ),
+            vec!["$.reference.flip_pixels_per_degree", "got 0"],
+        ),
     ]
 }
 
