@@ -2,10 +2,12 @@
 //! the light's centre moves along a path, on every execution, with each frame's quality against
 //! that frame's reference and the temporal figures of the sequence.
 //!
-//! Built: a path for the light centre (linear, or a closed loop out and back, with an easing).
-//! Not built: paths for the light size, the camera or an object's transform; reuse of an
-//! execution's buffers between frames (each frame is one run of the algorithm, as a single
-//! frame is; wgpu keeps its device and pipelines for the process, as it does for any sweep).
+//! Built: paths (linear, or a closed loop out and back, with an easing) for the light centre,
+//! the light size and a generator's moving occluder's height above its ground (the objects
+//! `occluder_height` places). Not built: paths for the camera or an arbitrary object's
+//! transform; reuse of an execution's buffers between frames (each frame is one run of the
+//! algorithm, as a single frame is; wgpu keeps its device and pipelines for the process, as it
+//! does for any sweep).
 //!
 //! **Flicker** is the change between consecutive frames that the reference does not have:
 //! the mean over the pixels that see a surface and over frames t = 1…N−1 of
@@ -28,21 +30,43 @@ use crate::visibility::VisibilityBuffer;
 /// Frames an animation may have.
 pub const FRAMES: std::ops::RangeInclusive<u32> = 2..=1024;
 
-/// `$.animation` of a scenario.
+/// `$.animation` of a scenario: the frame count and at least one path.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Animation {
     /// Frames of the sequence, in [`FRAMES`].
     pub frames: u32,
-    /// How the light's centre moves, from the scenario's light centre.
-    pub light_center: CenterPath,
+    /// How the light's centre moves, from the scenario's light centre (world units).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub light_center: Option<Path3>,
+    /// How the light's size (radius, or a rectangle's half-width) changes, from the run's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub light_size: Option<Path1>,
+    /// How a generator's moving occluder's height above its ground changes (scene units, as
+    /// `occluder_height`), from `from` (absent: the case's `occluder_height`, else the
+    /// generator's own placement is kept at frame 0 and `from` must be given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluder_height: Option<Path1>,
 }
 
-/// A path of the light's centre from where the scenario puts it to `to` (world units).
+/// A path of a point to `to`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CenterPath {
+pub struct Path3 {
     pub to: Vec3,
+    #[serde(default)]
+    pub path: PathKind,
+    #[serde(default)]
+    pub easing: Easing,
+}
+
+/// A path of a number from `from` (where given) to `to`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Path1 {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub from: Option<f32>,
+    pub to: f32,
     #[serde(default)]
     pub path: PathKind,
     #[serde(default)]
@@ -71,36 +95,63 @@ pub enum Easing {
 }
 
 impl Animation {
-    /// Checks the frame count and the target; errors name `field` (`$.animation`).
+    /// Checks the frame count and the paths (one at least, a finite centre target); errors
+    /// name `field` (`$.animation`). Sizes and heights are checked by the scenario
+    /// (`crate::scenario::validate`) as its own light sizes and heights are.
     pub fn check(&self, field: &str) -> std::result::Result<(), InputError> {
         InputError::check_range(format!("{field}.frames"), self.frames, FRAMES)?;
-        if !self.light_center.to.is_finite() {
+        if self.light_center.is_none()
+            && self.light_size.is_none()
+            && self.occluder_height.is_none()
+        {
+            return Err(InputError::new(
+                field,
+                "an animation needs a path: light_center, light_size or occluder_height",
+            ));
+        }
+        if let Some(c) = self.light_center.as_ref().filter(|c| !c.to.is_finite()) {
             return Err(InputError::new(
                 format!("{field}.light_center.to"),
-                format!("must be 3 finite numbers, got {}", self.light_center.to),
+                format!("must be 3 finite numbers, got {}", c.to),
             ));
         }
         Ok(())
     }
 
-    /// Where along the path frame `t` is, 0 (start) to 1 (`to`).
-    pub fn progress(&self, t: u32) -> f32 {
-        let n = self.frames.max(2);
-        let u = match self.light_center.path {
-            PathKind::Linear => t as f32 / (n - 1) as f32,
-            PathKind::Loop => 1.0 - (2.0 * t as f32 / n as f32 - 1.0).abs(),
-        };
-        let u = u.clamp(0.0, 1.0);
-        match self.light_center.easing {
-            Easing::Linear => u,
-            Easing::EaseInOut => u * u * (3.0 - 2.0 * u),
-        }
-    }
-
-    /// `light` (the run's light at frame 0) at frame `t`: its centre moved along the path.
+    /// `light` (the run's light at frame 0) at frame `t`: its centre and size moved along
+    /// their paths.
     pub fn light_at(&self, light: Light, t: u32) -> Light {
-        let from = light.center();
-        light.with_center(from + (self.light_center.to - from) * self.progress(t))
+        let mut l = light;
+        if let Some(c) = &self.light_center {
+            let from = l.center();
+            l = l.with_center(from + (c.to - from) * progress(c.path, c.easing, self.frames, t));
+        }
+        if let Some(s) = &self.light_size {
+            l = l.with_size(s.at(light.size(), self.frames, t));
+        }
+        l
+    }
+}
+
+impl Path1 {
+    /// The value at frame `t` of `frames`, from `from` or else `start`.
+    pub fn at(&self, start: f32, frames: u32, t: u32) -> f32 {
+        let from = self.from.unwrap_or(start);
+        from + (self.to - from) * progress(self.path, self.easing, frames, t)
+    }
+}
+
+/// Where along a path of `frames` frames frame `t` is, 0 (start) to 1 (the target).
+pub fn progress(path: PathKind, easing: Easing, frames: u32, t: u32) -> f32 {
+    let n = frames.max(2);
+    let u = match path {
+        PathKind::Linear => t as f32 / (n - 1) as f32,
+        PathKind::Loop => 1.0 - (2.0 * t as f32 / n as f32 - 1.0).abs(),
+    };
+    let u = u.clamp(0.0, 1.0);
+    match easing {
+        Easing::Linear => u,
+        Easing::EaseInOut => u * u * (3.0 - 2.0 * u),
     }
 }
 
@@ -126,36 +177,49 @@ pub struct AnimationRecord {
     pub trend: BTreeMap<String, f64>,
 }
 
-/// Flicker of `v` against `r` over `mask` (module docs): the mean and each frame's value
-/// (frames 1…N−1). `None` and no values with fewer than two frames or no pixel in `mask`.
+/// Flicker of `v` against `r` (module docs) over the pixels that see a surface in both frames
+/// of a transition (`masks`, one per frame): the mean over pixels and transitions, and each
+/// transition's mean (frames 1…N−1; NaN for a transition without such pixels). `None` and no
+/// values with fewer than two frames or no such pixel at all.
 ///
 /// # Panics
-/// When the sequences differ in length or a frame differs in size from `mask`.
+/// When the sequences differ in length or a frame differs in size from its mask.
 pub fn flicker(
     v: &[VisibilityBuffer],
     r: &[VisibilityBuffer],
-    mask: &[bool],
+    masks: &[Vec<bool>],
 ) -> (Option<f64>, Vec<f64>) {
-    assert_eq!(v.len(), r.len(), "sequences differ in length");
-    let n = mask.iter().filter(|&&m| m).count();
-    if v.len() < 2 || n == 0 {
+    assert!(
+        v.len() == r.len() && v.len() == masks.len(),
+        "sequences differ in length"
+    );
+    if v.len() < 2 {
         return (None, vec![]);
     }
+    let (mut total, mut pixels) = (0.0f64, 0u64);
     let per_frame: Vec<f64> = (1..v.len())
         .map(|t| {
             let (v0, v1, r0, r1) = (&v[t - 1].data, &v[t].data, &r[t - 1].data, &r[t].data);
-            assert!(
-                v1.len() == mask.len() && r1.len() == mask.len(),
-                "frame size"
-            );
-            let sum: f64 = (0..mask.len())
-                .filter(|&i| mask[i])
-                .map(|i| ((v1[i] as f64 - v0[i] as f64) - (r1[i] as f64 - r0[i] as f64)).abs())
-                .sum();
-            sum / n as f64
+            let (m0, m1) = (&masks[t - 1], &masks[t]);
+            assert!(v1.len() == m1.len() && r1.len() == m1.len(), "frame size");
+            let (mut sum, mut n) = (0.0f64, 0u64);
+            for i in (0..m1.len()).filter(|&i| m0[i] && m1[i]) {
+                sum += ((v1[i] as f64 - v0[i] as f64) - (r1[i] as f64 - r0[i] as f64)).abs();
+                n += 1;
+            }
+            total += sum;
+            pixels += n;
+            if n > 0 {
+                sum / n as f64
+            } else {
+                f64::NAN
+            }
         })
         .collect();
-    let mean = per_frame.iter().sum::<f64>() / per_frame.len() as f64;
+    if pixels == 0 {
+        return (None, vec![]);
+    }
+    let mean = total / pixels as f64;
     (mean.is_finite().then_some(mean), per_frame)
 }
 
@@ -177,20 +241,20 @@ pub fn slope(values: &[f64]) -> Option<f64> {
     Some(sxy / sxx)
 }
 
-/// The record of a run's sequence `v` against the reference's `r` (each frame's metrics from
-/// `compare`), with the reference's own floor `floor`.
-pub fn record(
-    v: &[VisibilityBuffer],
-    r: &[VisibilityBuffer],
-    mask: &[bool],
-    floor: Option<f64>,
-    compare: impl Fn(&VisibilityBuffer, &VisibilityBuffer) -> ErrorMetrics,
-) -> AnimationRecord {
-    let per_frame: Vec<ErrorMetrics> = v.iter().zip(r).map(|(a, b)| compare(a, b)).collect();
-    let (flicker, flicker_per_frame) = flicker(v, r, mask);
+/// The record of a run's sequence `seq` (each frame's metrics against that frame's reference),
+/// with the reference's own floor `floor`.
+pub fn record(seq: &Rendered, floor: Option<f64>) -> AnimationRecord {
+    let (v, r) = (&seq.visibility, &seq.reference);
+    let per_frame: Vec<ErrorMetrics> = (0..v.len())
+        .map(|t| {
+            crate::metrics::compare_with_receivers(&v[t], &r[t], &seq.masks[t], &seq.receivers[t])
+        })
+        .collect();
+    let (flicker, flicker_per_frame) = flicker(v, r, &seq.masks);
     let flicker_max_frame = flicker_per_frame
         .iter()
         .enumerate()
+        .filter(|(_, f)| f.is_finite())
         .max_by(|a, b| a.1.total_cmp(b.1))
         .map(|(i, _)| i as u32 + 1);
     let mut trend = BTreeMap::new();
@@ -218,21 +282,31 @@ pub struct Rendered {
     pub reference: Vec<VisibilityBuffer>,
     pub shaded: Vec<image::RgbImage>,
     pub comparison: Vec<image::RgbImage>,
-    /// Pixels that see a surface (the same in every frame: only the light moves).
-    pub mask: Vec<bool>,
-    /// Pixels on receiver-only surfaces.
-    pub receivers: Vec<bool>,
+    /// Per frame, the pixels that see a surface (they change where an occluder moves).
+    pub masks: Vec<Vec<bool>>,
+    /// Per frame, the pixels on receiver-only surfaces.
+    pub receivers: Vec<Vec<bool>>,
 }
 
-/// Frame `t` of `anim` for a run in `scene` (its light as the run takes it) with `params`.
+/// The scenes of a sequence: `scene`, the run's (its light as the run takes it), with the
+/// objects of frame `t` from `objects(t)` where an occluder moves (`None`: the scene's own).
+pub struct Scenes<'a> {
+    pub scene: &'a crate::scene::Scene,
+    pub objects: &'a dyn Fn(u32) -> Option<Vec<crate::scene::Object>>,
+}
+
+/// Frame `t` of `anim` for a run in `scenes` with `params`.
 pub fn frame_at(
     anim: &Animation,
-    scene: &crate::scene::Scene,
+    scenes: &Scenes,
     params: &crate::frame::RunParams,
     t: u32,
 ) -> crate::frame::Frame {
-    let mut sc = scene.clone();
-    sc.light = anim.light_at(scene.light, t);
+    let mut sc = scenes.scene.clone();
+    if let Some(objects) = (scenes.objects)(t) {
+        sc.objects = objects;
+    }
+    sc.light = anim.light_at(sc.light, t);
     crate::frame::Frame::new(sc, params.clone())
 }
 
@@ -242,7 +316,7 @@ pub fn frame_at(
 /// or the run's budget (`ctx.deadline`) passing.
 pub fn render(
     anim: &Animation,
-    scene: &crate::scene::Scene,
+    scenes: &Scenes,
     params: &crate::frame::RunParams,
     algorithm: &str,
     backend: crate::backend::Backend,
@@ -254,11 +328,11 @@ pub fn render(
         reference: vec![],
         shaded: vec![],
         comparison: vec![],
-        mask: vec![],
+        masks: vec![],
         receivers: vec![],
     };
     for t in 0..anim.frames {
-        let frame = frame_at(anim, scene, params, t);
+        let frame = frame_at(anim, scenes, params, t);
         let r = super::within(|| refs.get_or_compute_until(&frame, ctx.deadline))
             .map_err(|_| {
                 Error::Other(format!("frame {t}: its reference passed the run's budget"))
@@ -268,16 +342,13 @@ pub fn render(
             .0
             .map_err(|e| Error::Other(format!("frame {t}: {e}")))?
             .visibility;
-        if t == 0 {
-            seq.mask = frame.gbuffer.mask();
-            seq.receivers = frame.receiver_only_mask();
-        }
+        let mask = frame.gbuffer.mask();
         let shaded = super::images::shaded_rgb(&v, &frame);
         let comparison = side_by_side(
             &[
                 &shaded,
                 &super::images::shaded_rgb(&r, &frame),
-                &crate::metrics::error_heatmap(&v, &r, &seq.mask),
+                &crate::metrics::error_heatmap(&v, &r, &mask),
             ],
             4,
         );
@@ -285,6 +356,8 @@ pub fn render(
         seq.comparison.push(comparison);
         seq.visibility.push(v);
         seq.reference.push(r);
+        seq.masks.push(mask);
+        seq.receivers.push(frame.receiver_only_mask());
     }
     Ok(seq)
 }
@@ -293,12 +366,12 @@ pub fn render(
 /// of the flicker measure).
 pub fn reference_sequence(
     anim: &Animation,
-    scene: &crate::scene::Scene,
+    scenes: &Scenes,
     params: &crate::frame::RunParams,
     refs: &mut super::ReferenceCache,
 ) -> Result<Vec<VisibilityBuffer>> {
     (0..anim.frames)
-        .map(|t| Ok(refs.get_or_compute(&frame_at(anim, scene, params, t))?.0))
+        .map(|t| Ok(refs.get_or_compute(&frame_at(anim, scenes, params, t))?.0))
         .collect()
 }
 
@@ -375,7 +448,7 @@ mod tests {
             buf(vec![1.0, 0.0, 0.0, 0.0]),
             buf(vec![0.0, 0.0, 0.0, 0.0]),
         ];
-        let mask = [true, true, true, false];
+        let mask = vec![vec![true, true, true, false]; 3];
         assert_eq!(flicker(&r, &r, &mask), (Some(0.0), vec![0.0, 0.0]));
         let still = [r[0].clone(), r[0].clone(), r[0].clone()];
         // Frame 1: ΔR = −1 at pixel 1 (of 3 pixels); frame 2: −1 at pixel 0.
@@ -387,11 +460,23 @@ mod tests {
             .iter()
             .map(|b| buf(b.data.iter().map(|v| v * 0.5).collect()))
             .collect();
-        let (m, _) = flicker(&offset, &offset, &mask);
-        assert_eq!(m, Some(0.0));
+        assert_eq!(flicker(&offset, &offset, &mask).0, Some(0.0));
+        // A pixel counts where it sees a surface in both frames of a transition: pixel 1,
+        // hidden in frame 1, counts in neither transition.
+        let masks = vec![
+            vec![true, true, true, false],
+            vec![true, false, true, false],
+            vec![true, true, true, false],
+        ];
+        let (mean, each) = flicker(&still, &r, &masks);
+        assert_eq!(each, vec![0.0, 1.0 / 2.0]);
+        assert!((mean.unwrap() - 1.0 / 4.0).abs() < 1e-12);
         // One frame or no pixel: nothing to measure.
-        assert_eq!(flicker(&r[..1], &r[..1], &mask), (None, vec![]));
-        assert_eq!(flicker(&r, &r, &[false; 4]), (None, vec![]));
+        assert_eq!(flicker(&r[..1], &r[..1], &mask[..1]), (None, vec![]));
+        assert_eq!(
+            flicker(&r, &r, &[vec![false; 4], vec![false; 4], vec![false; 4]]),
+            (None, vec![])
+        );
     }
 
     #[test]
@@ -402,19 +487,22 @@ mod tests {
         assert_eq!(slope(&[1.0, f64::NAN]), None);
     }
 
+    fn linear<T>(to: T) -> (T, PathKind, Easing) {
+        (to, PathKind::Linear, Easing::Linear)
+    }
+
     #[test]
     fn paths_start_at_the_light_and_end_or_turn_at_the_target() {
         let light = Light::Sphere {
             center: Vec3::new(1.0, 8.0, 0.5),
             radius: 0.6,
         };
+        let (to, path, easing) = linear(Vec3::new(-1.0, 8.0, 0.5));
         let mut a = Animation {
             frames: 5,
-            light_center: CenterPath {
-                to: Vec3::new(-1.0, 8.0, 0.5),
-                path: PathKind::Linear,
-                easing: Easing::Linear,
-            },
+            light_center: Some(Path3 { to, path, easing }),
+            light_size: None,
+            occluder_height: None,
         };
         let x = |a: &Animation, t| a.light_at(light, t).center().x;
         assert_eq!(
@@ -424,33 +512,53 @@ mod tests {
         assert_eq!(a.light_at(light, 3).size(), 0.6);
         // A loop of 4 frames: out to the target at frame 2 and back; frame 4 would be frame 0.
         a.frames = 4;
-        a.light_center.path = PathKind::Loop;
+        a.light_center.as_mut().unwrap().path = PathKind::Loop;
         assert_eq!([0, 1, 2, 3].map(|t| x(&a, t)), [1.0, 0.0, -1.0, 0.0]);
         // Easing keeps the ends and the middle, and starts slower.
         a.frames = 5;
-        a.light_center.path = PathKind::Linear;
-        a.light_center.easing = Easing::EaseInOut;
-        assert_eq!(x(&a, 0), 1.0);
-        assert_eq!(x(&a, 2), 0.0);
-        assert_eq!(x(&a, 4), -1.0);
+        let c = a.light_center.as_mut().unwrap();
+        (c.path, c.easing) = (PathKind::Linear, Easing::EaseInOut);
+        assert_eq!([0, 2, 4].map(|t| x(&a, t)), [1.0, 0.0, -1.0]);
         assert!(x(&a, 1) > 0.5);
+        // A growing light: its size from the run's (0.6) to 1.0, its centre kept.
+        let (to, path, easing) = linear(1.0);
+        a.light_center = None;
+        a.light_size = Some(Path1 {
+            from: None,
+            to,
+            path,
+            easing,
+        });
+        assert_eq!(a.light_at(light, 4).size(), 1.0);
+        assert!((a.light_at(light, 2).size() - 0.8).abs() < 1e-6);
+        assert_eq!(a.light_at(light, 2).center(), light.center());
+        // A height from its own start.
+        let h = Path1 {
+            from: Some(2.0),
+            to: 0.0,
+            path,
+            easing,
+        };
+        assert_eq!([0, 2, 4].map(|t| h.at(9.0, 5, t)), [2.0, 1.0, 0.0]);
     }
 
     #[test]
     fn bad_animations_are_refused_naming_the_field() {
+        let (to, path, easing) = linear(Vec3::ZERO);
         let mut a = Animation {
             frames: 1,
-            light_center: CenterPath {
-                to: Vec3::ZERO,
-                path: PathKind::Linear,
-                easing: Easing::Linear,
-            },
+            light_center: Some(Path3 { to, path, easing }),
+            light_size: None,
+            occluder_height: None,
         };
         let e = a.check("$.animation").unwrap_err().to_string();
         assert!(e.contains("$.animation.frames"), "{e}");
         a.frames = 8;
-        a.light_center.to = Vec3::new(f32::NAN, 0.0, 0.0);
+        a.light_center.as_mut().unwrap().to = Vec3::new(f32::NAN, 0.0, 0.0);
         let e = a.check("$.animation").unwrap_err().to_string();
         assert!(e.contains("$.animation.light_center.to"), "{e}");
+        a.light_center = None;
+        let e = a.check("$.animation").unwrap_err().to_string();
+        assert!(e.contains("needs a path"), "{e}");
     }
 }

@@ -914,9 +914,23 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             (Some(anim), Some(_), Some(floor_refs))
                 if p.algorithm != crate::algorithms::reference::ID && reference.is_some() =>
             {
+                // The occluder's height of each frame, from the path's start or the case's.
+                let objects = |t: u32| {
+                    let h = anim.occluder_height.as_ref()?;
+                    let start = h.from.or(case.scene.occluder_height)?;
+                    let point = crate::scenario::ScenePoint {
+                        occluder_height: Some(h.at(start, anim.frames, t)),
+                        ..case.scene
+                    };
+                    Some(loaded.build_scene(point, case.light_size).objects)
+                };
                 animate(
                     anim,
-                    frame,
+                    &animation::Scenes {
+                        scene: &frame.scene,
+                        objects: &objects,
+                    },
+                    &frame.params,
                     (&p.algorithm, p.backend),
                     &ctx,
                     (&mut refs, floor_refs),
@@ -948,28 +962,21 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     writer.finish()
 }
 
-/// The animated sequence of a run ([`animation`]) from `frame`: its temporal figures into
+/// The animated sequence of a run ([`animation`]) in `scenes` at `params`: its temporal figures into
 /// `record.animation` (with the flicker floor `floor`, computed here once per case and light
 /// kind from `refs.1`, the reference of another seed), the sequence returned for its images.
 /// A sequence that fails leaves a warning and no figures.
 fn animate(
     anim: &animation::Animation,
-    frame: &Frame,
+    scenes: &animation::Scenes,
+    params: &crate::frame::RunParams,
     (algorithm, backend): (&str, Backend),
     ctx: &ExecContext,
     refs: (&mut ReferenceCache, &mut ReferenceCache),
     floor: &mut Option<f64>,
     record: &mut RunRecord,
 ) -> Option<animation::Rendered> {
-    let seq = match animation::render(
-        anim,
-        &frame.scene,
-        &frame.params,
-        algorithm,
-        backend,
-        ctx,
-        refs.0,
-    ) {
+    let seq = match animation::render(anim, scenes, params, algorithm, backend, ctx, refs.0) {
         Ok(seq) => seq,
         Err(e) => {
             record.warnings.push(format!("animation not rendered: {e}"));
@@ -977,20 +984,14 @@ fn animate(
         }
     };
     if floor.is_none() {
-        match animation::reference_sequence(anim, &frame.scene, &frame.params, refs.1) {
-            Ok(other) => *floor = animation::flicker(&other, &seq.reference, &seq.mask).0,
+        match animation::reference_sequence(anim, scenes, params, refs.1) {
+            Ok(other) => *floor = animation::flicker(&other, &seq.reference, &seq.masks).0,
             Err(e) => record.warnings.push(format!(
                 "animation: no flicker floor (reference of another seed: {e})"
             )),
         }
     }
-    record.animation = Some(animation::record(
-        &seq.visibility,
-        &seq.reference,
-        &seq.mask,
-        *floor,
-        |v, r| metrics::compare_with_receivers(v, r, &seq.mask, &seq.receivers),
-    ));
+    record.animation = Some(animation::record(&seq, *floor));
     Some(seq)
 }
 

@@ -276,6 +276,25 @@ pub fn validate(s: &Scenario) -> Check {
     }
     if let Some(a) = &s.animation {
         a.check("$.animation")?;
+        if let Some(l) = &a.light_size {
+            optional("$.animation.light_size.from", l.from, light_size)?;
+            light_size("$.animation.light_size.to", l.to)?;
+        }
+        if let Some(h) = &a.occluder_height {
+            occluder_axis_scene(
+                "$.animation.occluder_height",
+                s.scene.generator.as_deref(),
+                OccluderAxis::Height,
+            )?;
+            optional("$.animation.occluder_height.from", h.from, occluder_height)?;
+            occluder_height("$.animation.occluder_height.to", h.to)?;
+            if h.from.is_none() && s.params.occluder_height.is_none() {
+                return fail(
+                    "$.animation.occluder_height",
+                    "needs a start: `from`, or params.occluder_height".into(),
+                );
+            }
+        }
         if !s.reference.enabled {
             return fail(
                 "$.animation",
