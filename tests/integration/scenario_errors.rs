@@ -242,9 +242,9 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             "animation of a path not built",
             mutate(
                 r#""sweep": {"#,
-                r#""animation": {"frames": 4, "light_size": {"to": 1}}, "sweep": {"#,
+                r#""animation": {"frames": 4, "camera": {"to": 1}}, "sweep": {"#,
             ),
-            vec!["$.animation", "light_size"],
+            vec!["$.animation", "camera"],
         ),
         (
             "animation without the reference",
@@ -254,6 +254,28 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
                    "animation": {"frames": 4, "light_center": {"to": [0, 8, 0]}}, "sweep": {"#,
             ),
             vec!["$.animation", "reference.enabled"],
+        ),
+        (
+            "occluder animation without a start",
+            mutate(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 4, "occluder_height": {"to": 0.1}}, "sweep": {"#,
+            ),
+            vec!["$.animation.occluder_height", "needs a start"],
+        ),
+        (
+            "occluder animation on a scene without a moving occluder",
+            mutate(
+                r#""generator": "sphere-on-plane""#,
+                r#""generator": "street""#,
+            )
+            .replacen(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 4, "occluder_height": {"from": 1, "to": 0.1}},
+                   "sweep": {"#,
+                1,
+            ),
+            vec!["$.animation.occluder_height", "moving occluder"],
         ),
         (
             "FLIP viewing condition out of range",
