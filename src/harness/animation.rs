@@ -289,25 +289,22 @@ pub struct Rendered {
 }
 
 /// The scenes of a sequence: `scene`, the run's (its light as the run takes it), with the
-/// objects of frame `t` from `objects(t)` where an occluder moves (`None`: the scene's own).
+/// objects of frame `t` from `objects(t)` where an occluder moves (`None`: the scene's own),
+/// rendered at `params`.
 pub struct Scenes<'a> {
     pub scene: &'a crate::scene::Scene,
     pub objects: &'a dyn Fn(u32) -> Option<Vec<crate::scene::Object>>,
+    pub params: &'a crate::frame::RunParams,
 }
 
-/// Frame `t` of `anim` for a run in `scenes` with `params`.
-pub fn frame_at(
-    anim: &Animation,
-    scenes: &Scenes,
-    params: &crate::frame::RunParams,
-    t: u32,
-) -> crate::frame::Frame {
+/// Frame `t` of `anim` for a run in `scenes`.
+pub fn frame_at(anim: &Animation, scenes: &Scenes, t: u32) -> crate::frame::Frame {
     let mut sc = scenes.scene.clone();
     if let Some(objects) = (scenes.objects)(t) {
         sc.objects = objects;
     }
     sc.light = anim.light_at(sc.light, t);
-    crate::frame::Frame::new(sc, params.clone())
+    crate::frame::Frame::new(sc, scenes.params.clone())
 }
 
 /// Renders the sequence of `anim` for `algorithm` on `backend` (each frame one run of the
@@ -317,7 +314,6 @@ pub fn frame_at(
 pub fn render(
     anim: &Animation,
     scenes: &Scenes,
-    params: &crate::frame::RunParams,
     algorithm: &str,
     backend: crate::backend::Backend,
     ctx: &crate::algorithms::ExecContext,
@@ -332,7 +328,7 @@ pub fn render(
         receivers: vec![],
     };
     for t in 0..anim.frames {
-        let frame = frame_at(anim, scenes, params, t);
+        let frame = frame_at(anim, scenes, t);
         let r = super::within(|| refs.get_or_compute_until(&frame, ctx.deadline))
             .map_err(|_| {
                 Error::Other(format!("frame {t}: its reference passed the run's budget"))
@@ -367,11 +363,10 @@ pub fn render(
 pub fn reference_sequence(
     anim: &Animation,
     scenes: &Scenes,
-    params: &crate::frame::RunParams,
     refs: &mut super::ReferenceCache,
 ) -> Result<Vec<VisibilityBuffer>> {
     (0..anim.frames)
-        .map(|t| Ok(refs.get_or_compute(&frame_at(anim, scenes, params, t))?.0))
+        .map(|t| Ok(refs.get_or_compute(&frame_at(anim, scenes, t))?.0))
         .collect()
 }
 

@@ -929,8 +929,8 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
                     &animation::Scenes {
                         scene: &frame.scene,
                         objects: &objects,
+                        params: &frame.params,
                     },
-                    &frame.params,
                     (&p.algorithm, p.backend),
                     &ctx,
                     (&mut refs, floor_refs),
@@ -962,21 +962,20 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     writer.finish()
 }
 
-/// The animated sequence of a run ([`animation`]) in `scenes` at `params`: its temporal figures into
+/// The animated sequence of a run ([`animation`]) in `scenes`: its temporal figures into
 /// `record.animation` (with the flicker floor `floor`, computed here once per case and light
 /// kind from `refs.1`, the reference of another seed), the sequence returned for its images.
 /// A sequence that fails leaves a warning and no figures.
 fn animate(
     anim: &animation::Animation,
     scenes: &animation::Scenes,
-    params: &crate::frame::RunParams,
     (algorithm, backend): (&str, Backend),
     ctx: &ExecContext,
     refs: (&mut ReferenceCache, &mut ReferenceCache),
     floor: &mut Option<f64>,
     record: &mut RunRecord,
 ) -> Option<animation::Rendered> {
-    let seq = match animation::render(anim, scenes, params, algorithm, backend, ctx, refs.0) {
+    let seq = match animation::render(anim, scenes, algorithm, backend, ctx, refs.0) {
         Ok(seq) => seq,
         Err(e) => {
             record.warnings.push(format!("animation not rendered: {e}"));
@@ -984,7 +983,7 @@ fn animate(
         }
     };
     if floor.is_none() {
-        match animation::reference_sequence(anim, scenes, params, refs.1) {
+        match animation::reference_sequence(anim, scenes, refs.1) {
             Ok(other) => *floor = animation::flicker(&other, &seq.reference, &seq.masks).0,
             Err(e) => record.warnings.push(format!(
                 "animation: no flicker floor (reference of another seed: {e})"
