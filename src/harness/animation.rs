@@ -247,7 +247,13 @@ pub fn record(seq: &Rendered, floor: Option<f64>) -> AnimationRecord {
     let (v, r) = (&seq.visibility, &seq.reference);
     let per_frame: Vec<ErrorMetrics> = (0..v.len())
         .map(|t| {
-            crate::metrics::compare_with_receivers(&v[t], &r[t], &seq.masks[t], &seq.receivers[t])
+            crate::metrics::compare_with_receivers(
+                &v[t],
+                &r[t],
+                &seq.masks[t],
+                &seq.receivers[t],
+                &seq.grazing[t],
+            )
         })
         .collect();
     let (flicker, flicker_per_frame) = flicker(v, r, &seq.masks);
@@ -286,6 +292,8 @@ pub struct Rendered {
     pub masks: Vec<Vec<bool>>,
     /// Per frame, the pixels on receiver-only surfaces.
     pub receivers: Vec<Vec<bool>>,
+    /// Per frame, the grazing pixels (`Frame::grazing_mask`).
+    pub grazing: Vec<Vec<bool>>,
 }
 
 /// The scenes of a sequence: `scene`, the run's (its light as the run takes it), with the
@@ -326,6 +334,7 @@ pub fn render(
         comparison: vec![],
         masks: vec![],
         receivers: vec![],
+        grazing: vec![],
     };
     for t in 0..anim.frames {
         let frame = frame_at(anim, scenes, t);
@@ -354,6 +363,7 @@ pub fn render(
         seq.reference.push(r);
         seq.masks.push(mask);
         seq.receivers.push(frame.receiver_only_mask());
+        seq.grazing.push(frame.grazing_mask());
     }
     Ok(seq)
 }

@@ -224,6 +224,7 @@ pub fn run_one(
                     r,
                     &frame.gbuffer.mask(),
                     &frame.receiver_only_mask(),
+                    &frame.grazing_mask(),
                 );
                 let mut e = e;
                 let mask = frame.gbuffer.mask();
@@ -233,6 +234,7 @@ pub fn run_one(
                 );
                 e.ssim = metrics::perceptual::ssim(&out.visibility, r, &mask);
                 record.warnings.extend(e.warnings());
+                record.notes.extend(metrics::grazing_note(&e, algorithm));
                 record.error = Some(e);
                 if let Ok(info) = algorithms::find(algorithm) {
                     record.notes.extend(limit_notes(frame, info, r));
