@@ -1016,6 +1016,24 @@ pub const COUNTERS: &[Counter] = &[
 /// time is named as the record's (`phase.<phase>.wall_ms` is a `wall_ms`).
 pub const FIGURES: &[Counter] = &[
     c(
+        "animation.flicker",
+        "visibility",
+        All,
+        Deterministic,
+        Lower,
+        "mean change between consecutive frames of an animated sweep that the reference does \
+         not have: |(V_t - V_t-1) - (R_t - R_t-1)| over pixels and frames",
+    ),
+    c(
+        "error.flip",
+        "FLIP",
+        All,
+        Deterministic,
+        Lower,
+        "mean FLIP error of the shaded view against the reference's (Andersson et al. 2020; \
+         0 for identical images), at reference.flip_pixels_per_degree",
+    ),
+    c(
         "error.frac_over_0_1",
         "fraction",
         All,
@@ -1024,12 +1042,29 @@ pub const FIGURES: &[Counter] = &[
         "pixels whose visibility differs from the reference by more than 0.1",
     ),
     c(
+        "error.lit_error",
+        "fraction",
+        All,
+        Deterministic,
+        Lower,
+        "share of the pixels lit in the reference that the run shows shadowed",
+    ),
+    c(
         "error.mae",
         "visibility",
         All,
         Deterministic,
         Lower,
         "mean absolute visibility error against the reference",
+    ),
+    c(
+        "error.mae_penumbra",
+        "visibility",
+        All,
+        Deterministic,
+        Lower,
+        "mean absolute error over the pixels in penumbra in the reference (strictly between \
+         umbra and lit)",
     ),
     c(
         "error.mae_shadow",
@@ -1054,6 +1089,23 @@ pub const FIGURES: &[Counter] = &[
         Deterministic,
         Lower,
         "root-mean-square visibility error",
+    ),
+    c(
+        "error.ssim",
+        "SSIM",
+        All,
+        Deterministic,
+        Higher,
+        "SSIM of the visibility buffer against the reference's (Wang et al. 2004; 1 for \
+         identical buffers), 8 x 8 windows",
+    ),
+    c(
+        "error.umbra_error",
+        "fraction",
+        All,
+        Deterministic,
+        Lower,
+        "share of the pixels in the reference's umbra that the run shows lit (a light leak)",
     ),
     c(
         "gpu_ms",

@@ -764,6 +764,7 @@ fn render(a: RenderArgs) -> Result<()> {
         out.as_ref().and_then(|o| o.rgb.as_ref()),
         reference.as_ref(),
         &frame,
+        ctx.flip_pixels_per_degree,
     )?;
     out!("{}", harness::summary_table(std::slice::from_ref(&record)));
     match record.failure {

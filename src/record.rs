@@ -106,6 +106,9 @@ pub struct RunRecord {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measured: Option<crate::harness::measure::Measured>,
     pub error: Option<ErrorMetrics>,
+    /// The temporal figures of an animated sweep's sequence (`crate::harness::animation`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation: Option<crate::harness::animation::AnimationRecord>,
     /// Where it ran: machine preset, adapter, host, sample counts.
     #[serde(default)]
     pub execution: BTreeMap<String, serde_json::Value>,
@@ -165,6 +168,7 @@ impl RunRecord {
             cold_gpu_ms: None,
             measured: None,
             error: None,
+            animation: None,
             execution: [
                 (
                     "host_threads".to_string(),

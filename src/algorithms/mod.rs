@@ -418,6 +418,9 @@ pub struct ExecContext {
     /// How `harness::run_one` measures a run (warm-up, repeats, budget); one timed iteration by
     /// default.
     pub measure: crate::harness::measure::Measure,
+    /// ꟻLIP's viewing condition for the `flip` metric, in pixels per degree of visual angle
+    /// (`reference.flip_pixels_per_degree`; [`crate::metrics::perceptual`]).
+    pub flip_pixels_per_degree: f32,
 }
 
 impl Default for ExecContext {
@@ -430,6 +433,7 @@ impl Default for ExecContext {
             deadline: Deadline::default(),
             gpu_counters: crate::gpu::GpuCounters::On,
             measure: crate::harness::measure::Measure::ONCE,
+            flip_pixels_per_degree: crate::metrics::perceptual::DEFAULT_PIXELS_PER_DEGREE,
         }
     }
 }

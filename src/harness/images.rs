@@ -74,8 +74,16 @@ pub fn shade(visibility: f32, n_dot_l: f32) -> [f32; 3] {
 }
 
 /// The shaded view of `v` in `frame`: each surface pixel lit by [`shade`] (gamma 2.2 for
-/// display), background in [`BACKGROUND`].
+/// display), background in [`BACKGROUND`]; written by [`write_shaded`].
 pub fn write_shaded(v: &VisibilityBuffer, frame: &Frame, path: &Path) -> Result<()> {
+    shaded_rgb(v, frame)
+        .save(path)
+        .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+}
+
+/// The shaded view of `v` in `frame` as an 8-bit sRGB image of the frame's size (what
+/// [`write_shaded`] writes and ꟻLIP compares, [`crate::metrics::perceptual`]).
+pub fn shaded_rgb(v: &VisibilityBuffer, frame: &Frame) -> image::RgbImage {
     let g = &frame.gbuffer;
     let centre = frame.scene.light.center();
     let mut img = image::RgbImage::new(v.width, v.height);
@@ -88,8 +96,7 @@ pub fn write_shaded(v: &VisibilityBuffer, frame: &Frame, path: &Path) -> Result<
             image::Rgb(BACKGROUND)
         };
     }
-    img.save(path)
-        .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+    img
 }
 
 /// What differs between two visibility buffers over the pixels that see a surface.

@@ -1,5 +1,6 @@
 //! The sweep runner: scenario → cases → frames → runs → results, written as they complete.
 
+pub mod animation;
 pub mod cache;
 pub mod fit;
 pub mod images;
@@ -225,6 +226,13 @@ pub fn run_one(
                     &frame.receiver_only_mask(),
                     &frame.grazing_mask(),
                 );
+                let mut e = e;
+                let mask = frame.gbuffer.mask();
+                e.flip = metrics::perceptual::mean_over(
+                    &flip_map(&out.visibility, r, frame, ctx.flip_pixels_per_degree),
+                    &mask,
+                );
+                e.ssim = metrics::perceptual::ssim(&out.visibility, r, &mask);
                 record.warnings.extend(e.warnings());
                 record.notes.extend(metrics::grazing_note(&e, algorithm));
                 record.error = Some(e);
@@ -239,6 +247,21 @@ pub fn run_one(
             (record, None)
         }
     }
+}
+
+/// The ꟻLIP error map of the shaded view of `v` against the reference's shaded view `r` in
+/// `frame` ([`images::shaded_rgb`], [`metrics::perceptual::flip_map`]).
+pub fn flip_map(
+    v: &VisibilityBuffer,
+    r: &VisibilityBuffer,
+    frame: &Frame,
+    pixels_per_degree: f32,
+) -> Vec<f32> {
+    metrics::perceptual::flip_map(
+        &images::shaded_rgb(r, frame),
+        &images::shaded_rgb(v, frame),
+        pixels_per_degree,
+    )
 }
 
 /// One iteration of a run: its output, and its host milliseconds without GPU setup.
@@ -714,12 +737,12 @@ fn without_repeats(
 
 /// The reference cache of a sweep: in `--cache-dir`, or `reference-cache` under `--out`; in
 /// memory only when that folder cannot be used (the cache only saves time).
-fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions) -> ReferenceCache {
+fn reference_cache(s: &crate::scenario::Scenario, opts: &RunOptions, seed: u64) -> ReferenceCache {
     let cache_dir = opts
         .cache_dir
         .clone()
         .unwrap_or_else(|| opts.out.join("reference-cache"));
-    let mut refs = ReferenceCache::new(Some(cache_dir.clone()), s.reference.samples, s.seed);
+    let mut refs = ReferenceCache::new(Some(cache_dir.clone()), s.reference.samples, seed);
     if s.reference.enabled {
         if let Err(e) = cache::describe(&cache_dir) {
             crate::errln!("warning: reference cache: {e}; going on without the cache folder");
@@ -736,7 +759,14 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
     let cases = loaded.cases(opts.max_cases)?;
     let (plan, repeats) = plan_runs(loaded, opts, &cases)?;
     std::fs::create_dir_all(&opts.out).map_err(|e| Error::io(&opts.out, e))?;
-    let mut refs = reference_cache(s, opts);
+    let mut refs = reference_cache(s, opts, s.seed);
+    // The reference of another seed, for the floor of an animation's flicker; and that floor
+    // per case and light kind, computed once.
+    let mut floor_refs = s
+        .animation
+        .as_ref()
+        .map(|_| reference_cache(s, opts, s.seed.wrapping_add(1)));
+    let mut floors: BTreeMap<(usize, LightKind), Option<f64>> = BTreeMap::new();
     let mut ctx = ExecContext {
         reference_samples: s.reference.samples,
         seed: s.seed,
@@ -748,6 +778,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         deadline: Deadline::default(),
         gpu_counters: opts.gpu_counters,
         measure: opts.measure.apply(s.measure.unwrap_or_default())?,
+        flip_pixels_per_degree: s.reference.flip_pixels_per_degree(),
     };
     let timeout = opts
         .run_timeout
@@ -886,12 +917,43 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         };
         ctx.deadline = deadline;
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
+        let sequence = match (&s.animation, &out, &mut floor_refs) {
+            (Some(anim), Some(_), Some(floor_refs))
+                if p.algorithm != crate::algorithms::reference::ID && reference.is_some() =>
+            {
+                // The occluder's height of each frame, from the path's start or the case's.
+                let objects = |t: u32| {
+                    let h = anim.occluder_height.as_ref()?;
+                    let start = h.from.or(case.scene.occluder_height)?;
+                    let point = crate::scenario::ScenePoint {
+                        occluder_height: Some(h.at(start, anim.frames, t)),
+                        ..case.scene
+                    };
+                    Some(loaded.build_scene(point, case.light_size).objects)
+                };
+                animate(
+                    anim,
+                    &animation::Scenes {
+                        scene: &frame.scene,
+                        objects: &objects,
+                        params: &frame.params,
+                    },
+                    (&p.algorithm, p.backend),
+                    &ctx,
+                    (&mut refs, floor_refs),
+                    floors.entry((p.case, kind)).or_default(),
+                    &mut record,
+                )
+            }
+            _ => None,
+        };
         loaded.notes.annotate(&mut record);
         record.warnings.extend(cache_warnings);
         if kind != scene.light.kind() {
             record.notes.push(light_converted(scene.light.kind(), kind));
         }
         progress.finished(&record);
+        let images = opts.out.join("images").join(record.case_id());
         writer.push(
             record,
             out.as_ref().map(|o| &o.visibility),
@@ -899,9 +961,44 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             reference.as_ref(),
             Some(frame),
         )?;
+        if let Some(seq) = sequence {
+            animation::write(&images, &seq)?;
+        }
     }
     bar.finish_and_clear();
     writer.finish()
+}
+
+/// The animated sequence of a run ([`animation`]) in `scenes`: its temporal figures into
+/// `record.animation` (with the flicker floor `floor`, computed here once per case and light
+/// kind from `refs.1`, the reference of another seed), the sequence returned for its images.
+/// A sequence that fails leaves a warning and no figures.
+fn animate(
+    anim: &animation::Animation,
+    scenes: &animation::Scenes,
+    (algorithm, backend): (&str, Backend),
+    ctx: &ExecContext,
+    refs: (&mut ReferenceCache, &mut ReferenceCache),
+    floor: &mut Option<f64>,
+    record: &mut RunRecord,
+) -> Option<animation::Rendered> {
+    let seq = match animation::render(anim, scenes, algorithm, backend, ctx, refs.0) {
+        Ok(seq) => seq,
+        Err(e) => {
+            record.warnings.push(format!("animation not rendered: {e}"));
+            return None;
+        }
+    };
+    if floor.is_none() {
+        match animation::reference_sequence(anim, scenes, refs.1) {
+            Ok(other) => *floor = animation::flicker(&other, &seq.reference, &seq.masks).0,
+            Err(e) => record.warnings.push(format!(
+                "animation: no flicker floor (reference of another seed: {e})"
+            )),
+        }
+    }
+    record.animation = Some(animation::record(&seq, *floor));
+    Some(seq)
 }
 
 /// A digest of what a sweep's results depend on besides the build: the scenario as run, the
@@ -1226,7 +1323,8 @@ pub fn summary_table(records: &[RunRecord]) -> String {
 /// pixel sees no surface), visibility.npy, mask.npy (1 where the pixel sees a surface),
 /// shaded.png (visibility × a Lambertian term, [`images::write_shaded`]), run.json,
 /// visibility_rgb.png (the light received per channel) under a textured light and, with a
-/// reference, reference.png, reference_shaded.png and error.png. Those of them an earlier
+/// reference, reference.png, reference_shaded.png, error.png and flip.png (the ꟻLIP error map
+/// of the shaded views at `pixels_per_degree`, [`flip_map`]). Those of them an earlier
 /// frame left in `dir` and this one does not write are removed, so the folder holds one
 /// frame's files.
 pub fn write_frame_files(
@@ -1236,6 +1334,7 @@ pub fn write_frame_files(
     rgb: Option<&RgbBuffer>,
     reference: Option<&VisibilityBuffer>,
     frame: &Frame,
+    pixels_per_degree: f32,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     let mut written = Vec::new();
@@ -1255,6 +1354,13 @@ pub fn write_frame_files(
             images::write_masked_png(r, &mask, &dir.join("reference.png"))?;
             images::write_shaded(r, frame, &dir.join("reference_shaded.png"))?;
             metrics::write_error_heatmap(v, r, &mask, &dir.join("error.png"))?;
+            metrics::perceptual::write_flip_map(
+                &flip_map(v, r, frame, pixels_per_degree),
+                &mask,
+                v.width,
+                v.height,
+                &dir.join("flip.png"),
+            )?;
             written.extend(&FRAME_FILES[5..]);
         }
     }
@@ -1270,7 +1376,7 @@ pub fn write_frame_files(
 }
 
 /// The image files [`write_frame_files`] writes besides run.json, in the order it writes them.
-const FRAME_FILES: [&str; 8] = [
+const FRAME_FILES: [&str; 9] = [
     "visibility_rgb.png",
     "visibility.png",
     "visibility.npy",
@@ -1279,6 +1385,7 @@ const FRAME_FILES: [&str; 8] = [
     "reference.png",
     "reference_shaded.png",
     "error.png",
+    "flip.png",
 ];
 
 #[cfg(test)]

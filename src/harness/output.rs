@@ -17,6 +17,8 @@ pub struct ResultsWriter {
     /// this one's plan: written after the new runs until their turn comes ([`Self::take_kept`]),
     /// so a second interruption loses none of them.
     kept: Vec<RunRecord>,
+    /// ꟻLIP's viewing condition for each run's `flip.png` (`reference.flip_pixels_per_degree`).
+    pixels_per_degree: f32,
 }
 
 /// What a sweep's results were made of: the scenario (a digest of it as run, with the resolved
@@ -115,6 +117,7 @@ impl ResultsWriter {
                 config: serde_json::to_value(&loaded.scenario).ok(),
             },
             kept,
+            pixels_per_degree: loaded.scenario.reference.flip_pixels_per_degree(),
         }
     }
 
@@ -129,7 +132,15 @@ impl ResultsWriter {
     ) -> Result<()> {
         if let Some(frame) = frame {
             let dir = self.out.join("images").join(record.case_id());
-            super::write_frame_files(&dir, &record, visibility, rgb, reference, frame)?;
+            super::write_frame_files(
+                &dir,
+                &record,
+                visibility,
+                rgb,
+                reference,
+                frame,
+                self.pixels_per_degree,
+            )?;
         }
         self.file.runs.push(record);
         write_results(&self.out, &self.current())
@@ -317,7 +328,7 @@ pub fn csv(records: &[RunRecord]) -> String {
         s.push_str(c);
     }
     s.push_str(
-        ",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,grazing_pixels,mae_shadow_non_grazing,images,warnings,measure_warnings,failure\n",
+        ",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,grazing_pixels,mae_shadow_non_grazing,mae_penumbra,umbra_error,lit_error,flip,ssim,images,warnings,measure_warnings,failure\n",
     );
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for r in records {
@@ -366,6 +377,11 @@ pub fn csv(records: &[RunRecord]) -> String {
             opt(e.and_then(|e| e.mae_shadow_receivers)),
             e.map(|e| e.grazing_pixels.to_string()).unwrap_or_default(),
             opt(e.and_then(|e| e.mae_shadow_non_grazing)),
+            opt(e.and_then(|e| e.mae_penumbra)),
+            opt(e.and_then(|e| e.umbra_error)),
+            opt(e.and_then(|e| e.lit_error)),
+            opt(e.and_then(|e| e.flip)),
+            opt(e.and_then(|e| e.ssim)),
             if r.failure.is_none() {
                 format!("images/{}", field(&r.case_id()))
             } else {

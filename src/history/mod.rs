@@ -109,6 +109,9 @@ mod tests {
             Direction::Higher
         );
         assert_eq!(direction("error.mae_shadow"), Direction::Lower);
+        assert_eq!(direction("error.mae_penumbra"), Direction::Lower);
+        assert_eq!(direction("error.flip"), Direction::Lower);
+        assert_eq!(direction("error.ssim"), Direction::Higher);
         assert_eq!(kind("model_ms"), Kind::Modelled);
         assert_eq!(kind("phase.raster.model_ms"), Kind::Modelled);
         assert_eq!(kind("wall_ms"), Kind::Measured);

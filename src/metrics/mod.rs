@@ -1,4 +1,8 @@
-//! Quality of a visibility buffer against the ground-truth reference.
+//! Quality of a visibility buffer against the ground-truth reference: per-pixel errors
+//! ([`compare`]), the error inside each region of the reference's shadow (umbra, penumbra, lit),
+//! and perceptual metrics ([`perceptual`]: ꟻLIP of the shaded views, SSIM of the buffers).
+
+pub mod perceptual;
 
 use std::path::Path;
 
@@ -12,13 +16,18 @@ use crate::visibility::VisibilityBuffer;
 /// One blocked sample out of 1024 (0.999) already counts, as the papers' penumbra does.
 pub const SHADOW_THRESHOLD: f32 = 1.0 - 0.5 / 1024.0;
 
+/// A pixel counts as in umbra (no light) when its visibility is below this: less than half of
+/// one sample out of 1024 reaches it. Between this and [`SHADOW_THRESHOLD`] a pixel is in
+/// penumbra; at or above [`SHADOW_THRESHOLD`] it is lit.
+pub const UMBRA_THRESHOLD: f32 = 0.5 / 1024.0;
+
 /// Error of a result against the reference, over the pixels that see a surface.
 ///
 /// A metric over zero pixels (no pixel sees a surface; for `mae_shadow`, no pixel is in
 /// shadow in either image) is absent (`None`, left out of `results.json`), never 0; so is one
 /// that is not finite. [`ErrorMetrics::warnings`] says which are absent and why.
 #[skip_serializing_none]
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct ErrorMetrics {
     pub mae: Option<f64>,
     pub rmse: Option<f64>,
@@ -41,17 +50,50 @@ pub struct ErrorMetrics {
     pub grazing_pixels: u64,
     /// `mae_shadow` over the pixels that are not grazing. Absent without such pixels in shadow.
     pub mae_shadow_non_grazing: Option<f64>,
+    /// Mean absolute error over pixels where the reference is in penumbra (visibility strictly
+    /// between [`UMBRA_THRESHOLD`] and [`SHADOW_THRESHOLD`]): the region the papers compare
+    /// (002 §5.2, 003 §5). Absent when the reference has no penumbra.
+    pub mae_penumbra: Option<f64>,
+    /// Pixels of `mae_penumbra` (reference in penumbra).
+    #[serde(default)]
+    pub penumbra_pixels: u64,
+    /// Share (0–1) of reference-umbra pixels the result shows lit, at least in part (visibility
+    /// at or above [`UMBRA_THRESHOLD`]): light leaking into the umbra. Absent when the reference
+    /// has no umbra.
+    pub umbra_error: Option<f64>,
+    /// Pixels in the reference's umbra.
+    #[serde(default)]
+    pub umbra_pixels: u64,
+    /// Share (0–1) of reference-lit pixels the result shows shadowed (visibility below
+    /// [`SHADOW_THRESHOLD`]): shadow where there is none, such as an overestimated umbra or
+    /// penumbra spreading into the light. Absent when no reference pixel is lit.
+    pub lit_error: Option<f64>,
+    /// Pixels lit in the reference.
+    #[serde(default)]
+    pub lit_pixels: u64,
+    /// Mean ꟻLIP error (0–1, 0 for identical images) of the run's shaded view against the
+    /// reference's over the pixels that see a surface ([`perceptual::flip_map`]; Andersson et
+    /// al. 2020). Absent where it was not computed.
+    pub flip: Option<f64>,
+    /// SSIM (−1–1, 1 for identical images) of the visibility buffer against the reference's
+    /// ([`perceptual::ssim`]; Wang et al. 2004). Absent where it was not computed.
+    pub ssim: Option<f64>,
 }
 
 impl ErrorMetrics {
     /// The metrics by name, in the order `results.csv` lists them.
-    pub fn named(&self) -> [(&'static str, Option<f64>); 5] {
+    pub fn named(&self) -> [(&'static str, Option<f64>); 10] {
         [
             ("mae", self.mae),
             ("rmse", self.rmse),
             ("max", self.max),
             ("mae_shadow", self.mae_shadow),
             ("frac_over_0_1", self.frac_over_0_1),
+            ("mae_penumbra", self.mae_penumbra),
+            ("umbra_error", self.umbra_error),
+            ("lit_error", self.lit_error),
+            ("flip", self.flip),
+            ("ssim", self.ssim),
         ]
     }
 
@@ -64,9 +106,20 @@ impl ErrorMetrics {
                     .into(),
             ];
         }
+        // A region the reference does not have (no umbra, no penumbra) leaves its metric absent
+        // without a warning: that is the scene, and the pixel count says so. The perceptual
+        // metrics are absent only where they were not computed.
+        let region = |name| match name {
+            "mae_penumbra" => Some(self.penumbra_pixels),
+            "umbra_error" => Some(self.umbra_pixels),
+            "lit_error" => Some(self.lit_pixels),
+            _ => None,
+        };
         self.named()
             .into_iter()
-            .filter(|(_, v)| v.is_none())
+            .filter(|(name, v)| {
+                v.is_none() && !matches!(*name, "flip" | "ssim") && region(name) != Some(0)
+            })
             .map(|(name, _)| {
                 let why = match (name, self.shadow_pixels) {
                     ("mae_shadow", 0) => "no pixel is in shadow in either image",
@@ -91,6 +144,8 @@ pub fn compare(
     );
     let (mut sum, mut sq, mut max, mut over) = (0.0f64, 0.0f64, 0.0f64, 0u64);
     let (mut shadow_sum, mut shadow_n, mut n) = (0.0f64, 0u64, 0u64);
+    let (mut penumbra_sum, mut penumbra_n) = (0.0f64, 0u64);
+    let (mut umbra_n, mut umbra_lit, mut lit_n, mut lit_shadowed) = (0u64, 0u64, 0u64, 0u64);
     for ((&a, &b), &m) in result.data.iter().zip(&reference.data).zip(mask) {
         if !m {
             continue;
@@ -110,6 +165,18 @@ pub fn compare(
             shadow_sum += e;
             shadow_n += 1;
         }
+        // The reference's region; a NaN reference pixel falls in the penumbra, whose mean it
+        // then makes absent.
+        if b < UMBRA_THRESHOLD {
+            umbra_n += 1;
+            umbra_lit += u64::from(a >= UMBRA_THRESHOLD);
+        } else if b >= SHADOW_THRESHOLD {
+            lit_n += 1;
+            lit_shadowed += u64::from(a < SHADOW_THRESHOLD);
+        } else {
+            penumbra_sum += e;
+            penumbra_n += 1;
+        }
     }
     let finite = |v: f64| v.is_finite().then_some(v);
     let mean = |s: f64, k: u64| (k > 0).then(|| s / k as f64).and_then(finite);
@@ -125,6 +192,15 @@ pub fn compare(
         mae_shadow_receivers: None,
         grazing_pixels: 0,
         mae_shadow_non_grazing: None,
+        mae_penumbra: mean(penumbra_sum, penumbra_n),
+        penumbra_pixels: penumbra_n,
+        // Shares of the region; a NaN pixel makes them absent with the means.
+        umbra_error: mean(umbra_lit as f64, umbra_n).filter(|_| sum.is_finite()),
+        umbra_pixels: umbra_n,
+        lit_error: mean(lit_shadowed as f64, lit_n).filter(|_| sum.is_finite()),
+        lit_pixels: lit_n,
+        flip: None,
+        ssim: None,
     }
 }
 
@@ -173,6 +249,17 @@ pub fn write_error_heatmap(
     mask: &[bool],
     path: &Path,
 ) -> Result<()> {
+    error_heatmap(result, reference, mask)
+        .save(path)
+        .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+}
+
+/// The image [`write_error_heatmap`] writes.
+pub fn error_heatmap(
+    result: &VisibilityBuffer,
+    reference: &VisibilityBuffer,
+    mask: &[bool],
+) -> image::RgbImage {
     let mut img = image::RgbImage::new(result.width, result.height);
     for (i, px) in img.pixels_mut().enumerate() {
         *px = if mask[i] {
@@ -184,8 +271,7 @@ pub fn write_error_heatmap(
             image::Rgb([40, 44, 52])
         };
     }
-    img.save(path)
-        .map_err(|e| Error::Other(format!("{}: {e}", path.display())))
+    img
 }
 
 #[cfg(test)]
@@ -215,7 +301,24 @@ pub(crate) mod tests {
         assert_eq!(m.shadow_pixels, 3);
         assert!((m.mae_shadow.unwrap() - 0.4 / 3.0).abs() < 1e-6);
         assert!((m.frac_over_0_1.unwrap() - 0.5).abs() < 1e-9);
+        // The reference's regions: lit (pixels 0, 1), penumbra (2), umbra (3). Pixel 1 is
+        // shown shadowed (0.8), pixel 3 shown partly lit (0.2), pixel 2 exact.
+        assert_eq!((m.lit_pixels, m.penumbra_pixels, m.umbra_pixels), (2, 1, 1));
+        assert_eq!(m.lit_error, Some(0.5));
+        assert_eq!(m.umbra_error, Some(1.0));
+        assert_eq!(m.mae_penumbra, Some(0.0));
         assert!(m.warnings().is_empty());
+    }
+
+    #[test]
+    fn a_region_the_reference_lacks_leaves_its_metric_absent_without_a_warning() {
+        // No umbra and no penumbra in the reference: those figures are absent, with 0 pixels.
+        let reference = buf(vec![1.0, 1.0]);
+        let m = compare(&buf(vec![0.5, 1.0]), &reference, &[true; 2]);
+        assert_eq!((m.umbra_pixels, m.umbra_error), (0, None));
+        assert_eq!((m.penumbra_pixels, m.mae_penumbra), (0, None));
+        assert_eq!(m.lit_error, Some(0.5));
+        assert!(m.warnings().is_empty(), "{:?}", m.warnings());
     }
 
     #[test]
@@ -230,7 +333,7 @@ pub(crate) mod tests {
         assert!(w[0].contains("mae_shadow") && w[0].contains("no pixel is in shadow"));
         // No pixel sees a surface: every metric is absent, one warning says why.
         let m = compare(&lit, &lit, &[false; 3]);
-        assert_eq!(m.named().map(|(_, v)| v), [None; 5]);
+        assert_eq!(m.named().map(|(_, v)| v), [None; 10]);
         let w = m.warnings();
         assert_eq!(w.len(), 1, "{w:?}");
         assert!(w[0].contains("0 pixels"), "{w:?}");

@@ -189,7 +189,7 @@ pub const ESTIMATED_MEMORY: Metric = Metric {
     value: |r| memory_bytes(r, "mem_est"),
 };
 
-pub const METRICS: [Metric; 8] = [
+pub const METRICS: [Metric; 10] = [
     WALL_TIME,
     GPU_TIME,
     MODELLED_TIME,
@@ -213,6 +213,19 @@ pub const METRICS: [Metric; 8] = [
         name: "shadow error",
         label: "mean absolute error in shadow (mae_shadow, 0–1)",
         value: |r| r.error.as_ref().and_then(|e| e.mae_shadow),
+    },
+    // The error where the papers compare (the reference's penumbra), and what a viewer sees.
+    Metric {
+        id: "mae_penumbra",
+        name: "penumbra error",
+        label: "mean absolute error in the reference's penumbra (mae_penumbra, 0–1)",
+        value: |r| r.error.as_ref().and_then(|e| e.mae_penumbra),
+    },
+    Metric {
+        id: "flip",
+        name: "FLIP",
+        label: "mean FLIP error of the shaded view (flip, 0–1)",
+        value: |r| r.error.as_ref().and_then(|e| e.flip),
     },
 ];
 
@@ -272,6 +285,9 @@ pub struct XyChart {
     pub lines: bool,
     /// Points no other point of this panel beats on both axes (lower is better on both), by x.
     pub front: Option<Vec<(f64, f64)>>,
+    /// A linear x axis always (frame numbers), where it would otherwise turn logarithmic over a
+    /// wide range ([`wants_log`]).
+    pub linear_x: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -374,6 +390,7 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
                     series: vec![],
                     lines: true,
                     front: None,
+                    linear_x: false,
                 });
                 // A panel whose every line is one point shows no trend against the axis (an
                 // execution that ran at one value only): its value is in the tables.
@@ -418,7 +435,76 @@ pub fn plan(records: &[RunRecord]) -> Vec<Spec> {
     }
     specs.extend(phase_charts(&ok));
     specs.extend(phase_grids(&ok));
+    specs.extend(flicker_charts(&ok));
     specs
+}
+
+/// Per algorithm of an animated sweep, at the base point: the flicker of each frame against
+/// the one before ([`crate::harness::animation`]), one line per execution.
+fn flicker_charts(ok: &[&RunRecord]) -> Vec<Spec> {
+    let Some((base, case)) = super::summary::base_case(ok) else {
+        return vec![];
+    };
+    let at: Vec<&RunRecord> = ok
+        .iter()
+        .copied()
+        .filter(|r| r.animation.is_some() && super::summary::case_key(r) == base)
+        .collect();
+    let mut algs: Vec<&str> = at.iter().map(|r| r.algorithm.as_str()).collect();
+    algs.sort_by_key(|a| style::algorithm_rank(a));
+    algs.dedup();
+    algs.into_iter()
+        .map(|alg| {
+            let mine: Vec<&RunRecord> = at.iter().copied().filter(|r| r.algorithm == alg).collect();
+            let series = mine
+                .iter()
+                .map(|r| Series {
+                    name: series_name(r),
+                    algorithm: r.algorithm.clone(),
+                    backend: r.backend.clone(),
+                    points: r.animation.as_ref().map_or(vec![], |a| {
+                        a.flicker_per_frame
+                            .iter()
+                            .enumerate()
+                            .map(|(i, v)| ((i + 1) as f64, *v))
+                            .filter(|p| plottable(p.1))
+                            .collect()
+                    }),
+                    intervals: vec![],
+                })
+                .collect();
+            let floor = mine
+                .iter()
+                .find_map(|r| r.animation.as_ref()?.flicker_floor)
+                .map_or("no floor".to_string(), |f| {
+                    format!(
+                        "the reference against a reference of another seed: {}",
+                        super::fmt_num(f)
+                    )
+                });
+            Spec {
+                file: format!("flicker_{alg}"),
+                title: format!("flicker of {alg} per frame"),
+                case: case.clone(),
+                caption: format!(
+                    "Mean over the pixels of |(V_t − V_t−1) − (R_t − R_t−1)|: the change from \
+                     frame t − 1 to t that the reference does not have, one line per execution; \
+                     lower is steadier. The floor of the measure ({floor})."
+                ),
+                panels: vec![Panel {
+                    title: alg.to_string(),
+                    kind: Kind::Xy(XyChart {
+                        x_label: "frame".into(),
+                        y_label: "flicker (visibility, 0–1)".into(),
+                        series,
+                        lines: true,
+                        front: None,
+                        linear_x: true,
+                    }),
+                }],
+            }
+        })
+        .collect()
 }
 
 /// Splits `series` into panels: one per execution (in [`style::execution_rank`] order), each
@@ -1146,10 +1232,10 @@ impl Ranged for TickAxis {
 /// The axis for `values`: logarithmic (in log10 units, ticks at the decades, and at 2× and 5×
 /// when it spans under three decades) when they span a decade or more, else linear with ticks
 /// at 1, 2 or 5 × 10^k (from zero when `from_zero` and all are non-negative).
-fn tick_axis(values: &[f64], from_zero: bool) -> (TickAxis, bool) {
+fn tick_axis(values: &[f64], from_zero: bool, log: bool) -> (TickAxis, bool) {
     let min = values.iter().copied().fold(f64::INFINITY, f64::min);
     let max = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    if wants_log(values) {
+    if log && wants_log(values) {
         let (lo, hi) = (min.log10() - 0.12, max.log10() + 0.12);
         let mut bold = Vec::new();
         let mut light = Vec::new();
@@ -1287,8 +1373,8 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
     if xs.is_empty() {
         return Ok(());
     }
-    let (xa, xlog) = tick_axis(&xs, false);
-    let (ya, ylog) = tick_axis(&ys, true);
+    let (xa, xlog) = tick_axis(&xs, false, !c.linear_x);
+    let (ya, ylog) = tick_axis(&ys, true, true);
     let (xf, yf) = (TickFormat::of(&xa, xlog), TickFormat::of(&ya, ylog));
     let tx = move |v: f64| if xlog { v.log10() } else { v };
     let ty = move |v: f64| if ylog { v.log10() } else { v };
@@ -1486,7 +1572,7 @@ fn draw_stacked<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, s: &Stacked) 
     let phases = phase_names(bars);
     let total = |b: &Bar| b.parts.iter().map(|p| p.1).sum::<f64>();
     let top = bars.iter().map(total).fold(0.0, f64::max);
-    let (ya, _) = tick_axis(&[0.0, if top > 0.0 { top } else { 1.0 }], true);
+    let (ya, _) = tick_axis(&[0.0, if top > 0.0 { top } else { 1.0 }], true, true);
     let n = bars.len() as f64;
     let xa = TickAxis {
         range: -0.5..n - 0.5,
@@ -2141,7 +2227,7 @@ mod tests {
         assert!(wants_log(&[100.0, 1000.0, 10000.0]));
         assert!(!wants_log(&[16.0, 32.0, 64.0]));
         assert!(!wants_log(&[0.0, 10.0, 1000.0]));
-        let (a, log) = tick_axis(&[100.0, 1000.0, 10000.0], false);
+        let (a, log) = tick_axis(&[100.0, 1000.0, 10000.0], false, true);
         assert!(log);
         let labels = |a: &TickAxis, log: bool| -> Vec<String> {
             let f = TickFormat::of(a, log);
@@ -2153,20 +2239,20 @@ mod tests {
             ["100", "200", "500", "1000", "2000", "5000", "10000"]
         );
         // One notation on every tick of an axis.
-        let (a, _) = tick_axis(&[1e-6, 1e3], false);
+        let (a, _) = tick_axis(&[1e-6, 1e3], false, true);
         assert_eq!(labels(&a, true), ["1e-6", "1e-4", "1e-2", "1e0", "1e2"]);
-        let (a, _) = tick_axis(&[3e5, 2e7], false);
+        let (a, _) = tick_axis(&[3e5, 2e7], false, true);
         let l = labels(&a, true);
         assert!(l.iter().all(|t| t.contains('e')), "{l:?}");
         assert!(
             l.contains(&"5e5".to_string()) && l.contains(&"1e7".to_string()),
             "{l:?}"
         );
-        let (a, log) = tick_axis(&[0.0, 2.5e6], true);
+        let (a, log) = tick_axis(&[0.0, 2.5e6], true, true);
         assert!(!log);
         assert_eq!(labels(&a, false), ["0", "1e6", "2e6"]);
         // Linear: round steps from zero.
-        let (a, log) = tick_axis(&[16.0, 32.0, 64.0], true);
+        let (a, log) = tick_axis(&[16.0, 32.0, 64.0], true, true);
         assert!(!log);
         assert_eq!(a.bold, [0.0, 20.0, 40.0, 60.0]);
     }

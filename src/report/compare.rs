@@ -150,6 +150,9 @@ pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
             }
         }
     }
+    if let Some(v) = r.animation.as_ref().and_then(|a| a.flicker) {
+        f.insert("animation.flicker".into(), v);
+    }
     f.retain(|name, _| match crate::counters::kind(name) {
         Some(Kind::Measured) => false,
         Some(Kind::Modelled) => model,

@@ -43,7 +43,7 @@ details.case{margin:0 0 1em 0}details.case>summary{cursor:pointer;margin:.4em 0}
 .none{color:#999}nav{background:#f7f7f7;border:1px solid #ddd;padding:.5em 1em;max-width:1200px}nav li{margin:.15em 0}\
 .sw{display:inline-block;width:.9em;height:.9em;margin-right:.4em;vertical-align:middle;border-radius:2px}\
 td.pareto{font-weight:bold}dl{margin:0;text-align:left}dt{font-weight:bold}dd{margin:0 0 .3em 1em;max-width:40em}\
-figure img{max-width:100%}";
+figure img{max-width:100%}td.anim img{image-rendering:pixelated;width:600px;max-width:60vw}";
 
 /// The page for `results`, whose run images are under `out/images/<case_id>/`: a contents
 /// list, then the summary at the base point (a table and a quality-vs-cost chart per
@@ -118,10 +118,11 @@ pub fn page(
             .collect();
         let _ = write!(h, "<li>{}: {}</li>", text(&group), links.join(" · "));
     }
-    h.push_str(
-        "</ul></li><li><a href=\"#images\">Images</a></li>\
-         <li><a href=\"#runs\">Every run</a></li></ol></nav>\n",
-    );
+    h.push_str("</ul></li><li><a href=\"#images\">Images</a></li>");
+    if runs.iter().any(|r| r.animation.is_some()) {
+        h.push_str("<li><a href=\"#animation\">Animation</a></li>");
+    }
+    h.push_str("<li><a href=\"#runs\">Every run</a></li></ol></nav>\n");
     if let Some(s) = summary {
         h.push_str(&summary_section(s, &summary_charts));
     }
@@ -143,8 +144,70 @@ pub fn page(
     }
     h.push_str(&notes_section(runs));
     h.push_str(&gallery(out, runs));
+    h.push_str(&animation_section(out, runs));
     h.push_str(&runs_table(runs));
     h.push_str("</body></html>\n");
+    h
+}
+
+/// The temporal figures of an animated sweep's runs, per case: flicker against its floor, the
+/// worst frame, the trend of the shadow error, and the animated comparison (run | reference |
+/// error) of each run.
+fn animation_section(out: &Path, runs: &[RunRecord]) -> String {
+    let animated: Vec<&RunRecord> = runs.iter().filter(|r| r.animation.is_some()).collect();
+    if animated.is_empty() {
+        return String::new();
+    }
+    let mut h = String::from(
+        "<h2 id=\"animation\">Animation</h2>\n<p>Each run rendered as a sequence with the \
+         light moving (scenario <code>animation</code>). <i>Flicker</i>: the mean over pixels \
+         and frames of |(V<sub>t</sub> − V<sub>t−1</sub>) − (R<sub>t</sub> − \
+         R<sub>t−1</sub>)|, the change between frames that the reference does not have; its \
+         <i>floor</i> is the reference against a reference of another seed (the reference's \
+         own sampling noise). <i>Trend</i>: the least-squares slope of mae_shadow per frame. \
+         The animation plays run | reference | error side by side; each frame is in \
+         <code>frames/</code> of the run's image folder.</p>\n",
+    );
+    let mut cases: Vec<String> = animated.iter().map(|r| summary::case_key(r)).collect();
+    cases.dedup();
+    for case in cases {
+        let at: Vec<&RunRecord> = animated
+            .iter()
+            .copied()
+            .filter(|r| summary::case_key(r) == case)
+            .collect();
+        let _ = write!(
+            h,
+            "<h3>{}</h3>\n<table class=\"summary\"><tr><th>algorithm</th><th>execution</th>\
+             <th>frames</th><th>flicker</th><th>floor</th><th>flicker / floor</th>\
+             <th>worst frame</th><th>mae_shadow trend per frame</th>\
+             <th>run | reference | error</th></tr>\n",
+            text(&charts::describe_case(at[0], None))
+        );
+        let opt = |v: Option<f64>| v.map(fmt_num).unwrap_or_else(|| "–".into());
+        for r in at {
+            let a = r.animation.as_ref().expect("filtered");
+            let rel = format!("images/{}/animation.png", r.case_id());
+            let _ = writeln!(
+                h,
+                "<tr><td class=\"t\"><span class=\"sw\" style=\"background:{}\"></span>{}</td>\
+                 <td class=\"t\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+                 <td>{}</td><td class=\"anim\">{}</td></tr>",
+                style::hex(style::algorithm_color(&r.algorithm)),
+                text(&r.algorithm_label()),
+                text(&r.backend),
+                a.frames,
+                opt(a.flicker),
+                opt(a.flicker_floor),
+                opt(a.flicker.zip(a.flicker_floor).map(|(f, g)| f / g)),
+                a.flicker_max_frame
+                    .map_or("–".to_string(), |t| t.to_string()),
+                opt(a.trend.get("mae_shadow").copied()),
+                image_link(out, &rel, "animated comparison").unwrap_or_else(|| "–".into())
+            );
+        }
+        h.push_str("</table>\n");
+    }
     h
 }
 
@@ -212,6 +275,9 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
         if s.has_restricted {
             let _ = write!(h, "<th>{}</th>", summary::RESTRICTED);
         }
+        for &q in &s.quality_shown {
+            let _ = write!(h, "<th>{}</th>", summary::QUALITY[q]);
+        }
         for &c in &costs {
             let _ = write!(h, "<th>{}</th>", text(summary::COSTS[c].metric.label));
         }
@@ -235,6 +301,9 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
             }
             if s.has_restricted {
                 let _ = write!(h, "<td>{}</td>", opt(r.restricted));
+            }
+            for &q in &s.quality_shown {
+                let _ = write!(h, "<td>{}</td>", opt(r.quality[q]));
             }
             for &c in &costs {
                 if r.pareto[c] {
@@ -513,8 +582,11 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
          <i>shaded</i> view (visibility × a Lambertian term, so occluders stand out), the \
          <i>visibility</i> (black: no light, white: fully lit; pixels that see no surface are \
          transparent, in <code>mask.npy</code> they are 0) and the <i>error</i> against the \
-         reference (black 0, red, yellow ≥ 0.5; background blue-grey). The difference of any two \
-         runs: <code>shadowbench diff images/A images/B</code>.</p>\n",
+         reference (black 0, red, yellow ≥ 0.5; background blue-grey), and where there is one \
+         the <i>ꟻLIP error</i> of the shaded view against the reference's, what a viewer notices \
+         at the scenario's viewing distance (ꟻLIP's magma colours: black none, purple, orange, \
+         pale yellow 1). The difference of any two runs: \
+         <code>shadowbench diff images/A images/B</code>.</p>\n",
     );
     let ok: Vec<&RunRecord> = runs.iter().collect();
     let base = summary::base_case(&ok).map(|b| b.0);
@@ -623,6 +695,12 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
         ("visibility.png", "visibility"),
         ("error.png", "error"),
     ];
+    if at.iter().any(|r| {
+        out.join(format!("images/{}/flip.png", r.case_id()))
+            .is_file()
+    }) {
+        files.push(("flip.png", "ꟻLIP error"));
+    }
     if at.iter().any(|r| {
         out.join(format!("images/{}/visibility_rgb.png", r.case_id()))
             .is_file()

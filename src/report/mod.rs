@@ -390,7 +390,9 @@ pub(crate) mod testdata {
                 mae_shadow_receivers: None,
                 grazing_pixels: 0,
                 mae_shadow_non_grazing: None,
+                ..Default::default()
             }),
+            animation: None,
             execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
             warnings: vec![],
             notes: vec![],

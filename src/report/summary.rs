@@ -59,6 +59,23 @@ pub fn restricted_error(r: &RunRecord) -> Option<f64> {
     r.error.as_ref()?.mae_shadow_receivers
 }
 
+/// The quality figures the summary shows beside `mae_shadow`, each where a row has it: the
+/// error in the reference's penumbra, the umbra and lit misclassifications, and the perceptual
+/// metrics ([`crate::metrics::ErrorMetrics`]).
+pub const QUALITY: [&str; 5] = ["mae_penumbra", "umbra_error", "lit_error", "flip", "ssim"];
+
+/// The [`QUALITY`] figures of `r`, in that order.
+pub fn quality(r: &RunRecord) -> [Option<f64>; QUALITY.len()] {
+    let named = r.error.as_ref().map(|e| e.named());
+    QUALITY.map(|q| {
+        named
+            .as_ref()?
+            .iter()
+            .find(|(n, _)| *n == q)
+            .and_then(|(_, v)| *v)
+    })
+}
+
 /// The method limits a run's notes name (`method limit (WHAT): …` → `WHAT`).
 pub fn method_limits(r: &RunRecord) -> Vec<String> {
     let mut out: Vec<String> = Vec::new();
@@ -139,6 +156,8 @@ pub struct Row {
     pub backend: String,
     pub mae_shadow: Option<f64>,
     pub restricted: Option<f64>,
+    /// Per [`QUALITY`] entry.
+    pub quality: [Option<f64>; QUALITY.len()],
     /// The method limits of the paper's design that showed in this run (its notes'
     /// `method limit (…)`, [`crate::harness::limit_notes`]): its `mae_shadow` counts pixels the
     /// method does not compute by design, so `mae_shadow_receivers` is the fair comparison.
@@ -166,6 +185,8 @@ pub struct Summary {
     pub executions: Vec<Execution>,
     /// Whether any row has the restricted error.
     pub has_restricted: bool,
+    /// The [`QUALITY`] entries (indices) that some row has, in order: the columns shown.
+    pub quality_shown: Vec<usize>,
 }
 
 impl Summary {
@@ -196,6 +217,7 @@ impl Summary {
                         backend: b.clone(),
                         mae_shadow: r.error.as_ref().and_then(|e| e.mae_shadow),
                         restricted: restricted_error(r),
+                        quality: quality(r),
                         limits: method_limits(r),
                         costs: COSTS
                             .each_ref()
@@ -234,10 +256,18 @@ impl Summary {
         let has_restricted = executions
             .iter()
             .any(|e| e.rows.iter().any(|r| r.restricted.is_some()));
+        let quality_shown = (0..QUALITY.len())
+            .filter(|&q| {
+                executions
+                    .iter()
+                    .any(|e| e.rows.iter().any(|r| r.quality[q].is_some()))
+            })
+            .collect();
         Some(Summary {
             case,
             executions,
             has_restricted,
+            quality_shown,
         })
     }
 
@@ -280,6 +310,7 @@ impl Summary {
                     series: vec![],
                     lines: false,
                     front: Some(front.clone()),
+                    linear_x: false,
                 }) {
                     let part = p.title.strip_prefix(e.backend.as_str()).unwrap_or("");
                     p.title = format!("{} cost{part}", COSTS[c].name);
@@ -309,6 +340,9 @@ impl Summary {
         if self.has_restricted {
             let _ = write!(s, "{RESTRICTED},");
         }
+        for &q in &self.quality_shown {
+            let _ = write!(s, "{},", QUALITY[q]);
+        }
         for c in &COSTS {
             let _ = write!(s, "{},", c.metric.id);
         }
@@ -319,6 +353,9 @@ impl Summary {
                 let _ = write!(s, "{},{},{},", r.backend, r.algorithm, opt(r.mae_shadow));
                 if self.has_restricted {
                     let _ = write!(s, "{},", opt(r.restricted));
+                }
+                for &q in &self.quality_shown {
+                    let _ = write!(s, "{},", opt(r.quality[q]));
                 }
                 for v in r.costs {
                     let _ = write!(s, "{},", opt(v));
@@ -349,6 +386,20 @@ impl Summary {
         if self.has_restricted {
             cols.push('r');
             head.push_str(" & MAE\\textsubscript{receivers}");
+        }
+        for &q in &self.quality_shown {
+            cols.push('r');
+            let _ = write!(
+                head,
+                " & {}",
+                match QUALITY[q] {
+                    "mae_penumbra" => "MAE\\textsubscript{penumbra}",
+                    "umbra_error" => "Umbra lit",
+                    "lit_error" => "Lit shadowed",
+                    "flip" => "FLIP",
+                    _ => "SSIM",
+                }
+            );
         }
         for c in &COSTS {
             cols.push('r');
@@ -401,6 +452,9 @@ impl Summary {
                 );
                 if self.has_restricted {
                     let _ = write!(s, " & {}", num(r.restricted, false));
+                }
+                for &q in &self.quality_shown {
+                    let _ = write!(s, " & {}", num(r.quality[q], false));
                 }
                 for (c, v) in r.costs.iter().enumerate() {
                     let _ = write!(s, " & {}", num(*v, r.pareto[c]));

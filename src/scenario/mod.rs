@@ -67,6 +67,10 @@ pub struct Scenario {
     /// `--max-time` override its fields. Absent: the protocol's defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub measure: Option<crate::harness::measure::Measure>,
+    /// An animated sweep: each run also renders a sequence of frames with the light's centre
+    /// moving along a path ([`crate::harness::animation`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub animation: Option<crate::harness::animation::Animation>,
 }
 
 /// `$.light`: the light (`type` and its fields) and an optional `texture` (rectangular lights;
@@ -189,6 +193,20 @@ pub struct ReferenceSpec {
     pub enabled: bool,
     /// Light samples per pixel, a perfect square (256 default, 1024 for paper runs).
     pub samples: u32,
+    /// The viewing condition of the `flip` metric: pixels per degree of visual angle, in
+    /// [`crate::metrics::perceptual::PIXELS_PER_DEGREE_RANGE`] (absent: ꟻLIP's default 67.02,
+    /// a 0.7 m wide 3840-pixel monitor at 0.7 m). Fewer pixels per degree (a closer or larger
+    /// screen) make finer errors visible.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub flip_pixels_per_degree: Option<f32>,
+}
+
+impl ReferenceSpec {
+    /// `flip_pixels_per_degree`, or ꟻLIP's default.
+    pub fn flip_pixels_per_degree(&self) -> f32 {
+        self.flip_pixels_per_degree
+            .unwrap_or(crate::metrics::perceptual::DEFAULT_PIXELS_PER_DEGREE)
+    }
 }
 
 impl Default for ReferenceSpec {
@@ -196,6 +214,7 @@ impl Default for ReferenceSpec {
         ReferenceSpec {
             enabled: true,
             samples: crate::algorithms::reference::DEFAULT_SAMPLES,
+            flip_pixels_per_degree: None,
         }
     }
 }

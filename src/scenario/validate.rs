@@ -266,8 +266,43 @@ pub fn validate(s: &Scenario) -> Check {
     sweep(&s.sweep)?;
     occluder_axes(s)?;
     reference_samples("$.reference.samples", s.reference.samples)?;
+    optional(
+        "$.reference.flip_pixels_per_degree",
+        s.reference.flip_pixels_per_degree,
+        crate::metrics::perceptual::check_pixels_per_degree,
+    )?;
     if let Some(m) = &s.measure {
         m.check("$.measure")?;
+    }
+    if let Some(a) = &s.animation {
+        a.check("$.animation")?;
+        if let Some(l) = &a.light_size {
+            optional("$.animation.light_size.from", l.from, light_size)?;
+            light_size("$.animation.light_size.to", l.to)?;
+        }
+        if let Some(h) = &a.occluder_height {
+            occluder_axis_scene(
+                "$.animation.occluder_height",
+                s.scene.generator.as_deref(),
+                OccluderAxis::Height,
+            )?;
+            optional("$.animation.occluder_height.from", h.from, occluder_height)?;
+            occluder_height("$.animation.occluder_height.to", h.to)?;
+            if h.from.is_none() && s.params.occluder_height.is_none() {
+                return fail(
+                    "$.animation.occluder_height",
+                    "needs a start: `from`, or params.occluder_height".into(),
+                );
+            }
+        }
+        if !s.reference.enabled {
+            return fail(
+                "$.animation",
+                "an animation measures flicker against the reference: it needs \
+                 reference.enabled true"
+                    .into(),
+            );
+        }
     }
     optional("$.run_timeout_s", s.run_timeout_s, run_timeout)
 }

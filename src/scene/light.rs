@@ -76,6 +76,23 @@ impl Light {
         }
     }
 
+    /// The same light with its centre at `center` (size and orientation kept).
+    pub fn with_center(self, center: Vec3) -> Light {
+        match self {
+            Light::Sphere { radius, .. } => Light::Sphere { center, radius },
+            Light::Disc { normal, radius, .. } => Light::Disc {
+                center,
+                normal,
+                radius,
+            },
+            Light::Rect { half_u, half_v, .. } => Light::Rect {
+                center,
+                half_u,
+                half_v,
+            },
+        }
+    }
+
     /// The same light scaled to `size` (a rectangle keeps its aspect ratio).
     pub fn with_size(self, size: f32) -> Light {
         match self {

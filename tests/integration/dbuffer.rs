@@ -82,12 +82,12 @@ fn plate_on_edge() -> Scene {
     s
 }
 
-fn frame(scene: Scene, image: [u32; 2], map: u32) -> Frame {
+pub(crate) fn frame(scene: Scene, image: [u32; 2], map: u32) -> Frame {
     let params = RunParams::of_scene(&scene, image, map, 16);
     Frame::new(scene, params)
 }
 
-fn run(id: &str, backend: Backend, f: &Frame) -> FrameOutput {
+pub(crate) fn run(id: &str, backend: Backend, f: &Frame) -> FrameOutput {
     algorithms::run(id, backend, f, &ExecContext::default()).unwrap()
 }
 
@@ -370,15 +370,15 @@ fn single_core_volume_build_takes_the_cores_summed_time_and_changes_nothing_else
 }
 
 /// Height of the top of the plate of [`edge_under_tilted_disc`], its thickness, and the light.
-const PLATE_TOP: f32 = 0.8;
-const PLATE_THICKNESS: f32 = 0.05;
-const TILTED_CENTRE: Vec3 = Vec3::new(0.0, 2.0, 0.0);
-const TILTED_RADIUS: f32 = 0.5;
+pub(crate) const PLATE_TOP: f32 = 0.8;
+pub(crate) const PLATE_THICKNESS: f32 = 0.05;
+pub(crate) const TILTED_CENTRE: Vec3 = Vec3::new(0.0, 2.0, 0.0);
+pub(crate) const TILTED_RADIUS: f32 = 0.5;
 
 /// A straight edge under a tilted disc: a thin plate over x < 0 (its edge along z at x = 0,
 /// top at [`PLATE_TOP`]) above the ground, lit by a disc whose normal is `tilt_deg` from straight
 /// down, tilted about z (across the edge) or about x (along it).
-fn edge_under_tilted_disc(tilt_deg: f32, about_z: bool) -> Scene {
+pub(crate) fn edge_under_tilted_disc(tilt_deg: f32, about_z: bool) -> Scene {
     let t = tilt_deg.to_radians();
     let normal = if about_z {
         Vec3::new(t.sin(), -t.cos(), 0.0)
@@ -425,7 +425,7 @@ fn edge_under_tilted_disc(tilt_deg: f32, about_z: bool) -> Scene {
 /// under it. That plane cuts the disc along a straight line; the visible part is a circular
 /// segment, of area fraction `(acos a − a·√(1 − a²)) / π` with `a` the line's signed offset
 /// from the centre in radii, taken on the blocked side.
-fn exact_visibility(x: Vec3, disc_normal: Vec3) -> f32 {
+pub(crate) fn exact_visibility(x: Vec3, disc_normal: Vec3) -> f32 {
     let edge_y = if x.x >= 0.0 {
         PLATE_TOP
     } else {

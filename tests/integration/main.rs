@@ -26,6 +26,7 @@ mod open_occluders;
 mod pentagon;
 mod penumbra_map;
 mod precision;
+mod quality_metrics;
 mod reference;
 mod registry;
 mod robustness;

@@ -230,6 +230,61 @@ fn cases() -> Vec<(&'static str, String, Vec<&'static str>)> {
             mutate(r#""sweep": {"#, r#""sweep": { "cores": [0],"#),
             vec!["$.sweep.cores[0]", "got 0"],
         ),
+        (
+            "one-frame animation",
+            mutate(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 1, "light_center": {"to": [0, 8, 0]}}, "sweep": {"#,
+            ),
+            vec!["$.animation.frames", "got 1"],
+        ),
+        (
+            "animation of a path not built",
+            mutate(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 4, "camera": {"to": 1}}, "sweep": {"#,
+            ),
+            vec!["$.animation", "camera"],
+        ),
+        (
+            "animation without the reference",
+            mutate(
+                r#""sweep": {"#,
+                r#""reference": {"enabled": false},
+                   "animation": {"frames": 4, "light_center": {"to": [0, 8, 0]}}, "sweep": {"#,
+            ),
+            vec!["$.animation", "reference.enabled"],
+        ),
+        (
+            "occluder animation without a start",
+            mutate(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 4, "occluder_height": {"to": 0.1}}, "sweep": {"#,
+            ),
+            vec!["$.animation.occluder_height", "needs a start"],
+        ),
+        (
+            "occluder animation on a scene without a moving occluder",
+            mutate(
+                r#""generator": "sphere-on-plane""#,
+                r#""generator": "street""#,
+            )
+            .replacen(
+                r#""sweep": {"#,
+                r#""animation": {"frames": 4, "occluder_height": {"from": 1, "to": 0.1}},
+                   "sweep": {"#,
+                1,
+            ),
+            vec!["$.animation.occluder_height", "moving occluder"],
+        ),
+        (
+            "FLIP viewing condition out of range",
+            mutate(
+                r#""sweep": {"#,
+                r#""reference": {"flip_pixels_per_degree": 0}, "sweep": {"#,
+            ),
+            vec!["$.reference.flip_pixels_per_degree", "got 0"],
+        ),
     ]
 }
 
