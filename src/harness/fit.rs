@@ -25,10 +25,10 @@
 
 use ndarray::{Array1, Array2};
 
-use super::validate::{self, Row, Sweep};
+use super::validate::{self, Agreement, Row, Sweep};
 use crate::error::{Error, Result};
 use crate::model::cache::CacheStats;
-use crate::model::config::OpCosts;
+use crate::model::config::{OpCosts, Training};
 use crate::model::timing::CoreWork;
 use crate::model::MachineConfig;
 
@@ -36,6 +36,10 @@ use crate::model::MachineConfig;
 /// ([`validate::SCENES`]): a box (flat faces, few silhouette edges), an upright cylinder on the
 /// ground (contact) and a 3×3×3 grid of spheres (paper 001's many overlapping shadows).
 pub const TRAINING_SCENES: [&str; 3] = ["box-on-plane", "cylinder-on-plane", "sphere-grid"];
+
+/// Image sizes of the training sweep: none of `validate-model`'s ([`validate::IMAGES`]), and
+/// modest, so that the training sweep is short.
+pub const TRAINING_IMAGES: [[u32; 2]; 2] = [[240, 180], [480, 360]];
 
 /// The fitted costs, in the order they are set (`fit`): machine field and the
 /// [`validate::WORK_COUNTERS`] it multiplies (summed); `costs.phase` multiplies 1 per phase.
@@ -52,52 +56,30 @@ const FITTED: [(&str, &[&str]); 8] = [
     ("costs.phase", &[]),
 ];
 
-/// The training sweep of a fit and how well the fitted table predicts it.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct CostFit {
-    /// The training sweep's scenes.
-    pub scenes: Vec<String>,
-    /// Runs and phases fitted.
-    pub runs: usize,
-    pub phases: usize,
-    /// Mean absolute percentage error of the fitted table's prediction of the training runs and
-    /// phases (the fit's own formula, not the cpu-model's), in percent.
-    pub runs_mape: f64,
-    pub phases_mape: f64,
-}
-
-impl CostFit {
-    /// The scenes of `scenes` the fit was trained on (their runs are not held out).
-    pub fn trained_on<'a>(&self, scenes: &'a [String]) -> Vec<&'a str> {
-        scenes
-            .iter()
-            .filter(|x| self.scenes.contains(x))
-            .map(String::as_str)
-            .collect()
-    }
-}
-
-/// The training sweep: `sweep` (algorithms, image sizes, maps, options, repeats) on
-/// [`TRAINING_SCENES`].
+/// The training sweep: `sweep` (algorithms, maps, options, repeats, clock) on [`TRAINING_SCENES`]
+/// at [`TRAINING_IMAGES`].
 pub fn training_sweep(sweep: &Sweep) -> Sweep {
     Sweep {
         scenes: TRAINING_SCENES.map(String::from).to_vec(),
+        images: TRAINING_IMAGES.to_vec(),
         ..sweep.clone()
     }
 }
 
-/// Runs the training sweep with `kernels` (a machine from `model::calibrate`) and returns it
-/// with the fitted issue costs (the memory figures unchanged) and each fitted figure's method
-/// in `sources`. Errors: the sweep's errors; a sweep with fewer phases than costs to fit.
+/// Runs the training sweep `sweep` with `kernels` (a machine from `model::calibrate`) and returns
+/// it with the fitted issue costs (the memory figures unchanged), each fitted figure's method in
+/// `sources` and the training sweep in `training` (which `validate-model` then holds out).
+/// Errors: the sweep's errors; a sweep with fewer phases than costs to fit.
 pub fn fit(
     kernels: &MachineConfig,
     sweep: &Sweep,
     progress: impl FnMut(&str),
-) -> Result<(MachineConfig, CostFit)> {
+) -> Result<(MachineConfig, Training)> {
     let training = validate::run(sweep, kernels, progress)?;
     let method = format!(
-        "fitted by non-negative least squares (relative error) to the measured phases of the \
-         training sweep ({} runs, {} phases: {} on {} at {}; none of validate-model's default scenes)",
+        "fitted by non-negative least squares (relative error) to the measured phases ({} clock) \
+         of the training sweep ({} runs, {} phases: {} on {} at {})",
+        sweep.clock.name(),
         training.runs.len(),
         training.phases.len(),
         sweep.algorithms.join(", "),
@@ -122,23 +104,217 @@ pub fn fit(
         sources.push((field.to_string(), format!("{method}{kernel}")));
     }
     m.sources.extend(sources);
-    let ms = |r: &Row| predicted_ms(kernels, &costs, r);
     let rows = &training.phases;
-    let phases_mape = mape(rows.iter().map(|r| (ms(r), r.measured_ms)));
-    let runs_mape = mape(training.runs.iter().map(|run| {
-        let of_run = rows.iter().filter(|p| {
-            p.algorithm == run.algorithm && p.scene == run.scene && p.image == run.image
-        });
-        (of_run.map(ms).sum::<f64>(), run.measured_ms)
-    }));
-    let fit = CostFit {
+    let phases_mape = mape(
+        rows.iter()
+            .map(|r| (predicted_ms(kernels, &costs, r), r.measured_ms)),
+    );
+    let runs_mape = mape(
+        predicted_runs(kernels, &costs, &training.runs, rows)
+            .into_iter()
+            .map(|r| (r.modelled_ms, r.measured_ms)),
+    );
+    let fit = Training {
         scenes: sweep.scenes.clone(),
+        images: sweep.images.clone(),
+        map_resolution: sweep.map_resolution,
+        clock: sweep.clock.name().into(),
         runs: training.runs.len(),
         phases: rows.len(),
         runs_mape,
         phases_mape,
+        load_average: training.load_average,
+        waited_pct: training.waited_pct,
     };
+    m.training = Some(fit.clone());
     Ok((m, fit))
+}
+
+/// `runs` with their modelled time replaced by the fit's prediction with `costs` (the sum over
+/// the run's rows of `phases`).
+fn predicted_runs(
+    m: &MachineConfig,
+    costs: &[f64; FITTED.len()],
+    runs: &[Row],
+    phases: &[Row],
+) -> Vec<Row> {
+    runs.iter()
+        .map(|run| {
+            let t: f64 = phases
+                .iter()
+                .filter(|p| {
+                    p.algorithm == run.algorithm && p.scene == run.scene && p.image == run.image
+                })
+                .map(|p| predicted_ms(m, costs, p))
+                .sum();
+            Row {
+                modelled_ms: t,
+                ratio: t / run.measured_ms,
+                ..run.clone()
+            }
+        })
+        .collect()
+}
+
+/// One fold of a cross-validation over scenes: the scenes held out, and the fit's error on the
+/// runs it trained on and on the held-out ones.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Fold {
+    pub held_out: Vec<String>,
+    pub training: Vec<String>,
+    /// The fitted costs (cycles), by machine field.
+    pub costs: Vec<(String, f64)>,
+    pub training_runs: Agreement,
+    pub held_out_runs: Agreement,
+}
+
+/// A k-fold cross-validation over scenes ([`cross_validate`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CrossValidation {
+    pub folds: Vec<Fold>,
+    /// Every held-out run of every fold together (each run is held out in exactly one fold):
+    /// the headline.
+    pub held_out_runs: Agreement,
+    /// The training images (fitted) and the held-out images (predicted).
+    pub training_images: Vec<[u32; 2]>,
+    pub held_out_images: Vec<[u32; 2]>,
+    /// The held-out runs with the fold's prediction as `modelled_ms`.
+    pub runs: Vec<Row>,
+}
+
+/// The scenes of fold `i` of `k`: every `k`-th scene from the `i`-th.
+pub fn fold_scenes(scenes: &[String], k: usize, i: usize) -> Vec<String> {
+    scenes
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| j % k == i)
+        .map(|(_, s)| s.clone())
+        .collect()
+}
+
+/// k-fold cross-validation over the scenes of `measured` (a sweep run with [`validate::run`]
+/// at `training_images` and `held_out_images`, both on every scene): fold `i` fits the costs
+/// on the other folds' scenes at `training_images` and predicts its own scenes' runs at
+/// `held_out_images` with the fit's formula (the work spread evenly over the cores; not the
+/// cpu-model's per-core schedule). Errors: `k` outside 2..=scenes; a fold with too few phases
+/// to fit.
+pub fn cross_validate(
+    m: &MachineConfig,
+    measured: &validate::Validation,
+    training_images: &[[u32; 2]],
+    held_out_images: &[[u32; 2]],
+    k: usize,
+) -> Result<CrossValidation> {
+    let scenes = &measured.sweep.scenes;
+    if !(2..=scenes.len()).contains(&k) {
+        return Err(Error::Other(format!(
+            "{k} folds over {} scenes: the folds must number 2 to the scenes' count",
+            scenes.len()
+        )));
+    }
+    let mut folds = Vec::new();
+    let mut all = Vec::new();
+    for i in 0..k {
+        let held_out = fold_scenes(scenes, k, i);
+        let training: Vec<String> = scenes
+            .iter()
+            .filter(|s| !held_out.contains(s))
+            .cloned()
+            .collect();
+        let pick = |rows: &[Row], sc: &[String], im: &[[u32; 2]]| -> Vec<Row> {
+            rows.iter()
+                .filter(|r| sc.contains(&r.scene) && im.contains(&r.image))
+                .cloned()
+                .collect()
+        };
+        let train_phases = pick(&measured.phases, &training, training_images);
+        let costs = fit_rows(m, &train_phases)?;
+        let train_runs = predicted_runs(
+            m,
+            &costs,
+            &pick(&measured.runs, &training, training_images),
+            &train_phases,
+        );
+        let test_runs = predicted_runs(
+            m,
+            &costs,
+            &pick(&measured.runs, &held_out, held_out_images),
+            &pick(&measured.phases, &held_out, held_out_images),
+        );
+        folds.push(Fold {
+            held_out,
+            training,
+            costs: FITTED
+                .iter()
+                .zip(costs)
+                .map(|((f, _), c)| (f.to_string(), c))
+                .collect(),
+            training_runs: Agreement::of(&train_runs.iter().collect::<Vec<_>>()),
+            held_out_runs: Agreement::of(&test_runs.iter().collect::<Vec<_>>()),
+        });
+        all.extend(test_runs);
+    }
+    Ok(CrossValidation {
+        folds,
+        held_out_runs: Agreement::of(&all.iter().collect::<Vec<_>>()),
+        training_images: training_images.to_vec(),
+        held_out_images: held_out_images.to_vec(),
+        runs: all,
+    })
+}
+
+/// The cross-validation's summary: per fold the training and held-out scenes, the training
+/// and held-out error, then every held-out run together (the headline) and the sweep's clock and
+/// load.
+pub fn cross_validation_text(cv: &CrossValidation, v: &validate::Validation) -> String {
+    let sizes = |v: &[[u32; 2]]| {
+        v.iter()
+            .map(|[w, h]| format!("{w}x{h}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let agreement = |a: &Agreement| {
+        format!(
+            "n {:>3}  geomean {:.3}  MAPE {:>5.1}%  Spearman {:.3}",
+            a.n, a.geomean_ratio, a.mape_pct, a.spearman
+        )
+    };
+    let mut s = format!(
+        "{}-fold cross-validation over scenes (machine {}); fitted at {}, held out at {}; \
+         predictions by the fit's formula; cpu-native on the {} clock\n",
+        cv.folds.len(),
+        v.machine.name,
+        sizes(&cv.training_images),
+        sizes(&cv.held_out_images),
+        v.sweep.clock.name()
+    );
+    for (i, f) in cv.folds.iter().enumerate() {
+        s += &format!(
+            "fold {}: held out {}; trained on {}\n  training runs  {}\n  held-out runs  {}{}\n",
+            i + 1,
+            f.held_out.join(", "),
+            f.training.join(", "),
+            agreement(&f.training_runs),
+            agreement(&f.held_out_runs),
+            if f.held_out_runs.mape_pct > f.training_runs.mape_pct {
+                "  (worse than training)"
+            } else {
+                ""
+            }
+        );
+    }
+    s += &format!(
+        "all held-out runs  {}\n",
+        agreement(&cv.held_out_runs)
+    );
+    if let Some([a, b]) = v.load_average {
+        s += &format!("host load average {a:.2} at the start, {b:.2} at the end\n");
+    }
+    if let Some(w) = &v.load_warning {
+        s += w;
+        s += "\n";
+    }
+    s
 }
 
 /// The fields of `k` the fit sets, in [`FITTED`] order.
@@ -268,6 +444,7 @@ mod tests {
             measured_ms,
             measured_min_ms: measured_ms,
             measured_max_ms: measured_ms,
+            wall_ms: measured_ms,
             steps_ms: measured_ms,
             ratio: 1.0,
             run_wall_ms: None,

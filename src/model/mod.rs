@@ -30,6 +30,7 @@ use rayon::prelude::*;
 pub use buffer::{Buffer, Memory};
 pub use config::MachineConfig;
 
+use crate::util::cpu_time;
 use crate::util::deadline::Deadline;
 pub use simd::{
     lane_groups, task_items, task_weights, BufferId, Lanes, Mask, NoProbe, Probe, LANES,
@@ -189,6 +190,11 @@ struct PhaseRecord {
     /// The part of `wall_ms` spent inside [`Machine::run_step`] on `cpu-native`: the work the
     /// model times, without the host-side work between steps.
     steps_wall_ms: f64,
+    /// On `cpu-native`, the phase on the CPU clock (`util::cpu_time::Times::cpu_ms`): time
+    /// other processes held the CPUs left out; `NaN` without the CPU clocks.
+    cpu_ms: f64,
+    /// Where the current stretch of the phase started on the CPU clocks.
+    cpu_start: cpu_time::Span,
     model_ms: f64,
     counters: Counters,
 }
@@ -267,6 +273,7 @@ impl Machine {
         match self.phases.iter().position(|p| p.name == name) {
             Some(i) => {
                 self.phases[i].start = Instant::now();
+                self.phases[i].cpu_start = cpu_time::Span::start();
                 self.current = i;
             }
             None => {
@@ -281,6 +288,8 @@ impl Machine {
                     start: Instant::now(),
                     wall_ms: 0.0,
                     steps_wall_ms: 0.0,
+                    cpu_ms: 0.0,
+                    cpu_start: cpu_time::Span::start(),
                     model_ms: start_ms,
                     counters: Counters::default(),
                 });
@@ -290,8 +299,14 @@ impl Machine {
     }
 
     fn close_phase(&mut self) {
+        let cpu = !self.is_model();
         if let Some(p) = self.phases.get_mut(self.current) {
             p.wall_ms += p.start.elapsed().as_secs_f64() * 1e3;
+            if cpu {
+                // The steps' tasks run on the host's worker threads while this one waits.
+                let t = p.cpu_start.elapsed(rayon::current_num_threads());
+                p.cpu_ms += t.cpu_ms.unwrap_or(f64::NAN);
+            }
         }
     }
 
@@ -528,8 +543,10 @@ impl Machine {
         let mut total = Counters::default();
         let mut phases = Vec::new();
         let mut steps_wall = Vec::new();
+        let mut phase_cpu = Vec::new();
         for p in self.phases {
             steps_wall.push((p.name.clone(), serde_json::json!(p.steps_wall_ms)));
+            phase_cpu.push((p.name.clone(), serde_json::json!(p.cpu_ms)));
             for (k, v) in &p.counters.0 {
                 if !k.starts_with("step.") {
                     total.add(k, *v);
@@ -549,6 +566,12 @@ impl Machine {
             execution.insert(
                 "steps_wall_ms".into(),
                 serde_json::json!(steps_wall
+                    .into_iter()
+                    .collect::<serde_json::Map<String, serde_json::Value>>()),
+            );
+            execution.insert(
+                "phase_cpu_ms".into(),
+                serde_json::json!(phase_cpu
                     .into_iter()
                     .collect::<serde_json::Map<String, serde_json::Value>>()),
             );

@@ -69,18 +69,18 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, v: &Validation) -> Dr
         .draw(&Text::new(
             format!(
                 "grey line: modelled = measured; dashed: ±30%{}",
-                v.cost_fit
+                v.training
                     .as_ref()
-                    .map(|f| {
-                        let held_out = f.trained_on(&v.sweep.scenes).is_empty();
+                    .map(|t| {
                         format!(
-                            "; issue costs fitted on {}{}",
-                            f.scenes.join(", "),
-                            if held_out {
-                                " (not in this sweep)"
-                            } else {
-                                " (partly this sweep's scenes: not held out)"
-                            }
+                            "; issue costs fitted on {} at {} (held out here); cpu-native on the {} clock",
+                            t.scenes.join(", "),
+                            t.images
+                                .iter()
+                                .map(|[w, h]| format!("{w}x{h}"))
+                                .collect::<Vec<_>>()
+                                .join(", "),
+                            v.sweep.clock.name()
                         )
                     })
                     .unwrap_or_default()
