@@ -1603,7 +1603,14 @@ fn cross_validate_model(
         ..sweep
     };
     let v = validate::run(&measured, &kernels, |line| outln!("{line}"))?;
-    let cv = fit::cross_validate(&kernels, &v, &training.images, &held_out_images, k)?;
+    let cv = fit::cross_validate(
+        &kernels,
+        &v.sweep.scenes,
+        (&v.runs, &v.phases),
+        &training.images,
+        &held_out_images,
+        k,
+    )?;
     let text = fit::cross_validation_text(&cv, &v);
     let json = serde_json::json!({ "cross_validation": cv, "sweep": v });
     let mut written = vec![path];

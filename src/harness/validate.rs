@@ -547,6 +547,9 @@ fn case(
         ..Default::default()
     };
     let model = algorithms::run(alg, Backend::CpuModel, frame, &ctx)?;
+    // Each task of cpu-native's steps on its thread's CPU clock (the phases' CPU-clock times
+    // schedule them as an idle machine would).
+    let _timing = cpu_time::TimeTasks::on();
     // Warm-up: first touches of the frame, the thread pool, the allocator.
     algorithms::run(alg, Backend::CpuNative, frame, &ctx)?;
     // Per timed run: its whole wall time and, per phase name, (wall, cpu, inside steps) ms.
@@ -898,6 +901,41 @@ mod tests {
         );
         assert_eq!(spearman(&[1.0, 2.0, 3.0], &[1.0, 100.0, 1000.0]), 1.0);
         assert!(spearman(&[1.0], &[2.0]).is_nan());
+    }
+
+    #[test]
+    fn a_sweep_sharing_a_training_scene_or_size_is_refused_naming_the_flag() {
+        let scenes = ["box-on-plane".to_string(), "sphere-grid".to_string()];
+        let images = [[240, 180], [480, 360]];
+        let mut sweep = Sweep {
+            scenes: vec!["room".into(), "torus-on-plane".into()],
+            images: vec![[400, 300]],
+            ..Sweep::default()
+        };
+        assert!(check_held_out(&sweep, &scenes, &images, "--scenes", "--images").is_ok());
+        sweep.scenes.push("sphere-grid".into());
+        let e = check_held_out(&sweep, &scenes, &images, "--scenes", "--images").unwrap_err();
+        assert!(
+            e.to_string().contains("--scenes") && e.to_string().contains("'sphere-grid'"),
+            "{e}"
+        );
+        sweep.scenes.pop();
+        sweep.images.push([480, 360]);
+        let e = check_held_out(&sweep, &scenes, &images, "--scenes", "--images").unwrap_err();
+        assert!(
+            e.to_string().contains("--images") && e.to_string().contains("'480x360'"),
+            "{e}"
+        );
+        // The defaults hold out the training sweep's defaults.
+        let train = crate::harness::fit::training_sweep(&Sweep::default());
+        assert!(check_held_out(
+            &Sweep::default(),
+            &train.scenes,
+            &train.images,
+            "--scenes",
+            "--images"
+        )
+        .is_ok());
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! run delay per thread (the second field of Linux's `/proc/self/task/*/schedstat`: time spent
 //! runnable, waiting for a CPU) and the 1-minute load average (`/proc/loadavg`).
 
+use std::cell::Cell;
 use std::time::Instant;
 
 /// Which clock measures `cpu-native` time.
@@ -99,20 +100,75 @@ impl Span {
         }
     }
 
+    /// The process's and the calling thread's CPU time since [`Span::start`], ns; `None`
+    /// without the CPU clocks. Must be called on the thread that started the span.
+    pub fn cpu_ns(&self) -> Option<(f64, f64)> {
+        let (p0, t0, p1, t1) = (self.process?, self.thread?, process_ns()?, thread_ns()?);
+        Some((p1.saturating_sub(p0) as f64, t1.saturating_sub(t0) as f64))
+    }
+
     /// The times since [`Span::start`], the parallel work spread over `workers` threads (at
-    /// least 1). Must be called on the thread that started the span.
+    /// least 1; [`spread_ms`]). Must be called on the thread that started the span.
     pub fn elapsed(&self, workers: usize) -> Times {
         let wall_ms = self.wall.elapsed().as_secs_f64() * 1e3;
-        let cpu_ms = match (self.process, self.thread, process_ns(), thread_ns()) {
-            (Some(p0), Some(t0), Some(p1), Some(t1)) => {
-                let own = t1.saturating_sub(t0) as f64;
-                let others = p1.saturating_sub(p0).saturating_sub(t1.saturating_sub(t0)) as f64;
-                Some((own + others / workers.max(1) as f64) * 1e-6)
-            }
-            _ => None,
-        };
+        let cpu_ms = self
+            .cpu_ns()
+            .map(|(process, own)| spread_ms(process, own, workers));
         Times { wall_ms, cpu_ms }
     }
+}
+
+thread_local! {
+    /// Whether `cpu-native` steps started on this thread time each task on its thread's CPU
+    /// clock ([`TimeTasks`]).
+    static TIME_TASKS: Cell<bool> = const { Cell::new(false) };
+}
+
+/// While held, `cpu-native` steps run from this thread time each of their tasks on the CPU
+/// clock of the thread that runs it (two `clock_gettime` calls per task, about 0.2 µs each
+/// here), so that a phase's CPU-clock time can schedule the tasks as an idle machine would
+/// ([`list_schedule`]); off again when dropped. Off by default: ordinary runs pay nothing.
+pub struct TimeTasks(bool);
+
+impl TimeTasks {
+    pub fn on() -> TimeTasks {
+        TimeTasks(TIME_TASKS.with(|t| t.replace(true)))
+    }
+}
+
+impl Drop for TimeTasks {
+    fn drop(&mut self) {
+        TIME_TASKS.with(|t| t.set(self.0));
+    }
+}
+
+/// Whether this thread's `cpu-native` steps time their tasks ([`TimeTasks`]).
+pub fn tasks_timed() -> bool {
+    TIME_TASKS.with(Cell::get)
+}
+
+/// The makespan of `tasks` (durations, in order) on `workers` identical workers by list
+/// scheduling: each task in turn goes to the worker free first (Graham, "Bounds for certain
+/// multiprocessing anomalies", 1966; within 2 − 1/workers of the optimum). The idle-machine
+/// time of a step whose tasks took these CPU times, whichever threads ran them under load.
+/// 0 for no tasks; `workers` below 1 counts as 1.
+pub fn list_schedule(tasks: &[f64], workers: usize) -> f64 {
+    let mut free = vec![0.0f64; workers.max(1)];
+    for &t in tasks {
+        let first = free
+            .iter_mut()
+            .min_by(|a, b| a.total_cmp(b))
+            .expect("at least one worker");
+        *first += t;
+    }
+    free.into_iter().fold(0.0, f64::max)
+}
+
+/// `own + (process − own) / workers` in ms, from ns: the calling thread's CPU time in full (the
+/// serial host code) and the other threads' spread over `workers` (at least 1). The process
+/// time counts as at least the caller's.
+pub fn spread_ms(process_ns: f64, own_ns: f64, workers: usize) -> f64 {
+    (own_ns + (process_ns - own_ns).max(0.0) / workers.max(1) as f64) * 1e-6
 }
 
 /// How loaded the host was while this process ran: a snapshot to difference.
@@ -219,14 +275,18 @@ mod tests {
         }
     }
 
+    // The process clock counts every thread of the test binary, other tests' included: the
+    // tests below read the thread clock, or bound the process clock from below only.
+
     #[test]
     fn a_sleeping_thread_uses_no_cpu_time() {
         let s = Span::start();
         std::thread::sleep(Duration::from_millis(60));
         let t = s.elapsed(1);
+        let (_, own) = s.cpu_ns().unwrap();
         assert!(t.wall_ms >= 60.0, "{t:?}");
         // Sleeping costs the thread a few microseconds of system time at most.
-        assert!(t.cpu_ms.unwrap() < 5.0, "{t:?}");
+        assert!(own * 1e-6 < 5.0, "{own} ns");
     }
 
     #[test]
@@ -234,32 +294,65 @@ mod tests {
         let s = Span::start();
         spin_cpu(30.0);
         let t = s.elapsed(1);
-        let cpu = t.cpu_ms.unwrap();
-        assert!(cpu >= 30.0, "{t:?}");
-        assert!(cpu <= t.wall_ms + 0.1, "{t:?}");
+        let own = s.cpu_ns().unwrap().1 * 1e-6;
+        assert!(own >= 30.0, "{own} ms");
+        assert!(own <= t.wall_ms + 0.1, "{own} ms, {t:?}");
     }
 
     /// Two threads each spin 40 ms of their own CPU time while the calling thread waits: the
-    /// process used at least 80 ms, and spread over 2 workers the span is 40 ms plus what the
-    /// calling thread itself used (spawning and joining: well under 5 ms), whatever the load.
+    /// process used at least 80 ms, and the calling thread itself (spawning and joining) well
+    /// under 5 ms.
     #[test]
-    fn the_estimate_spreads_the_workers_time_and_keeps_the_callers() {
-        let p0 = process_ns().unwrap();
+    fn the_process_clock_counts_the_other_threads_and_the_thread_clock_does_not() {
         let s = Span::start();
         std::thread::scope(|scope| {
             for _ in 0..2 {
                 scope.spawn(|| spin_cpu(40.0));
             }
         });
-        let t = s.elapsed(2);
-        assert!((process_ns().unwrap() - p0) as f64 * 1e-6 >= 80.0);
-        let cpu = t.cpu_ms.unwrap();
-        assert!((40.0..45.0).contains(&cpu), "{t:?}");
-        // The caller's own spin counts in full (serial host code).
-        let s = Span::start();
-        spin_cpu(20.0);
-        let t = s.elapsed(2);
-        assert!((20.0..25.0).contains(&t.cpu_ms.unwrap()), "{t:?}");
+        let (process, own) = s.cpu_ns().unwrap();
+        assert!(process * 1e-6 >= 80.0, "{process} ns");
+        assert!(own * 1e-6 < 5.0, "{own} ns");
+    }
+
+    #[test]
+    fn the_estimate_keeps_the_callers_time_and_spreads_the_others() {
+        // 100 ms of process CPU time, 20 of them the caller's, 2 workers: 20 + 80 / 2.
+        assert!((spread_ms(100e6, 20e6, 2) - 60.0).abs() < 1e-9);
+        assert!((spread_ms(100e6, 20e6, 1) - 100.0).abs() < 1e-9);
+        // A process clock read before the thread clock can trail it by a few ns: never below
+        // the caller's own time.
+        assert!((spread_ms(19e6, 20e6, 2) - 20.0).abs() < 1e-9);
+        assert!((spread_ms(10e6, 0.0, 0) - 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn list_scheduling_matches_hand_computed_makespans() {
+        // 3, 3, 2, 2, 2 on two workers in order: A 3, B 3, A 5, B 5, A 7.
+        assert_eq!(list_schedule(&[3.0, 3.0, 2.0, 2.0, 2.0], 2), 7.0);
+        // One long task last: the others spread first (1+1 | 1), then 4 on the second: 5.
+        assert_eq!(list_schedule(&[1.0, 1.0, 1.0, 4.0], 2), 5.0);
+        // One worker: the sum; more workers than tasks: the longest.
+        assert_eq!(list_schedule(&[1.0, 2.0, 3.0], 1), 6.0);
+        assert_eq!(list_schedule(&[1.0, 2.0, 3.0], 8), 3.0);
+        assert_eq!(list_schedule(&[], 2), 0.0);
+        assert_eq!(list_schedule(&[2.0], 0), 2.0);
+    }
+
+    #[test]
+    fn task_timing_is_on_while_held_and_only_on_its_thread() {
+        assert!(!tasks_timed());
+        {
+            let _on = TimeTasks::on();
+            assert!(tasks_timed());
+            assert!(!std::thread::spawn(tasks_timed).join().unwrap());
+            {
+                let _again = TimeTasks::on();
+            }
+            // The inner guard restores the outer one's setting.
+            assert!(tasks_timed());
+        }
+        assert!(!tasks_timed());
     }
 
     #[test]
