@@ -1399,9 +1399,12 @@ fn calibrated_host(
     let load = shadowbench::util::cpu_time::Load::now();
     let (kernels, _) = model::calibrate::calibrate(&base, settings, |line| outln!("{line}"));
     let cpus = base.cores * base.threads_per_core;
-    if let Some(w) =
-        shadowbench::util::cpu_time::loaded_warning(&load, &shadowbench::util::cpu_time::Load::now(), cpus, clock)
-    {
+    if let Some(w) = shadowbench::util::cpu_time::loaded_warning(
+        &load,
+        &shadowbench::util::cpu_time::Load::now(),
+        cpus,
+        clock,
+    ) {
         outln!("kernels: {w}");
     }
     let Some(training) = training else {
@@ -1432,7 +1435,9 @@ fn calibrated_host(
         fit.load_average
             .map_or("unknown".into(), |[a, b]| format!("{a:.2}-{b:.2}")),
         fit.waited_pct
-            .map_or("an unknown share".into(), |w| format!("{w:.1}% of their CPU time")),
+            .map_or("an unknown share".into(), |w| format!(
+                "{w:.1}% of their CPU time"
+            )),
     );
     Ok((m, Some(fit)))
 }
@@ -1541,7 +1546,12 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     let machine = match machine {
         Some(m) => m,
         None => {
-            calibrated_host(false, a.training.clock, (!a.kernels_only).then_some(&training))?.0
+            calibrated_host(
+                false,
+                a.training.clock,
+                (!a.kernels_only).then_some(&training),
+            )?
+            .0
         }
     };
     // The machine the sweep runs with, given or calibrated (no earlier file left beside it).

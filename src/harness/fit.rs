@@ -99,11 +99,7 @@ pub fn fit(
     );
     let mut m = kernels.clone();
     let mut sources = Vec::new();
-    for (((field, _), slot), c) in FITTED
-        .iter()
-        .zip(slots(&mut m.costs))
-        .zip(fitted.costs)
-    {
+    for (((field, _), slot), c) in FITTED.iter().zip(slots(&mut m.costs)).zip(fitted.costs) {
         let kernel = kernels
             .sources
             .get(*field)
@@ -331,10 +327,7 @@ pub fn cross_validation_text(cv: &CrossValidation, v: &validate::Validation) -> 
             }
         );
     }
-    s += &format!(
-        "all held-out runs  {}\n",
-        agreement(&cv.held_out_runs)
-    );
+    s += &format!("all held-out runs  {}\n", agreement(&cv.held_out_runs));
     if let Some([a, b]) = v.load_average {
         s += &format!("host load average {a:.2} at the start, {b:.2} at the end\n");
     }
@@ -605,6 +598,7 @@ mod tests {
             steps_ms: measured_ms,
             ratio: 1.0,
             run_wall_ms: None,
+            run_cpu_ms: None,
             cpu_ms: None,
             work,
         }
@@ -673,7 +667,9 @@ mod tests {
         let (runs, mut phases) = synthetic_sweep(&truth, 1.0);
         let mut state = 7u64;
         for p in &mut phases {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
             p.measured_ms *= 0.6 + 0.8 * ((state >> 11) as f64 / (1u64 << 53) as f64);
         }
         let fitted = fit_rows(&m, &phases).unwrap();
@@ -683,10 +679,15 @@ mod tests {
             .map(|r| {
                 let t = phases
                     .iter()
-                    .filter(|p| (&p.algorithm, &p.scene, p.image) == (&r.algorithm, &r.scene, r.image))
+                    .filter(|p| {
+                        (&p.algorithm, &p.scene, p.image) == (&r.algorithm, &r.scene, r.image)
+                    })
                     .map(|p| p.measured_ms)
                     .sum();
-                Row { measured_ms: t, ..r }
+                Row {
+                    measured_ms: t,
+                    ..r
+                }
             })
             .collect();
         let predicted = predicted_runs(&m, &fitted, &runs, &phases);
@@ -752,7 +753,11 @@ mod tests {
                         .map(|(k, v)| (k.to_string(), v))
                         .collect();
                         let mut r = row(work, 1.0);
-                        let factor = if image == [16, 16] { held_out_factor } else { 1.0 };
+                        let factor = if image == [16, 16] {
+                            held_out_factor
+                        } else {
+                            1.0
+                        };
                         r.measured_ms = predicted_ms(&m, truth, &r) * factor;
                         (r.algorithm, r.scene, r.image, r.phase) =
                             (alg.into(), scene.into(), image, Some(p.into()));

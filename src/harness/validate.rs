@@ -28,8 +28,8 @@ use serde::Serialize;
 use crate::algorithms::{self, Backend, ExecContext};
 use crate::error::{Error, InputError, Result};
 use crate::frame::{Frame, RunParams};
-use crate::model::MachineConfig;
 use crate::model::config::Training;
+use crate::model::MachineConfig;
 use crate::scenario;
 use crate::scene::generators::GeneratorParams;
 use crate::util::cpu_time::{self, Clock, Load};
@@ -113,6 +113,9 @@ pub struct Row {
     /// The run's whole wall time (median), with the host-side work between phases; runs only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub run_wall_ms: Option<f64>,
+    /// The same on the CPU clock (`util::cpu_time::Times::cpu_ms` of the whole run); runs only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub run_cpu_ms: Option<f64>,
     /// Median CPU-clock time of the timed runs (`util::cpu_time::Times::cpu_ms`: the calling
     /// thread's CPU time plus the worker threads' over their count; time other processes held
     /// the CPUs does not count, idle workers' spinning does). Absent without CPU clocks.
@@ -323,10 +326,11 @@ pub struct Validation {
     pub per_image: Vec<([u32; 2], Agreement)>,
     /// Over whole runs, per scene (sweep order).
     pub per_scene: Vec<(String, Agreement)>,
-    /// Per algorithm, the median over its runs of the wall time outside its phases (the run's
-    /// whole wall time less its phases'), ms, and of its share of the run's wall time: host work
-    /// neither execution times (frame setup, the light-view fit), measured apart.
-    pub outside_phases: Vec<(String, f64, f64)>,
+    /// Per algorithm, the median over its runs of the time outside its phases (the run's whole
+    /// time less its phases'), ms, and of its share of the run's time, on the wall clock and on
+    /// the CPU clock (NaN without it): host work neither execution times (the light-view fit,
+    /// gathering the occluders, the frame output), measured apart.
+    pub outside_phases: Vec<OutsidePhases>,
     pub runs: Vec<Row>,
     pub phases: Vec<Row>,
     /// Cases that could not run, with the reason.
@@ -343,6 +347,16 @@ pub struct Validation {
     /// Set when the host was loaded during the sweep (`util::cpu_time::loaded_warning`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub load_warning: Option<String>,
+}
+
+/// Time of an algorithm's runs outside their phases ([`Validation::outside_phases`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct OutsidePhases {
+    pub algorithm: String,
+    pub wall_ms: f64,
+    pub wall_share: f64,
+    pub cpu_ms: f64,
+    pub cpu_share: f64,
 }
 
 /// Refuses a sweep that shares a scene or an image size with a training sweep's (`scenes`,
@@ -477,16 +491,27 @@ pub fn run(
         .algorithms
         .iter()
         .map(|a| {
-            let (mut ms, mut share): (Vec<f64>, Vec<f64>) = runs
-                .iter()
-                .filter(|r| &r.algorithm == a)
-                .filter_map(|r| {
-                    let whole = r.run_wall_ms?;
-                    let outside = (whole - r.wall_ms).max(0.0);
-                    Some((outside, outside / whole))
-                })
-                .unzip();
-            (a.clone(), median(&mut ms), median(&mut share))
+            let of = |whole: &dyn Fn(&Row) -> Option<f64>, phases: &dyn Fn(&Row) -> Option<f64>| {
+                let (mut ms, mut share): (Vec<f64>, Vec<f64>) = runs
+                    .iter()
+                    .filter(|r| &r.algorithm == a)
+                    .filter_map(|r| {
+                        let (whole, inside) = (whole(r)?, phases(r)?);
+                        let outside = (whole - inside).max(0.0);
+                        Some((outside, outside / whole))
+                    })
+                    .unzip();
+                (median(&mut ms), median(&mut share))
+            };
+            let (wall_ms, wall_share) = of(&|r| r.run_wall_ms, &|r| Some(r.wall_ms));
+            let (cpu_ms, cpu_share) = of(&|r| r.run_cpu_ms, &|r| r.cpu_ms);
+            OutsidePhases {
+                algorithm: a.clone(),
+                wall_ms,
+                wall_share,
+                cpu_ms,
+                cpu_share,
+            }
         })
         .collect();
     let cpus = machine.cores * machine.threads_per_core;
@@ -512,7 +537,10 @@ pub fn run(
         phases,
         failures,
         seconds: start.elapsed().as_secs_f64(),
-        load_average: load_start.load_average.zip(load_end.load_average).map(|(a, b)| [a, b]),
+        load_average: load_start
+            .load_average
+            .zip(load_end.load_average)
+            .map(|(a, b)| [a, b]),
         waited_pct: load_end.waited_pct_since(&load_start),
         load_warning: cpu_time::loaded_warning(&load_start, &load_end, cpus, sweep.clock),
     })
@@ -552,19 +580,19 @@ fn case(
     let _timing = cpu_time::TimeTasks::on();
     // Warm-up: first touches of the frame, the thread pool, the allocator.
     algorithms::run(alg, Backend::CpuNative, frame, &ctx)?;
-    // Per timed run: its whole wall time and, per phase name, (wall, cpu, inside steps) ms.
-    type Timed = (f64, Vec<(String, f64, f64, f64)>);
+    // Per timed run: its whole wall and CPU-clock time and, per phase name, (wall, cpu, inside
+    // steps) ms.
+    type Timed = (f64, f64, Vec<(String, f64, f64, f64)>);
     let mut timed: Vec<Timed> = Vec::new();
     for _ in 0..repeats.max(1) {
-        let start = Instant::now();
+        let start = cpu_time::Span::start();
         let out = algorithms::run(alg, Backend::CpuNative, frame, &ctx)?;
-        let wall = start.elapsed().as_secs_f64() * 1e3;
+        let whole = start.elapsed(rayon::current_num_threads());
+        let (wall, whole_cpu) = (whole.wall_ms, whole.cpu_ms.unwrap_or(f64::NAN));
         let steps = named_ms(&out, "steps_wall_ms");
         let cpu = named_ms(&out, "phase_cpu_ms");
         let find = |v: &[(String, f64)], n: &str| {
-            v.iter()
-                .find(|(k, _)| k == n)
-                .map_or(f64::NAN, |(_, x)| *x)
+            v.iter().find(|(k, _)| k == n).map_or(f64::NAN, |(_, x)| *x)
         };
         let phases = out
             .phases
@@ -578,48 +606,46 @@ fn case(
                 )
             })
             .collect();
-        timed.push((wall, phases));
+        timed.push((wall, whole_cpu, phases));
     }
     let clock = sweep.clock;
     // One row from the timed runs' (wall, cpu, steps) of the run or phase.
-    let row = |phase: Option<String>, modelled: f64, work: BTreeMap<String, f64>, t: &[[f64; 3]]| {
-        let col = |i: usize| t.iter().map(|x| x[i]).collect::<Vec<f64>>();
-        let (mut wall, mut cpu, mut steps) = (col(0), col(1), col(2));
-        let cpu_ok = cpu.iter().all(|c| c.is_finite());
-        let mut measured = match clock {
-            Clock::Cpu if cpu_ok => cpu.clone(),
-            _ => wall.clone(),
+    let row =
+        |phase: Option<String>, modelled: f64, work: BTreeMap<String, f64>, t: &[[f64; 3]]| {
+            let col = |i: usize| t.iter().map(|x| x[i]).collect::<Vec<f64>>();
+            let (mut wall, mut cpu, mut steps) = (col(0), col(1), col(2));
+            let cpu_ok = cpu.iter().all(|c| c.is_finite());
+            let mut measured = match clock {
+                Clock::Cpu if cpu_ok => cpu.clone(),
+                _ => wall.clone(),
+            };
+            let (lo, hi) = measured
+                .iter()
+                .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+            let m = median(&mut measured);
+            Row {
+                algorithm: alg.to_string(),
+                scene: frame.scene.name.clone(),
+                image: frame.params.image,
+                phase,
+                modelled_ms: modelled,
+                measured_ms: m,
+                measured_min_ms: lo,
+                measured_max_ms: hi,
+                wall_ms: median(&mut wall),
+                steps_ms: median(&mut steps),
+                ratio: modelled / m,
+                run_wall_ms: None,
+                run_cpu_ms: None,
+                cpu_ms: cpu_ok.then(|| median(&mut cpu)),
+                work,
+            }
         };
-        let (lo, hi) = measured
-            .iter()
-            .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
-        let m = median(&mut measured);
-        Row {
-            algorithm: alg.to_string(),
-            scene: frame.scene.name.clone(),
-            image: frame.params.image,
-            phase,
-            modelled_ms: modelled,
-            measured_ms: m,
-            measured_min_ms: lo,
-            measured_max_ms: hi,
-            wall_ms: median(&mut wall),
-            steps_ms: median(&mut steps),
-            ratio: modelled / m,
-            run_wall_ms: None,
-            cpu_ms: cpu_ok.then(|| median(&mut cpu)),
-            work,
-        }
-    };
     let mut phase_rows = Vec::new();
     for p in &model.phases {
         let t: Vec<[f64; 3]> = timed
             .iter()
-            .filter_map(|(_, ps)| {
-                ps.iter()
-                    .find(|q| q.0 == p.name)
-                    .map(|q| [q.1, q.2, q.3])
-            })
+            .filter_map(|(_, _, ps)| ps.iter().find(|q| q.0 == p.name).map(|q| [q.1, q.2, q.3]))
             .collect();
         match (p.model_ms, t.len() == timed.len()) {
             (Some(m), true) => {
@@ -636,18 +662,22 @@ fn case(
     // The run: the sums over its phases (what the model models).
     let sums: Vec<[f64; 3]> = timed
         .iter()
-        .map(|(_, ps)| {
-            ps.iter().fold([0.0; 3], |a, q| {
-                [a[0] + q.1, a[1] + q.2, a[2] + q.3]
-            })
+        .map(|(_, _, ps)| {
+            ps.iter()
+                .fold([0.0; 3], |a, q| [a[0] + q.1, a[1] + q.2, a[2] + q.3])
         })
         .collect();
-    let mut walls: Vec<f64> = timed.iter().map(|(w, _)| *w).collect();
+    let mut walls: Vec<f64> = timed.iter().map(|(w, _, _)| *w).collect();
+    let mut cpus: Vec<f64> = timed.iter().map(|(_, c, _)| *c).collect();
     let modelled = model
         .model_ms
         .ok_or_else(|| Error::Other("the cpu-model run has no model_ms".into()))?;
     let mut run = row(None, modelled, work_of(&model.counters), &sums);
     run.run_wall_ms = Some(median(&mut walls));
+    run.run_cpu_ms = cpus
+        .iter()
+        .all(|c| c.is_finite())
+        .then(|| median(&mut cpus));
     Ok((run, phase_rows))
 }
 
@@ -784,9 +814,20 @@ pub fn summary_text(v: &Validation) -> String {
     for (a, p, agreement) in &v.per_phase {
         s += &line(&format!("  {a} {p}"), agreement);
     }
-    s += "wall time outside the phases (not in either execution's times), median per run:\n";
-    for (a, ms, share) in &v.outside_phases {
-        s += &format!("  {a:<32} {ms:>8.3} ms  {:>5.1}%\n", 100.0 * share);
+    s += "time outside the phases (in neither execution's times), median per run:\n";
+    s += &format!(
+        "  {:<32} {:>11} {:>6}  {:>11} {:>6}\n",
+        "", "wall", "share", "CPU clock", "share"
+    );
+    for o in &v.outside_phases {
+        s += &format!(
+            "  {:<32} {:>8.3} ms {:>5.1}%  {:>8.3} ms {:>5.1}%\n",
+            o.algorithm,
+            o.wall_ms,
+            100.0 * o.wall_share,
+            o.cpu_ms,
+            100.0 * o.cpu_share
+        );
     }
     s += "the same runs against the median wall time:\n";
     s += &line("  runs", &v.runs_agreement_wall);
@@ -953,6 +994,7 @@ mod tests {
             steps_ms: 1.75,
             ratio: 0.5,
             run_wall_ms: None,
+            run_cpu_ms: None,
             cpu_ms: None,
             work: BTreeMap::new(),
         };

@@ -25,10 +25,10 @@
 //! outside the counted steps, branch mispredictions, page faults of new buffers, frequency
 //! changes, and other guests on the same physical cores (`docs/model.md`, "Validation").
 
-use std::hint::black_box;
-use std::sync::atomic::{AtomicU32, Ordering};
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
+use std::hint::black_box;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 use super::config::{CacheConfig, MachineConfig};
 use super::{Lanes, Machine, Mask, Memory, NoProbe, Probe, TaskKernel, LANES};

@@ -13,7 +13,15 @@ use std::time::Instant;
 
 /// Which clock measures `cpu-native` time.
 #[derive(
-    Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    serde::Serialize,
+    serde::Deserialize,
+    clap::ValueEnum,
 )]
 #[serde(rename_all = "lowercase")]
 pub enum Clock {
@@ -214,8 +222,8 @@ pub fn loaded_warning(start: &Load, end: &Load, cpus: u32, clock: Clock) -> Opti
         (Some(a), Some(b)) => Some(a.max(b)),
         (a, b) => a.or(b),
     };
-    let busy = waited.is_some_and(|w| w > LOADED_WAITED_PCT)
-        || peak.is_some_and(|l| l > f64::from(cpus));
+    let busy =
+        waited.is_some_and(|w| w > LOADED_WAITED_PCT) || peak.is_some_and(|l| l > f64::from(cpus));
     if !busy {
         return None;
     }
@@ -225,7 +233,9 @@ pub fn loaded_warning(start: &Load, end: &Load, cpus: u32, clock: Clock) -> Opti
              but not their use of the caches, memory bandwidth and the cores' other hardware \
              threads"
         }
-        Clock::Wall => "measured in wall time, which includes the time other processes held the CPUs",
+        Clock::Wall => {
+            "measured in wall time, which includes the time other processes held the CPUs"
+        }
     };
     Some(format!(
         "warning: the host was loaded (load average {}, this process's threads waited for a \
@@ -369,7 +379,10 @@ mod tests {
         };
         assert_eq!(b.waited_pct_since(&a), Some(25.0));
         let w = loaded_warning(&a, &b, 2, Clock::Cpu).unwrap();
-        assert!(w.contains("1.00 at the start, 3.50 at the end") && w.contains("25%"), "{w}");
+        assert!(
+            w.contains("1.00 at the start, 3.50 at the end") && w.contains("25%"),
+            "{w}"
+        );
         // Idle: 5% waited, load under the CPU count.
         let c = Load {
             waited_ns: Some(2_000),
