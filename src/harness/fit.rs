@@ -430,7 +430,8 @@ pub fn fit_rows(m: &MachineConfig, rows: &[Row]) -> Result<Fitted> {
     };
     // Per training run (the phases of one algorithm, scene and size): the scaled part, the
     // fixed part and the measured time, ms.
-    let mut groups: Vec<((&str, &str, [u32; 2]), [f64; 3])> = Vec::new();
+    type Run<'a> = (&'a str, &'a str, [u32; 2]);
+    let mut groups: Vec<(Run, [f64; 3])> = Vec::new();
     for r in &rows {
         let k = (r.algorithm.as_str(), r.scene.as_str(), r.image);
         let (scaled, fixed) = parts_ms(m, &fitted, r);
@@ -525,7 +526,7 @@ fn features(m: &MachineConfig, r: &Row) -> [f64; FITTED.len() + 1] {
     let g = imbalance(m, r);
     let x = work_per_core(m, r);
     std::array::from_fn(|j| match FITTED.get(j) {
-        Some((_, counters)) if counters.is_empty() => 1.0,
+        Some((_, [])) => 1.0,
         Some(_) => g * x[j],
         None => g * stall_cycles(m, r) / f64::from(m.cores),
     })
