@@ -391,7 +391,7 @@ pub const COUNTERS: &[Counter] = &[
         All,
         Deterministic,
         Lower,
-        "visible receiver pixels outside every light view, taken as lit",
+        "visible receiver pixels facing the light centre outside every light view, taken as lit",
     ),
     c(
         "loads",

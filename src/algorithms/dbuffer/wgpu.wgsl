@@ -171,6 +171,8 @@ fn owns(p: vec3<f32>) -> bool {
     return true;
 }
 
+// DLookup::AVERTED_IN_SHADOW: a receiver behind the light stays lit.
+const AVERTED_IN_SHADOW: bool = false;
 fn shade(n: vec3<f32>, p: vec3<f32>, m: vec4<f32>, n_dot_l: f32) -> f32 {
     let f = front_fraction(n, p);
     if n_dot_l <= 0.0 {

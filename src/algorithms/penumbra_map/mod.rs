@@ -162,6 +162,23 @@ impl Cone {
     }
 }
 
+/// The part of the light-view-space segment `a→b` at or beyond `view`'s near plane (depth
+/// ≥ `view.near`), its ends in the same order; `None` when all of it is nearer.
+pub fn clip_to_near(view: &LightView, a: Vec3, b: Vec3) -> Option<(Vec3, Vec3)> {
+    let (da, db) = (depth(a), depth(b));
+    match (da >= view.near, db >= view.near) {
+        (true, true) => Some((a, b)),
+        (false, false) => None,
+        (a_in, _) => {
+            let t = (view.near - da) / (db - da);
+            let cut = a.lerp(b, t);
+            // On the plane exactly: the depth of the cut rounds to either side of it.
+            let cut = Vec3::new(cut.x, cut.y, -view.near);
+            Some(if a_in { (a, cut) } else { (cut, b) })
+        }
+    }
+}
+
 /// The direction, in the far plane, away from the occluder across the silhouette edge `a→b`
 /// (light-view space, oriented as [`crate::scene::adjacency::SilhouetteEdge`]: the face that
 /// faces the light winds counter-clockwise seen from the light, so its inside is on the left
@@ -285,6 +302,13 @@ impl Silhouettes {
     /// The vertex step for silhouette edge `e`: its vertices are added when first seen (`slot`
     /// maps welded vertex indices to positions in `vertices`, `u32::MAX` when unseen), their
     /// edge counts grow, and the edge's sheet is set up with its strip count.
+    ///
+    /// The cones and sheets are built on the part of the edge at or beyond the light view's
+    /// near plane ([`clip_to_near`]): a point nearer the light centre than that (or behind it,
+    /// as the top of a pillar taller than the light) has no cone on the far plane (eq. 1's
+    /// `Z_v` would be zero or negative) and casts nothing the map can hold, as the shadow map
+    /// clips its casters there. A vertex so cut is left out; where an edge crosses the plane, its
+    /// crossing point gets a cone of its own (listed in `vertices` with the index `u32::MAX`).
     pub fn add(
         &mut self,
         slot: &mut [u32],
@@ -294,16 +318,26 @@ impl Silhouettes {
         max_strips: u32,
     ) {
         let to_view = |v: Vec3| view.view.transform_point3(v);
-        for (&w, pos) in e.v.iter().zip([e.a, e.b]) {
-            let i = &mut slot[w as usize];
-            if *i == u32::MAX {
-                *i = self.vertices.len() as u32;
-                self.vertices.push((w, to_view(pos)));
-                self.edges_per_vertex.push(0);
+        let (a, b) = (to_view(e.a), to_view(e.b));
+        let clipped = clip_to_near(view, a, b);
+        if let Some((ca, cb)) = clipped {
+            for ((&w, original), pos) in e.v.iter().zip([a, b]).zip([ca, cb]) {
+                if pos != original {
+                    self.vertices.push((u32::MAX, pos));
+                    self.edges_per_vertex.push(1);
+                    continue;
+                }
+                let i = &mut slot[w as usize];
+                if *i == u32::MAX {
+                    *i = self.vertices.len() as u32;
+                    self.vertices.push((w, pos));
+                    self.edges_per_vertex.push(0);
+                }
+                self.edges_per_vertex[*i as usize] += 1;
             }
-            self.edges_per_vertex[*i as usize] += 1;
         }
-        let sheet = Sheet::new(view, to_view(e.a), to_view(e.b))
+        let sheet = clipped
+            .and_then(|(ca, cb)| Sheet::new(view, ca, cb))
             .map(|sh| (sh, sh.strips(view, light_radius, max_strips)));
         self.sheets.push(sheet);
         self.edges.push(*e);

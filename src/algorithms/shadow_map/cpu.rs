@@ -273,7 +273,9 @@ impl<L: Lookup> EyePass<'_, L> {
         };
         for lane in 0..LANES {
             let seen = valid[lane] && depth[lane] > 0.0;
-            let averted = seen && n_dot_l[lane] <= 0.0;
+            // A surface facing away from the centre behind the light (the top of a pillar
+            // taller than it) is as averted as one in front.
+            let averted = (seen || (valid[lane] && L::AVERTED_IN_SHADOW)) && n_dot_l[lane] <= 0.0;
             let active = seen && (!averted || !L::AVERTED_IN_SHADOW);
             r.averted.0 |= u16::from(averted) << lane;
             r.mask.0 |= u16::from(active) << lane;

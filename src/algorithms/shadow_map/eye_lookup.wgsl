@@ -55,6 +55,23 @@ fn pcss_search_radius_uv(z_r: f32) -> f32 {
     return world_to_uv(light.radius, light.near) * max(z_r - light.near, 0.0) / z_r;
 }
 
+// The receiver `shade` looks up: world position and normal (for `receiver_plane_depth`).
+var<private> receiver_p: vec3<f32>;
+var<private> receiver_n: vec3<f32>;
+
+// receiver_plane_depth(view, receiver_p, receiver_n, uv)
+fn receiver_plane_depth(uv: vec2<f32>) -> f32 {
+    let pv = (light.view * vec4<f32>(receiver_p, 1.0)).xyz;
+    let nv = (light.view * vec4<f32>(receiver_n, 0.0)).xyz;
+    let x = (2.0 * uv.x - 1.0) * light.tan_half_fov;
+    let y = (1.0 - 2.0 * uv.y) * light.tan_half_fov;
+    let inv = (nv.x * x + nv.y * y - nv.z) / dot(nv, pv);
+    if inv > 0.0 {
+        return 1.0 / inv;
+    }
+    return FAR_AWAY;
+}
+
 // pcss_penumbra_radius
 fn pcss_penumbra_radius(z_r: f32, z_b: f32) -> f32 {
     return light.radius * max(z_r - z_b, 0.0) / z_b;
@@ -82,10 +99,13 @@ fn occluder_depth(uv: vec2<f32>) -> f32 {
 
 // The shading of `eye_lookup` (light_view.wgsl): Receivers::averted, a surface facing away from
 // the light centre is in shadow; any other is looked up.
+const AVERTED_IN_SHADOW: bool = true;
 fn shade(n: vec3<f32>, p: vec3<f32>, m: vec4<f32>, n_dot_l: f32) -> f32 {
     if n_dot_l <= 0.0 {
         return 0.0;
     }
+    receiver_p = p;
+    receiver_n = n;
     return visibility_at(m.xy, m.w, bias_at(m.w, n_dot_l));
 }
 

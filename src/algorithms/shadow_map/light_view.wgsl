@@ -31,7 +31,9 @@ fn bias_at(z: f32, n_dot_l: f32) -> f32 {
 
 // Phase `eye_lookup` (shadow_map::cpu::eye_lookup): an eye pixel whose surface the view `owns`
 // and that lies in front of the light is shaded by `shade` with its normal, position,
-// projection and n·l towards the light centre; any other stays lit.
+// projection and n·l towards the light centre; one behind the light that faces away from its
+// centre is in shadow where `AVERTED_IN_SHADOW` (Lookup::AVERTED_IN_SHADOW, set beside `shade`);
+// any other stays lit.
 @compute @workgroup_size(8, 8)
 fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= light.width || id.y >= light.height {
@@ -45,6 +47,8 @@ fn eye_lookup(@builtin(global_invocation_id) id: vec3<u32>) {
         if m.w > 0.0 {
             let n = normals[i].xyz;
             v = shade(n, pos.xyz, m, dot(n, normalize(light.eye - pos.xyz)));
+        } else if AVERTED_IN_SHADOW && dot(normals[i].xyz, normalize(light.eye - pos.xyz)) <= 0.0 {
+            v = 0.0;
         }
     }
     visibility[i] = v;

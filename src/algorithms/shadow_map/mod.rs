@@ -532,7 +532,9 @@ impl FaceView {
 #[derive(Clone, Debug, PartialEq)]
 pub struct LightViews {
     pub views: Vec<FaceView>,
-    /// Eye pixels that see a surface no view holds: the algorithm takes them as lit.
+    /// Eye pixels that see a surface facing the light centre that no view holds: the algorithm
+    /// takes them as lit (one facing away is shaded as the eye pass shades such surfaces
+    /// everywhere: in shadow, or by the part of the light in front of its plane).
     pub receivers_outside: u64,
     /// Triangles inside a view's frustum part of which lies nearer the light than its near
     /// plane (clamped at [`MIN_NEAR_RATIO`] × far): clipped there.
@@ -548,6 +550,13 @@ impl LightViews {
         let receivers: Vec<Vec3> = (0..g.len())
             .filter(|&i| g.is_hit(i))
             .map(|i| g.position[i])
+            .collect();
+        // Receivers facing away from the light centre are shaded by the eye pass's own rule
+        // (`cpu::Receivers::averted`) wherever they lie: only the others are taken as lit
+        // outside the views.
+        let facing: Vec<bool> = (0..g.len())
+            .filter(|&i| g.is_hit(i))
+            .map(|i| g.normal[i].dot(eye - g.position[i]) > 0.0)
             .collect();
         let nearest = receivers
             .iter()
@@ -624,7 +633,8 @@ impl LightViews {
                 view: LightView::looking(eye, dir, tan, near, far, resolution),
             });
         }
-        views.receivers_outside = held.iter().filter(|&&h| !h).count() as u64;
+        views.receivers_outside =
+            held.iter().zip(&facing).filter(|&(&h, &f)| !h && f).count() as u64;
         views
     }
 
@@ -649,7 +659,7 @@ impl LightViews {
         );
         if self.receivers_outside > 0 {
             out.warnings.push(format!(
-                "{} visible receiver pixels lie outside the light view (behind the light or beyond {MAX_HALF_FOV_DEG}° from its axis) and are taken as lit",
+                "{} visible receiver pixels facing the light lie outside the light view (behind the light or beyond {MAX_HALF_FOV_DEG}° from its axis) and are taken as lit",
                 self.receivers_outside
             ));
         }
@@ -722,6 +732,30 @@ pub fn vogel_disk(i: u32, n: u32) -> Vec2 {
 /// `R/(2·n·tan) · (z_r − n)/z_r`.
 pub fn pcss_search_radius_uv(view: &LightView, light_radius: f32, z_r: f32) -> f32 {
     view.world_to_uv(light_radius, view.near) * (z_r - view.near).max(0.0) / z_r
+}
+
+/// PCSS step 1, the blocker test: the linear depth, along the light-view ray through map
+/// coordinates `uv`, of the plane of a receiver at world position `p` with normal `n`; `+∞` where
+/// that ray meets the plane behind the light or never. A map texel is a blocker only in front
+/// of the receiver's plane: a surface on it or behind it (the receiver's own plane seen at a
+/// grazing angle, the rest of a convex receiver) hides no part of a light in front of it, which
+/// the plain search of Fernando 2005 would average in (a ceiling lit from below darkened by its
+/// own plane in the cube faces that see it edge-on). Over a plane, 1/depth is affine in the
+/// ray's slopes: `1/z = (n_x·x + n_y·y − n_z) / (n·p)` in view space, `x = (2u − 1)·tan`,
+/// `y = (1 − 2v)·tan`.
+pub fn receiver_plane_depth(view: &LightView, p: Vec3, n: Vec3, uv: Vec2) -> f32 {
+    let (pv, nv) = (
+        view.view.transform_point3(p),
+        view.view.transform_vector3(n),
+    );
+    let x = (2.0 * uv.x - 1.0) * view.tan_half_fov;
+    let y = (1.0 - 2.0 * uv.y) * view.tan_half_fov;
+    let inv = (nv.x * x + nv.y * y - nv.z) / nv.dot(pv);
+    if inv > 0.0 {
+        1.0 / inv
+    } else {
+        f32::INFINITY
+    }
 }
 
 /// PCSS step 2: penumbra radius in world units on the receiver by similar triangles,

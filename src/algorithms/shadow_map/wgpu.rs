@@ -70,6 +70,8 @@ gpu_struct! {
     /// The light view of a pass (group 0, binding 0 of every pass).
     struct LightUniform as "Light" {
         view_proj: [f32; 16] => "mat4x4<f32>",
+        /// World to light-view space (the receiver-plane test of the PCSS blocker search).
+        view: [f32; 16] => "mat4x4<f32>",
         eye: [f32; 3] => "vec3<f32>",
         radius: f32 => "f32",
         near: f32 => "f32",
@@ -199,6 +201,7 @@ impl<'g> Passes<'g> {
         let view = face.view;
         let uniform = LightUniform {
             view_proj: view.view_proj.to_cols_array(),
+            view: view.view.to_cols_array(),
             eye: view.eye.to_array(),
             radius: frame.scene.light.size(),
             near: view.near,
