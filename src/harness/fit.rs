@@ -143,7 +143,7 @@ pub fn fit(
         scenes: sweep.scenes.clone(),
         images: sweep.images.clone(),
         map_resolution: sweep.map_resolution,
-        clock: sweep.clock.name().into(),
+        clock: sweep.clock,
         runs: training.runs.len(),
         phases: rows.len(),
         runs_mape,

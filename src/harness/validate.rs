@@ -756,7 +756,7 @@ pub fn summary_text(v: &Validation) -> String {
                 t.scenes.join(", "),
                 sizes(&t.images),
                 t.map_resolution,
-                t.clock,
+                t.clock.name(),
                 t.load_average
                     .map_or("unknown".into(), |[a, b]| format!("{a:.2}-{b:.2}")),
             );

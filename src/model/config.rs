@@ -150,8 +150,8 @@ pub struct Training {
     pub images: Vec<[u32; 2]>,
     /// Shadow-map resolution of the sweep, texels per side.
     pub map_resolution: u32,
-    /// The clock `cpu-native` was measured on: `cpu` or `wall` (`util::cpu_time::Clock`).
-    pub clock: String,
+    /// The clock `cpu-native` was measured on: `cpu` or `wall`.
+    pub clock: crate::util::cpu_time::Clock,
     /// Runs and phases fitted.
     pub runs: usize,
     pub phases: usize,
