@@ -186,6 +186,18 @@ impl Frame {
     }
 
     /// Pixels whose surface belongs to a receiver-only object (receives, does not occlude).
+    /// Pixels that see a surface whose tangent plane cuts the light ([`Light::straddles`]):
+    /// `width × height` flags, row-major.
+    ///
+    /// [`Light::straddles`]: crate::scene::Light::straddles
+    pub fn grazing_mask(&self) -> Vec<bool> {
+        let g = &self.gbuffer;
+        let light = &self.scene.light;
+        (0..g.len())
+            .map(|i| g.is_hit(i) && light.straddles(g.position[i], g.normal[i]))
+            .collect()
+    }
+
     pub fn receiver_only_mask(&self) -> Vec<bool> {
         let g = &self.gbuffer;
         (0..g.len())

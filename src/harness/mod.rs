@@ -223,8 +223,10 @@ pub fn run_one(
                     r,
                     &frame.gbuffer.mask(),
                     &frame.receiver_only_mask(),
+                    &frame.grazing_mask(),
                 );
                 record.warnings.extend(e.warnings());
+                record.notes.extend(metrics::grazing_note(&e, algorithm));
                 record.error = Some(e);
                 if let Ok(info) = algorithms::find(algorithm) {
                     record.notes.extend(limit_notes(frame, info, r));

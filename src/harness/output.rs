@@ -317,7 +317,7 @@ pub fn csv(records: &[RunRecord]) -> String {
         s.push_str(c);
     }
     s.push_str(
-        ",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,images,warnings,measure_warnings,failure\n",
+        ",mae,rmse,max,mae_shadow,frac_over_0_1,mae_shadow_receivers,grazing_pixels,mae_shadow_non_grazing,images,warnings,measure_warnings,failure\n",
     );
     let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
     for r in records {
@@ -364,6 +364,8 @@ pub fn csv(records: &[RunRecord]) -> String {
             opt(e.and_then(|e| e.mae_shadow)),
             opt(e.and_then(|e| e.frac_over_0_1)),
             opt(e.and_then(|e| e.mae_shadow_receivers)),
+            e.map(|e| e.grazing_pixels.to_string()).unwrap_or_default(),
+            opt(e.and_then(|e| e.mae_shadow_non_grazing)),
             if r.failure.is_none() {
                 format!("images/{}", field(&r.case_id()))
             } else {

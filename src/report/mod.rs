@@ -388,6 +388,8 @@ pub(crate) mod testdata {
                 pixels: 6912,
                 shadow_pixels: 800,
                 mae_shadow_receivers: None,
+                grazing_pixels: 0,
+                mae_shadow_non_grazing: None,
             }),
             execution: [("host_threads".to_string(), serde_json::json!(2))].into(),
             warnings: vec![],

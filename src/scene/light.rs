@@ -128,6 +128,23 @@ impl Light {
         }
     }
 
+    /// Whether the plane through `p` with normal `n` cuts the emitter seen from `p`
+    /// ([`Light::emitter_frame`]): part of the light lies in front of the surface at `p` and
+    /// part behind it, a *grazing* point. There the visibility depends on whether the part
+    /// behind the plane counts as hidden (the reference counts it so: the surface, or its own
+    /// mesh, hides it) or is left to the shading's cosine (as most methods do), so the harness
+    /// scores such pixels apart (`error.grazing_pixels`, `error.mae_shadow_non_grazing`).
+    pub fn straddles(&self, p: Vec3, n: Vec3) -> bool {
+        let (c, u, v) = self.emitter_frame(p);
+        let h = n.dot(c - p).abs();
+        let (a, b) = (n.dot(u), n.dot(v));
+        let spread = match self {
+            Light::Rect { .. } => a.abs() + b.abs(),
+            _ => (a * a + b * b).sqrt(),
+        };
+        h < spread
+    }
+
     /// Sample `i` of a stratified set of `k`×`k` samples on the light seen from `p`, jittered by
     /// the deterministic stream `seed`.
     pub fn stratified_sample(&self, p: Vec3, i: u32, k: u32, seed: u64) -> Vec3 {
