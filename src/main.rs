@@ -14,6 +14,7 @@ use shadowbench::model::{self, MachineConfig};
 use shadowbench::report;
 use shadowbench::scenario::{self, validate as check, Loaded};
 use shadowbench::scene::generators::{self, GeneratorParams};
+use shadowbench::util::cpu_time::Clock;
 use shadowbench::util::paths::{same_file, slug};
 use shadowbench::{errln, out, outln};
 
@@ -191,6 +192,8 @@ enum Command {
         /// Keep the issue costs the kernels measured (no training sweep).
         #[arg(long)]
         kernels_only: bool,
+        #[command(flatten)]
+        training: TrainingArgs,
     },
     /// Run a fixed sweep (every CPU algorithm, 3 scenes, 2 image sizes) on cpu-native and on
     /// cpu-model with the calibrated host machine (calibrated first unless --machine, its
@@ -475,6 +478,26 @@ struct RunArgs {
     retry_failed: bool,
 }
 
+/// The training sweep of a calibration and the clock it measures on.
+#[derive(clap::Args)]
+struct TrainingArgs {
+    /// Scenes of the training sweep the issue costs are fitted to (comma-separated built-in
+    /// names; default: box-on-plane, cylinder-on-plane, sphere-grid).
+    #[arg(long, value_delimiter = ',', value_name = "SCENE")]
+    train_scenes: Option<Vec<String>>,
+    /// Image sizes of the training sweep (comma-separated WxH; default: 240x180,480x360).
+    #[arg(long, value_delimiter = ',', value_name = "WxH")]
+    train_images: Option<Vec<String>>,
+    /// Timed cpu-native runs per training case, after one warm-up run (the median is used).
+    #[arg(long, default_value_t = 3)]
+    train_repeats: usize,
+    /// The clock cpu-native is measured on: `cpu` (CPU time of the process's threads, the
+    /// calling thread's plus the workers' over their count: other processes' load left out)
+    /// or `wall`.
+    #[arg(long, value_enum, default_value_t = Clock::Cpu)]
+    clock: Clock,
+}
+
 #[derive(clap::Args)]
 struct ValidateArgs {
     /// Folder for validation.json, runs.csv, phases.csv, summary.txt, the chart and
@@ -494,17 +517,25 @@ struct ValidateArgs {
     /// blob-on-plane).
     #[arg(long, value_delimiter = ',', value_name = "SCENE")]
     scenes: Option<Vec<String>>,
-    /// Image sizes (comma-separated WxH; default: 320x240,640x480).
+    /// Image sizes (comma-separated WxH; default: 400x300,640x480; none of the training
+    /// sweep's).
     #[arg(long, value_delimiter = ',', value_name = "WxH")]
     images: Option<Vec<String>>,
     /// Timed cpu-native runs per case, after one warm-up run (the median is used).
     #[arg(long, default_value_t = 3)]
     repeats: usize,
     /// When calibrating (no --machine): keep the issue costs the kernels measured instead of
-    /// fitting them to the training sweep (every algorithm on box-on-plane, cylinder-on-plane
-    /// and sphere-grid at 320x240 and 640x480, whatever --only, --scenes and --images say).
+    /// fitting them to the training sweep (every algorithm on --train-scenes at
+    /// --train-images, whatever --only says).
     #[arg(long)]
     kernels_only: bool,
+    /// k-fold cross-validation over scenes instead: the scenes (--scenes; default: the
+    /// training and the validation scenes, six) in K folds; each fold's costs are fitted on the
+    /// other folds' scenes at --train-images and predict its own scenes at --images.
+    #[arg(long, value_name = "K")]
+    folds: Option<usize>,
+    #[command(flatten)]
+    training: TrainingArgs,
 }
 
 #[derive(clap::Args)]
@@ -1232,8 +1263,7 @@ fn diff(a: PathBuf, b: PathBuf, out: PathBuf) -> Result<()> {
     Ok(())
 }
 
-fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
-    use shadowbench::harness::validate;
+fn calibrate(out: PathBuf, quick: bool, kernels_only: bool, t: TrainingArgs) -> Result<()> {
     if out
         .extension()
         .is_none_or(|e| !e.eq_ignore_ascii_case("json"))
@@ -1247,6 +1277,13 @@ fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
     if out.is_dir() {
         return Err(InputError::new("--out", format!("'{}' is a folder", out.display())).into());
     }
+    let mut training = training_sweep(&t, harness::validate::Sweep::default())?;
+    if quick {
+        if t.train_images.is_none() {
+            training.images = vec![[160, 120]];
+        }
+        training.repeats = 1;
+    }
     let parent = out
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
@@ -1256,13 +1293,8 @@ fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
         .and_then(|()| std::fs::write(&probe, b""))
         .and_then(|()| std::fs::remove_file(&probe))
         .map_err(|e| InputError::new("--out", format!("cannot write '{}': {e}", out.display())))?;
-    let mut training = validate::Sweep::default();
-    if quick {
-        training.images = vec![[160, 120]];
-        training.repeats = 1;
-    }
     let start = std::time::Instant::now();
-    let (machine, _) = calibrated_host(quick, (!kernels_only).then_some(&training))?;
+    let (machine, _) = calibrated_host(quick, t.clock, (!kernels_only).then_some(&training))?;
     let text = serde_json::to_vec_pretty(&machine).expect("machine configs serialize");
     shadowbench::visibility::write_atomic(&out, &text)?;
     outln!(
@@ -1274,44 +1306,139 @@ fn calibrate(out: PathBuf, quick: bool, kernels_only: bool) -> Result<()> {
     Ok(())
 }
 
-/// The `host` machine with the kernels' figures (`quick`: fewer, shorter kernel runs) and,
-/// given a sweep, the issue costs fitted on its training scenes (`harness::fit`).
+/// A list of built-in scene names from `flag`, each known and none twice.
+fn scene_list(flag: &str, scenes: Vec<String>) -> Result<Vec<String>> {
+    for (i, s) in scenes.iter().enumerate() {
+        if generators::find(s).is_none() {
+            return Err(InputError::new(
+                flag,
+                shadowbench::error::unknown_name(
+                    "scene",
+                    s,
+                    &generators::GENERATORS
+                        .iter()
+                        .map(|g| g.name)
+                        .collect::<Vec<_>>(),
+                ),
+            )
+            .into());
+        }
+        if scenes[..i].contains(s) {
+            return Err(
+                InputError::new(flag, format!("'{s}' is listed twice (entry {})", i + 1)).into(),
+            );
+        }
+    }
+    Ok(scenes)
+}
+
+/// Image sizes from `flag`, none twice.
+fn image_list(flag: &str, images: &[String]) -> Result<Vec<[u32; 2]>> {
+    let v = harness::validate::parse_images(flag, images)?;
+    if let Some(i) = (0..v.len()).find(|&i| v[..i].contains(&v[i])) {
+        return Err(InputError::new(
+            flag,
+            format!("'{}' is listed twice (entry {})", images[i], i + 1),
+        )
+        .into());
+    }
+    Ok(v)
+}
+
+/// The training sweep of `t` on `base` (algorithms, maps, options): its scenes, images,
+/// repeats and clock. Errors: an unknown or repeated scene or size, repeats outside 1..=100.
+fn training_sweep(
+    t: &TrainingArgs,
+    base: harness::validate::Sweep,
+) -> Result<harness::validate::Sweep> {
+    let mut sweep = harness::fit::training_sweep(&base);
+    if let Some(scenes) = &t.train_scenes {
+        sweep.scenes = scene_list("--train-scenes", scenes.clone())?;
+    }
+    if let Some(images) = &t.train_images {
+        sweep.images = image_list("--train-images", images)?;
+    }
+    if !(1..=100).contains(&t.train_repeats) {
+        return Err(InputError::new(
+            "--train-repeats",
+            format!("must be in 1..=100, got {}", t.train_repeats),
+        )
+        .into());
+    }
+    sweep.repeats = t.train_repeats;
+    sweep.clock = t.clock;
+    Ok(sweep)
+}
+
+/// The `host` machine with the kernels' figures (`quick`: fewer, shorter kernel runs) measured
+/// on `clock` and, given a training sweep, the issue costs fitted to it (`harness::fit`).
 fn calibrated_host(
     quick: bool,
-    sweep: Option<&shadowbench::harness::validate::Sweep>,
-) -> Result<(MachineConfig, Option<harness::fit::CostFit>)> {
+    clock: Clock,
+    training: Option<&harness::validate::Sweep>,
+) -> Result<(MachineConfig, Option<model::config::Training>)> {
     let base = MachineConfig::resolve("host", "host", Path::new("."))?;
     let settings = if quick {
         model::calibrate::Settings {
             scale: 0.1,
             repeats: 3,
+            clock,
         }
     } else {
-        model::calibrate::Settings::default()
+        model::calibrate::Settings {
+            clock,
+            ..Default::default()
+        }
     };
-    outln!("calibrating {} ({})", base.name, base.describe());
+    outln!(
+        "calibrating {} ({}) on the {} clock",
+        base.name,
+        base.describe(),
+        clock.name()
+    );
     let start = std::time::Instant::now();
+    let load = shadowbench::util::cpu_time::Load::now();
     let (kernels, _) = model::calibrate::calibrate(&base, settings, |line| outln!("{line}"));
-    let Some(sweep) = sweep else {
+    let cpus = base.cores * base.threads_per_core;
+    if let Some(w) = shadowbench::util::cpu_time::loaded_warning(
+        &load,
+        &shadowbench::util::cpu_time::Load::now(),
+        cpus,
+        clock,
+    ) {
+        outln!("kernels: {w}");
+    }
+    let Some(training) = training else {
         return Ok((kernels, None));
     };
-    let training = harness::fit::training_sweep(sweep);
     outln!(
-        "fitting the issue costs to a training sweep on {}",
-        training.scenes.join(", ")
+        "fitting the issue costs to a training sweep on {} at {}",
+        training.scenes.join(", "),
+        training
+            .images
+            .iter()
+            .map(|[w, h]| format!("{w}x{h}"))
+            .collect::<Vec<_>>()
+            .join(", ")
     );
-    let (m, fit) = harness::fit::fit(&kernels, &training, |line| outln!("{line}"))?;
+    let (m, fit) = harness::fit::fit(&kernels, training, |line| outln!("{line}"))?;
     let costs: Vec<String> = harness::fit::fitted_costs(&m.costs)
         .iter()
         .map(|(field, v)| format!("{} {v:.3}", field.trim_start_matches("costs.")))
         .collect();
     outln!(
         "fitted in {:.0} s (cycles): {}; the fit predicts the training runs at MAPE {:.1}%, \
-         phases {:.1}%",
+         phases {:.1}%; load average {}, threads waited for a CPU {}",
         start.elapsed().as_secs_f64(),
         costs.join(", "),
         fit.runs_mape,
-        fit.phases_mape
+        fit.phases_mape,
+        fit.load_average
+            .map_or("unknown".into(), |[a, b]| format!("{a:.2}-{b:.2}")),
+        fit.waited_pct
+            .map_or("an unknown share".into(), |w| format!(
+                "{w:.1}% of their CPU time"
+            )),
     );
     Ok((m, Some(fit)))
 }
@@ -1327,29 +1454,21 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
             )
             .into());
         }
+        if let Some((i, v)) = only
+            .iter()
+            .enumerate()
+            .find(|(i, v)| only[..*i].contains(v))
+        {
+            return Err(InputError::new(
+                "--only",
+                format!("'{v}' is listed twice (entry {})", i + 1),
+            )
+            .into());
+        }
         sweep.algorithms = only;
     }
-    if let Some(scenes) = a.scenes {
-        for s in &scenes {
-            if generators::find(s).is_none() {
-                return Err(InputError::new(
-                    "--scenes",
-                    shadowbench::error::unknown_name(
-                        "scene",
-                        s,
-                        &generators::GENERATORS
-                            .iter()
-                            .map(|g| g.name)
-                            .collect::<Vec<_>>(),
-                    ),
-                )
-                .into());
-            }
-        }
-        sweep.scenes = scenes;
-    }
-    if let Some(images) = a.images {
-        sweep.images = validate::parse_images("--images", &images)?;
+    if let Some(images) = &a.images {
+        sweep.images = image_list("--images", images)?;
     }
     if !(1..=100).contains(&a.repeats) {
         return Err(InputError::new(
@@ -1359,26 +1478,42 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
         .into());
     }
     sweep.repeats = a.repeats;
-    // A case named twice would be run and counted twice.
-    let images: Vec<String> = sweep
-        .images
-        .iter()
-        .map(|[w, h]| format!("{w}x{h}"))
-        .collect();
-    for (flag, list) in [
-        ("--only", &sweep.algorithms),
-        ("--scenes", &sweep.scenes),
-        ("--images", &images),
-    ] {
-        if let Some((i, v)) = list
-            .iter()
-            .enumerate()
-            .find(|(i, v)| list[..*i].contains(v))
-        {
-            return Err(
-                InputError::new(flag, format!("'{v}' is listed twice (entry {})", i + 1)).into(),
-            );
+    sweep.clock = a.training.clock;
+    // The training sweep: every algorithm (one table for the machine, whatever --only says).
+    let training = training_sweep(&a.training, validate::Sweep::default())?;
+    if let Some(k) = a.folds {
+        let scenes = match a.scenes {
+            Some(s) => scene_list("--scenes", s)?,
+            None => training
+                .scenes
+                .iter()
+                .chain(&sweep.scenes)
+                .cloned()
+                .collect(),
+        };
+        if !(2..=scenes.len()).contains(&k) {
+            return Err(InputError::new(
+                "--folds",
+                format!(
+                    "must be in 2..={} (the scenes' count), got {k}",
+                    scenes.len()
+                ),
+            )
+            .into());
         }
+        if a.kernels_only {
+            return Err(InputError::new(
+                "--kernels-only",
+                "cross-validation fits the issue costs in every fold",
+            )
+            .into());
+        }
+        sweep.scenes = scenes;
+        validate::check_held_out(&sweep, &[], &training.images, "--scenes", "--images")?;
+        return cross_validate_model(a.machine.as_deref(), &a.out, sweep, &training, k);
+    }
+    if let Some(scenes) = a.scenes {
+        sweep.scenes = scene_list("--scenes", scenes)?;
     }
     let machine = a
         .machine
@@ -1392,14 +1527,32 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
         )
         .into());
     }
+    // Held out by construction: no scene or image size of the fit's training sweep.
+    match &machine {
+        Some(m) => {
+            if let Some(t) = &m.training {
+                validate::check_held_out(&sweep, &t.scenes, &t.images, "--scenes", "--images")?;
+            }
+        }
+        None if !a.kernels_only => validate::check_held_out(
+            &sweep,
+            &training.scenes,
+            &training.images,
+            "--scenes",
+            "--images",
+        )?,
+        None => {}
+    }
     let _lock = harness::outdir::lock("--out", &a.out)?;
-    let (machine, cost_fit) = match machine {
-        Some(m) => (m, None),
+    let machine = match machine {
+        Some(m) => m,
         None => {
-            // The training sweep is the fixed one on the training scenes, whatever narrows the
-            // validation (`--only`, `--images`): one table for the machine.
-            let training = validate::Sweep::default();
-            calibrated_host(false, (!a.kernels_only).then_some(&training))?
+            calibrated_host(
+                false,
+                a.training.clock,
+                (!a.kernels_only).then_some(&training),
+            )?
+            .0
         }
     };
     // The machine the sweep runs with, given or calibrated (no earlier file left beside it).
@@ -1407,8 +1560,7 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     let text = serde_json::to_vec_pretty(&machine).expect("machine configs serialize");
     shadowbench::visibility::write_atomic(&path, &text)?;
     outln!("wrote {}", path.display());
-    let mut v = validate::run(&sweep, &machine, |line| outln!("{line}"))?;
-    v.cost_fit = cost_fit;
+    let v = validate::run(&sweep, &machine, |line| outln!("{line}"))?;
     let mut written = validate::write(&a.out, &v)?;
     written.extend(report::validation::chart(
         &a.out,
@@ -1430,7 +1582,72 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     Ok(())
 }
 
-/// The options of `compare`, checked.
+/// `validate-model --folds K`: the kernels' machine (calibrated now, or `--machine`'s memory
+/// figures), one sweep of every scene at the training and the held-out sizes, then K fits.
+fn cross_validate_model(
+    machine: Option<&str>,
+    out: &Path,
+    sweep: harness::validate::Sweep,
+    training: &harness::validate::Sweep,
+    k: usize,
+) -> Result<()> {
+    use shadowbench::harness::{fit, validate};
+    let machine = machine
+        .map(|m| MachineConfig::resolve("--machine", m, Path::new(".")))
+        .transpose()?;
+    let _lock = harness::outdir::lock("--out", out)?;
+    let kernels = match machine {
+        Some(m) => m,
+        None => calibrated_host(false, sweep.clock, None)?.0,
+    };
+    let path = out.join("machine.json");
+    let text = serde_json::to_vec_pretty(&kernels).expect("machine configs serialize");
+    shadowbench::visibility::write_atomic(&path, &text)?;
+    let held_out_images = sweep.images.clone();
+    let measured = validate::Sweep {
+        images: training
+            .images
+            .iter()
+            .chain(&held_out_images)
+            .copied()
+            .collect(),
+        ..sweep
+    };
+    let v = validate::run(&measured, &kernels, |line| outln!("{line}"))?;
+    let cv = fit::cross_validate(
+        &kernels,
+        &v.sweep.scenes,
+        (&v.runs, &v.phases),
+        &training.images,
+        &held_out_images,
+        k,
+    )?;
+    let text = fit::cross_validation_text(&cv, &v);
+    let json = serde_json::json!({ "cross_validation": cv, "sweep": v });
+    let mut written = vec![path];
+    for (name, bytes) in [
+        (
+            "crossval.json",
+            serde_json::to_vec_pretty(&json).expect("cross-validation serializes"),
+        ),
+        ("crossval.txt", text.clone().into_bytes()),
+    ] {
+        let p = out.join(name);
+        shadowbench::visibility::write_atomic(&p, &bytes)?;
+        written.push(p);
+    }
+    out!("{text}");
+    outln!(
+        "wrote {}",
+        written
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
 fn compare_options(
     threshold: f64,
     threshold_for: &[String],
@@ -1788,7 +2005,8 @@ fn main() -> ExitCode {
             out,
             quick,
             kernels_only,
-        } => calibrate(out, quick, kernels_only),
+            training,
+        } => calibrate(out, quick, kernels_only, training),
         Command::ValidateModel(a) => validate_model(a),
         Command::Compare {
             baseline,

@@ -25,25 +25,27 @@
 //! outside the counted steps, branch mispredictions, page faults of new buffers, frequency
 //! changes, and other guests on the same physical cores (`docs/model.md`, "Validation").
 
-use std::hint::black_box;
-use std::sync::atomic::{AtomicU32, Ordering};
-use std::time::Instant;
-
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
+use std::hint::black_box;
+use std::sync::atomic::{AtomicU32, Ordering};
 
 use super::config::{CacheConfig, MachineConfig};
 use super::{Lanes, Machine, Mask, Memory, NoProbe, Probe, TaskKernel, LANES};
 use crate::backend::Backend;
+use crate::util::cpu_time::{self, Clock};
 use crate::util::hash::mix64;
 
 /// How long calibration runs: `scale` multiplies every kernel's iteration count (1 for the
 /// command, about 0.01 in tests), `repeats` is how many timings each figure takes the fastest
-/// of.
+/// of, `clock` what times them (CPU time by default: a kernel's own CPU time does not grow with
+/// other processes' load; the fork-join barrier is always timed on the wall clock, its cost
+/// being the workers' wake-up latency rather than CPU time).
 #[derive(Clone, Copy, Debug)]
 pub struct Settings {
     pub scale: f64,
     pub repeats: usize,
+    pub clock: Clock,
 }
 
 impl Default for Settings {
@@ -51,6 +53,7 @@ impl Default for Settings {
         Settings {
             scale: 0.5,
             repeats: 11,
+            clock: Clock::Cpu,
         }
     }
 }
@@ -73,15 +76,22 @@ pub struct Figure {
     pub method: String,
 }
 
-/// The least over `repeats` of the wall seconds of `f` divided by the units it reports doing:
-/// other processes on the host only ever add time, so the fastest repetition is the closest to
-/// the machine's own cost.
-fn seconds_per_unit(repeats: usize, mut f: impl FnMut() -> u64) -> f64 {
+/// The least over `repeats` of the seconds of `f` on `clock` divided by the units it reports
+/// doing: other processes on the host only ever add time, so the fastest repetition is the
+/// closest to the machine's own cost. On [`Clock::Cpu`] the seconds are
+/// [`cpu_time::Times::cpu_ms`] (the calling thread's CPU time plus the host worker threads'
+/// over their count; the wall clock where the OS has no CPU clocks).
+fn seconds_per_unit(repeats: usize, clock: Clock, mut f: impl FnMut() -> u64) -> f64 {
     (0..repeats.max(1))
         .map(|_| {
-            let start = Instant::now();
+            let start = cpu_time::Span::start();
             let units = f();
-            start.elapsed().as_secs_f64() / units.max(1) as f64
+            let t = start.elapsed(rayon::current_num_threads());
+            let ms = match clock {
+                Clock::Cpu => t.cpu_ms.unwrap_or(t.wall_ms),
+                Clock::Wall => t.wall_ms,
+            };
+            ms * 1e-3 / units.max(1) as f64
         })
         .fold(f64::INFINITY, f64::min)
 }
@@ -306,7 +316,7 @@ impl Chase {
 pub fn chase_ns(bytes: usize, steps: usize, repeats: usize) -> f64 {
     let c = Chase::new(bytes);
     c.chase(c.lines().min(steps));
-    seconds_per_unit(repeats, || c.chase(steps)) * 1e9
+    seconds_per_unit(repeats, Clock::Cpu, || c.chase(steps)) * 1e9
 }
 
 /// A task that does nothing: the step's cost is the executor's fork and join.
@@ -362,7 +372,7 @@ impl Recorder<'_> {
 
     /// Cycles per unit of `f`, the fastest of the repetitions.
     fn cycles_per_unit(&self, f: impl FnMut() -> u64) -> f64 {
-        self.cycles(seconds_per_unit(self.s.repeats, f))
+        self.cycles(seconds_per_unit(self.s.repeats, self.s.clock, f))
     }
 
     /// Measures `f`'s cycles per unit and records them as `field`, `method` followed by how
@@ -375,7 +385,11 @@ impl Recorder<'_> {
         f: impl FnMut() -> u64,
     ) -> f64 {
         let v = self.cycles_per_unit(f);
-        let method = format!("{method}, fastest of {}", self.s.repeats);
+        let method = format!(
+            "{method}, fastest of {} on the {} clock",
+            self.s.repeats,
+            self.s.clock.name()
+        );
         self.record(field, v, unit, method)
     }
 
@@ -406,7 +420,8 @@ type CostKernel<'a> = (
 /// The issue costs: vector (per instruction and per active lane), scalar, contiguous lines,
 /// gathers, atomics.
 fn issue_costs(m: &mut MachineConfig, rec: &mut Recorder) {
-    let (s, r) = (rec.s, rec.s.repeats);
+    let s = rec.s;
+    let r = format!("{} on the {} clock", s.repeats, s.clock.name());
     // A counted vector instruction with n active lanes costs c_vector + n·c_lane: the lane
     // kernel with all 16 lanes and with 4.
     let full = rec.cycles_per_unit(|| lane_kernel(s.n(200_000), Mask::ALL));
@@ -484,7 +499,8 @@ fn issue_costs(m: &mut MachineConfig, rec: &mut Recorder) {
 /// bandwidth. Each level's chase runs through half of its size (the L2's half is well above
 /// the L1; the L3's above the L2 on current CPUs), DRAM's through 4× the last level.
 fn memory_costs(m: &mut MachineConfig, rec: &mut Recorder) {
-    let (s, r) = (rec.s, rec.s.repeats);
+    let s = rec.s;
+    let r = format!("{} on the {} clock", s.repeats, s.clock.name());
     // The chase of each level with its warm-up: cycles per dependent load.
     let chase_cycles = |rec: &Recorder, chase: &Chase, steps: usize| {
         chase.chase(chase.lines().min(s.n(4_000_000)));
@@ -553,7 +569,7 @@ fn memory_costs(m: &mut MachineConfig, rec: &mut Recorder) {
         ),
     ));
     drop(last);
-    let bytes_per_s = 1.0 / seconds_per_unit(r, || dram.stream(s.n(8)));
+    let bytes_per_s = 1.0 / seconds_per_unit(s.repeats, s.clock, || dram.stream(s.n(8)));
     m.dram_gb_per_s = rec.record(
         "dram_gb_per_s",
         bytes_per_s / 1e9,
@@ -575,13 +591,24 @@ fn barrier(m: &mut MachineConfig, rec: &mut Recorder) {
         "an empty cpu-native step of {} tasks (fork and join)",
         m.cores
     );
-    m.barrier_cycles = rec.measure("barrier_cycles", "cycles", &method, || {
+    let barrier = seconds_per_unit(s.repeats, Clock::Wall, || {
         let n = s.n(20_000);
         for _ in 0..n {
             machine.run_step("empty", &Empty, &weights);
         }
         n as u64
     });
+    let cycles = rec.cycles(barrier);
+    m.barrier_cycles = rec.record(
+        "barrier_cycles",
+        cycles,
+        "cycles",
+        format!(
+            "{method}, fastest of {} on the wall clock (the workers' wake-up latency is not CPU \
+             time)",
+            s.repeats
+        ),
+    );
 }
 
 #[cfg(test)]
@@ -622,6 +649,7 @@ mod tests {
             Settings {
                 scale: 0.002,
                 repeats: 1,
+                clock: Clock::Cpu,
             },
             |l| lines.push(l.to_string()),
         );

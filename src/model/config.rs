@@ -133,6 +133,39 @@ pub struct MachineConfig {
     /// from, `"costs.vector"`: the calibration kernel that measured it, or `assumption: ...`).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub sources: BTreeMap<String, String>,
+    /// Where the issue costs were fitted, for a machine `shadowbench calibrate` fitted
+    /// (`harness::fit`): the training sweep's scenes and image sizes, which `validate-model`
+    /// holds out. `None` (the presets, `--kernels-only`): no figure was fitted to a scene.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub training: Option<Training>,
+}
+
+/// The training sweep a machine's issue costs were fitted to, and the fit's error on it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Training {
+    /// Built-in scene names.
+    pub scenes: Vec<String>,
+    /// Image sizes, `[width, height]` in pixels.
+    pub images: Vec<[u32; 2]>,
+    /// Shadow-map resolution of the sweep, texels per side.
+    pub map_resolution: u32,
+    /// The clock `cpu-native` was measured on: `cpu` or `wall`.
+    pub clock: crate::util::cpu_time::Clock,
+    /// Runs and phases fitted.
+    pub runs: usize,
+    pub phases: usize,
+    /// Mean absolute percentage error of the fitted table's prediction (the fit's formula) of
+    /// the training runs and phases, percent.
+    pub runs_mape: f64,
+    pub phases_mape: f64,
+    /// The host's 1-minute load average at the start and the end of the training sweep.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub load_average: Option<[f64; 2]>,
+    /// Time the process's threads waited for a CPU during the sweep, percent of their CPU time
+    /// (`util::cpu_time::Load::waited_pct_since`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub waited_pct: Option<f64>,
 }
 
 /// The largest cycle figure (a cost, latency or barrier) a machine may state: a second at 1 GHz.
@@ -180,6 +213,7 @@ impl MachineConfig {
             memory_parallelism: None,
             simd: None,
             sources: BTreeMap::new(),
+            training: None,
         }
     }
 

@@ -152,6 +152,7 @@ pub fn machine_from(cpu_dir: &Path, logical: u32, simd: Simd, clock_ghz: f64) ->
             f32_lanes: lanes,
         }),
         sources,
+        training: None,
     }
 }
 

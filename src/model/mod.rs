@@ -30,6 +30,7 @@ use rayon::prelude::*;
 pub use buffer::{Buffer, Memory};
 pub use config::MachineConfig;
 
+use crate::util::cpu_time;
 use crate::util::deadline::Deadline;
 pub use simd::{
     lane_groups, task_items, task_weights, BufferId, Lanes, Mask, NoProbe, Probe, LANES,
@@ -189,8 +190,26 @@ struct PhaseRecord {
     /// The part of `wall_ms` spent inside [`Machine::run_step`] on `cpu-native`: the work the
     /// model times, without the host-side work between steps.
     steps_wall_ms: f64,
+    /// On `cpu-native`, the phase on the CPU clock ([`Machine::close_phase`]): time other
+    /// processes held the CPUs left out; `NaN` without the CPU clocks.
+    cpu_ms: f64,
+    /// Where the current stretch of the phase started on the CPU clocks.
+    cpu_start: cpu_time::Span,
+    /// Of the current stretch, when its steps time their tasks (`cpu_time::TimeTasks`): the
+    /// steps' list-scheduled task CPU time, ms; the CPU time of the tasks that ran on the
+    /// worker threads and of the calling thread inside the steps, ns.
+    stretch: TaskTimes,
     model_ms: f64,
     counters: Counters,
+}
+
+/// CPU time of a phase's steps measured task by task (`cpu_time::TimeTasks`).
+#[derive(Clone, Copy, Debug, Default)]
+struct TaskTimes {
+    timed: bool,
+    scheduled_ms: f64,
+    worker_tasks_ns: f64,
+    caller_in_steps_ns: f64,
 }
 
 /// One frame of an algorithm on the host (`cpu-native`) or on the modelled machine
@@ -267,6 +286,8 @@ impl Machine {
         match self.phases.iter().position(|p| p.name == name) {
             Some(i) => {
                 self.phases[i].start = Instant::now();
+                self.phases[i].cpu_start = cpu_time::Span::start();
+                self.phases[i].stretch = TaskTimes::default();
                 self.current = i;
             }
             None => {
@@ -281,6 +302,9 @@ impl Machine {
                     start: Instant::now(),
                     wall_ms: 0.0,
                     steps_wall_ms: 0.0,
+                    cpu_ms: 0.0,
+                    cpu_start: cpu_time::Span::start(),
+                    stretch: TaskTimes::default(),
                     model_ms: start_ms,
                     counters: Counters::default(),
                 });
@@ -289,9 +313,32 @@ impl Machine {
         }
     }
 
+    /// Ends the current stretch of the current phase: adds its wall time and, on `cpu-native`,
+    /// its CPU-clock time. With `n` worker threads, the calling thread's CPU time `T` and the
+    /// process's `P` over the stretch: `T + (P − T) / n` (the serial host code in full, the
+    /// workers' time spread evenly); when the steps timed their tasks, `(T − T_steps) + S +
+    /// max(P − T − W, 0) / n`, where `S` is the steps' tasks list-scheduled on the `n` workers
+    /// (`cpu_time::list_schedule`: an idle machine's makespan of the measured task times,
+    /// whichever threads ran them), `W` the task time of the workers and `T_steps` the
+    /// calling thread's inside the steps (the single-core steps' tasks run on it).
     fn close_phase(&mut self) {
+        let cpu = !self.is_model();
+        let n = rayon::current_num_threads();
         if let Some(p) = self.phases.get_mut(self.current) {
             p.wall_ms += p.start.elapsed().as_secs_f64() * 1e3;
+            if cpu {
+                let ms = match (p.cpu_start.cpu_ns(), p.stretch) {
+                    (None, _) => f64::NAN,
+                    (Some((proc, own)), s) if s.timed => {
+                        let others = (proc - own - s.worker_tasks_ns).max(0.0);
+                        ((own - s.caller_in_steps_ns).max(0.0) + others / n as f64) * 1e-6
+                            + s.scheduled_ms
+                    }
+                    (Some((proc, own)), _) => cpu_time::spread_ms(proc, own, n),
+                };
+                p.cpu_ms += ms;
+                p.stretch = TaskTimes::default();
+            }
         }
     }
 
@@ -342,23 +389,41 @@ impl Machine {
         let deadline = self.deadline;
         if !self.is_model() {
             let start = Instant::now();
-            let outs = if self.single_core {
-                (0..weights.len())
-                    .map(|t| {
-                        deadline.check();
-                        kernel.run(&mut NoProbe, t)
-                    })
-                    .collect()
-            } else {
-                (0..weights.len())
-                    .into_par_iter()
-                    .map(|t| {
-                        deadline.check();
-                        kernel.run(&mut NoProbe, t)
-                    })
-                    .collect()
+            let timed = cpu_time::tasks_timed();
+            let caller = timed.then(cpu_time::thread_ns).flatten();
+            // Each task with its thread's CPU time (0 when not timed).
+            let run = |t: usize| {
+                deadline.check();
+                let a = timed.then(cpu_time::thread_ns).flatten();
+                let out = kernel.run(&mut NoProbe, t);
+                let ns = a
+                    .zip(timed.then(cpu_time::thread_ns).flatten())
+                    .map_or(0, |(a, b)| b.saturating_sub(a));
+                (out, ns as f64)
             };
-            self.current().steps_wall_ms += start.elapsed().as_secs_f64() * 1e3;
+            let (outs, ns): (Vec<K::Out>, Vec<f64>) = if self.single_core {
+                (0..weights.len()).map(run).unzip()
+            } else {
+                (0..weights.len()).into_par_iter().map(run).unzip()
+            };
+            let single = self.single_core;
+            let phase = self.current();
+            phase.steps_wall_ms += start.elapsed().as_secs_f64() * 1e3;
+            if let Some(c0) = caller {
+                let s = &mut phase.stretch;
+                let in_step = cpu_time::thread_ns().map_or(0, |c1| c1.saturating_sub(c0));
+                let workers = if single {
+                    1
+                } else {
+                    rayon::current_num_threads()
+                };
+                s.timed = true;
+                s.scheduled_ms += cpu_time::list_schedule(&ns, workers) * 1e-6;
+                s.caller_in_steps_ns += in_step as f64;
+                if !single {
+                    s.worker_tasks_ns += ns.iter().sum::<f64>();
+                }
+            }
             return outs;
         }
         let config = &self.config;
@@ -528,8 +593,10 @@ impl Machine {
         let mut total = Counters::default();
         let mut phases = Vec::new();
         let mut steps_wall = Vec::new();
+        let mut phase_cpu = Vec::new();
         for p in self.phases {
             steps_wall.push((p.name.clone(), serde_json::json!(p.steps_wall_ms)));
+            phase_cpu.push((p.name.clone(), serde_json::json!(p.cpu_ms)));
             for (k, v) in &p.counters.0 {
                 if !k.starts_with("step.") {
                     total.add(k, *v);
@@ -549,6 +616,12 @@ impl Machine {
             execution.insert(
                 "steps_wall_ms".into(),
                 serde_json::json!(steps_wall
+                    .into_iter()
+                    .collect::<serde_json::Map<String, serde_json::Value>>()),
+            );
+            execution.insert(
+                "phase_cpu_ms".into(),
+                serde_json::json!(phase_cpu
                     .into_iter()
                     .collect::<serde_json::Map<String, serde_json::Value>>()),
             );

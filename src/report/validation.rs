@@ -10,6 +10,7 @@ use plotters::prelude::*;
 use super::style;
 use crate::error::{Error, Result};
 use crate::harness::validate::{Agreement, Row, Validation};
+use crate::util::cpu_time::Clock;
 
 const FONT: &str = super::font::FAMILY;
 const PANEL: (u32, u32) = (560, 520);
@@ -69,18 +70,18 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, v: &Validation) -> Dr
         .draw(&Text::new(
             format!(
                 "grey line: modelled = measured; dashed: ±30%{}",
-                v.cost_fit
+                v.training
                     .as_ref()
-                    .map(|f| {
-                        let held_out = f.trained_on(&v.sweep.scenes).is_empty();
+                    .map(|t| {
                         format!(
-                            "; issue costs fitted on {}{}",
-                            f.scenes.join(", "),
-                            if held_out {
-                                " (not in this sweep)"
-                            } else {
-                                " (partly this sweep's scenes: not held out)"
-                            }
+                            "; issue costs fitted on {} at {} (held out here); cpu-native on the {} clock",
+                            t.scenes.join(", "),
+                            t.images
+                                .iter()
+                                .map(|[w, h]| format!("{w}x{h}"))
+                                .collect::<Vec<_>>()
+                                .join(", "),
+                            v.sweep.clock.name()
                         )
                     })
                     .unwrap_or_default()
@@ -91,8 +92,17 @@ fn draw<DB: DrawingBackend>(root: &DrawingArea<DB, Shift>, v: &Validation) -> Dr
         .map_err(err)?;
     let (panels, legend) = body.split_horizontally(2 * PANEL.0);
     let (left, right) = panels.split_horizontally(PANEL.0);
-    panel(&left, "whole runs", &v.runs, &v.runs_agreement)?;
-    panel(&right, "phases", &v.phases, &v.phases_agreement)?;
+    let x_desc = match v.sweep.clock {
+        Clock::Cpu => "measured: cpu-native CPU-clock ms (median), log scale",
+        Clock::Wall => "measured: cpu-native wall ms (median), log scale",
+    };
+    let held = if v.training.is_some() {
+        "held-out runs"
+    } else {
+        "whole runs"
+    };
+    panel(&left, held, x_desc, &v.runs, &v.runs_agreement)?;
+    panel(&right, "phases", x_desc, &v.phases, &v.phases_agreement)?;
     let style = TextStyle::from((FONT, 14).into_font()).color(&BLACK);
     for (i, (alg, _)) in v.per_algorithm.iter().enumerate() {
         let y = 40 + 22 * i as i32;
@@ -126,6 +136,7 @@ fn bounds(rows: &[Row]) -> (f64, f64) {
 fn panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     title: &str,
+    x_desc: &str,
     rows: &[Row],
     a: &Agreement,
 ) -> DrawResult {
@@ -145,7 +156,7 @@ fn panel<DB: DrawingBackend>(
         .map_err(err)?;
     chart
         .configure_mesh()
-        .x_desc("measured: cpu-native wall ms (median), log scale")
+        .x_desc(x_desc)
         .y_desc("modelled: cpu-model ms, log scale")
         .x_label_formatter(&|v| format!("{v}"))
         .y_label_formatter(&|v| format!("{v}"))

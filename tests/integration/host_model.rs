@@ -58,6 +58,31 @@ fn calibrate_writes_a_machine_that_render_accepts() {
         );
     }
     assert!(out.contains("fitting the issue costs"), "{out}");
+    // The training sweep is recorded in the machine, and validate-model holds it out: a training
+    // scene or image size is refused, naming the flag, before anything runs.
+    let t = &m["training"];
+    assert_eq!(t["scenes"][0], "box-on-plane", "{t}");
+    assert_eq!(t["images"], serde_json::json!([[160, 120]]), "{t}");
+    assert_eq!(t["clock"], "cpu", "{t}");
+    for (flag, value, named) in [
+        ("--scenes", "room,sphere-grid", "'sphere-grid'"),
+        ("--images", "400x300,160x120", "'160x120'"),
+    ] {
+        let v = dir.path().join("v");
+        let o = shadowbench(&[
+            "validate-model",
+            "--machine",
+            f,
+            flag,
+            value,
+            "--out",
+            v.to_str().unwrap(),
+        ]);
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(flag) && err.contains(named), "{err}");
+        assert!(!v.exists());
+    }
     // --kernels-only: the kernels' figures, no training sweep.
     let kernels = dir.path().join("kernels.json");
     let o = shadowbench(&[
@@ -208,6 +233,14 @@ fn validate_model_refuses_bad_sweep_settings_naming_the_flag() {
         ("--kernels-only", "--machine=larrabee-24"),
         ("--scenes", "sphere-on-plane,sphere-on-plane"),
         ("--images", "32x24,32x24"),
+        // The default training sweep's scene and size are held out.
+        ("--scenes", "box-on-plane"),
+        ("--images", "480x360"),
+        ("--train-scenes", "no-such-scene"),
+        ("--train-images", "0x1"),
+        ("--train-repeats", "0"),
+        ("--clock", "sundial"),
+        ("--folds", "1"),
     ] {
         let o = shadowbench(&[
             "validate-model",

@@ -380,5 +380,12 @@ fn two_processes_on_the_host_preset_model_the_same_time() {
             r["execution"]
         );
     }
-    assert_eq!(runs[0]["execution"], runs[1]["execution"]);
+    // The same execution record, apart from the measurement conditions (the host's load average
+    // before and after each run moves between the two processes on a shared machine).
+    let without_conditions = |r: &serde_json::Value| {
+        let mut e = r["execution"].clone();
+        e.as_object_mut().unwrap().remove("conditions");
+        e
+    };
+    assert_eq!(without_conditions(&runs[0]), without_conditions(&runs[1]));
 }
