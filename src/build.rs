@@ -3,7 +3,8 @@
 //! started it.
 
 /// The commit the binary was built from (`git rev-parse HEAD` at build time; "unknown" outside
-/// a git checkout). Uncommitted changes are not recorded.
+/// a git checkout), followed by `-dirty-` and a fingerprint of `git diff HEAD` when tracked
+/// files had uncommitted changes (untracked files are not seen).
 pub const COMMIT: &str = env!("SHADOWBENCH_COMMIT");
 
 /// Cargo's build profile: "release" or "debug" (the dev and test profiles).
