@@ -1358,13 +1358,7 @@ fn training_sweep(
     if let Some(images) = &t.train_images {
         sweep.images = image_list("--train-images", images)?;
     }
-    if !(1..=100).contains(&t.train_repeats) {
-        return Err(InputError::new(
-            "--train-repeats",
-            format!("must be in 1..=100, got {}", t.train_repeats),
-        )
-        .into());
-    }
+    InputError::check_range("--train-repeats", t.train_repeats, 1..=100)?;
     sweep.repeats = t.train_repeats;
     sweep.clock = t.clock;
     Ok(sweep)
@@ -1470,13 +1464,7 @@ fn validate_model(a: ValidateArgs) -> Result<()> {
     if let Some(images) = &a.images {
         sweep.images = image_list("--images", images)?;
     }
-    if !(1..=100).contains(&a.repeats) {
-        return Err(InputError::new(
-            "--repeats",
-            format!("must be in 1..=100, got {}", a.repeats),
-        )
-        .into());
-    }
+    InputError::check_range("--repeats", a.repeats, 1..=100)?;
     sweep.repeats = a.repeats;
     sweep.clock = a.training.clock;
     // The training sweep: every algorithm (one table for the machine, whatever --only says).
