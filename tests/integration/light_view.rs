@@ -169,7 +169,7 @@ fn cornell_box_light_inside_the_box_keeps_its_occluders_on_wgpu() {
 /// around a receiver seen at a grazing angle from the light must not take the receiver's own
 /// plane, nor the walls meeting it, for blockers. Oracle: the reference. Of the ceiling pixels
 /// (normal pointing down) the reference has fully lit, at most 1% darker than 0.9 on every
-/// execution (before the blocker test kept in front of the receiver's plane, `receiver_plane_depth`, the
+/// execution (before the blocker test kept in front of the receiver's plane, `ReceiverPlane`, the
 /// Cornell box had 1,919 of its 2,232 such pixels darker).
 #[test]
 fn pcss_keeps_the_lit_ceiling_lit() {

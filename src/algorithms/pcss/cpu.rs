@@ -7,7 +7,7 @@ use super::PcssOptions;
 use crate::algorithms::shadow_map::cpu::{render_views, Lookup, Receivers, ShadowMap, COMPARE_OPS};
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{
-    pcss_filter_radius_uv, pcss_search_radius_uv, receiver_plane_depth, vogel_disk,
+    pcss_filter_radius_uv, pcss_search_radius_uv, vogel_disk, ReceiverPlane,
 };
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
@@ -18,7 +18,7 @@ use crate::model::{Lanes, Mask, Probe, LANES};
 /// (subtract, 2 multiplies, divide), average (divide), filter radius (subtract, 2 multiplies,
 /// 2 divides), the no-blocker select.
 const RADIUS_OPS: u32 = 11;
-/// The receiver-plane test of a blocker ([`receiver_plane_depth`], its view-space plane once per
+/// The receiver-plane test of a blocker ([`ReceiverPlane`], its view-space plane once per
 /// block): the ray's two slopes (2 multiply-adds), the plane's 1/depth (2 multiply-adds and a
 /// multiply), its reciprocal, the select and the min.
 const PLANE_OPS: u32 = 8;
@@ -43,13 +43,15 @@ impl Lookup for PcssLookup {
             pcss_search_radius_uv(view, self.light_radius, r.z[l].max(view.near))
         });
         let (mut sum, mut count) = ([0f32; LANES], [0u32; LANES]);
+        let planes: Lanes<ReceiverPlane> =
+            std::array::from_fn(|l| ReceiverPlane::new(view, r.position[l], r.normal[l]));
         for &o in &self.search_taps {
             let uv: Lanes<Vec2> = std::array::from_fn(|l| r.uv[l] + o * search[l]);
             let (d, inside) = map.tap(p, &uv, r.mask);
             p.vector(COMPARE_OPS + PLANE_OPS + BLOCKER_ACCUMULATE_OPS, inside);
             for l in inside.lanes() {
                 let zb = view.linear_depth(d[l]);
-                let plane = receiver_plane_depth(view, r.position[l], r.normal[l], uv[l]);
+                let plane = planes[l].depth_at(view, uv[l]);
                 if !lit(view, d[l], r.z[l].min(plane), r.bias[l]) {
                     sum[l] += zb;
                     count[l] += 1;

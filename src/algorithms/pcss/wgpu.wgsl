@@ -4,15 +4,16 @@
 fn visibility_at(uv: vec2<f32>, z_r: f32, bias: f32) -> f32 {
     // Step 1: blocker search over `blocker_samples` Vogel-disk taps within
     // `pcss_search_radius_uv` (at a depth no nearer than the near plane); the average linear
-    // depth of the taps in front of the receiver and of its plane (`receiver_plane_depth`).
+    // depth of the taps in front of the receiver and of its plane (`ReceiverPlane`).
     let search = pcss_search_radius_uv(max(z_r, light.near));
+    let plane = receiver_plane();
     let nb = light.blocker_samples;
     var sum = 0.0;
     var blockers = 0u;
     for (var i = 0u; i < nb; i++) {
         let tap = uv + search_tap(i) * search;
         let z = occluder_depth(tap);
-        if z < min(z_r, receiver_plane_depth(tap)) - bias {
+        if z < min(z_r, receiver_plane_depth(plane, tap)) - bias {
             sum += z;
             blockers += 1u;
         }

@@ -55,17 +55,22 @@ fn pcss_search_radius_uv(z_r: f32) -> f32 {
     return world_to_uv(light.radius, light.near) * max(z_r - light.near, 0.0) / z_r;
 }
 
-// The receiver `shade` looks up: world position and normal (for `receiver_plane_depth`).
+// The receiver `shade` looks up: world position and normal (for `receiver_plane`).
 var<private> receiver_p: vec3<f32>;
 var<private> receiver_n: vec3<f32>;
 
-// receiver_plane_depth(view, receiver_p, receiver_n, uv)
-fn receiver_plane_depth(uv: vec2<f32>) -> f32 {
+// ReceiverPlane::new(view, receiver_p, receiver_n): the normal in view space and n·p.
+fn receiver_plane() -> vec4<f32> {
     let pv = (light.view * vec4<f32>(receiver_p, 1.0)).xyz;
     let nv = (light.view * vec4<f32>(receiver_n, 0.0)).xyz;
+    return vec4<f32>(nv, dot(nv, pv));
+}
+
+// ReceiverPlane::depth_at
+fn receiver_plane_depth(plane: vec4<f32>, uv: vec2<f32>) -> f32 {
     let x = (2.0 * uv.x - 1.0) * light.tan_half_fov;
     let y = (1.0 - 2.0 * uv.y) * light.tan_half_fov;
-    let inv = (nv.x * x + nv.y * y - nv.z) / dot(nv, pv);
+    let inv = (plane.x * x + plane.y * y - plane.z) / plane.w;
     if inv > 0.0 {
         return 1.0 / inv;
     }

@@ -734,27 +734,49 @@ pub fn pcss_search_radius_uv(view: &LightView, light_radius: f32, z_r: f32) -> f
     view.world_to_uv(light_radius, view.near) * (z_r - view.near).max(0.0) / z_r
 }
 
-/// PCSS step 1, the blocker test: the linear depth, along the light-view ray through map
-/// coordinates `uv`, of the plane of a receiver at world position `p` with normal `n`; `+∞` where
-/// that ray meets the plane behind the light or never. A map texel is a blocker only in front
+/// PCSS step 1, the blocker test: the plane of a receiver at world position `p` with normal
+/// `n` ([`ReceiverPlane::new`]), and its linear depth along the light-view ray through map
+/// coordinates `uv` ([`ReceiverPlane::depth_at`]), `+∞` where that ray meets the plane behind
+/// the light or never. A map texel is a blocker only in front
 /// of the receiver's plane: a surface on it or behind it (the receiver's own plane seen at a
 /// grazing angle, the rest of a convex receiver) hides no part of a light in front of it, which
 /// the plain search of Fernando 2005 would average in (a ceiling lit from below darkened by its
 /// own plane in the cube faces that see it edge-on). Over a plane, 1/depth is affine in the
 /// ray's slopes: `1/z = (n_x·x + n_y·y − n_z) / (n·p)` in view space, `x = (2u − 1)·tan`,
 /// `y = (1 − 2v)·tan`.
-pub fn receiver_plane_depth(view: &LightView, p: Vec3, n: Vec3, uv: Vec2) -> f32 {
-    let (pv, nv) = (
-        view.view.transform_point3(p),
-        view.view.transform_vector3(n),
-    );
-    let x = (2.0 * uv.x - 1.0) * view.tan_half_fov;
-    let y = (1.0 - 2.0 * uv.y) * view.tan_half_fov;
-    let inv = (nv.x * x + nv.y * y - nv.z) / nv.dot(pv);
-    if inv > 0.0 {
-        1.0 / inv
-    } else {
-        f32::INFINITY
+///
+/// The plane is set up in view space once per receiver (its normal and `n·p`) for the taps of
+/// its blocker search.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ReceiverPlane {
+    normal: Vec3,
+    offset: f32,
+}
+
+impl ReceiverPlane {
+    pub fn new(view: &LightView, p: Vec3, n: Vec3) -> ReceiverPlane {
+        let (pv, nv) = (
+            view.view.transform_point3(p),
+            view.view.transform_vector3(n),
+        );
+        ReceiverPlane {
+            normal: nv,
+            offset: nv.dot(pv),
+        }
+    }
+
+    /// The plane's linear depth along the light-view ray through map coordinates `uv`; `+∞`
+    /// where that ray meets it behind the light or never.
+    pub fn depth_at(&self, view: &LightView, uv: Vec2) -> f32 {
+        let nv = self.normal;
+        let x = (2.0 * uv.x - 1.0) * view.tan_half_fov;
+        let y = (1.0 - 2.0 * uv.y) * view.tan_half_fov;
+        let inv = (nv.x * x + nv.y * y - nv.z) / self.offset;
+        if inv > 0.0 {
+            1.0 / inv
+        } else {
+            f32::INFINITY
+        }
     }
 }
 
