@@ -853,7 +853,10 @@ pub fn collect_series(
             Some(s) => s.points.push(p),
             None => series.push(Series {
                 name,
-                algorithm: r.algorithm.clone(),
+                algorithm: match &r.variant {
+                    Some(v) => format!("{} ({v})", r.algorithm),
+                    None => r.algorithm.clone(),
+                },
                 backend: r.backend.clone(),
                 points: vec![p],
                 intervals: vec![],

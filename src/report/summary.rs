@@ -208,7 +208,7 @@ impl Summary {
             .map(|b| {
                 let mut rows: Vec<Row> = Vec::new();
                 for r in at.iter().filter(|r| r.backend == b) {
-                    if rows.iter().any(|x| x.algorithm == r.algorithm) {
+                    if rows.iter().any(|x| x.label == r.algorithm_label()) {
                         continue;
                     }
                     rows.push(Row {
