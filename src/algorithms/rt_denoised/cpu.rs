@@ -19,7 +19,7 @@ use glam::{Vec2, Vec3};
 use super::bvh::{leaf_range, CasterBvh, NodePair, Tri, LEAF, STACK};
 use super::{
     geometric_weight, light_point, light_radius, penumbra_radius_px, search_offsets, square_sample,
-    PixelInputs, RtDenoisedOptions, B3,
+    PixelInputs, RtDenoisedOptions, B3, MIN_REACH,
 };
 use crate::algorithms::exec::{eye_tiles, machine, output};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
@@ -484,7 +484,8 @@ impl BlockKernel for Trace<'_> {
                 let mut d = [Vec3::ZERO; LANES];
                 let mut cast = 0u16;
                 for l in hit.lanes() {
-                    let sq: Vec2 = square_sample(self.seed, idx[l], s);
+                    let (x, y) = b.pixel(l).expect("a lane inside the block");
+                    let sq: Vec2 = square_sample(self.seed, (x, y, b.width), self.spp, s);
                     let q = light_point(&self.light, frames[l], sq);
                     d[l] = q - origin[l];
                     // A receiver-only surface hides the light behind its own plane.
@@ -636,10 +637,8 @@ impl BlockKernel for Penumbra<'_> {
                     sd[l] / sw[l],
                     pts[l][3],
                     self.max_radius,
-                );
-                if r < 1.0 {
-                    r = 0.0;
-                }
+                )
+                .max(MIN_REACH);
             }
             if r > 0.0 {
                 counts.filtered_pixels += 1;

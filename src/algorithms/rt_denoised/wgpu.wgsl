@@ -35,11 +35,14 @@ const LEAF: u32 = 0x80000000u;
 const STACK: u32 = 64u;
 const FRAC_PI_4: f32 = 0.7853981633974483;
 const FRAC_PI_2: f32 = 1.5707963267948966;
-// NORMAL_POWER_SQUARINGS, PLANE_TOLERANCE, SEARCH_NEAR, SEARCH_FAR_SIDE.
+// NORMAL_POWER_SQUARINGS, PLANE_TOLERANCE, SEARCH_NEAR, SEARCH_FAR_SIDE, PENUMBRA_REACH,
+// MIN_REACH.
 const NORMAL_POWER_SQUARINGS: u32 = 5u;
 const PLANE_TOLERANCE: f32 = 2.0;
 const SEARCH_NEAR: i32 = 1;
 const SEARCH_FAR_SIDE: i32 = 5;
+const PENUMBRA_REACH: f32 = 0.5;
+const MIN_REACH: f32 = 1.0;
 
 // `B3`, the à-trous kernel's tap `k` (0 to 4): (1, 4, 6, 4, 1) / 16.
 fn b3(k: i32) -> f32 {
@@ -93,10 +96,17 @@ fn unit_of(bits: u32) -> f32 {
     return f32(bits >> 8u) * (1.0 / 16777216.0);
 }
 
-// `square_sample` (with `pixel_rotation`).
-fn square_sample(pixel: u32, s: u32) -> vec2<f32> {
-    let p = sobol_2d(s);
-    let a = hash32(pixel ^ hash32(rt.seed));
+// `tile_rank`.
+fn tile_rank(x: u32, y: u32) -> u32 {
+    return (x & 1u) | ((y & 1u) << 1u) | ((x & 2u) << 1u) | ((y & 2u) << 2u);
+}
+
+// `square_sample` (with `pixel_rotation` of the pixel's INTERLEAVE² tile, INTERLEAVE = 4).
+fn square_sample(x: u32, y: u32, s: u32) -> vec2<f32> {
+    let tiles_x = (rt.width + 3u) / 4u;
+    let tile = (y / 4u) * tiles_x + x / 4u;
+    let p = sobol_2d(s + rt.spp * tile_rank(x, y));
+    let a = hash32(tile ^ hash32(rt.seed));
     let b = hash32(a ^ 0x9e3779b9u);
     return vec2<f32>(unit_of(p.x + a), unit_of(p.y + b));
 }
@@ -289,7 +299,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
     var culled = 0u;
     var distance = 0.0;
     for (var s = 0u; s < rt.spp; s++) {
-        let q = light_point(e, square_sample(u32(i), s));
+        let q = light_point(e, square_sample(id.x, id.y, s));
         let d = q - o;
         if !(nm.w == 0.0 || dot(nm.xyz, d) > 0.0) {
             culled += 1u;
@@ -388,7 +398,7 @@ fn penumbra_radius_px(light_distance: f32, blocker: f32, footprint: f32) -> f32 
     if gap <= 0.0 || footprint <= 0.0 {
         return rt.max_radius;
     }
-    return min(rt.light_radius * blocker / gap / footprint, rt.max_radius);
+    return min(PENUMBRA_REACH * rt.light_radius * blocker / gap / footprint, rt.max_radius);
 }
 
 // `cpu::Penumbra`, its taps in `search_offsets` order.
@@ -423,10 +433,7 @@ fn penumbra(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     var r = 0.0;
     if s.sw > 0.0 && s.vmin < s.vmax {
-        r = penumbra_radius_px(length(rt.center - pt.xyz), s.sd / s.sw, pt.w);
-        if r < 1.0 {
-            r = 0.0;
-        }
+        r = max(penumbra_radius_px(length(rt.center - pt.xyz), s.sd / s.sw, pt.w), MIN_REACH);
     }
     radius[i] = r;
     if INSTRUMENT {
