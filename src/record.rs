@@ -77,6 +77,12 @@ fn counters_empty(c: &Counters) -> bool {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RunRecord {
     pub algorithm: String,
+    /// What tells runs of one algorithm with different options apart, where its options change
+    /// what a run is (`rt_denoised`'s rays a pixel and denoiser: `1 spp`, `4 spp raw`;
+    /// [`crate::algorithms::Algorithm::variant`]): part of the case id and of the label reports
+    /// give the algorithm. Absent for the others.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub variant: Option<String>,
     pub backend: String,
     pub scene: String,
     /// The light kind used (`sphere`, `disc`, `rect`).
@@ -139,9 +145,13 @@ impl RunRecord {
     /// The algorithm as reports name it: its id, and the GPU pipeline where a run names one
     /// (`soft_shadow_volume (raster)`).
     pub fn algorithm_label(&self) -> String {
-        match self.gpu_pipeline() {
-            Some(p) => format!("{} ({p})", self.algorithm),
+        let name = match &self.variant {
+            Some(v) => format!("{} ({v})", self.algorithm),
             None => self.algorithm.clone(),
+        };
+        match self.gpu_pipeline() {
+            Some(p) => format!("{name} ({p})"),
+            None => name,
         }
     }
 
@@ -154,6 +164,7 @@ impl RunRecord {
     ) -> RunRecord {
         RunRecord {
             algorithm: algorithm.to_string(),
+            variant: None,
             backend: backend.name().to_string(),
             scene: scene.name.clone(),
             light: scene.light.kind().to_string(),
@@ -189,7 +200,12 @@ impl RunRecord {
 
     /// A stable identifier of the case (without timing), for comparisons and file names.
     pub fn case_id(&self) -> String {
-        case_id(&self.scene, &self.algorithm, &self.backend, &self.params)
+        case_id(
+            &self.scene,
+            (&self.algorithm, self.variant.as_deref()),
+            &self.backend,
+            &self.params,
+        )
     }
 }
 
@@ -224,18 +240,27 @@ pub fn fmt_light_size(v: f32) -> String {
     v.to_string()
 }
 
-/// The identifier of a run: scene, algorithm, backend and every parameter. It names the run's
-/// image folder (`images/<case_id>/`), so it is always one safe file name component: the
-/// scene, algorithm and backend (user text in a results file) go through
-/// [`crate::util::paths::slug`], and the whole identifier is cut to 200 bytes (with a hash of
-/// the rest) when it grows longer.
-pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> String {
+/// The identifier of a run: scene, algorithm (with its variant, `RunRecord::variant`),
+/// backend and every parameter. It names the run's image folder (`images/<case_id>/`), so it
+/// is always one safe file name component: the scene, algorithm, variant and backend (user
+/// text in a results file) go through [`crate::util::paths::slug`], and the whole identifier
+/// is cut to 200 bytes (with a hash of the rest) when it grows longer.
+pub fn case_id(
+    scene: &str,
+    (algorithm, variant): (&str, Option<&str>),
+    backend: &str,
+    p: &RunParams,
+) -> String {
     use crate::util::paths::{slug, slug_max};
     {
+        let algorithm = match variant {
+            Some(v) => format!("{algorithm}-{v}"),
+            None => algorithm.to_string(),
+        };
         let mut id = format!(
             "{}_{}_{}_t{}_l{}_m{}_b{}_{}x{}",
             slug(scene),
-            slug(algorithm),
+            slug(&algorithm),
             slug(backend),
             p.triangles,
             fmt_light_size(p.light_size),
@@ -254,5 +279,38 @@ pub fn case_id(scene: &str, algorithm: &str, backend: &str, p: &RunParams) -> St
             id.push_str(&format!("_c{c}"));
         }
         slug_max(&id, 200)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backend::Backend;
+    use crate::scene::generators::{self, GeneratorParams};
+
+    #[test]
+    fn variants_of_one_algorithm_are_different_runs_with_their_own_labels() {
+        let scene = generators::find("sphere-on-plane")
+            .unwrap()
+            .build(&GeneratorParams::default());
+        let params = RunParams::of_scene(&scene, [16, 12], 64, 16);
+        let plain = RunRecord::new("rt_denoised", Backend::CpuModel, &scene, params);
+        let mut raw = plain.clone();
+        let options = [(
+            "rt_denoised".to_string(),
+            serde_json::json!({"spp": 4, "denoise": false}),
+        )];
+        let info = crate::algorithms::find("rt_denoised").unwrap();
+        raw.variant = (info.variant)(&options.into_iter().collect());
+        assert_eq!(raw.variant.as_deref(), Some("4 spp raw"));
+        assert_ne!(plain.case_id(), raw.case_id());
+        assert_eq!(raw.algorithm_label(), "rt_denoised (4 spp raw)");
+        assert_eq!(plain.algorithm_label(), "rt_denoised");
+        // Still one safe path component (the image folder's name).
+        let id = raw.case_id();
+        assert!(
+            !id.contains(' ') && !id.contains('/') && id.contains("4_spp_raw"),
+            "{id}"
+        );
     }
 }

@@ -11,6 +11,7 @@ pub mod hard_shadow_map;
 pub mod pcss;
 pub mod penumbra_map;
 pub mod reference;
+pub mod rt_denoised;
 pub mod shadow_map;
 pub mod shadow_volume;
 pub mod soft_izb;
@@ -220,6 +221,12 @@ pub trait Algorithm {
             ),
         ))
     }
+    /// A short label telling runs of different options apart, where the options change what a
+    /// run is rather than how it is computed (`rt_denoised`: `1 spp`, `4 spp raw`): the record's
+    /// `variant`, in its case id and in the label reports give it. By default none.
+    fn variant(_: &Self::Options) -> Option<String> {
+        None
+    }
     /// Adapts the options to the frame before a run, with the run's warning when it does (the
     /// z-fail fallback of the shadow-volume family on open occluders). By default unchanged.
     fn prepare(_: &Frame, _: &mut Self::Options) -> Option<String> {
@@ -255,6 +262,9 @@ pub struct AlgorithmInfo {
     pub option_sets: &'static [&'static str],
     /// How close its wgpu execution is to its cpu-model execution ([`Algorithm::WGPU_PARITY`]).
     pub wgpu_parity: WgpuParity,
+    /// The variant label of a run with `options.<id>` ([`Algorithm::variant`]); none when the
+    /// options do not parse (the run then fails on them).
+    pub variant: fn(&BTreeMap<String, serde_json::Value>) -> Option<String>,
     /// Parses the options once, adapts them to the frame ([`Algorithm::prepare`], whose
     /// warning it returns) and runs the `backend` execution.
     run: fn(Backend, &Frame, &ExecContext) -> Result<Prepared>,
@@ -279,6 +289,7 @@ impl AlgorithmInfo {
             limits: A::LIMITS,
             option_sets: A::OPTION_SETS,
             wgpu_parity: A::WGPU_PARITY,
+            variant: |o| A::options(o).ok().and_then(|o| A::variant(&o)),
             run: run_typed::<A>,
         }
     }
@@ -341,6 +352,7 @@ pub const ALGORITHMS: &[AlgorithmInfo] = &[
     AlgorithmInfo::of::<penumbra_map::PenumbraMap>(),
     AlgorithmInfo::of::<soft_shadow_map::SoftShadowMap>(),
     AlgorithmInfo::of::<dbuffer::Dbuffer>(),
+    AlgorithmInfo::of::<rt_denoised::RtDenoised>(),
 ];
 
 /// Reads `options.<id>` of a scenario into `T` (defaults when absent), naming the JSON path of

@@ -178,6 +178,9 @@ pub fn run_one(
     let load_before = measure::load_average();
     let (result, first_ms) = iteration(frame, algorithm, backend, ctx);
     let mut record = RunRecord::new(algorithm, backend, &frame.scene, frame.params.clone());
+    if let Ok(info) = algorithms::find(algorithm) {
+        record.variant = (info.variant)(&ctx.options);
+    }
     record.wall_ms = first_ms;
     // The light the run (and its reference) used, in full: after a conversion it is not the
     // scenario's.
@@ -728,7 +731,13 @@ fn without_repeats(
             let info = algorithms::find(&p.algorithm).expect("validated");
             let used = light_as(light, info.light_for(light.kind()), *center);
             let params = case.params_with(*tris, used.size());
-            seen.insert(case_id(name, &p.algorithm, p.backend.name(), &params))
+            let variant = (info.variant)(&loaded.scenario.options);
+            seen.insert(case_id(
+                name,
+                (&p.algorithm, variant.as_deref()),
+                p.backend.name(),
+                &params,
+            ))
         })
         .collect::<Vec<_>>();
     let repeats = before - plan.len();
@@ -845,8 +854,10 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
                 .err()
                 .map(|e| e.to_string())
         });
+        let variant = (info.variant)(&ctx.options);
         if let Some(e) = refused {
             let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
+            record.variant = variant;
             if writer.take_kept(&record.case_id()) {
                 progress.skipped();
                 continue;
@@ -858,7 +869,13 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             continue;
         }
         // The run finished in the sweep this one resumes.
-        if writer.take_kept(&case_id(&sc.name, &p.algorithm, p.backend.name(), &params)) {
+        let id = case_id(
+            &sc.name,
+            (&p.algorithm, variant.as_deref()),
+            p.backend.name(),
+            &params,
+        );
+        if writer.take_kept(&id) {
             progress.skipped();
             continue;
         }
@@ -874,6 +891,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
                         0.0
                     };
                 let mut record = RunRecord::new(&p.algorithm, p.backend, sc, params);
+                record.variant = variant.clone();
                 loaded.notes.annotate(&mut record);
                 record.wall_ms = deadline.elapsed().as_secs_f64() * 1e3;
                 record.failure =

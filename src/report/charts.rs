@@ -853,7 +853,10 @@ pub fn collect_series(
             Some(s) => s.points.push(p),
             None => series.push(Series {
                 name,
-                algorithm: r.algorithm.clone(),
+                algorithm: match &r.variant {
+                    Some(v) => format!("{} ({v})", r.algorithm),
+                    None => r.algorithm.clone(),
+                },
                 backend: r.backend.clone(),
                 points: vec![p],
                 intervals: vec![],
@@ -1966,7 +1969,9 @@ mod tests {
         let mut runs = many();
         for (i, r) in runs.iter_mut().enumerate() {
             let base = 1.0 + i as f64;
-            let wall = Spread::of((0..7).map(|k| base * (1.0 + 0.01 * k as f64)).collect());
+            // Samples 5% apart: every interval spans pixels at any count of registered
+            // algorithms (a bar rounded to no height draws no path).
+            let wall = Spread::of((0..7).map(|k| base * (1.0 + 0.05 * k as f64)).collect());
             r.wall_ms = wall.as_ref().unwrap().median;
             r.measured = Some(Measured {
                 protocol: Measure::default(),

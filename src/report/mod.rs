@@ -344,6 +344,7 @@ pub(crate) mod testdata {
         counters.set("overdraw_ratio", 250.0 / (1000.0 + triangles as f64));
         RunRecord {
             algorithm: algorithm.into(),
+            variant: None,
             backend: backend.into(),
             scene: "sphere-on-plane".into(),
             light: "sphere".into(),

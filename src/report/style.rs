@@ -33,10 +33,17 @@ pub const REFERENCE: RGBColor = RGBColor(0x4d, 0x4d, 0x4d);
 pub const INK: RGBColor = RGBColor(0, 0, 0);
 
 /// The colour of `algorithm`: by its place among the registered algorithms (reference aside);
-/// an unknown name (from an older results file) gets one from its name's bytes.
+/// an unknown name (from an older results file) gets one from its name's bytes. A variant of
+/// a registered algorithm (`rt_denoised (4 spp raw)`, [`crate::record::RunRecord::variant`])
+/// gets a shade of the algorithm's colour ([`variant_shade`]).
 pub fn algorithm_color(algorithm: &str) -> RGBColor {
     if algorithm == "reference" {
         return REFERENCE;
+    }
+    if let Some((id, rest)) = algorithm.split_once(" (") {
+        if ALGORITHMS.iter().any(|a| a.id == id) {
+            return variant_shade(algorithm_color(id), rest.trim_end_matches(')'));
+        }
     }
     let index = ALGORITHMS
         .iter()
@@ -55,6 +62,26 @@ pub fn algorithm_color(algorithm: &str) -> RGBColor {
     } else {
         EXTRA[i - PALETTE.len()]
     }
+}
+
+/// The shade of `base` for a variant: its first number `n` (rays a pixel) sets the shade on a
+/// log₂ ramp (1, 2, 4, 8 and more), darker than `base` for most variants, lighter for a `raw`
+/// one (mixed with black up to 55%, or with white from 20% to 65%), so the variants of one
+/// algorithm read as one family and apart from each other.
+pub fn variant_shade(base: RGBColor, variant: &str) -> RGBColor {
+    let n: f64 = variant
+        .split(|c: char| !c.is_ascii_digit())
+        .find(|s| !s.is_empty())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1.0);
+    let level = n.max(1.0).log2().clamp(0.0, 3.0) / 3.0;
+    let (target, t) = if variant.contains("raw") {
+        (255.0, 0.2 + 0.45 * level)
+    } else {
+        (0.0, 0.55 * (1.0 - level))
+    };
+    let mix = |c: u8| (f64::from(c) * (1.0 - t) + target * t).round() as u8;
+    RGBColor(mix(base.0), mix(base.1), mix(base.2))
 }
 
 /// The colours of the phases of a stacked bar, in phase order: ColorBrewer's Dark2 (Brewer,
@@ -127,9 +154,10 @@ pub fn execution_rank(backend: &str) -> (usize, String) {
 
 /// Order of algorithms in legends and tables: the reference first, then as registered.
 pub fn algorithm_rank(algorithm: &str) -> (usize, String) {
+    let id = algorithm.split_once(" (").map_or(algorithm, |(id, _)| id);
     let known = ALGORITHMS
         .iter()
-        .position(|a| a.id == algorithm)
+        .position(|a| a.id == id)
         .unwrap_or(usize::MAX);
     (known, algorithm.to_string())
 }

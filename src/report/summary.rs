@@ -151,6 +151,9 @@ pub fn base_case(runs: &[&RunRecord]) -> Option<(String, String)> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Row {
     pub algorithm: String,
+    /// The run's variant ([`RunRecord::variant`]): its points are drawn in a shade of the
+    /// algorithm's colour.
+    pub variant: Option<String>,
     /// The algorithm as the tables and legends name it ([`RunRecord::algorithm_label`]).
     pub label: String,
     pub backend: String,
@@ -260,11 +263,12 @@ impl Summary {
             .map(|b| {
                 let mut rows: Vec<Row> = Vec::new();
                 for r in at.iter().filter(|r| r.backend == b) {
-                    if rows.iter().any(|x| x.algorithm == r.algorithm) {
+                    if rows.iter().any(|x| x.label == r.algorithm_label()) {
                         continue;
                     }
                     rows.push(Row {
                         algorithm: r.algorithm.clone(),
+                        variant: r.variant.clone(),
                         label: r.algorithm_label(),
                         backend: b.clone(),
                         mae_shadow: r.error.as_ref().and_then(|e| e.mae_shadow),
@@ -344,7 +348,10 @@ impl Summary {
                     .filter_map(|r| {
                         Some(Series {
                             name: format!("{} / {}", r.label, r.backend),
-                            algorithm: r.algorithm.clone(),
+                            algorithm: match &r.variant {
+                                Some(v) => format!("{} ({v})", r.algorithm),
+                                None => r.algorithm.clone(),
+                            },
                             backend: r.backend.clone(),
                             points: vec![(r.costs[c]?, r.mae_shadow?)],
                             intervals: vec![],

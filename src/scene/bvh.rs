@@ -168,7 +168,7 @@ const TIE_BREAK: f32 = 1.0 / 262_144.0;
 /// break every tie, the passes merge a constant share of the nodes again and the build is
 /// O(n log n) whatever the input. A wider box still holds its triangle, so traversal finds
 /// the same hits; the boxes are deterministic, so the tree is the same on every run.
-fn tie_breaking_box(tri: &Triangle, index: usize) -> Aabb {
+pub(crate) fn tie_breaking_box(tri: &Triangle, index: usize) -> Aabb {
     let mut h = (index as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
     let mut side = || {
         // splitmix64: six well-mixed fractions in [0.5, 1) from one index.

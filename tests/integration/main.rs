@@ -31,6 +31,7 @@ mod reference;
 mod registry;
 mod robustness;
 mod roles;
+mod rt_denoised;
 mod scenario_errors;
 mod scene_files;
 mod shard_merge;

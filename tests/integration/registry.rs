@@ -195,6 +195,7 @@ parity_tests!(
     penumbra_map,
     soft_shadow_map,
     dbuffer,
+    rt_denoised,
 );
 
 #[test]
