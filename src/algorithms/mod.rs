@@ -363,6 +363,12 @@ pub fn parse_options<T: serde::de::DeserializeOwned + Default>(
 ) -> Result<T, crate::error::InputError> {
     match options.get(id) {
         None => Ok(T::default()),
+        // serde would read an array into the struct's fields by position, and its message for
+        // other values names the Rust type.
+        Some(v) if !v.is_object() => Err(crate::error::InputError::new(
+            format!("$.options.{id}"),
+            format!("expected an object of named options, got {v}"),
+        )),
         Some(v) => serde_path_to_error::deserialize(v).map_err(|e| {
             let path = e.path().to_string();
             crate::error::InputError::new(

@@ -333,6 +333,23 @@ fn bad_pcss_options_name_the_field() {
     );
 }
 
+#[test]
+fn options_that_are_not_an_object_are_refused_for_every_algorithm() {
+    for info in shadowbench::algorithms::ALGORITHMS {
+        for bad in ["[4, false, 2, 8]", "null", "\"fast\"", "3"] {
+            let text = format!(
+                r#"{{"scene": {{"generator": "sphere-on-plane"}}, "algorithms": ["{id}"],
+                    "options": {{"{id}": {bad}}}}}"#,
+                id = info.id
+            );
+            let e = Loaded::from_str(&text, std::path::Path::new("s.json")).unwrap_err();
+            let at = format!("$.options.{}", info.id);
+            assert_eq!(e.field.as_deref(), Some(at.as_str()), "{}: {bad}: {e}", info.id);
+            assert!(!e.message.contains("struct"), "{}: {bad}: {e}", info.id);
+        }
+    }
+}
+
 /// `--machine host` takes its clock from the operating system, not from timing: two processes
 /// rendering the same frame model the same time (issue: a clock measured per process under
 /// load gave model_ms up to 5× apart).
