@@ -2,7 +2,8 @@
 //!
 //! Used by the ground-truth reference (shadow rays) and by the eye pass (primary rays). Shadow
 //! rays test the occluders only (objects whose role has `occluder`: a receiver-only object casts
-//! no shadow, as in every algorithm that honours the role); primary rays see every object. The
+//! no shadow, as in every algorithm that honours the role), through a BVH of the casting
+//! triangles alone ([`ShadowBvh`], built beside this one); primary rays see every object. The
 //! any-hit answer of a shadow ray depends only on the triangle tests, never on the tree's shape,
 //! so results are identical whatever the build's thread count.
 //!
@@ -21,6 +22,7 @@ use obvhs::BvhBuildParams;
 
 use super::coverage;
 use super::mesh::FlatMesh;
+use super::shadow_bvh::ShadowBvh;
 
 /// The BVH holds the scene in local coordinates `(p − origin) · scale`: centred on its bounds
 /// and scaled by a power of two to a diagonal in [1, 2), so that the tree's build and traversal
@@ -35,6 +37,8 @@ pub struct SceneBvh {
     casts: Vec<bool>,
     origin: Vec3,
     scale: f32,
+    /// The casting triangles' BVH, in the same local coordinates: what shadow rays traverse.
+    shadow: ShadowBvh,
 }
 
 /// A primary-ray hit.
@@ -46,16 +50,7 @@ pub struct Hit {
 
 impl SceneBvh {
     pub fn build(flat: &FlatMesh) -> SceneBvh {
-        let bounds = flat.mesh.bounds();
-        let diagonal = bounds.diagonal();
-        let (origin, scale) = if diagonal.is_finite() && diagonal > 0.0 {
-            (
-                bounds.center(),
-                2f32.powi(-(diagonal.log2().floor() as i32)),
-            )
-        } else {
-            (Vec3::ZERO, 1.0)
-        };
+        let (origin, scale) = local_frame(flat);
         let local = |p: Vec3| (p - origin) * scale;
         let triangles: Vec<Triangle> = (0..flat.mesh.triangles.len())
             .map(|t| {
@@ -67,20 +62,21 @@ impl SceneBvh {
                 }
             })
             .collect();
+        let boxes: Vec<Aabb> = triangles
+            .iter()
+            .enumerate()
+            .map(|(i, t)| tie_breaking_box(t, i))
+            .collect();
         let bvh = if triangles.is_empty() {
             CwBvh::default()
         } else {
-            let boxes: Vec<Aabb> = triangles
-                .iter()
-                .enumerate()
-                .map(|(i, t)| tie_breaking_box(t, i))
-                .collect();
             obvhs::cwbvh::builder::build_cwbvh(
                 &boxes,
                 BvhBuildParams::medium_build(),
                 &mut Duration::default(),
             )
         };
+        let shadow = ShadowBvh::of_scene(flat);
         // Leaves refer to primitives through `primitive_indices`; store the triangles in that
         // order so the intersection callback indexes them directly.
         let order = &bvh.primitive_indices;
@@ -95,7 +91,13 @@ impl SceneBvh {
             casts,
             origin,
             scale,
+            shadow,
         }
+    }
+
+    /// The casting triangles' BVH that shadow rays traverse.
+    pub fn shadow(&self) -> &ShadowBvh {
+        &self.shadow
     }
 
     /// `p` in the BVH's local coordinates.
@@ -108,8 +110,17 @@ impl SceneBvh {
     }
 
     /// Whether an occluder's triangle blocks the open segment from `from` to `to` (a shadow
-    /// ray: receiver-only objects let it through).
+    /// ray: receiver-only objects let it through), through the casters' BVH
+    /// ([`ShadowBvh::occluded`]).
     pub fn occluded(&self, from: Vec3, to: Vec3) -> bool {
+        self.shadow.occluded(from, to)
+    }
+
+    /// [`Self::occluded`] through this BVH of every triangle with obvhs's traversal, the
+    /// receiver-only triangles rejected in the leaf test: the shadow-ray method before
+    /// [`ShadowBvh`], kept as its check (the same answers) and as the baseline its speed is
+    /// measured against (`examples/shadow_rays.rs`).
+    pub fn occluded_in_scene_bvh(&self, from: Vec3, to: Vec3) -> bool {
         self.blocked(from, to, true)
     }
 
@@ -155,6 +166,21 @@ impl SceneBvh {
     }
 }
 
+/// The local coordinates of `flat`'s BVHs, `(p − origin) · scale` ([`SceneBvh`]): `(origin,
+/// scale)`.
+pub(crate) fn local_frame(flat: &FlatMesh) -> (Vec3, f32) {
+    let bounds = flat.mesh.bounds();
+    let diagonal = bounds.diagonal();
+    if diagonal.is_finite() && diagonal > 0.0 {
+        (
+            bounds.center(),
+            2f32.powi(-(diagonal.log2().floor() as i32)),
+        )
+    } else {
+        (Vec3::ZERO, 1.0)
+    }
+}
+
 /// Widening of a triangle's box in [`tie_breaking_box`], in local units (the scene's diagonal
 /// is in [1, 2)): 2⁻¹⁸ ≈ 3.8·10⁻⁶, 32 `f32` steps at 1, far below any texel or sample spacing.
 const TIE_BREAK: f32 = 1.0 / 262_144.0;
@@ -168,7 +194,7 @@ const TIE_BREAK: f32 = 1.0 / 262_144.0;
 /// break every tie, the passes merge a constant share of the nodes again and the build is
 /// O(n log n) whatever the input. A wider box still holds its triangle, so traversal finds
 /// the same hits; the boxes are deterministic, so the tree is the same on every run.
-fn tie_breaking_box(tri: &Triangle, index: usize) -> Aabb {
+pub(crate) fn tie_breaking_box(tri: &Triangle, index: usize) -> Aabb {
     let mut h = (index as u64).wrapping_add(0x9E37_79B9_7F4A_7C15);
     let mut side = || {
         // splitmix64: six well-mixed fractions in [0.5, 1) from one index.
