@@ -135,8 +135,8 @@ fn trace(
                         .filter(|&j| {
                             let (_, p, q) = rays[j];
                             let hit = shadow
-                                .ray(p, q)
-                                .is_some_and(|r| shadow.occluded_among(scratch, &r));
+                                .segment(p, q)
+                                .is_some_and(|s| shadow.occluded_among(scratch, &s));
                             hit != truth[j]
                         })
                         .count(),
@@ -175,8 +175,8 @@ fn dump(
     for &(_, p, q) in rays {
         // A ray without length (none in practice) is written with length 0: nothing blocks it.
         let (o, d, len) = shadow
-            .ray(p, q)
-            .map_or((shadow.local(p), glam::Vec3::X, 0.0), |r| r.parts());
+            .segment(p, q)
+            .map_or((shadow.local(p), glam::Vec3::X, 0.0), |s| s.parts());
         flat.extend(o.to_array());
         flat.extend(d.to_array());
         flat.push(len);
@@ -261,6 +261,21 @@ fn main() -> Result<(), Box<dyn Error>> {
         dump(dir, frame.bvh.shadow(), &rays, &truth)?;
     }
     let occluded = truth.iter().filter(|&&t| t).count();
+    // How the groups fall: no caster in the cone, a few (traced among them), more than the cap.
+    let mut kinds = [0usize; 3];
+    let mut scratch = Vec::new();
+    let light = frame.scene.light;
+    for g in &groups {
+        let got = frame.bvh.shadow().gather(
+            Isa::host(),
+            rays[g.start].1,
+            light.center(),
+            light.bounding_radius(),
+            GROUP_CAP,
+            &mut scratch,
+        );
+        kinds[got as usize] += g.len();
+    }
     println!(
         "{}",
         serde_json::json!({
@@ -274,6 +289,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             "occluded": occluded,
             "host_isa": Isa::host().name(),
             "build_ms": build_s * 1e3,
+            "group_rays": {"empty": kinds[0], "few": kinds[1], "many": kinds[2]},
             "tracers": results,
         })
     );

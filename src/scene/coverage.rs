@@ -37,7 +37,7 @@ pub const WGSL: &str = include_str!("coverage.wgsl");
 
 /// Whether `p` comes strictly before `q` in lexicographic (x, y, z) order.
 #[inline]
-fn precedes(p: Vec3, q: Vec3) -> bool {
+pub fn precedes(p: Vec3, q: Vec3) -> bool {
     p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)))
 }
 

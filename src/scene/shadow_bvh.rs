@@ -127,54 +127,90 @@ impl Isa {
     }
 }
 
-/// A casting triangle in the BVH's local coordinates, with its (unnormalised) normal
-/// `(b − a) × (c − a)` computed once.
+/// A casting triangle in the BVH's local coordinates, with what its test needs computed once:
+/// the (unnormalised) normal `(b − a) × (c − a)` and, per directed edge `v[k] → v[k + 1]`,
+/// whether its end precedes its start lexicographically (the coverage rule then evaluates it
+/// from the end, [`coverage::edge_plane`]).
 #[derive(Clone, Copy, Debug)]
 struct Caster {
-    a: Vec3,
-    b: Vec3,
-    c: Vec3,
+    v: [Vec3; 3],
     n: Vec3,
+    from_end: [bool; 3],
 }
 
 impl Caster {
     fn new(a: Vec3, b: Vec3, c: Vec3) -> Caster {
+        let v = [a, b, c];
         Caster {
-            a,
-            b,
-            c,
+            v,
             n: (b - a).cross(c - a),
+            from_end: std::array::from_fn(|k| coverage::precedes(v[(k + 1) % 3], v[k])),
         }
     }
 
-    /// Whether the triangle blocks `ray`: its plane at `t ∈ [0, len)` and the line through it
-    /// by the coverage rule.
+    /// Whether the triangle blocks the segment: its plane at `t ∈ [0, len)` and the line
+    /// through it by the coverage rule. The same operations on the same values as
+    /// [`coverage::line_crosses`] with the edges `(a, b), (b, c), (c, a)`, so the same bits.
     #[inline(always)]
-    fn blocks(&self, ray: &ShadowRay) -> bool {
-        let nd = self.n.dot(ray.d);
+    fn blocks(&self, s: &Segment) -> bool {
+        let nd = self.n.dot(s.d);
         if nd == 0.0 {
             return false;
         }
         // The plane's distance first: most candidates are rejected by it, before the three
         // edge functions of the coverage rule.
-        let t = self.n.dot(self.a - ray.o) / nd;
-        t >= 0.0
-            && t < ray.len
-            && coverage::line_crosses(
-                ray.o,
-                ray.d,
-                self.n,
-                &[(self.a, self.b), (self.b, self.c), (self.c, self.a)],
-            )
+        let t = self.n.dot(self.v[0] - s.o) / nd;
+        if !(t >= 0.0 && t < s.len) {
+            return false;
+        }
+        let rel = self.v.map(|p| p - s.o);
+        (0..3).all(|k| {
+            let (p, q) = (rel[k], rel[(k + 1) % 3]);
+            // The edge function of v[k] → v[k + 1] ([`coverage::edge_function`]); the reversed
+            // edge's, which a back-facing line tests, is its exact negation.
+            let forward = if self.from_end[k] {
+                -s.d.dot(q.cross(p))
+            } else {
+                s.d.dot(p.cross(q))
+            };
+            let (e, start, end) = if nd > 0.0 {
+                (forward, self.v[k], self.v[(k + 1) % 3])
+            } else {
+                (-forward, self.v[(k + 1) % 3], self.v[k])
+            };
+            e > 0.0 || (e == 0.0 && coverage::tie_owner(s.d, start, end))
+        })
     }
 }
 
-/// A shadow ray in local coordinates, set up once for the box and triangle tests.
+/// A shadow ray's segment in local coordinates: origin, unit direction and length.
 #[derive(Clone, Copy, Debug)]
-pub struct ShadowRay {
+pub struct Segment {
     o: Vec3,
     d: Vec3,
     len: f32,
+}
+
+impl Segment {
+    /// The segment from `o` to `to` (local coordinates), or `None` when it has no length.
+    #[inline(always)]
+    fn new(o: Vec3, to: Vec3) -> Option<Segment> {
+        let v = to - o;
+        let len = v.length();
+        (len > 0.0).then(|| Segment { o, d: v / len, len })
+    }
+
+    /// The origin, unit direction and length (local coordinates): what an outside ray tracer
+    /// is given to trace the same ray.
+    pub fn parts(&self) -> (Vec3, Vec3, f32) {
+        (self.o, self.d, self.len)
+    }
+}
+
+/// A shadow ray set up for the traversal's box tests.
+#[derive(Clone, Copy, Debug)]
+pub struct ShadowRay {
+    s: Segment,
     /// obvhs's ray: origin, direction and the safe reciprocal of the direction.
     ray: Ray,
     /// The traversal order's octant code (obvhs's `oct_inv4`).
@@ -184,33 +220,15 @@ pub struct ShadowRay {
 }
 
 impl ShadowRay {
-    /// The segment from `o` to `to` (local coordinates), or `None` when it has no length.
     #[inline(always)]
-    fn new(o: Vec3, to: Vec3) -> Option<ShadowRay> {
-        let v = to - o;
-        let len = v.length();
-        if !(len > 0.0) {
-            return None;
-        }
-        let d = v / len;
-        let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, len);
-        let oct_inv4 = (if d.x < 0.0 { 0 } else { 0x0404_0404 })
-            | (if d.y < 0.0 { 0 } else { 0x0202_0202 })
-            | (if d.z < 0.0 { 0 } else { 0x0101_0101 });
-        Some(ShadowRay {
-            o,
-            d,
-            len,
-            ray,
-            oct_inv4,
+    fn new(s: Segment) -> ShadowRay {
+        let d = s.d;
+        ShadowRay {
+            s,
+            ray: Ray::new(Vec3A::from(s.o), Vec3A::from(d), 0.0, s.len),
+            oct_inv4: octant(d),
             neg: [d.x < 0.0, d.y < 0.0, d.z < 0.0],
-        })
-    }
-
-    /// The origin, unit direction and length (local coordinates): what an outside ray tracer
-    /// is given to trace the same ray.
-    pub fn parts(&self) -> (Vec3, Vec3, f32) {
-        (self.o, self.d, self.len)
+        }
     }
 }
 
@@ -340,7 +358,7 @@ impl ShadowBvh {
     /// The casting triangles in local coordinates (leaf order), what an outside ray tracer is
     /// given to trace [`ShadowRay::parts`].
     pub fn triangles(&self) -> impl Iterator<Item = [Vec3; 3]> + '_ {
-        self.casters.iter().map(|c| [c.a, c.b, c.c])
+        self.casters.iter().map(|c| c.v)
     }
 
     /// `p` in local coordinates.
@@ -349,11 +367,18 @@ impl ShadowBvh {
         (p - self.origin) * self.scale
     }
 
-    /// The shadow ray from `from` to `to` (world coordinates), or `None` when the segment has
-    /// no length in local coordinates (nothing blocks it).
+    /// The segment from `from` to `to` (world coordinates) in local coordinates, or `None`
+    /// when it has no length there (nothing blocks it).
+    #[inline(always)]
+    pub fn segment(&self, from: Vec3, to: Vec3) -> Option<Segment> {
+        Segment::new(self.local(from), self.local(to))
+    }
+
+    /// The shadow ray from `from` to `to` (world coordinates) set up for traversal, or `None`
+    /// as [`Self::segment`].
     #[inline(always)]
     pub fn ray(&self, from: Vec3, to: Vec3) -> Option<ShadowRay> {
-        ShadowRay::new(self.local(from), self.local(to))
+        self.segment(from, to).map(ShadowRay::new)
     }
 
     /// Whether a casting triangle blocks the open segment from `from` to `to` (world
@@ -372,7 +397,7 @@ impl ShadowBvh {
     #[inline]
     pub fn occluded_ray(&self, isa: Isa, ray: &ShadowRay, hint: &mut Option<u32>) -> bool {
         if let Some(h) = *hint {
-            if self.casters[h as usize].blocks(ray) {
+            if self.casters[h as usize].blocks(&ray.s) {
                 return true;
             }
         }
@@ -456,10 +481,10 @@ impl ShadowBvh {
     /// Whether one of `candidates` (from [`Self::gather`] of this ray's group) blocks `ray`.
     /// The blocker found is moved to the front, where the group's next ray tests it first.
     #[inline]
-    pub fn occluded_among(&self, candidates: &mut [u32], ray: &ShadowRay) -> bool {
+    pub fn occluded_among(&self, candidates: &mut [u32], segment: &Segment) -> bool {
         match candidates
             .iter()
-            .position(|&c| self.casters[c as usize].blocks(ray))
+            .position(|&c| self.casters[c as usize].blocks(segment))
         {
             Some(j) => {
                 candidates.swap(0, j);
@@ -485,7 +510,7 @@ impl ShadowBvh {
         traverse_until!(
             &self.bvh,
             Vec3A::from(cone.axis),
-            node => cone_hits(node, cone, octant(cone.axis)),
+            node => cone_hits_avx2(node, cone, octant(cone.axis)),
             prim => push_capped(out, prim, cap)
         )
         .is_some()
@@ -496,7 +521,7 @@ impl ShadowBvh {
             &self.bvh,
             ray.ray.direction,
             node => node_hits_scalar(node, ray),
-            prim => self.casters[prim].blocks(ray)
+            prim => self.casters[prim].blocks(&ray.s)
         )
     }
 
@@ -507,7 +532,7 @@ impl ShadowBvh {
             &self.bvh,
             ray.ray.direction,
             node => node_hits_sse2(node, ray),
-            prim => self.casters[prim].blocks(ray)
+            prim => self.casters[prim].blocks(&ray.s)
         )
     }
 
@@ -518,7 +543,7 @@ impl ShadowBvh {
             &self.bvh,
             ray.ray.direction,
             node => node_hits_avx2(node, ray),
-            prim => self.casters[prim].blocks(ray)
+            prim => self.casters[prim].blocks(&ray.s)
         )
     }
 }
@@ -590,7 +615,7 @@ fn node_hits_scalar(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
         let far = t(x.1[j], 0)
             .min(t(y.1[j], 1))
             .min(t(z.1[j], 2))
-            .min(ray.len);
+            .min(ray.s.len);
         if near <= far {
             children |= 1 << j;
         }
@@ -624,7 +649,7 @@ fn node_hits_sse2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
     };
     let (xn, yn, zn) = (axis(x.0, 0), axis(y.0, 1), axis(z.0, 2));
     let (xf, yf, zf) = (axis(x.1, 0), axis(y.1, 1), axis(z.1, 2));
-    let (tmin, tmax) = (_mm_setzero_ps(), _mm_set1_ps(ray.len));
+    let (tmin, tmax) = (_mm_setzero_ps(), _mm_set1_ps(ray.s.len));
     let half = |xn: __m128, yn: __m128, zn: __m128, xf: __m128, yf: __m128, zf: __m128| {
         let near = _mm_max_ps(_mm_max_ps(xn, yn), _mm_max_ps(zn, tmin));
         let far = _mm_min_ps(_mm_min_ps(xf, yf), _mm_min_ps(zf, tmax));
@@ -654,7 +679,7 @@ fn node_hits_avx2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
     );
     let far = _mm256_min_ps(
         _mm256_min_ps(plane(x.1, 0), plane(y.1, 1)),
-        _mm256_min_ps(plane(z.1, 2), _mm256_set1_ps(ray.len)),
+        _mm256_min_ps(plane(z.1, 2), _mm256_set1_ps(ray.s.len)),
     );
     let children = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
     hit_mask(node, children, ray.oct_inv4)
@@ -714,7 +739,13 @@ mod tests {
 
     /// Whether any casting triangle blocks `ray`: every caster tested, no tree.
     fn brute_force(bvh: &ShadowBvh, ray: &ShadowRay) -> bool {
-        bvh.casters.iter().any(|c| c.blocks(ray))
+        bvh.casters.iter().any(|c| {
+            let (a, b, cc) = (c.v[0], c.v[1], c.v[2]);
+            let n = (b - a).cross(cc - a);
+            let (o, d, len) = ray.s.parts();
+            let t = n.dot(a - o) / n.dot(d);
+            t >= 0.0 && t < len && coverage::line_crosses(o, d, n, &[(a, b), (b, cc), (cc, a)])
+        })
     }
 
     /// On every instruction set, the traversal answers as the test of every caster does, for
@@ -796,7 +827,7 @@ mod tests {
                     match got {
                         Gathered::Empty => assert!(!want, "point {i}, ray {j}: blocked"),
                         Gathered::Few => assert_eq!(
-                            bvh.occluded_among(&mut candidates, &ray),
+                            bvh.occluded_among(&mut candidates, &ray.s),
                             want,
                             "point {i}, ray {j}"
                         ),
@@ -810,4 +841,71 @@ mod tests {
             "empty, few and many groups: {seen:?}"
         );
     }
+}
+
+/// [`cone_hits`] with the eight children in one vector (AVX2, FMA): the same test, its
+/// rounding within the cone's margins.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+fn cone_hits_avx2(node: &CwBvhNode, cone: &Cone, oct_inv4: u32) -> u32 {
+    use std::arch::x86_64::*;
+    let e = node.compute_extent();
+    let bytes = |q: &[u8; 8]| {
+        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(i64::from_le_bytes(
+            *q,
+        ))))
+    };
+    // Per axis the children's box centres and extents.
+    let axis = |lo: &[u8; 8], hi: &[u8; 8], e: f32, p: f32| {
+        let (e, p) = (_mm256_set1_ps(e), _mm256_set1_ps(p));
+        let (lo, hi) = (
+            _mm256_fmadd_ps(bytes(lo), e, p),
+            _mm256_fmadd_ps(bytes(hi), e, p),
+        );
+        (
+            _mm256_mul_ps(_mm256_add_ps(lo, hi), _mm256_set1_ps(0.5)),
+            _mm256_sub_ps(hi, lo),
+        )
+    };
+    let (cx, ex) = axis(&node.child_min_x, &node.child_max_x, e.x, node.p.x);
+    let (cy, ey) = axis(&node.child_min_y, &node.child_max_y, e.y, node.p.y);
+    let (cz, ez) = axis(&node.child_min_z, &node.child_max_z, e.z, node.p.z);
+    let length = |x: __m256, y: __m256, z: __m256| {
+        _mm256_sqrt_ps(_mm256_fmadd_ps(
+            x,
+            x,
+            _mm256_fmadd_ps(y, y, _mm256_mul_ps(z, z)),
+        ))
+    };
+    let rho = _mm256_fmadd_ps(
+        length(ex, ey, ez),
+        _mm256_set1_ps(0.5),
+        _mm256_set1_ps(cone.slack),
+    );
+    let vx = _mm256_sub_ps(cx, _mm256_set1_ps(cone.apex.x));
+    let vy = _mm256_sub_ps(cy, _mm256_set1_ps(cone.apex.y));
+    let vz = _mm256_sub_ps(cz, _mm256_set1_ps(cone.apex.z));
+    let dist = length(vx, vy, vz);
+    let (ax, ay, az) = (
+        _mm256_set1_ps(cone.axis.x),
+        _mm256_set1_ps(cone.axis.y),
+        _mm256_set1_ps(cone.axis.z),
+    );
+    let along = _mm256_fmadd_ps(vx, ax, _mm256_fmadd_ps(vy, ay, _mm256_mul_ps(vz, az)));
+    let across = length(
+        _mm256_fmsub_ps(vy, az, _mm256_mul_ps(vz, ay)),
+        _mm256_fmsub_ps(vz, ax, _mm256_mul_ps(vx, az)),
+        _mm256_fmsub_ps(vx, ay, _mm256_mul_ps(vy, ax)),
+    );
+    let within_reach =
+        _mm256_cmp_ps::<_CMP_LE_OQ>(_mm256_sub_ps(dist, rho), _mm256_set1_ps(cone.reach));
+    let apex_inside = _mm256_cmp_ps::<_CMP_LE_OQ>(dist, rho);
+    let surface = _mm256_fmsub_ps(
+        across,
+        _mm256_set1_ps(cone.cos),
+        _mm256_mul_ps(along, _mm256_set1_ps(cone.sin)),
+    );
+    let meets = _mm256_or_ps(apex_inside, _mm256_cmp_ps::<_CMP_LE_OQ>(surface, rho));
+    let children = _mm256_movemask_ps(_mm256_and_ps(within_reach, meets)) as u32;
+    hit_mask(node, children, oct_inv4)
 }

@@ -156,8 +156,8 @@ fn trace_samples(
                     for (i, q) in samples() {
                         let seen = in_front(p, q)
                             && !shadow
-                                .ray(p.0, q)
-                                .is_some_and(|r| shadow.occluded_among(scratch, &r));
+                                .segment(p.0, q)
+                                .is_some_and(|s| shadow.occluded_among(scratch, &s));
                         lit(i, seen);
                     }
                 }
