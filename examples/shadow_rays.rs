@@ -52,6 +52,10 @@ struct Args {
     /// Timed runs of each measurement (the median is printed).
     #[arg(long, default_value_t = 5)]
     repeats: usize,
+    /// The most casters a group gathers in the tracing of the dumped rays (the reference
+    /// image always uses `reference::GROUP_CAP`).
+    #[arg(long, default_value_t = GROUP_CAP)]
+    cap: usize,
     /// Folder for the .npy files (none written without it).
     #[arg(long)]
     out: Option<PathBuf>,
@@ -96,6 +100,7 @@ fn trace(
     rays: &[(u32, glam::Vec3, glam::Vec3)],
     groups: &[Range<usize>],
     truth: &[bool],
+    cap: usize,
 ) -> usize {
     let shadow = frame.bvh.shadow();
     let light = frame.scene.light;
@@ -128,7 +133,7 @@ fn trace(
             Tracer::Rays(isa) => one_at_a_time(isa, false, g),
             Tracer::Groups(isa) => {
                 let from = rays[g.start].1;
-                match shadow.gather(isa, from, centre, radius, GROUP_CAP, scratch) {
+                match shadow.gather(isa, from, centre, radius, cap, scratch) {
                     Gathered::Empty => g.clone().filter(|&j| truth[j]).count(),
                     Gathered::Few => g
                         .clone()
@@ -240,7 +245,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let mut results = Vec::new();
     for tracer in tracers {
         let (trace_s, mismatches) = timed(a.repeats, || {
-            pool.install(|| trace(&frame, tracer, &rays, &groups, &truth))
+            pool.install(|| trace(&frame, tracer, &rays, &groups, &truth, a.cap))
         });
         let (render_s, image) = timed(a.repeats, || {
             pool.install(|| {
@@ -271,7 +276,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             rays[g.start].1,
             light.center(),
             light.bounding_radius(),
-            GROUP_CAP,
+            a.cap,
             &mut scratch,
         );
         kinds[got as usize] += g.len();
@@ -285,6 +290,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             "image": [w, h],
             "samples": a.samples,
             "threads": a.threads,
+            "cap": a.cap,
             "rays": rays.len(),
             "occluded": occluded,
             "host_isa": Isa::host().name(),

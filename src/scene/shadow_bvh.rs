@@ -297,7 +297,7 @@ pub struct ShadowBvh {
 /// The build quality of [`ShadowBvh`] (obvhs's PLOC presets). `fast_build` traverses the
 /// reference's rays as fast as `medium_build` within a few per cent and builds in about half
 /// the time (docs/algorithms.md, "The reference's speed").
-pub const BUILD: BvhBuildParams = BvhBuildParams::fast_build();
+pub const BUILD: BvhBuildParams = BvhBuildParams::medium_build();
 
 impl ShadowBvh {
     /// The BVH of the casting triangles of `flat` (objects whose role has `occluder`), in the
@@ -436,26 +436,53 @@ impl ShadowBvh {
         cap: usize,
         out: &mut Vec<u32>,
     ) -> Gathered {
+        self.gather_between(isa, (from, 0.0), (centre, radius), cap, out)
+    }
+
+    /// [`Self::gather`] for segments from any point of the ball `from` (centre, radius) to any
+    /// point of the ball `to` (world coordinates): the casters in the cone tangent to both
+    /// (a tile of shading points and the light). [`Gathered::Many`] also where the first ball
+    /// is not well inside the second's cone (not smaller than it, or overlapping it).
+    pub fn gather_between(
+        &self,
+        isa: Isa,
+        (from, from_radius): (Vec3, f32),
+        (centre, radius): (Vec3, f32),
+        cap: usize,
+        out: &mut Vec<u32>,
+    ) -> Gathered {
         out.clear();
-        let apex = self.local(from);
+        let near = self.local(from);
         let c = self.local(centre);
-        // The light's sphere grown over the rounding of the samples (world coordinates, about
+        // Both spheres grown over the rounding of the points in them (world coordinates, about
         // an `f32` step of their magnitude) and of their local coordinates.
-        let magnitude = centre.abs().max_element() + from.abs().max_element() + radius;
-        let r = (radius * (1.0 + 1e-4) + 8.0 * f32::EPSILON * magnitude) * self.scale + CONE_MARGIN;
-        let v = c - apex;
+        let magnitude =
+            centre.abs().max_element() + from.abs().max_element() + radius + from_radius;
+        let rounding = 8.0 * f32::EPSILON * magnitude;
+        let r = (radius * (1.0 + 1e-4) + rounding) * self.scale + CONE_MARGIN;
+        let rp = if from_radius > 0.0 {
+            (from_radius * (1.0 + 1e-4) + rounding) * self.scale + CONE_MARGIN
+        } else {
+            0.0
+        };
+        let v = c - near;
         let dist = v.length();
-        if !(dist > r * 1.01) || !dist.is_finite() {
+        if !(dist > (r + rp) * 1.01) || !dist.is_finite() || rp >= 0.9 * r {
             return Gathered::Many;
         }
-        let sin = (r / dist) * (1.0 + 1e-5);
+        let axis = v / dist;
+        // The tangent cone's apex lies behind the smaller ball, where the radii extrapolate
+        // to zero.
+        let back = dist * rp / (r - rp);
+        let sin = ((r - rp) / dist) * (1.0 + 1e-5);
+        let reach = back + dist + r + CONE_MARGIN;
         let cone = Cone {
-            apex,
-            axis: v / dist,
+            apex: near - axis * back,
+            axis,
             sin,
             cos: (1.0 - sin * sin).max(0.0).sqrt() * (1.0 - 1e-5),
-            reach: dist + r + CONE_MARGIN,
-            slack: CONE_MARGIN + 1e-6 * (dist + r),
+            reach,
+            slack: CONE_MARGIN + 1e-6 * reach,
         };
         let overflow = match isa {
             #[cfg(target_arch = "x86_64")]

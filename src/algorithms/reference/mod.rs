@@ -104,14 +104,56 @@ impl Tracer {
 /// tests every candidate, which beats a traversal only while they are few.
 pub const GROUP_CAP: usize = 8;
 
+/// Side of the square tiles of pixels whose shading points [`Tracer::Groups`] tests together
+/// first: a tile whose cone to the light holds no caster answers every pixel of it without the
+/// pixel's own cone traversal.
+const TILE: usize = 4;
+
+/// Whether no caster lies between the shading points of `tile` and the light: the cone tangent
+/// to a ball around the points and to the light's bounding sphere is empty.
+fn tile_is_clear(
+    frame: &Frame,
+    isa: Isa,
+    tile: &[(usize, ShadingPoint)],
+    scratch: &mut Vec<u32>,
+) -> bool {
+    if tile.len() < 2 {
+        return false;
+    }
+    let centre = tile.iter().map(|t| t.1 .0).sum::<Vec3>() / tile.len() as f32;
+    let radius = tile
+        .iter()
+        .map(|t| t.1 .0.distance(centre))
+        .fold(0.0, f32::max);
+    let light = &frame.scene.light;
+    let ball = (light.center(), light.bounding_radius());
+    frame
+        .bvh
+        .shadow()
+        .gather_between(isa, (centre, radius), ball, 0, scratch)
+        == Gathered::Empty
+}
+
+/// What a pixel's shadow rays are traced against and how; `clear`: its tile's cone holds no
+/// caster ([`tile_is_clear`]).
+#[derive(Clone, Copy)]
+struct Traced<'a> {
+    bvh: &'a SceneBvh,
+    light: &'a Light,
+    tracer: Tracer,
+    clear: bool,
+}
+
 /// Calls `lit(i, visible)` for each light sample `i` of the k×k stratified samples of stream
 /// `seed` seen from `p`, in order: whether the sample is in front of a receiver-only surface's
 /// plane and no occluder blocks the shadow ray to it. `scratch` holds a group's candidates.
-#[allow(clippy::too_many_arguments)]
 fn trace_samples(
-    bvh: &SceneBvh,
-    light: &Light,
-    tracer: Tracer,
+    Traced {
+        bvh,
+        light,
+        tracer,
+        clear,
+    }: Traced,
     p: ShadingPoint,
     k: u32,
     seed: u64,
@@ -143,7 +185,12 @@ fn trace_samples(
         Tracer::Rays(isa) => one_at_a_time(isa, false, &mut lit),
         Tracer::Groups(isa) => {
             let (centre, radius) = (light.center(), light.bounding_radius());
-            match shadow.gather(isa, p.0, centre, radius, GROUP_CAP, scratch) {
+            let gathered = if clear {
+                Gathered::Empty
+            } else {
+                shadow.gather(isa, p.0, centre, radius, GROUP_CAP, scratch)
+            };
+            match gathered {
                 Gathered::Empty if p.1.is_none_or(|n| clears(n, p.0, centre, radius)) => {
                     (0..k * k).for_each(|i| lit(i, true));
                 }
@@ -198,34 +245,35 @@ fn shading_point(frame: &Frame, i: usize) -> ShadingPoint {
 /// Fraction of `light` visible from shading point `p`, from k×k stratified samples of stream
 /// `seed` (the default [`Tracer`]).
 pub fn visible_fraction(bvh: &SceneBvh, light: &Light, p: ShadingPoint, k: u32, seed: u64) -> f32 {
-    visible_fraction_with(bvh, light, Tracer::default(), p, k, seed, &mut Vec::new())
+    let traced = Traced {
+        bvh,
+        light,
+        tracer: Tracer::default(),
+        clear: false,
+    };
+    visible_fraction_with(traced, p, k, seed, &mut Vec::new())
 }
 
 fn visible_fraction_with(
-    bvh: &SceneBvh,
-    light: &Light,
-    tracer: Tracer,
+    traced: Traced,
     p: ShadingPoint,
     k: u32,
     seed: u64,
     scratch: &mut Vec<u32>,
 ) -> f32 {
     let mut visible = 0u32;
-    trace_samples(bvh, light, tracer, p, k, seed, scratch, |_, lit| {
+    trace_samples(traced, p, k, seed, scratch, |_, lit| {
         visible += u32::from(lit)
     });
     visible as f32 / (k * k) as f32
 }
 
-/// Light received from a textured `light` at shading point `p`, from k×k stratified samples of
+/// Light received from a textured light at shading point `p`, from k×k stratified samples of
 /// stream `seed`, each weighted by the texture's colour where it lies on the light:
 /// per channel the visible samples' mean colour over all samples, and the luminance fraction
 /// of the visible samples over all of them ([`LightTexture::visibility`]'s quantity).
-#[allow(clippy::too_many_arguments)]
 fn received_light(
-    bvh: &SceneBvh,
-    light: &Light,
-    tracer: Tracer,
+    traced: Traced,
     texture: &LightTexture,
     p: ShadingPoint,
     k: u32,
@@ -233,8 +281,9 @@ fn received_light(
     scratch: &mut Vec<u32>,
 ) -> ([f32; 3], f32) {
     let n = k * k;
+    let light = traced.light;
     let (mut visible, mut all) = ([0.0f64; 3], [0.0f64; 3]);
-    trace_samples(bvh, light, tracer, p, k, seed, scratch, |i, lit| {
+    trace_samples(traced, p, k, seed, scratch, |i, lit| {
         let c = texture.at(light.stratified_coords(i, k, seed));
         for ch in 0..3 {
             all[ch] += f64::from(c[ch]);
@@ -277,29 +326,53 @@ pub fn render_with(
     let texture = frame.scene.light_texture.as_deref();
     // What an unoccluded point receives: once per frame (a pass over every texel).
     let unoccluded = texture.map_or([1.0; 3], LightTexture::mean);
-    let pixels: Vec<(f32, [f32; 3])> = (0..g.len())
-        .into_par_iter()
-        .map_init(Vec::new, |scratch, i| {
-            deadline.check();
-            if !g.is_hit(i) {
-                return (1.0, unoccluded);
-            }
-            let p = shading_point(frame, i);
-            let stream = mix64(seed ^ i as u64);
-            match texture {
-                Some(t) => {
-                    let (rgb, v) =
-                        received_light(&frame.bvh, &light, tracer, t, p, k, stream, scratch);
-                    (v, rgb)
+    let w = g.width as usize;
+    let mut pixels = vec![(1.0f32, unoccluded); g.len()];
+    // Bands of TILE rows in parallel, each in TILE × TILE tiles.
+    pixels
+        .par_chunks_mut((w * TILE).max(1))
+        .enumerate()
+        .for_each_init(Vec::new, |scratch, (band, rows)| {
+            let first = band * w * TILE;
+            let height = rows.len() / w.max(1);
+            for x0 in (0..w).step_by(TILE) {
+                let mut tile = [(0usize, (Vec3::ZERO, None)); TILE * TILE];
+                let mut n = 0;
+                for y in 0..height {
+                    for x in x0..(x0 + TILE).min(w) {
+                        let i = first + y * w + x;
+                        if g.is_hit(i) {
+                            tile[n] = (i, shading_point(frame, i));
+                            n += 1;
+                        }
+                    }
                 }
-                None => {
-                    let v =
-                        visible_fraction_with(&frame.bvh, &light, tracer, p, k, stream, scratch);
-                    (v, [v; 3])
+                let clear = match tracer {
+                    Tracer::Groups(isa) => tile_is_clear(frame, isa, &tile[..n], scratch),
+                    _ => false,
+                };
+                for &(i, p) in &tile[..n] {
+                    deadline.check();
+                    let stream = mix64(seed ^ i as u64);
+                    let traced = Traced {
+                        bvh: &frame.bvh,
+                        light: &light,
+                        tracer,
+                        clear,
+                    };
+                    rows[i - first] = match texture {
+                        Some(t) => {
+                            let (rgb, v) = received_light(traced, t, p, k, stream, scratch);
+                            (v, rgb)
+                        }
+                        None => {
+                            let v = visible_fraction_with(traced, p, k, stream, scratch);
+                            (v, [v; 3])
+                        }
+                    };
                 }
             }
-        })
-        .collect();
+        });
     let data = pixels.iter().map(|p| p.0).collect();
     let rgb = texture.map(|_| RgbBuffer {
         width: g.width,
