@@ -10,11 +10,14 @@ repeats=${2:-3}
 adapter=(); [ -n "${3:-}" ] && adapter=(--adapter "$3")
 bin=${SHADOWBENCH:-target/release/shadowbench}
 mkdir -p "$out"
+# Every registered algorithm with a wgpu execution, from the binary's own list.
+algorithms=$("$bin" list | awk '/^algorithms:/ {a = 1; next} /^[^ ]/ {a = 0}
+  a && /\[[^]]*wgpu[^]]*\]/ {printf "%s\"%s\"", (n++ ? ", " : ""), $1}')
+[ -n "$algorithms" ] || { echo "error: $bin list names no algorithm with a wgpu execution" >&2; exit 2; }
 cat > "$out/table.json" <<J
 {"name": "gpu-table", "description": "wgpu beside cpu-native at 640x480 (docs/gpu.md)",
  "scene": {"generator": "sphere-on-plane"},
- "algorithms": ["hard_shadow_map", "pcss", "soft_izb", "accum_hard", "soft_shadow_volume",
-                "penumbra_map", "soft_shadow_map", "dbuffer"],
+ "algorithms": [$algorithms],
  "backends": ["cpu-native", "wgpu"],
  "params": {"image": [640, 480], "map_resolution": 512, "tile_size": 32},
  "options": {"accum_hard": {"samples": 256}},

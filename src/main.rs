@@ -1697,6 +1697,7 @@ fn compare(
             Some(p) => outln!("every figure: {}", p.display()),
             None => outln!("every figure: --verbose or --details FILE"),
         }
+        out!("{}", c.render_measured());
         outln!("{verdict}");
     }
     Ok(!c.regressed())

@@ -246,6 +246,18 @@ impl Comparison {
             || (self.gate_measured && self.measured.regressions() > 0)
     }
 
+    /// The measured figures' table and summary ([`super::measured`]), and whether they gate.
+    pub fn render_measured(&self) -> String {
+        let mut s = self.measured.render();
+        if !self.gate_measured && self.measured.regressions() > 0 {
+            let _ = writeln!(
+                s,
+                "note: measured regressions do not fail the gate without --gate measured"
+            );
+        }
+        s
+    }
+
     /// The table of what moved, and the verdict.
     pub fn render(&self) -> String {
         let mut s = String::new();
@@ -332,13 +344,7 @@ impl Comparison {
                 "note: {figure} is not in the glossary, so not judged ({n} runs)"
             );
         }
-        s.push_str(&self.measured.render());
-        if !self.gate_measured && self.measured.regressions() > 0 {
-            let _ = writeln!(
-                s,
-                "note: measured regressions do not fail the gate without --gate measured"
-            );
-        }
+        s.push_str(&self.render_measured());
         let count = |v: Verdict| self.changes.iter().filter(|c| c.verdict == v).count();
         let _ = writeln!(
             s,
@@ -891,6 +897,80 @@ mod tests {
             .unwrap();
         let c = compare((Path::new("b"), &b), (Path::new("c"), &slower), &lenient).unwrap();
         assert!(!c.regressed(), "{}", c.render());
+    }
+
+    /// A sweep of 60 runs (1–300 ms) measured in two sittings: each run's whole set of samples
+    /// moved by its sitting (log-normal, 4% plus a larger share for short runs, and three runs
+    /// 30% off), the samples within a sitting 1% apart, as on a shared two-core machine.
+    fn sittings(doubled: &[usize]) -> (ResultsFile, ResultsFile) {
+        // A fixed sequence of standard normal deviates (Box–Muller over a linear congruential
+        // generator), so the test is deterministic.
+        let mut state: u64 = 0x2545_f491_4f6c_dd1d;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let mut normal = move || {
+            let (u, v) = (uniform(), uniform());
+            (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+        };
+        let (mut old, mut new) = (vec![], vec![]);
+        for i in 0..60usize {
+            let ms = 300f64.powf(i as f64 / 59.0);
+            let sigma = (0.04f64.powi(2) + 0.01 / ms).sqrt();
+            let shift = if i % 20 == 7 { 0.3 } else { sigma * normal() };
+            let work = if doubled.contains(&i) { 2.0 } else { 1.0 };
+            let take = |centre: f64, normal: &mut dyn FnMut() -> f64| -> Vec<f64> {
+                (0..10).map(|_| centre * (1.0 + 0.01 * normal())).collect()
+            };
+            let r = record("pcss", "cpu-native", 100 * (i as u32 + 1), 32);
+            old.push(measured(r.clone(), take(ms, &mut normal), None));
+            new.push(measured(
+                r,
+                take(ms * work * shift.exp(), &mut normal),
+                None,
+            ));
+        }
+        (file(old), file(new))
+    }
+
+    #[test]
+    fn the_noise_between_sittings_keeps_an_unchanged_sweep_quiet_and_finds_a_doubled_run() {
+        let (b, same) = sittings(&[]);
+        let c = run(&b, &same);
+        // The samples alone see the sittings' shifts as changes.
+        let on_samples = c
+            .measured
+            .tests
+            .iter()
+            .filter(|t| {
+                t.p_samples * c.measured.tests.len() as f64 <= 0.05
+                    && (t.ratio() - 1.0).abs() >= 0.1
+            })
+            .count();
+        assert!(on_samples >= 3, "{on_samples}: {}", c.render());
+        let flagged = |c: &Comparison| -> Vec<String> {
+            c.measured
+                .tests
+                .iter()
+                .filter(|t| t.flagged(c.measured.q))
+                .map(|t| t.case.clone())
+                .collect()
+        };
+        assert!(flagged(&c).is_empty(), "{}", c.render());
+        let noise = c.measured.noise["wall_ms"];
+        assert!(
+            (0.02..0.08).contains(&noise.sigma0),
+            "{noise:?} against 4% drawn"
+        );
+        // Two runs of 50 ms and more made twice as slow: flagged, and nothing else.
+        let (b, slower) = sittings(&[45, 52]);
+        let c = run(&b, &slower);
+        let expect = vec![b.runs[45].case_id(), b.runs[52].case_id()];
+        assert_eq!(flagged(&c), expect, "{}", c.render());
+        assert!(c.render().contains("noise between sittings of wall_ms"));
     }
 
     #[test]

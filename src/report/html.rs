@@ -324,6 +324,31 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
             );
         }
         h.push_str("</table>\n");
+        for &c in &costs {
+            let ranked = e.measured_ranking(c);
+            if ranked.len() < 2 {
+                continue;
+            }
+            let mut line = String::new();
+            for r in &ranked {
+                let _ = write!(
+                    line,
+                    "{} {} [{}, {}]{}",
+                    text(&r.label),
+                    fmt_num(r.median),
+                    fmt_num(r.interval[0]),
+                    fmt_num(r.interval[1]),
+                    if r.overlaps_next { " ≈ " } else { " < " }
+                );
+            }
+            let line = line.trim_end_matches([' ', '≈', '<']);
+            let _ = writeln!(
+                h,
+                "<p class=\"t\">{}, fastest first (median [95% interval], ms): {line}. \
+                 ≈: the two intervals overlap, so this sweep does not tell them apart.</p>",
+                text(summary::COSTS[c].metric.label)
+            );
+        }
         let limited: Vec<&summary::Row> = e.rows.iter().filter(|r| !r.limits.is_empty()).collect();
         if !limited.is_empty() {
             h.push_str("<p class=\"t\">");

@@ -1,14 +1,31 @@
 //! The comparison of measured figures (kind `measured` in the glossary: `wall_ms`, `gpu_ms`)
-//! between two result sets, run by run, on their samples ([`crate::harness::measure`]): a
-//! two-sided Mann–Whitney U test (exact distribution without ties for up to 50 samples a side,
-//! else the normal approximation with tie correction), the ratio of medians as the effect, and
-//! the Benjamini–Hochberg procedure over every test of the comparison, so a sweep of many runs
+//! between two result sets, run by run, on their samples ([`crate::harness::measure`]).
+//!
+//! Each figure of each run is tested twice, and flagged only when both tests find it changed:
+//!
+//! - **Against its own samples**: a two-sided Mann–Whitney U test (exact distribution without
+//!   ties for up to 50 samples a side, else the normal approximation with tie correction). The
+//!   samples of one run are taken within milliseconds of each other, so this test sees the
+//!   noise inside a sitting only.
+//! - **Against the noise between sittings** ([`SittingNoise`]): the log ratio of medians
+//!   `d = ln(current / baseline)` of every run of the comparison, fitted by the variance model
+//!   `σ(t)² = σ₀² + β / t` (`t` the run's median time in ms: a fixed relative noise `σ₀` and
+//!   interruptions whose count grows with the run's length) by trimmed maximum likelihood
+//!   (the best-fitting 80% of the figures; Neykov and Müller 2003, after Rousseeuw's least
+//!   trimmed squares 1984), so the runs that really changed do not widen it. The figure's
+//!   p-value is the two-sided tail of `d / σ(t)` in Student's t with 3 degrees of freedom,
+//!   whose heavy tails allow for the occasional run a whole sitting's state slowed down (on
+//!   this project's two-core machine one figure in nine of an unchanged sweep lies beyond
+//!   three fitted σ; docs/ci.md).
+//!
+//! The figure's p-value is the larger of the two (an intersection–union test), adjusted by the
+//! Benjamini–Hochberg procedure over every test of the comparison, so a sweep of many runs
 //! does not raise false alarms by their number (after Google Benchmark's `compare.py` and asv).
 //! A figure is flagged when its adjusted p-value is at most `q` and its medians differ by at
 //! least the minimum effect (in percent; per figure with `--threshold-for`).
 //!
 //! No maintained crate offers the Mann–Whitney test with its exact distribution, so it is
-//! written here and tested against tabulated values.
+//! written here and tested against tabulated values; the t and normal tails are `statrs`'s.
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -114,16 +131,10 @@ pub fn mann_whitney(a: &[f64], b: &[f64]) -> (f64, f64) {
     (u, p)
 }
 
-/// P(Z > z) for a standard normal Z (Abramowitz and Stegun 7.1.26 through erfc; absolute error
-/// below 1.5e-7).
+/// P(Z > z) for a standard normal Z.
 fn normal_upper_tail(z: f64) -> f64 {
-    let x = z / std::f64::consts::SQRT_2;
-    let t = 1.0 / (1.0 + 0.327_591_1 * x);
-    let poly = t
-        * (0.254_829_592
-            + t * (-0.284_496_736
-                + t * (1.421_413_741 + t * (-1.453_152_027 + t * 1.061_405_429))));
-    0.5 * poly * (-x * x).exp()
+    use statrs::distribution::{ContinuousCDF, Normal};
+    Normal::standard().sf(z)
 }
 
 /// The smallest two-sided p-value the exact test can give with `m` and `n` samples.
@@ -149,6 +160,89 @@ pub fn benjamini_hochberg(p: &[f64]) -> Vec<f64> {
     q
 }
 
+/// The smallest number of a figure's runs from which the noise between sittings is fitted.
+pub const MIN_RUNS_FOR_SITTING_NOISE: usize = 8;
+/// The share of the figures the trimmed fit keeps.
+const TRIM_KEEP: f64 = 0.8;
+/// Degrees of freedom of the t distribution of the test against the sittings' noise.
+const SITTING_DOF: f64 = 3.0;
+
+/// The noise between two sittings of one measured figure: the standard deviation of
+/// `ln(current / baseline)` of a run whose median time is `t` ms is
+/// `σ(t) = sqrt(σ₀² + β / t)`, fitted over the comparison's runs by trimmed maximum likelihood
+/// (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SittingNoise {
+    /// The relative noise of long runs, `σ₀` (dimensionless, of the log ratio).
+    pub sigma0: f64,
+    /// The noise term of short runs, `β`, in ms.
+    pub beta_ms: f64,
+}
+
+impl SittingNoise {
+    /// Fits the model to `(d, t)` pairs (log ratio of medians, median time in ms); `None` with
+    /// fewer than [`MIN_RUNS_FOR_SITTING_NOISE`] usable pairs. The fit is a search over a
+    /// logarithmic grid (σ₀ from 1e-4 to 2, β from 1e-8 to 1 ms), so it is deterministic.
+    pub fn fit(pairs: &[(f64, f64)]) -> Option<SittingNoise> {
+        let pairs: Vec<(f64, f64)> = pairs
+            .iter()
+            .copied()
+            .filter(|(d, t)| d.is_finite() && t.is_finite() && *t > 0.0)
+            .collect();
+        if pairs.len() < MIN_RUNS_FOR_SITTING_NOISE {
+            return None;
+        }
+        let keep = ((pairs.len() as f64 * TRIM_KEEP).ceil() as usize).min(pairs.len());
+        let grid = |lo: f64, hi: f64, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| lo * (hi / lo).powf(i as f64 / (n - 1) as f64))
+                .collect()
+        };
+        let mut best: Option<(f64, SittingNoise)> = None;
+        let mut ll = Vec::with_capacity(pairs.len());
+        for &sigma0 in &grid(1e-4, 2.0, 64) {
+            for &beta_ms in &grid(1e-8, 1.0, 64) {
+                let model = SittingNoise { sigma0, beta_ms };
+                ll.clear();
+                ll.extend(pairs.iter().map(|&(d, t)| {
+                    let s = model.sigma(t);
+                    -0.5 * (d / s) * (d / s) - s.ln()
+                }));
+                ll.sort_by(|a, b| b.total_cmp(a));
+                let total: f64 = ll[..keep].iter().sum();
+                if best.is_none_or(|(b, _)| total > b) {
+                    best = Some((total, model));
+                }
+            }
+        }
+        best.map(|(_, m)| m)
+    }
+
+    /// σ(t) of a run of median time `t_ms`.
+    pub fn sigma(&self, t_ms: f64) -> f64 {
+        (self.sigma0 * self.sigma0 + self.beta_ms / t_ms).sqrt()
+    }
+
+    fn t() -> statrs::distribution::StudentsT {
+        statrs::distribution::StudentsT::new(0.0, 1.0, SITTING_DOF).expect("valid t distribution")
+    }
+
+    /// Two-sided p-value of a log ratio `d` of a run of median time `t_ms`.
+    pub fn p_value(&self, d: f64, t_ms: f64) -> f64 {
+        use statrs::distribution::ContinuousCDF;
+        (2.0 * Self::t().sf((d / self.sigma(t_ms)).abs())).min(1.0)
+    }
+
+    /// The smallest ratio of medians of a run of median time `t_ms` that passes the
+    /// correction alone among `tests` tests at false-discovery rate `q` (the first rank of the
+    /// Benjamini–Hochberg procedure, `p ≤ q / tests`).
+    pub fn smallest_lone_ratio(&self, t_ms: f64, q: f64, tests: usize) -> f64 {
+        use statrs::distribution::ContinuousCDF;
+        let z = Self::t().inverse_cdf(1.0 - q / (2.0 * tests.max(1) as f64));
+        (z * self.sigma(t_ms)).exp()
+    }
+}
+
 /// One measured figure of one run, tested.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeasuredChange {
@@ -158,6 +252,11 @@ pub struct MeasuredChange {
     pub new_median: f64,
     pub samples: [usize; 2],
     pub u: f64,
+    /// Two-sided p-value of the Mann–Whitney test on the samples.
+    pub p_samples: f64,
+    /// Two-sided p-value against the noise between sittings (1 where none was fitted).
+    pub p_sittings: f64,
+    /// The larger of the two: the figure's p-value.
     pub p: f64,
     /// Benjamini–Hochberg adjusted p-value over every test of the comparison.
     pub q: f64,
@@ -192,6 +291,8 @@ impl MeasuredChange {
 pub struct MeasuredComparison {
     pub q: f64,
     pub tests: Vec<MeasuredChange>,
+    /// The noise between sittings fitted per figure (absent where too few runs had it).
+    pub noise: BTreeMap<String, SittingNoise>,
     /// Runs compared by their deterministic figures that carry no samples in one of the files.
     pub without_samples: usize,
 }
@@ -227,10 +328,31 @@ impl MeasuredComparison {
                     new_median: med(b),
                     samples: [a.len(), b.len()],
                     u,
+                    p_samples: p,
+                    p_sittings: 1.0,
                     p,
                     q: 1.0,
                     min_effect_pct: min_effect(figure),
                 });
+            }
+        }
+        let figures: std::collections::BTreeSet<String> =
+            c.tests.iter().map(|t| t.figure.clone()).collect();
+        for figure in figures {
+            let of = |t: &&mut MeasuredChange| t.figure == figure;
+            let pairs: Vec<(f64, f64)> = c
+                .tests
+                .iter_mut()
+                .filter(of)
+                .map(|t| (t.ratio().ln(), (t.old_median * t.new_median).sqrt()))
+                .collect();
+            if let Some(noise) = SittingNoise::fit(&pairs) {
+                for t in c.tests.iter_mut().filter(of) {
+                    t.p_sittings =
+                        noise.p_value(t.ratio().ln(), (t.old_median * t.new_median).sqrt());
+                    t.p = t.p_samples.max(t.p_sittings);
+                }
+                c.noise.insert(figure, noise);
             }
         }
         let adjusted = benjamini_hochberg(&c.tests.iter().map(|t| t.p).collect::<Vec<_>>());
@@ -255,13 +377,21 @@ impl MeasuredComparison {
         if !flagged.is_empty() {
             let _ = writeln!(
                 s,
-                "{:<8}  {:<60}  {:<8}  {:>12}  {:>12}  {:>8}  {:>9}  {:>9}",
-                "measured", "run", "figure", "baseline", "current", "ratio", "p", "q"
+                "{:<8}  {:<60}  {:<8}  {:>12}  {:>12}  {:>8}  {:>9}  {:>9}  {:>9}",
+                "measured",
+                "run",
+                "figure",
+                "baseline",
+                "current",
+                "ratio",
+                "p samples",
+                "p sittings",
+                "q"
             );
             for t in &flagged {
                 let _ = writeln!(
                     s,
-                    "{:<8}  {:<60}  {:<8}  {:>12}  {:>12}  {:>7.3}×  {:>9.2e}  {:>9.2e}",
+                    "{:<8}  {:<60}  {:<8}  {:>12}  {:>12}  {:>7.3}×  {:>9.2e}  {:>10.2e}  {:>9.2e}",
                     if t.regressed(self.q) {
                         "SLOWER"
                     } else {
@@ -272,7 +402,8 @@ impl MeasuredComparison {
                     format!("{:.3} ms", t.old_median),
                     format!("{:.3} ms", t.new_median),
                     t.ratio(),
-                    t.p,
+                    t.p_samples,
+                    t.p_sittings,
                     t.q
                 );
             }
@@ -285,7 +416,8 @@ impl MeasuredComparison {
             .unwrap_or(0);
         let _ = writeln!(
             s,
-            "measured: {} figures of {} runs tested (Mann–Whitney U, Benjamini–Hochberg q ≤ {}); \
+            "measured: {} figures of {} runs tested (Mann–Whitney U on the samples and against the \
+             noise between sittings, Benjamini–Hochberg q ≤ {}); \
              {} slower, {} faster beyond their minimum effect; {} runs without samples",
             self.tests.len(),
             self.tests
@@ -298,6 +430,34 @@ impl MeasuredComparison {
             flagged.len() - self.regressions(),
             self.without_samples
         );
+        let figures: std::collections::BTreeSet<&str> =
+            self.tests.iter().map(|t| t.figure.as_str()).collect();
+        for figure in figures {
+            match self.noise.get(figure) {
+                Some(n) => {
+                    let _ = writeln!(
+                        s,
+                        "noise between sittings of {figure} (fitted over this comparison): \
+                         σ {:.1}% at 1 ms, {:.1}% at 10 ms, {:.1}% at 100 ms; a lone run's \
+                         change is flagged from ×{:.2}, ×{:.2}, ×{:.2}",
+                        100.0 * n.sigma(1.0),
+                        100.0 * n.sigma(10.0),
+                        100.0 * n.sigma(100.0),
+                        n.smallest_lone_ratio(1.0, self.q, self.tests.len()),
+                        n.smallest_lone_ratio(10.0, self.q, self.tests.len()),
+                        n.smallest_lone_ratio(100.0, self.q, self.tests.len())
+                    );
+                }
+                None => {
+                    let _ = writeln!(
+                        s,
+                        "note: fewer than {MIN_RUNS_FOR_SITTING_NOISE} runs have {figure}: \
+                         tested on their samples only, which do not see the noise between \
+                         sittings"
+                    );
+                }
+            }
+        }
         if !self.tests.is_empty() && smallest_p(min_n, min_n) * self.tests.len() as f64 > self.q {
             let _ = writeln!(
                 s,

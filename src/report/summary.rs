@@ -167,6 +167,31 @@ pub struct Row {
     /// Per [`COSTS`] entry: whether no other algorithm of this execution is at least as good
     /// on both that cost and `mae_shadow`, and better on one.
     pub pareto: [bool; COSTS.len()],
+    /// Per [`COSTS`] entry, for measured costs (`wall_ms`, `gpu_ms`): the 95% interval of the
+    /// median ([`crate::harness::measure::Spread::ci`]), ms.
+    pub intervals: [Option<[f64; 2]>; COSTS.len()],
+}
+
+/// The 95% interval of the median of `r`'s measured cost `metric` (`wall_ms`, `gpu_ms`); `None`
+/// for other costs and for runs measured without samples.
+fn interval(r: &RunRecord, metric: &str) -> Option<[f64; 2]> {
+    let m = r.measured.as_ref()?;
+    let spread = match metric {
+        "wall_ms" => &m.wall_ms,
+        "gpu_ms" => m.gpu_ms.as_ref()?,
+        _ => return None,
+    };
+    spread.ci.iter().all(|v| v.is_finite()).then_some(spread.ci)
+}
+
+/// One algorithm in a [`Execution::measured_ranking`]: its label, median and interval, and
+/// whether its interval overlaps the next (slower) one's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Ranked {
+    pub label: String,
+    pub median: f64,
+    pub interval: [f64; 2],
+    pub overlaps_next: bool,
 }
 
 /// The summary of one execution.
@@ -175,6 +200,33 @@ pub struct Execution {
     pub backend: String,
     /// Sorted by `mae_shadow` (best first; runs without quality last), then cost.
     pub rows: Vec<Row>,
+}
+
+impl Execution {
+    /// The algorithms of this execution ranked by measured cost `c` (a [`COSTS`] index),
+    /// fastest first, each saying whether its 95% interval overlaps the next one's (the two are
+    /// not told apart by this sweep); empty for a cost without intervals.
+    pub fn measured_ranking(&self, c: usize) -> Vec<Ranked> {
+        let mut ranked: Vec<Ranked> = self
+            .rows
+            .iter()
+            .filter_map(|r| {
+                Some(Ranked {
+                    label: r.label.clone(),
+                    median: r.costs[c]?,
+                    interval: r.intervals[c]?,
+                    overlaps_next: false,
+                })
+            })
+            .collect();
+        ranked.sort_by(|a, b| a.median.total_cmp(&b.median));
+        for i in 1..ranked.len() {
+            let (lo, hi) = (&ranked[i - 1], &ranked[i]);
+            let overlap = lo.interval[1] >= hi.interval[0] && hi.interval[1] >= lo.interval[0];
+            ranked[i - 1].overlaps_next = overlap;
+        }
+        ranked
+    }
 }
 
 /// The summary at the base point.
@@ -223,6 +275,7 @@ impl Summary {
                             .each_ref()
                             .map(|c| (c.metric.value)(r).filter(|v| v.is_finite())),
                         pareto: [false; COSTS.len()],
+                        intervals: COSTS.each_ref().map(|c| interval(r, c.metric.id)),
                     });
                 }
                 for (ci, _) in COSTS.iter().enumerate() {
@@ -531,6 +584,54 @@ mod tests {
             runs.push(r);
         }
         runs
+    }
+
+    #[test]
+    fn the_ranking_of_measured_times_says_where_intervals_overlap() {
+        use crate::harness::measure::{Measure, Measured, Spread};
+        let mut runs = sweep();
+        // At the base point: pcss 5 ms, hard_shadow_map 1, soft_izb 9, penumbra_map 7; samples
+        // of pcss and penumbra_map spread so their intervals overlap, the others tight.
+        for r in runs.iter_mut().filter(|r| r.backend == "cpu-native") {
+            let spread = match r.algorithm.as_str() {
+                "pcss" => 0.5,
+                "penumbra_map" => 0.2,
+                _ => 0.01,
+            };
+            let median = r.wall_ms;
+            let samples: Vec<f64> = (0..10)
+                .map(|i| median * (1.0 + spread * (i as f64 - 4.5) / 4.5))
+                .collect();
+            r.measured = Some(Measured {
+                protocol: Measure::default(),
+                iterations: 10,
+                warmup_runs: 0,
+                wall_ms: Spread::of(samples).unwrap(),
+                gpu_ms: None,
+                phases: vec![],
+                identical: true,
+                warnings: vec![],
+            });
+        }
+        let refs: Vec<&RunRecord> = runs.iter().collect();
+        let s = Summary::of(&refs).unwrap();
+        let wall = COSTS.iter().position(|c| c.metric.id == "wall_ms").unwrap();
+        let ranked = s.executions[0].measured_ranking(wall);
+        let order: Vec<(&str, bool)> = ranked
+            .iter()
+            .map(|r| (r.label.as_str(), r.overlaps_next))
+            .collect();
+        assert_eq!(
+            order,
+            [
+                ("hard_shadow_map", false),
+                ("pcss", true),
+                ("penumbra_map", false),
+                ("soft_izb", false)
+            ]
+        );
+        // cpu-model's runs carry no samples: no ranking of its wall time.
+        assert!(s.executions[1].measured_ranking(wall).is_empty());
     }
 
     #[test]

@@ -6,6 +6,10 @@
 //! difference, its largest difference, and the share of pixels that differ beyond rounding and
 //! by more than 0.1.
 //!
+//! The checks are one module per algorithm (`parity_tests!`), so `cargo test --release
+//! registry::soft_shadow_volume` runs one algorithm's and a failure names it; a test checks
+//! that the list holds every algorithm with all three executions.
+//!
 //! [`Algorithm::OPTION_SETS`]: shadowbench::algorithms::Algorithm::OPTION_SETS
 //! [`WgpuParity`]: shadowbench::algorithms::WgpuParity
 
@@ -72,88 +76,144 @@ fn run(info: &AlgorithmInfo, backend: Backend, frame: &Frame, ctx: &ExecContext)
         .unwrap_or_else(|e| panic!("{} on {backend}: {e}", info.id))
 }
 
-#[test]
-fn cpu_native_and_cpu_model_images_are_identical_for_every_algorithm_and_option_set() {
-    for info in ALGORITHMS.iter().filter(|a| {
-        a.backends.contains(&Backend::CpuNative) && a.backends.contains(&Backend::CpuModel)
-    }) {
-        for name in SCENES {
-            let frame = frame(name, info);
-            for (options, ctx) in option_sets(info) {
-                let native = run(info, Backend::CpuNative, &frame, &ctx);
-                let model = run(info, Backend::CpuModel, &frame, &ctx);
-                assert!(
-                    native.visibility.data == model.visibility.data,
-                    "{} {options} on {name}: cpu-native and cpu-model images differ",
-                    info.id
-                );
-                // The record says which options ran: every one the set gives, with its value.
-                let given: serde_json::Value = serde_json::from_str(&options).unwrap();
-                let recorded = &native.execution.get("options");
-                for (k, v) in given.as_object().unwrap() {
-                    let ran = recorded.and_then(|r| r.get(k));
-                    assert_eq!(ran, Some(v), "{} {options}: execution.options", info.id);
+/// `id`'s `cpu-native` and `cpu-model` images are identical bit for bit on every option set.
+fn cpu_executions_agree(id: &str) {
+    let info = info(id);
+    for name in SCENES {
+        let frame = frame(name, info);
+        for (options, ctx) in option_sets(info) {
+            let native = run(info, Backend::CpuNative, &frame, &ctx);
+            let model = run(info, Backend::CpuModel, &frame, &ctx);
+            assert!(
+                native.visibility.data == model.visibility.data,
+                "{} {options} on {name}: cpu-native and cpu-model images differ",
+                info.id
+            );
+            // The record says which options ran: every one the set gives, with its value.
+            let given: serde_json::Value = serde_json::from_str(&options).unwrap();
+            let recorded = &native.execution.get("options");
+            for (k, v) in given.as_object().unwrap() {
+                let ran = recorded.and_then(|r| r.get(k));
+                assert_eq!(ran, Some(v), "{} {options}: execution.options", info.id);
+            }
+        }
+    }
+}
+
+/// `id`'s `wgpu` image and counters are within its stated parity of `cpu-model` on every
+/// option set (skipped without an adapter).
+fn wgpu_agrees(id: &str) {
+    if !have_gpu() {
+        return;
+    }
+    let info = info(id);
+    let parity = info.wgpu_parity;
+    for name in SCENES {
+        let frame = frame(name, info);
+        let mask = frame.gbuffer.mask();
+        for (options, ctx) in option_sets(info) {
+            let what = format!("{} {options} on {name}", info.id);
+            let gpu = run(info, Backend::Wgpu, &frame, &ctx);
+            let ctx = rounding_as_adapter(info.id, &ctx, &gpu);
+            let model = run(info, Backend::CpuModel, &frame, &ctx);
+            gpu.visibility.check_range().unwrap();
+            let e = metrics::compare(&gpu.visibility, &model.visibility, &mask);
+            let (mae, over) = (e.mae.unwrap(), e.frac_over_0_1.unwrap());
+            let d = super::conformance::Difference::of(
+                &gpu.visibility,
+                &model.visibility,
+                &mask,
+                WgpuParity::ROUNDING,
+            );
+            let differing = d.over as f64 / d.pixels as f64;
+            eprintln!(
+                "{what}: mae {mae:.2e}, max {:.4}, frac>0.1 {over:.4}, differing {differing:.4}",
+                d.max
+            );
+            assert!(e.shadow_pixels > 20, "{what}: no shadow on screen: {e:?}");
+            assert!(mae <= parity.mae, "{what}: {e:?}");
+            assert!(d.max <= parity.max, "{what}: {d:?}");
+            assert!(over <= parity.frac_over_0_1, "{what}: {e:?}");
+            assert!(differing <= parity.frac_differing, "{what}: {d:?}");
+            let fill = model.counters.get("fill").unwrap_or(0.0);
+            for (k, &m) in &model.counters.0 {
+                let Some(g) = gpu.counters.get(k) else {
+                    continue;
+                };
+                if shadowbench::counters::DERIVED.contains(&k.as_str()) {
+                    continue;
+                }
+                match parity.differ.iter().find(|(name, _)| name == k) {
+                    None => assert_eq!(g, m, "{what}: {k} {g} on wgpu, {m} on cpu-model"),
+                    Some((_, Some(f))) => assert!(
+                        (g - m).abs() <= f * fill,
+                        "{what}: {k} {g} on wgpu, {m} on cpu-model (fill {fill})"
+                    ),
+                    Some((_, None)) => {}
                 }
             }
         }
     }
 }
 
-#[test]
-fn wgpu_is_within_its_stated_parity_of_the_cpu_model_for_every_algorithm_and_option_set() {
-    if !have_gpu() {
-        return;
-    }
-    for info in ALGORITHMS
+/// The registered algorithm `id`, which has all three executions (checked by
+/// [`every_algorithm_with_three_executions_has_its_parity_tests`]).
+fn info(id: &str) -> &'static AlgorithmInfo {
+    ALGORITHMS
         .iter()
-        .filter(|a| a.backends.contains(&Backend::Wgpu))
-    {
-        let parity = info.wgpu_parity;
-        for name in SCENES {
-            let frame = frame(name, info);
-            let mask = frame.gbuffer.mask();
-            for (options, ctx) in option_sets(info) {
-                let what = format!("{} {options} on {name}", info.id);
-                let gpu = run(info, Backend::Wgpu, &frame, &ctx);
-                let ctx = rounding_as_adapter(info.id, &ctx, &gpu);
-                let model = run(info, Backend::CpuModel, &frame, &ctx);
-                gpu.visibility.check_range().unwrap();
-                let e = metrics::compare(&gpu.visibility, &model.visibility, &mask);
-                let (mae, over) = (e.mae.unwrap(), e.frac_over_0_1.unwrap());
-                let d = super::conformance::Difference::of(
-                    &gpu.visibility,
-                    &model.visibility,
-                    &mask,
-                    WgpuParity::ROUNDING,
-                );
-                let differing = d.over as f64 / d.pixels as f64;
-                eprintln!(
-                    "{what}: mae {mae:.2e}, max {:.4}, frac>0.1 {over:.4}, differing {differing:.4}",
-                    d.max
-                );
-                assert!(e.shadow_pixels > 20, "{what}: no shadow on screen: {e:?}");
-                assert!(mae <= parity.mae, "{what}: {e:?}");
-                assert!(d.max <= parity.max, "{what}: {d:?}");
-                assert!(over <= parity.frac_over_0_1, "{what}: {e:?}");
-                assert!(differing <= parity.frac_differing, "{what}: {d:?}");
-                let fill = model.counters.get("fill").unwrap_or(0.0);
-                for (k, &m) in &model.counters.0 {
-                    let Some(g) = gpu.counters.get(k) else {
-                        continue;
-                    };
-                    if shadowbench::counters::DERIVED.contains(&k.as_str()) {
-                        continue;
-                    }
-                    match parity.differ.iter().find(|(name, _)| name == k) {
-                        None => assert_eq!(g, m, "{what}: {k} {g} on wgpu, {m} on cpu-model"),
-                        Some((_, Some(f))) => assert!(
-                            (g - m).abs() <= f * fill,
-                            "{what}: {k} {g} on wgpu, {m} on cpu-model (fill {fill})"
-                        ),
-                        Some((_, None)) => {}
-                    }
+        .find(|a| a.id == id)
+        .unwrap_or_else(|| panic!("{id} is not registered"))
+}
+
+/// One module of parity tests per algorithm, so that `cargo test registry::<algorithm>` runs
+/// one algorithm's and a failure names it; `LISTED` is the list, checked against the registry.
+macro_rules! parity_tests {
+    ($($id:ident),* $(,)?) => {
+        $(
+            mod $id {
+                #[test]
+                fn cpu_native_and_cpu_model_images_are_identical_on_every_option_set() {
+                    super::cpu_executions_agree(stringify!($id));
+                }
+
+                #[test]
+                fn wgpu_is_within_its_stated_parity_of_the_cpu_model_on_every_option_set() {
+                    super::wgpu_agrees(stringify!($id));
                 }
             }
-        }
-    }
+        )*
+        const LISTED: &[&str] = &[$(stringify!($id)),*];
+    };
+}
+
+parity_tests!(
+    hard_shadow_map,
+    pcss,
+    soft_izb,
+    accum_hard,
+    soft_shadow_volume,
+    penumbra_map,
+    soft_shadow_map,
+    dbuffer,
+);
+
+#[test]
+fn every_algorithm_with_three_executions_has_its_parity_tests() {
+    let mut registered: Vec<&str> = ALGORITHMS
+        .iter()
+        .filter(|a| {
+            [Backend::CpuNative, Backend::CpuModel, Backend::Wgpu]
+                .iter()
+                .all(|b| a.backends.contains(b))
+        })
+        .map(|a| a.id)
+        .collect();
+    let mut listed = LISTED.to_vec();
+    registered.sort_unstable();
+    listed.sort_unstable();
+    assert_eq!(
+        listed, registered,
+        "parity_tests! in tests/integration/registry.rs must list every algorithm with all \
+         three executions"
+    );
 }
