@@ -130,6 +130,14 @@ fn trace(
                     frame.bvh.occluded_in_scene_bvh(p, q) != truth[j]
                 })
                 .count(),
+            Tracer::CastersObvhs => g
+                .clone()
+                .filter(|&j| {
+                    let (_, p, q) = rays[j];
+                    let hit = shadow.ray(p, q).is_some_and(|r| shadow.occluded_obvhs(&r));
+                    hit != truth[j]
+                })
+                .count(),
             Tracer::Rays(isa) => one_at_a_time(isa, false, g),
             Tracer::Groups(isa) => {
                 let from = rays[g.start].1;
@@ -239,7 +247,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             )
         })
         .visibility;
-    let mut tracers = vec![Tracer::SceneBvh];
+    let mut tracers = vec![Tracer::SceneBvh, Tracer::CastersObvhs];
     tracers.extend(Isa::available().into_iter().map(Tracer::Rays));
     tracers.extend(Isa::available().into_iter().map(Tracer::Groups));
     let mut results = Vec::new();

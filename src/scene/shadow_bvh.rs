@@ -424,6 +424,20 @@ impl ShadowBvh {
         blocker.is_some()
     }
 
+    /// Whether a casting triangle blocks `ray`, by obvhs's own traversal of this tree
+    /// (`CwBvh::ray_traverse_miss`: its SSE child-box test, which also skips boxes nearer than
+    /// 10⁻⁴ along the ray) with the same triangle test: the baseline that tells the casters'
+    /// tree's gain from the traversal's.
+    pub fn occluded_obvhs(&self, ray: &ShadowRay) -> bool {
+        !self.bvh.ray_traverse_miss(ray.ray, |_, id| {
+            if self.casters[id].blocks(&ray.s) {
+                0.0
+            } else {
+                f32::INFINITY
+            }
+        })
+    }
+
     /// Collects into `out` (cleared first) the casting triangles that a segment from `from` to a
     /// point of the sphere around `centre` with `radius` (world coordinates) may cross, at most
     /// `cap` of them.

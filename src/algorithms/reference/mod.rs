@@ -72,6 +72,10 @@ pub enum Tracer {
     /// receiver-only triangles rejected in the leaf test ([`SceneBvh::occluded_in_scene_bvh`]):
     /// the method before the casters' BVH, the baseline of the measurements.
     SceneBvh,
+    /// One ray at a time through the casters' BVH with obvhs's traversal
+    /// ([`occluded_obvhs`](crate::scene::shadow_bvh::ShadowBvh::occluded_obvhs)): the casters'
+    /// tree alone, measured against [`Tracer::SceneBvh`].
+    CastersObvhs,
     /// One ray at a time through the casters' BVH
     /// ([`occluded_ray`](crate::scene::shadow_bvh::ShadowBvh::occluded_ray)) on `Isa`.
     Rays(Isa),
@@ -94,6 +98,7 @@ impl Tracer {
     pub fn name(self) -> String {
         match self {
             Tracer::SceneBvh => "scene-bvh".into(),
+            Tracer::CastersObvhs => "casters-obvhs".into(),
             Tracer::Rays(isa) => format!("rays-{}", isa.name()),
             Tracer::Groups(isa) => format!("groups-{}", isa.name()),
         }
@@ -180,6 +185,15 @@ fn trace_samples(
         Tracer::SceneBvh => {
             for (i, q) in samples() {
                 lit(i, in_front(p, q) && !bvh.occluded_in_scene_bvh(p.0, q));
+            }
+        }
+        Tracer::CastersObvhs => {
+            for (i, q) in samples() {
+                let seen = in_front(p, q)
+                    && !shadow
+                        .ray(p.0, q)
+                        .is_some_and(|r| shadow.occluded_obvhs(&r));
+                lit(i, seen);
             }
         }
         Tracer::Rays(isa) => one_at_a_time(isa, false, &mut lit),
