@@ -481,7 +481,7 @@ impl ShadowBvh {
         };
         let v = c - near;
         let dist = v.length();
-        if !(dist > (r + rp) * 1.01) || !dist.is_finite() || rp >= 0.9 * r {
+        if !dist.is_finite() || dist <= (r + rp) * 1.01 || rp >= 0.9 * r {
             return Gathered::Many;
         }
         let axis = v / dist;
