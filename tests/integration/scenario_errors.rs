@@ -341,3 +341,23 @@ fn the_cli_exits_with_code_2_and_one_line() {
         "nothing is written for an invalid scenario"
     );
 }
+
+#[test]
+fn every_shipped_scenario_loads() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+    let mut checked = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "json") {
+            if let Err(e) = Loaded::from_file(&path) {
+                panic!("{}: {e}", path.display());
+            }
+            checked += 1;
+        }
+    }
+    assert!(
+        checked >= 20,
+        "only {checked} scenarios under {}",
+        dir.display()
+    );
+}
