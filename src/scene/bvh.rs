@@ -2,7 +2,8 @@
 //!
 //! Used by the ground-truth reference (shadow rays) and by the eye pass (primary rays). Shadow
 //! rays test the occluders only (objects whose role has `occluder`: a receiver-only object casts
-//! no shadow, as in every algorithm that honours the role); primary rays see every object. The
+//! no shadow, as in every algorithm that honours the role), through a BVH of the casting
+//! triangles alone ([`ShadowBvh`], built beside this one); primary rays see every object. The
 //! any-hit answer of a shadow ray depends only on the triangle tests, never on the tree's shape,
 //! so results are identical whatever the build's thread count.
 //!
@@ -21,6 +22,7 @@ use obvhs::BvhBuildParams;
 
 use super::coverage;
 use super::mesh::FlatMesh;
+use super::shadow_bvh::ShadowBvh;
 
 /// The BVH holds the scene in local coordinates `(p − origin) · scale`: centred on its bounds
 /// and scaled by a power of two to a diagonal in [1, 2), so that the tree's build and traversal
@@ -35,6 +37,8 @@ pub struct SceneBvh {
     casts: Vec<bool>,
     origin: Vec3,
     scale: f32,
+    /// The casting triangles' BVH, in the same local coordinates: what shadow rays traverse.
+    shadow: ShadowBvh,
 }
 
 /// A primary-ray hit.
@@ -46,16 +50,7 @@ pub struct Hit {
 
 impl SceneBvh {
     pub fn build(flat: &FlatMesh) -> SceneBvh {
-        let bounds = flat.mesh.bounds();
-        let diagonal = bounds.diagonal();
-        let (origin, scale) = if diagonal.is_finite() && diagonal > 0.0 {
-            (
-                bounds.center(),
-                2f32.powi(-(diagonal.log2().floor() as i32)),
-            )
-        } else {
-            (Vec3::ZERO, 1.0)
-        };
+        let (origin, scale) = local_frame(flat);
         let local = |p: Vec3| (p - origin) * scale;
         let triangles: Vec<Triangle> = (0..flat.mesh.triangles.len())
             .map(|t| {
@@ -67,20 +62,21 @@ impl SceneBvh {
                 }
             })
             .collect();
+        let boxes: Vec<Aabb> = triangles
+            .iter()
+            .enumerate()
+            .map(|(i, t)| tie_breaking_box(t, i))
+            .collect();
         let bvh = if triangles.is_empty() {
             CwBvh::default()
         } else {
-            let boxes: Vec<Aabb> = triangles
-                .iter()
-                .enumerate()
-                .map(|(i, t)| tie_breaking_box(t, i))
-                .collect();
             obvhs::cwbvh::builder::build_cwbvh(
                 &boxes,
                 BvhBuildParams::medium_build(),
                 &mut Duration::default(),
             )
         };
+        let shadow = ShadowBvh::of_scene(flat);
         // Leaves refer to primitives through `primitive_indices`; store the triangles in that
         // order so the intersection callback indexes them directly.
         let order = &bvh.primitive_indices;
@@ -95,7 +91,13 @@ impl SceneBvh {
             casts,
             origin,
             scale,
+            shadow,
         }
+    }
+
+    /// The casting triangles' BVH that shadow rays traverse.
+    pub fn shadow(&self) -> &ShadowBvh {
+        &self.shadow
     }
 
     /// `p` in the BVH's local coordinates.
@@ -108,8 +110,17 @@ impl SceneBvh {
     }
 
     /// Whether an occluder's triangle blocks the open segment from `from` to `to` (a shadow
-    /// ray: receiver-only objects let it through).
+    /// ray: receiver-only objects let it through), through the casters' BVH
+    /// ([`ShadowBvh::occluded`]).
     pub fn occluded(&self, from: Vec3, to: Vec3) -> bool {
+        self.shadow.occluded(from, to)
+    }
+
+    /// [`Self::occluded`] through this BVH of every triangle with obvhs's traversal, the
+    /// receiver-only triangles rejected in the leaf test: the shadow-ray method before
+    /// [`ShadowBvh`], kept as its check (the same answers) and as the baseline its speed is
+    /// measured against (`examples/shadow_rays.rs`).
+    pub fn occluded_in_scene_bvh(&self, from: Vec3, to: Vec3) -> bool {
         self.blocked(from, to, true)
     }
 
@@ -152,6 +163,21 @@ impl SceneBvh {
                 t: hit.t / self.scale,
                 triangle: self.bvh.primitive_indices[hit.primitive_id as usize],
             })
+    }
+}
+
+/// The local coordinates of `flat`'s BVHs, `(p − origin) · scale` ([`SceneBvh`]): `(origin,
+/// scale)`.
+pub(crate) fn local_frame(flat: &FlatMesh) -> (Vec3, f32) {
+    let bounds = flat.mesh.bounds();
+    let diagonal = bounds.diagonal();
+    if diagonal.is_finite() && diagonal > 0.0 {
+        (
+            bounds.center(),
+            2f32.powi(-(diagonal.log2().floor() as i32)),
+        )
+    } else {
+        (Vec3::ZERO, 1.0)
     }
 }
 

@@ -36,11 +36,13 @@ use glam::{Vec2, Vec3};
 pub const WGSL: &str = include_str!("coverage.wgsl");
 
 /// Whether `p` comes strictly before `q` in lexicographic (x, y, z) order.
-fn precedes(p: Vec3, q: Vec3) -> bool {
+#[inline]
+pub fn precedes(p: Vec3, q: Vec3) -> bool {
     p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)))
 }
 
 /// Whether the first non-zero component of `c` is positive (false for the zero vector).
+#[inline]
 pub fn lex_positive(c: [f64; 3]) -> bool {
     if c[0] != 0.0 {
         c[0] > 0.0
@@ -54,6 +56,7 @@ pub fn lex_positive(c: [f64; 3]) -> bool {
 /// The edge function of the directed edge `p → q` for the line `o + t·d`:
 /// `d · ((p − o) × (q − o))`, evaluated from the lexicographically smaller endpoint, so that
 /// `edge_function(o, d, q, p) == -edge_function(o, d, p, q)` exactly.
+#[inline]
 pub fn edge_function(o: Vec3, d: Vec3, p: Vec3, q: Vec3) -> f32 {
     let (cross, negate) = edge_plane(o, p, q);
     let v = d.dot(cross);
@@ -68,6 +71,7 @@ pub fn edge_function(o: Vec3, d: Vec3, p: Vec3, q: Vec3) -> f32 {
 /// `d · cross`, negated when `negate`): the cross product of the endpoints' offsets from `o`,
 /// taken from the lexicographically smaller endpoint as [`edge_function`] takes it, so that
 /// `d · cross` is its value to the bit for every direction `d`.
+#[inline]
 pub fn edge_plane(o: Vec3, p: Vec3, q: Vec3) -> (Vec3, bool) {
     if precedes(q, p) {
         ((q - o).cross(p - o), true)
@@ -80,6 +84,7 @@ pub fn edge_plane(o: Vec3, p: Vec3, q: Vec3) -> (Vec3, bool) {
 /// non-zero component of `(p − q) × d` is positive (the edge function grows under the
 /// perturbation `δ = (ε, ε², ε³)` of the line). Exactly one direction of an edge owns it, unless
 /// the edge is parallel to `d` (then neither: every face through it is seen edge-on).
+#[inline]
 pub fn tie_owner(d: Vec3, p: Vec3, q: Vec3) -> bool {
     let (c, flip) = if precedes(q, p) {
         ((q - p).cross(d), true)
@@ -94,6 +99,7 @@ pub fn tie_owner(d: Vec3, p: Vec3, q: Vec3) -> bool {
 
 /// Whether the line `o + t·d` lies on the inner side of the directed edge `p → q` of a face seen
 /// with positive orientation (`d · n > 0`), ties broken by [`tie_owner`].
+#[inline]
 pub fn edge_covers(o: Vec3, d: Vec3, p: Vec3, q: Vec3) -> bool {
     let e = edge_function(o, d, p, q);
     e > 0.0 || (e == 0.0 && tie_owner(d, p, q))
@@ -103,6 +109,7 @@ pub fn edge_covers(o: Vec3, d: Vec3, p: Vec3, q: Vec3) -> bool {
 /// wound counter-clockwise around `normal`). Faces seen edge-on (`d · normal == 0`) are missed.
 /// The boundary may be any set of lines that bounds the face (e.g. the rays from the light that
 /// bound a semi-infinite shadow quad).
+#[inline]
 pub fn line_crosses(o: Vec3, d: Vec3, normal: Vec3, edges: &[(Vec3, Vec3)]) -> bool {
     let s = d.dot(normal);
     if s > 0.0 {

@@ -68,6 +68,17 @@ impl Light {
         }
     }
 
+    /// The radius of a sphere around [`Self::center`] that holds the whole emitter (every
+    /// [`Self::stratified_sample`] from any point): the radius, or a rectangle's half-diagonal.
+    pub fn bounding_radius(&self) -> f32 {
+        match *self {
+            Light::Sphere { radius, .. } | Light::Disc { radius, .. } => radius,
+            Light::Rect { half_u, half_v, .. } => {
+                (half_u + half_v).length().max((half_u - half_v).length())
+            }
+        }
+    }
+
     /// The light size: radius, or half-width of a rectangle.
     pub fn size(&self) -> f32 {
         match *self {

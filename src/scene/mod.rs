@@ -16,6 +16,7 @@ pub mod mesh;
 pub mod obj;
 pub mod ply;
 pub mod polygon;
+pub mod shadow_bvh;
 pub mod simplify;
 
 pub use camera::Camera;

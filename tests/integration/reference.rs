@@ -222,3 +222,86 @@ fn a_corrupted_reference_cache_is_recomputed_with_a_warning() {
     );
     assert_eq!(runs[0].error, Some(fresh_error));
 }
+
+/// Every tracer of the reference ([`reference::Tracer`]: the casters' BVH one ray at a time and
+/// in groups, on every instruction set this CPU runs) against the scene BVH of every triangle
+/// (the method before the casters' BVH): the same visibility, bit for bit.
+fn assert_tracers_agree(what: &str, frame: &Frame, samples: u32) {
+    use reference::Tracer;
+    use shadowbench::scene::shadow_bvh::Isa;
+    use shadowbench::util::deadline::Deadline;
+    let render = |tracer| reference::render_with(frame, samples, 3, Deadline::default(), tracer);
+    let before = render(Tracer::SceneBvh).visibility;
+    let bits = |v: &VisibilityBuffer| v.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for isa in Isa::available() {
+        for tracer in [Tracer::Rays(isa), Tracer::Groups(isa)] {
+            let got = render(tracer).visibility;
+            let differ = got
+                .data
+                .iter()
+                .zip(&before.data)
+                .filter(|(a, b)| a.to_bits() != b.to_bits())
+                .count();
+            assert!(
+                bits(&got) == bits(&before),
+                "{what}: {} differs from the scene BVH at {differ} pixels",
+                tracer.name()
+            );
+        }
+    }
+}
+
+#[test]
+fn every_tracer_gives_the_same_image_on_every_built_in_scene() {
+    let mut shadowed = 0;
+    for g in generators::GENERATORS {
+        let scene = g.build(&GeneratorParams::default());
+        let params = RunParams::of_scene(&scene, [64, 48], 256, 32);
+        let frame = Frame::new(scene, params);
+        let image = reference::render(&frame, 16, 3).visibility;
+        shadowed += usize::from(image.data.iter().any(|&v| v > 0.0 && v < 1.0));
+        assert_tracers_agree(g.name, &frame, 16);
+    }
+    assert!(
+        shadowed * 2 > generators::GENERATORS.len(),
+        "most scenes must show penumbra for the comparison to say something"
+    );
+}
+
+#[test]
+fn every_tracer_gives_the_same_image_on_the_field_meshes() {
+    let dir = std::env::var_os("SHADOWBENCH_FIELD_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| {
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/field")
+        });
+    let meshes = [
+        "common-3d-test-models/suzanne.obj",
+        "common-3d-test-models/teapot.obj",
+        "common-3d-test-models/cow.obj",
+        "common-3d-test-models/spot.obj",
+        "common-3d-test-models/fandisk.obj",
+        "common-3d-test-models/rocker-arm.obj",
+        "tinyobjloader-models/cornell_box.obj",
+    ];
+    let mut compared = 0;
+    for m in meshes {
+        let path = dir.join(m);
+        if !path.is_file() {
+            eprintln!("skipping {}: not found", path.display());
+            continue;
+        }
+        let (scene, _) = shadowbench::scenario::scene_from_arg(
+            path.to_str().expect("a UTF-8 path"),
+            GeneratorParams::default(),
+        )
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let params = RunParams::of_scene(&scene, [64, 48], 256, 32);
+        let frame = Frame::new(scene, params);
+        assert_tracers_agree(m, &frame, 16);
+        compared += 1;
+    }
+    if compared == 0 {
+        eprintln!("skipped: no field meshes under {}", dir.display());
+    }
+}
