@@ -344,7 +344,12 @@ fn options_that_are_not_an_object_are_refused_for_every_algorithm() {
             );
             let e = Loaded::from_str(&text, std::path::Path::new("s.json")).unwrap_err();
             let at = format!("$.options.{}", info.id);
-            assert_eq!(e.field.as_deref(), Some(at.as_str()), "{}: {bad}: {e}", info.id);
+            assert_eq!(
+                e.field.as_deref(),
+                Some(at.as_str()),
+                "{}: {bad}: {e}",
+                info.id
+            );
             assert!(!e.message.contains("struct"), "{}: {bad}: {e}", info.id);
         }
     }
