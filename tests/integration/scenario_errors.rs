@@ -349,6 +349,14 @@ fn every_shipped_scenario_loads() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "json") {
+            // A scenario of the public test models beside the checkout loads only where they
+            // are (conformance.json: `../shared/field`).
+            let text = std::fs::read_to_string(&path).unwrap();
+            let field = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/field");
+            if text.contains("shared/field/") && !field.is_dir() {
+                eprintln!("{}: skipped, {} is absent", path.display(), field.display());
+                continue;
+            }
             if let Err(e) = Loaded::from_file(&path) {
                 panic!("{}: {e}", path.display());
             }
