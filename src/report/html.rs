@@ -330,18 +330,23 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
                 continue;
             }
             let mut line = String::new();
-            for r in &ranked {
+            for (i, r) in ranked.iter().enumerate() {
+                if i > 0 {
+                    line.push_str(if ranked[i - 1].overlaps_next {
+                        " ≈ "
+                    } else {
+                        " < "
+                    });
+                }
                 let _ = write!(
                     line,
-                    "{} {} [{}, {}]{}",
+                    "{} {} [{}, {}]",
                     text(&r.label),
                     fmt_num(r.median),
                     fmt_num(r.interval[0]),
-                    fmt_num(r.interval[1]),
-                    if r.overlaps_next { " ≈ " } else { " < " }
+                    fmt_num(r.interval[1])
                 );
             }
-            let line = line.trim_end_matches([' ', '≈', '<']);
             let _ = writeln!(
                 h,
                 "<p class=\"t\">{}, fastest first (median [95% interval], ms): {line}. \

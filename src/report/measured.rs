@@ -270,6 +270,15 @@ impl MeasuredChange {
         self.new_median / self.old_median
     }
 
+    /// What [`SittingNoise`] is fitted to and tests: the log ratio of medians and the run's
+    /// typical time (the geometric mean of the two medians), ms.
+    fn between_sittings(&self) -> (f64, f64) {
+        (
+            self.ratio().ln(),
+            (self.old_median * self.new_median).sqrt(),
+        )
+    }
+
     /// Whether the change is significant after the correction and at least the minimum
     /// effect.
     pub fn flagged(&self, q: f64) -> bool {
@@ -339,17 +348,16 @@ impl MeasuredComparison {
         let figures: std::collections::BTreeSet<String> =
             c.tests.iter().map(|t| t.figure.clone()).collect();
         for figure in figures {
-            let of = |t: &&mut MeasuredChange| t.figure == figure;
             let pairs: Vec<(f64, f64)> = c
                 .tests
-                .iter_mut()
-                .filter(of)
-                .map(|t| (t.ratio().ln(), (t.old_median * t.new_median).sqrt()))
+                .iter()
+                .filter(|t| t.figure == figure)
+                .map(MeasuredChange::between_sittings)
                 .collect();
             if let Some(noise) = SittingNoise::fit(&pairs) {
-                for t in c.tests.iter_mut().filter(of) {
-                    t.p_sittings =
-                        noise.p_value(t.ratio().ln(), (t.old_median * t.new_median).sqrt());
+                for t in c.tests.iter_mut().filter(|t| t.figure == figure) {
+                    let (d, t_ms) = t.between_sittings();
+                    t.p_sittings = noise.p_value(d, t_ms);
                     t.p = t.p_samples.max(t.p_sittings);
                 }
                 c.noise.insert(figure, noise);

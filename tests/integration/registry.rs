@@ -159,10 +159,7 @@ fn wgpu_agrees(id: &str) {
 /// The registered algorithm `id`, which has all three executions (checked by
 /// [`every_algorithm_with_three_executions_has_its_parity_tests`]).
 fn info(id: &str) -> &'static AlgorithmInfo {
-    ALGORITHMS
-        .iter()
-        .find(|a| a.id == id)
-        .unwrap_or_else(|| panic!("{id} is not registered"))
+    algorithms::find(id).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// One module of parity tests per algorithm, so that `cargo test registry::<algorithm>` runs
