@@ -148,6 +148,23 @@ pub struct Recorded {
     pub points: usize,
 }
 
+/// Runs `f` again while SQLite answers "busy" without having waited (a lock upgrade that
+/// would deadlock), for at most [`BUSY_TIMEOUT`] in all.
+fn retry_while_busy<T>(mut f: impl FnMut() -> rusqlite::Result<T>) -> rusqlite::Result<T> {
+    let start = std::time::Instant::now();
+    loop {
+        match f() {
+            Err(e)
+                if e.sqlite_error_code() == Some(ErrorCode::DatabaseBusy)
+                    && start.elapsed() < BUSY_TIMEOUT =>
+            {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            r => return r,
+        }
+    }
+}
+
 impl Store {
     /// Opens the history at `path`; with `create`, makes a new one when there is no file (or
     /// an empty one).
@@ -214,7 +231,10 @@ impl Store {
             // A new file: WAL first (it needs no transaction), then the schema, made by
             // whichever writer takes the lock first. Another application's file is left as
             // it is.
-            c.query_row("PRAGMA journal_mode = WAL", [], |_| Ok(()))
+            // Two new writers converting at once both hold a shared lock and want an
+            // exclusive one; SQLite answers one of them "busy" at once, without waiting
+            // (deadlock avoidance), so that one waits here and tries again.
+            retry_while_busy(|| c.query_row("PRAGMA journal_mode = WAL", [], |_| Ok(())))
                 .map_err(|e| self.err(e))?;
             c.execute_batch("BEGIN IMMEDIATE")
                 .map_err(|e| self.err(e))?;

@@ -216,13 +216,19 @@ fn two_recorders_at_once_lose_nothing() {
                 .arg(&db)
                 .args(["--commit", &sha(tag, k), "--branch", "main"])
                 .args(["--machine", tag])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
                 .spawn()
                 .unwrap()
         };
         let (pa, pb) = (spawn(a, "a"), spawn(b, "b"));
         for p in [pa, pb] {
             let o = p.wait_with_output().unwrap();
-            assert!(o.status.success());
+            assert!(
+                o.status.success(),
+                "recorder {k}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
         }
     }
     let h = Store::open(&db, false).unwrap().load().unwrap();
