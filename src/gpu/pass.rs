@@ -1273,13 +1273,18 @@ pub fn replay_slots<'a>(
     slots: &'a wgpu::Buffer,
     passes: impl IntoIterator<Item = Pass<'a>>,
 ) -> Result<Slots> {
-    Ok(Slots(words(&replay_counts(gpu, slots, passes)?)))
+    Ok(Slots::of(&replay_counts(gpu, slots, passes)?))
 }
 
 /// 64-bit statistics slots read back ((low, high) `u32` pairs).
 pub struct Slots(Vec<u32>);
 
 impl Slots {
+    /// The slots of a statistics buffer read back ([`replay`]'s bytes of it).
+    pub fn of(bytes: &[u8]) -> Slots {
+        Slots(words(bytes))
+    }
+
     /// Slot `i` as a figure.
     pub fn get(&self, i: usize) -> f64 {
         slot64(&self.0, i)

@@ -252,11 +252,12 @@ fn field(s: &str) -> String {
 }
 
 /// Per-phase times in tidy (long) form, one row per run, phase and time kind: `case_id,
-/// algorithm, backend, scene, phase, time (wall_ms | model_ms | gpu_ms), ms`, so pandas and R
+/// algorithm, variant, backend, scene, phase, time (wall_ms | model_ms | gpu_ms), ms`, so pandas and R
 /// can group them; measured times add the 95% interval of their median (`ci_lo`, `ci_hi`) and
 /// their samples (space-separated), empty for modelled ones.
 pub fn phases_csv(records: &[RunRecord]) -> String {
-    let mut s = String::from("case_id,algorithm,backend,scene,phase,time,ms,ci_lo,ci_hi,samples\n");
+    let mut s =
+        String::from("case_id,algorithm,variant,backend,scene,phase,time,ms,ci_lo,ci_hi,samples\n");
     for r in records {
         for (i, p) in r.phases.iter().enumerate() {
             let spread = r
@@ -272,9 +273,10 @@ pub fn phases_csv(records: &[RunRecord]) -> String {
                 if let Some(v) = v {
                     let [lo, hi, samples] = spread_fields(sp);
                     s.push_str(&format!(
-                        "{},{},{},{},{},{kind},{v},{lo},{hi},{samples}\n",
+                        "{},{},{},{},{},{},{kind},{v},{lo},{hi},{samples}\n",
                         field(&r.case_id()),
                         field(&r.algorithm),
+                        field(r.variant.as_deref().unwrap_or_default()),
                         field(&r.backend),
                         field(&r.scene),
                         field(&p.name)
@@ -320,7 +322,7 @@ const CSV_COUNTERS: [&str; 7] = [
 /// results.json.
 pub fn csv(records: &[RunRecord]) -> String {
     let mut s = String::from(
-        "case_id,algorithm,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,occluder_offset,cores,wall_ms,model_ms,gpu_ms,\
+        "case_id,algorithm,variant,backend,scene,light,triangles,light_size,map_resolution,tile_size,image_w,image_h,occluder_height,occluder_offset,cores,wall_ms,model_ms,gpu_ms,\
          wall_ms_ci_lo,wall_ms_ci_hi,gpu_ms_ci_lo,gpu_ms_ci_hi,cold_wall_ms,cold_gpu_ms,samples,wall_ms_samples,gpu_ms_samples",
     );
     for c in CSV_COUNTERS {
@@ -336,6 +338,7 @@ pub fn csv(records: &[RunRecord]) -> String {
         let mut row = vec![
             field(&r.case_id()),
             r.algorithm.clone(),
+            field(r.variant.as_deref().unwrap_or_default()),
             r.backend.clone(),
             r.scene.clone(),
             r.light.clone(),
@@ -431,6 +434,7 @@ mod tests {
     fn results_csv_has_the_case_id_image_folder_and_warnings_in_every_row() {
         let mut ok = record("pcss", "cpu-model", 100, 32);
         ok.params.light_size = 0.6;
+        ok.variant = Some("raw".into());
         ok.warnings = vec!["light converted, from disc".into(), "two".into()];
         let mut bad = record("dbuffer", "wgpu", 100, 32);
         bad.failure = Some("no \"adapter\", sorry".into());
@@ -441,6 +445,9 @@ mod tests {
             assert_eq!(r.len(), rows[0].len(), "{r:?}");
         }
         assert_eq!(rows[1][col("case_id")], ok.case_id());
+        assert_eq!(rows[1][col("algorithm")], "pcss");
+        assert_eq!(rows[1][col("variant")], "raw");
+        assert_eq!(rows[2][col("variant")], "");
         assert_eq!(rows[1][col("images")], format!("images/{}", ok.case_id()));
         assert_eq!(rows[1][col("warnings")], "light converted, from disc; two");
         // The light size reads the same in the CSV and in the folder name.
@@ -459,6 +466,7 @@ mod tests {
             [
                 "case_id",
                 "algorithm",
+                "variant",
                 "backend",
                 "scene",
                 "phase",
@@ -483,7 +491,7 @@ mod tests {
             .collect();
         let got: Vec<(String, String, f64)> = rows[1..]
             .iter()
-            .map(|x| (x[4].clone(), x[5].clone(), x[6].parse().unwrap()))
+            .map(|x| (x[5].clone(), x[6].clone(), x[7].parse().unwrap()))
             .collect();
         assert_eq!(got, expect);
         assert!(rows[1..].iter().all(|x| x[0] == r.case_id()));
@@ -520,10 +528,10 @@ mod tests {
         assert_eq!(rows[1][col("measure_warnings")], "wide interval");
         let rows = parse(&phases_csv(std::slice::from_ref(&r)));
         assert_eq!(
-            rows[1][4..],
+            rows[1][5..],
             ["construct", "wall_ms", "1", "1", "1.5", "1 1.5"]
         );
         // Modelled times have no samples.
-        assert_eq!(rows[2][5..], ["model_ms", "0.4", "", "", ""]);
+        assert_eq!(rows[2][6..], ["model_ms", "0.4", "", "", ""]);
     }
 }

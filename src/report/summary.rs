@@ -394,9 +394,10 @@ impl Summary {
         specs
     }
 
-    /// The summary as CSV: one row per algorithm and execution.
+    /// The summary as CSV: one row per algorithm (and variant, `variant` empty without one) and
+    /// execution.
     pub fn csv(&self) -> String {
-        let mut s = String::from("execution,algorithm,mae_shadow,");
+        let mut s = String::from("execution,algorithm,variant,mae_shadow,");
         if self.has_restricted {
             let _ = write!(s, "{RESTRICTED},");
         }
@@ -410,7 +411,14 @@ impl Summary {
         let opt = |v: Option<f64>| v.map(|v| v.to_string()).unwrap_or_default();
         for e in &self.executions {
             for r in &e.rows {
-                let _ = write!(s, "{},{},{},", r.backend, r.algorithm, opt(r.mae_shadow));
+                let variant = r.variant.as_deref().unwrap_or_default();
+                let _ = write!(
+                    s,
+                    "{},{},{variant},{},",
+                    r.backend,
+                    r.algorithm,
+                    opt(r.mae_shadow)
+                );
                 if self.has_restricted {
                     let _ = write!(s, "{},", opt(r.restricted));
                 }
@@ -721,11 +729,11 @@ mod tests {
         let lines: Vec<&str> = csv.lines().collect();
         assert_eq!(
             lines[0],
-            "execution,algorithm,mae_shadow,wall_ms,model_ms,gpu_ms,modelled_memory_bytes,estimated_memory_bytes,pareto_optimal_on"
+            "execution,algorithm,variant,mae_shadow,wall_ms,model_ms,gpu_ms,modelled_memory_bytes,estimated_memory_bytes,pareto_optimal_on"
         );
         assert_eq!(lines.len(), 1 + 8);
         assert!(
-            lines[1].starts_with("cpu-native,soft_izb,0.015,9,,,"),
+            lines[1].starts_with("cpu-native,soft_izb,,0.015,9,,,"),
             "{}",
             lines[1]
         );

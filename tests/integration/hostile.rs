@@ -205,6 +205,45 @@ fn a_budget_spent_in_the_reference_fails_the_run_with_its_phase_and_time() {
     }
 }
 
+#[test]
+fn a_wgpu_ray_traced_run_past_its_budget_stops_within_it() {
+    if !super::gpu_check::have_gpu() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scenario = dir.path().join("s.json");
+    // rt_denoised at 4,096 rays a pixel: about 78 M rays, over a minute on lavapipe, traced in
+    // submissions of at most 2^20 rays with the deadline checked between them.
+    let mut v = tiny();
+    v["scene"] = json!({ "generator": "sphere-on-plane" });
+    v["algorithms"] = json!(["rt_denoised"]);
+    v["backends"] = json!(["wgpu"]);
+    v["params"]["image"] = json!([160, 120]);
+    v["options"] = json!({ "rt_denoised": { "spp": 4096 } });
+    write(&scenario, &v);
+    let out = dir.path().join("out");
+    let start = Instant::now();
+    let o = shadowbench(&[
+        "run",
+        s(&scenario),
+        "--out",
+        s(&out),
+        "--run-timeout",
+        "1",
+        "-q",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let took = start.elapsed();
+    assert!(took < Duration::from_secs(20), "{took:?}");
+    let runs = results(&out);
+    assert_eq!(runs.len(), 1);
+    let f = runs[0]["failure"].as_str().expect("stopped");
+    assert!(
+        f.contains("run timeout: stopped after") && f.contains("budget of 1 s"),
+        "{f}"
+    );
+}
+
 // Fault 2: output errors.
 
 #[test]

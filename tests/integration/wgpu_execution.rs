@@ -778,3 +778,45 @@ fn check_names(record: &shadowbench::record::RunRecord) {
         }
     }
 }
+
+#[test]
+fn rt_denoised_on_wgpu_traces_a_frame_in_chunks_as_the_cpu_model_does() {
+    if !have_gpu() {
+        return;
+    }
+    // Frames over one submission's 2^20 rays, traced in chunks with the deadline checked
+    // between them: 48×352 at 64 rays a pixel in two bands of whole workgroup rows (42 and 2),
+    // and 1040×24 at 128 in two chunks on each of three workgroup rows (128 and 2 workgroups).
+    // Every pixel's samples come from its own coordinates in whichever chunk traces it.
+    for (image, spp) in [([48, 352], 64), ([1040, 24], 128)] {
+        let mut scene = generators::find("sphere-on-plane")
+            .unwrap()
+            .build(&GeneratorParams::default());
+        scene.light = light_as(scene.light, LightKind::Disc, scene.bounds().center());
+        let params = RunParams::of_scene(&scene, image, 128, 16);
+        let f = Frame::new(scene, params);
+        let mut ctx = ExecContext::default();
+        ctx.options.insert(
+            "rt_denoised".into(),
+            serde_json::json!({ "spp": spp, "denoise": false }),
+        );
+        let run = |backend| algorithms::run("rt_denoised", backend, &f, &ctx).unwrap();
+        let (gpu, model) = (run(Backend::Wgpu), run(Backend::CpuModel));
+        let mask = f.gbuffer.mask();
+        let e = metrics::compare(&gpu.visibility, &model.visibility, &mask);
+        assert!(
+            e.shadow_pixels > 20,
+            "{image:?}: no shadow on screen: {e:?}"
+        );
+        // The same rays and traversal on both: the same answers, the same counts.
+        assert_eq!(e.max, Some(0.0), "{image:?}: {e:?}");
+        for k in [
+            "rt.rays",
+            "rt.node_visits",
+            "rt.triangle_tests",
+            "rt.occluded_rays",
+        ] {
+            assert_eq!(gpu.counters.get(k), model.counters.get(k), "{image:?}: {k}");
+        }
+    }
+}

@@ -3,7 +3,9 @@
 //!
 //! 1. `trace` — one invocation per pixel: its `spp` rays, each an any-hit traversal of the BVH
 //!    with a stack of [`super::bvh::STACK`] entries in WGSL (the adapter's ray queries are not used: lavapipe
-//!    offers none, and this execution does not build a ray-query variant);
+//!    offers none, and this execution does not build a ray-query variant); dispatched in
+//!    chunks of workgroups of at most [`RAYS_PER_SUBMISSION`] rays (at least one workgroup),
+//!    one submission each, so that the run's deadline is checked between them;
 //! 2. `denoise` — `penumbra` (the penumbra radius per pixel from the neighbours' hit
 //!    distances), then `passes` × `atrous` (ping-pong between two buffers).
 //!
@@ -23,7 +25,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay_slots, tiles, Bind, Layout, Pass, Program, Slots, Statistics, Timed,
+    gpu_struct, replay, tiles, Bind, Layout, Pass, Program, Slots, Statistics, Step, Timed,
 };
 use crate::gpu::{record_execution, Gpu, Needs};
 use crate::record::Counters;
@@ -32,6 +34,10 @@ use crate::scene::Light;
 const WGSL: &str = include_str!("wgpu.wgsl");
 /// Side of the square compute workgroups (`@workgroup_size(8, 8)`).
 const WORKGROUP: u32 = 8;
+/// The most rays one submission of the trace holds (at least one workgroup's): a band of whole
+/// rows of workgroups, or part of one row. The run's deadline is checked between submissions;
+/// lavapipe traces about a million rays a second.
+pub const RAYS_PER_SUBMISSION: u64 = 1 << 20;
 /// The statistics slots (`STAT_*` in the WGSL), in slot order.
 const STATS: [&str; 9] = [
     "rt.rays",
@@ -74,11 +80,13 @@ gpu_struct! {
 }
 
 gpu_struct! {
-    /// An à-trous pass's tap spacing (group 2, binding 0).
+    /// An à-trous pass's tap spacing, or a trace chunk's first pixel (group 2, binding 0).
     struct StepUniform as "Step" {
         step: u32 => "u32",
-        p1: u32 => "u32",
-        p2: u32 => "u32",
+        /// The first image column of a trace chunk (0 for the denoiser's passes).
+        col0: u32 => "u32",
+        /// The first image row of a trace chunk (0 for the denoiser's passes).
+        row0: u32 => "u32",
         p3: u32 => "u32",
     }
 }
@@ -177,26 +185,35 @@ pub fn render(
     );
     // Group 2 per pass: the trace writes `ping`; pass k of the à-trous filter reads one buffer
     // and writes the other, at spacing 2^k.
-    let step_group = |step: u32, from: &wgpu::Buffer, to: &wgpu::Buffer| {
-        let u = gpu.uniform(
-            "atrous step",
-            &StepUniform {
-                step,
-                ..StepUniform::default()
-            },
-        );
-        Layout::bound(
-            gpu,
-            "rt step",
-            S::COMPUTE,
-            &[
-                (Bind::Uniform, u.as_entire_binding()),
-                (Bind::ReadWrite, from.as_entire_binding()),
-                (Bind::ReadWrite, to.as_entire_binding()),
-            ],
-        )
-    };
-    let (step_layout, trace_group) = step_group(0, &pong, &ping);
+    let step_group =
+        |(step, col0, row0): (u32, u32, u32), from: &wgpu::Buffer, to: &wgpu::Buffer| {
+            let u = gpu.uniform(
+                "atrous step",
+                &StepUniform {
+                    step,
+                    col0,
+                    row0,
+                    ..StepUniform::default()
+                },
+            );
+            Layout::bound(
+                gpu,
+                "rt step",
+                S::COMPUTE,
+                &[
+                    (Bind::Uniform, u.as_entire_binding()),
+                    (Bind::ReadWrite, from.as_entire_binding()),
+                    (Bind::ReadWrite, to.as_entire_binding()),
+                ],
+            )
+        };
+    let size = tiles((width, height), WORKGROUP);
+    let chunks = trace_chunks(size, o.spp);
+    let (step_layout, trace_groups): (Vec<Layout>, Vec<wgpu::BindGroup>) = chunks
+        .iter()
+        .map(|&((x, y), _)| step_group((0, x * WORKGROUP, y * WORKGROUP), &pong, &ping))
+        .unzip();
+    let step_layout = &step_layout[0];
     let passes = if o.denoise { o.passes } else { 0 };
     let atrous_groups: Vec<wgpu::BindGroup> = (0..passes)
         .map(|k| {
@@ -205,7 +222,7 @@ pub fn render(
             } else {
                 (&pong, &ping)
             };
-            step_group(1 << k, from, to).1
+            step_group((1 << k, 0, 0), from, to).1
         })
         .collect();
     let result = if passes % 2 == 0 { &ping } else { &pong };
@@ -213,18 +230,17 @@ pub fn render(
         gpu,
         "rt_denoised/wgpu.wgsl",
         &SOURCES,
-        &[Some(&shared_layout), Some(&data_layout), Some(&step_layout)],
+        &[Some(&shared_layout), Some(&data_layout), Some(step_layout)],
     );
     let trace = program.compute_pair(gpu, "trace");
     let penumbra = program.compute_pair(gpu, "penumbra");
     let atrous = program.compute_pair(gpu, "atrous");
-    let size = tiles((width, height), WORKGROUP);
-    let trace_pass = |counting: bool| {
+    let trace_pass = |chunk: usize, counting: bool| {
         Pass::compute(
             "trace",
-            &[Some(&shared), Some(&data), Some(&trace_group)],
+            &[Some(&shared), Some(&data), Some(&trace_groups[chunk])],
             &trace[usize::from(counting)],
-            size,
+            chunks[chunk].1,
         )
     };
     let denoise_passes = |counting: bool| -> Vec<Pass<'_>> {
@@ -232,7 +248,7 @@ pub fn render(
         if o.denoise {
             v.push(Pass::compute(
                 "penumbra",
-                &[Some(&shared), Some(&data), Some(&trace_group)],
+                &[Some(&shared), Some(&data), Some(&trace_groups[0])],
                 &penumbra[usize::from(counting)],
                 size,
             ));
@@ -253,19 +269,28 @@ pub fn render(
     } else {
         &["trace"]
     };
-    let total = 1 + denoise_passes(false).len() as u32;
+    let bands = chunks.len();
+    let total = (bands + denoise_passes(false).len()) as u32;
     let mut run = Timed::new(gpu, names, total, Statistics::Compute, &[result]);
     run.add_setup(0, start);
-    run.submit(0, &[trace_pass(false)])?;
+    for band in 0..bands {
+        run.submit(0, &[trace_pass(band, false)])?;
+    }
     if o.denoise {
         run.submit(1, &denoise_passes(false))?;
     }
     let timing = run.finish()?;
 
-    // The instrumented replay: the same passes, counting.
-    let mut replayed = vec![trace_pass(true)];
-    replayed.extend(denoise_passes(true));
-    let slot = replay_slots(gpu, &stats, replayed)?;
+    // The instrumented replay: the same passes, counting, a chunk a submission (a read of the
+    // slots after each chunk ends its submission; the last read holds every pass's counts).
+    let mut steps = vec![Step::Clear(&stats)];
+    for band in 0..bands {
+        steps.extend([Step::Run(trace_pass(band, true)), Step::Read(&stats)]);
+    }
+    steps.extend(denoise_passes(true).into_iter().map(Step::Run));
+    steps.push(Step::Read(&stats));
+    let reads = replay(gpu, &steps)?;
+    let slot = Slots::of(reads.last().expect("the replay reads its slots"));
     let counters = phase_counters(
         &slot,
         o,
@@ -287,6 +312,32 @@ pub fn render(
         }),
     );
     Ok(out)
+}
+
+/// The trace's chunks of a dispatch of `size` workgroups of `spp` rays a pixel, in row order:
+/// each its first workgroup (column, row) and its size in workgroups; at most
+/// [`RAYS_PER_SUBMISSION`] rays each (one workgroup where a workgroup holds more), covering every
+/// workgroup once.
+fn trace_chunks(size: (u32, u32), spp: u32) -> Vec<((u32, u32), (u32, u32))> {
+    let group_rays = u64::from(WORKGROUP * WORKGROUP) * u64::from(spp.max(1));
+    let per_chunk = (RAYS_PER_SUBMISSION / group_rays).max(1);
+    let (nx, ny) = size;
+    if per_chunk >= u64::from(nx) {
+        let rows = (per_chunk / u64::from(nx)).min(u64::from(ny)) as u32;
+        (0..ny)
+            .step_by(rows as usize)
+            .map(|y| ((0, y), (nx, rows.min(ny - y))))
+            .collect()
+    } else {
+        let cols = per_chunk as u32;
+        (0..ny)
+            .flat_map(|y| {
+                (0..nx)
+                    .step_by(cols as usize)
+                    .map(move |x| ((x, y), (cols.min(nx - x), 1)))
+            })
+            .collect()
+    }
 }
 
 /// The counters of each phase from the replay's slots and the host's sizes, as the cpu
@@ -319,3 +370,35 @@ fn phase_counters(
 
 #[cfg(test)]
 crate::gpu::wgsl_layout::layout_test!(SOURCES => RtUniform, StepUniform, NodePair, Tri);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every workgroup in exactly one chunk, each within the ray budget or one workgroup.
+    #[test]
+    fn trace_chunks_cover_the_dispatch_once_within_the_budget() {
+        for (size, spp) in [
+            ((1, 1), 1),
+            ((20, 15), 1),
+            ((40, 30), 64),
+            ((40, 30), 1024),
+            ((80, 60), 4096),
+            ((7, 3), 300),
+        ] {
+            let mut seen = vec![0u32; (size.0 * size.1) as usize];
+            for ((x, y), (w, h)) in trace_chunks(size, spp) {
+                let rays = u64::from(w * h) * 64 * u64::from(spp);
+                assert!(rays <= RAYS_PER_SUBMISSION || w * h == 1, "{size:?} {spp}");
+                for j in y..y + h {
+                    for i in x..x + w {
+                        seen[(j * size.0 + i) as usize] += 1;
+                    }
+                }
+            }
+            assert!(seen.iter().all(|&n| n == 1), "{size:?} {spp}");
+        }
+        // A frame that fits one submission stays one pass.
+        assert_eq!(trace_chunks((20, 15), 4).len(), 1);
+    }
+}

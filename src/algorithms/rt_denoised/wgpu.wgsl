@@ -279,7 +279,9 @@ fn pixel_of(id: vec3<u32>) -> i32 {
 // `cpu::Trace`.
 @compute @workgroup_size(8, 8)
 fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = pixel_of(id);
+    // A chunk of the image from (`step.col0`, `step.row0`) (`RAYS_PER_SUBMISSION`).
+    let px = vec3<u32>(id.x + step.col0, id.y + step.row0, id.z);
+    let i = pixel_of(px);
     if i < 0 {
         return;
     }
@@ -299,7 +301,7 @@ fn trace(@builtin(global_invocation_id) id: vec3<u32>) {
     var culled = 0u;
     var distance = 0.0;
     for (var s = 0u; s < rt.spp; s++) {
-        let q = light_point(e, square_sample(id.x, id.y, s));
+        let q = light_point(e, square_sample(px.x, px.y, s));
         let d = q - o;
         if !(nm.w == 0.0 || dot(nm.xyz, d) > 0.0) {
             culled += 1u;
