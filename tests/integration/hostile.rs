@@ -39,6 +39,19 @@ fn refused(o: &Output, want: &[&str]) -> String {
     e
 }
 
+/// `run SCENARIO --out OUT --run-timeout BUDGET -q` (BUDGET in seconds).
+fn run_within(scenario: &Path, out: &Path, budget: &str) -> Output {
+    shadowbench(&[
+        "run",
+        s(scenario),
+        "--out",
+        s(out),
+        "--run-timeout",
+        budget,
+        "-q",
+    ])
+}
+
 fn results(out: &Path) -> Vec<Value> {
     let v: Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
@@ -124,15 +137,7 @@ fn the_largest_light_texture_run_keeps_its_budget_and_is_counted_in_the_estimate
         write(&scenario, &textured(png, 16, [48, 36]));
         let out = dir.path().join(format!("out-{png}"));
         let start = Instant::now();
-        let o = shadowbench(&[
-            "run",
-            s(&scenario),
-            "--out",
-            s(&out),
-            "--run-timeout",
-            "5",
-            "-q",
-        ]);
+        let o = run_within(&scenario, &out, "5");
         let took = start.elapsed();
         assert!(o.status.success(), "{}", stderr(&o));
         let e = stderr(&o);
@@ -174,15 +179,7 @@ fn a_budget_spent_in_the_reference_fails_the_run_with_its_phase_and_time() {
     write(&scenario, &v);
     let out = dir.path().join("out");
     let start = Instant::now();
-    let o = shadowbench(&[
-        "run",
-        s(&scenario),
-        "--out",
-        s(&out),
-        "--run-timeout",
-        "1",
-        "-q",
-    ]);
+    let o = run_within(&scenario, &out, "1");
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         start.elapsed() < Duration::from_secs(30),
@@ -223,15 +220,7 @@ fn a_wgpu_ray_traced_run_past_its_budget_stops_within_it() {
     write(&scenario, &v);
     let out = dir.path().join("out");
     let start = Instant::now();
-    let o = shadowbench(&[
-        "run",
-        s(&scenario),
-        "--out",
-        s(&out),
-        "--run-timeout",
-        "1",
-        "-q",
-    ]);
+    let o = run_within(&scenario, &out, "1");
     assert!(o.status.success(), "{}", stderr(&o));
     let took = start.elapsed();
     assert!(took < Duration::from_secs(20), "{took:?}");

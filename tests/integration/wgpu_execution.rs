@@ -20,11 +20,21 @@ use gpu_check::have_gpu;
 /// A 64×48 frame of generated scene `name`, its light changed by `light` and made a disc
 /// facing the scene (a light both algorithms take).
 fn frame(name: &str, light: impl Fn(Light) -> Light, map_resolution: u32) -> Frame {
+    frame_sized(name, light, map_resolution, [64, 48])
+}
+
+/// [`frame`] at `image` pixels.
+fn frame_sized(
+    name: &str,
+    light: impl Fn(Light) -> Light,
+    map_resolution: u32,
+    image: [u32; 2],
+) -> Frame {
     let mut scene = generators::find(name)
         .unwrap()
         .build(&GeneratorParams::default());
     scene.light = light_as(light(scene.light), LightKind::Disc, scene.bounds().center());
-    let params = RunParams::of_scene(&scene, [64, 48], map_resolution, 32);
+    let params = RunParams::of_scene(&scene, image, map_resolution, 32);
     Frame::new(scene, params)
 }
 
@@ -789,12 +799,7 @@ fn rt_denoised_on_wgpu_traces_a_frame_in_chunks_as_the_cpu_model_does() {
     // and 1040×24 at 128 in two chunks on each of three workgroup rows (128 and 2 workgroups).
     // Every pixel's samples come from its own coordinates in whichever chunk traces it.
     for (image, spp) in [([48, 352], 64), ([1040, 24], 128)] {
-        let mut scene = generators::find("sphere-on-plane")
-            .unwrap()
-            .build(&GeneratorParams::default());
-        scene.light = light_as(scene.light, LightKind::Disc, scene.bounds().center());
-        let params = RunParams::of_scene(&scene, image, 128, 16);
-        let f = Frame::new(scene, params);
+        let f = frame_sized("sphere-on-plane", |l| l, 128, image);
         let mut ctx = ExecContext::default();
         ctx.options.insert(
             "rt_denoised".into(),

@@ -269,12 +269,11 @@ pub fn render(
     } else {
         &["trace"]
     };
-    let bands = chunks.len();
-    let total = (bands + denoise_passes(false).len()) as u32;
+    let total = (chunks.len() + denoise_passes(false).len()) as u32;
     let mut run = Timed::new(gpu, names, total, Statistics::Compute, &[result]);
     run.add_setup(0, start);
-    for band in 0..bands {
-        run.submit(0, &[trace_pass(band, false)])?;
+    for chunk in 0..chunks.len() {
+        run.submit(0, &[trace_pass(chunk, false)])?;
     }
     if o.denoise {
         run.submit(1, &denoise_passes(false))?;
@@ -284,8 +283,8 @@ pub fn render(
     // The instrumented replay: the same passes, counting, a chunk a submission (a read of the
     // slots after each chunk ends its submission; the last read holds every pass's counts).
     let mut steps = vec![Step::Clear(&stats)];
-    for band in 0..bands {
-        steps.extend([Step::Run(trace_pass(band, true)), Step::Read(&stats)]);
+    for chunk in 0..chunks.len() {
+        steps.extend([Step::Run(trace_pass(chunk, true)), Step::Read(&stats)]);
     }
     steps.extend(denoise_passes(true).into_iter().map(Step::Run));
     steps.push(Step::Read(&stats));
