@@ -27,7 +27,7 @@ use shadowbench::algorithms::reference::{self, Tracer, GROUP_CAP};
 use shadowbench::frame::{Frame, RunParams};
 use shadowbench::scenario;
 use shadowbench::scene::generators::GeneratorParams;
-use shadowbench::scene::shadow_bvh::{Gathered, Isa, ShadowBvh};
+use shadowbench::scene::shadow_bvh::{Gathered, Isa, PacketStack, ShadowBvh, PACKET};
 use shadowbench::util::cpu_time;
 use shadowbench::util::deadline::Deadline;
 
@@ -122,41 +122,68 @@ fn trace(
     };
     groups
         .par_iter()
-        .map_init(Vec::new, |scratch, g| match tracer {
-            Tracer::SceneBvh => g
-                .clone()
-                .filter(|&j| {
-                    let (_, p, q) = rays[j];
-                    frame.bvh.occluded_in_scene_bvh(p, q) != truth[j]
-                })
-                .count(),
-            Tracer::CastersObvhs => g
-                .clone()
-                .filter(|&j| {
-                    let (_, p, q) = rays[j];
-                    let hit = shadow.ray(p, q).is_some_and(|r| shadow.occluded_obvhs(&r));
-                    hit != truth[j]
-                })
-                .count(),
-            Tracer::Rays(isa) => one_at_a_time(isa, false, g),
-            Tracer::Groups(isa) => {
-                let from = rays[g.start].1;
-                match shadow.gather(isa, from, centre, radius, cap, scratch) {
-                    Gathered::Empty => g.clone().filter(|&j| truth[j]).count(),
-                    Gathered::Few => g
-                        .clone()
-                        .filter(|&j| {
-                            let (_, p, q) = rays[j];
-                            let hit = shadow
-                                .segment(p, q)
-                                .is_some_and(|s| shadow.occluded_among(scratch, &s));
-                            hit != truth[j]
-                        })
-                        .count(),
-                    Gathered::Many => one_at_a_time(isa, true, g),
+        .map_init(
+            || (Vec::new(), Vec::new(), Vec::new(), PacketStack::default()),
+            |(scratch, facing, packet, stack), g| match tracer {
+                Tracer::SceneBvh => g
+                    .clone()
+                    .filter(|&j| {
+                        let (_, p, q) = rays[j];
+                        frame.bvh.occluded_in_scene_bvh(p, q) != truth[j]
+                    })
+                    .count(),
+                Tracer::CastersObvhs => g
+                    .clone()
+                    .filter(|&j| {
+                        let (_, p, q) = rays[j];
+                        let hit = shadow.ray(p, q).is_some_and(|r| shadow.occluded_obvhs(&r));
+                        hit != truth[j]
+                    })
+                    .count(),
+                Tracer::Rays(isa) => one_at_a_time(isa, false, g),
+                Tracer::Groups(isa) | Tracer::Packets(isa) => {
+                    let from = rays[g.start].1;
+                    match shadow.gather(isa, from, centre, radius, cap, scratch) {
+                        Gathered::Empty => g.clone().filter(|&j| truth[j]).count(),
+                        Gathered::Few => {
+                            shadow.facing_among(scratch, from, facing);
+                            g.clone()
+                                .filter(|&j| {
+                                    let (_, p, q) = rays[j];
+                                    let hit = shadow
+                                        .segment(p, q)
+                                        .is_some_and(|s| ShadowBvh::occluded_among(facing, &s));
+                                    hit != truth[j]
+                                })
+                                .count()
+                        }
+                        Gathered::Many if matches!(tracer, Tracer::Packets(_)) => {
+                            let mut mismatches = 0;
+                            for start in g.clone().step_by(PACKET) {
+                                let chunk = start..(start + PACKET).min(g.end);
+                                packet.clear();
+                                packet.extend(chunk.clone().filter_map(|j| {
+                                    let (_, p, q) = rays[j];
+                                    shadow.ray(p, q)
+                                }));
+                                assert_eq!(
+                                    packet.len(),
+                                    chunk.len(),
+                                    "a dumped ray without length"
+                                );
+                                let blocked = shadow.occluded_packet(isa, packet, stack);
+                                mismatches += chunk
+                                    .enumerate()
+                                    .filter(|&(r, j)| (blocked >> r & 1 == 1) != truth[j])
+                                    .count();
+                            }
+                            mismatches
+                        }
+                        Gathered::Many => one_at_a_time(isa, true, g),
+                    }
                 }
-            }
-        })
+            },
+        )
         .sum()
 }
 
@@ -250,6 +277,7 @@ fn main() -> Result<(), Box<dyn Error>> {
     let mut tracers = vec![Tracer::SceneBvh, Tracer::CastersObvhs];
     tracers.extend(Isa::available().into_iter().map(Tracer::Rays));
     tracers.extend(Isa::available().into_iter().map(Tracer::Groups));
+    tracers.extend(Isa::available().into_iter().map(Tracer::Packets));
     let mut results = Vec::new();
     for tracer in tracers {
         let (trace_s, mismatches) = timed(a.repeats, || {

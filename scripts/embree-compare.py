@@ -182,7 +182,7 @@ def main() -> None:
         truth = np.load(folder / "occluded.npy").astype(bool)
         em = {w: embree(folder, args.repeats, w) for w in (1, 2)}
         agree = float(np.mean(em[1][1] == truth))
-        best = tracer(sb[1], f"groups-{sb[1]['host_isa']}")["tracer"]
+        best = tracer(sb[1], f"packets-{sb[1]['host_isa']}")["tracer"]
         rate = {t: tracer(sb[t], best)["rays_per_cpu_s"] for t in (1, 2)}
         rows.append(
             f"| {name} ({sb[1]['casters']:,} casters of {sb[1]['triangles']:,}) "
@@ -213,7 +213,7 @@ def main() -> None:
     print("|" + "---|" * 11)
     print("\n".join(rows))
     print(
-        f"\nOcclusion rays per CPU-second; shadowbench's default tracer (groups on the host's "
+        f"\nOcclusion rays per CPU-second; shadowbench's default tracer (packets on the host's "
         f"instruction set); {args.image}, {args.samples} samples, seed {args.seed}, median of "
         f"{args.repeats}.\n"
     )

@@ -181,24 +181,34 @@ impl Light {
         c + u * d.x + v * d.y
     }
 
-    /// All `k`×`k` samples of [`Light::stratified_sample`] seen from `p`, in order, with the
-    /// emitter's frame computed once (the same points, bit for bit).
-    pub fn stratified_samples(&self, p: Vec3, k: u32, seed: u64) -> impl Iterator<Item = Vec3> {
+    /// All `k`×`k` samples of [`Light::stratified_sample`] seen from `p`, in order, into `out`
+    /// (cleared first), with the emitter's frame computed once (the same points, bit for bit).
+    pub fn stratified_samples_into(&self, p: Vec3, k: u32, seed: u64, out: &mut Vec<Vec3>) {
         let (c, u, v) = self.emitter_frame(p);
-        let light = *self;
-        (0..k * k).map(move |i| {
-            let d = light.stratified_coords(i, k, seed);
-            c + u * d.x + v * d.y
-        })
+        out.clear();
+        // Row by row, so that no sample divides its index by k.
+        for row in 0..k {
+            for col in 0..k {
+                let d = self.strata_coords(col, row, row * k + col, k, seed);
+                out.push(c + u * d.x + v * d.y);
+            }
+        }
     }
 
     /// [`Self::stratified_sample`] in light coordinates: units of the half-axes from the centre
     /// (`[−1, 1]²` for a rectangle, the unit disc otherwise), where a light texture is indexed.
     pub fn stratified_coords(&self, i: u32, k: u32, seed: u64) -> Vec2 {
+        self.strata_coords(i % k, i / k, i, k, seed)
+    }
+
+    /// [`Self::stratified_coords`] of sample `i`, in column `col = i mod k` and row
+    /// `row = ⌊i / k⌋` of the strata.
+    #[inline(always)]
+    fn strata_coords(&self, col: u32, row: u32, i: u32, k: u32, seed: u64) -> Vec2 {
         let jitter = unit_pair(seed, i as u64);
         let s = Vec2::new(
-            ((i % k) as f32 + jitter.x) / k as f32,
-            ((i / k) as f32 + jitter.y) / k as f32,
+            (col as f32 + jitter.x) / k as f32,
+            (row as f32 + jitter.y) / k as f32,
         );
         match self {
             Light::Rect { .. } => s * 2.0 - Vec2::ONE,
@@ -335,4 +345,46 @@ pub fn concentric_disc(s: Vec2) -> Vec2 {
         )
     };
     Vec2::new(theta.cos(), theta.sin()) * r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The samples of one loop are [`Light::stratified_sample`]'s, sample by sample, to the bit,
+    /// for every kind of light.
+    #[test]
+    fn the_samples_in_one_loop_are_the_samples_one_by_one() {
+        let lights = [
+            Light::Sphere {
+                center: Vec3::new(0.3, 4.0, -0.2),
+                radius: 0.7,
+            },
+            Light::Disc {
+                center: Vec3::new(-1.0, 3.0, 0.5),
+                normal: Vec3::new(0.2, -1.0, 0.1),
+                radius: 0.4,
+            },
+            Light::Rect {
+                center: Vec3::new(0.0, 2.5, 1.0),
+                half_u: Vec3::new(0.5, 0.0, 0.1),
+                half_v: Vec3::new(0.0, 0.1, 0.3),
+            },
+        ];
+        let mut out = Vec::new();
+        for light in lights {
+            for k in [1, 3, 8, 11] {
+                let p = Vec3::new(0.1 * k as f32, -0.5, 0.25);
+                light.stratified_samples_into(p, k, 42 + u64::from(k), &mut out);
+                assert_eq!(out.len(), (k * k) as usize);
+                for (i, q) in (0..).zip(&out) {
+                    let want = light.stratified_sample(p, i, k, 42 + u64::from(k));
+                    assert_eq!(
+                        q.to_array().map(f32::to_bits),
+                        want.to_array().map(f32::to_bits)
+                    );
+                }
+            }
+        }
+    }
 }

@@ -27,6 +27,13 @@
 //! answered without a ray. A triangle a ray of the group crosses lies in that cone, so the
 //! answers are the same as one ray at a time (the cone test is conservative: margins of 10⁻⁵ of
 //! the scene over the rounding of its arithmetic).
+//!
+//! **Shared origin.** The rays of a group share their origin, so what the triangle test computes
+//! of the origin alone (the plane's numerator, each edge's cross product) is computed once per
+//! caster and group ([`Facing`]): the same operations on the same values, the same bits. A group
+//! with more casters than the cap is traced as a packet ([`ShadowBvh::occluded_packet`]): one
+//! traversal for up to [`PACKET`] rays, each node fetched once for the rays that reach it, the
+//! blocker of the previous packet (a neighbouring pixel's) tested on every ray first.
 
 use std::sync::OnceLock;
 use std::time::Duration;
@@ -71,6 +78,127 @@ macro_rules! traverse_until {
         }
         found
     }};
+}
+
+/// The masked packet traversal of [`ShadowBvh::occluded_packet`] with the per-ray child-box
+/// test `$children` (bit `j`: the ray meets child slot `j`); the mask of blocked rays.
+macro_rules! packet_until {
+    ($shadow:expr, $rays:expr, $stack:expr, $children:path) => {{
+        let shadow: &ShadowBvh = $shadow;
+        let rays: &[ShadowRay] = $rays;
+        let stack: &mut PacketStack = $stack;
+        let nodes = &shadow.bvh.nodes;
+        let mut active: u64 = if rays.len() == PACKET {
+            u64::MAX
+        } else {
+            (1u64 << rays.len()) - 1
+        };
+        let mut blocked = 0u64;
+        let origin = rays.first().map_or(Vec3::ZERO, |r| r.s.o);
+        assert!(
+            rays.iter().all(|r| r.s.o == origin),
+            "the rays of a packet start at one point"
+        );
+        // Children in the order of the first ray's octant, nearest popped first (obvhs's order).
+        let oct = rays.first().map_or(0, |r| (r.oct_inv4 & 7) as usize);
+        // The caster that blocked a ray of the previous packet first, on every ray.
+        if let Some(h) = stack.hint {
+            let caster = shadow.casters[h as usize].facing(origin);
+            block_with(&caster, rays, &mut active, &mut blocked);
+        }
+        stack.nodes.clear();
+        if !nodes.is_empty() && active != 0 {
+            stack.nodes.push((0, active));
+        }
+        while let Some((index, reached)) = stack.nodes.pop() {
+            let reached = reached & active;
+            if reached == 0 {
+                continue;
+            }
+            let node = &nodes[index as usize];
+            // Per child slot, the rays that meet its box.
+            let mut child = [0u64; 8];
+            let mut m = reached;
+            while m != 0 {
+                let r = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let mut c = $children(node, &rays[r]);
+                while c != 0 {
+                    child[c.trailing_zeros() as usize] |= 1 << r;
+                    c &= c - 1;
+                }
+            }
+            let imask = u32::from(node.imask);
+            for (j, &meta) in node.child_meta.iter().enumerate() {
+                if imask >> j & 1 == 1 || child[j] & active == 0 {
+                    continue;
+                }
+                // A leaf: the low 5 bits its first primitive's offset, the high 3 its count in
+                // unary.
+                let first = node.primitive_base_idx + u32::from(meta & 0x1f);
+                for prim in first..first + (meta >> 5).count_ones() {
+                    let mut m = child[j] & active;
+                    if m == 0 {
+                        break;
+                    }
+                    let caster = shadow.casters[prim as usize].facing(origin);
+                    while m != 0 {
+                        let r = m.trailing_zeros();
+                        m &= m - 1;
+                        if caster.blocks(rays[r as usize].s.d, rays[r as usize].s.len) {
+                            active &= !(1 << r);
+                            blocked |= 1 << r;
+                            stack.hint = Some(prim);
+                            // Every other ray still in the packet (the rest of `m` among them).
+                            block_with(&caster, rays, &mut active, &mut blocked);
+                            break;
+                        }
+                    }
+                }
+            }
+            if active == 0 {
+                break;
+            }
+            for step in 0..8 {
+                let j = step ^ oct;
+                if imask >> j & 1 == 1 && child[j] & active != 0 {
+                    let below = (imask & ((1 << j) - 1)).count_ones();
+                    stack.nodes.push((node.child_base_idx + below, child[j]));
+                }
+            }
+        }
+        blocked
+    }};
+}
+
+/// Tests `caster` on every ray of `active` (bit `r`: `rays[r]`), moving those it blocks from
+/// `active` to `blocked`. A function, not a closure: a closure is not always inlined into the
+/// traversal.
+#[inline(always)]
+fn block_with(caster: &Facing, rays: &[ShadowRay], active: &mut u64, blocked: &mut u64) {
+    let mut m = *active;
+    while m != 0 {
+        let r = m.trailing_zeros();
+        m &= m - 1;
+        let s = &rays[r as usize].s;
+        if caster.blocks(s.d, s.len) {
+            *active &= !(1 << r);
+            *blocked |= 1 << r;
+        }
+    }
+}
+
+/// The most rays [`ShadowBvh::occluded_packet`] traces together (one bit each of a `u64`).
+pub const PACKET: usize = 64;
+
+/// The node stack of [`ShadowBvh::occluded_packet`] (a node and the rays that reached it),
+/// kept between packets so that none allocates, and the caster that last blocked a ray (tested
+/// first on the next packet, a neighbouring pixel's: the same answers, found sooner in an
+/// umbra).
+#[derive(Debug, Default)]
+pub struct PacketStack {
+    nodes: Vec<(u32, u64)>,
+    hint: Option<u32>,
 }
 
 /// The instruction set the traversal runs on ([`Isa::host`]: chosen at run time).
@@ -164,22 +292,100 @@ impl Caster {
             return false;
         }
         let rel = self.v.map(|p| p - s.o);
-        (0..3).all(|k| {
-            let (p, q) = (rel[k], rel[(k + 1) % 3]);
-            // The edge function of v[k] → v[k + 1] ([`coverage::edge_function`]); the reversed
-            // edge's, which a back-facing line tests, is its exact negation.
-            let forward = if self.from_end[k] {
-                -s.d.dot(q.cross(p))
-            } else {
-                s.d.dot(p.cross(q))
-            };
-            let (e, start, end) = if nd > 0.0 {
-                (forward, self.v[k], self.v[(k + 1) % 3])
-            } else {
-                (-forward, self.v[(k + 1) % 3], self.v[k])
-            };
-            e > 0.0 || (e == 0.0 && coverage::tie_owner(s.d, start, end))
-        })
+        // The three edges written out: an iterator's `all` or a closure is not always inlined
+        // into the traversal (a call per test).
+        self.covers(0, &rel, s.d, nd)
+            && self.covers(1, &rel, s.d, nd)
+            && self.covers(2, &rel, s.d, nd)
+    }
+
+    /// Whether the line along `d` lies on the inner side of edge `k` (`rel`: the vertices
+    /// relative to the segment's origin; `nd`: `n · d`, not 0).
+    #[inline(always)]
+    fn covers(&self, k: usize, rel: &[Vec3; 3], d: Vec3, nd: f32) -> bool {
+        let (p, q) = (rel[k], rel[(k + 1) % 3]);
+        // The edge function of v[k] → v[k + 1] ([`coverage::edge_function`]); the reversed
+        // edge's, which a back-facing line tests, is its exact negation.
+        let forward = if self.from_end[k] {
+            -d.dot(q.cross(p))
+        } else {
+            d.dot(p.cross(q))
+        };
+        let (e, start, end) = if nd > 0.0 {
+            (forward, self.v[k], self.v[(k + 1) % 3])
+        } else {
+            (-forward, self.v[(k + 1) % 3], self.v[k])
+        };
+        e > 0.0 || (e == 0.0 && coverage::tie_owner(d, start, end))
+    }
+}
+
+/// A casting triangle seen from one origin `o`: what [`Caster::blocks`] computes of `o` alone
+/// (the plane's numerator `n · (v₀ − o)` and each edge's `(vₖ − o) × (vₖ₊₁ − o)`, the sign of
+/// the coverage rule's evaluation order folded in) done once for every segment from `o` (a
+/// pixel's shadow rays share their shading point), with the same operations on the same values,
+/// so the same answers to the bit.
+#[derive(Clone, Copy, Debug)]
+pub struct Facing {
+    n: Vec3,
+    /// `n · (v₀ − o)`.
+    num: f32,
+    /// Per edge `vₖ → vₖ₊₁`, the vector whose dot product with a direction is its edge function.
+    edge: [Vec3; 3],
+    v: [Vec3; 3],
+}
+
+impl Caster {
+    /// The triangle seen from `o` ([`Facing`]).
+    #[inline(always)]
+    fn facing(&self, o: Vec3) -> Facing {
+        let rel = self.v.map(|p| p - o);
+        Facing {
+            n: self.n,
+            num: self.n.dot(self.v[0] - o),
+            edge: std::array::from_fn(|k| {
+                let (p, q) = (rel[k], rel[(k + 1) % 3]);
+                // −(d · (q × p)) is d · −(q × p) to the bit (negation is exact, and the
+                // comparisons below do not tell −0 from +0).
+                if self.from_end[k] {
+                    -q.cross(p)
+                } else {
+                    p.cross(q)
+                }
+            }),
+            v: self.v,
+        }
+    }
+}
+
+impl Facing {
+    /// [`Caster::blocks`] of the segment from this facing's origin along the unit `d` with
+    /// length `len`.
+    #[inline(always)]
+    fn blocks(&self, d: Vec3, len: f32) -> bool {
+        let nd = self.n.dot(d);
+        if nd == 0.0 {
+            return false;
+        }
+        let t = self.num / nd;
+        if !(t >= 0.0 && t < len) {
+            return false;
+        }
+        // The three edges written out: an iterator's `all` or a closure is not always inlined
+        // into the traversal (a call per test).
+        self.covers(0, d, nd) && self.covers(1, d, nd) && self.covers(2, d, nd)
+    }
+
+    /// Whether the line along `d` lies on the inner side of edge `k` (`nd`: `n · d`, not 0).
+    #[inline(always)]
+    fn covers(&self, k: usize, d: Vec3, nd: f32) -> bool {
+        let forward = d.dot(self.edge[k]);
+        let (start, end) = (self.v[k], self.v[(k + 1) % 3]);
+        if nd > 0.0 {
+            forward > 0.0 || (forward == 0.0 && coverage::tie_owner(d, start, end))
+        } else {
+            forward < 0.0 || (forward == 0.0 && coverage::tie_owner(d, end, start))
+        }
     }
 }
 
@@ -519,20 +725,75 @@ impl ShadowBvh {
         }
     }
 
-    /// Whether one of `candidates` (from [`Self::gather`] of this ray's group) blocks `ray`.
-    /// The blocker found is moved to the front, where the group's next ray tests it first.
-    #[inline]
-    pub fn occluded_among(&self, candidates: &mut [u32], segment: &Segment) -> bool {
-        match candidates
-            .iter()
-            .position(|&c| self.casters[c as usize].blocks(segment))
-        {
+    /// `candidates` (from [`Self::gather`] of a group from `from`, world coordinates) seen from
+    /// `from` ([`Facing`]), into `out` (cleared first), for [`Self::occluded_among`].
+    pub fn facing_among(&self, candidates: &[u32], from: Vec3, out: &mut Vec<Facing>) {
+        let o = self.local(from);
+        out.clear();
+        out.extend(
+            candidates
+                .iter()
+                .map(|&c| self.casters[c as usize].facing(o)),
+        );
+    }
+
+    /// Whether one of `facing` (from [`Self::facing_among`] of this segment's origin) blocks
+    /// `segment`. The blocker found is moved to the front, where the group's next ray tests it
+    /// first.
+    #[inline(always)]
+    pub fn occluded_among(facing: &mut [Facing], segment: &Segment) -> bool {
+        match facing.iter().position(|c| c.blocks(segment.d, segment.len)) {
             Some(j) => {
-                candidates.swap(0, j);
+                facing.swap(0, j);
                 true
             }
             None => false,
         }
+    }
+
+    /// Which of `rays` (at most [`PACKET`] from one point, one bit each: bit `r` for `rays[r]`)
+    /// a casting triangle blocks, traced together on `isa` (one of [`Isa::available`]): a masked packet
+    /// traversal (Wald, Slusallek, Benthin and Wagner, "Interactive Rendering with Coherent Ray
+    /// Tracing", Eurographics 2001), each node fetched once for the rays that reached it, each
+    /// ray's child-box test the one of [`Self::occluded_ray`], a ray leaving the packet when
+    /// blocked; a triangle that blocks one ray is tested next on every ray still in the packet
+    /// (in an umbra it blocks them all). The answers are those of one ray at a time: a ray is
+    /// blocked exactly when a caster in a leaf its box tests reach blocks it.
+    ///
+    /// # Panics
+    /// If `rays` holds more than [`PACKET`] rays or rays from different points, or `isa` is not
+    /// one this CPU runs.
+    pub fn occluded_packet(&self, isa: Isa, rays: &[ShadowRay], stack: &mut PacketStack) -> u64 {
+        assert!(rays.len() <= PACKET, "{} rays in a packet", rays.len());
+        match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => {
+                assert!(
+                    Isa::host() == Isa::Avx2,
+                    "AVX2 is not available on this CPU"
+                );
+                // SAFETY: the CPU runs AVX2, FMA, BMI1/2, LZCNT and POPCNT (`Isa::host`).
+                unsafe { self.packet_avx2(rays, stack) }
+            }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: every x86-64 CPU runs SSE2.
+            Isa::Sse2 => unsafe { self.packet_sse2(rays, stack) },
+            #[cfg(not(target_arch = "x86_64"))]
+            Isa::Avx2 | Isa::Sse2 => panic!("{} is not available on this CPU", isa.name()),
+            Isa::Scalar => packet_until!(self, rays, stack, children_scalar),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "sse2")]
+    fn packet_sse2(&self, rays: &[ShadowRay], stack: &mut PacketStack) -> u64 {
+        packet_until!(self, rays, stack, children_sse2)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    fn packet_avx2(&self, rays: &[ShadowRay], stack: &mut PacketStack) -> u64 {
+        packet_until!(self, rays, stack, children_avx2)
     }
 
     fn gather_portable(&self, cone: &Cone, cap: usize, out: &mut Vec<u32>) -> bool {
@@ -561,7 +822,7 @@ impl ShadowBvh {
         traverse_until!(
             &self.bvh,
             ray.ray.direction,
-            node => node_hits_scalar(node, ray),
+            node => hit_mask(node, children_scalar(node, ray), ray.oct_inv4),
             prim => self.casters[prim].blocks(&ray.s)
         )
     }
@@ -572,7 +833,7 @@ impl ShadowBvh {
         traverse_until!(
             &self.bvh,
             ray.ray.direction,
-            node => node_hits_sse2(node, ray),
+            node => hit_mask(node, children_sse2(node, ray), ray.oct_inv4),
             prim => self.casters[prim].blocks(&ray.s)
         )
     }
@@ -583,7 +844,7 @@ impl ShadowBvh {
         traverse_until!(
             &self.bvh,
             ray.ray.direction,
-            node => node_hits_avx2(node, ray),
+            node => hit_mask(node, children_avx2(node, ray), ray.oct_inv4),
             prim => self.casters[prim].blocks(&ray.s)
         )
     }
@@ -644,9 +905,9 @@ fn slabs<'a>(node: &'a CwBvhNode, ray: &ShadowRay) -> [(&'a [u8; 8], &'a [u8; 8]
     ]
 }
 
-/// The child-box test one child at a time.
+/// The child-box test one child at a time: bit `j` set where the ray meets child slot `j`'s box.
 #[inline(always)]
-fn node_hits_scalar(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
+fn children_scalar(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
     let (scale, offset) = node_frame(node, ray);
     let [x, y, z] = slabs(node, ray);
     let mut children = 0;
@@ -661,13 +922,14 @@ fn node_hits_scalar(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
             children |= 1 << j;
         }
     }
-    hit_mask(node, children, ray.oct_inv4)
+    children
 }
 
-/// The child-box test four children at a time (SSE2).
+/// The child-box test four children at a time (SSE2): the bits of [`children_scalar`].
+#[inline]
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "sse2")]
-fn node_hits_sse2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
+fn children_sse2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
     use std::arch::x86_64::*;
     let (scale, offset) = node_frame(node, ray);
     let [x, y, z] = slabs(node, ray);
@@ -696,15 +958,15 @@ fn node_hits_sse2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
         let far = _mm_min_ps(_mm_min_ps(xf, yf), _mm_min_ps(zf, tmax));
         _mm_movemask_ps(_mm_cmple_ps(near, far)) as u32
     };
-    let children =
-        half(xn.0, yn.0, zn.0, xf.0, yf.0, zf.0) | half(xn.1, yn.1, zn.1, xf.1, yf.1, zf.1) << 4;
-    hit_mask(node, children, ray.oct_inv4)
+    half(xn.0, yn.0, zn.0, xf.0, yf.0, zf.0) | half(xn.1, yn.1, zn.1, xf.1, yf.1, zf.1) << 4
 }
 
-/// The child-box test of all eight children in one vector (AVX2, FMA).
+/// The child-box test of all eight children in one vector (AVX2, FMA): the bits of
+/// [`children_scalar`].
+#[inline]
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
-fn node_hits_avx2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
+fn children_avx2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
     use std::arch::x86_64::*;
     let (scale, offset) = node_frame(node, ray);
     let [x, y, z] = slabs(node, ray);
@@ -722,8 +984,7 @@ fn node_hits_avx2(node: &CwBvhNode, ray: &ShadowRay) -> u32 {
         _mm256_min_ps(plane(x.1, 0), plane(y.1, 1)),
         _mm256_min_ps(plane(z.1, 2), _mm256_set1_ps(ray.s.len)),
     );
-    let children = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-    hit_mask(node, children, ray.oct_inv4)
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
 }
 
 /// The cone's child-box test, one child at a time (the boxes decoded to local coordinates).
@@ -854,7 +1115,7 @@ mod tests {
             }
             through.push(t.iter().map(|&v| positions[v as usize]).sum::<Vec3>() / 3.0);
         }
-        let mut candidates = Vec::new();
+        let (mut candidates, mut facing) = (Vec::new(), Vec::new());
         for isa in Isa::available() {
             for &p in &through {
                 let from = p * 3.0;
@@ -867,12 +1128,82 @@ mod tests {
                 );
                 let group = bvh.gather(isa, from, Vec3::ZERO, 0.1, 16, &mut candidates);
                 assert_eq!(group, Gathered::Few, "{p}");
+                bvh.facing_among(&candidates, from, &mut facing);
                 assert!(
-                    bvh.occluded_among(&mut candidates, &ray.s),
+                    ShadowBvh::occluded_among(&mut facing, &ray.s),
                     "{p}: group leaks"
+                );
+                assert_eq!(
+                    bvh.occluded_packet(isa, &[ray, ray], &mut PacketStack::default()),
+                    0b11,
+                    "{p}: packet leaks"
                 );
             }
         }
+    }
+
+    /// A packet of rays from one point answers ray by ray as testing every caster does, on
+    /// every instruction set, for full and partial packets, with and without the previous
+    /// packet's blocker as a hint.
+    #[test]
+    fn a_packet_answers_as_testing_every_caster() {
+        let flat = flat("sphere-grid");
+        let bvh = ShadowBvh::of_scene(&flat);
+        let b = flat.mesh.bounds();
+        let (lo, hi) = (b.min - Vec3::ONE, b.max + Vec3::ONE);
+        let mut stack = PacketStack::default();
+        let (mut blocked, mut rays) = (0, 0);
+        for isa in Isa::available() {
+            for i in 0..150u64 {
+                let from = point(mix64(i), lo, hi);
+                // A narrow bundle towards one point (as from a shading point to a light) or
+                // rays spread everywhere.
+                let towards = point(mix64(i ^ 0xabc), lo, hi);
+                let n = [PACKET, 37, 1][i as usize % 3];
+                let packet: Vec<ShadowRay> = (0..n as u64)
+                    .map(|j| {
+                        let to = if i % 2 == 0 {
+                            towards + (point(mix64(i * 97 + j), lo, hi) - towards) * 0.05
+                        } else {
+                            point(mix64(i * 97 + j), lo, hi)
+                        };
+                        bvh.ray(from, to).unwrap()
+                    })
+                    .collect();
+                let got = bvh.occluded_packet(isa, &packet, &mut stack);
+                if n < PACKET {
+                    assert_eq!(got >> n, 0, "bits beyond the packet");
+                }
+                for (r, ray) in packet.iter().enumerate() {
+                    let want = brute_force(&bvh, ray);
+                    assert_eq!(
+                        got >> r & 1 == 1,
+                        want,
+                        "{}: packet {i} ray {r}",
+                        isa.name()
+                    );
+                    blocked += usize::from(want);
+                    rays += 1;
+                }
+            }
+        }
+        assert!(
+            blocked > rays / 10 && blocked < rays * 9 / 10,
+            "{blocked} of {rays} blocked"
+        );
+    }
+
+    /// The packet traversal refuses rays from different points (its shared-origin triangle
+    /// test would answer wrongly).
+    #[test]
+    #[should_panic(expected = "start at one point")]
+    fn a_packet_from_two_points_is_refused() {
+        let bvh = ShadowBvh::of_scene(&flat("sphere-grid"));
+        let rays = [
+            bvh.ray(Vec3::ZERO, Vec3::ONE).unwrap(),
+            bvh.ray(Vec3::X, Vec3::ONE).unwrap(),
+        ];
+        bvh.occluded_packet(Isa::host(), &rays, &mut PacketStack::default());
     }
 
     /// What a group gathers holds every caster that blocks a ray from its point to a point of
@@ -884,11 +1215,12 @@ mod tests {
         let b = flat.mesh.bounds();
         let (centre, radius) = (Vec3::new(0.5, 4.0, -0.3), 0.6);
         let mut seen = [0usize; 3];
-        let mut candidates = Vec::new();
+        let (mut candidates, mut facing) = (Vec::new(), Vec::new());
         for i in 0..400u64 {
             let from = point(7 * i, b.min, Vec3::new(b.max.x, b.min.y + 0.5, b.max.z));
             for isa in Isa::available() {
                 let got = bvh.gather(isa, from, centre, radius, 64, &mut candidates);
+                bvh.facing_among(&candidates, from, &mut facing);
                 seen[got as usize] += 1;
                 for j in 0..32u64 {
                     let dir = point(mix64(i * 64 + j), -Vec3::ONE, Vec3::ONE);
@@ -898,7 +1230,7 @@ mod tests {
                     match got {
                         Gathered::Empty => assert!(!want, "point {i}, ray {j}: blocked"),
                         Gathered::Few => assert_eq!(
-                            bvh.occluded_among(&mut candidates, &ray.s),
+                            ShadowBvh::occluded_among(&mut facing, &ray.s),
                             want,
                             "point {i}, ray {j}"
                         ),
@@ -916,6 +1248,7 @@ mod tests {
 
 /// [`cone_hits`] with the eight children in one vector (AVX2, FMA): the same test, its
 /// rounding within the cone's margins.
+#[inline]
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
 fn cone_hits_avx2(node: &CwBvhNode, cone: &Cone, oct_inv4: u32) -> u32 {

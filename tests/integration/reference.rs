@@ -223,8 +223,8 @@ fn a_corrupted_reference_cache_is_recomputed_with_a_warning() {
     assert_eq!(runs[0].error, Some(fresh_error));
 }
 
-/// Every tracer of the reference ([`reference::Tracer`]: the casters' BVH one ray at a time and
-/// in groups, on every instruction set this CPU runs) against the scene BVH of every triangle
+/// Every tracer of the reference ([`reference::Tracer`]: the casters' BVH one ray at a time, in
+/// groups and in packets, on every instruction set this CPU runs) against the scene BVH of every triangle
 /// (the method before the casters' BVH): the same visibility, bit for bit.
 fn assert_tracers_agree(what: &str, frame: &Frame, samples: u32) {
     use reference::Tracer;
@@ -234,7 +234,7 @@ fn assert_tracers_agree(what: &str, frame: &Frame, samples: u32) {
     let before = render(Tracer::SceneBvh).visibility;
     let bits = |v: &VisibilityBuffer| v.data.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     for isa in Isa::available() {
-        for tracer in [Tracer::Rays(isa), Tracer::Groups(isa)] {
+        for tracer in [Tracer::Rays(isa), Tracer::Groups(isa), Tracer::Packets(isa)] {
             let got = render(tracer).visibility;
             let differ = got
                 .data
@@ -261,6 +261,8 @@ fn every_tracer_gives_the_same_image_on_every_built_in_scene() {
         let image = reference::render(&frame, 16, 3).visibility;
         shadowed += usize::from(image.data.iter().any(|&v| v > 0.0 && v < 1.0));
         assert_tracers_agree(g.name, &frame, 16);
+        // More samples than a packet holds, not a multiple of it: a pixel in two packets.
+        assert_tracers_agree(g.name, &frame, 100);
     }
     assert!(
         shadowed * 2 > generators::GENERATORS.len(),

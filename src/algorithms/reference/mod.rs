@@ -24,7 +24,7 @@ use crate::frame::Frame;
 use crate::frame::RunParams;
 use crate::record::{Counters, Phase};
 use crate::scene::bvh::SceneBvh;
-use crate::scene::shadow_bvh::{Gathered, Isa};
+use crate::scene::shadow_bvh::{Facing, Gathered, Isa, PacketStack, ShadowBvh, ShadowRay, PACKET};
 use crate::scene::{Light, LightTexture};
 use crate::util::deadline::Deadline;
 use crate::util::hash::mix64;
@@ -85,12 +85,16 @@ pub enum Tracer {
     /// time as [`Tracer::Rays`], each first testing the caster that blocked the pixel's
     /// previous ray.
     Groups(Isa),
+    /// [`Tracer::Groups`], with a group of more casters than the cap traced as packets of up to
+    /// [`PACKET`] rays ([`occluded_packet`](crate::scene::shadow_bvh::ShadowBvh::occluded_packet))
+    /// instead of one ray at a time.
+    Packets(Isa),
 }
 
 impl Default for Tracer {
-    /// [`Tracer::Groups`] on the host's widest instruction set ([`Isa::host`]).
+    /// [`Tracer::Packets`] on the host's widest instruction set ([`Isa::host`]).
     fn default() -> Tracer {
-        Tracer::Groups(Isa::host())
+        Tracer::Packets(Isa::host())
     }
 }
 
@@ -101,8 +105,29 @@ impl Tracer {
             Tracer::CastersObvhs => "casters-obvhs".into(),
             Tracer::Rays(isa) => format!("rays-{}", isa.name()),
             Tracer::Groups(isa) => format!("groups-{}", isa.name()),
+            Tracer::Packets(isa) => format!("packets-{}", isa.name()),
         }
     }
+}
+
+/// What a worker's tracing reuses from pixel to pixel: a group's candidate casters (and as seen
+/// from its shading point), the pixel's light samples, a packet's rays and its traversal stack.
+#[derive(Default)]
+pub struct Scratch {
+    candidates: Vec<u32>,
+    facing: Vec<Facing>,
+    points: Vec<Vec3>,
+    rays: Vec<ShadowRay>,
+    stack: PacketStack,
+}
+
+/// A light sample's answer before its packet is traced: behind a receiver-only surface (dark),
+/// a ray without length (lit), or ray `r` of the packet.
+#[derive(Clone, Copy)]
+enum Pending {
+    Dark,
+    Lit,
+    Ray(u8),
 }
 
 /// The most casters a group gathers before it is traced one ray at a time: each of its rays
@@ -120,7 +145,7 @@ fn tile_is_clear(
     frame: &Frame,
     isa: Isa,
     tile: &[(usize, ShadingPoint)],
-    scratch: &mut Vec<u32>,
+    scratch: &mut Scratch,
 ) -> bool {
     if tile.len() < 2 {
         return false;
@@ -135,7 +160,7 @@ fn tile_is_clear(
     frame
         .bvh
         .shadow()
-        .gather_between(isa, (centre, radius), ball, 0, scratch)
+        .gather_between(isa, (centre, radius), ball, 0, &mut scratch.candidates)
         == Gathered::Empty
 }
 
@@ -151,7 +176,7 @@ struct Traced<'a> {
 
 /// Calls `lit(i, visible)` for each light sample `i` of the k×k stratified samples of stream
 /// `seed` seen from `p`, in order: whether the sample is in front of a receiver-only surface's
-/// plane and no occluder blocks the shadow ray to it. `scratch` holds a group's candidates.
+/// plane and no occluder blocks the shadow ray to it.
 fn trace_samples(
     Traced {
         bvh,
@@ -162,33 +187,48 @@ fn trace_samples(
     p: ShadingPoint,
     k: u32,
     seed: u64,
-    scratch: &mut Vec<u32>,
+    scratch: &mut Scratch,
     mut lit: impl FnMut(u32, bool),
 ) {
     let shadow = bvh.shadow();
-    let samples = || (0..).zip(light.stratified_samples(p.0, k, seed));
+    let Scratch {
+        candidates,
+        facing,
+        points,
+        rays,
+        stack,
+    } = scratch;
+    // The k×k samples (computed in one loop before any is traced), numbered.
+    macro_rules! samples {
+        () => {{
+            light.stratified_samples_into(p.0, k, seed, points);
+            (0..).zip(points.iter().copied())
+        }};
+    }
     // `cache`: each ray first tests the caster that blocked the pixel's previous ray.
-    let one_at_a_time = |isa: Isa, cache: bool, lit: &mut dyn FnMut(u32, bool)| {
-        let mut hint = None;
-        for (i, q) in samples() {
-            if !cache {
-                hint = None;
+    let one_at_a_time =
+        |isa: Isa, cache: bool, points: &mut Vec<Vec3>, lit: &mut dyn FnMut(u32, bool)| {
+            let mut hint = None;
+            light.stratified_samples_into(p.0, k, seed, points);
+            for (i, &q) in (0..).zip(points.iter()) {
+                if !cache {
+                    hint = None;
+                }
+                let seen = in_front(p, q)
+                    && !shadow
+                        .ray(p.0, q)
+                        .is_some_and(|r| shadow.occluded_ray(isa, &r, &mut hint));
+                lit(i, seen);
             }
-            let seen = in_front(p, q)
-                && !shadow
-                    .ray(p.0, q)
-                    .is_some_and(|r| shadow.occluded_ray(isa, &r, &mut hint));
-            lit(i, seen);
-        }
-    };
+        };
     match tracer {
         Tracer::SceneBvh => {
-            for (i, q) in samples() {
+            for (i, q) in samples!() {
                 lit(i, in_front(p, q) && !bvh.occluded_in_scene_bvh(p.0, q));
             }
         }
         Tracer::CastersObvhs => {
-            for (i, q) in samples() {
+            for (i, q) in samples!() {
                 let seen = in_front(p, q)
                     && !shadow
                         .ray(p.0, q)
@@ -196,33 +236,62 @@ fn trace_samples(
                 lit(i, seen);
             }
         }
-        Tracer::Rays(isa) => one_at_a_time(isa, false, &mut lit),
-        Tracer::Groups(isa) => {
+        Tracer::Rays(isa) => one_at_a_time(isa, false, points, &mut lit),
+        Tracer::Groups(isa) | Tracer::Packets(isa) => {
             let (centre, radius) = (light.center(), light.bounding_radius());
             let gathered = if clear {
                 Gathered::Empty
             } else {
-                shadow.gather(isa, p.0, centre, radius, GROUP_CAP, scratch)
+                shadow.gather(isa, p.0, centre, radius, GROUP_CAP, candidates)
             };
             match gathered {
                 Gathered::Empty if p.1.is_none_or(|n| clears(n, p.0, centre, radius)) => {
                     (0..k * k).for_each(|i| lit(i, true));
                 }
                 Gathered::Empty => {
-                    for (i, q) in samples() {
+                    for (i, q) in samples!() {
                         lit(i, in_front(p, q));
                     }
                 }
                 Gathered::Few => {
-                    for (i, q) in samples() {
+                    shadow.facing_among(candidates, p.0, facing);
+                    for (i, q) in samples!() {
                         let seen = in_front(p, q)
                             && !shadow
                                 .segment(p.0, q)
-                                .is_some_and(|s| shadow.occluded_among(scratch, &s));
+                                .is_some_and(|s| ShadowBvh::occluded_among(facing, &s));
                         lit(i, seen);
                     }
                 }
-                Gathered::Many => one_at_a_time(isa, true, &mut lit),
+                Gathered::Many if matches!(tracer, Tracer::Packets(_)) => {
+                    light.stratified_samples_into(p.0, k, seed, points);
+                    for (first, packet) in (0..).step_by(PACKET).zip(points.chunks(PACKET)) {
+                        rays.clear();
+                        let mut pending = [Pending::Dark; PACKET];
+                        for (answer, &q) in pending.iter_mut().zip(packet) {
+                            *answer = if !in_front(p, q) {
+                                Pending::Dark
+                            } else if let Some(r) = shadow.ray(p.0, q) {
+                                rays.push(r);
+                                Pending::Ray((rays.len() - 1) as u8)
+                            } else {
+                                Pending::Lit
+                            };
+                        }
+                        let blocked = shadow.occluded_packet(isa, rays, stack);
+                        for (i, answer) in (first..).zip(&pending[..packet.len()]) {
+                            lit(
+                                i,
+                                match *answer {
+                                    Pending::Dark => false,
+                                    Pending::Lit => true,
+                                    Pending::Ray(r) => blocked >> r & 1 == 0,
+                                },
+                            );
+                        }
+                    }
+                }
+                Gathered::Many => one_at_a_time(isa, true, points, &mut lit),
             }
         }
     }
@@ -236,11 +305,12 @@ pub fn shadow_rays(frame: &Frame, samples: u32, seed: u64) -> Option<Vec<(u32, V
     let k = strata_side(samples)?;
     let g = &frame.gbuffer;
     let light = frame.scene.light;
-    let mut rays = Vec::new();
+    let (mut rays, mut points) = (Vec::new(), Vec::new());
     for i in (0..g.len()).filter(|&i| g.is_hit(i)) {
         let p = shading_point(frame, i);
         let stream = mix64(seed ^ i as u64);
-        for q in light.stratified_samples(p.0, k, stream) {
+        light.stratified_samples_into(p.0, k, stream, &mut points);
+        for &q in &points {
             if in_front(p, q) {
                 rays.push((i as u32, p.0, q));
             }
@@ -265,7 +335,7 @@ pub fn visible_fraction(bvh: &SceneBvh, light: &Light, p: ShadingPoint, k: u32, 
         tracer: Tracer::default(),
         clear: false,
     };
-    visible_fraction_with(traced, p, k, seed, &mut Vec::new())
+    visible_fraction_with(traced, p, k, seed, &mut Scratch::default())
 }
 
 fn visible_fraction_with(
@@ -273,7 +343,7 @@ fn visible_fraction_with(
     p: ShadingPoint,
     k: u32,
     seed: u64,
-    scratch: &mut Vec<u32>,
+    scratch: &mut Scratch,
 ) -> f32 {
     let mut visible = 0u32;
     trace_samples(traced, p, k, seed, scratch, |_, lit| {
@@ -292,7 +362,7 @@ fn received_light(
     p: ShadingPoint,
     k: u32,
     seed: u64,
-    scratch: &mut Vec<u32>,
+    scratch: &mut Scratch,
 ) -> ([f32; 3], f32) {
     let n = k * k;
     let light = traced.light;
@@ -346,7 +416,7 @@ pub fn render_with(
     pixels
         .par_chunks_mut((w * TILE).max(1))
         .enumerate()
-        .for_each_init(Vec::new, |scratch, (band, rows)| {
+        .for_each_init(Scratch::default, |scratch, (band, rows)| {
             let first = band * w * TILE;
             let height = rows.len() / w.max(1);
             for x0 in (0..w).step_by(TILE) {
@@ -362,7 +432,9 @@ pub fn render_with(
                     }
                 }
                 let clear = match tracer {
-                    Tracer::Groups(isa) => tile_is_clear(frame, isa, &tile[..n], scratch),
+                    Tracer::Groups(isa) | Tracer::Packets(isa) => {
+                        tile_is_clear(frame, isa, &tile[..n], scratch)
+                    }
                     _ => false,
                 };
                 for &(i, p) in &tile[..n] {
