@@ -162,19 +162,24 @@ fn trace(
                             for start in g.clone().step_by(PACKET) {
                                 let chunk = start..(start + PACKET).min(g.end);
                                 packet.clear();
-                                packet.extend(chunk.clone().filter_map(|j| {
-                                    let (_, p, q) = rays[j];
-                                    shadow.ray(p, q)
-                                }));
-                                assert_eq!(
-                                    packet.len(),
-                                    chunk.len(),
-                                    "a dumped ray without length"
-                                );
+                                // Each ray's place in the packet (none for a ray without
+                                // length: nothing blocks it, as in the other tracers).
+                                let slots: Vec<Option<usize>> = chunk
+                                    .clone()
+                                    .map(|j| {
+                                        let (_, p, q) = rays[j];
+                                        shadow.ray(p, q).map(|r| {
+                                            packet.push(r);
+                                            packet.len() - 1
+                                        })
+                                    })
+                                    .collect();
                                 let blocked = shadow.occluded_packet(isa, packet, stack);
                                 mismatches += chunk
-                                    .enumerate()
-                                    .filter(|&(r, j)| (blocked >> r & 1 == 1) != truth[j])
+                                    .zip(slots)
+                                    .filter(|&(j, slot)| {
+                                        slot.is_some_and(|r| blocked >> r & 1 == 1) != truth[j]
+                                    })
                                     .count();
                             }
                             mismatches

@@ -30,10 +30,11 @@
 //!
 //! **Shared origin.** The rays of a group share their origin, so what the triangle test computes
 //! of the origin alone (the plane's numerator, each edge's cross product) is computed once per
-//! caster and group ([`Facing`]): the same operations on the same values, the same bits. A group
-//! with more casters than the cap is traced as a packet ([`ShadowBvh::occluded_packet`]): one
-//! traversal for up to [`PACKET`] rays, each node fetched once for the rays that reach it, the
-//! blocker of the previous packet (a neighbouring pixel's) tested on every ray first.
+//! caster and group ([`Facing`]): the same operations on the same values, the same bits. The
+//! reference's default tracer traces a group with more casters than the cap as packets
+//! ([`ShadowBvh::occluded_packet`]): one traversal for up to [`PACKET`] rays, each node fetched
+//! once for the rays that reach it, the blocker of the previous packet (the same pixel's or,
+//! mostly, a neighbouring one's) tested on every ray first.
 
 use std::sync::OnceLock;
 use std::time::Duration;
@@ -102,7 +103,7 @@ macro_rules! packet_until {
         // Children in the order of the first ray's octant, nearest popped first (obvhs's order).
         let oct = rays.first().map_or(0, |r| (r.oct_inv4 & 7) as usize);
         // The caster that blocked a ray of the previous packet first, on every ray.
-        if let Some(h) = stack.hint {
+        if let Some(h) = stack.hint.filter(|&h| (h as usize) < shadow.casters.len()) {
             let caster = shadow.casters[h as usize].facing(origin);
             block_with(&caster, rays, &mut active, &mut blocked);
         }
@@ -193,8 +194,9 @@ pub const PACKET: usize = 64;
 
 /// The node stack of [`ShadowBvh::occluded_packet`] (a node and the rays that reached it),
 /// kept between packets so that none allocates, and the caster that last blocked a ray (tested
-/// first on the next packet, a neighbouring pixel's: the same answers, found sooner in an
-/// umbra).
+/// first on the next packet, mostly the same or a neighbouring pixel's: the same answers, found
+/// sooner in an umbra). Reused with another tree, the hint is only a caster of that tree (or
+/// none, beyond its casters), so the answers stay the same.
 #[derive(Debug, Default)]
 pub struct PacketStack {
     nodes: Vec<(u32, u64)>,
@@ -757,8 +759,10 @@ impl ShadowBvh {
     /// Tracing", Eurographics 2001), each node fetched once for the rays that reached it, each
     /// ray's child-box test the one of [`Self::occluded_ray`], a ray leaving the packet when
     /// blocked; a triangle that blocks one ray is tested next on every ray still in the packet
-    /// (in an umbra it blocks them all). The answers are those of one ray at a time: a ray is
-    /// blocked exactly when a caster in a leaf its box tests reach blocks it.
+    /// (in an umbra it blocks them all), and so is the previous packet's first blocker. The
+    /// answers are those of one ray at a time: a ray is blocked exactly when a casting triangle
+    /// blocks it, and every such triangle lies in a leaf its box tests reach (the boxes hold
+    /// their triangles with margins, `bvh::tie_breaking_box`), whichever test finds it.
     ///
     /// # Panics
     /// If `rays` holds more than [`PACKET`] rays or rays from different points, or `isa` is not
