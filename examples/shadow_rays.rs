@@ -164,16 +164,14 @@ fn trace(
                                 packet.clear();
                                 // Each ray's place in the packet (none for a ray without
                                 // length: nothing blocks it, as in the other tracers).
-                                let slots: Vec<Option<usize>> = chunk
-                                    .clone()
-                                    .map(|j| {
-                                        let (_, p, q) = rays[j];
-                                        shadow.ray(p, q).map(|r| {
-                                            packet.push(r);
-                                            packet.len() - 1
-                                        })
-                                    })
-                                    .collect();
+                                let mut slots = [None; PACKET];
+                                for (slot, j) in slots.iter_mut().zip(chunk.clone()) {
+                                    let (_, p, q) = rays[j];
+                                    *slot = shadow.ray(p, q).map(|r| {
+                                        packet.push(r);
+                                        packet.len() - 1
+                                    });
+                                }
                                 let blocked = shadow.occluded_packet(isa, packet, stack);
                                 mismatches += chunk
                                     .zip(slots)

@@ -313,12 +313,7 @@ impl Caster {
         } else {
             d.dot(p.cross(q))
         };
-        let (e, start, end) = if nd > 0.0 {
-            (forward, self.v[k], self.v[(k + 1) % 3])
-        } else {
-            (-forward, self.v[(k + 1) % 3], self.v[k])
-        };
-        e > 0.0 || (e == 0.0 && coverage::tie_owner(d, start, end))
+        inner_side(forward, nd, d, self.v[k], self.v[(k + 1) % 3])
     }
 }
 
@@ -381,13 +376,20 @@ impl Facing {
     /// Whether the line along `d` lies on the inner side of edge `k` (`nd`: `n · d`, not 0).
     #[inline(always)]
     fn covers(&self, k: usize, d: Vec3, nd: f32) -> bool {
-        let forward = d.dot(self.edge[k]);
-        let (start, end) = (self.v[k], self.v[(k + 1) % 3]);
-        if nd > 0.0 {
-            forward > 0.0 || (forward == 0.0 && coverage::tie_owner(d, start, end))
-        } else {
-            forward < 0.0 || (forward == 0.0 && coverage::tie_owner(d, end, start))
-        }
+        inner_side(d.dot(self.edge[k]), nd, d, self.v[k], self.v[(k + 1) % 3])
+    }
+}
+
+/// Whether a line along `d` whose edge function of the directed edge `a → b` is `forward` lies
+/// on the triangle's inner side of it, the triangle seen from the side `nd = n · d` (not 0)
+/// says: the edge function itself when front-facing, its exact negation when back-facing (the
+/// reversed edge `b → a`), ties broken by [`coverage::tie_owner`].
+#[inline(always)]
+fn inner_side(forward: f32, nd: f32, d: Vec3, a: Vec3, b: Vec3) -> bool {
+    if nd > 0.0 {
+        forward > 0.0 || (forward == 0.0 && coverage::tie_owner(d, a, b))
+    } else {
+        forward < 0.0 || (forward == 0.0 && coverage::tie_owner(d, b, a))
     }
 }
 

@@ -198,37 +198,35 @@ fn trace_samples(
         rays,
         stack,
     } = scratch;
-    // The k×k samples (computed in one loop before any is traced), numbered.
+    // The k×k samples, computed in one loop before any is traced.
     macro_rules! samples {
         () => {{
             light.stratified_samples_into(p.0, k, seed, points);
-            (0..).zip(points.iter().copied())
+            &points[..]
         }};
     }
     // `cache`: each ray first tests the caster that blocked the pixel's previous ray.
-    let one_at_a_time =
-        |isa: Isa, cache: bool, points: &mut Vec<Vec3>, lit: &mut dyn FnMut(u32, bool)| {
-            let mut hint = None;
-            light.stratified_samples_into(p.0, k, seed, points);
-            for (i, &q) in (0..).zip(points.iter()) {
-                if !cache {
-                    hint = None;
-                }
-                let seen = in_front(p, q)
-                    && !shadow
-                        .ray(p.0, q)
-                        .is_some_and(|r| shadow.occluded_ray(isa, &r, &mut hint));
-                lit(i, seen);
+    let one_at_a_time = |isa: Isa, cache: bool, points: &[Vec3], lit: &mut dyn FnMut(u32, bool)| {
+        let mut hint = None;
+        for (i, &q) in (0..).zip(points) {
+            if !cache {
+                hint = None;
             }
-        };
+            let seen = in_front(p, q)
+                && !shadow
+                    .ray(p.0, q)
+                    .is_some_and(|r| shadow.occluded_ray(isa, &r, &mut hint));
+            lit(i, seen);
+        }
+    };
     match tracer {
         Tracer::SceneBvh => {
-            for (i, q) in samples!() {
+            for (i, &q) in (0..).zip(samples!()) {
                 lit(i, in_front(p, q) && !bvh.occluded_in_scene_bvh(p.0, q));
             }
         }
         Tracer::CastersObvhs => {
-            for (i, q) in samples!() {
+            for (i, &q) in (0..).zip(samples!()) {
                 let seen = in_front(p, q)
                     && !shadow
                         .ray(p.0, q)
@@ -236,7 +234,7 @@ fn trace_samples(
                 lit(i, seen);
             }
         }
-        Tracer::Rays(isa) => one_at_a_time(isa, false, points, &mut lit),
+        Tracer::Rays(isa) => one_at_a_time(isa, false, samples!(), &mut lit),
         Tracer::Groups(isa) | Tracer::Packets(isa) => {
             let (centre, radius) = (light.center(), light.bounding_radius());
             let gathered = if clear {
@@ -249,13 +247,13 @@ fn trace_samples(
                     (0..k * k).for_each(|i| lit(i, true));
                 }
                 Gathered::Empty => {
-                    for (i, q) in samples!() {
+                    for (i, &q) in (0..).zip(samples!()) {
                         lit(i, in_front(p, q));
                     }
                 }
                 Gathered::Few => {
                     shadow.facing_among(candidates, p.0, facing);
-                    for (i, q) in samples!() {
+                    for (i, &q) in (0..).zip(samples!()) {
                         let seen = in_front(p, q)
                             && !shadow
                                 .segment(p.0, q)
@@ -264,8 +262,7 @@ fn trace_samples(
                     }
                 }
                 Gathered::Many if matches!(tracer, Tracer::Packets(_)) => {
-                    light.stratified_samples_into(p.0, k, seed, points);
-                    for (first, packet) in (0..).step_by(PACKET).zip(points.chunks(PACKET)) {
+                    for (first, packet) in (0..).step_by(PACKET).zip(samples!().chunks(PACKET)) {
                         rays.clear();
                         let mut pending = [Pending::Dark; PACKET];
                         for (answer, &q) in pending.iter_mut().zip(packet) {
@@ -291,7 +288,7 @@ fn trace_samples(
                         }
                     }
                 }
-                Gathered::Many => one_at_a_time(isa, true, points, &mut lit),
+                Gathered::Many => one_at_a_time(isa, true, samples!(), &mut lit),
             }
         }
     }
