@@ -6,14 +6,18 @@
 //! papers counts it in its shadow cost, and sharing it keeps the comparison between algorithms
 //! and between executions about the shadows alone.
 
+use std::collections::BTreeMap;
+
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::record::{Counters, Phase};
 use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
 use crate::scene::bvh::SceneBvh;
 use crate::scene::{FlatMesh, Scene};
 use crate::util::deadline::Deadline;
+use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 /// Parameters of one run (one point of a sweep).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -344,4 +348,23 @@ fn eye_pass(
         triangle: rows.iter().map(|r| r.2).collect(),
         offset: rows.iter().map(|r| r.3).collect(),
     }
+}
+
+/// What one algorithm produced for one frame.
+#[derive(Clone, Debug)]
+pub struct FrameOutput {
+    pub visibility: VisibilityBuffer,
+    pub counters: Counters,
+    pub phases: Vec<Phase>,
+    pub model_ms: Option<f64>,
+    pub gpu_ms: Option<f64>,
+    pub execution: BTreeMap<String, serde_json::Value>,
+    pub warnings: Vec<String>,
+    /// Light received per channel, from algorithms that honour a textured light
+    /// ([`crate::algorithms::check_light_texture`]) when the scene has one.
+    pub rgb: Option<RgbBuffer>,
+    /// Host milliseconds of the run's GPU setup (wgpu only: a device acquired, modules and
+    /// pipelines created, [`crate::gpu::cache`]), not part of the run's time; 0 when the
+    /// device and every object were there from an earlier run.
+    pub gpu_setup_ms: Option<f64>,
 }

@@ -23,12 +23,11 @@ use std::collections::BTreeMap;
 
 pub use crate::backend::Backend;
 use crate::error::{unknown_name, Error, InputError, Result};
+pub use crate::frame::FrameOutput;
 use crate::frame::{Frame, RunParams};
 use crate::model::MachineConfig;
-use crate::record::{Counters, Phase};
 use crate::scene::LightKind;
 use crate::util::deadline::Deadline;
-use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 /// Shadowing an algorithm's method does not compute: its paper's design, not a fault. Declared
 /// per algorithm ([`AlgorithmInfo::limits`]), listed in every record
@@ -84,7 +83,7 @@ pub type CpuEntry<O> = fn(Backend, &Frame, &ExecContext, &O) -> Result<FrameOutp
 
 /// The `wgpu` entry of an algorithm whose options are `O`, run inside
 /// [`crate::gpu::guarded_frame`].
-pub type WgpuEntry<O> = fn(&crate::gpu::Gpu, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
+pub type WgpuEntry<O> = fn(&crate::gpu::Run, &Frame, &ExecContext, &O) -> Result<FrameOutput>;
 
 /// The estimated fill of a run of an algorithm whose options are `O` ([`work`]), made before
 /// anything runs.
@@ -454,25 +453,6 @@ impl Default for ExecContext {
             flip_pixels_per_degree: crate::metrics::perceptual::DEFAULT_PIXELS_PER_DEGREE,
         }
     }
-}
-
-/// What one algorithm produced for one frame.
-#[derive(Clone, Debug)]
-pub struct FrameOutput {
-    pub visibility: VisibilityBuffer,
-    pub counters: Counters,
-    pub phases: Vec<Phase>,
-    pub model_ms: Option<f64>,
-    pub gpu_ms: Option<f64>,
-    pub execution: BTreeMap<String, serde_json::Value>,
-    pub warnings: Vec<String>,
-    /// Light received per channel, from algorithms that honour a textured light
-    /// ([`check_light_texture`]) when the scene has one.
-    pub rgb: Option<RgbBuffer>,
-    /// Host milliseconds of the run's GPU setup (wgpu only: a device acquired, modules and
-    /// pipelines created, [`crate::gpu::cache`]), not part of the run's time; 0 when the
-    /// device and every object were there from an earlier run.
-    pub gpu_setup_ms: Option<f64>,
 }
 
 /// Runs algorithm `id` on `backend` for `frame`. The derived figures of the counters

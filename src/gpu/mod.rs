@@ -30,7 +30,7 @@ use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::util::DeviceExt;
 
 use crate::error::{Error, Result};
-use crate::frame::GBuffer;
+use crate::frame::{FrameOutput, GBuffer};
 use crate::util::deadline::Deadline;
 
 /// What [`Gpu::upload`] makes of empty data: bytes enough for one record of any kind the
@@ -188,14 +188,12 @@ pub struct Gpu {
     half_blend: OnceLock<[f32; 2]>,
 }
 
-/// Whether a wgpu run makes its instrumented replay (`--gpu-counters`, [`ExecContext`]
+/// Whether a wgpu run makes its instrumented replay (`--gpu-counters`, the run context's
 /// `gpu_counters`): on, the counters the execution derives from the replay (fill, overdraw,
 /// taps, ...) are recorded; off, the replay is skipped, those counters are absent (listed in
 /// `execution.gpu_counters_absent`, never recorded as zero) and `execution.gpu_counters` is
 /// `"off"`. Times, the image and the pipeline statistics of the timed passes are the same
 /// either way.
-///
-/// [`ExecContext`]: crate::algorithms::ExecContext
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum GpuCounters {
     #[default]
@@ -414,11 +412,10 @@ impl Gpu {
     }
 
     /// Encodes commands with `f`, submits them and waits for the GPU; returns the milliseconds
-    /// this took on the host. Past the deadline of the run ([`guarded_run`]) it unwinds
-    /// instead ([`Deadline::check`]). The time from submission to completion is kept for
-    /// [`timing`]'s check of the passes' GPU times.
-    pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
-        DEADLINE.get().check();
+    /// this took on the host, and of them the time from submission to completion (without the
+    /// host's encoding). A run submits through [`Run::submit`], which checks its deadline and
+    /// keeps the second figure for [`timing`]'s check of the passes' GPU times.
+    pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<(f64, f64)> {
         let start = std::time::Instant::now();
         let mut encoder = self
             .device
@@ -430,10 +427,8 @@ impl Gpu {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| Error::Gpu(format!("waiting for the GPU: {e}")))?;
-        // What the timestamps of this submission's passes are checked against: from submission
-        // to completion, without the host's encoding.
-        timing::submitted(submitted.elapsed().as_secs_f64() * 1e3);
-        Ok(start.elapsed().as_secs_f64() * 1e3)
+        let ms = |t: std::time::Instant| t.elapsed().as_secs_f64() * 1e3;
+        Ok((ms(start), ms(submitted)))
     }
 
     /// Why the device was lost, or `None` while it is usable.
@@ -463,19 +458,54 @@ impl Gpu {
 
 static PREFERENCE: OnceLock<String> = OnceLock::new();
 
-thread_local! {
-    /// The deadline of the wgpu run on this thread ([`guarded_run`]); wgpu runs submit from the
-    /// thread that started them.
-    static DEADLINE: std::cell::Cell<Deadline> = std::cell::Cell::new(Deadline::default());
-    /// Whether the wgpu run on this thread makes its instrumented replay ([`guarded_run`]).
-    static COUNTERS: std::cell::Cell<GpuCounters> = const { std::cell::Cell::new(GpuCounters::On) };
+/// One wgpu run on the shared device and its context: the deadline its submissions are
+/// checked against, whether it makes its instrumented replay ([`GpuCounters`]) and the host
+/// time of each of its submissions (for [`timing`]'s check of the passes' GPU times). Made by
+/// [`guarded_run`] and [`guarded_frame`] from the run's `ExecContext`; it derefs to the
+/// device, so a run makes buffers and pipelines through it as through the [`Gpu`].
+pub struct Run {
+    gpu: &'static Gpu,
+    deadline: Deadline,
+    counters: GpuCounters,
+    /// Milliseconds from submission to completion of each submission, by number.
+    host_ms: std::cell::RefCell<Vec<f64>>,
 }
 
-/// Whether the wgpu run on this thread makes its instrumented replay ([`pass::replay`] and
-/// [`pass::Timing::output`] ask).
-pub(crate) fn counters_mode() -> GpuCounters {
-    COUNTERS.get()
+impl std::ops::Deref for Run {
+    type Target = Gpu;
+
+    fn deref(&self) -> &Gpu {
+        self.gpu
+    }
 }
+
+impl Run {
+    /// Whether this run makes its instrumented replay.
+    pub fn counters(&self) -> GpuCounters {
+        self.counters
+    }
+
+    /// Encodes commands with `f`, submits them and waits for the GPU ([`Gpu::submit`]);
+    /// returns the milliseconds this took on the host. Past the run's deadline it unwinds
+    /// instead ([`Deadline::check`]).
+    pub fn submit(&self, f: impl FnOnce(&mut wgpu::CommandEncoder)) -> Result<f64> {
+        self.deadline.check();
+        let (wall, waited) = self.gpu.submit(f)?;
+        self.host_ms.borrow_mut().push(waited);
+        Ok(wall)
+    }
+
+    /// The number the run's next submission gets (the first is 0).
+    pub fn next_submission(&self) -> u64 {
+        self.host_ms.borrow().len() as u64
+    }
+
+    /// The milliseconds from submission to completion of the run's submission `n`, once made.
+    pub fn host_ms(&self, n: u64) -> Option<f64> {
+        self.host_ms.borrow().get(n as usize).copied()
+    }
+}
+
 /// The device in use: acquired on first use, replaced when it is lost. A lost device is leaked
 /// rather than dropped (it is rare, and runs may still hold references to it).
 static GPU: Mutex<Option<std::result::Result<&'static Gpu, String>>> = Mutex::new(None);
@@ -727,7 +757,7 @@ fn acquire() -> std::result::Result<Gpu, String> {
 /// Runs are serialised process-wide (one at a time on the shared device), so that the host
 /// time of each submission, which [`timing`] checks GPU times against, is the run's own and
 /// not time spent waiting behind another thread's work.
-pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result<T>) -> Result<T> {
+pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&Run) -> Result<T>) -> Result<T> {
     guarded(deadline, GpuCounters::On, f).map(|(out, _)| out)
 }
 
@@ -739,8 +769,8 @@ pub fn guarded_run<T>(deadline: Deadline, f: impl FnOnce(&'static Gpu) -> Result
 pub fn guarded_frame(
     deadline: Deadline,
     counters: GpuCounters,
-    f: impl FnOnce(&'static Gpu) -> Result<crate::algorithms::FrameOutput>,
-) -> Result<crate::algorithms::FrameOutput> {
+    f: impl FnOnce(&Run) -> Result<FrameOutput>,
+) -> Result<FrameOutput> {
     let (mut out, setup) = guarded(deadline, counters, f)?;
     out.gpu_setup_ms = Some(setup.ms());
     out.execution.insert("gpu_setup".into(), setup.to_json());
@@ -751,7 +781,7 @@ pub fn guarded_frame(
 fn guarded<T>(
     deadline: Deadline,
     counters: GpuCounters,
-    f: impl FnOnce(&'static Gpu) -> Result<T>,
+    f: impl FnOnce(&Run) -> Result<T>,
 ) -> Result<(T, cache::Setup)> {
     static ONE_RUN: Mutex<()> = Mutex::new(());
     let _running = ONE_RUN.lock().unwrap_or_else(|e| e.into_inner());
@@ -763,16 +793,18 @@ fn guarded<T>(
         0.0
     };
     gpu.cache.begin_run();
-    DEADLINE.set(deadline);
-    COUNTERS.set(counters);
+    let run = Run {
+        gpu,
+        deadline,
+        counters,
+        host_ms: Default::default(),
+    };
     let oom = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
     fault::inject(gpu);
     // wgpu's helpers panic on some calls to a lost device (e.g. initialised buffers); the
     // panic is caught here so that the error scopes are popped and the loss is reported.
-    let out = catch_unwind(AssertUnwindSafe(|| f(gpu)));
-    DEADLINE.set(Deadline::default());
-    COUNTERS.set(GpuCounters::On);
+    let out = catch_unwind(AssertUnwindSafe(|| f(&run)));
     let v = pollster::block_on(validation.pop());
     let o = pollster::block_on(oom.pop());
     // Polling delivers a pending device-lost notice before it is checked.

@@ -16,7 +16,6 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::record::{Counters, Phase};
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
@@ -25,8 +24,8 @@ use super::cache::Kind;
 use super::readback::{words, Staging};
 use super::stats::{read_or_warn, PassStats, COMPUTE_INVOCATIONS};
 use super::timing::{self, read_ms_or_warn, GpuTimes, PassTimer};
-use super::{counters_mode, gbuffer_positions, resolve_queries, Gpu, GpuCounters};
-use crate::frame::GBuffer;
+use super::{gbuffer_positions, resolve_queries, Gpu, GpuCounters, Run};
+use crate::frame::{FrameOutput, GBuffer};
 
 /// Declares a `#[repr(C)]` struct the GPU reads (a uniform or storage buffer) once, for both
 /// sides: the Rust struct (`Pod`, every field public) and, as `NAME::WGSL`, the WGSL `struct`
@@ -943,7 +942,7 @@ pub enum Statistics {
 /// The timed submissions of a run: `passes` GPU passes in all, each belonging to one of the
 /// run's phases, plus host work timed into phases.
 pub struct Timed<'g, 'b> {
-    gpu: &'g Gpu,
+    gpu: &'g Run,
     timer: Option<PassTimer>,
     stats: Option<PassStats>,
     statistics: Statistics,
@@ -958,7 +957,7 @@ impl<'g, 'b> Timed<'g, 'b> {
     /// A run of `passes` timed passes in the phases `names`; `readback` is copied to the host
     /// after the last pass (the visibility first).
     pub fn new(
-        gpu: &'g Gpu,
+        gpu: &'g Run,
         names: &[&str],
         passes: u32,
         statistics: Statistics,
@@ -988,6 +987,12 @@ impl<'g, 'b> Timed<'g, 'b> {
     pub fn submit(&mut self, phase: usize, passes: &[Pass]) -> Result<()> {
         let first = self.phase_of_pass.len() as u32;
         let last = first + passes.len() as u32 == self.passes;
+        if let Some(t) = &self.timer {
+            t.in_submission(
+                first..first + passes.len() as u32,
+                self.gpu.next_submission(),
+            );
+        }
         let wall = self.gpu.submit(|e| {
             for (k, p) in (first..).zip(passes) {
                 p.record(e, self.timer.as_ref(), self.stats.as_ref(), k);
@@ -1057,7 +1062,7 @@ impl<'g, 'b> Timed<'g, 'b> {
 
 /// What the timed submissions gave: buffers read back, times, statistics, warnings.
 pub struct Timing<'g> {
-    gpu: &'g Gpu,
+    gpu: &'g Run,
     names: Vec<String>,
     wall: Vec<f64>,
     phase_of_pass: Vec<usize>,
@@ -1087,7 +1092,7 @@ impl Timing<'_> {
         counters: Vec<Counters>,
         note: &str,
     ) -> FrameOutput {
-        let off = counters_mode() == GpuCounters::Off;
+        let off = self.gpu.counters() == GpuCounters::Off;
         let absent: std::collections::BTreeSet<String> = match off {
             true => counters.iter().flat_map(|c| c.0.keys().cloned()).collect(),
             false => Default::default(),
@@ -1197,8 +1202,8 @@ pub enum Step<'a> {
 /// With the run's counters off ([`GpuCounters::Off`]) nothing is submitted and every read
 /// comes back as zeros of its buffer's size: what the execution derives from them never reaches
 /// the record ([`Timing::output`] leaves the counters out).
-pub fn replay(gpu: &Gpu, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
-    if counters_mode() == GpuCounters::Off {
+pub fn replay(gpu: &Run, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
+    if gpu.counters() == GpuCounters::Off {
         return Ok(steps
             .iter()
             .filter_map(|s| match s {
@@ -1243,7 +1248,7 @@ pub fn replay(gpu: &Gpu, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
 /// The instrumented replay of `passes` counting into `counts`: cleared before, read after; its
 /// bytes.
 pub fn replay_counts<'a>(
-    gpu: &Gpu,
+    gpu: &Run,
     counts: &'a wgpu::Buffer,
     passes: impl IntoIterator<Item = Pass<'a>>,
 ) -> Result<Vec<u8>> {
@@ -1253,7 +1258,7 @@ pub fn replay_counts<'a>(
 /// The instrumented replay of `groups` of passes counting into `counts`, cleared before each
 /// group and read after it; each group's bytes.
 pub fn replay_each<'a>(
-    gpu: &Gpu,
+    gpu: &Run,
     counts: &'a wgpu::Buffer,
     groups: impl IntoIterator<Item = Vec<Pass<'a>>>,
 ) -> Result<Vec<Vec<u8>>> {
@@ -1269,7 +1274,7 @@ pub fn replay_each<'a>(
 /// The instrumented replay of `passes` counting into `slots`, a buffer of 64-bit statistics
 /// slots ((low, high) `u32` pairs): cleared before, read after.
 pub fn replay_slots<'a>(
-    gpu: &Gpu,
+    gpu: &Run,
     slots: &'a wgpu::Buffer,
     passes: impl IntoIterator<Item = Pass<'a>>,
 ) -> Result<Slots> {

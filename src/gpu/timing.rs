@@ -28,7 +28,6 @@
 //! never charted, claimed or compared. Every record says how its GPU time was obtained
 //! (`execution.gpu_time`, [`Placement::describe`]).
 
-use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
 use std::ops::{Deref, DerefMut};
 use std::sync::Mutex;
@@ -36,7 +35,7 @@ use std::sync::Mutex;
 use crate::error::Result;
 
 use super::readback::{resolve_buffer, words, Staging};
-use super::Gpu;
+use super::{Gpu, Run};
 
 /// A reading may exceed its submission's host time by this fraction (clock domains drift)...
 pub const ABOVE_SLACK: f64 = 0.02;
@@ -49,41 +48,6 @@ pub const BELOW_FRACTION: f64 = 0.02;
 /// build, a loaded machine) must not be flagged; the fault they catch reads 0.02–1 ms for
 /// passes of hundreds of milliseconds.
 pub const BELOW_MIN_GAP_MS: f64 = 50.0;
-
-thread_local! {
-    /// Submissions made by [`Gpu::submit`] on this thread so far.
-    static SUBMITTED: Cell<u64> = const { Cell::new(0) };
-    /// Host milliseconds of this thread's recent submissions, by submission number.
-    static HOST_MS: RefCell<BTreeMap<u64, f64>> = const { RefCell::new(BTreeMap::new()) };
-}
-
-/// How many submissions' host times are kept per thread (far more than any run makes).
-const KEPT: u64 = 1 << 16;
-
-/// The number the next submission on this thread gets.
-fn next_submission() -> u64 {
-    SUBMITTED.with(Cell::get)
-}
-
-/// Records the host time of the submission just made on this thread (by [`Gpu::submit`]).
-pub(super) fn submitted(host_ms: f64) {
-    let n = SUBMITTED.with(|c| {
-        let n = c.get();
-        c.set(n + 1);
-        n
-    });
-    HOST_MS.with(|m| {
-        let mut m = m.borrow_mut();
-        m.insert(n, host_ms);
-        if n >= KEPT {
-            m.remove(&(n - KEPT));
-        }
-    });
-}
-
-fn host_ms_of(submission: u64) -> Option<f64> {
-    HOST_MS.with(|m| m.borrow().get(&submission).copied())
-}
 
 /// Where a timer's timestamps are written.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -147,7 +111,7 @@ pub struct PassTimer {
     staging: Staging,
     passes: u32,
     placement: Placement,
-    /// The submission each pass was encoded in (see [`submitted`]), once it begins.
+    /// The run's submission each pass was encoded in ([`PassTimer::in_submission`]).
     submission: Mutex<Vec<Option<u64>>>,
 }
 
@@ -183,9 +147,13 @@ impl PassTimer {
         self.placement
     }
 
-    fn began(&self, i: u32) {
-        self.submission.lock().unwrap_or_else(|e| e.into_inner())[i as usize] =
-            Some(next_submission());
+    /// Notes that passes `passes` are encoded in the run's submission `submission`
+    /// ([`Run::next_submission`]), whose host time their readings are checked against.
+    pub fn in_submission(&self, passes: std::ops::Range<u32>, submission: u64) {
+        let mut s = self.submission.lock().unwrap_or_else(|e| e.into_inner());
+        for i in passes {
+            s[i as usize] = Some(submission);
+        }
     }
 
     /// The query set holding query `q` and its index there.
@@ -225,7 +193,7 @@ impl PassTimer {
 
     /// The milliseconds of each pass, checked against the host time of the submissions that
     /// held them (see the module docs).
-    pub fn read(&self, gpu: &Gpu) -> Result<GpuTimes> {
+    pub fn read(&self, gpu: &Run) -> Result<GpuTimes> {
         let ms = self.raw_ms(gpu)?;
         let submission = self
             .submission
@@ -239,7 +207,7 @@ impl PassTimer {
             }
         }
         let invalid = per_submission.iter().find_map(|(s, &reading)| {
-            let host = host_ms_of(*s)?;
+            let host = gpu.host_ms(*s)?;
             implausible(reading, host).map(|reason| Invalid {
                 reading_ms: reading,
                 host_ms: host,
@@ -340,7 +308,7 @@ impl GpuTimes {
 /// The times of `timer`'s passes, checked ([`PassTimer::read`]), or none without a timer (no
 /// TIMESTAMP_QUERY); the warning of an absent time goes to `warnings`.
 pub fn read_ms_or_warn(
-    gpu: &Gpu,
+    gpu: &Run,
     timer: &Option<PassTimer>,
     warnings: &mut Vec<String>,
 ) -> Result<GpuTimes> {
@@ -395,7 +363,6 @@ impl<'e, P: WriteTimestamp> TimedPass<'e, P> {
     /// Wraps a pass just begun: writes its start timestamps inside it, where they go there.
     fn begin(mut pass: P, timer: Option<(&'e PassTimer, u32)>) -> Self {
         if let Some((t, i)) = timer {
-            t.began(i);
             if t.placement == Placement::InsidePasses {
                 let (a, _) = t.ends(i);
                 let (set, a) = t.query(a);
@@ -505,16 +472,5 @@ mod tests {
         assert!(implausible(0.01, 2.0).is_none());
         assert!(implausible(0.75, 21.0).is_none());
         assert!(implausible(f64::NAN, 2.0).is_some());
-    }
-
-    #[test]
-    fn host_times_are_kept_per_submission_on_this_thread() {
-        let first = next_submission();
-        submitted(3.5);
-        submitted(7.0);
-        assert_eq!(next_submission(), first + 2);
-        assert_eq!(host_ms_of(first), Some(3.5));
-        assert_eq!(host_ms_of(first + 1), Some(7.0));
-        assert_eq!(host_ms_of(first + 2), None);
     }
 }

@@ -668,6 +668,7 @@ fn timestamps_around_a_compute_pass_after_a_render_pass_are_caught_on_lavapipe()
         for placement in [Placement::AroundPasses, Placement::InsidePasses] {
             for _ in 0..3 {
                 let timer = PassTimer::with_placement(gpu, 1, placement);
+                timer.in_submission(0..1, gpu.next_submission());
                 let host_ms = gpu.submit(|e| {
                     {
                         let mut pass = timing::compute_pass(e, "busy", Some((&timer, 0)));

@@ -37,7 +37,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Statistics, Timed, Timing};
-use crate::gpu::{record_execution, Gpu};
+use crate::gpu::{record_execution, Run};
 use crate::record::Counters;
 use crate::scene::camera::Camera;
 
@@ -45,7 +45,7 @@ use crate::scene::camera::Camera;
 /// the cpu-model's terms (see the module docs); `execution` records the samples, the counting
 /// and the pipeline (and the raster pipeline's count target).
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     ctx: &ExecContext,
     opts: &AccumHardOptions,
@@ -100,7 +100,7 @@ pub fn render(
 
 /// What a pipeline gave: its timing, what its hard passes measured over all samples and its
 /// own `hard` counters, how its counters were obtained.
-type Run<'g> = (Timing<'g>, Measured, Counters, &'static str);
+type Pipeline<'g> = (Timing<'g>, Measured, Counters, &'static str);
 
 /// The phases of both pipelines.
 const PHASES: [&str; 2] = ["hard", "accumulate"];
@@ -130,7 +130,7 @@ impl Sampled {
     /// accumulation pass; the average is resolved after the last. Phase `hard` holds the depth
     /// pre-pass, the host geometry and the count passes, `accumulate` the accumulation passes and
     /// the resolve.
-    fn raster<'g>(&self, gpu: &'g Gpu, camera: &Camera) -> Result<Run<'g>> {
+    fn raster<'g>(&self, gpu: &'g Run, camera: &Camera) -> Result<Pipeline<'g>> {
         let (samples, rays, counting) = (&self.samples, &self.rays, self.counting);
         let n = samples.count();
         let target = DepthTarget::for_accumulation(gpu);
@@ -178,7 +178,7 @@ impl Sampled {
     }
 
     /// The compute gather ([`crate::algorithms::shadow_volume::wgpu`]).
-    fn gather<'g>(&self, gpu: &'g Gpu) -> Result<Run<'g>> {
+    fn gather<'g>(&self, gpu: &'g Run) -> Result<Pipeline<'g>> {
         let (samples, rays, counting) = (&self.samples, &self.rays, self.counting);
         let n = samples.count();
         let res = FrameResources::new(gpu, rays, &[], false);

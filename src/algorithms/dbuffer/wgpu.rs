@@ -31,7 +31,7 @@ use crate::gpu::pass::{
     Pass, Program, Raster, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::first;
-use crate::gpu::{record_execution, Gpu, Needs};
+use crate::gpu::{record_execution, Needs, Run};
 use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
 use serde_json::json;
@@ -84,7 +84,7 @@ const SOURCES: [&str; 4] = [DbufferUniform::WGSL, Counts::WGSL, LIGHT_VIEW_WGSL,
 
 /// `dbuffer` on wgpu.
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     ctx: &ExecContext,
     o: &DbufferOptions,
@@ -116,7 +116,7 @@ pub fn render(
 }
 
 struct Passes<'g> {
-    gpu: &'g Gpu,
+    gpu: &'g Run,
     width: u32,
     height: u32,
     resolution: u32,
@@ -140,7 +140,7 @@ impl<'g> Passes<'g> {
     /// The passes from light view `view` of `disc`: the D-buffer of `occluders` (`|cx_o|`) and
     /// of the umbra and penumbra volumes, then the eye lookup.
     fn new(
-        gpu: &'g Gpu,
+        gpu: &'g Run,
         frame: &Frame,
         (view, disc): (&LightView, Disc),
         occluders: &crate::scene::Mesh,

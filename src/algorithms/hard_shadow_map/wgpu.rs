@@ -6,11 +6,11 @@ use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::Gpu;
+use crate::gpu::Run;
 
 /// `hard_shadow_map` on wgpu (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     _ctx: &ExecContext,
     o: &HardShadowOptions,

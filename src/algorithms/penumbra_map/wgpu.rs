@@ -32,7 +32,7 @@ use crate::gpu::pass::{
     Statistics, Timed, DEPTH_TEXEL_BYTES,
 };
 use crate::gpu::readback::first;
-use crate::gpu::Gpu;
+use crate::gpu::Run;
 use crate::record::Counters;
 use crate::scene::adjacency::EdgeAdjacency;
 
@@ -43,7 +43,7 @@ const VERTEX_BYTES: f64 = 16.0;
 
 /// `penumbra_map` on wgpu (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     _ctx: &ExecContext,
     o: &PenumbraMapOptions,
@@ -86,7 +86,7 @@ struct PenumbraPasses<'g> {
 
 impl<'g> PenumbraPasses<'g> {
     fn new(
-        gpu: &'g Gpu,
+        gpu: &'g Run,
         frame: &Frame,
         o: &PenumbraMapOptions,
         geometry: &ShadowGeometry,

@@ -27,7 +27,7 @@ use crate::frame::Frame;
 use crate::gpu::pass::{
     gpu_struct, replay, tiles, Bind, Layout, Pass, Program, Slots, Statistics, Step, Timed,
 };
-use crate::gpu::{record_execution, Gpu, Needs};
+use crate::gpu::{record_execution, Needs, Run};
 use crate::record::Counters;
 use crate::scene::Light;
 
@@ -103,7 +103,7 @@ const SOURCES: [&str; 6] = [
 
 /// `rt_denoised` on wgpu.
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     ctx: &ExecContext,
     o: &RtDenoisedOptions,

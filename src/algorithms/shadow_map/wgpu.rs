@@ -23,7 +23,7 @@ use crate::gpu::pass::{
     Pass, Program, Raster, Shared, Statistics, Timed, DEPTH_TEXEL_BYTES,
 };
 use crate::gpu::readback::first;
-use crate::gpu::{Gpu, Needs};
+use crate::gpu::{Needs, Run};
 use crate::record::Counters;
 
 /// The light-view helpers (`project`, `linear_depth`, `texel_world`, `bias_at`) of the eye
@@ -114,7 +114,7 @@ pub(crate) const PRELUDE: [&str; 3] = [LightUniform::WGSL, Counts::WGSL, PRELUDE
 /// Renders `frame` with the family's two passes and the algorithm's lookup, once per light view
 /// ([`ViewFit::CubeWhenWide`]: one frustum, or the faces of a cube map, each pixel from the
 /// face that shades it; phases `light_raster[+x]`, `eye_lookup[+x]`, ... per face).
-pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
+pub fn render(gpu: &Run, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> {
     check_limits(gpu, frame, lookup.id)?;
     let views = LightViews::fit(frame, ViewFit::CubeWhenWide);
     let mut merged: Option<FrameOutput> = None;
@@ -154,7 +154,7 @@ pub fn render(gpu: &Gpu, frame: &Frame, lookup: &Lookup) -> Result<FrameOutput> 
 
 /// Checks the frame against the adapter's limits for algorithm `id` before anything is
 /// allocated: the map's resolution and the gbuffer's bytes.
-pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame, id: &str) -> Result<()> {
+pub(crate) fn check_limits(gpu: &Run, frame: &Frame, id: &str) -> Result<()> {
     let gbuffer = frame.gbuffer.len() as u64 * GBUFFER_ENTRY_BYTES as u64;
     let needs = Needs {
         buffers: &[("gbuffer", gbuffer)],
@@ -165,7 +165,7 @@ pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame, id: &str) -> Result<()> {
 
 /// The resources and pipelines of one frame.
 pub(crate) struct Passes<'g> {
-    pub gpu: &'g Gpu,
+    pub gpu: &'g Run,
     pub width: u32,
     pub height: u32,
     pub resolution: u32,
@@ -189,7 +189,7 @@ impl<'g> Passes<'g> {
     /// `visibility_at`; `extra` is the layout of a group 2 that the lookup's WGSL declares
     /// (bound by [`Self::compute`]).
     pub fn new(
-        gpu: &'g Gpu,
+        gpu: &'g Run,
         frame: &Frame,
         lookup: &Lookup,
         face: &FaceView,

@@ -74,7 +74,7 @@ use crate::gpu::pass::{
     Stencil, Step,
 };
 use crate::gpu::readback::words;
-use crate::gpu::{additive_red, stencil_test, unwritten, Gpu};
+use crate::gpu::{additive_red, stencil_test, unwritten, Run};
 use crate::scene::Mesh;
 
 /// The WGSL of the passes.
@@ -216,7 +216,7 @@ pub enum DepthTarget {
 impl DepthTarget {
     /// The accumulation's target on `gpu`: the stencil where the adapter has the combined
     /// format, else the count target.
-    pub fn for_accumulation(gpu: &Gpu) -> DepthTarget {
+    pub fn for_accumulation(gpu: &Run) -> DepthTarget {
         match gpu.depth32_stencil8 {
             true => DepthTarget::StencilCount,
             false => DepthTarget::Depth,
@@ -244,7 +244,7 @@ impl DepthTarget {
 /// The textures, bind groups and pipelines of the raster hard pass over one frame, created once
 /// and reused for every light point.
 pub(crate) struct HardRaster<'g> {
-    gpu: &'g Gpu,
+    gpu: &'g Run,
     size: (u32, u32),
     /// 64-bit fill and passed counters of the instrumented replay.
     stats: wgpu::Buffer,
@@ -274,7 +274,7 @@ impl<'g> HardRaster<'g> {
     /// The passes over `rays` seen by `camera`, counting as `counting`, averaging `samples`
     /// light points, with the eye's depth in `target`.
     pub fn new(
-        gpu: &'g Gpu,
+        gpu: &'g Run,
         rays: &EyeRays,
         camera: &crate::scene::camera::Camera,
         counting: Counting,

@@ -20,7 +20,7 @@ use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{gpu_struct, replay_slots, tiles, Bind, Layout, Pass, Program};
-use crate::gpu::{Gpu, Needs, EMPTY_BYTES};
+use crate::gpu::{Needs, Run, EMPTY_BYTES};
 use crate::record::Counters;
 use crate::scene::Mesh;
 
@@ -123,7 +123,7 @@ impl Params {
 
 /// Checks the frame against the adapter's limits for the passes of algorithm `id`: the storage
 /// buffers bound and the eye rays' bytes.
-pub(crate) fn check_limits(gpu: &Gpu, frame: &Frame, id: &str) -> Result<()> {
+pub(crate) fn check_limits(gpu: &Run, frame: &Frame, id: &str) -> Result<()> {
     let needs = Needs {
         storage_buffers: STORAGE_BUFFERS,
         buffers: &[("eye_rays", RAY_BYTES * frame.gbuffer.len() as u64)],
@@ -175,7 +175,7 @@ pub(crate) fn ray_records(rays: &EyeRays) -> Vec<[f32; 12]> {
 impl FrameResources {
     /// The buffers of `rays`, with a coverage texture's `texels` (none: empty) and, when
     /// `textured`, an RGB buffer of three words a pixel.
-    pub fn new(gpu: &Gpu, rays: &EyeRays, texels: &[u8], textured: bool) -> FrameResources {
+    pub fn new(gpu: &Run, rays: &EyeRays, texels: &[u8], textured: bool) -> FrameResources {
         let storage = wgpu::BufferUsages::STORAGE;
         let records = ray_records(rays);
         // The texels four to a little-endian word, as the WGSL reads them.
@@ -337,7 +337,7 @@ pub(crate) struct HardUpload {
 /// (the family's WGSL, an algorithm's, the coverage rule) and the hard and accumulate
 /// pipelines.
 pub(crate) struct VolumePasses<'g> {
-    pub gpu: &'g Gpu,
+    pub gpu: &'g Run,
     pub counting: Counting,
     pub res: FrameResources,
     /// Group 0 of every pass, visible to compute and fragment shaders (the raster wedge pass
@@ -357,7 +357,7 @@ impl<'g> VolumePasses<'g> {
     /// The passes over `rays` with `res`, counting as `counting`; `wgsl` is joined after the
     /// family's WGSL (an algorithm's own entries).
     pub fn new(
-        gpu: &'g Gpu,
+        gpu: &'g Run,
         rays: &EyeRays,
         counting: Counting,
         res: FrameResources,

@@ -56,7 +56,7 @@ use crate::gpu::pass::{
     gpu_struct, replay_slots, workgroups, Bind, Layout, Pass, Program, Statistics, Timed, Work,
 };
 use crate::gpu::readback::words;
-use crate::gpu::{record_execution, Gpu, Needs};
+use crate::gpu::{record_execution, Needs, Run};
 use crate::record::Counters;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
@@ -138,7 +138,7 @@ const SOURCES: [&str; 3] = [Params::WGSL, WGSL, crate::scene::coverage::WGSL];
 
 /// `soft_izb` on the GPU (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     _ctx: &ExecContext,
     opts: &SoftIzbOptions,
@@ -204,7 +204,7 @@ pub fn render(
 
 /// The storage buffers, workgroups and largest buffers' bytes, checked against the adapter's
 /// limits before anything is created.
-fn check_limits(gpu: &Gpu, p: &Params, grid: &Grid) -> Result<()> {
+fn check_limits(gpu: &Run, p: &Params, grid: &Grid) -> Result<()> {
     let pixels = u64::from(p.pixels);
     let grid_words = u64::from(p.cells) + 1 + u64::from(p.scan_blocks);
     let buffers = [
@@ -225,7 +225,7 @@ fn check_limits(gpu: &Gpu, p: &Params, grid: &Grid) -> Result<()> {
 
 /// The resources and pipelines of one frame.
 struct Passes<'g> {
-    gpu: &'g Gpu,
+    gpu: &'g Run,
     params: Params,
     width: u32,
     height: u32,
@@ -241,7 +241,7 @@ struct Passes<'g> {
 }
 
 impl<'g> Passes<'g> {
-    fn new(gpu: &'g Gpu, frame: &Frame, occ: &Occluders, grid: &Grid, params: Params) -> Self {
+    fn new(gpu: &'g Run, frame: &Frame, occ: &Occluders, grid: &Grid, params: Params) -> Self {
         let g = &frame.gbuffer;
         let pixels = g.len() as u64;
         let storage = wgpu::BufferUsages::STORAGE;

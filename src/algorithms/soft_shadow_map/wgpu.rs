@@ -32,7 +32,7 @@ use crate::gpu::pass::{
     Program, Raster, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::{first, read_texels};
-use crate::gpu::{additive_red, record_execution, unwritten, Gpu, Needs};
+use crate::gpu::{additive_red, record_execution, unwritten, Needs, Run};
 use crate::model::raster::BLOCK;
 use crate::model::LANES;
 use crate::record::Counters;
@@ -93,7 +93,7 @@ fn window(f: &LightFrame) -> [f32; 4] {
 
 /// `soft_shadow_map` on wgpu (`ctx` unused: the passes need nothing of the run's context).
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     _ctx: &ExecContext,
     o: &SoftShadowMapOptions,
@@ -126,7 +126,7 @@ struct Depth {
 
 /// The resources and pipelines of one frame.
 struct Ssm<'g> {
-    gpu: &'g Gpu,
+    gpu: &'g Run,
     o: SoftShadowMapOptions,
     occ: LightFrame,
     ssm: LightFrame,
@@ -170,7 +170,7 @@ struct Pipelines {
 
 /// Square maps of `res`² texels, one per pass (the second labelled "back"), and their views.
 fn maps(
-    gpu: &Gpu,
+    gpu: &Run,
     label: &str,
     (passes, res): (u32, u32),
     format: wgpu::TextureFormat,
@@ -190,7 +190,7 @@ fn maps(
 }
 
 impl<'g> Ssm<'g> {
-    fn new(gpu: &'g Gpu, frame: &Frame, o: &SoftShadowMapOptions, split: &Split) -> Ssm<'g> {
+    fn new(gpu: &'g Run, frame: &Frame, o: &SoftShadowMapOptions, split: &Split) -> Ssm<'g> {
         let res = frame.params.map_resolution;
         let (width, height) = (frame.width(), frame.height());
         let (occ, ssm) = LightFrame::new(&frame.scene.light, frame.scene.bounds(), res)
@@ -426,7 +426,7 @@ impl<'g> Ssm<'g> {
 impl Pipelines {
     /// The pipelines from the shared, map-view, splat and project group layouts.
     fn new(
-        gpu: &Gpu,
+        gpu: &Run,
         o: &SoftShadowMapOptions,
         ssm_format: wgpu::TextureFormat,
         [shared, map, splat, project]: [&Layout; 4],

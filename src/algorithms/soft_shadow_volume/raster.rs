@@ -86,8 +86,7 @@ use crate::gpu::pass::{
 };
 use crate::gpu::readback::read_texels;
 use crate::gpu::{
-    additive, counters_mode, record_execution, stencil_test, unwritten, Gpu, GpuCounters,
-    EMPTY_BYTES,
+    additive, record_execution, stencil_test, unwritten, GpuCounters, Run, EMPTY_BYTES,
 };
 use crate::record::Counters;
 use crate::scene::{Bounds, Mesh};
@@ -266,7 +265,7 @@ struct WedgePass {
 
 impl WedgePass {
     fn new(
-        gpu: &Gpu,
+        gpu: &Run,
         frame: &Frame,
         rays: &EyeRays,
         opts: &SoftShadowVolumeOptions,
@@ -327,7 +326,7 @@ impl WedgePass {
                 true => culled(e, format),
             })
             .collect();
-        let measure = stencil && gpu.float32_blendable && counters_mode() == GpuCounters::On;
+        let measure = stencil && gpu.float32_blendable && gpu.counters() == GpuCounters::On;
         let culled_count = measure.then(|| {
             let f = wgpu::TextureFormat::R32Float;
             let target = gpu.texture("culled fragments", size, f, wgpu::TextureUsages::COPY_SRC);
@@ -405,7 +404,7 @@ impl WedgePass {
 
     /// The fragments of loop `lg` that pass the culled passes' stencil tests, counted
     /// by those passes; `None` without the stencil or the counters.
-    fn shaded(&self, gpu: &Gpu, lg: &LoopRaster, depth: &wgpu::TextureView) -> Result<Option<f64>> {
+    fn shaded(&self, gpu: &Run, lg: &LoopRaster, depth: &wgpu::TextureView) -> Result<Option<f64>> {
         let Some((target, view, pipelines)) = &self.culled_count else {
             return Ok(None);
         };
@@ -438,7 +437,7 @@ impl WedgePass {
 }
 
 /// Whether a run of `opts` on `gpu` culls the wedge halves by the stencil (IV §4.4).
-fn stencil_in(opts: &SoftShadowVolumeOptions, gpu: &Gpu) -> bool {
+fn stencil_in(opts: &SoftShadowVolumeOptions, gpu: &Run) -> bool {
     opts.wedge_culling && gpu.depth32_stencil8
 }
 
@@ -453,7 +452,7 @@ fn depth_target(stencil: bool) -> DepthTarget {
 /// The raster pipeline: the family's raster hard pass, the group layout and frame resources
 /// of the family's passes, the wedge pass, and the resolve reading the count and V-buffers.
 struct Rasterized<'g> {
-    gpu: &'g Gpu,
+    gpu: &'g Run,
     opts: SoftShadowVolumeOptions,
     occluders: Mesh,
     hard: HardRaster<'g>,
@@ -465,7 +464,7 @@ struct Rasterized<'g> {
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
 pub(super) fn run(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     rays: &EyeRays,
     opts: &SoftShadowVolumeOptions,

@@ -60,7 +60,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{Pass, Statistics, Timed};
-use crate::gpu::{record_execution, Gpu};
+use crate::gpu::{record_execution, Run};
 use crate::record::Counters;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::{Light, LightTexture};
@@ -71,7 +71,7 @@ pub(super) const WGSL: &str = include_str!("wgpu.wgsl");
 
 /// `soft_shadow_volume` on wgpu.
 pub fn render(
-    gpu: &Gpu,
+    gpu: &Run,
     frame: &Frame,
     ctx: &ExecContext,
     opts: &SoftShadowVolumeOptions,
@@ -300,7 +300,7 @@ pub(super) struct Replayed<'a> {
 /// work counts into phase `hard`.
 pub(super) fn run_loops<P: Pipeline>(
     p: &P,
-    gpu: &Gpu,
+    gpu: &Run,
     (rays, res, opts): (&EyeRays, &FrameResources, &SoftShadowVolumeOptions),
     runs: &[LoopRun],
     setup_ms: f64,
