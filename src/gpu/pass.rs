@@ -16,7 +16,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::record::{Counters, Phase};
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
@@ -939,14 +939,15 @@ pub enum Statistics {
     Compute,
 }
 
-/// The timed submissions of a run: `passes` GPU passes in all, each belonging to one of the
-/// run's phases, plus host work timed into phases.
+/// The timed submissions of a run, each pass belonging to one of the run's phases, plus host
+/// work timed into phases. The number of passes is what was submitted: each submission carries
+/// its own timestamp and statistics queries (resolved in it), and the readback is copied to the
+/// host in a submission of its own when the run finishes ([`Timed::finish`]).
 pub struct Timed<'g, 'b> {
     gpu: &'g Run,
-    timer: Option<PassTimer>,
-    stats: Option<PassStats>,
+    timers: Vec<PassTimer>,
+    stats: Vec<PassStats>,
     statistics: Statistics,
-    passes: u32,
     phase_of_pass: Vec<usize>,
     names: Vec<String>,
     wall: Vec<f64>,
@@ -954,23 +955,19 @@ pub struct Timed<'g, 'b> {
 }
 
 impl<'g, 'b> Timed<'g, 'b> {
-    /// A run of `passes` timed passes in the phases `names`; `readback` is copied to the host
-    /// after the last pass (the visibility first).
+    /// A run in the phases `names`; `readback` is copied to the host after its last pass (the
+    /// visibility first).
     pub fn new(
         gpu: &'g Run,
         names: &[&str],
-        passes: u32,
         statistics: Statistics,
         readback: &[&'b wgpu::Buffer],
     ) -> Timed<'g, 'b> {
         Timed {
             gpu,
-            timer: PassTimer::new(gpu, passes),
-            stats: (statistics != Statistics::Off)
-                .then(|| PassStats::new(gpu, passes))
-                .flatten(),
+            timers: Vec::new(),
+            stats: Vec::new(),
             statistics,
-            passes,
             phase_of_pass: Vec::new(),
             names: names.iter().map(|n| n.to_string()).collect(),
             wall: vec![0.0; names.len()],
@@ -982,28 +979,24 @@ impl<'g, 'b> Timed<'g, 'b> {
     }
 
     /// Submits `passes` of phase `phase` and waits for them; their wall time goes to the phase.
-    /// The submission holding the run's last pass also copies the readback buffers and
-    /// resolves the queries.
+    /// The submission resolves its own timestamp and statistics queries.
     pub fn submit(&mut self, phase: usize, passes: &[Pass]) -> Result<()> {
-        let first = self.phase_of_pass.len() as u32;
-        let last = first + passes.len() as u32 == self.passes;
-        if let Some(t) = &self.timer {
-            t.in_submission(
-                first..first + passes.len() as u32,
-                self.gpu.next_submission(),
-            );
+        let n = passes.len() as u32;
+        let timer = (n > 0).then(|| PassTimer::new(self.gpu, n)).flatten();
+        let stats = (n > 0 && self.statistics != Statistics::Off)
+            .then(|| PassStats::new(self.gpu, n))
+            .flatten();
+        if let Some(t) = &timer {
+            t.in_submission(0..n, self.gpu.next_submission());
         }
         let wall = self.gpu.submit(|e| {
-            for (k, p) in (first..).zip(passes) {
-                p.record(e, self.timer.as_ref(), self.stats.as_ref(), k);
+            for (k, p) in (0..).zip(passes) {
+                p.record(e, timer.as_ref(), stats.as_ref(), k);
             }
-            if last {
-                for (b, s) in &self.readback {
-                    s.copy(e, b);
-                }
-                resolve_queries(e, self.timer.as_ref(), self.stats.as_ref());
-            }
+            resolve_queries(e, timer.as_ref(), stats.as_ref());
         })?;
+        self.timers.extend(timer);
+        self.stats.extend(stats);
         self.wall[phase] += wall;
         self.phase_of_pass.extend(passes.iter().map(|_| phase));
         Ok(())
@@ -1029,10 +1022,25 @@ impl<'g, 'b> Timed<'g, 'b> {
         out
     }
 
-    /// Reads back the buffers, the pass times (checked, [`timing`]) and the statistics.
+    /// Copies the readback buffers to the host after the run's last pass and reads them, the
+    /// pass times (checked, [`timing`]) and the statistics.
+    ///
+    /// Errors: [`Error::Gpu`] when no pass was submitted (nothing wrote the readback buffers:
+    /// the image would be zeros), and the device's errors.
     pub fn finish(self) -> Result<Timing<'g>> {
         let gpu = self.gpu;
+        if self.phase_of_pass.is_empty() {
+            return Err(Error::Gpu(format!(
+                "the run of phases {:?} submitted no GPU pass: its readback is never written",
+                self.names
+            )));
+        }
         let start = Instant::now();
+        gpu.submit(|e| {
+            for (b, s) in &self.readback {
+                s.copy(e, b);
+            }
+        })?;
         let readback = self
             .readback
             .iter()
@@ -1040,7 +1048,7 @@ impl<'g, 'b> Timed<'g, 'b> {
             .collect::<Result<Vec<_>>>()?;
         let readback_ms = start.elapsed().as_secs_f64() * 1e3;
         let mut warnings = Vec::new();
-        let times = read_ms_or_warn(gpu, &self.timer, &mut warnings)?;
+        let times = read_ms_or_warn(gpu, &self.timers, &mut warnings)?;
         let stats = match self.statistics {
             Statistics::Off => None,
             _ => read_or_warn(gpu, &self.stats, &mut warnings)?,

@@ -109,19 +109,20 @@ impl PassStats {
     }
 }
 
-/// The counters per pass of `stats`, or `None` and a warning when the adapter has no
-/// PIPELINE_STATISTICS_QUERY (no query set was made).
+/// The counters per pass of `stats` (one per submission, in order), end to end, or `None` and
+/// a warning when the adapter has no PIPELINE_STATISTICS_QUERY (no query set was made).
 pub fn read_or_warn(
     gpu: &Gpu,
-    stats: &Option<PassStats>,
+    stats: &[PassStats],
     warnings: &mut Vec<String>,
 ) -> Result<Option<Vec<Counters>>> {
-    match stats {
-        Some(s) => s.read(gpu).map(Some),
-        None => {
-            warnings
-                .push("adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into());
-            Ok(None)
-        }
+    if stats.is_empty() {
+        warnings.push("adapter has no PIPELINE_STATISTICS_QUERY: no pipeline.* counters".into());
+        return Ok(None);
     }
+    let mut all = Vec::new();
+    for s in stats {
+        all.extend(s.read(gpu)?);
+    }
+    Ok(Some(all))
 }

@@ -305,17 +305,28 @@ impl GpuTimes {
     }
 }
 
-/// The times of `timer`'s passes, checked ([`PassTimer::read`]), or none without a timer (no
-/// TIMESTAMP_QUERY); the warning of an absent time goes to `warnings`.
+/// The times of the passes of `timers` (one per submission, in order), each checked
+/// ([`PassTimer::read`]), end to end; none without timers (no TIMESTAMP_QUERY). A run's time is
+/// invalid when any submission's is (the first such is kept). The warning of an absent time
+/// goes to `warnings`.
 pub fn read_ms_or_warn(
     gpu: &Run,
-    timer: &Option<PassTimer>,
+    timers: &[PassTimer],
     warnings: &mut Vec<String>,
 ) -> Result<GpuTimes> {
-    let t = match timer {
-        Some(t) => t.read(gpu)?,
-        None => GpuTimes::none(),
-    };
+    let mut t = GpuTimes::none();
+    let mut ms = Vec::new();
+    for timer in timers {
+        let r = timer.read(gpu)?;
+        t.placement = r.placement;
+        if t.invalid.is_none() {
+            t.invalid = r.invalid;
+        }
+        ms.extend(r.ms.into_iter().flatten());
+    }
+    if t.placement.is_some() && t.invalid.is_none() {
+        t.ms = Some(ms);
+    }
     warnings.extend(t.warning());
     Ok(t)
 }

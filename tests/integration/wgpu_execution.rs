@@ -826,3 +826,58 @@ fn rt_denoised_on_wgpu_traces_a_frame_in_chunks_as_the_cpu_model_does() {
         }
     }
 }
+
+/// A run whose readback no pass can have written (nothing was submitted) is an error naming its
+/// phases, not a zero image; with one pass submitted, the same run reads back what it wrote.
+#[test]
+fn a_run_without_a_pass_cannot_reach_its_readback() {
+    use shadowbench::gpu::pass::{Pass, Statistics, Timed};
+    if !have_gpu() {
+        return;
+    }
+    shadowbench::gpu::guarded_run(Default::default(), |gpu| {
+        let out = gpu.storage_buffer("out", 4 * 64, wgpu::BufferUsages::COPY_SRC);
+        let empty = Timed::new(gpu, &["lookup"], Statistics::Off, &[&out]);
+        let err = empty.finish().err().expect("a run without a pass is an error");
+        assert!(err.to_string().contains("submitted no GPU pass"), "{err}");
+        assert!(err.to_string().contains("lookup"), "{err}");
+
+        let module = gpu
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("fill"),
+                source: wgpu::ShaderSource::Wgsl(
+                    "@group(0) @binding(0) var<storage, read_write> out: array<u32>;
+                     @compute @workgroup_size(64) fn main(@builtin(global_invocation_id) i: vec3<u32>) {
+                         out[i.x] = i.x + 7u;
+                     }"
+                    .into(),
+                ),
+            });
+        let pipeline = gpu
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("fill"),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: out.as_entire_binding(),
+            }],
+        });
+        let mut run = Timed::new(gpu, &["lookup"], Statistics::Compute, &[&out]);
+        run.submit(0, &[Pass::compute("fill", &[Some(&group)], &pipeline, (1, 1))])?;
+        let timing = run.finish()?;
+        let words: Vec<u32> = bytemuck::pod_collect_to_vec(&timing.readback[0]);
+        assert_eq!(words, (7..71).collect::<Vec<u32>>());
+        Ok(())
+    })
+    .unwrap();
+}

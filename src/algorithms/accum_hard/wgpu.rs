@@ -136,7 +136,7 @@ impl Sampled {
         let target = DepthTarget::for_accumulation(gpu);
         let passes = HardRaster::new(gpu, rays, camera, counting, n, target);
         let readback = [&passes.visibility];
-        let mut run = Timed::new(gpu, &PHASES, 2 * n + 2, Statistics::All, &readback);
+        let mut run = Timed::new(gpu, &PHASES, Statistics::All, &readback);
         run.add_setup(0, self.start);
         let (vertices, ranges, m) = run.host(0, || {
             let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
@@ -185,7 +185,7 @@ impl Sampled {
         let occluders = samples.occluders.clone();
         let passes = VolumePasses::new(gpu, rays, counting, res, occluders, "");
         let visibility = &passes.res.visibility;
-        let mut run = Timed::new(gpu, &PHASES, 2 * n, Statistics::Compute, &[visibility]);
+        let mut run = Timed::new(gpu, &PHASES, Statistics::Compute, &[visibility]);
         run.add_setup(0, self.start);
         let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
         for s in 0..n {

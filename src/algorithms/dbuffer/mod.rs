@@ -43,6 +43,7 @@
 //! assumption 1.
 
 pub mod cpu;
+mod volumes;
 pub mod wgpu;
 
 use glam::Vec3;

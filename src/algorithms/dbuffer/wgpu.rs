@@ -18,7 +18,7 @@
 //! The instrumented replay ([`crate::gpu::pass`]) counts the volume fragments (`fill`) and the
 //! D-buffer texels they left covered (`fill − covered = overdraw`), as the shadow-map family.
 
-use super::cpu::{build_volumes, VolumeMesh};
+use super::volumes::{build_volumes, VolumeMesh};
 use super::{DbufferOptions, Disc, Falloff, ID};
 use crate::algorithms::exec::machine;
 use crate::algorithms::shadow_map::wgpu::LIGHT_VIEW_WGSL;
@@ -266,7 +266,7 @@ impl<'g> Passes<'g> {
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let image = (self.width, self.height);
         let names = ["dbuffer", "eye_lookup"];
-        let mut run = Timed::new(self.gpu, &names, 4, Statistics::All, &[&self.visibility]);
+        let mut run = Timed::new(self.gpu, &names, Statistics::All, &[&self.visibility]);
         run.submit(0, &self.dbuffer_passes(false))?;
         run.submit(1, &[self.compute(&self.lookup[0], image)])?;
         let timing = run.finish()?;

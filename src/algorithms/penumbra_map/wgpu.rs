@@ -157,7 +157,7 @@ impl<'g> PenumbraPasses<'g> {
         // The timed submission, one phase at a time (GPU passes 0, 1, 2: shadow map, penumbra
         // map, eye lookup).
         let names = ["shadow_map", "silhouettes", "penumbra_map", "eye_lookup"];
-        let mut run = Timed::new(p.gpu, &names, 3, Statistics::All, &[&p.eye.visibility]);
+        let mut run = Timed::new(p.gpu, &names, Statistics::All, &[&p.eye.visibility]);
         run.submit(0, &[p.raster_pass(false)])?;
         let s = run.host(1, || {
             silhouettes(&adj, &self.view, light, light_radius, o.max_sheet_strips)

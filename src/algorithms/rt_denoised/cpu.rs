@@ -18,8 +18,8 @@ use glam::{Vec2, Vec3};
 
 use super::bvh::{leaf_range, CasterBvh, NodePair, Tri, LEAF, STACK};
 use super::{
-    geometric_weight, light_point, light_radius, penumbra_radius_px, search_offsets, square_sample,
-    PixelInputs, RtDenoisedOptions, B3, MIN_REACH,
+    geometric_weight, light_point, light_radius, penumbra_radius_px, search_offsets, seed32,
+    square_sample, PixelInputs, RtDenoisedOptions, B3, MIN_REACH,
 };
 use crate::algorithms::exec::{eye_tiles, machine, output};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
@@ -729,11 +729,6 @@ impl BlockKernel for Atrous<'_> {
             out.push((idx[l], result[l]));
         }
     }
-}
-
-/// The run's seed as the 32-bit seed of the light points.
-pub fn seed32(seed: u64) -> u32 {
-    (seed ^ (seed >> 32)) as u32
 }
 
 /// `rt_denoised` on a CPU execution.

@@ -377,3 +377,8 @@ impl Algorithm for RtDenoised {
 /// fuses a multiply-add, may turn a ray that grazes an edge; a turned ray moves a 1-spp pixel
 /// by 1 before the filter.
 pub const WGPU_PARITY: WgpuParity = WgpuParity::SAME_FORMULAS;
+
+/// The run's seed as the 32-bit seed of the light points.
+pub fn seed32(seed: u64) -> u32 {
+    (seed ^ (seed >> 32)) as u32
+}

@@ -19,7 +19,7 @@ use std::time::Instant;
 use serde_json::json;
 
 use super::bvh::{CasterBvh, NodePair, Tri};
-use super::cpu::seed32;
+use super::seed32;
 use super::{buffer_bytes, light_radius, search_far, PixelInputs, RtDenoisedOptions, ID};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
@@ -269,8 +269,7 @@ pub fn render(
     } else {
         &["trace"]
     };
-    let total = (chunks.len() + denoise_passes(false).len()) as u32;
-    let mut run = Timed::new(gpu, names, total, Statistics::Compute, &[result]);
+    let mut run = Timed::new(gpu, names, Statistics::Compute, &[result]);
     run.add_setup(0, start);
     for chunk in 0..chunks.len() {
         run.submit(0, &[trace_pass(chunk, false)])?;

@@ -304,7 +304,7 @@ impl<'g> Passes<'g> {
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let (names, readback) = (["light_raster", "eye_lookup"], [&self.eye.visibility]);
-        let mut run = Timed::new(self.gpu, &names, 2, Statistics::All, &readback);
+        let mut run = Timed::new(self.gpu, &names, Statistics::All, &readback);
         run.submit(0, &[self.raster_pass(false)])?;
         run.submit(1, &[self.lookup_pass(false, None)])?;
         let timing = run.finish()?;

@@ -371,7 +371,7 @@ impl<'g> Passes<'g> {
     fn run(&self, frame: &Frame, geometry_ms: f64, geometry: Counters) -> Result<FrameOutput> {
         // The timed submission: each phase submitted and waited for on its own.
         let readback = [&self.visibility, &self.cell_start];
-        let mut run = Timed::new(self.gpu, &PHASES, 3, Statistics::Compute, &readback);
+        let mut run = Timed::new(self.gpu, &PHASES, Statistics::Compute, &readback);
         run.add_wall(0, geometry_ms);
         for i in 1..PHASES.len() {
             run.submit(i, &[self.pass(i, false)])?;

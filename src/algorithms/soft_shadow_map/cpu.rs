@@ -6,8 +6,8 @@
 use glam::{Mat4, Vec2, Vec3};
 
 use super::{
-    bias_at, occlusion, penumbra_extent, visibility, LightFrame, MicroPatch, SoftShadowMapOptions,
-    Split, MAX_HALF_ANGLE_DEG,
+    bias_at, classify, extent_quad, micro_patch, occlusion, record_receivers_outside, visibility,
+    LightFrame, MicroPatch, Sample, SoftShadowMapOptions, Split,
 };
 use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
 use crate::algorithms::{Backend, ExecContext, FrameOutput};
@@ -140,24 +140,6 @@ fn maps(m: &mut Machine, frame: &Frame, split: &Split, o: &SoftShadowMapOptions)
 struct Patches {
     patches: Vec<MicroPatch>,
     vertices: Vec<Vec3>,
-}
-
-/// The quad of a micro-patch's penumbra extent (§3.3) in the NDC of the SSM's frame `lf`, at the
-/// far plane.
-pub fn extent_quad(lf: &LightFrame, p: &MicroPatch) -> [Vec3; 4] {
-    let (lo, hi) = penumbra_extent(lf, p, lf.far);
-    let (a, b) = (lf.tan_to_ndc(lo), lf.tan_to_ndc(hi));
-    [
-        Vec3::new(a.x, a.y, 0.0),
-        Vec3::new(b.x, a.y, 0.0),
-        Vec3::new(b.x, b.y, 0.0),
-        Vec3::new(a.x, b.y, 0.0),
-    ]
-}
-
-/// The micro-patch of occluder texel (i, j) with NDC depth `d`, or `None` where the map is empty.
-pub fn micro_patch(lf: &LightFrame, i: u32, j: u32, d: f32) -> Option<MicroPatch> {
-    (d < 1.0).then(|| MicroPatch::of_texel(lf, i, j, lf.linear_depth(d)))
 }
 
 /// Step `extents`: every occluder texel becomes a micro-patch and its extent quad (§3.2, §3.3),
@@ -400,66 +382,6 @@ pub fn bilinear_taps(lf: &LightFrame, ssm: &Surface, s: Vec2) -> ([usize; 4], [f
             w.x * w.y,
         ],
     )
-}
-
-/// Where an eye sample stands with respect to the SSM.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Sample {
-    /// Background, an occluder-only surface facing the light, or outside the maps: lit.
-    Lit,
-    /// A surface facing away from the light centre: in shadow (the family's convention).
-    Averted,
-    /// A receiver inside the maps, at these continuous SSM texel coordinates.
-    Receiver(Vec2),
-}
-
-/// Classifies an eye sample at `pos` with normal `n` on an object that does (`receives`) or
-/// does not receive the soft shadow.
-pub fn classify(lf: &LightFrame, pos: Vec3, n: Vec3, receives: bool) -> Sample {
-    if n.dot((lf.center - pos).normalize_or_zero()) <= 0.0 {
-        return Sample::Averted;
-    }
-    if !receives {
-        return Sample::Lit;
-    }
-    let l = lf.to_light(pos);
-    if l.z <= lf.near * 0.5 {
-        return Sample::Lit;
-    }
-    let s = lf.tan_to_texel(Vec2::new(l.x, l.y) / l.z);
-    let n = lf.resolution as f32;
-    if s.x < 0.0 || s.y < 0.0 || s.x >= n || s.y >= n {
-        return Sample::Lit;
-    }
-    Sample::Receiver(s)
-}
-
-/// Receivers the eye sees that no map of the method can hold: behind the light's plane or
-/// beyond the scene's window ([`LightFrame::new`], clamped at [`MAX_HALF_ANGLE_DEG`]); the
-/// method takes them as lit. (Receivers outside the SSM focused on the occluders but inside the
-/// scene's window lie beyond every penumbra extent and are lit rightly.) Recorded as
-/// `light_view.receivers_outside`, with a warning when there are any.
-pub fn record_receivers_outside(frame: &Frame, split: &Split, out: &mut FrameOutput) {
-    let lf = LightFrame::new(
-        &frame.scene.light,
-        frame.scene.bounds(),
-        frame.params.map_resolution,
-    );
-    let g = &frame.gbuffer;
-    let outside = (0..g.len())
-        .filter(|&i| g.is_hit(i))
-        .filter(|&i| split.receives[frame.flat.object_of_triangle[g.triangle[i] as usize] as usize])
-        .filter(|&i| classify(&lf, g.position[i], g.normal[i], true) == Sample::Lit)
-        .count();
-    out.counters
-        .set("light_view.receivers_outside", outside as f64);
-    if outside > 0 {
-        out.warnings.push(format!(
-            "{outside} visible receiver pixels lie outside the soft shadow map's reach (behind \
-             the light's plane or beyond {MAX_HALF_ANGLE_DEG}° from its normal) and are taken \
-             as lit"
-        ));
-    }
 }
 
 /// Step `lookup` of phase `project`: each eye tile's samples look the SSM up.

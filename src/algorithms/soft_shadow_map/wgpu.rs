@@ -8,7 +8,7 @@
 //!    `FLOAT32_BLENDABLE`; without it the run fails with that reason) or R16Float for `fp16`.
 //!    With `occluder_map_transfer` (the paper's §4.1) the occluder maps are copied to the host,
 //!    which builds the patches and extents with the same Rust as the CPU executions
-//!    ([`cpu::micro_patch`], [`cpu::extent_quad`]) and uploads them as instances; `transfer.bytes`
+//!    ([`super::micro_patch`], [`super::extent_quad`]) and uploads them as instances; `transfer.bytes`
 //!    and the host's wall time (`transfer_ms` under `execution`) are recorded. Without it
 //!    (GPU-only, §4.3) the vertex shader reads the occluder map itself, one instance per texel.
 //! 3. `project` — a compute pass over the gbuffer looks the merged (max, §3.5) SSM up with
@@ -21,8 +21,9 @@ use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
-use super::cpu::{extent_quad, micro_patch};
-use super::{half_rounding, LightFrame, Precision, SoftShadowMapOptions, Split, ID};
+use super::{
+    extent_quad, half_rounding, micro_patch, LightFrame, Precision, SoftShadowMapOptions, Split, ID,
+};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
@@ -105,7 +106,7 @@ pub fn render(
     if let Some(w) = split.warning() {
         out.warnings.insert(0, w);
     }
-    super::cpu::record_receivers_outside(frame, &split, &mut out);
+    super::record_receivers_outside(frame, &split, &mut out);
     if o.precision == Precision::Fp16 {
         let rounding = half_rounding(gpu.half_blend_sums()?, o.fp16_rounding);
         record_execution(
@@ -366,9 +367,8 @@ impl<'g> Ssm<'g> {
     fn run(&self) -> Result<FrameOutput> {
         let host = self.o.occluder_map_transfer;
         let passes = self.o.passes as usize;
-        let n_passes = (2 * passes + 2) as u32;
         let (names, readback) = (["maps", "splat", "project"], [&self.visibility]);
-        let mut run = Timed::new(self.gpu, &names, n_passes, Statistics::Off, &readback);
+        let mut run = Timed::new(self.gpu, &names, Statistics::Off, &readback);
         // Passes in timer order: maps (occluders, back faces, receivers), splat, project.
         let mut maps: Vec<Pass> = (0..passes)
             .map(|k| self.depth_pass(&self.occluders, &self.occ_views[k], k == 1))

@@ -25,6 +25,7 @@
 
 pub mod cpu;
 pub mod raster;
+mod wedges;
 pub mod wgpu;
 
 use std::collections::HashMap;

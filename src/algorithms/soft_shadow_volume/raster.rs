@@ -530,11 +530,6 @@ impl Pipeline for Rasterized<'_> {
         with the stencil, shader invocations from the culled passes), in the cpu-model's terms; \
         mem_est.* estimated from counts and record sizes";
 
-    /// The depth pre-pass, then per loop the count pass, the wedge passes and the resolve.
-    fn timed_passes(&self, loops: u32) -> u32 {
-        1 + loops * (2 + self.wp.vbuffers.len() as u32)
-    }
-
     fn hard(&self, rays: &EyeRays, lr: &LoopRun, quads: &[ShadowQuad]) -> HardVertices {
         let (counting, centre) = (self.opts.counting, lr.light.center());
         let (tris, caps) = hard_triangles(rays, quads, counting, &self.occluders, centre);

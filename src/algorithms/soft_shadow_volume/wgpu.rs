@@ -11,7 +11,7 @@
 //!   shadow quads from the silhouette seen from the light centre, or the capped volumes' faces
 //!   for z-fail, binned on the host and counted per pixel).
 //! - `wedges` (III §3.1, IV §4.1): on the host, with the cpu executions' code
-//!   (`cpu::build_wedge`, `cpu::wedge_primitives`: wedge halves when culling),
+//!   (`wedges::build_wedge`, `wedges::wedge_primitives`: wedge halves when culling),
 //!   binned and uploaded; host wall time only. Binning drops a (primitive, tile) pair when one
 //!   of the primitive's planes has the eye outside and a cone around the tile's eye rays
 //!   leaving it (`tile_misses`, a rasterizer's coarse test): no pixel of the tile could pass
@@ -44,7 +44,7 @@ use std::time::Instant;
 use glam::Vec3;
 use serde_json::json;
 
-use super::cpu::{build_wedge, coverage_texture, wedge_primitives, wedge_reach, WedgePrimitive};
+use super::wedges::{build_wedge, coverage_texture, wedge_primitives, wedge_reach, WedgePrimitive};
 use super::{
     split_light, CoverageMethod, CoverageTexture, EmitterShape, GpuPipeline,
     SoftShadowVolumeOptions, SubLightLoops, VBufferPrecision, Wedge, ID,
@@ -261,8 +261,6 @@ pub(super) trait Pipeline {
     const STATISTICS: Statistics;
     /// How its counters were obtained (`execution.gpu_counters`).
     const NOTE: &'static str;
-    /// Its timed passes over `loops` loops.
-    fn timed_passes(&self, loops: u32) -> u32;
     /// The hard phase's host part for the loop `lr` of `quads`.
     fn hard(&self, rays: &EyeRays, lr: &LoopRun, quads: &[ShadowQuad]) -> Self::Hard;
     /// The hard phase's passes; `first` on the frame's first loop.
@@ -306,10 +304,8 @@ pub(super) fn run_loops<P: Pipeline>(
     setup_ms: f64,
 ) -> Result<FrameOutput> {
     let readback = &[&res.visibility, &res.rgb][..1 + usize::from(res.channels == 3)];
-    // Every sub-light has at least one loop: `runs` is never empty.
-    let passes = p.timed_passes(runs.len() as u32);
     let names = ["hard", "wedges", "soft"];
-    let mut run = Timed::new(gpu, &names, passes, P::STATISTICS, readback);
+    let mut run = Timed::new(gpu, &names, P::STATISTICS, readback);
     run.add_wall(0, setup_ms);
     let mut loops = Vec::with_capacity(runs.len());
     for (k, lr) in runs.iter().enumerate() {
@@ -377,10 +373,6 @@ impl Pipeline for Gather<'_> {
     const NOTE: &'static str = "fill, overdraw, shader invocations and culls from an \
         instrumented replay (WGSL atomics), in the cpu-model's terms; mem_est.* estimated from \
         counts and record sizes";
-
-    fn timed_passes(&self, loops: u32) -> u32 {
-        2 * loops
-    }
 
     fn hard(&self, rays: &EyeRays, lr: &LoopRun, quads: &[ShadowQuad]) -> HardUpload {
         self.v
