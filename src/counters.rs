@@ -15,6 +15,7 @@
 
 use std::borrow::Cow;
 
+use crate::backend::Backend;
 use crate::record::Counters;
 
 /// Which executions record a counter.
@@ -39,28 +40,32 @@ pub enum Recorded {
 }
 
 impl Recorded {
-    /// Whether a record of `backend` may carry the counter.
-    pub fn on(self, backend: &str) -> bool {
+    /// The executions whose records may carry the counter.
+    pub fn backends(self) -> &'static [Backend] {
+        use Backend::{CpuModel, CpuNative, Wgpu};
         match self {
-            Recorded::All => true,
-            Recorded::Cpu => backend != "wgpu",
-            Recorded::Model => backend == "cpu-model",
-            Recorded::Wgpu => backend == "wgpu",
-            Recorded::NativeAndWgpu => backend != "cpu-model",
-            Recorded::ModelAndWgpu => backend != "cpu-native",
-            Recorded::CpuAndBinningWgpu => true,
+            Recorded::All | Recorded::CpuAndBinningWgpu => &Backend::ALL,
+            Recorded::Cpu => &[CpuNative, CpuModel],
+            Recorded::Model => &[CpuModel],
+            Recorded::Wgpu => &[Wgpu],
+            Recorded::NativeAndWgpu => &[CpuNative, Wgpu],
+            Recorded::ModelAndWgpu => &[CpuModel, Wgpu],
         }
     }
 
-    fn label(self) -> &'static str {
+    /// The glossary's name of the executions: "all", "cpu" (both CPU executions), "cpu; wgpu
+    /// bins", else their names.
+    fn label(self) -> String {
         match self {
-            Recorded::All => "all",
-            Recorded::Cpu => "cpu",
-            Recorded::Model => "cpu-model",
-            Recorded::Wgpu => "wgpu",
-            Recorded::NativeAndWgpu => "cpu-native, wgpu",
-            Recorded::ModelAndWgpu => "cpu-model, wgpu",
-            Recorded::CpuAndBinningWgpu => "cpu; wgpu bins",
+            Recorded::All => "all".into(),
+            Recorded::Cpu => "cpu".into(),
+            Recorded::CpuAndBinningWgpu => "cpu; wgpu bins".into(),
+            _ => self
+                .backends()
+                .iter()
+                .map(|b| b.name())
+                .collect::<Vec<_>>()
+                .join(", "),
         }
     }
 }
@@ -1358,7 +1363,7 @@ pub fn derive(c: &mut Counters) {
 /// (modelled on cpu-model, estimated on cpu-native and wgpu), and the irregular z-buffer's
 /// sizes were `mem.izb_grid.bytes` and `mem.izb_samples.bytes`.
 pub fn current_name<'a>(backend: &str, name: &'a str) -> Cow<'a, str> {
-    let kind = if backend == "cpu-model" {
+    let kind = if backend == Backend::CpuModel.name() {
         "mem_model"
     } else {
         "mem_est"

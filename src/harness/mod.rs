@@ -614,7 +614,7 @@ fn nothing_selected(
         s.algorithms.join(", "),
         s.backends.join(", "),
     );
-    if s.backends.iter().any(|b| b == "wgpu")
+    if s.backends.iter().any(|b| b == Backend::Wgpu.name())
         && !usable.contains(&Backend::Wgpu)
         && opts
             .backends

@@ -30,6 +30,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::fmt_num;
 use super::style::{self, Dash, Marker};
+use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::record::{Phase, RunRecord};
 
@@ -123,7 +124,10 @@ impl Axis {
             Axis::OccluderOffset => p.occluder_offset.map(f64::from),
             // The modelled machine's core count: a cpu-native or wgpu run's time does not
             // depend on it, so those runs are not plotted against it.
-            Axis::Cores => p.cores.filter(|_| r.backend == "cpu-model").map(f64::from),
+            Axis::Cores => p
+                .cores
+                .filter(|_| r.backend == Backend::CpuModel.name())
+                .map(f64::from),
         }
     }
 }

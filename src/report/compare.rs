@@ -31,6 +31,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::fmt_num;
+use crate::backend::Backend;
 use crate::counters::{Direction, Kind};
 use crate::error::InputError;
 use crate::harness::output::ResultsFile;
@@ -111,9 +112,9 @@ impl Options {
 /// the glossary does not hold are kept, so the comparison can list them as not judged.
 pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
     let mut f = BTreeMap::new();
-    let model = match r.backend.as_str() {
-        "cpu-model" => true,
-        "cpu-native" => false,
+    let model = match Backend::parse(&r.backend) {
+        Ok(Backend::CpuModel) => true,
+        Ok(Backend::CpuNative) => false,
         _ => return f,
     };
     // Older results name memory traffic differently: compared under the current names.

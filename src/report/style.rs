@@ -134,11 +134,11 @@ pub enum Dash {
 /// The marker and line style of an execution: cpu-native ● solid, cpu-model ■ dashed,
 /// wgpu ▲ dotted, anything else ◆ solid.
 pub fn execution_style(backend: &str) -> (Marker, Dash) {
-    match backend {
-        "cpu-native" => (Marker::Circle, Dash::Solid),
-        "cpu-model" => (Marker::Square, Dash::Dashed),
-        "wgpu" => (Marker::Triangle, Dash::Dotted),
-        _ => (Marker::Diamond, Dash::Solid),
+    match crate::backend::Backend::parse(backend) {
+        Ok(crate::backend::Backend::CpuNative) => (Marker::Circle, Dash::Solid),
+        Ok(crate::backend::Backend::CpuModel) => (Marker::Square, Dash::Dashed),
+        Ok(crate::backend::Backend::Wgpu) => (Marker::Triangle, Dash::Dotted),
+        Err(_) => (Marker::Diamond, Dash::Solid),
     }
 }
 

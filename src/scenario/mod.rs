@@ -14,6 +14,7 @@ use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 use serde_with::skip_serializing_none;
 
+use crate::backend::Backend;
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::model::MachineConfig;
@@ -84,7 +85,7 @@ pub struct LightSpec {
 }
 
 fn default_backends() -> Vec<String> {
-    vec!["cpu-native".into(), "cpu-model".into(), "wgpu".into()]
+    Backend::ALL.iter().map(|b| b.name().into()).collect()
 }
 
 fn default_seed() -> u64 {
@@ -1008,7 +1009,7 @@ pub fn export_scenario(
         "camera": scene.camera,
         "light": LightSpec { light: scene.light, texture: None },
         "algorithms": ["reference"],
-        "backends": ["cpu-native"],
+        "backends": [Backend::CpuNative.name()],
     }))
 }
 
@@ -1075,7 +1076,7 @@ pub fn init_scenario(mesh: &Path, scenario: &Path) -> Result<serde_json::Value, 
             "ground": true
         },
         "algorithms": INIT_ALGORITHMS,
-        "backends": ["cpu-native", "cpu-model"],
+        "backends": [Backend::CpuNative.name(), Backend::CpuModel.name()],
         "params": { "image": [320, 240], "map_resolution": 512, "tile_size": 32 },
         "sweep": { "light_size": [round(size * 0.5), round(size), round(size * 2.0)] },
         "reference": { "samples": 256 },

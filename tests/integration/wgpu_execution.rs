@@ -775,7 +775,10 @@ fn check_names(record: &shadowbench::record::RunRecord) {
             let entry = shadowbench::counters::find(name)
                 .unwrap_or_else(|| panic!("{}: '{name}' not in the glossary", record.algorithm));
             assert!(
-                entry.recorded.on(&record.backend),
+                entry
+                    .recorded
+                    .backends()
+                    .contains(&shadowbench::backend::Backend::parse(&record.backend).unwrap()),
                 "{} {}: '{name}' documented for {:?}",
                 record.algorithm,
                 record.backend,
