@@ -121,8 +121,8 @@ fn corner(e: vec4<f32>, k: u32) -> vec4<f32> {
     return vec4<f32>(x, y, 0.0, 1.0);
 }
 
-// The transfer path (§4.1): patches and extents generated on the host (cpu::micro_patch,
-// cpu::extent_quad), one instance each.
+// The transfer path (§4.1): patches and extents generated on the host (super::micro_patch,
+// super::extent_quad), one instance each.
 @vertex
 fn vs_splat_host(
     @builtin(vertex_index) k: u32,
