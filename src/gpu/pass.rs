@@ -276,7 +276,7 @@ impl Mesh {
     /// One draw of the whole mesh with `pipeline` into `color` and `depth`.
     pub fn draw<'a>(
         &'a self,
-        pipeline: &'a wgpu::RenderPipeline,
+        pipeline: &'a Render,
         color: Option<&'a wgpu::TextureView>,
         depth: Option<&'a wgpu::TextureView>,
     ) -> Draw<'a> {
@@ -374,6 +374,61 @@ impl EyeBuffers {
 pub fn view(v: &wgpu::TextureView) -> wgpu::BindingResource<'_> {
     wgpu::BindingResource::TextureView(v)
 }
+
+/// A pass's pipeline as each run of the pass uses it: the timed run's and the instrumented
+/// replay's (the variant that counts with atomics, `INSTRUMENT` on, or another entry point). A
+/// pass runs in the timed submissions when its pipelines have a timed variant and in the replay
+/// when they have a counting one: stating a pipeline's variants once is all the replay needs
+/// ([`Timed::counting_into`]).
+#[derive(Clone)]
+pub struct Instrumented<P> {
+    /// The pipeline of the timed run; `None`: the pass only counts (replay only).
+    pub timed: Option<P>,
+    /// The pipeline of the instrumented replay; `None`: the pass counts nothing (timed only).
+    pub counting: Option<P>,
+}
+
+impl<P> Instrumented<P> {
+    /// A pipeline of the timed run only.
+    pub fn timed(p: P) -> Self {
+        Instrumented {
+            timed: Some(p),
+            counting: None,
+        }
+    }
+
+    /// A pipeline of the instrumented replay only.
+    pub fn counting(p: P) -> Self {
+        Instrumented {
+            timed: None,
+            counting: Some(p),
+        }
+    }
+
+    /// The variant of the timed run (`counting` false) or of the replay.
+    pub fn variant(&self, counting: bool) -> Option<&P> {
+        match counting {
+            false => self.timed.as_ref(),
+            true => self.counting.as_ref(),
+        }
+    }
+}
+
+impl<P: Clone> Instrumented<P> {
+    /// The same pipeline in both runs (a pass the replay needs, such as a depth pre-pass,
+    /// that counts nothing itself).
+    pub fn both(p: P) -> Self {
+        Instrumented {
+            timed: Some(p.clone()),
+            counting: Some(p),
+        }
+    }
+}
+
+/// A compute pipeline in each run of a pass.
+pub type Compute = Instrumented<wgpu::ComputePipeline>;
+/// A render pipeline in each run of a pass.
+pub type Render = Instrumented<wgpu::RenderPipeline>;
 
 /// A shader module and the pipeline layout its entry points share.
 pub struct Program {
@@ -521,20 +576,29 @@ impl Program {
         })
     }
 
-    /// The timed (`INSTRUMENT` off) and counting (on) pipelines of a compute `entry`.
-    pub fn compute_pair(&self, gpu: &Gpu, entry: &str) -> [wgpu::ComputePipeline; 2] {
-        [false, true].map(|on| self.compute(gpu, entry, Some(on)))
+    /// The compute pipeline of `entry` in both runs of a pass: `INSTRUMENT` off in the timed
+    /// run, on in the instrumented replay.
+    pub fn instrumented(&self, gpu: &Gpu, entry: &str) -> Compute {
+        Instrumented {
+            timed: Some(self.compute(gpu, entry, Some(false))),
+            counting: Some(self.compute(gpu, entry, Some(true))),
+        }
     }
 
-    /// The timed (`INSTRUMENT` off) and counting (on) pipelines of render pipeline `r`.
-    pub fn render_pair(&self, gpu: &Gpu, r: &Raster) -> [wgpu::RenderPipeline; 2] {
-        [false, true].map(|on| {
+    /// Render pipeline `r` in both runs of a pass: `INSTRUMENT` off in the timed run, on in the
+    /// instrumented replay.
+    pub fn render_instrumented(&self, gpu: &Gpu, r: &Raster) -> Render {
+        let with = |on| {
             let r = Raster {
                 instrument: Some(on),
                 ..r.clone()
             };
             self.render(gpu, &r)
-        })
+        };
+        Instrumented {
+            timed: Some(with(false)),
+            counting: Some(with(true)),
+        }
     }
 
     /// The render pipeline `r`; made once per device ([`super::cache`]).
@@ -601,7 +665,7 @@ impl Program {
 pub enum Work<'a> {
     /// Compute dispatches in order: a pipeline and its workgroup counts (x, y); one with no
     /// workgroups in x is skipped.
-    Dispatch(Vec<(&'a wgpu::ComputePipeline, (u32, u32))>),
+    Dispatch(Vec<(&'a Compute, (u32, u32))>),
     /// One draw into cleared targets.
     Draw(Draw<'a>),
     /// Draws onto kept targets.
@@ -636,7 +700,7 @@ pub struct Onto<'a> {
     /// The vertex buffer, if the pipelines read one.
     pub vertices: Option<&'a wgpu::Buffer>,
     /// The pipelines the draws use (at least one).
-    pub pipelines: &'a [wgpu::RenderPipeline],
+    pub pipelines: &'a [Render],
     /// Pipeline (index into `pipelines`), vertex range and stencil reference of each draw, in
     /// order.
     pub draws: Vec<(usize, std::ops::Range<u32>, u32)>,
@@ -646,7 +710,7 @@ impl<'a> Onto<'a> {
     /// The draws `draws` of `pipelines` onto `color`, cleared to `clear` or kept, with no depth
     /// target, stencil or vertex buffer (which a pass sets by struct update).
     pub fn new(
-        pipelines: &'a [wgpu::RenderPipeline],
+        pipelines: &'a [Render],
         draws: Vec<(usize, std::ops::Range<u32>, u32)>,
         color: &'a wgpu::TextureView,
         clear: Option<f64>,
@@ -667,7 +731,7 @@ impl<'a> Onto<'a> {
 /// target cleared to 0 and a depth target cleared to 1.
 #[derive(Clone)]
 pub struct Draw<'a> {
-    pub pipeline: &'a wgpu::RenderPipeline,
+    pub pipeline: &'a Render,
     pub color: Option<&'a wgpu::TextureView>,
     pub depth: Option<&'a wgpu::TextureView>,
     pub vertices: Option<&'a wgpu::Buffer>,
@@ -680,7 +744,7 @@ pub struct Draw<'a> {
 impl<'a> Draw<'a> {
     /// One instance of `count` vertices drawn with `pipeline`, with no target, vertex or index
     /// buffer (which a draw sets by struct update).
-    pub fn of(pipeline: &'a wgpu::RenderPipeline, count: u32) -> Draw<'a> {
+    pub fn of(pipeline: &'a Render, count: u32) -> Draw<'a> {
         Draw {
             pipeline,
             color: None,
@@ -734,7 +798,7 @@ impl<'a> Pass<'a> {
     pub fn compute(
         label: &'a str,
         groups: &Groups<'a>,
-        pipeline: &'a wgpu::ComputePipeline,
+        pipeline: &'a Compute,
         workgroups: (u32, u32),
     ) -> Pass<'a> {
         Pass::new(label, groups, Work::Dispatch(vec![(pipeline, workgroups)]))
@@ -798,16 +862,27 @@ impl<'a> Pass<'a> {
         }
     }
 
-    /// Records the pass, timed as `timer`'s pass `index` and with its statistics in `stats`
-    /// when given.
+    /// Whether the pass runs in the instrumented replay (`counting`) or in the timed run: its
+    /// pipelines have that variant ([`Instrumented`]; a compute pass: one of its dispatches).
+    pub fn runs_in(&self, counting: bool) -> bool {
+        match &self.work {
+            Work::Dispatch(d) => d.iter().any(|(p, _)| p.variant(counting).is_some()),
+            Work::Draw(d) => d.pipeline.variant(counting).is_some(),
+            Work::Onto(d) => d.pipelines.iter().all(|p| p.variant(counting).is_some()),
+        }
+    }
+
+    /// Records the pass with its pipelines' variant of the replay (`counting`) or of the timed
+    /// run ([`Self::runs_in`] must hold; a dispatch without the variant is left out), timed as
+    /// `timer`'s pass `index` and with its statistics in `stats` when given.
     pub(super) fn record(
         &self,
         e: &mut wgpu::CommandEncoder,
-        timer: Option<&PassTimer>,
-        stats: Option<&PassStats>,
-        index: u32,
+        (timer, stats, index): (Option<&PassTimer>, Option<&PassStats>, u32),
+        counting: bool,
     ) {
         let timed = timer.map(|t| (t, index));
+        let variant = |p: &'a Render| p.variant(counting).expect("the pass runs in this run");
         match &self.work {
             Work::Dispatch(dispatches) => {
                 let mut pass = timing::compute_pass(e, self.label, timed);
@@ -820,7 +895,7 @@ impl<'a> Pass<'a> {
                     }
                 }
                 for &(pipeline, (x, y)) in dispatches {
-                    if x > 0 {
+                    if let (true, Some(pipeline)) = (x > 0, pipeline.variant(counting)) {
                         pass.set_pipeline(pipeline);
                         pass.dispatch_workgroups(x, y, 1);
                     }
@@ -865,7 +940,14 @@ impl<'a> Pass<'a> {
                     None => pass.draw(0..d.count, 0..d.instances),
                 };
                 let mut pass = timing::render_pass(e, desc, timed);
-                self.draw_in(&mut pass, stats, index, d.pipeline, d.vertices, draw);
+                self.draw_in(
+                    &mut pass,
+                    stats,
+                    index,
+                    variant(d.pipeline),
+                    d.vertices,
+                    draw,
+                );
             }
             Work::Onto(d) => {
                 let colors = [Some(kept_color(d.color, d.clear))];
@@ -890,7 +972,7 @@ impl<'a> Pass<'a> {
                     let mut bound = 0;
                     for (pipeline, range, reference) in &d.draws {
                         if *pipeline != bound {
-                            pass.set_pipeline(&d.pipelines[*pipeline]);
+                            pass.set_pipeline(variant(&d.pipelines[*pipeline]));
                             bound = *pipeline;
                         }
                         if d.stencil != Stencil::Off {
@@ -899,7 +981,7 @@ impl<'a> Pass<'a> {
                         pass.draw(range.clone(), 0..1);
                     }
                 };
-                let first = &d.pipelines[0];
+                let first = variant(&d.pipelines[0]);
                 self.draw_in(&mut pass, stats, index, first, d.vertices, draw);
             }
         }
@@ -952,6 +1034,22 @@ pub struct Timed<'g, 'b> {
     names: Vec<String>,
     wall: Vec<f64>,
     readback: Vec<(&'b wgpu::Buffer, Staging)>,
+    /// The buffer the replay counts into and when it is read.
+    counts: Option<(&'b wgpu::Buffer, Readout)>,
+    /// Each submission's phase and its passes that run in the replay, in order.
+    replayed: Vec<(usize, Vec<Pass<'b>>)>,
+    /// The plan as run: each pass's phase, label and runs (`execution.passes`).
+    plan: Vec<String>,
+}
+
+/// When an instrumented replay derived from a run ([`Timed::counting_into`]) reads its counts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Readout {
+    /// Cleared before the first pass, read after the last: one reading.
+    End,
+    /// Cleared before each phase's passes and read after them: a reading per phase that has
+    /// passes in the replay, in phase order.
+    EachPhase,
 }
 
 impl<'g, 'b> Timed<'g, 'b> {
@@ -975,12 +1073,51 @@ impl<'g, 'b> Timed<'g, 'b> {
                 .iter()
                 .map(|b| (*b, Staging::new(gpu, "readback", b.size())))
                 .collect(),
+            counts: None,
+            replayed: Vec::new(),
+            plan: Vec::new(),
         }
+    }
+
+    /// The run with its instrumented replay: every submitted pass that runs in the replay
+    /// ([`Pass::runs_in`]), recorded again with its pipelines' counting variants after the timed
+    /// run, a submission for each of the run's, counting into `counts`, cleared and read as
+    /// `readout` says ([`Timing::counts`]).
+    pub fn counting_into(mut self, counts: &'b wgpu::Buffer, readout: Readout) -> Self {
+        self.counts = Some((counts, readout));
+        self
     }
 
     /// Submits `passes` of phase `phase` and waits for them; their wall time goes to the phase.
     /// The submission resolves its own timestamp and statistics queries.
-    pub fn submit(&mut self, phase: usize, passes: &[Pass]) -> Result<()> {
+    pub fn submit(&mut self, phase: usize, passes: &[Pass<'b>]) -> Result<()> {
+        if self.counts.is_some() {
+            let counted: Vec<Pass<'b>> =
+                passes.iter().filter(|p| p.runs_in(true)).cloned().collect();
+            if !counted.is_empty() {
+                self.replayed.push((phase, counted));
+            }
+        }
+        self.submit_timed(phase, passes)
+    }
+
+    /// Submits the passes of `passes` that run in the timed run, as [`Self::submit`] does, and
+    /// keeps none for a derived replay: for an execution whose replay is built by hand
+    /// ([`replay`]; `soft_shadow_volume`, which reads its counts per loop).
+    pub fn submit_timed(&mut self, phase: usize, passes: &[Pass]) -> Result<()> {
+        for p in passes {
+            let runs = match (p.runs_in(false), p.runs_in(true)) {
+                (true, true) => "timed, replayed",
+                (true, false) => "timed",
+                _ => "replayed",
+            };
+            let name = &self.names[phase];
+            self.plan.push(format!("{name}: {} ({runs})", p.label));
+        }
+        let passes: Vec<&Pass> = passes.iter().filter(|p| p.runs_in(false)).collect();
+        if passes.is_empty() {
+            return Ok(());
+        }
         let n = passes.len() as u32;
         let timer = (n > 0).then(|| PassTimer::new(self.gpu, n)).flatten();
         let stats = (n > 0 && self.statistics != Statistics::Off)
@@ -990,8 +1127,8 @@ impl<'g, 'b> Timed<'g, 'b> {
             t.in_submission(0..n, self.gpu.next_submission());
         }
         let wall = self.gpu.submit(|e| {
-            for (k, p) in (0..).zip(passes) {
-                p.record(e, timer.as_ref(), stats.as_ref(), k);
+            for (k, p) in (0..).zip(&passes) {
+                p.record(e, (timer.as_ref(), stats.as_ref(), k), false);
             }
             resolve_queries(e, timer.as_ref(), stats.as_ref());
         })?;
@@ -1053,7 +1190,13 @@ impl<'g, 'b> Timed<'g, 'b> {
             Statistics::Off => None,
             _ => read_or_warn(gpu, &self.stats, &mut warnings)?,
         };
+        let counts = match self.counts {
+            Some((buffer, readout)) => replay(gpu, &replay_steps(buffer, readout, self.replayed))?,
+            None => Vec::new(),
+        };
         Ok(Timing {
+            counts,
+            plan: self.plan,
             gpu,
             names: self.names,
             wall: self.wall,
@@ -1079,8 +1222,32 @@ pub struct Timing<'g> {
     stats: Option<Vec<Counters>>,
     /// The readback buffers' bytes, in the order given to [`Timed::new`].
     pub readback: Vec<Vec<u8>>,
+    /// The bytes of the counting buffer after the derived replay ([`Timed::counting_into`]):
+    /// one reading, or one per phase; zeros with the run's counters off, none without a replay.
+    pub counts: Vec<Vec<u8>>,
+    plan: Vec<String>,
     readback_ms: f64,
     pub warnings: Vec<String>,
+}
+
+/// The steps of the replay derived from a run's `replayed` submissions (phase, passes),
+/// counting into `counts` read as `readout` says.
+fn replay_steps<'b>(
+    counts: &'b wgpu::Buffer,
+    readout: Readout,
+    replayed: Vec<(usize, Vec<Pass<'b>>)>,
+) -> Vec<Step<'b>> {
+    let mut steps = vec![Step::Clear(counts)];
+    let mut phase = replayed.first().map(|r| r.0);
+    for (p, passes) in replayed {
+        if readout == Readout::EachPhase && phase != Some(p) {
+            steps.extend([Step::Read(counts), Step::Clear(counts)]);
+            phase = Some(p);
+        }
+        steps.push(Step::Submit(passes));
+    }
+    steps.push(Step::Read(counts));
+    steps
 }
 
 impl Timing<'_> {
@@ -1154,6 +1321,7 @@ impl Timing<'_> {
         let mut execution = self.gpu.execution();
         self.times.record(&mut execution);
         execution.insert("readback_ms".into(), serde_json::json!(self.readback_ms));
+        execution.insert("passes".into(), serde_json::json!(self.plan));
         if off {
             execution.insert("gpu_counters".into(), serde_json::json!("off"));
             execution.insert("gpu_counters_absent".into(), serde_json::json!(absent));
@@ -1193,90 +1361,60 @@ impl Timing<'_> {
 
 /// One step of an instrumented replay.
 pub enum Step<'a> {
-    /// Zero a counting buffer.
+    /// Zero a counting buffer (at the start of the next submission).
     Clear(&'a wgpu::Buffer),
-    /// Record a pass (untimed, with its counting pipelines).
-    Run(Pass<'a>),
+    /// Submit passes (untimed, with their counting variants; a pass without one is left out).
+    Submit(Vec<Pass<'a>>),
     /// Copy a buffer to the host (its bytes come back in step order).
     Read(&'a wgpu::Buffer),
 }
 
-/// Runs `steps` and returns the bytes of every [`Step::Read`] in order. The passes before a
-/// read are submitted first and the read's copy in a submission of its own: on lavapipe a copy
-/// recorded after a render pass in the same submission reads the buffer before that pass's
-/// fragment-shader atomics land (a following compute pass or submission sees them), which made
-/// an instrumented replay of draws whose fragment shader counts read back zero.
+/// Runs `steps` and returns the bytes of every [`Step::Read`] in order. Each read's copy is a
+/// submission of its own: on lavapipe a copy recorded after a render pass in the same
+/// submission reads the buffer before that pass's fragment-shader atomics land (a following
+/// compute pass or submission sees them), which made an instrumented replay of draws whose
+/// fragment shader counts read back zero.
 ///
 /// With the run's counters off ([`GpuCounters::Off`]) nothing is submitted and every read
 /// comes back as zeros of its buffer's size: what the execution derives from them never reaches
 /// the record ([`Timing::output`] leaves the counters out).
 pub fn replay(gpu: &Run, steps: &[Step]) -> Result<Vec<Vec<u8>>> {
+    let mut reads = Vec::new();
     if gpu.counters() == GpuCounters::Off {
-        return Ok(steps
-            .iter()
-            .filter_map(|s| match s {
-                Step::Read(b) => Some(vec![0; b.size() as usize]),
-                _ => None,
-            })
-            .collect());
-    }
-    let stagings: Vec<(usize, Staging)> = steps
-        .iter()
-        .enumerate()
-        .filter_map(|(i, s)| match s {
-            Step::Read(b) => Some((i, Staging::new(gpu, "counts readback", b.size()))),
-            _ => None,
-        })
-        .collect();
-    // Submissions alternate: passes (and clears), then the reads that follow them.
-    let mut start = 0;
-    while start < steps.len() {
-        let is_read = matches!(steps[start], Step::Read(_));
-        let end = steps[start..]
-            .iter()
-            .position(|s| matches!(s, Step::Read(_)) != is_read)
-            .map_or(steps.len(), |n| start + n);
-        gpu.submit(|e| {
-            for (i, s) in steps.iter().enumerate().take(end).skip(start) {
-                match s {
-                    Step::Clear(b) => e.clear_buffer(b, 0, None),
-                    Step::Run(p) => p.record(e, None, None, 0),
-                    Step::Read(b) => {
-                        let (_, staging) = stagings.iter().find(|(k, _)| *k == i).expect("staged");
-                        staging.copy(e, b);
-                    }
-                }
+        for s in steps {
+            if let Step::Read(b) = s {
+                reads.push(vec![0; b.size() as usize]);
             }
-        })?;
-        start = end;
+        }
+        return Ok(reads);
     }
-    stagings.iter().map(|(_, s)| s.read(gpu)).collect()
-}
-
-/// The instrumented replay of `passes` counting into `counts`: cleared before, read after; its
-/// bytes.
-pub fn replay_counts<'a>(
-    gpu: &Run,
-    counts: &'a wgpu::Buffer,
-    passes: impl IntoIterator<Item = Pass<'a>>,
-) -> Result<Vec<u8>> {
-    Ok(replay_each(gpu, counts, [passes.into_iter().collect()])?.swap_remove(0))
-}
-
-/// The instrumented replay of `groups` of passes counting into `counts`, cleared before each
-/// group and read after it; each group's bytes.
-pub fn replay_each<'a>(
-    gpu: &Run,
-    counts: &'a wgpu::Buffer,
-    groups: impl IntoIterator<Item = Vec<Pass<'a>>>,
-) -> Result<Vec<Vec<u8>>> {
-    let mut steps = Vec::new();
-    for passes in groups {
-        steps.push(Step::Clear(counts));
-        steps.extend(passes.into_iter().map(Step::Run));
-        steps.push(Step::Read(counts));
+    let mut clears: Vec<&wgpu::Buffer> = Vec::new();
+    for s in steps {
+        match s {
+            Step::Clear(b) => clears.push(b),
+            Step::Submit(passes) => {
+                gpu.submit(|e| {
+                    for b in clears.drain(..) {
+                        e.clear_buffer(b, 0, None);
+                    }
+                    for p in passes.iter().filter(|p| p.runs_in(true)) {
+                        p.record(e, (None, None, 0), true);
+                    }
+                })?;
+            }
+            Step::Read(b) => {
+                let staging = Staging::new(gpu, "counts readback", b.size());
+                gpu.submit(|e| {
+                    for b in clears.drain(..) {
+                        e.clear_buffer(b, 0, None);
+                    }
+                    staging.copy(e, b);
+                })?;
+                reads.push(staging.read(gpu)?);
+            }
+        }
     }
-    replay(gpu, &steps)
+    Ok(reads)
 }
 
 /// The instrumented replay of `passes` counting into `slots`, a buffer of 64-bit statistics
@@ -1284,9 +1422,10 @@ pub fn replay_each<'a>(
 pub fn replay_slots<'a>(
     gpu: &Run,
     slots: &'a wgpu::Buffer,
-    passes: impl IntoIterator<Item = Pass<'a>>,
+    passes: Vec<Pass<'a>>,
 ) -> Result<Slots> {
-    Ok(Slots::of(&replay_counts(gpu, slots, passes)?))
+    let steps = [Step::Clear(slots), Step::Submit(passes), Step::Read(slots)];
+    Ok(Slots::of(&replay(gpu, &steps)?[0]))
 }
 
 /// 64-bit statistics slots read back ((low, high) `u32` pairs).

@@ -53,7 +53,7 @@ impl Gpu {
             color: Some(additive_red(format)),
             ..Raster::default()
         };
-        let pipeline = program.render(self, &raster);
+        let pipeline = super::pass::Instrumented::timed(program.render(self, &raster));
         let target = self.texture(
             "half-float blend probe",
             (PROBES, 1),
@@ -70,7 +70,7 @@ impl Gpu {
         };
         let staging = Staging::new(self, "half-float blend probe", 256);
         self.submit(|e| {
-            pass.record(e, None, None, 0);
+            pass.record(e, (None, None, 0), false);
             staging.copy_texture(e, &target, 256);
         })?;
         let bytes = staging.read(self)?;

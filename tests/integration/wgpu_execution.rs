@@ -834,7 +834,7 @@ fn rt_denoised_on_wgpu_traces_a_frame_in_chunks_as_the_cpu_model_does() {
 /// phases, not a zero image; with one pass submitted, the same run reads back what it wrote.
 #[test]
 fn a_run_without_a_pass_cannot_reach_its_readback() {
-    use shadowbench::gpu::pass::{Pass, Statistics, Timed};
+    use shadowbench::gpu::pass::{Instrumented, Pass, Statistics, Timed};
     if !have_gpu() {
         return;
     }
@@ -876,6 +876,7 @@ fn a_run_without_a_pass_cannot_reach_its_readback() {
             }],
         });
         let mut run = Timed::new(gpu, &["lookup"], Statistics::Compute, &[&out]);
+        let pipeline = Instrumented::timed(pipeline);
         run.submit(0, &[Pass::compute("fill", &[Some(&group)], &pipeline, (1, 1))])?;
         let timing = run.finish()?;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&timing.readback[0]);
@@ -883,4 +884,74 @@ fn a_run_without_a_pass_cannot_reach_its_readback() {
         Ok(())
     })
     .unwrap();
+}
+
+/// The replay derived from a run ([`Timed::counting_into`]) records each pass with its
+/// pipelines' counting variants, leaves out the timed-only passes, runs the replay-only ones,
+/// clears the counts first (a timed pass spoiled them) and reads them once or per phase; the
+/// timed run runs the timed variants only. Each count is 64 invocations of one workgroup.
+#[test]
+fn a_derived_replay_runs_each_pass_as_its_pipelines_state() {
+    use shadowbench::gpu::pass::{Bind, Instrumented, Layout, Pass, Program, Readout};
+    use shadowbench::gpu::pass::{Statistics, Timed};
+    if !have_gpu() {
+        return;
+    }
+    const WGSL: &str = "
+        @group(0) @binding(0) var<storage, read_write> out: array<u32>;
+        @group(0) @binding(1) var<storage, read_write> counts: array<atomic<u32>, 2>;
+        @compute @workgroup_size(64) fn fill(@builtin(global_invocation_id) i: vec3<u32>) {
+            out[i.x] = i.x + 7u;
+        }
+        @compute @workgroup_size(64) fn count() { atomicAdd(&counts[0], 1u); }
+        @compute @workgroup_size(64) fn extra() { atomicAdd(&counts[1], 1u); }
+        @compute @workgroup_size(64) fn spoil() { atomicAdd(&counts[0], 1000u); }";
+    for (readout, want) in [
+        (Readout::End, vec![vec![64, 64]]),
+        (Readout::EachPhase, vec![vec![64, 0], vec![0, 64]]),
+    ] {
+        shadowbench::gpu::guarded_run(Default::default(), |gpu| {
+            let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+            let out = gpu.storage_buffer("out", 4 * 64, copy);
+            let counts = gpu.storage_buffer("counts", 8, copy);
+            let binds = [
+                (Bind::ReadWrite, out.as_entire_binding()),
+                (Bind::ReadWrite, counts.as_entire_binding()),
+            ];
+            let (layout, group) =
+                Layout::bound(gpu, "test", wgpu::ShaderStages::COMPUTE, &binds);
+            let program = Program::new(gpu, "test", &[WGSL], &[Some(&layout)]);
+            let entry = |e| program.compute(gpu, e, None);
+            let fill = Instrumented {
+                timed: Some(entry("fill")),
+                counting: Some(entry("count")),
+            };
+            let extra = Instrumented::counting(entry("extra"));
+            let spoil = Instrumented::timed(entry("spoil"));
+            let pass = |label, p| Pass::compute(label, &[Some(&group)], p, (1, 1));
+            let mut run = Timed::new(gpu, &["a", "b"], Statistics::Off, &[&out, &counts])
+                .counting_into(&counts, readout);
+            run.submit(0, &[pass("fill", &fill), pass("spoil", &spoil)])?;
+            run.submit(1, &[pass("extra", &extra)])?;
+            let timing = run.finish()?;
+            let words: Vec<u32> = bytemuck::pod_collect_to_vec(&timing.readback[0]);
+            assert_eq!(words, (7..71).collect::<Vec<u32>>());
+            // The timed run: `spoil` only (no `count`, no `extra`).
+            let timed: Vec<u32> = bytemuck::pod_collect_to_vec(&timing.readback[1]);
+            assert_eq!(timed, [64_000, 0]);
+            let read: Vec<Vec<u32>> = (timing.counts.iter())
+                .map(|b| bytemuck::pod_collect_to_vec(b))
+                .collect();
+            assert_eq!(read, want, "{readout:?}");
+            let out = timing.output((8, 8), vec![Default::default(); 2], "test");
+            let plan = &out.execution["passes"];
+            let plan: Vec<&str> = plan.as_array().unwrap().iter().flat_map(|p| p.as_str()).collect();
+            assert_eq!(
+                plan,
+                ["a: fill (timed, replayed)", "a: spoil (timed)", "b: extra (replayed)"]
+            );
+            Ok(())
+        })
+        .unwrap();
+    }
 }

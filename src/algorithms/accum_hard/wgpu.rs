@@ -36,7 +36,8 @@ use crate::algorithms::shadow_volume::Counting;
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{Statistics, Timed, Timing};
+use crate::gpu::pass::{slot64, Readout, Slots, Statistics, Timed, Timing};
+use crate::gpu::readback::words;
 use crate::gpu::{record_execution, Run};
 use crate::record::Counters;
 use crate::scene::camera::Camera;
@@ -136,7 +137,9 @@ impl Sampled {
         let target = DepthTarget::for_accumulation(gpu);
         let passes = HardRaster::new(gpu, rays, camera, counting, n, target);
         let readback = [&passes.visibility];
-        let mut run = Timed::new(gpu, &PHASES, Statistics::All, &readback);
+        // The instrumented replay: the depth pre-pass and every sample's count pass.
+        let mut run = Timed::new(gpu, &PHASES, Statistics::All, &readback)
+            .counting_into(&passes.stats, Readout::End);
         run.add_setup(0, self.start);
         let (vertices, ranges, m) = run.host(0, || {
             let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
@@ -156,8 +159,7 @@ impl Sampled {
         });
         run.submit(0, &[passes.depth_pass()])?;
         for (s, (range, eye)) in ranges.iter().enumerate() {
-            let count = passes.count_pass(&vertices, range.clone(), *eye, false);
-            run.submit(0, &[count])?;
+            run.submit(0, &passes.count_passes(&vertices, range.clone(), *eye))?;
             let mut acc = vec![passes.accumulate_pass(s == 0)];
             if s + 1 == ranges.len() {
                 acc.push(passes.resolve_pass());
@@ -165,7 +167,8 @@ impl Sampled {
             run.submit(1, &acc)?;
         }
         let timing = run.finish()?;
-        let (fill, passed) = passes.replay(&vertices, &ranges)?;
+        let stats: Vec<u32> = words(&timing.counts[0]);
+        let (fill, passed) = (slot64(&stats, 0), slot64(&stats, 1));
         let note = "fill and overdraw from an instrumented replay of every sample's count pass \
                 (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
                 cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";
@@ -185,7 +188,9 @@ impl Sampled {
         let occluders = samples.occluders.clone();
         let passes = VolumePasses::new(gpu, rays, counting, res, occluders, "");
         let visibility = &passes.res.visibility;
-        let mut run = Timed::new(gpu, &PHASES, Statistics::Compute, &[visibility]);
+        // The instrumented replay: every sample's hard pass.
+        let mut run = Timed::new(gpu, &PHASES, Statistics::Compute, &[visibility])
+            .counting_into(&passes.res.stats, Readout::End);
         run.add_setup(0, self.start);
         let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
         for s in 0..n {
@@ -201,12 +206,15 @@ impl Sampled {
                 };
                 passes.upload_quads(rays, &params, sample, &quads)
             });
-            run.submit(0, &[passes.hard(&up, false)])?;
-            run.submit(1, &[passes.accumulate(&up)])?;
             uploads.push(up);
         }
+        for up in &uploads {
+            run.submit(0, &[passes.hard(up)])?;
+            run.submit(1, &[passes.accumulate(up)])?;
+        }
         let timing = run.finish()?;
-        let stat = passes.replay(uploads.iter().map(|up| passes.hard(up, true)).collect())?;
+        let slots = Slots::of(&timing.counts[0]);
+        let stat = |s: Stat| slots.get(s as usize);
         let m = Measured {
             caps: uploads.iter().map(|u| u.caps).sum(),
             fill: stat(Stat::HardFill),

@@ -27,8 +27,8 @@ use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers, Layout, Mesh,
-    Pass, Program, Raster, Shared, Statistics, Timed,
+    gpu_struct, tiles, view as view_resource, Bind::*, Compute, EyeBuffers, Instrumented, Layout,
+    Mesh, Pass, Program, Raster, Readout, Render, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::first;
 use crate::gpu::{record_execution, Needs, Run};
@@ -129,11 +129,11 @@ struct Passes<'g> {
     shared: Shared,
     scene_group: wgpu::BindGroup,
     lookup_group: wgpu::BindGroup,
-    /// The D-buffer's scene, umbra and penumbra draws and the lookup, each timed (`[0]`) and
-    /// counting (`[1]`), and the replay's `count_covered`.
-    draws: [[wgpu::RenderPipeline; 2]; 3],
-    lookup: [wgpu::ComputePipeline; 2],
-    count_covered: wgpu::ComputePipeline,
+    /// The D-buffer's scene, umbra and penumbra draws (counting in the replay), the lookup
+    /// (timed only) and the replay's `count_covered`.
+    draws: [Render; 3],
+    lookup: Compute,
+    count_covered: Compute,
 }
 
 impl<'g> Passes<'g> {
@@ -219,12 +219,16 @@ impl<'g> Passes<'g> {
         };
         Passes {
             draws: [
-                scene_program.render_pair(gpu, &scene),
-                volume_program.render_pair(gpu, &volume_raster("fs_umbra")),
-                volume_program.render_pair(gpu, &volume_raster("fs_penumbra")),
+                scene_program.render_instrumented(gpu, &scene),
+                volume_program.render_instrumented(gpu, &volume_raster("fs_umbra")),
+                volume_program.render_instrumented(gpu, &volume_raster("fs_penumbra")),
             ],
-            lookup: compute_program.compute_pair(gpu, "eye_lookup"),
-            count_covered: compute_program.compute(gpu, "count_covered", Some(true)),
+            lookup: Instrumented::timed(compute_program.compute(gpu, "eye_lookup", Some(false))),
+            count_covered: Instrumented::counting(compute_program.compute(
+                gpu,
+                "count_covered",
+                Some(true),
+            )),
             gpu,
             width,
             height,
@@ -241,7 +245,7 @@ impl<'g> Passes<'g> {
 
     /// The three render passes of the D-buffer: the scene's depth, then each volume into its
     /// depth and edge targets.
-    fn dbuffer_passes(&self, counting: bool) -> Vec<Pass<'_>> {
+    fn dbuffer_passes(&self) -> Vec<Pass<'_>> {
         (0..3)
             .map(|i| {
                 let volume = i > 0;
@@ -250,15 +254,14 @@ impl<'g> Passes<'g> {
                     volume.then_some(&self.scene_group),
                 ];
                 let color = volume.then(|| &self.edge[i - 1]);
-                let pipeline = &self.draws[i][usize::from(counting)];
-                let draw = self.meshes[i].draw(pipeline, color, Some(&self.depth[i]));
+                let draw = self.meshes[i].draw(&self.draws[i], color, Some(&self.depth[i]));
                 Pass::draw("dbuffer", &groups, draw)
             })
             .collect()
     }
 
     /// A compute pass over `size` with the lookup's groups.
-    fn compute<'a>(&'a self, pipeline: &'a wgpu::ComputePipeline, size: (u32, u32)) -> Pass<'a> {
+    fn compute<'a>(&'a self, pipeline: &'a Compute, size: (u32, u32)) -> Pass<'a> {
         let groups = [Some(&self.shared.group), Some(&self.lookup_group)];
         Pass::compute("eye_lookup", &groups, pipeline, tiles(size, WORKGROUP))
     }
@@ -266,16 +269,17 @@ impl<'g> Passes<'g> {
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let image = (self.width, self.height);
         let names = ["dbuffer", "eye_lookup"];
-        let mut run = Timed::new(self.gpu, &names, Statistics::All, &[&self.visibility]);
-        run.submit(0, &self.dbuffer_passes(false))?;
-        run.submit(1, &[self.compute(&self.lookup[0], image)])?;
-        let timing = run.finish()?;
-
-        // The instrumented submission: same passes, counting with atomics.
-        let mut passes = self.dbuffer_passes(true);
+        // The instrumented replay: the D-buffer's passes counting with atomics, then the
+        // covered texels.
+        let mut run = Timed::new(self.gpu, &names, Statistics::All, &[&self.visibility])
+            .counting_into(&self.shared.counts, Readout::End);
+        let mut passes = self.dbuffer_passes();
         let res = (self.resolution, self.resolution);
         passes.push(self.compute(&self.count_covered, res));
-        let c: Counts = first(&replay_counts(self.gpu, &self.shared.counts, passes)?);
+        run.submit(0, &passes)?;
+        run.submit(1, &[self.compute(&self.lookup, image)])?;
+        let timing = run.finish()?;
+        let c: Counts = first(&timing.counts[0]);
 
         let mut dbuffer = Counters::default();
         let fill = f64::from(c.umbra_fragments) + f64::from(c.penumbra_fragments);

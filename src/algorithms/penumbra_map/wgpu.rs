@@ -28,7 +28,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay_each, view as view_resource, Bind, Layout, Mesh, Pass, Program, Raster,
+    gpu_struct, view as view_resource, Bind, Layout, Mesh, Pass, Program, Raster, Readout, Render,
     Statistics, Timed, DEPTH_TEXEL_BYTES,
 };
 use crate::gpu::readback::first;
@@ -81,7 +81,7 @@ struct PenumbraPasses<'g> {
     penumbra_group: wgpu::BindGroup,
     lookup_group: wgpu::BindGroup,
     /// The penumbra pass's pipelines: timed, counting.
-    pipelines: [wgpu::RenderPipeline; 2],
+    pipeline: Render,
 }
 
 impl<'g> PenumbraPasses<'g> {
@@ -119,7 +119,7 @@ impl<'g> PenumbraPasses<'g> {
         // Cones and sheets are seen from both sides.
         let raster = Raster::of_vertices("vs_penumbra", "fs_penumbra", &Mesh::POSITION_W);
         PenumbraPasses {
-            pipelines: program.render_pair(gpu, &raster),
+            pipeline: program.render_instrumented(gpu, &raster),
             passes,
             view,
             penumbra_view,
@@ -135,10 +135,9 @@ impl<'g> PenumbraPasses<'g> {
     }
 
     /// The penumbra pass: cleared to white (1.0), then every cone and sheet.
-    fn penumbra_pass<'a>(&'a self, cones: &'a Mesh, counting: bool) -> Pass<'a> {
-        let pipeline = &self.pipelines[usize::from(counting)];
+    fn penumbra_pass<'a>(&'a self, cones: &'a Mesh) -> Pass<'a> {
         let groups = [Some(&self.passes.shared.group), Some(&self.penumbra_group)];
-        let draw = cones.draw(pipeline, None, Some(&self.penumbra_view));
+        let draw = cones.draw(&self.pipeline, None, Some(&self.penumbra_view));
         Pass::draw("penumbra_map", &groups, draw)
     }
 
@@ -157,8 +156,11 @@ impl<'g> PenumbraPasses<'g> {
         // The timed submission, one phase at a time (GPU passes 0, 1, 2: shadow map, penumbra
         // map, eye lookup).
         let names = ["shadow_map", "silhouettes", "penumbra_map", "eye_lookup"];
-        let mut run = Timed::new(p.gpu, &names, Statistics::All, &[&p.eye.visibility]);
-        run.submit(0, &[p.raster_pass(false)])?;
+        // The instrumented replay: the counters are cleared before each phase's passes and
+        // copied after (`count_covered` with the lookup's pipeline layout, group 2 included).
+        let mut run = Timed::new(p.gpu, &names, Statistics::All, &[&p.eye.visibility])
+            .counting_into(&p.shared.counts, Readout::EachPhase);
+        run.submit(0, &[p.raster_pass(), p.covered_pass(extra)])?;
         let s = run.host(1, || {
             silhouettes(&adj, &self.view, light, light_radius, o.max_sheet_strips)
         });
@@ -167,20 +169,10 @@ impl<'g> PenumbraPasses<'g> {
             let g = PenumbraGeometry::build(&s, &self.view, light_radius, o.cone_segments);
             self.upload(&g)
         });
-        run.submit(2, &[self.penumbra_pass(&cones, false)])?;
-        run.submit(3, &[p.lookup_pass(false, extra)])?;
+        run.submit(2, &[self.penumbra_pass(&cones)])?;
+        run.submit(3, &[p.lookup_pass(extra)])?;
         let timing = run.finish()?;
-
-        // The instrumented replay: the counters are cleared before each phase's passes and
-        // copied after.
-        let phases = [
-            // `count_covered` with the lookup's pipeline layout, group 2 included.
-            vec![p.raster_pass(true), p.covered_pass(extra)],
-            vec![self.penumbra_pass(&cones, true)],
-            vec![p.lookup_pass(true, extra)],
-        ];
-        let counts = replay_each(p.gpu, &p.shared.counts, phases)?;
-        let counts: Vec<Counts> = counts.iter().map(|b| first(b)).collect();
+        let counts: Vec<Counts> = timing.counts.iter().map(|b| first(b)).collect();
         let mut eye = p.lookup_counters(frame, &counts[2]);
         let taps = f64::from(counts[2].extra_taps);
         eye.set("penumbra_map.taps", taps);

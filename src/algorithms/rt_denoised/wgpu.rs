@@ -25,7 +25,7 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay, tiles, Bind, Layout, Pass, Program, Slots, Statistics, Step, Timed,
+    gpu_struct, tiles, Bind, Layout, Pass, Program, Readout, Slots, Statistics, Timed,
 };
 use crate::gpu::{record_execution, Needs, Run};
 use crate::record::Counters;
@@ -232,31 +232,31 @@ pub fn render(
         &SOURCES,
         &[Some(&shared_layout), Some(&data_layout), Some(step_layout)],
     );
-    let trace = program.compute_pair(gpu, "trace");
-    let penumbra = program.compute_pair(gpu, "penumbra");
-    let atrous = program.compute_pair(gpu, "atrous");
-    let trace_pass = |chunk: usize, counting: bool| {
+    let trace = program.instrumented(gpu, "trace");
+    let penumbra = program.instrumented(gpu, "penumbra");
+    let atrous = program.instrumented(gpu, "atrous");
+    let trace_pass = |chunk: usize| {
         Pass::compute(
             "trace",
             &[Some(&shared), Some(&data), Some(&trace_groups[chunk])],
-            &trace[usize::from(counting)],
+            &trace,
             chunks[chunk].1,
         )
     };
-    let denoise_passes = |counting: bool| -> Vec<Pass<'_>> {
+    let denoise_passes = || -> Vec<Pass<'_>> {
         let mut v = Vec::new();
         if o.denoise {
             v.push(Pass::compute(
                 "penumbra",
                 &[Some(&shared), Some(&data), Some(&trace_groups[0])],
-                &penumbra[usize::from(counting)],
+                &penumbra,
                 size,
             ));
             for g in &atrous_groups {
                 v.push(Pass::compute(
                     "atrous",
                     &[Some(&shared), Some(&data), Some(g)],
-                    &atrous[usize::from(counting)],
+                    &atrous,
                     size,
                 ));
             }
@@ -269,26 +269,18 @@ pub fn render(
     } else {
         &["trace"]
     };
-    let mut run = Timed::new(gpu, names, Statistics::Compute, &[result]);
+    // The instrumented replay: the same passes, counting, a chunk a submission.
+    let mut run =
+        Timed::new(gpu, names, Statistics::Compute, &[result]).counting_into(&stats, Readout::End);
     run.add_setup(0, start);
     for chunk in 0..chunks.len() {
-        run.submit(0, &[trace_pass(chunk, false)])?;
+        run.submit(0, &[trace_pass(chunk)])?;
     }
     if o.denoise {
-        run.submit(1, &denoise_passes(false))?;
+        run.submit(1, &denoise_passes())?;
     }
     let timing = run.finish()?;
-
-    // The instrumented replay: the same passes, counting, a chunk a submission (a read of the
-    // slots after each chunk ends its submission; the last read holds every pass's counts).
-    let mut steps = vec![Step::Clear(&stats)];
-    for chunk in 0..chunks.len() {
-        steps.extend([Step::Run(trace_pass(chunk, true)), Step::Read(&stats)]);
-    }
-    steps.extend(denoise_passes(true).into_iter().map(Step::Run));
-    steps.push(Step::Read(&stats));
-    let reads = replay(gpu, &steps)?;
-    let slot = Slots::of(reads.last().expect("the replay reads its slots"));
+    let slot = Slots::of(&timing.counts[0]);
     let counters = phase_counters(
         &slot,
         o,

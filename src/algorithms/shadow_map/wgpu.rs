@@ -19,8 +19,8 @@ use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay_counts, tiles, view as view_resource, Bind::*, EyeBuffers, Layout, Mesh,
-    Pass, Program, Raster, Shared, Statistics, Timed, DEPTH_TEXEL_BYTES,
+    gpu_struct, tiles, view as view_resource, Bind::*, Compute, EyeBuffers, Instrumented, Layout,
+    Mesh, Pass, Program, Raster, Readout, Render, Shared, Statistics, Timed, DEPTH_TEXEL_BYTES,
 };
 use crate::gpu::readback::first;
 use crate::gpu::{Needs, Run};
@@ -176,11 +176,12 @@ pub(crate) struct Passes<'g> {
     /// Group 0 of every pass: the light uniform and the counters.
     pub shared: Shared,
     lookup_group: wgpu::BindGroup,
-    /// The light raster's pipelines: timed, counting.
-    raster: [wgpu::RenderPipeline; 2],
-    /// The eye lookup's pipelines: timed, counting.
-    pub lookup: [wgpu::ComputePipeline; 2],
-    pub count_covered: wgpu::ComputePipeline,
+    /// The light raster: `fs_depth` timed, `fs_count` in the replay.
+    raster: Render,
+    /// The eye lookup (`INSTRUMENT` counts its taps in the replay).
+    pub lookup: Compute,
+    /// The covered texels of the map (replay only).
+    pub count_covered: Compute,
 }
 
 impl<'g> Passes<'g> {
@@ -260,16 +261,22 @@ impl<'g> Passes<'g> {
             eye,
             shared,
             lookup_group,
-            raster: [raster_pipeline("fs_depth"), raster_pipeline("fs_count")],
-            lookup: program.compute_pair(gpu, "eye_lookup"),
-            count_covered: program.compute(gpu, "count_covered", Some(true)),
+            raster: Instrumented {
+                timed: Some(raster_pipeline("fs_depth")),
+                counting: Some(raster_pipeline("fs_count")),
+            },
+            lookup: program.instrumented(gpu, "eye_lookup"),
+            count_covered: Instrumented::counting(program.compute(
+                gpu,
+                "count_covered",
+                Some(true),
+            )),
         }
     }
 
-    /// The light raster: the timed pipeline, or the counting one of the instrumented replay.
-    pub fn raster_pass(&self, counting: bool) -> Pass<'_> {
-        let pipeline = &self.raster[usize::from(counting)];
-        let draw = self.occluders.draw(pipeline, None, Some(&self.depth_view));
+    /// The light raster.
+    pub fn raster_pass(&self) -> Pass<'_> {
+        let draw = (self.occluders).draw(&self.raster, None, Some(&self.depth_view));
         Pass::draw("light_raster", &[Some(&self.shared.group)], draw)
     }
 
@@ -278,7 +285,7 @@ impl<'g> Passes<'g> {
     pub fn compute<'a>(
         &'a self,
         label: &'a str,
-        pipeline: &'a wgpu::ComputePipeline,
+        pipeline: &'a Compute,
         size: (u32, u32),
         extra: Option<&'a wgpu::BindGroup>,
     ) -> Pass<'a> {
@@ -286,14 +293,10 @@ impl<'g> Passes<'g> {
         Pass::compute(label, &groups, pipeline, tiles(size, WORKGROUP))
     }
 
-    /// The eye lookup over the image, timed or counting.
-    pub fn lookup_pass<'a>(
-        &'a self,
-        counting: bool,
-        extra: Option<&'a wgpu::BindGroup>,
-    ) -> Pass<'a> {
-        let pipeline = &self.lookup[usize::from(counting)];
-        self.compute("eye_lookup", pipeline, (self.width, self.height), extra)
+    /// The eye lookup over the image.
+    pub fn lookup_pass<'a>(&'a self, extra: Option<&'a wgpu::BindGroup>) -> Pass<'a> {
+        let image = (self.width, self.height);
+        self.compute("eye_lookup", &self.lookup, image, extra)
     }
 
     /// The texels of the shadow map left covered (instrumented replay only).
@@ -304,16 +307,12 @@ impl<'g> Passes<'g> {
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let (names, readback) = (["light_raster", "eye_lookup"], [&self.eye.visibility]);
-        let mut run = Timed::new(self.gpu, &names, Statistics::All, &readback);
-        run.submit(0, &[self.raster_pass(false)])?;
-        run.submit(1, &[self.lookup_pass(false, None)])?;
+        let mut run = Timed::new(self.gpu, &names, Statistics::All, &readback)
+            .counting_into(&self.shared.counts, Readout::End);
+        run.submit(0, &[self.raster_pass(), self.covered_pass(None)])?;
+        run.submit(1, &[self.lookup_pass(None)])?;
         let timing = run.finish()?;
-        let passes = [
-            self.raster_pass(true),
-            self.covered_pass(None),
-            self.lookup_pass(true, None),
-        ];
-        let c: Counts = first(&replay_counts(self.gpu, &self.shared.counts, passes)?);
+        let c: Counts = first(&timing.counts[0]);
         let counters = vec![self.raster_counters(&c), self.lookup_counters(frame, &c)];
         Ok(timing.output((self.width, self.height), counters, NOTE))
     }

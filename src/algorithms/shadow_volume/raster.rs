@@ -70,8 +70,8 @@ use super::{dark_cap_distance, far_point, zfail_faces, Counting, ShadowQuad};
 use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, slot64, tiles, view, Bind, Draw, Layout, Onto, Pass, Program, Raster,
-    Stencil, Step,
+    gpu_struct, per_vertex, slot64, tiles, view, Bind, Compute, Draw, Instrumented, Layout, Onto,
+    Pass, Program, Raster, Render, Stencil, Step,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{additive_red, stencil_test, unwritten, Run};
@@ -247,7 +247,8 @@ pub(crate) struct HardRaster<'g> {
     gpu: &'g Run,
     size: (u32, u32),
     /// 64-bit fill and passed counters of the instrumented replay.
-    stats: wgpu::Buffer,
+    /// The replay's fill and passed fragments (two 64-bit slots).
+    pub stats: wgpu::Buffer,
     /// The average over the samples, per pixel (f32), after `resolve`.
     pub visibility: wgpu::Buffer,
     /// The eye's depth (reversed), written by the depth pre-pass.
@@ -259,15 +260,17 @@ pub(crate) struct HardRaster<'g> {
     /// Group 1 reading the count (accumulation pass), or the accumulation (other passes).
     read_count: wgpu::BindGroup,
     read_accumulation: wgpu::BindGroup,
-    depth_pipeline: wgpu::RenderPipeline,
-    /// The count pass: timed (depth test on), instrumented (off, counting).
-    quad: [wgpu::RenderPipeline; 2],
-    accumulate: wgpu::RenderPipeline,
+    /// The depth pre-pass, in the timed run and the replay.
+    depth_pipeline: Render,
+    /// The count pass into the count target, counting in the replay (`INSTRUMENT` on); with
+    /// the stencil it is the replay's only (the timed run counts in the stencil).
+    quad: [Render; 1],
+    accumulate: [Render; 1],
     /// Counting in the stencil ([`DepthTarget::StencilCount`]): the pipelines incrementing for
     /// the faces of count change +1 and decrementing for −1, and the accumulation of the
-    /// pixels whose stencil is 0.
-    stencil: Option<([wgpu::RenderPipeline; 2], [wgpu::RenderPipeline; 1])>,
-    resolve: wgpu::ComputePipeline,
+    /// pixels whose stencil is 0 (timed only).
+    stencil: Option<([Render; 2], [Render; 1])>,
+    resolve: Compute,
 }
 
 impl<'g> HardRaster<'g> {
@@ -341,9 +344,8 @@ impl<'g> HardRaster<'g> {
             };
             program.render(gpu, &r)
         };
-        let quad = [false, true].map(|instrument| {
-            count_pipeline("vs_quad", Default::default(), blend.clone(), instrument)
-        });
+        let quad =
+            |instrument| count_pipeline("vs_quad", Default::default(), blend.clone(), instrument);
         // The screen-covering passes: the depth pre-pass, the accumulation of the lit pixels.
         let full = Raster {
             vs: "vs_full",
@@ -368,8 +370,9 @@ impl<'g> HardRaster<'g> {
                 [
                     counted("vs_quad_up", IncrementWrap),
                     counted("vs_quad_down", DecrementWrap),
-                ],
-                [program.render(gpu, &lit)],
+                ]
+                .map(Instrumented::timed),
+                [Instrumented::timed(program.render(gpu, &lit))],
             )
         });
         let accumulate = Raster {
@@ -380,11 +383,14 @@ impl<'g> HardRaster<'g> {
             ..Raster::default()
         };
         HardRaster {
+            depth_pipeline: Instrumented::both(program.render(gpu, &full)),
+            quad: [Instrumented {
+                timed: stencil.is_none().then(|| quad(false)),
+                counting: Some(quad(true)),
+            }],
             stencil,
-            depth_pipeline: program.render(gpu, &full),
-            quad,
-            accumulate: program.render(gpu, &accumulate),
-            resolve: program.compute(gpu, "resolve", None),
+            accumulate: [Instrumented::timed(program.render(gpu, &accumulate))],
+            resolve: Instrumented::timed(program.compute(gpu, "resolve", None)),
             read_count: layout1.group(gpu, "read count", &[view(&count)]),
             read_accumulation: layout1.group(gpu, "read accumulation", &[view(&accumulation)]),
             gpu,
@@ -426,37 +432,37 @@ impl<'g> HardRaster<'g> {
     }
 
     /// The count pass of the triangles `range` of `vertices`, from `eye_count` (z-pass; 0 for
-    /// z-fail), timed or instrumented.
-    pub fn count_pass<'a>(
+    /// z-fail): into the count target (timed and counting), or with the stencil the timed run's
+    /// count in the stencil and the replay's into the count target.
+    pub fn count_passes<'a>(
         &'a self,
         vertices: &'a wgpu::Buffer,
         range: std::ops::Range<u32>,
         eye_count: i32,
-        instrument: bool,
-    ) -> Pass<'a> {
-        let (pipelines, draws, stencil, clear) = match (&self.stencil, instrument) {
-            (Some((quads, _)), false) => {
-                let stencil = Stencil::Clear(eye_count.rem_euclid(256) as u32);
-                let draws = vec![(0, range.clone(), 0), (1, range, 0)];
-                (&quads[..], draws, stencil, None)
-            }
-            _ => {
-                let quad = std::slice::from_ref(&self.quad[usize::from(instrument)]);
-                (
-                    quad,
-                    vec![(0, range, 0)],
-                    Stencil::Off,
-                    Some(f64::from(eye_count)),
-                )
-            }
+    ) -> Vec<Pass<'a>> {
+        let pass = |pipelines, draws, stencil, clear| {
+            let onto = Onto {
+                depth: Some(&self.depth),
+                stencil,
+                vertices: Some(vertices),
+                ..Onto::new(pipelines, draws, &self.count, clear)
+            };
+            Pass::onto("hard", &self.groups(false), onto)
         };
-        let onto = Onto {
-            depth: Some(&self.depth),
-            stencil,
-            vertices: Some(vertices),
-            ..Onto::new(pipelines, draws, &self.count, clear)
-        };
-        Pass::onto("hard", &self.groups(false), onto)
+        let mut passes = Vec::new();
+        if let Some((quads, _)) = &self.stencil {
+            let stencil = Stencil::Clear(eye_count.rem_euclid(256) as u32);
+            let draws = vec![(0, range.clone(), 0), (1, range.clone(), 0)];
+            passes.push(pass(&quads[..], draws, stencil, None));
+        }
+        let clear = Some(f64::from(eye_count));
+        passes.push(pass(
+            &self.quad[..],
+            vec![(0, range, 0)],
+            Stencil::Off,
+            clear,
+        ));
+        passes
     }
 
     /// The accumulation of the lit pixels of the last count pass; `first` clears the
@@ -464,7 +470,7 @@ impl<'g> HardRaster<'g> {
     pub fn accumulate_pass(&self, first: bool) -> Pass<'_> {
         let (pipelines, depth, stencil) = match &self.stencil {
             Some((_, lit)) => (&lit[..], Some(&self.depth), Stencil::Keep),
-            None => (std::slice::from_ref(&self.accumulate), None, Stencil::Off),
+            None => (&self.accumulate[..], None, Stencil::Off),
         };
         let clear = first.then_some(0.0);
         let onto = Onto {
@@ -492,13 +498,15 @@ impl<'g> HardRaster<'g> {
         vertices: &wgpu::Buffer,
         ranges: &[(std::ops::Range<u32>, i32)],
     ) -> Result<(f64, f64)> {
-        let mut steps = vec![Step::Clear(&self.stats), Step::Run(self.depth_pass())];
-        steps.extend(
-            ranges
-                .iter()
-                .map(|(r, eye)| Step::Run(self.count_pass(vertices, r.clone(), *eye, true))),
-        );
-        steps.push(Step::Read(&self.stats));
+        let mut passes = vec![self.depth_pass()];
+        for (r, eye) in ranges {
+            passes.extend(self.count_passes(vertices, r.clone(), *eye));
+        }
+        let steps = [
+            Step::Clear(&self.stats),
+            Step::Submit(passes),
+            Step::Read(&self.stats),
+        ];
         let raw: Vec<u32> = words(&crate::gpu::pass::replay(self.gpu, &steps)?[0]);
         Ok((slot64(&raw, 0), slot64(&raw, 1)))
     }

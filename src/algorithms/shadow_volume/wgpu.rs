@@ -19,7 +19,9 @@ use super::{face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad,
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{gpu_struct, replay_slots, tiles, Bind, Layout, Pass, Program};
+use crate::gpu::pass::{
+    gpu_struct, replay_slots, tiles, Bind, Compute, Instrumented, Layout, Pass, Program,
+};
 use crate::gpu::{Needs, Run, EMPTY_BYTES};
 use crate::record::Counters;
 use crate::scene::Mesh;
@@ -344,9 +346,10 @@ pub(crate) struct VolumePasses<'g> {
     /// of `soft_shadow_volume` binds it too).
     pub layout: Layout,
     pub program: Program,
-    /// The hard pass: timed, counting.
-    hard: [wgpu::ComputePipeline; 2],
-    accumulate: wgpu::ComputePipeline,
+    /// The hard pass (`INSTRUMENT` counting in the replay).
+    hard: Compute,
+    /// Timed only.
+    accumulate: Compute,
     pub groups: (u32, u32),
     pub pixels: u64,
     /// The occluders, whose light-facing triangles cap the z-fail volumes.
@@ -377,8 +380,8 @@ impl<'g> VolumePasses<'g> {
         let sources = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL];
         let program = Program::new(gpu, "shadow_volume/wgpu.wgsl", &sources, &[Some(&layout)]);
         VolumePasses {
-            hard: program.compute_pair(gpu, "hard"),
-            accumulate: program.compute(gpu, "accumulate", Some(false)),
+            hard: program.instrumented(gpu, "hard"),
+            accumulate: Instrumented::timed(program.compute(gpu, "accumulate", Some(false))),
             gpu,
             counting,
             res,
@@ -454,15 +457,15 @@ impl<'g> VolumePasses<'g> {
     pub fn pass<'a>(
         &'a self,
         label: &'a str,
-        pipeline: &'a wgpu::ComputePipeline,
+        pipeline: &'a Compute,
         group: &'a wgpu::BindGroup,
     ) -> Pass<'a> {
         Pass::compute(label, &[Some(group)], pipeline, self.groups)
     }
 
-    /// The hard pass of an upload, timed or counting.
-    pub fn hard<'a>(&'a self, up: &'a HardUpload, counting: bool) -> Pass<'a> {
-        self.pass("hard", &self.hard[usize::from(counting)], &up.group)
+    /// The hard pass of an upload.
+    pub fn hard<'a>(&'a self, up: &'a HardUpload) -> Pass<'a> {
+        self.pass("hard", &self.hard, &up.group)
     }
 
     /// `accum_hard`'s accumulation of a sample's lit pixels.

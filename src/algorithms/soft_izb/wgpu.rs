@@ -53,7 +53,8 @@ use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    gpu_struct, replay_slots, workgroups, Bind, Layout, Pass, Program, Statistics, Timed, Work,
+    gpu_struct, workgroups, Bind, Compute, Instrumented, Layout, Pass, Program, Readout, Slots,
+    Statistics, Timed, Work,
 };
 use crate::gpu::readback::words;
 use crate::gpu::{record_execution, Needs, Run};
@@ -234,10 +235,10 @@ struct Passes<'g> {
     visibility: wgpu::Buffer,
     stats: wgpu::Buffer,
     group: wgpu::BindGroup,
-    construct: [wgpu::ComputePipeline; 7],
-    umbra: [wgpu::ComputePipeline; 2],
-    penumbra: [wgpu::ComputePipeline; 2],
-    resolve: wgpu::ComputePipeline,
+    construct: [Compute; 7],
+    umbra: Compute,
+    penumbra: Compute,
+    resolve: Compute,
 }
 
 impl<'g> Passes<'g> {
@@ -300,8 +301,8 @@ impl<'g> Passes<'g> {
         let compute = wgpu::ShaderStages::COMPUTE;
         let (layout, group) = Layout::bound(gpu, "soft_izb", compute, &binds);
         let program = Program::new(gpu, "soft_izb/wgpu.wgsl", &SOURCES, &[Some(&layout)]);
-        let pipeline =
-            |entry: &str, instrument: bool| program.compute(gpu, entry, Some(instrument));
+        // The construction and `resolve` count nothing: the replay leaves them out.
+        let pipeline = |entry: &str| Instrumented::timed(program.compute(gpu, entry, Some(false)));
         let construct = [
             "clear",
             "project",
@@ -311,7 +312,7 @@ impl<'g> Passes<'g> {
             "scan_add",
             "insert",
         ]
-        .map(|e| pipeline(e, false));
+        .map(pipeline);
         let [_, _, _, _, _, cell_start, _, _, visibility, _, _, stats] = buffers;
         Passes {
             gpu,
@@ -324,18 +325,16 @@ impl<'g> Passes<'g> {
             stats,
             group,
             construct,
-            umbra: program.compute_pair(gpu, "umbra"),
-            penumbra: program.compute_pair(gpu, "penumbra"),
-            resolve: pipeline("resolve", false),
+            umbra: program.instrumented(gpu, "umbra"),
+            penumbra: program.instrumented(gpu, "penumbra"),
+            resolve: pipeline("resolve"),
         }
     }
 
-    /// Phase `i` (1 construct, 2 hard, 3 soft) as one compute pass; `instrument` picks the
-    /// counting pipelines and leaves out `resolve`, which counts nothing.
-    fn pass(&self, i: usize, instrument: bool) -> Pass<'_> {
+    /// Phase `i` (1 construct, 2 hard, 3 soft) as one compute pass.
+    fn pass(&self, i: usize) -> Pass<'_> {
         let (gpu, p) = (self.gpu, &self.params);
         let items = |n: u32| workgroups(gpu, n.div_ceil(ITEM_WORKGROUP));
-        let k = usize::from(instrument);
         let dispatches = match i {
             1 => {
                 // One invocation per CELLS_PER_ITEM cells, and at least one per depth record.
@@ -353,10 +352,9 @@ impl<'g> Passes<'g> {
                     (&c[6], items(p.pixels)),
                 ]
             }
-            2 => vec![(&self.umbra[k], workgroups(gpu, p.triangles))],
-            _ if instrument => vec![(&self.penumbra[1], workgroups(gpu, p.edges))],
+            2 => vec![(&self.umbra, workgroups(gpu, p.triangles))],
             _ => vec![
-                (&self.penumbra[0], workgroups(gpu, p.edges)),
+                (&self.penumbra, workgroups(gpu, p.edges)),
                 (&self.resolve, items(p.pixels)),
             ],
         };
@@ -371,19 +369,19 @@ impl<'g> Passes<'g> {
     fn run(&self, frame: &Frame, geometry_ms: f64, geometry: Counters) -> Result<FrameOutput> {
         // The timed submission: each phase submitted and waited for on its own.
         let readback = [&self.visibility, &self.cell_start];
-        let mut run = Timed::new(self.gpu, &PHASES, Statistics::Compute, &readback);
+        // The instrumented replay: `hard` and `soft` read what the timed `construct` left
+        // (nothing after it writes it) and add into accumulators nothing reads after `resolve`.
+        let mut run = Timed::new(self.gpu, &PHASES, Statistics::Compute, &readback)
+            .counting_into(&self.stats, Readout::End);
         run.add_wall(0, geometry_ms);
         for i in 1..PHASES.len() {
-            run.submit(i, &[self.pass(i, false)])?;
+            run.submit(i, &[self.pass(i)])?;
         }
         let mut timing = run.finish()?;
         // The samples stored: the prefix sum's total, after the last cell.
         let samples = f64::from(words::<u32>(&timing.readback[1])[self.params.cells as usize]);
 
-        // The instrumented replay: `hard` and `soft` read what the timed `construct` left
-        // (nothing after it writes it) and add into accumulators nothing reads after `resolve`.
-        let passes = (2..PHASES.len()).map(|i| self.pass(i, true));
-        let slot = replay_slots(self.gpu, &self.stats, passes)?;
+        let slot = Slots::of(&timing.counts[0]);
         let stat = |s: Stat| slot.get(s as usize);
 
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;

@@ -29,8 +29,8 @@ use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::meshes::positions;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, replay_counts, tiles, view, Bind::*, Draw, EyeBuffers, Layout, Pass,
-    Program, Raster, Shared, Statistics, Timed,
+    gpu_struct, per_vertex, tiles, view, Bind::*, Compute, Draw, EyeBuffers, Instrumented, Layout,
+    Pass, Program, Raster, Readout, Render, Shared, Statistics, Timed,
 };
 use crate::gpu::readback::{first, read_texels};
 use crate::gpu::{additive_red, record_execution, unwritten, Needs, Run};
@@ -161,12 +161,14 @@ struct Transfer {
 
 /// The pipelines of the passes.
 struct Pipelines {
-    /// Depth: front faces, back faces (front culled).
-    depth: [wgpu::RenderPipeline; 2],
-    /// Splat: timed, counting.
-    splat: [wgpu::RenderPipeline; 2],
-    project: wgpu::ComputePipeline,
-    count_patches: wgpu::ComputePipeline,
+    /// Depth: front faces, back faces (front culled); timed only.
+    depth: [Render; 2],
+    /// Splat: `fs_splat` timed, `fs_splat_count` in the replay.
+    splat: Render,
+    /// Timed only.
+    project: Compute,
+    /// Replay only: the micro-patches the vertex shader builds.
+    count_patches: Compute,
 }
 
 /// Square maps of `res`² texels, one per pass (the second labelled "back"), and their views.
@@ -302,11 +304,7 @@ impl<'g> Ssm<'g> {
 
     /// The splat passes, one per SSM: the micro-patches uploaded by the transfer
     /// (`instances`), or one instance per occluder-map texel.
-    fn splat_passes<'a>(
-        &'a self,
-        counting: bool,
-        instances: &'a [(wgpu::Buffer, u32)],
-    ) -> Vec<Pass<'a>> {
+    fn splat_passes<'a>(&'a self, instances: &'a [(wgpu::Buffer, u32)]) -> Vec<Pass<'a>> {
         let texels = self.res.div_ceil(BLOCK).pow(2) * LANES as u32;
         (0..self.o.passes as usize)
             .map(|k| {
@@ -318,7 +316,7 @@ impl<'g> Ssm<'g> {
                     color: Some(&self.ssm_views[k]),
                     vertices,
                     instances: n,
-                    ..Draw::of(&self.p.splat[usize::from(counting)], 4)
+                    ..Draw::of(&self.p.splat, 4)
                 };
                 let groups = [Some(&self.shared.group), Some(&self.splat_groups[k])];
                 Pass::draw("splat", &groups, draw)
@@ -368,7 +366,9 @@ impl<'g> Ssm<'g> {
         let host = self.o.occluder_map_transfer;
         let passes = self.o.passes as usize;
         let (names, readback) = (["maps", "splat", "project"], [&self.visibility]);
-        let mut run = Timed::new(self.gpu, &names, Statistics::Off, &readback);
+        // The instrumented replay: `splat`, and the micro-patches the device built.
+        let mut run = Timed::new(self.gpu, &names, Statistics::Off, &readback)
+            .counting_into(&self.shared.counts, Readout::End);
         // Passes in timer order: maps (occluders, back faces, receivers), splat, project.
         let mut maps: Vec<Pass> = (0..passes)
             .map(|k| self.depth_pass(&self.occluders, &self.occ_views[k], k == 1))
@@ -380,23 +380,22 @@ impl<'g> Ssm<'g> {
             false => Transfer::default(),
         };
         let instances = &transfer.instances;
-        run.submit(1, &self.splat_passes(false, instances))?;
+        let mut splat = self.splat_passes(instances);
+        if !host {
+            let res = tiles((self.res, self.res), WORKGROUP);
+            splat.extend(self.splat_groups.iter().map(|g| {
+                let groups = [Some(&self.shared.group), Some(g)];
+                Pass::compute("count_patches", &groups, &self.p.count_patches, res)
+            }));
+        }
+        run.submit(1, &splat)?;
         let groups = [Some(&self.shared.group), None, Some(&self.project_group)];
         let workgroups = tiles(self.size, WORKGROUP);
         let project = Pass::compute("project", &groups, &self.p.project, workgroups);
         run.submit(2, &[project])?;
         let timing = run.finish()?;
 
-        // The instrumented replay of `splat`.
-        let mut counting = self.splat_passes(true, instances);
-        if !host {
-            let res = tiles((self.res, self.res), WORKGROUP);
-            counting.extend(self.splat_groups.iter().map(|g| {
-                let groups = [Some(&self.shared.group), Some(g)];
-                Pass::compute("count_patches", &groups, &self.p.count_patches, res)
-            }));
-        }
-        let c: Counts = first(&replay_counts(self.gpu, &self.shared.counts, counting)?);
+        let c: Counts = first(&timing.counts[0]);
 
         let mut maps_c = Counters::default();
         if host {
@@ -472,10 +471,17 @@ impl Pipelines {
             splat_program.render(gpu, &raster)
         };
         Pipelines {
-            depth: [depth(None), depth(Some(wgpu::Face::Front))],
-            splat: [splat("fs_splat", false), splat("fs_splat_count", true)],
-            project: project_program.compute(gpu, "project", None),
-            count_patches: splat_program.compute(gpu, "count_patches", None),
+            depth: [depth(None), depth(Some(wgpu::Face::Front))].map(Instrumented::timed),
+            splat: Instrumented {
+                timed: Some(splat("fs_splat", false)),
+                counting: Some(splat("fs_splat_count", true)),
+            },
+            project: Instrumented::timed(project_program.compute(gpu, "project", None)),
+            count_patches: Instrumented::counting(splat_program.compute(
+                gpu,
+                "count_patches",
+                None,
+            )),
         }
     }
 }

@@ -82,7 +82,8 @@ use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    view, Bind, Layout, Onto, Pass, Program, Raster, Statistics, Stencil, Step,
+    view, Bind, Compute, Instrumented, Layout, Onto, Pass, Program, Raster, Render, Statistics,
+    Stencil, Step,
 };
 use crate::gpu::readback::read_texels;
 use crate::gpu::{
@@ -202,7 +203,7 @@ impl LoopRaster {
     /// front faces marked, so no half sees another's marks.
     fn pass<'a>(
         &'a self,
-        pipelines: &'a [wgpu::RenderPipeline],
+        pipelines: &'a [Render],
         color: &'a wgpu::TextureView,
         depth: &'a wgpu::TextureView,
         keep: impl Fn(&Half) -> bool,
@@ -250,12 +251,12 @@ struct WedgePass {
     stencil: bool,
     vbuffers: Vec<wgpu::TextureView>,
     /// Per V-buffer: the timed pipeline, or with the stencil the marking and shading ones.
-    timed: Vec<Vec<wgpu::RenderPipeline>>,
-    /// The counting pipeline (depth test off, `INSTRUMENT` on), alone.
-    counting: [wgpu::RenderPipeline; 1],
+    timed: Vec<Vec<Render>>,
+    /// The counting pipeline (depth test off, `INSTRUMENT` on), alone (replay only).
+    counting: [Render; 1],
     /// With the stencil and the counters: an R32Float target and the culled pipelines that add
-    /// 1 per fragment passing both tests.
-    culled_count: Option<(wgpu::Texture, wgpu::TextureView, Vec<wgpu::RenderPipeline>)>,
+    /// 1 per fragment passing both tests (replay only).
+    culled_count: Option<(wgpu::Texture, wgpu::TextureView, Vec<Render>)>,
     projection: glam::Mat4,
     /// The plane just in front of the eye and the scene bounds, slightly enlarged, that cut
     /// the primitives.
@@ -325,13 +326,15 @@ impl WedgePass {
                 false => vec![pipeline(e, format, Default::default(), false)],
                 true => culled(e, format),
             })
+            .map(|p| p.into_iter().map(Instrumented::timed).collect())
             .collect();
         let measure = stencil && gpu.float32_blendable && gpu.counters() == GpuCounters::On;
         let culled_count = measure.then(|| {
             let f = wgpu::TextureFormat::R32Float;
             let target = gpu.texture("culled fragments", size, f, wgpu::TextureUsages::COPY_SRC);
             let view = target.create_view(&Default::default());
-            (target, view, culled("fs_one", f))
+            let pipelines = culled("fs_one", f).into_iter().map(Instrumented::counting);
+            (target, view, pipelines.collect())
         });
         let camera = &frame.scene.camera;
         let forward = (camera.target - camera.eye).normalize_or(Vec3::NEG_Z);
@@ -346,7 +349,12 @@ impl WedgePass {
                 .map(|e| gpu.target_view(e, size, format))
                 .collect(),
             timed,
-            counting: [pipeline(entries[0], format, Default::default(), true)],
+            counting: [Instrumented::counting(pipeline(
+                entries[0],
+                format,
+                Default::default(),
+                true,
+            ))],
             culled_count,
             projection: eye_projection(rays, camera),
             near: (-forward, -forward.dot(rays.eye) - reach),
@@ -409,7 +417,7 @@ impl WedgePass {
             return Ok(None);
         };
         let pass = lg.pass(pipelines, view, depth, |_| true);
-        crate::gpu::pass::replay(gpu, &[Step::Run(pass)])?;
+        crate::gpu::pass::replay(gpu, &[Step::Submit(vec![pass])])?;
         let texels = read_texels::<f32>(gpu, std::slice::from_ref(target))?;
         Ok(Some(texels[0].iter().map(|&n| f64::from(n)).sum()))
     }
@@ -459,7 +467,7 @@ struct Rasterized<'g> {
     v: VolumePasses<'g>,
     wp: WedgePass,
     read_targets: wgpu::BindGroup,
-    resolve: wgpu::ComputePipeline,
+    resolve: Compute,
 }
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
@@ -498,11 +506,8 @@ pub(super) fn run(
         &[&hard.count, &vb[0], vb.last().unwrap_or(&vb[0])].map(|t| (Bind::Float, view(t))),
     );
     let groups = [Some(&v.layout), Some(&targets)];
-    let resolve = Program::new(gpu, "ssv resolve", &sources, &groups).compute(
-        gpu,
-        "resolve_soft",
-        Some(false),
-    );
+    let resolve = Program::new(gpu, "ssv resolve", &sources, &groups);
+    let resolve = Instrumented::timed(resolve.compute(gpu, "resolve_soft", Some(false)));
     let p = Rasterized {
         gpu,
         opts: *opts,
@@ -542,12 +547,10 @@ impl Pipeline for Rasterized<'_> {
     }
 
     fn hard_passes<'a>(&'a self, h: &'a HardVertices, first: bool) -> Vec<Pass<'a>> {
-        let count = self
-            .hard
-            .count_pass(&h.buffer, 0..h.count, h.eye_count, false);
+        let count = (self.hard).count_passes(&h.buffer, 0..h.count, h.eye_count);
         match first {
-            true => vec![self.hard.depth_pass(), count],
-            false => vec![count],
+            true => [vec![self.hard.depth_pass()], count].concat(),
+            false => count,
         }
     }
 

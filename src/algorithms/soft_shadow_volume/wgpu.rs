@@ -59,7 +59,7 @@ use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{Pass, Statistics, Timed};
+use crate::gpu::pass::{Compute, Pass, Statistics, Timed};
 use crate::gpu::{record_execution, Run};
 use crate::record::Counters;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
@@ -137,7 +137,7 @@ pub fn render(
         GpuPipeline::Gather => (
             {
                 let v = VolumePasses::new(gpu, &rays, opts.counting, frame_res, occluders, WGSL);
-                let soft = v.program.compute_pair(gpu, "soft");
+                let soft = v.program.instrumented(gpu, "soft");
                 let gather = Gather {
                     soft,
                     v,
@@ -319,13 +319,13 @@ pub(super) fn run_loops<P: Pipeline>(
             let hard = p.hard(rays, lr, &quads);
             (quads, hard)
         });
-        run.submit(0, &p.hard_passes(&hard, k == 0))?;
+        run.submit_timed(0, &p.hard_passes(&hard, k == 0))?;
         let (w, soft) = run.host(1, || {
             let w = WedgeRecords::new(rays, lr, &quads, opts);
             let soft = p.soft(rays, lr, &quads, &w, &hard);
             (w, soft)
         });
-        run.submit(2, &p.soft_passes(&soft))?;
+        run.submit_timed(2, &p.soft_passes(&soft))?;
         loops.push((quads.len(), w, hard, soft));
     }
     let timing = run.finish()?;
@@ -352,8 +352,8 @@ pub(super) fn run_loops<P: Pipeline>(
 /// The gather: the family's passes with the soft pass of this algorithm.
 struct Gather<'g> {
     v: VolumePasses<'g>,
-    /// The soft pass: timed, counting.
-    soft: [wgpu::ComputePipeline; 2],
+    /// The soft pass (`INSTRUMENT` counting in the replay).
+    soft: Compute,
     cones: Vec<(Vec3, f32)>,
 }
 
@@ -380,7 +380,7 @@ impl Pipeline for Gather<'_> {
     }
 
     fn hard_passes<'a>(&'a self, hard: &'a HardUpload, _first: bool) -> Vec<Pass<'a>> {
-        vec![self.v.hard(hard, false)]
+        vec![self.v.hard(hard)]
     }
 
     /// Primitives, bins, upload, the soft pass's group.
@@ -406,7 +406,7 @@ impl Pipeline for Gather<'_> {
     }
 
     fn soft_passes<'a>(&'a self, soft: &'a Self::Soft) -> Vec<Pass<'a>> {
-        vec![self.v.pass("soft", &self.soft[0], &soft.0)]
+        vec![self.v.pass("soft", &self.soft, &soft.0)]
     }
 
     /// `hard`'s own counters: the quad tests and the estimated traffic: rays of every pixel,
@@ -417,8 +417,8 @@ impl Pipeline for Gather<'_> {
         soft: &'a Self::Soft,
         k: &mut Counters,
     ) -> Result<Replayed<'a>> {
-        let soft_pass = self.v.pass("soft", &self.soft[1], &soft.0);
-        let stat = self.v.replay(vec![self.v.hard(h, true), soft_pass])?;
+        let soft_pass = self.v.pass("soft", &self.soft, &soft.0);
+        let stat = self.v.replay(vec![self.v.hard(h), soft_pass])?;
         let [fill, passed, tests] = [Stat::HardFill, Stat::HardPassed, Stat::HardTests].map(&stat);
         k.add("quad_tests", tests);
         let record = match self.v.counting {
