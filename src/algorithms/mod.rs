@@ -247,8 +247,9 @@ pub struct AlgorithmInfo {
     /// anything is allocated; the frame itself is counted by the harness.
     pub memory_estimate: fn(&RunParams) -> u64,
     /// Estimated fill of a run ([`work`]), made before anything runs: reported with a run
-    /// stopped by its time budget, and summed over a sweep before it starts.
-    pub work_estimate: fn(&work::SceneExtent, &RunParams, &ExecContext) -> f64,
+    /// stopped by its time budget, and summed over a sweep before it starts; `None` when
+    /// `options.<id>` do not parse (the run then fails on them).
+    pub work_estimate: fn(&work::SceneExtent, &RunParams, &ExecContext) -> Option<f64>,
     /// Checks `options.<id>` of a scenario before any work starts.
     pub check_options:
         fn(&BTreeMap<String, serde_json::Value>) -> std::result::Result<(), InputError>,
@@ -280,8 +281,8 @@ impl AlgorithmInfo {
             backends: A::BACKENDS,
             memory_estimate: A::MEMORY_ESTIMATE,
             work_estimate: |extent, p, ctx| {
-                let o = A::options(&ctx.options).unwrap_or_default();
-                (A::WORK_ESTIMATE)(extent, p, ctx, &o)
+                let o = A::options(&ctx.options).ok()?;
+                Some((A::WORK_ESTIMATE)(extent, p, ctx, &o))
             },
             check_options: |o| A::options(o).map(|_| ()),
             check_light_texture: |o| A::light_texture(&A::options(o)?),

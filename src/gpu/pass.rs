@@ -1,14 +1,16 @@
 //! The GPU pass builder every wgpu execution is written with: bindings declared as data
 //! ([`Bind`] lists, one per bind group), programs (a WGSL module joined from its parts and a
 //! pipeline layout) and the pipelines made from them, passes as data ([`Pass`]), and the one
-//! sequence every execution runs ([`Timed`], [`replay`], [`Timing::output`]):
+//! sequence every execution runs ([`Timed`], [`Timing::output`]):
 //!
 //! 1. the timed submissions: each pass timed by [`timing`] (timestamps inside passes where the
 //!    adapter offers them, the readings checked against the host time of their submission,
 //!    `execution.gpu_ms_invalid` when they cannot be true) and, where asked, its pipeline
-//!    statistics; the last submission copies the readback buffers and resolves the queries;
-//! 2. the instrumented replay: the same passes with the WGSL override `INSTRUMENT` on, counting
-//!    with atomics into buffers that are cleared before and read after;
+//!    statistics; each submission resolves its own queries, and the readback buffers are copied
+//!    in a submission of their own when the run finishes;
+//! 2. the instrumented replay derived from the same passes ([`Timed::counting_into`]): each
+//!    recorded again with its pipelines' counting variants ([`Instrumented`]; the WGSL override
+//!    `INSTRUMENT` on), counting with atomics into a buffer cleared before and read after;
 //! 3. the output: phases (wall time of their submissions and host work, GPU time of their
 //!    passes, the counters the execution derives from the replay plus the pipeline
 //!    statistics), their counters summed, and the record's `execution` entries.

@@ -280,10 +280,10 @@ fn iteration(
     }))
     .unwrap_or_else(|panic| {
         if let Some(c) = crate::util::deadline::cancelled(panic.as_ref()) {
-            let estimate = algorithms::find(algorithm).ok().map(|info| {
+            let estimate = algorithms::find(algorithm).ok().and_then(|info| {
                 let extent = algorithms::work::SceneExtent::of(&frame.scene);
-                algorithms::work::frame(&extent, &frame.params)
-                    + (info.work_estimate)(&extent, &frame.params, ctx)
+                let own = (info.work_estimate)(&extent, &frame.params, ctx)?;
+                Some(algorithms::work::frame(&extent, &frame.params) + own)
             });
             // The budget covers the run's earlier phases (its frame, its reference) too.
             let elapsed = ctx.deadline.elapsed().max(start.elapsed());
@@ -883,19 +883,21 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         let stopped =
             |c, phase: &str, sc: &Scene, params: crate::frame::RunParams, with_reference: bool| {
                 let extent = algorithms::work::SceneExtent::of(sc);
-                let estimate = algorithms::work::frame(&extent, &params)
-                    + (info.work_estimate)(&extent, &params, &ctx)
-                    + if with_reference {
-                        algorithms::work::reference(&extent, &params, &ctx, &())
-                    } else {
-                        0.0
-                    };
+                let estimate = (info.work_estimate)(&extent, &params, &ctx).map(|own| {
+                    algorithms::work::frame(&extent, &params)
+                        + own
+                        + if with_reference {
+                            algorithms::work::reference(&extent, &params, &ctx, &())
+                        } else {
+                            0.0
+                        }
+                });
                 let mut record = RunRecord::new(&p.algorithm, p.backend, sc, params);
                 record.variant = variant.clone();
                 loaded.notes.annotate(&mut record);
                 record.wall_ms = deadline.elapsed().as_secs_f64() * 1e3;
                 record.failure =
-                    Some(timed_out(c, deadline.elapsed(), phase, Some(estimate)).to_string());
+                    Some(timed_out(c, deadline.elapsed(), phase, estimate).to_string());
                 record
             };
         let frame = match frames.entry(kind) {
@@ -1073,9 +1075,11 @@ fn sweep_work(
             } else {
                 0.0
             };
-            algorithms::work::frame(&extent, &params)
-                + (info.work_estimate)(&extent, &params, ctx)
-                + quality
+            // Options that do not parse were refused before the sweep (scenario validation):
+            // such a run fails at once and weighs nothing.
+            (info.work_estimate)(&extent, &params, ctx).map_or(0.0, |own| {
+                algorithms::work::frame(&extent, &params) + own + quality
+            })
         })
         .sum()
 }

@@ -215,3 +215,36 @@ fn every_algorithm_with_three_executions_has_its_parity_tests() {
          three executions"
     );
 }
+
+/// A work estimate is made of the options a run will use: where `options.<id>` do not parse,
+/// there is none (the run fails on them), never one of the defaults.
+#[test]
+fn no_algorithm_estimates_work_from_options_that_do_not_parse() {
+    let mut refused = 0;
+    for info in ALGORITHMS {
+        let f = frame("sphere-on-plane", info);
+        let extent = shadowbench::algorithms::work::SceneExtent::of(&f.scene);
+        let mut ctx = ExecContext::default();
+        assert!(
+            (info.work_estimate)(&extent, &f.params, &ctx).is_some(),
+            "{}: the defaults have an estimate",
+            info.id
+        );
+        let bad = serde_json::json!({ "no_such_option": 1 });
+        ctx.options.insert(info.id.to_string(), bad);
+        if (info.check_options)(&ctx.options).is_ok() {
+            continue;
+        }
+        assert_eq!(
+            (info.work_estimate)(&extent, &f.params, &ctx),
+            None,
+            "{}",
+            info.id
+        );
+        refused += 1;
+    }
+    assert!(
+        refused > ALGORITHMS.len() / 2,
+        "{refused} algorithms refuse an unknown option"
+    );
+}

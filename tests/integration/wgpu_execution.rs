@@ -688,7 +688,14 @@ fn timestamps_around_a_compute_pass_after_a_render_pass_are_caught_on_lavapipe()
                     match placement {
                         Placement::AroundPasses => {
                             assert!(raw < host_ms / 10.0, "raw {raw}, host {host_ms}");
-                            assert!(t.ms.is_none() && t.invalid.is_some(), "{t:?}");
+                            // The guard is loose on purpose (a loaded machine's slow handover
+                            // is not flagged): it must flag the reading once the host waited
+                            // past both of its bounds.
+                            let flagged =
+                                (raw + timing::BELOW_MIN_GAP_MS).max(raw / timing::BELOW_FRACTION);
+                            if host_ms > flagged {
+                                assert!(t.ms.is_none() && t.invalid.is_some(), "{t:?}");
+                            }
                         }
                         Placement::InsidePasses => {
                             let ms = t.ms.expect("a valid reading")[0];
@@ -918,8 +925,7 @@ fn a_derived_replay_runs_each_pass_as_its_pipelines_state() {
                 (Bind::ReadWrite, out.as_entire_binding()),
                 (Bind::ReadWrite, counts.as_entire_binding()),
             ];
-            let (layout, group) =
-                Layout::bound(gpu, "test", wgpu::ShaderStages::COMPUTE, &binds);
+            let (layout, group) = Layout::bound(gpu, "test", wgpu::ShaderStages::COMPUTE, &binds);
             let program = Program::new(gpu, "test", &[WGSL], &[Some(&layout)]);
             let entry = |e| program.compute(gpu, e, None);
             let fill = Instrumented {
@@ -945,10 +951,19 @@ fn a_derived_replay_runs_each_pass_as_its_pipelines_state() {
             assert_eq!(read, want, "{readout:?}");
             let out = timing.output((8, 8), vec![Default::default(); 2], "test");
             let plan = &out.execution["passes"];
-            let plan: Vec<&str> = plan.as_array().unwrap().iter().flat_map(|p| p.as_str()).collect();
+            let plan: Vec<&str> = plan
+                .as_array()
+                .unwrap()
+                .iter()
+                .flat_map(|p| p.as_str())
+                .collect();
             assert_eq!(
                 plan,
-                ["a: fill (timed, replayed)", "a: spoil (timed)", "b: extra (replayed)"]
+                [
+                    "a: fill (timed, replayed)",
+                    "a: spoil (timed)",
+                    "b: extra (replayed)"
+                ]
             );
             Ok(())
         })
