@@ -261,9 +261,9 @@ impl<'g> Passes<'g> {
     }
 
     /// A compute pass over `size` with the lookup's groups.
-    fn compute<'a>(&'a self, pipeline: &'a Compute, size: (u32, u32)) -> Pass<'a> {
+    fn compute<'a>(&'a self, label: &'a str, pipeline: &'a Compute, size: (u32, u32)) -> Pass<'a> {
         let groups = [Some(&self.shared.group), Some(&self.lookup_group)];
-        Pass::compute("eye_lookup", &groups, pipeline, tiles(size, WORKGROUP))
+        Pass::compute(label, &groups, pipeline, tiles(size, WORKGROUP))
     }
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
@@ -275,9 +275,9 @@ impl<'g> Passes<'g> {
             .counting_into(&self.shared.counts, Readout::End);
         let mut passes = self.dbuffer_passes();
         let res = (self.resolution, self.resolution);
-        passes.push(self.compute(&self.count_covered, res));
+        passes.push(self.compute("count_covered", &self.count_covered, res));
         run.submit(0, &passes)?;
-        run.submit(1, &[self.compute(&self.lookup, image)])?;
+        run.submit(1, &[self.compute("eye_lookup", &self.lookup, image)])?;
         let timing = run.finish()?;
         let c: Counts = first(&timing.counts[0]);
 
