@@ -14,7 +14,9 @@ pub fn machine(backend: Backend, frame: &Frame, ctx: &ExecContext) -> Machine {
         Some(c) => ctx.machine.with_cores(c),
         None => ctx.machine.clone(),
     };
-    Machine::new(backend, config).with_deadline(ctx.deadline)
+    Machine::new(backend, config)
+        .with_deadline(ctx.deadline)
+        .timing_tasks(ctx.time_tasks)
 }
 
 /// Wraps a finished machine and the visibility into a frame output.

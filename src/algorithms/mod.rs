@@ -439,6 +439,9 @@ pub struct ExecContext {
     /// ꟻLIP's viewing condition for the `flip` metric, in pixels per degree of visual angle
     /// (`reference.flip_pixels_per_degree`; [`crate::metrics::perceptual`]).
     pub flip_pixels_per_degree: f32,
+    /// Whether `cpu-native` steps time each task on the CPU clock of the thread that runs it
+    /// ([`crate::model::Machine::timing_tasks`]; `validate`'s phase CPU times). Off by default.
+    pub time_tasks: bool,
 }
 
 impl Default for ExecContext {
@@ -452,6 +455,7 @@ impl Default for ExecContext {
             gpu_counters: crate::gpu::GpuCounters::On,
             measure: crate::harness::measure::Measure::ONCE,
             flip_pixels_per_degree: crate::metrics::perceptual::DEFAULT_PIXELS_PER_DEGREE,
+            time_tasks: false,
         }
     }
 }

@@ -788,6 +788,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         gpu_counters: opts.gpu_counters,
         measure: opts.measure.apply(s.measure.unwrap_or_default())?,
         flip_pixels_per_degree: s.reference.flip_pixels_per_degree(),
+        time_tasks: false,
     };
     let timeout = opts
         .run_timeout

@@ -569,15 +569,15 @@ fn case(
     sweep: &Sweep,
 ) -> Result<(Row, Vec<Row>)> {
     let repeats = sweep.repeats;
+    // Each task of cpu-native's steps on its thread's CPU clock (the phases' CPU-clock times
+    // schedule them as an idle machine would; cpu-model does not read it).
     let ctx = ExecContext {
         machine: machine.clone(),
         options: sweep.options.clone(),
+        time_tasks: true,
         ..Default::default()
     };
     let model = algorithms::run(alg, Backend::CpuModel, frame, &ctx)?;
-    // Each task of cpu-native's steps on its thread's CPU clock (the phases' CPU-clock times
-    // schedule them as an idle machine would).
-    let _timing = cpu_time::TimeTasks::on();
     // Warm-up: first touches of the frame, the thread pool, the allocator.
     algorithms::run(alg, Backend::CpuNative, frame, &ctx)?;
     // Per timed run: its whole wall and CPU-clock time and, per phase name, (wall, cpu, inside

@@ -195,7 +195,7 @@ struct PhaseRecord {
     cpu_ms: f64,
     /// Where the current stretch of the phase started on the CPU clocks.
     cpu_start: cpu_time::Span,
-    /// Of the current stretch, when its steps time their tasks (`cpu_time::TimeTasks`): the
+    /// Of the current stretch, when its steps time their tasks ([`Machine::timing_tasks`]): the
     /// steps' list-scheduled task CPU time, ms; the CPU time of the tasks that ran on the
     /// worker threads and of the calling thread inside the steps, ns.
     stretch: TaskTimes,
@@ -203,7 +203,7 @@ struct PhaseRecord {
     counters: Counters,
 }
 
-/// CPU time of a phase's steps measured task by task (`cpu_time::TimeTasks`).
+/// CPU time of a phase's steps measured task by task ([`Machine::timing_tasks`]).
 #[derive(Clone, Copy, Debug, Default)]
 struct TaskTimes {
     timed: bool,
@@ -231,6 +231,9 @@ pub struct Machine {
     shared: Option<SharedCache>,
     /// The run's budget, checked before every task of a step.
     deadline: Deadline,
+    /// Whether `cpu-native` steps time each task on its thread's CPU clock
+    /// ([`Machine::timing_tasks`]).
+    time_tasks: bool,
 }
 
 impl Machine {
@@ -252,6 +255,7 @@ impl Machine {
             single_core: false,
             single_core_caches: None,
             deadline: Deadline::default(),
+            time_tasks: false,
         }
     }
 
@@ -259,6 +263,15 @@ impl Machine {
     /// ([`Deadline::check`]), so a run past it unwinds within one task.
     pub fn with_deadline(mut self, deadline: Deadline) -> Machine {
         self.deadline = deadline;
+        self
+    }
+
+    /// The same machine whose `cpu-native` steps, when `on`, time each of their tasks on the
+    /// CPU clock of the thread that runs it (two `clock_gettime` calls per task, about 0.2 µs
+    /// each here), so that a phase's CPU-clock time can schedule the tasks as an idle machine
+    /// would ([`cpu_time::list_schedule`]). Off by default: ordinary runs pay nothing.
+    pub fn timing_tasks(mut self, on: bool) -> Machine {
+        self.time_tasks = on;
         self
     }
 
@@ -389,7 +402,7 @@ impl Machine {
         let deadline = self.deadline;
         if !self.is_model() {
             let start = Instant::now();
-            let timed = cpu_time::tasks_timed();
+            let timed = self.time_tasks;
             let caller = timed.then(cpu_time::thread_ns).flatten();
             // Each task with its thread's CPU time (0 when not timed).
             let run = |t: usize| {
@@ -705,6 +718,30 @@ mod tests {
                 assert!(f.model_ms.unwrap() > 0.0);
             } else {
                 assert!(f.model_ms.is_none());
+            }
+        }
+    }
+
+    /// Task timing is the machine's own setting (off by default), not the calling thread's:
+    /// a `cpu-native` step measures its tasks only on a machine made with it on.
+    #[test]
+    fn a_native_machine_times_its_tasks_only_when_made_to() {
+        struct Spin;
+        impl TaskKernel for Spin {
+            type Out = u64;
+            fn run<P: Probe>(&self, _: &mut P, t: usize) -> u64 {
+                (0..10_000u64).fold(t as u64, |a, i| a.wrapping_mul(31).wrapping_add(i))
+            }
+        }
+        for on in [false, true] {
+            let mut m = Machine::new(Backend::CpuNative, MachineConfig::larrabee(4));
+            m = m.timing_tasks(on);
+            m.phase("p");
+            m.run_step("spin", &Spin, &[1; 8]);
+            let timed = m.current().stretch.timed;
+            // Where the thread CPU clock exists, the step's tasks were timed exactly when on.
+            if cpu_time::thread_ns().is_some() {
+                assert_eq!(timed, on);
             }
         }
     }

@@ -8,7 +8,6 @@
 //! run delay per thread (the second field of Linux's `/proc/self/task/*/schedstat`: time spent
 //! runnable, waiting for a CPU) and the 1-minute load average (`/proc/loadavg`).
 
-use std::cell::Cell;
 use std::time::Instant;
 
 /// Which clock measures `cpu-native` time.
@@ -124,35 +123,6 @@ impl Span {
             .map(|(process, own)| spread_ms(process, own, workers));
         Times { wall_ms, cpu_ms }
     }
-}
-
-thread_local! {
-    /// Whether `cpu-native` steps started on this thread time each task on its thread's CPU
-    /// clock ([`TimeTasks`]).
-    static TIME_TASKS: Cell<bool> = const { Cell::new(false) };
-}
-
-/// While held, `cpu-native` steps run from this thread time each of their tasks on the CPU
-/// clock of the thread that runs it (two `clock_gettime` calls per task, about 0.2 µs each
-/// here), so that a phase's CPU-clock time can schedule the tasks as an idle machine would
-/// ([`list_schedule`]); off again when dropped. Off by default: ordinary runs pay nothing.
-pub struct TimeTasks(bool);
-
-impl TimeTasks {
-    pub fn on() -> TimeTasks {
-        TimeTasks(TIME_TASKS.with(|t| t.replace(true)))
-    }
-}
-
-impl Drop for TimeTasks {
-    fn drop(&mut self) {
-        TIME_TASKS.with(|t| t.set(self.0));
-    }
-}
-
-/// Whether this thread's `cpu-native` steps time their tasks ([`TimeTasks`]).
-pub fn tasks_timed() -> bool {
-    TIME_TASKS.with(Cell::get)
 }
 
 /// The makespan of `tasks` (durations, in order) on `workers` identical workers by list
@@ -347,22 +317,6 @@ mod tests {
         assert_eq!(list_schedule(&[1.0, 2.0, 3.0], 8), 3.0);
         assert_eq!(list_schedule(&[], 2), 0.0);
         assert_eq!(list_schedule(&[2.0], 0), 2.0);
-    }
-
-    #[test]
-    fn task_timing_is_on_while_held_and_only_on_its_thread() {
-        assert!(!tasks_timed());
-        {
-            let _on = TimeTasks::on();
-            assert!(tasks_timed());
-            assert!(!std::thread::spawn(tasks_timed).join().unwrap());
-            {
-                let _again = TimeTasks::on();
-            }
-            // The inner guard restores the outer one's setting.
-            assert!(tasks_timed());
-        }
-        assert!(!tasks_timed());
     }
 
     #[test]
