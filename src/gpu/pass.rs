@@ -1121,8 +1121,8 @@ impl<'g, 'b> Timed<'g, 'b> {
             return Ok(());
         }
         let n = passes.len() as u32;
-        let timer = (n > 0).then(|| PassTimer::new(self.gpu, n)).flatten();
-        let stats = (n > 0 && self.statistics != Statistics::Off)
+        let timer = PassTimer::new(self.gpu, n);
+        let stats = (self.statistics != Statistics::Off)
             .then(|| PassStats::new(self.gpu, n))
             .flatten();
         if let Some(t) = &timer {

@@ -36,8 +36,7 @@ use crate::algorithms::shadow_volume::Counting;
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{slot64, Readout, Slots, Statistics, Timed, Timing};
-use crate::gpu::readback::words;
+use crate::gpu::pass::{Readout, Slots, Statistics, Timed, Timing};
 use crate::gpu::{record_execution, Run};
 use crate::record::Counters;
 use crate::scene::camera::Camera;
@@ -167,8 +166,8 @@ impl Sampled {
             run.submit(1, &acc)?;
         }
         let timing = run.finish()?;
-        let stats: Vec<u32> = words(&timing.counts[0]);
-        let (fill, passed) = (slot64(&stats, 0), slot64(&stats, 1));
+        let slots = Slots::of(&timing.counts[0]);
+        let (fill, passed) = (slots.get(0), slots.get(1));
         let note = "fill and overdraw from an instrumented replay of every sample's count pass \
                 (depth test off, WGSL atomics) in the cpu-model's terms; mem_est.* in the \
                 cpu-model's terms of an 8-bit stencil and a 16-bit accumulation buffer";

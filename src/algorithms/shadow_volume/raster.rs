@@ -70,10 +70,9 @@ use super::{dark_cap_distance, far_point, zfail_faces, Counting, ShadowQuad};
 use crate::algorithms::eye_raster::EyeRays;
 use crate::error::Result;
 use crate::gpu::pass::{
-    gpu_struct, per_vertex, slot64, tiles, view, Bind, Compute, Draw, Instrumented, Layout, Onto,
-    Pass, Program, Raster, Render, Stencil, Step,
+    gpu_struct, per_vertex, replay_slots, tiles, view, Bind, Compute, Draw, Instrumented, Layout,
+    Onto, Pass, Program, Raster, Render, Stencil,
 };
-use crate::gpu::readback::words;
 use crate::gpu::{additive_red, stencil_test, unwritten, Run};
 use crate::scene::Mesh;
 
@@ -502,13 +501,8 @@ impl<'g> HardRaster<'g> {
         for (r, eye) in ranges {
             passes.extend(self.count_passes(vertices, r.clone(), *eye));
         }
-        let steps = [
-            Step::Clear(&self.stats),
-            Step::Submit(passes),
-            Step::Read(&self.stats),
-        ];
-        let raw: Vec<u32> = words(&crate::gpu::pass::replay(self.gpu, &steps)?[0]);
-        Ok((slot64(&raw, 0), slot64(&raw, 1)))
+        let slots = replay_slots(self.gpu, &self.stats, passes)?;
+        Ok((slots.get(0), slots.get(1)))
     }
 }
 
