@@ -829,8 +829,22 @@ fn guarded<T>(
         ))
     })?;
     match (v, o) {
-        (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(e.to_string())),
+        (Some(e), _) | (None, Some(e)) => Err(Error::Gpu(describe_error(&e))),
         (None, None) => out.map(|out| (out, setup)),
+    }
+}
+
+/// A wgpu error with what went wrong: a validation or internal error's description (their
+/// `Display` says only "Validation Error").
+fn describe_error(e: &wgpu::Error) -> String {
+    match e {
+        wgpu::Error::Validation { description, .. } | wgpu::Error::Internal { description, .. } => {
+            // One line: "Validation Error: In Device::create_shader_module, …: <what>".
+            let lines = description.lines().map(str::trim);
+            let lines = lines.filter(|l| !l.is_empty() && *l != "Caused by:");
+            lines.collect::<Vec<_>>().join(": ")
+        }
+        other => other.to_string(),
     }
 }
 

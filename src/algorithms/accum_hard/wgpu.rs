@@ -13,8 +13,8 @@
 //! - `"gather"`: per light sample the hard pass of the shadow-volume family
 //!   ([`crate::algorithms::shadow_volume::wgpu`]): shadow quads, or for z-fail the capped
 //!   volumes' faces, binned to 8×8 screen tiles on the host, one invocation per pixel counting
-//!   its tile's primitives into an i32, then an `accumulate` pass adding the pixels with count
-//!   0 to an f32 sum per pixel.
+//!   its tile's primitives into an i32, then an `accumulate` pass (`wgpu.wgsl`, binding the hard
+//!   pass's group beside its own) adding the pixels with count 0 to an f32 sum per pixel.
 //!
 //! The memory traffic counters (`mem_est.*`) are in the cpu-model's terms of that stencil and
 //! accumulation buffer (`accum_hard::cpu`): the stencil cleared per sample, a depth read per
@@ -30,13 +30,17 @@ use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{hard_triangles, DepthTarget, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
-    check_limits, hard_fill, FrameResources, Params, Stat, VolumePasses,
+    self as family, check_limits, hard_fill, upload_rays, HardParams, HardPass, HardStat,
+    RECORDS_WGSL, WORD,
 };
 use crate::algorithms::shadow_volume::Counting;
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{Readout, Slots, Statistics, Timed, Timing};
+use crate::gpu::pass::{
+    gpu_struct, Bind, Instrumented, Layout, Pass, Program, Readout, Slots, Statistics, Timed,
+    Timing,
+};
 use crate::gpu::{record_execution, Run};
 use crate::record::Counters;
 use crate::scene::camera::Camera;
@@ -51,7 +55,7 @@ pub fn render(
     opts: &AccumHardOptions,
 ) -> Result<FrameOutput> {
     if opts.gpu_pipeline == GpuPipeline::Gather {
-        check_limits(gpu, frame, super::ID)?;
+        check_limits(gpu, frame, super::ID, STORAGE_BUFFERS)?;
     }
     let run = Sampled {
         start: Instant::now(),
@@ -97,6 +101,36 @@ pub fn render(
     }
     Ok(out)
 }
+
+/// The accumulation on the gather pipeline: its bindings (group 1, after the hard pass's group 0)
+/// and entry; joined after the family's records and hard pass.
+const WGSL: &str = include_str!("wgpu.wgsl");
+
+/// Storage buffers the accumulation binds in one stage: the hard pass's and its sum and
+/// visibility.
+const STORAGE_BUFFERS: u32 = family::STORAGE_BUFFERS + 2;
+
+gpu_struct! {
+    /// The parameters of one light sample's accumulation (group 1, binding 0).
+    struct AccumParams as "AccumParams" {
+        /// 1 for the first sample, 1 for the last (then the average is written).
+        first_light: u32 => "u32",
+        last_light: u32 => "u32",
+        /// The light samples.
+        sub_lights: u32 => "u32",
+        pad: u32 => "u32",
+    }
+}
+
+/// The accumulation's shader as its pipeline joins it.
+const SOURCES: [&str; 6] = [
+    HardParams::WGSL,
+    RECORDS_WGSL,
+    family::WGSL,
+    AccumParams::WGSL,
+    WGSL,
+    crate::scene::coverage::WGSL,
+];
 
 /// What a pipeline gave: its timing, what its hard passes measured over all samples and its
 /// own `hard` counters, how its counters were obtained.
@@ -183,46 +217,59 @@ impl Sampled {
     fn gather<'g>(&self, gpu: &'g Run) -> Result<Pipeline<'g>> {
         let (samples, rays, counting) = (&self.samples, &self.rays, self.counting);
         let n = samples.count();
-        let res = FrameResources::new(gpu, rays, &[], false);
+        let rays_buf = upload_rays(gpu, rays);
         let occluders = samples.occluders.clone();
-        let passes = VolumePasses::new(gpu, rays, counting, res, occluders, "");
-        let visibility = &passes.res.visibility;
+        let hard = HardPass::new(gpu, rays, &rays_buf, counting, occluders);
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let pixels = rays.len() as u64;
+        let sum = gpu.storage_buffer("sum", WORD * pixels, copy);
+        let visibility = gpu.storage_buffer("visibility", WORD * pixels, copy);
+        let binds = [Bind::Uniform, Bind::ReadWrite, Bind::ReadWrite];
+        let layout = Layout::new(gpu, "accumulate", wgpu::ShaderStages::COMPUTE, &binds);
+        let groups = [Some(&hard.layout), Some(&layout)];
+        let program = Program::new(gpu, "accum_hard/wgpu.wgsl", &SOURCES, &groups);
+        let accumulate = Instrumented::timed(program.compute(gpu, "accumulate", Some(false)));
         // The instrumented replay: every sample's hard pass.
-        let mut run = Timed::new(gpu, &PHASES, Statistics::Compute, &[visibility])
-            .counting_into(&passes.res.stats, Readout::End);
+        let mut run = Timed::new(gpu, &PHASES, Statistics::Compute, &[&visibility])
+            .counting_into(&hard.stats, Readout::End);
         run.add_setup(0, self.start);
         let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
         for s in 0..n {
             let up = run.host(0, || {
                 let (sample, quads) = samples.quads(s);
                 m.edges += quads.len() as u64;
-                let params = Params {
-                    center: sample.extend(0.0).to_array(),
-                    eye_count: counting.eye_start(&samples.occluders, sample, rays.eye),
-                    first_loop: 1,
-                    last_loop: 1,
-                    ..Params::of_light(rays, s as usize, n as usize, counting)
+                let eye_count = counting.eye_start(&samples.occluders, sample, rays.eye);
+                let params = AccumParams {
+                    first_light: u32::from(s == 0),
+                    last_light: u32::from(s + 1 == n),
+                    sub_lights: n,
+                    pad: 0,
                 };
-                passes.upload_quads(rays, &params, sample, &quads)
+                let params = gpu.uniform("accumulate params", &params);
+                let own = [&params, &sum, &visibility].map(|b| b.as_entire_binding());
+                let group = layout.group(gpu, "accumulate", &own);
+                (hard.upload_quads(rays, eye_count, sample, &quads), group)
             });
             uploads.push(up);
         }
-        for up in &uploads {
-            run.submit(0, &[passes.hard(up)])?;
-            run.submit(1, &[passes.accumulate(up)])?;
+        for (up, group) in &uploads {
+            run.submit(0, &[hard.pass(up)])?;
+            let groups = [Some(&up.group), Some(group)];
+            let pass = Pass::compute("accumulate", &groups, &accumulate, hard.groups);
+            run.submit(1, &[pass])?;
         }
         let timing = run.finish()?;
         let slots = Slots::of(&timing.counts[0]);
-        let stat = |s: Stat| slots.get(s as usize);
+        let stat = |s: HardStat| slots.get(s as usize);
         let m = Measured {
-            caps: uploads.iter().map(|u| u.caps).sum(),
-            fill: stat(Stat::HardFill),
-            passed: stat(Stat::HardPassed),
+            caps: uploads.iter().map(|(u, _)| u.caps).sum(),
+            fill: stat(HardStat::Fill),
+            passed: stat(HardStat::Passed),
             ..m
         };
         let mut hard = Counters::default();
         hard.add("shadow_quads", m.edges as f64);
-        hard.add("quad_tests", stat(Stat::HardTests));
+        hard.add("quad_tests", stat(HardStat::Tests));
         let note =
             "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
                 atomics); mem.* in the cpu-model's terms of an 8-bit stencil and a 16-bit \
@@ -230,3 +277,6 @@ impl Sampled {
         Ok((timing, m, hard, note))
     }
 }
+
+#[cfg(test)]
+crate::gpu::wgsl_layout::layout_test!(SOURCES => AccumParams, HardParams);

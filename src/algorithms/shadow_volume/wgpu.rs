@@ -1,17 +1,18 @@
-//! The shadow-volume family's GPU passes, shared by `soft_shadow_volume` and `accum_hard` on
-//! wgpu (`wgpu.wgsl`; `soft_shadow_volume` joins its `soft` pass after it):
+//! The shadow-volume family's GPU base, shared by `soft_shadow_volume` and `accum_hard` on
+//! wgpu: the records every pass reads (`records.wgsl`: eye rays, shadow quads, their tests) and
+//! the hard pass with its bindings (`wgpu.wgsl`, [`HardPass`]):
 //!
-//! - the frame's eye rays and per-pixel buffers ([`FrameResources`]);
 //! - the hard pass (III §3.2.1): shadow quads built on the host from a silhouette and binned to
 //!   8×8 screen tiles on the host (sort-middle, as [`crate::algorithms::eye_raster::raster_pass`]
 //!   bins them), then one invocation per pixel walks its tile's quads in submission order and
-//!   counts z-pass from the eye's count ([`super::eye_count`]) into an i32 V-buffer; with
+//!   counts z-pass from the eye's count ([`super::eye_count`]) into an i32 per pixel; with
 //!   `counting: "z_fail"` (Paper II §5) it walks the faces of the capped volumes instead
 //!   (sides, light and dark caps, built on the host by [`zfail_faces`]) and counts those at or
-//!   behind the visible surface;
-//! - `accum_hard`'s accumulation of one light sample's lit pixels (`accumulate`).
+//!   behind the visible surface.
 //!
-//! The counters of the instrumented replay are 64-bit slots of one buffer ([`Stat`]).
+//! The algorithms own the rest: `soft_shadow_volume` its soft pass, parameters, bindings and
+//! counters; `accum_hard` its accumulation, which binds the hard pass's group 0 beside its own.
+//! The hard pass's counters are 64-bit slots of the family's buffer ([`HardStat`]).
 
 use glam::{Vec3, Vec4};
 
@@ -19,133 +20,64 @@ use super::{face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad,
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{
-    gpu_struct, replay_slots, tiles, Bind, Compute, Instrumented, Layout, Pass, Program,
-};
+use crate::gpu::pass::{gpu_struct, tiles, Bind, Compute, Layout, Pass, Program};
 use crate::gpu::{Needs, Run, EMPTY_BYTES};
 use crate::record::Counters;
 use crate::scene::Mesh;
 
-/// The family's WGSL: parameters, bindings, the hard pass, the accumulation.
+/// The records and geometry every pass of the family reads (no bindings).
+pub(crate) const RECORDS_WGSL: &str = include_str!("records.wgsl");
+/// The hard pass: its bindings (group 0), counters and entry; joined after [`RECORDS_WGSL`].
 pub(crate) const WGSL: &str = include_str!("wgpu.wgsl");
 
 /// Side of the screen tiles primitives are binned to (`TILE` and the workgroup in the WGSL).
 pub(crate) const TILE: u32 = 8;
-/// Storage buffers bound (bindings 1-12).
-pub(crate) const STORAGE_BUFFERS: u32 = 12;
-/// Record sizes: an eye ray, a shadow quad, a wedge primitive, a plane, a word.
+/// Storage buffers the hard pass binds (group 0, bindings 1-6).
+pub(crate) const STORAGE_BUFFERS: u32 = 6;
+/// Record sizes: an eye ray, a shadow quad, a word.
 pub(crate) const RAY_BYTES: u64 = 48;
 pub(crate) const QUAD_BYTES: u64 = 80;
-/// A z-fail volume face: six vec4 (corners, normal, footprint) in the `planes` binding.
+/// A z-fail volume face: six vec4 (corners, normal, footprint) in the `faces` binding.
 pub(crate) const FACE_BYTES: u64 = 96;
-pub(crate) const PRIM_BYTES: u64 = 32;
-pub(crate) const PLANE_BYTES: u64 = 16;
 pub(crate) const WORD: u64 = 4;
-/// Bytes per pixel of the V-buffer (f32, or one rgba8 buffer of the split pair) and of the
-/// stencil the wedge-half culling of IV §4.4 uses on a rasterizer.
-pub(crate) const VBUFFER_BYTES: u64 = 4;
-pub(crate) const STENCIL_BYTES: u64 = 1;
 
-/// The statistics slots of the instrumented pipelines (`STAT_*` in the WGSL), in slot order.
+/// The hard pass's statistics slots (`STAT_HARD_*` in the WGSL), in slot order.
 #[derive(Clone, Copy)]
-pub(crate) enum Stat {
-    HardFill,
-    HardPassed,
-    SoftFill,
-    SoftFront,
-    SoftInside,
-    SoftCovered,
-    SoftContributing,
-    HardTests,
-    SoftTests,
+pub(crate) enum HardStat {
+    Fill,
+    Passed,
+    Tests,
 }
 
-pub(crate) const STATS: u64 = 9;
+const STATS: u64 = 3;
 
 gpu_struct! {
-    /// The parameters of one pass (binding 0).
-    pub(crate) struct Params as "Params" {
-        /// Light centre; w: emitter shape (0 square, 1 disc).
-        center: [f32; 4] => "vec4f",
-        /// Half-axes for rect and disc lights (constant); w: light kind (0 rect, 1 sphere,
-        /// 2 disc).
-        half_u: [f32; 4] => "vec4f",
-        /// w: sphere radius.
-        half_v: [f32; 4] => "vec4f",
+    /// The parameters of one hard pass (binding 0).
+    pub(crate) struct HardParams as "HardParams" {
         /// The eye position.
         eye: [f32; 4] => "vec4f",
         width: u32 => "u32",
         height: u32 => "u32",
         tiles_x: u32 => "u32",
+        /// The count a z-pass count starts from ([`super::eye_count`]).
         eye_count: i32 => "i32",
-        /// 0: f32 V-buffer, 1: split 12-bit rgba8 pair (IV §4.3).
-        vbuffer: u32 => "u32",
-        /// 0: exact clipping, 1: 4D texture.
-        coverage: u32 => "u32",
-        texture_n: u32 => "u32",
-        /// 1 when this is the first silhouette loop of its sub-light.
-        first_loop: u32 => "u32",
-        /// 1 when this is the last loop of its sub-light; then the sub-light's visibility is
-        /// added.
-        last_loop: u32 => "u32",
-        /// 1 for the first sub-light, 1 for the last (then the final clamp runs).
-        first_light: u32 => "u32",
-        last_light: u32 => "u32",
-        sub_lights: u32 => "u32",
-        /// 0: z-pass from `eye_count`, 1: z-fail over the capped volumes' faces in `planes`.
+        /// 0: z-pass from `eye_count`, 1: z-fail over the capped volumes' faces in `faces`.
         counting: u32 => "u32",
-        /// 3 for a textured light (RGB coverage texture, one f32 per channel), else 1.
-        channels: u32 => "u32",
+        pad0: u32 => "u32",
         pad1: u32 => "u32",
         pad2: u32 => "u32",
-        /// The textured light's mean colour (`LightTexture::mean`).
-        mean: [f32; 4] => "vec4f",
     }
 }
 
-impl Params {
-    /// What every pass over `rays` for light `s` of `n` (sub-light or light sample) counting as
-    /// `counting` shares; the rest zero but one channel of white light.
-    pub fn of_light(rays: &EyeRays, s: usize, n: usize, counting: Counting) -> Params {
-        Params {
-            eye: rays.eye.extend(0.0).to_array(),
-            width: rays.width,
-            height: rays.height,
-            tiles_x: rays.width.div_ceil(TILE),
-            first_light: u32::from(s == 0),
-            last_light: u32::from(s + 1 == n),
-            sub_lights: n as u32,
-            counting: u32::from(counting == Counting::ZFail),
-            channels: 1,
-            mean: [1.0; 4],
-            ..Params::default()
-        }
-    }
-}
-
-/// Checks the frame against the adapter's limits for the passes of algorithm `id`: the storage
-/// buffers bound and the eye rays' bytes.
-pub(crate) fn check_limits(gpu: &Run, frame: &Frame, id: &str) -> Result<()> {
+/// Checks the frame against the adapter's limits for the passes of algorithm `id`, which bind
+/// `storage_buffers` storage buffers in one stage: those and the eye rays' bytes.
+pub(crate) fn check_limits(gpu: &Run, frame: &Frame, id: &str, storage_buffers: u32) -> Result<()> {
     let needs = Needs {
-        storage_buffers: STORAGE_BUFFERS,
+        storage_buffers,
         buffers: &[("eye_rays", RAY_BYTES * frame.gbuffer.len() as u64)],
         ..Needs::default()
     };
     gpu.check_limits(id, needs)
-}
-
-/// Eye-sized buffers shared by every loop.
-pub(crate) struct FrameResources {
-    pub rays: wgpu::Buffer,
-    pub texels: wgpu::Buffer,
-    pub counts: wgpu::Buffer,
-    pub covered: wgpu::Buffer,
-    pub visibility: wgpu::Buffer,
-    pub stats: wgpu::Buffer,
-    /// Light received per channel (3 words a pixel) under a textured light, else one word.
-    pub rgb: wgpu::Buffer,
-    /// 3 for a textured light, else 1.
-    pub channels: u32,
 }
 
 /// Infinite and NaN parameters become the largest finite ones (WGSL has no infinities).
@@ -174,28 +106,9 @@ pub(crate) fn ray_records(rays: &EyeRays) -> Vec<[f32; 12]> {
         .collect()
 }
 
-impl FrameResources {
-    /// The buffers of `rays`, with a coverage texture's `texels` (none: empty) and, when
-    /// `textured`, an RGB buffer of three words a pixel.
-    pub fn new(gpu: &Run, rays: &EyeRays, texels: &[u8], textured: bool) -> FrameResources {
-        let storage = wgpu::BufferUsages::STORAGE;
-        let records = ray_records(rays);
-        // The texels four to a little-endian word, as the WGSL reads them.
-        let mut packed = texels.to_vec();
-        packed.resize(texels.len().div_ceil(4) * 4, 0);
-        let pixels = rays.len() as u64;
-        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
-        FrameResources {
-            rays: gpu.upload("eye rays", &records, storage),
-            texels: gpu.upload("coverage texture", &packed, storage),
-            counts: gpu.storage_buffer("hard counts", WORD * pixels, copy),
-            covered: gpu.storage_buffer("covered", WORD * pixels, copy),
-            visibility: gpu.storage_buffer("visibility", WORD * pixels, copy),
-            stats: gpu.storage_buffer("statistics", 2 * WORD * STATS, copy),
-            rgb: gpu.storage_buffer("rgb", if textured { 3 * WORD * pixels } else { WORD }, copy),
-            channels: if textured { 3 } else { 1 },
-        }
-    }
+/// The eye rays of `rays` uploaded as the WGSL reads them ([`ray_records`]).
+pub(crate) fn upload_rays(gpu: &Run, rays: &EyeRays) -> wgpu::Buffer {
+    gpu.upload("eye rays", &ray_records(rays), wgpu::BufferUsages::STORAGE)
 }
 
 /// A hard pass's `fill` and `overdraw` (the fragments that fail the depth test) in the
@@ -326,100 +239,79 @@ pub(crate) fn quad_records(
         .collect()
 }
 
-/// What the hard phase uploaded for one loop: the hard pass's bind group, the params, quads and
-/// bins buffers the soft pass binds too, and the counts its counters need.
+/// What the hard phase uploaded for one loop (or light sample): the hard pass's bind group
+/// (group 0), the shadow quads (the soft pass binds them too) and the counts its counters need.
 pub(crate) struct HardUpload {
     pub group: wgpu::BindGroup,
-    pub buffers: [wgpu::Buffer; 3],
+    pub quads: wgpu::Buffer,
     pub bin_entries: u64,
     pub caps: u64,
 }
 
-/// The family's passes over one frame: the bind-group layout of every pass, the program
-/// (the family's WGSL, an algorithm's, the coverage rule) and the hard and accumulate
-/// pipelines.
-pub(crate) struct VolumePasses<'g> {
+/// The family's hard pass over one frame: its bind-group layout (group 0, which an algorithm's
+/// own pass may bind beside its own groups), its program and pipeline, and the per-pixel counts
+/// and statistics it writes.
+pub(crate) struct HardPass<'g> {
     pub gpu: &'g Run,
     pub counting: Counting,
-    pub res: FrameResources,
-    /// Group 0 of every pass, visible to compute and fragment shaders (the raster wedge pass
-    /// of `soft_shadow_volume` binds it too).
+    /// The eye rays ([`upload_rays`]), the hard counts (an i32 per pixel) and the hard pass's
+    /// statistics slots ([`HardStat`]).
+    pub rays: wgpu::Buffer,
+    pub counts: wgpu::Buffer,
+    pub stats: wgpu::Buffer,
     pub layout: Layout,
-    pub program: Program,
     /// The hard pass (`INSTRUMENT` counting in the replay).
     hard: Compute,
-    /// Timed only.
-    accumulate: Compute,
+    /// The workgroups of a pass over the image's 8×8 tiles.
     pub groups: (u32, u32),
     pub pixels: u64,
     /// The occluders, whose light-facing triangles cap the z-fail volumes.
     occluders: Mesh,
 }
 
-impl<'g> VolumePasses<'g> {
-    /// The passes over `rays` with `res`, counting as `counting`; `wgsl` is joined after the
-    /// family's WGSL (an algorithm's own entries).
+impl<'g> HardPass<'g> {
+    /// The hard pass over `rays` (uploaded as `rays_buf`), counting as `counting`, the z-fail
+    /// volumes capped by `occluders`.
     pub fn new(
         gpu: &'g Run,
         rays: &EyeRays,
+        rays_buf: &wgpu::Buffer,
         counting: Counting,
-        res: FrameResources,
         occluders: Mesh,
-        wgsl: &str,
-    ) -> VolumePasses<'g> {
-        // Binding 0 the parameters, 1-7 what the passes read, 8-12 what they write.
+    ) -> HardPass<'g> {
+        // Binding 0 the parameters, 1-4 what the pass reads, 5-6 what it writes.
         let binds: Vec<Bind> = (0..=STORAGE_BUFFERS)
             .map(|b| match b {
                 0 => Bind::Uniform,
-                1..=7 => Bind::ReadOnly,
+                1..=4 => Bind::ReadOnly,
                 _ => Bind::ReadWrite,
             })
             .collect();
-        let stages = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
-        let layout = Layout::new(gpu, "shadow volumes", stages, &binds);
-        let sources = [Params::WGSL, WGSL, wgsl, crate::scene::coverage::WGSL];
-        let program = Program::new(gpu, "shadow_volume/wgpu.wgsl", &sources, &[Some(&layout)]);
-        VolumePasses {
+        let layout = Layout::new(gpu, "hard pass", wgpu::ShaderStages::COMPUTE, &binds);
+        let program = Program::new(gpu, "shadow_volume/wgpu.wgsl", &SOURCES, &[Some(&layout)]);
+        let pixels = rays.len() as u64;
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        HardPass {
             hard: program.instrumented(gpu, "hard"),
-            accumulate: Instrumented::timed(program.compute(gpu, "accumulate", Some(false))),
             gpu,
             counting,
-            res,
+            rays: rays_buf.clone(),
+            counts: gpu.storage_buffer("hard counts", WORD * pixels, copy),
+            stats: gpu.storage_buffer("hard statistics", 2 * WORD * STATS, copy),
             layout,
-            program,
             groups: tiles((rays.width, rays.height), TILE),
-            pixels: rays.len() as u64,
+            pixels,
             occluders,
         }
     }
 
-    /// The bind group of one pass: `params`, then the primitives (quads, wedge primitives,
-    /// planes or z-fail faces, quad bins, wedge bins).
-    pub fn group(
-        &self,
-        params: &wgpu::Buffer,
-        prims: [&wgpu::Buffer; 5],
-        label: &str,
-    ) -> wgpu::BindGroup {
-        let r = &self.res;
-        let buffers = [params, &r.rays].into_iter().chain(prims).chain([
-            &r.texels,
-            &r.counts,
-            &r.covered,
-            &r.visibility,
-            &r.stats,
-            &r.rgb,
-        ]);
-        let resources: Vec<_> = buffers.map(|b| b.as_entire_binding()).collect();
-        self.layout.group(self.gpu, label, &resources)
-    }
-
-    /// The hard phase's host part: quads (and for z-fail the capped volumes' faces from light
-    /// point `light`), footprints, bins, upload.
+    /// The hard phase's host part for one light point `light` of `rays`, the z-pass count
+    /// starting from `eye_count`: quads (and for z-fail the capped volumes' faces), footprints,
+    /// bins, upload, the pass's group.
     pub fn upload_quads(
         &self,
         rays: &EyeRays,
-        params: &Params,
+        eye_count: i32,
         light: Vec3,
         quads: &[ShadowQuad],
     ) -> HardUpload {
@@ -432,64 +324,54 @@ impl<'g> VolumePasses<'g> {
         let face_prints = faces.as_ref().map(|f| face_footprints(rays, f));
         let prints = face_prints.as_ref().unwrap_or(&footprints);
         let (quad_bins, entries) = bins(rays, prints, |_, _| true);
-        let params = gpu.uniform("ssv params", params);
+        let params = HardParams {
+            eye: rays.eye.extend(0.0).to_array(),
+            width: rays.width,
+            height: rays.height,
+            tiles_x: rays.width.div_ceil(TILE),
+            eye_count,
+            counting: u32::from(self.counting == Counting::ZFail),
+            ..HardParams::default()
+        };
+        let params = gpu.uniform("hard params", &params);
         let quads_buf = gpu.upload("shadow quads", &records, storage);
         let bins_buf = gpu.upload("quad bins", &quad_bins, storage);
-        let empty = wgpu::BufferUsages::empty();
-        let none = gpu.storage_buffer("no primitives", EMPTY_BYTES as u64, empty);
-        let faces_buf =
-            (faces.as_ref()).map(|f| gpu.upload("volume faces", &face_records(rays, f), storage));
-        let planes = faces_buf.as_ref().unwrap_or(&none);
-        let group = self.group(
+        // Counting z-pass the pass reads no faces: the binding is empty.
+        let faces_buf = match &faces {
+            Some(f) => gpu.upload("volume faces", &face_records(rays, f), storage),
+            None => gpu.storage_buffer("no faces", EMPTY_BYTES as u64, wgpu::BufferUsages::empty()),
+        };
+        let buffers = [
             &params,
-            [&quads_buf, &none, planes, &bins_buf, &none],
-            "hard",
-        );
+            &self.rays,
+            &quads_buf,
+            &faces_buf,
+            &bins_buf,
+            &self.counts,
+            &self.stats,
+        ];
+        let resources: Vec<_> = buffers.iter().map(|b| b.as_entire_binding()).collect();
         HardUpload {
-            group,
-            buffers: [params, quads_buf, bins_buf],
+            group: self.layout.group(gpu, "hard", &resources),
+            quads: quads_buf,
             bin_entries: entries,
             caps: faces.map_or(0, |f| (f.len() - quads.len()) as u64),
         }
     }
 
-    /// A pass of `pipeline` over the image's tiles with `group`.
-    pub fn pass<'a>(
-        &'a self,
-        label: &'a str,
-        pipeline: &'a Compute,
-        group: &'a wgpu::BindGroup,
-    ) -> Pass<'a> {
-        Pass::compute(label, &[Some(group)], pipeline, self.groups)
-    }
-
     /// The hard pass of an upload.
-    pub fn hard<'a>(&'a self, up: &'a HardUpload) -> Pass<'a> {
-        self.pass("hard", &self.hard, &up.group)
-    }
-
-    /// `accum_hard`'s accumulation of a sample's lit pixels.
-    pub fn accumulate<'a>(&'a self, up: &'a HardUpload) -> Pass<'a> {
-        self.pass("accumulate", &self.accumulate, &up.group)
-    }
-
-    /// Runs `passes` as an instrumented replay (statistics cleared before, read after) and
-    /// returns the statistics' reader.
-    pub fn replay(&self, passes: Vec<Pass>) -> Result<impl Fn(Stat) -> f64> {
-        let slot = replay_slots(self.gpu, &self.res.stats, passes)?;
-        Ok(move |s: Stat| slot.get(s as usize))
+    pub fn pass<'a>(&'a self, up: &'a HardUpload) -> Pass<'a> {
+        Pass::compute("hard", &[Some(&up.group)], &self.hard, self.groups)
     }
 }
 
-// `Params` against the family's WGSL as the pipelines join it: alone (`accum_hard`) and with
-// `soft_shadow_volume`'s soft pass.
+/// The hard pass's shader as its pipeline joins it.
+const SOURCES: [&str; 4] = [
+    HardParams::WGSL,
+    RECORDS_WGSL,
+    WGSL,
+    crate::scene::coverage::WGSL,
+];
+
 #[cfg(test)]
-crate::gpu::wgsl_layout::layout_test!(
-    [Params::WGSL, WGSL, "", crate::scene::coverage::WGSL],
-    [
-        Params::WGSL,
-        WGSL,
-        include_str!("../soft_shadow_volume/wgpu.wgsl"),
-        crate::scene::coverage::WGSL
-    ] => Params
-);
+crate::gpu::wgsl_layout::layout_test!(SOURCES => HardParams);

@@ -67,33 +67,39 @@ use glam::Vec3;
 use wgpu::CompareFunction::{Always, Equal};
 use wgpu::StencilOperation::{Keep, Replace, Zero};
 
-use super::wgpu::{run_loops, LoopRun, Pipeline, Replayed, WedgeRecords, WGSL as SOFT_WGSL};
+use super::wgpu::{
+    run_loops, LoopRun, Pipeline, Replayed, SoftGroup, SoftParams, SoftStat, WedgeRecords,
+    STENCIL_BYTES, VBUFFER_BYTES, WGSL as SOFT_WGSL,
+};
 use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{
     eye_projection, hard_triangles, DepthTarget, HardRaster,
 };
-use crate::algorithms::shadow_volume::wgpu::{
-    hard_fill, quad_records, FrameResources, Params, Stat, VolumePasses, STENCIL_BYTES,
-    VBUFFER_BYTES, WGSL as FAMILY_WGSL,
-};
+use crate::algorithms::shadow_volume::wgpu::{hard_fill, quad_records, RECORDS_WGSL, TILE};
 use crate::algorithms::shadow_volume::ShadowQuad;
 use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
-    view, Bind, Compute, Instrumented, Layout, Onto, Pass, Program, Raster, Render, Statistics,
-    Stencil, Step,
+    replay_slots, tiles, view, Bind, Compute, Instrumented, Layout, Onto, Pass, Program, Raster,
+    Render, Statistics, Stencil, Step,
 };
 use crate::gpu::readback::read_texels;
-use crate::gpu::{
-    additive, record_execution, stencil_test, unwritten, GpuCounters, Run, EMPTY_BYTES,
-};
+use crate::gpu::{additive, record_execution, stencil_test, unwritten, GpuCounters, Run};
 use crate::record::Counters;
 use crate::scene::{Bounds, Mesh};
 
 /// The wedge pass's WGSL.
 const WGSL: &str = include_str!("raster.wgsl");
+/// The wedge passes' and the resolve's shader as their pipelines join it.
+const SOURCES: [&str; 5] = [
+    SoftParams::WGSL,
+    RECORDS_WGSL,
+    SOFT_WGSL,
+    WGSL,
+    crate::scene::coverage::WGSL,
+];
 /// Bytes of a wedge vertex: clip position and the primitive's index.
 const VERTEX_BYTES: u64 = 20;
 
@@ -457,17 +463,19 @@ fn depth_target(stencil: bool) -> DepthTarget {
     }
 }
 
-/// The raster pipeline: the family's raster hard pass, the group layout and frame resources
-/// of the family's passes, the wedge pass, and the resolve reading the count and V-buffers.
+/// The raster pipeline: the family's raster hard pass, the soft pass's group and buffers, the
+/// wedge pass, and the resolve reading the count and V-buffers.
 struct Rasterized<'g> {
     gpu: &'g Run,
     opts: SoftShadowVolumeOptions,
     occluders: Mesh,
     hard: HardRaster<'g>,
-    v: VolumePasses<'g>,
+    soft: SoftGroup<'g>,
     wp: WedgePass,
     read_targets: wgpu::BindGroup,
     resolve: Compute,
+    /// The resolve's workgroups: the image's 8×8 tiles.
+    tiles: (u32, u32),
 }
 
 /// The raster pipeline over `runs` (the loops of every sub-light, [`super::wgpu::render`]).
@@ -476,7 +484,7 @@ pub(super) fn run(
     frame: &Frame,
     rays: &EyeRays,
     opts: &SoftShadowVolumeOptions,
-    res: FrameResources,
+    soft: SoftGroup,
     runs: &[LoopRun],
     setup_ms: f64,
 ) -> Result<FrameOutput> {
@@ -487,16 +495,8 @@ pub(super) fn run(
     let occluders = frame.scene.occluders();
     let depth = depth_target(stencil_in(opts, gpu));
     let hard = HardRaster::new(gpu, rays, &frame.scene.camera, opts.counting, 1, depth);
-    let textured = res.channels == 3;
-    let v = VolumePasses::new(gpu, rays, opts.counting, res, occluders.clone(), SOFT_WGSL);
-    let sources = [
-        Params::WGSL,
-        FAMILY_WGSL,
-        SOFT_WGSL,
-        WGSL,
-        crate::scene::coverage::WGSL,
-    ];
-    let program = Program::new(gpu, "ssv raster", &sources, &[Some(&v.layout)]);
+    let textured = soft.channels == 3;
+    let program = Program::new(gpu, "ssv raster", &SOURCES, &[Some(&soft.layout)]);
     let wp = WedgePass::new(gpu, frame, rays, opts, &program, textured);
     let vb = &wp.vbuffers;
     let (targets, read_targets) = Layout::bound(
@@ -505,23 +505,24 @@ pub(super) fn run(
         wgpu::ShaderStages::COMPUTE,
         &[&hard.count, &vb[0], vb.last().unwrap_or(&vb[0])].map(|t| (Bind::Float, view(t))),
     );
-    let groups = [Some(&v.layout), Some(&targets)];
-    let resolve = Program::new(gpu, "ssv resolve", &sources, &groups);
+    let groups = [Some(&soft.layout), Some(&targets)];
+    let resolve = Program::new(gpu, "ssv resolve", &SOURCES, &groups);
     let resolve = Instrumented::timed(resolve.compute(gpu, "resolve_soft", Some(false)));
     let p = Rasterized {
         gpu,
         opts: *opts,
         occluders,
         hard,
-        v,
+        soft,
         wp,
         read_targets,
         resolve,
+        tiles: tiles((rays.width, rays.height), TILE),
     };
     // Without the pipelines' creation: the run's GPU setup, reported apart.
     let objects_ms = gpu.cache.run_objects_ms() - objects_ms;
     let setup_ms = setup_ms + start.elapsed().as_secs_f64() * 1e3 - objects_ms;
-    let mut out = run_loops(&p, gpu, (rays, &p.v.res, opts), runs, setup_ms)?;
+    let mut out = run_loops(&p, gpu, (rays, &p.soft, opts), runs, setup_ms)?;
     record_execution(&mut out.execution, p.wp.record(opts));
     Ok(out)
 }
@@ -541,7 +542,7 @@ impl Pipeline for Rasterized<'_> {
         HardVertices {
             buffer: self.hard.vertices(&tris),
             count: tris.len() as u32,
-            eye_count: lr.params.eye_count,
+            eye_count: lr.eye_count,
             caps,
         }
     }
@@ -565,15 +566,11 @@ impl Pipeline for Rasterized<'_> {
     ) -> LoopRaster {
         let (gpu, storage) = (self.gpu, wgpu::BufferUsages::STORAGE);
         let (vertices, wedge_vertices, halves) = self.wp.geometry(rays, w);
-        let none = gpu.storage_buffer("no bins", EMPTY_BYTES as u64, storage);
-        let params = gpu.uniform("ssv params", &lr.params);
         let no_footprints = vec![None; q.len()];
         let quad_buf = gpu.upload("quads", &quad_records(rays, q, &no_footprints), storage);
-        let prims = gpu.upload("wedge primitives", &w.records, storage);
-        let planes = gpu.upload("wedge planes", &w.planes, storage);
         LoopRaster {
             wedge_vertices,
-            group: (self.v).group(&params, [&quad_buf, &prims, &planes, &none, &none], "soft"),
+            group: self.soft.group(&lr.params, &quad_buf, w),
             wedge: gpu.upload("wedge vertices", &vertices, wgpu::BufferUsages::VERTEX),
             halves,
         }
@@ -584,12 +581,7 @@ impl Pipeline for Rasterized<'_> {
         let mut passes = self.wp.passes(l, &self.hard.depth);
         let groups = [Some(&l.group), Some(&self.read_targets)];
         // The family's 8×8 tiles are the resolve's workgroups.
-        passes.push(Pass::compute(
-            "resolve",
-            &groups,
-            &self.resolve,
-            self.v.groups,
-        ));
+        passes.push(Pass::compute("resolve", &groups, &self.resolve, self.tiles));
         passes
     }
 
@@ -615,13 +607,12 @@ impl Pipeline for Rasterized<'_> {
         ];
         k.add_traffic("mem_est", &reads, &[(target, passed * count_bytes)]);
         let (wp, depth) = (&self.wp, &self.hard.depth);
-        let stat = self
-            .v
-            .replay(vec![l.pass(&wp.counting, &wp.vbuffers[0], depth, |_| true)])?;
+        let pass = l.pass(&wp.counting, &wp.vbuffers[0], depth, |_| true);
+        let slots = replay_slots(self.gpu, &self.soft.stats, vec![pass])?;
         let shaded = wp.shaded(self.gpu, l, depth)?;
-        let stat = Box::new(move |s: Stat| match (s, shaded) {
-            (Stat::SoftInside, Some(n)) => n,
-            _ => stat(s),
+        let stat = Box::new(move |s: SoftStat| match (s, shaded) {
+            (SoftStat::Inside, Some(n)) => n,
+            _ => slots.get(s as usize),
         });
         hard_fill(k, self.opts.counting, fill, passed, h.caps);
         let index = (

@@ -1,11 +1,12 @@
 //! `soft_shadow_volume` on wgpu, in one of two pipelines (option `gpu_pipeline`, recorded as
 //! `execution.gpu_pipeline`): `"raster"` (default), the thesis' render pipeline
 //! ([`super::raster`]), or `"gather"`, this module's compute passes. Both share the loops and
-//! sub-lights set up here, the wedges ([`WedgeRecords`]), and in `wgpu.wgsl` the per-pixel
+//! sub-lights set up here, the wedges ([`WedgeRecords`]), and in `wgpu.wgsl` the soft pass's
+//! parameters ([`SoftParams`]), bindings ([`SoftGroup`]) and counters ([`SoftStat`]), the per-pixel
 //! coverage (`wedge_sample`) and the combination of loops and sub-lights (`combine`).
 //!
-//! The gather: the two passes of III §3.2 as compute passes over the eye pixels
-//! (`wgpu.wgsl`), per silhouette loop and sub-light as on the cpu executions.
+//! The gather: the two passes of III §3.2 as compute passes over the eye pixels (the family's
+//! hard pass, then `gather.wgsl`), per silhouette loop and sub-light as on the cpu executions.
 //!
 //! - `hard` (III §3.2.1): the family's hard pass ([`crate::algorithms::shadow_volume::wgpu`]:
 //!   shadow quads from the silhouette seen from the light centre, or the capped volumes' faces
@@ -51,23 +52,167 @@ use super::{
 };
 use crate::algorithms::eye_raster::{EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::wgpu::{
-    bins, check_limits, hard_fill, rect, tile_cones, tile_misses, FrameResources, HardUpload,
-    Params, Stat, VolumePasses, FACE_BYTES, PLANE_BYTES, PRIM_BYTES, QUAD_BYTES, RAY_BYTES,
-    STENCIL_BYTES, VBUFFER_BYTES, WORD,
+    bins, check_limits, hard_fill, rect, tile_cones, tile_misses, upload_rays, HardPass, HardStat,
+    HardUpload, FACE_BYTES, QUAD_BYTES, RAY_BYTES, RECORDS_WGSL, TILE, WORD,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
 use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
-use crate::gpu::pass::{Compute, Pass, Statistics, Timed};
+use crate::gpu::pass::{
+    gpu_struct, replay, Bind, Compute, Layout, Pass, Program, Slots, Statistics, Step, Timed,
+};
 use crate::gpu::{record_execution, Run};
 use crate::record::Counters;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::{Light, LightTexture};
 
-/// The soft pass: `wedge_sample` and `combine`, shared with the raster pipeline, and the
-/// gather's `soft` entry.
+/// The soft pass: its bindings and counters, `wedge_sample` and `combine`, shared with the
+/// raster pipeline; joined after the family's records.
 pub(super) const WGSL: &str = include_str!("wgpu.wgsl");
+/// The gather's `soft` entry and its bindings (group 1), joined after [`WGSL`].
+const GATHER_WGSL: &str = include_str!("gather.wgsl");
+
+/// Storage buffers the gather's soft pass binds in one stage (the most of any pass of this
+/// algorithm): those of [`SoftGroup`] and the wedge bins and hard counts of its group 1.
+const STORAGE_BUFFERS: u32 = SOFT_STORAGE_BUFFERS + 2;
+/// Storage buffers of [`SoftGroup`] (bindings 1-9).
+const SOFT_STORAGE_BUFFERS: u32 = 9;
+/// Record sizes: a wedge primitive, a plane.
+const PRIM_BYTES: u64 = 32;
+const PLANE_BYTES: u64 = 16;
+/// Bytes per pixel of the V-buffer (f32, or one rgba8 buffer of the split pair) and of the
+/// stencil the wedge-half culling of IV §4.4 uses on a rasterizer.
+pub(super) const VBUFFER_BYTES: u64 = 4;
+pub(super) const STENCIL_BYTES: u64 = 1;
+
+/// The soft pass's statistics slots (`STAT_SOFT_*` in the WGSL), in slot order.
+#[derive(Clone, Copy)]
+pub(super) enum SoftStat {
+    Fill,
+    Front,
+    Inside,
+    Covered,
+    Contributing,
+    Tests,
+}
+
+const STATS: u64 = 6;
+
+gpu_struct! {
+    /// The parameters of one loop's soft pass (binding 0 of [`SoftGroup`]).
+    pub(super) struct SoftParams as "SoftParams" {
+        /// Light centre; w: emitter shape (0 square, 1 disc).
+        center: [f32; 4] => "vec4f",
+        /// Half-axes for rect and disc lights (constant); w: light kind (0 rect, 1 sphere,
+        /// 2 disc).
+        half_u: [f32; 4] => "vec4f",
+        /// w: sphere radius.
+        half_v: [f32; 4] => "vec4f",
+        /// The eye position.
+        eye: [f32; 4] => "vec4f",
+        width: u32 => "u32",
+        height: u32 => "u32",
+        tiles_x: u32 => "u32",
+        /// 0: f32 V-buffer, 1: split 12-bit rgba8 pair (IV §4.3).
+        vbuffer: u32 => "u32",
+        /// 0: exact clipping, 1: 4D texture.
+        coverage: u32 => "u32",
+        texture_n: u32 => "u32",
+        /// 1 when this is the first silhouette loop of its sub-light.
+        first_loop: u32 => "u32",
+        /// 1 when this is the last loop of its sub-light; then the sub-light's visibility is
+        /// added.
+        last_loop: u32 => "u32",
+        /// 1 for the first sub-light, 1 for the last (then the final clamp runs).
+        first_light: u32 => "u32",
+        last_light: u32 => "u32",
+        sub_lights: u32 => "u32",
+        /// 3 for a textured light (RGB coverage texture, one f32 per channel), else 1.
+        channels: u32 => "u32",
+        /// The textured light's mean colour (`LightTexture::mean`).
+        mean: [f32; 4] => "vec4f",
+    }
+}
+
+/// The soft pass's group 0 (`wgpu.wgsl`), bound by the gather's soft pass and the raster
+/// pipeline's wedge and resolve passes, and the per-pixel buffers it holds: the eye rays, the
+/// coverage texture, the loops' covered fraction, the visibility, the statistics ([`SoftStat`]) and
+/// the light received per channel.
+pub(super) struct SoftGroup<'g> {
+    gpu: &'g Run,
+    pub layout: Layout,
+    pub rays: wgpu::Buffer,
+    texels: wgpu::Buffer,
+    covered: wgpu::Buffer,
+    pub visibility: wgpu::Buffer,
+    pub stats: wgpu::Buffer,
+    /// Light received per channel (3 words a pixel) under a textured light, else one word.
+    pub rgb: wgpu::Buffer,
+    /// 3 for a textured light, else 1.
+    pub channels: u32,
+}
+
+impl<'g> SoftGroup<'g> {
+    /// The buffers of `rays`, with a coverage texture's `texels` (none: empty) and, when
+    /// `textured`, an RGB buffer of three words a pixel.
+    pub fn new(gpu: &'g Run, rays: &EyeRays, texels: &[u8], textured: bool) -> SoftGroup<'g> {
+        // Binding 0 the parameters, 1-5 what the passes read, 6-9 what they write.
+        let binds: Vec<Bind> = (0..=SOFT_STORAGE_BUFFERS)
+            .map(|b| match b {
+                0 => Bind::Uniform,
+                1..=5 => Bind::ReadOnly,
+                _ => Bind::ReadWrite,
+            })
+            .collect();
+        let stages = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::FRAGMENT;
+        // The texels four to a little-endian word, as the WGSL reads them.
+        let mut packed = texels.to_vec();
+        packed.resize(texels.len().div_ceil(4) * 4, 0);
+        let pixels = rays.len() as u64;
+        let copy = wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let storage = wgpu::BufferUsages::STORAGE;
+        SoftGroup {
+            gpu,
+            layout: Layout::new(gpu, "soft pass", stages, &binds),
+            rays: upload_rays(gpu, rays),
+            texels: gpu.upload("coverage texture", &packed, storage),
+            covered: gpu.storage_buffer("covered", WORD * pixels, copy),
+            visibility: gpu.storage_buffer("visibility", WORD * pixels, copy),
+            stats: gpu.storage_buffer("soft statistics", 2 * WORD * STATS, copy),
+            rgb: gpu.storage_buffer("rgb", if textured { 3 * WORD * pixels } else { WORD }, copy),
+            channels: if textured { 3 } else { 1 },
+        }
+    }
+
+    /// The group of one loop's soft pass: its `params`, the loop's shadow `quads` (uploaded) and
+    /// its wedge primitives and planes `w` (uploaded here).
+    pub fn group(
+        &self,
+        params: &SoftParams,
+        quads: &wgpu::Buffer,
+        w: &WedgeRecords,
+    ) -> wgpu::BindGroup {
+        let (gpu, storage) = (self.gpu, wgpu::BufferUsages::STORAGE);
+        let params = gpu.uniform("soft params", params);
+        let prims = gpu.upload("wedge primitives", &w.records, storage);
+        let planes = gpu.upload("wedge planes", &w.planes, storage);
+        let buffers = [
+            &params,
+            &self.rays,
+            quads,
+            &prims,
+            &planes,
+            &self.texels,
+            &self.covered,
+            &self.visibility,
+            &self.stats,
+            &self.rgb,
+        ];
+        let resources: Vec<_> = buffers.iter().map(|b| b.as_entire_binding()).collect();
+        self.layout.group(gpu, "soft", &resources)
+    }
+}
 
 /// `soft_shadow_volume` on wgpu.
 pub fn render(
@@ -77,7 +222,7 @@ pub fn render(
     opts: &SoftShadowVolumeOptions,
 ) -> Result<FrameOutput> {
     let sub_lights = split_light(&frame.scene.light, opts.light_split)?;
-    check_limits(gpu, frame, ID)?;
+    check_limits(gpu, frame, ID, STORAGE_BUFFERS)?;
     let start = Instant::now();
     let rays = EyeRays::new(frame);
     let light_texture = frame.scene.light_texture.as_deref();
@@ -86,7 +231,7 @@ pub fn render(
         .then(|| coverage_texture(shape, opts.texture_n, light_texture, ctx.deadline));
     let mean = light_texture.map(LightTexture::mean);
     let texels = texture.as_ref().map_or(&[][..], |t| &t.texels[..]);
-    let frame_res = FrameResources::new(gpu, &rays, texels, mean.is_some());
+    let soft = SoftGroup::new(gpu, &rays, texels, mean.is_some());
     let occluders = frame.scene.occluders();
     let adjacency = EdgeAdjacency::build(&occluders);
     // Without the pipelines' creation: the run's GPU setup, reported apart.
@@ -106,44 +251,44 @@ pub fn render(
         let (center, half_u, half_v) = frame_light(sub, EmitterShape::of(sub));
         let n = loops.len();
         for (k, edges) in loops.into_iter().enumerate() {
-            let params = Params {
+            let params = SoftParams {
                 center,
                 half_u,
                 half_v,
-                eye_count: if n > 1 || no_loop { 0 } else { sl.eye },
+                eye: rays.eye.extend(0.0).to_array(),
+                width: rays.width,
+                height: rays.height,
+                tiles_x: rays.width.div_ceil(TILE),
                 vbuffer: u32::from(opts.vbuffer == VBufferPrecision::Split12),
                 coverage: u32::from(texture.is_some()),
                 texture_n: opts.texture_n,
                 first_loop: u32::from(k == 0),
                 last_loop: u32::from(k + 1 == n),
+                first_light: u32::from(s == 0),
+                last_light: u32::from(s + 1 == sub_lights.len()),
+                sub_lights: sub_lights.len() as u32,
                 channels: if mean.is_some() { 3 } else { 1 },
                 mean: mean.map_or([1.0; 4], |m| [m[0], m[1], m[2], 1.0]),
-                ..Params::of_light(&rays, s, sub_lights.len(), opts.counting)
             };
             let silhouette_edges = (k == 0).then_some(sl.silhouette_edges);
             runs.push(LoopRun {
                 light: *sub,
                 edges,
                 silhouette_edges,
+                eye_count: if n > 1 || no_loop { 0 } else { sl.eye },
                 params,
             });
         }
     }
     let (mut out, accumulation) = match opts.gpu_pipeline {
         GpuPipeline::Raster => (
-            super::raster::run(gpu, frame, &rays, opts, frame_res, &runs, setup_ms)?,
+            super::raster::run(gpu, frame, &rays, opts, soft, &runs, setup_ms)?,
             "additive blending of the wedges' fragments in rasterization order",
         ),
         GpuPipeline::Gather => (
             {
-                let v = VolumePasses::new(gpu, &rays, opts.counting, frame_res, occluders, WGSL);
-                let soft = v.program.instrumented(gpu, "soft");
-                let gather = Gather {
-                    soft,
-                    v,
-                    cones: tile_cones(&rays),
-                };
-                run_loops(&gather, gpu, (&rays, &gather.v.res, opts), &runs, setup_ms)?
+                let gather = Gather::new(gpu, &rays, opts.counting, soft, occluders);
+                run_loops(&gather, gpu, (&rays, &gather.soft, opts), &runs, setup_ms)?
             },
             "per-pixel gather over 8x8-tile bins in submission order, no atomics",
         ),
@@ -196,7 +341,9 @@ pub(super) struct LoopRun {
     pub edges: Vec<SilhouetteEdge>,
     /// The sub-light's silhouette size, on its first loop.
     pub silhouette_edges: Option<usize>,
-    pub params: Params,
+    /// The count the loop's z-pass hard count starts from ([`super::SubLightLoops`]).
+    pub eye_count: i32,
+    pub params: SoftParams,
 }
 
 /// The wedges of a loop (III §3.1, IV §4.1, with the cpu executions' code) and their
@@ -289,17 +436,17 @@ pub(super) trait Pipeline {
 /// ([`soft_counters`]: name, bytes) and the soft pass's statistics.
 pub(super) struct Replayed<'a> {
     pub index: (&'static str, f64),
-    pub stat: Box<dyn Fn(Stat) -> f64 + 'a>,
+    pub stat: Box<dyn Fn(SoftStat) -> f64 + 'a>,
 }
 
-/// Runs pipeline `p` over `runs` (the loops of every sub-light) on the frame resources `res`:
+/// Runs pipeline `p` over `runs` (the loops of every sub-light) on the soft pass's buffers `res`:
 /// per loop the hard phase (III §3.2.1), the wedges (III §3.1, IV §4.1, on the host) and the
 /// soft phase (III §3.2.2) timed, then every loop's instrumented replay; `setup_ms` of host
 /// work counts into phase `hard`.
 pub(super) fn run_loops<P: Pipeline>(
     p: &P,
     gpu: &Run,
-    (rays, res, opts): (&EyeRays, &FrameResources, &SoftShadowVolumeOptions),
+    (rays, res, opts): (&EyeRays, &SoftGroup, &SoftShadowVolumeOptions),
     runs: &[LoopRun],
     setup_ms: f64,
 ) -> Result<FrameOutput> {
@@ -349,64 +496,111 @@ pub(super) fn run_loops<P: Pipeline>(
     Ok(out)
 }
 
-/// The gather: the family's passes with the soft pass of this algorithm.
+/// The gather: the family's hard pass, then this algorithm's soft pass over the wedge
+/// primitives binned to each tile.
 struct Gather<'g> {
-    v: VolumePasses<'g>,
+    hard: HardPass<'g>,
+    soft: SoftGroup<'g>,
+    /// The soft pass's group 1: the wedge bins and the hard counts.
+    gather_layout: Layout,
     /// The soft pass (`INSTRUMENT` counting in the replay).
-    soft: Compute,
+    pipeline: Compute,
     cones: Vec<(Vec3, f32)>,
 }
 
 impl<'g> Gather<'g> {
+    /// The gather over `rays` with the soft pass's buffers `soft`, counting as `counting` with
+    /// the z-fail volumes capped by `occluders`.
+    fn new(
+        gpu: &'g Run,
+        rays: &EyeRays,
+        counting: Counting,
+        soft: SoftGroup<'g>,
+        occluders: crate::scene::Mesh,
+    ) -> Gather<'g> {
+        let hard = HardPass::new(gpu, rays, &soft.rays, counting, occluders);
+        let read = [Bind::ReadOnly, Bind::ReadOnly];
+        let gather_layout = Layout::new(gpu, "gather", wgpu::ShaderStages::COMPUTE, &read);
+        let groups = [Some(&soft.layout), Some(&gather_layout)];
+        let program = Program::new(
+            gpu,
+            "soft_shadow_volume/gather.wgsl",
+            &GATHER_SOURCES,
+            &groups,
+        );
+        Gather {
+            pipeline: program.instrumented(gpu, "soft"),
+            hard,
+            soft,
+            gather_layout,
+            cones: tile_cones(rays),
+        }
+    }
+
     /// The bytes of bins of `entries` and their per-tile ranges.
     fn bin_bytes(&self, entries: u64) -> f64 {
-        let tiles = u64::from(self.v.groups.0) * u64::from(self.v.groups.1);
+        let tiles = u64::from(self.hard.groups.0) * u64::from(self.hard.groups.1);
         (WORD * (entries + 2 * tiles)) as f64
+    }
+
+    /// The soft pass of a loop.
+    fn soft_pass<'a>(&'a self, soft: &'a <Self as Pipeline>::Soft) -> Pass<'a> {
+        let groups = [Some(&soft.0), Some(&soft.1)];
+        Pass::compute("soft", &groups, &self.pipeline, self.hard.groups)
     }
 }
 
+/// The gather's soft pass as its pipeline joins it.
+const GATHER_SOURCES: [&str; 5] = [
+    SoftParams::WGSL,
+    RECORDS_WGSL,
+    WGSL,
+    GATHER_WGSL,
+    crate::scene::coverage::WGSL,
+];
+
 impl Pipeline for Gather<'_> {
     type Hard = HardUpload;
-    /// The soft pass's group and the entries of the wedge bins.
-    type Soft = (wgpu::BindGroup, u64);
+    /// The soft pass's groups 0 and 1 and the entries of the wedge bins.
+    type Soft = (wgpu::BindGroup, wgpu::BindGroup, u64);
     const STATISTICS: Statistics = Statistics::Compute;
     const NOTE: &'static str = "fill, overdraw, shader invocations and culls from an \
         instrumented replay (WGSL atomics), in the cpu-model's terms; mem_est.* estimated from \
         counts and record sizes";
 
     fn hard(&self, rays: &EyeRays, lr: &LoopRun, quads: &[ShadowQuad]) -> HardUpload {
-        self.v
-            .upload_quads(rays, &lr.params, lr.light.center(), quads)
+        (self.hard).upload_quads(rays, lr.eye_count, lr.light.center(), quads)
     }
 
     fn hard_passes<'a>(&'a self, hard: &'a HardUpload, _first: bool) -> Vec<Pass<'a>> {
-        vec![self.v.hard(hard)]
+        vec![self.hard.pass(hard)]
     }
 
     /// Primitives, bins, upload, the soft pass's group.
     fn soft(
         &self,
         rays: &EyeRays,
-        _: &LoopRun,
+        lr: &LoopRun,
         _: &[ShadowQuad],
         w: &WedgeRecords,
         h: &HardUpload,
     ) -> Self::Soft {
-        let gpu = self.v.gpu;
-        let storage = wgpu::BufferUsages::STORAGE;
+        let gpu = self.hard.gpu;
         let (wedge_bins, bin_entries) = bins(rays, &w.footprints, |k, t| {
             !tile_misses(&w.prims[k].volume, rays.eye, self.cones[t])
         });
-        let prims_buf = gpu.upload("wedge primitives", &w.records, storage);
-        let planes_buf = gpu.upload("wedge planes", &w.planes, storage);
-        let bins_buf = gpu.upload("wedge bins", &wedge_bins, storage);
-        let [params, quads_buf, quad_bins] = &h.buffers;
-        let prims = [quads_buf, &prims_buf, &planes_buf, quad_bins, &bins_buf];
-        (self.v.group(params, prims, "soft"), bin_entries)
+        let bins_buf = gpu.upload("wedge bins", &wedge_bins, wgpu::BufferUsages::STORAGE);
+        let read = [&bins_buf, &self.hard.counts].map(|b| b.as_entire_binding());
+        let group1 = self.gather_layout.group(gpu, "gather", &read);
+        (
+            self.soft.group(&lr.params, &h.quads, w),
+            group1,
+            bin_entries,
+        )
     }
 
     fn soft_passes<'a>(&'a self, soft: &'a Self::Soft) -> Vec<Pass<'a>> {
-        vec![self.v.pass("soft", &self.soft, &soft.0)]
+        vec![self.soft_pass(soft)]
     }
 
     /// `hard`'s own counters: the quad tests and the estimated traffic: rays of every pixel,
@@ -417,15 +611,25 @@ impl Pipeline for Gather<'_> {
         soft: &'a Self::Soft,
         k: &mut Counters,
     ) -> Result<Replayed<'a>> {
-        let soft_pass = self.v.pass("soft", &self.soft, &soft.0);
-        let stat = self.v.replay(vec![self.v.hard(h), soft_pass])?;
-        let [fill, passed, tests] = [Stat::HardFill, Stat::HardPassed, Stat::HardTests].map(&stat);
+        let (hard, soft_stats) = (&self.hard.stats, &self.soft.stats);
+        let steps = [
+            Step::Clear(hard),
+            Step::Clear(soft_stats),
+            Step::Submit(vec![self.hard.pass(h), self.soft_pass(soft)]),
+            Step::Read(hard),
+            Step::Read(soft_stats),
+        ];
+        let [hard, soft_slots] = <[Vec<u8>; 2]>::try_from(replay(self.hard.gpu, &steps)?)
+            .expect("two reads")
+            .map(|b| Slots::of(&b));
+        let hard = |s: HardStat| hard.get(s as usize);
+        let [fill, passed, tests] = [HardStat::Fill, HardStat::Passed, HardStat::Tests].map(hard);
         k.add("quad_tests", tests);
-        let record = match self.v.counting {
+        let record = match self.hard.counting {
             Counting::ZFail => FACE_BYTES,
             Counting::ZPass => QUAD_BYTES,
         };
-        let pixels = self.v.pixels;
+        let pixels = self.hard.pixels;
         let reads = [
             ("eye_rays", (RAY_BYTES * pixels) as f64),
             ("shadow_quads", record as f64 * tests),
@@ -434,8 +638,9 @@ impl Pipeline for Gather<'_> {
         ];
         let vbuffer = (VBUFFER_BYTES * pixels) as f64;
         k.add_traffic("mem_est", &reads, &[("vbuffer", vbuffer)]);
-        hard_fill(k, self.v.counting, fill, passed, h.caps);
-        let (index, stat) = (("wedge_bins", self.bin_bytes(soft.1)), Box::new(stat));
+        hard_fill(k, self.hard.counting, fill, passed, h.caps);
+        let index = ("wedge_bins", self.bin_bytes(soft.2));
+        let stat = Box::new(move |s: SoftStat| soft_slots.get(s as usize));
         Ok(Replayed { index, stat })
     }
 }
@@ -453,16 +658,9 @@ fn soft_counters(
     w: &WedgeRecords,
     r: &Replayed,
 ) {
-    use Stat::*;
-    let [fill, front, inside, covered, contributing, tests] = [
-        SoftFill,
-        SoftFront,
-        SoftInside,
-        SoftCovered,
-        SoftContributing,
-        SoftTests,
-    ]
-    .map(&r.stat);
+    use SoftStat::*;
+    let [fill, front, inside, covered, contributing, tests] =
+        [Fill, Front, Inside, Covered, Contributing, Tests].map(&r.stat);
     let (raster_fill, shaded, culled, stencil_read, stencil_write) = if opts.wedge_culling {
         (2.0 * fill, inside, fill - inside, fill, 2.0 * front)
     } else {
@@ -515,3 +713,6 @@ fn soft_counters(
     ];
     k.add_traffic("mem_est", &reads, &writes);
 }
+
+#[cfg(test)]
+crate::gpu::wgsl_layout::layout_test!(GATHER_SOURCES => SoftParams);

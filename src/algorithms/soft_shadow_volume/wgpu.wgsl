@@ -1,9 +1,54 @@
-// soft_shadow_volume's soft pass (paper 001, Papers III and IV), joined after
-// src/algorithms/shadow_volume/wgpu.wgsl (parameters, bindings, `count`, the hard pass): the
-// per-pixel coverage of a wedge primitive (`wedge_sample`) and the combination of loops and
-// sub-lights (`combine`), shared by the gather's `soft` entry below and the raster pipeline's
-// fragment shader and resolve (raster.wgsl, joined after this file). Every function names the
-// Rust it mirrors.
+// soft_shadow_volume's soft pass (paper 001, Papers III and IV), joined after the shadow-volume
+// family's records.wgsl (eye rays, shadow quads, their tests): its parameters and bindings (group
+// 0), its counters, the per-pixel coverage of a wedge primitive (`wedge_sample`) and the
+// combination of loops and sub-lights (`combine`), shared by the gather (gather.wgsl, its `soft`
+// entry) and the raster pipeline's fragment shader and resolve (raster.wgsl), each joined after
+// this file. Every function names the Rust it mirrors.
+
+override INSTRUMENT: u32 = 0u;
+
+// The parameters `SoftParams` are declared in wgpu.rs and joined before this file.
+
+// `WedgePrimitive`: rect the footprint; info: edge, first plane, plane count, half (bits of
+// an f32, 0.0 for a whole wedge).
+struct Prim {
+    rect: vec4u,
+    info: vec4u,
+}
+
+@group(0) @binding(0) var<uniform> P: SoftParams;
+@group(0) @binding(1) var<storage, read> rays: array<Ray>;
+@group(0) @binding(2) var<storage, read> quads: array<Quad>;
+@group(0) @binding(3) var<storage, read> prims: array<Prim>;
+// (n.xyz, d) of `ConvexVolume::planes`.
+@group(0) @binding(4) var<storage, read> planes: array<vec4f>;
+// `CoverageTexture::texels`, four per word, little-endian.
+@group(0) @binding(5) var<storage, read> texels: array<u32>;
+// The sub-light's covered fraction (overlap approximation across loops).
+@group(0) @binding(6) var<storage, read_write> covered: array<f32>;
+@group(0) @binding(7) var<storage, read_write> visibility: array<f32>;
+// 64-bit counters as (lo, hi) word pairs, slots `STAT_*`.
+@group(0) @binding(8) var<storage, read_write> stats: array<atomic<u32>>;
+// Light received per channel (r, g, b per pixel) under a textured light.
+@group(0) @binding(9) var<storage, read_write> rgb: array<f32>;
+
+const STAT_SOFT_FILL: u32 = 0u;
+const STAT_SOFT_FRONT: u32 = 1u;
+const STAT_SOFT_INSIDE: u32 = 2u;
+const STAT_SOFT_COVERED: u32 = 3u;
+const STAT_SOFT_CONTRIBUTING: u32 = 4u;
+const STAT_SOFT_TESTS: u32 = 5u;
+
+fn count(slot: u32, v: u32) {
+    if v == 0u {
+        return;
+    }
+    let old = atomicAdd(&stats[2u * slot], v);
+    if old + v < old {
+        atomicAdd(&stats[2u * slot + 1u], 1u);
+    }
+}
+
 
 // `ConvexVolume::ray_interval`; x > y when the ray misses.
 fn ray_interval(first: u32, n: u32, o: vec3f, d: vec3f, t0_in: f32, t1_in: f32) -> vec2f {
@@ -390,63 +435,5 @@ fn combine(i: u32, hard_count: f32, acc: f32, acc3: vec3f) {
             vis = select(1.0, clamp(vis, 0.0, 1.0), hit);
         }
         visibility[i] = vis;
-    }
-}
-
-// The gather: one pixel over the wedge primitives binned to its tile, in submission order,
-// then `combine`.
-@compute @workgroup_size(8, 8)
-fn soft(@builtin(global_invocation_id) id: vec3u) {
-    if id.x >= P.width || id.y >= P.height {
-        return;
-    }
-    let i = id.y * P.width + id.x;
-    let ray = rays[i];
-    let tile = (id.y / TILE) * P.tiles_x + id.x / TILE;
-    var acc = 0.0;
-    var acc3 = vec3f(0.0);
-    var add = vec4u(0u);
-    var sub = vec4u(0u);
-    var tests = 0u;
-    var reached = array<u32, 5>(0u, 0u, 0u, 0u, 0u);
-    var contributing = 0u;
-    for (var e = wedge_bins[2u * tile]; e < wedge_bins[2u * tile + 1u]; e++) {
-        let prim = prims[wedge_bins[e]];
-        if !in_rect(prim.rect, id.x, id.y) {
-            continue;
-        }
-        tests++;
-        let w = wedge_sample(ray, prim);
-        reached[w.reached]++;
-        if w.reached != REACHED_COVERED {
-            continue;
-        }
-        if any(w.c3 > vec3f(0.0)) {
-            contributing++;
-        }
-        if P.channels == 3u {
-            acc3 -= w.side * w.c3;
-        } else if P.vbuffer == 0u {
-            acc -= w.side * w.c3.x;
-        } else if w.side < 0.0 {
-            add = min(add + split12(w.c3.x), vec4u(255u));
-        } else {
-            sub = min(sub + split12(w.c3.x), vec4u(255u));
-        }
-    }
-    if P.vbuffer == 1u {
-        acc = split12_value(add) - split12_value(sub);
-    }
-    combine(i, f32(counts[i]), acc, acc3);
-    if INSTRUMENT != 0u {
-        let covered_n = reached[4];
-        let inside_n = reached[3] + covered_n;
-        let front = reached[2] + inside_n;
-        count(STAT_SOFT_TESTS, tests);
-        count(STAT_SOFT_FILL, reached[1] + front);
-        count(STAT_SOFT_FRONT, front);
-        count(STAT_SOFT_INSIDE, inside_n);
-        count(STAT_SOFT_COVERED, covered_n);
-        count(STAT_SOFT_CONTRIBUTING, contributing);
     }
 }
