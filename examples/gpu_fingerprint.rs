@@ -62,7 +62,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for &name in scenes {
                 let textured = name == "textured";
                 let rect = info.lights.contains(&LightKind::Rect);
-                if textured && (!rect || (info.check_light_texture)(&ctx.options).is_err()) {
+                if textured
+                    && (!rect || algorithms::check_light_texture(info.id, &ctx.options).is_err())
+                {
                     continue;
                 }
                 let generator = if textured { "sphere-on-plane" } else { name };

@@ -784,8 +784,9 @@ fn render(a: RenderArgs) -> Result<()> {
                 .0,
         )
     };
+    let configured = info.configure(&ctx.options)?;
     let (mut record, out) =
-        harness::run_one(&frame, &a.algorithm, backend, &ctx, reference.as_ref());
+        harness::run_one(&frame, &configured, backend, &ctx, reference.as_ref());
     notes.annotate(&mut record);
     record.notes.extend(converted);
     harness::write_frame_files(

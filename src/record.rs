@@ -57,6 +57,47 @@ impl Counters {
     }
 }
 
+/// A phase of an algorithm's runs as every execution of it names it (a record's
+/// `phases[].name`): one enum per algorithm or family, declared with [`phases!`], so that a CPU
+/// step (`Machine::phase`) and a GPU submission (`gpu::pass::Timed`) name the same phase by the
+/// same value and a phase name cannot be misspelt.
+pub trait PhaseId: Copy + PartialEq + std::fmt::Debug {
+    /// Its name in records.
+    fn name(self) -> &'static str;
+}
+
+/// Declares the phases of an algorithm's runs, in order, as an enum implementing [`PhaseId`]:
+/// `phases! { pub enum Phase { Hard => "hard", Accumulate => "accumulate" } }` (each variant
+/// with the name records give it).
+macro_rules! phases {
+    (
+        $(#[$meta:meta])*
+        $vis:vis enum $name:ident {
+            $($(#[doc = $doc:literal])* $variant:ident => $label:literal,)+
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        $vis enum $name {
+            $($(#[doc = $doc])* $variant,)+
+        }
+
+        impl $name {
+            /// Every phase, in the order runs go through them.
+            pub const ALL: &'static [$name] = &[$($name::$variant),+];
+        }
+
+        impl $crate::record::PhaseId for $name {
+            fn name(self) -> &'static str {
+                match self {
+                    $($name::$variant => $label,)+
+                }
+            }
+        }
+    };
+}
+pub(crate) use phases;
+
 /// A named step of an algorithm with its own times and counters.
 #[skip_serializing_none]
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -301,7 +342,10 @@ mod tests {
             serde_json::json!({"spp": 4, "denoise": false}),
         )];
         let info = crate::algorithms::find("rt_denoised").unwrap();
-        raw.variant = (info.variant)(&options.into_iter().collect());
+        raw.variant = info
+            .configure(&options.into_iter().collect())
+            .unwrap()
+            .variant();
         assert_eq!(raw.variant.as_deref(), Some("4 spp raw"));
         assert_ne!(plain.case_id(), raw.case_id());
         assert_eq!(raw.algorithm_label(), "rt_denoised (4 spp raw)");

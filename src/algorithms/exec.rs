@@ -1,7 +1,7 @@
 //! What every CPU execution shares: the modelled machine of a run and the frame output built
 //! from it when the run is done.
 
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{Target, BLOCK};
 use crate::model::{lane_groups, task_items, Buffer, Machine, Mask, Probe, TaskKernel};

@@ -13,15 +13,6 @@
 
 use glam::Vec3;
 
-use super::accum_hard::AccumHardOptions;
-use super::dbuffer::DbufferOptions;
-use super::hard_shadow_map::HardShadowOptions;
-use super::pcss::PcssOptions;
-use super::penumbra_map::PenumbraMapOptions;
-use super::soft_izb::SoftIzbOptions;
-use super::soft_shadow_map::SoftShadowMapOptions;
-use super::soft_shadow_volume::SoftShadowVolumeOptions;
-use super::ExecContext;
 use crate::frame::RunParams;
 use crate::scene::{Light, Scene};
 
@@ -76,95 +67,26 @@ pub fn penumbra_texels(scene: &SceneExtent, resolution: u32) -> f64 {
     }
 }
 
-fn pixels(p: &RunParams) -> f64 {
+/// Pixels of the run's image.
+pub fn pixels(p: &RunParams) -> f64 {
     f64::from(p.image[0]) * f64::from(p.image[1])
 }
 
-fn texels(p: &RunParams) -> f64 {
+/// Texels of the run's light map (`map_resolution²`).
+pub fn texels(p: &RunParams) -> f64 {
     f64::from(p.map_resolution) * f64::from(p.map_resolution)
-}
-
-/// The ground truth: one shadow ray per pixel and light sample.
-pub fn reference(_: &SceneExtent, p: &RunParams, ctx: &ExecContext, _: &()) -> f64 {
-    pixels(p) * f64::from(ctx.reference_samples)
-}
-
-/// A shadow map: the map's texels once, and one lookup per pixel.
-pub fn hard_shadow_map(
-    _: &SceneExtent,
-    p: &RunParams,
-    _: &ExecContext,
-    _: &HardShadowOptions,
-) -> f64 {
-    texels(p) + pixels(p)
-}
-
-/// PCSS: the shadow map, then per pixel the blocker-search and filter taps.
-pub fn pcss(_: &SceneExtent, p: &RunParams, _: &ExecContext, o: &PcssOptions) -> f64 {
-    texels(p) + pixels(p) * f64::from(o.blocker_samples + o.pcf_samples)
-}
-
-/// Accumulated hard shadows: per light sample, a shadow-volume pass over the image (about two
-/// volume faces per pixel) and the accumulation.
-pub fn accum_hard(_: &SceneExtent, p: &RunParams, _: &ExecContext, o: &AccumHardOptions) -> f64 {
-    f64::from(o.samples) * pixels(p) * 3.0
-}
-
-/// Penumbra-extent rectangles of every micro-patch (002 §3.3): up to one micro-patch per
-/// occluder-map texel, about a quarter of the map covered by occluders, each extent the patch
-/// plus the penumbra wide; the second pass of two-pass maps doubles it.
-pub fn soft_shadow_map(
-    scene: &SceneExtent,
-    p: &RunParams,
-    _: &ExecContext,
-    o: &SoftShadowMapOptions,
-) -> f64 {
-    let passes = o.passes;
-    let extent = 1.0 + penumbra_texels(scene, p.map_resolution);
-    f64::from(passes) * texels(p) * (2.0 + 0.25 * extent * extent)
 }
 
 /// Silhouette primitives drawn into a map or image of `resolution` texels across: the outline
 /// of the occluders (about twice the resolution long) times the penumbra's width.
-fn outline(scene: &SceneExtent, resolution: u32) -> f64 {
+pub fn outline(scene: &SceneExtent, resolution: u32) -> f64 {
     2.0 * f64::from(resolution) * (1.0 + penumbra_texels(scene, resolution))
-}
-
-/// Penumbra map: the shadow map, then cones and sheets along the silhouette into the map.
-pub fn penumbra_map(
-    scene: &SceneExtent,
-    p: &RunParams,
-    _: &ExecContext,
-    _: &PenumbraMapOptions,
-) -> f64 {
-    2.0 * texels(p) + outline(scene, p.map_resolution) + pixels(p)
-}
-
-/// Soft shadow volumes: hard shadow quads and penumbra wedges over the image, per pixel they
-/// cover.
-pub fn soft_shadow_volume(
-    scene: &SceneExtent,
-    p: &RunParams,
-    _: &ExecContext,
-    _: &SoftShadowVolumeOptions,
-) -> f64 {
-    2.0 * pixels(p) + outline(scene, p.image[0].max(p.image[1]))
-}
-
-/// D-buffer: umbra and penumbra volumes over the image, then one evaluation per pixel.
-pub fn dbuffer(scene: &SceneExtent, p: &RunParams, _: &ExecContext, _: &DbufferOptions) -> f64 {
-    2.0 * pixels(p) + 2.0 * outline(scene, p.image[0].max(p.image[1]))
-}
-
-/// Soft irregular shadow mapping: the eye samples into the light-space grid, the umbra by
-/// irregular rasterization, and the penumbra quads along the silhouette in the grid.
-pub fn soft_izb(scene: &SceneExtent, p: &RunParams, _: &ExecContext, _: &SoftIzbOptions) -> f64 {
-    3.0 * pixels(p) + outline(scene, p.map_resolution)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::algorithms::algorithm::ExecContext;
     use crate::scene::generators::{self, GeneratorParams};
 
     fn scene(light_size: f32) -> SceneExtent {
@@ -203,7 +125,7 @@ mod tests {
                 light_texels: side * side,
                 ..scene(0.5)
             };
-            frame(&e, &p) + reference(&e, &p, &ctx, &())
+            frame(&e, &p) + crate::algorithms::reference::work_estimate(&e, &p, &ctx, &())
         };
         // The eye pass and the samples: 48 × 36 × (1 + 16).
         assert_eq!(with(0.0), 48.0 * 36.0 * 17.0);
@@ -222,10 +144,11 @@ mod tests {
 
     #[test]
     fn soft_shadow_map_work_grows_with_the_fourth_power_of_the_map_at_a_wide_light() {
-        let (ctx, o) = (ExecContext::default(), SoftShadowMapOptions::default());
+        let ctx = ExecContext::default();
+        let o = crate::algorithms::soft_shadow_map::SoftShadowMapOptions::default();
+        let estimate = crate::algorithms::soft_shadow_map::work_estimate;
         let wide = scene(1.5);
-        let r = soft_shadow_map(&wide, &params(512), &ctx, &o)
-            / soft_shadow_map(&wide, &params(128), &ctx, &o);
+        let r = estimate(&wide, &params(512), &ctx, &o) / estimate(&wide, &params(128), &ctx, &o);
         // texels × extent²: 4² × about 4² once the penumbra dominates the extent.
         assert!(r > 100.0 && r < 300.0, "{r}");
     }

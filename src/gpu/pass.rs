@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use crate::error::{Error, Result};
-use crate::record::{Counters, Phase};
+use crate::record::{Counters, Phase, PhaseId};
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
 
 use super::cache::Kind;
@@ -1055,11 +1055,12 @@ pub enum Readout {
 }
 
 impl<'g, 'b> Timed<'g, 'b> {
-    /// A run in the phases `names`; `readback` is copied to the host after its last pass (the
-    /// visibility first).
+    /// A run in the phases `phases`, in order (a phase named later by [`Self::submit`] or
+    /// [`Self::host`] comes after them); `readback` is copied to the host after its last pass
+    /// (the visibility first).
     pub fn new(
         gpu: &'g Run,
-        names: &[&str],
+        phases: &[impl PhaseId],
         statistics: Statistics,
         readback: &[&'b wgpu::Buffer],
     ) -> Timed<'g, 'b> {
@@ -1069,8 +1070,8 @@ impl<'g, 'b> Timed<'g, 'b> {
             stats: Vec::new(),
             statistics,
             phase_of_pass: Vec::new(),
-            names: names.iter().map(|n| n.to_string()).collect(),
-            wall: vec![0.0; names.len()],
+            names: phases.iter().map(|p| p.name().to_string()).collect(),
+            wall: vec![0.0; phases.len()],
             readback: readback
                 .iter()
                 .map(|b| (*b, Staging::new(gpu, "readback", b.size())))
@@ -1090,9 +1091,24 @@ impl<'g, 'b> Timed<'g, 'b> {
         self
     }
 
+    /// The index of `phase` among the run's phases (added after them when not given to
+    /// [`Self::new`]).
+    fn at(&mut self, phase: impl PhaseId) -> usize {
+        let name = phase.name();
+        match self.names.iter().position(|n| n == name) {
+            Some(i) => i,
+            None => {
+                self.names.push(name.to_string());
+                self.wall.push(0.0);
+                self.names.len() - 1
+            }
+        }
+    }
+
     /// Submits `passes` of phase `phase` and waits for them; their wall time goes to the phase.
     /// The submission resolves its own timestamp and statistics queries.
-    pub fn submit(&mut self, phase: usize, passes: &[Pass<'b>]) -> Result<()> {
+    pub fn submit(&mut self, phase: impl PhaseId, passes: &[Pass<'b>]) -> Result<()> {
+        let phase = self.at(phase);
         if self.counts.is_some() {
             let counted: Vec<Pass<'b>> =
                 passes.iter().filter(|p| p.runs_in(true)).cloned().collect();
@@ -1100,13 +1116,19 @@ impl<'g, 'b> Timed<'g, 'b> {
                 self.replayed.push((phase, counted));
             }
         }
-        self.submit_timed(phase, passes)
+        self.submit_at(phase, passes)
     }
 
     /// Submits the passes of `passes` that run in the timed run, as [`Self::submit`] does, and
     /// keeps none for a derived replay: for an execution whose replay is built by hand
     /// ([`replay`]; `soft_shadow_volume`, which reads its counts per loop).
-    pub fn submit_timed(&mut self, phase: usize, passes: &[Pass]) -> Result<()> {
+    pub fn submit_timed(&mut self, phase: impl PhaseId, passes: &[Pass]) -> Result<()> {
+        let phase = self.at(phase);
+        self.submit_at(phase, passes)
+    }
+
+    /// [`Self::submit_timed`] of the run's phase `phase` (an index).
+    fn submit_at(&mut self, phase: usize, passes: &[Pass]) -> Result<()> {
         for p in passes {
             let runs = match (p.runs_in(false), p.runs_in(true)) {
                 (true, true) => "timed, replayed",
@@ -1142,19 +1164,22 @@ impl<'g, 'b> Timed<'g, 'b> {
     }
 
     /// Adds `ms` of host work measured elsewhere to phase `phase`.
-    pub fn add_wall(&mut self, phase: usize, ms: f64) {
+    pub fn add_wall(&mut self, phase: impl PhaseId, ms: f64) {
+        let phase = self.at(phase);
         self.wall[phase] += ms;
     }
 
     /// Adds the host time since `start` to phase `phase`, less the creation of the run's
     /// pipelines and layouts (the run's GPU setup, reported apart).
-    pub fn add_setup(&mut self, phase: usize, start: Instant) {
+    pub fn add_setup(&mut self, phase: impl PhaseId, start: Instant) {
+        let phase = self.at(phase);
         let ms = start.elapsed().as_secs_f64() * 1e3;
         self.wall[phase] += ms - self.gpu.cache.run_objects_ms();
     }
 
     /// Runs host work `f` as part of phase `phase` (its wall time goes to the phase).
-    pub fn host<T>(&mut self, phase: usize, f: impl FnOnce() -> T) -> T {
+    pub fn host<T>(&mut self, phase: impl PhaseId, f: impl FnOnce() -> T) -> T {
+        let phase = self.at(phase);
         let start = Instant::now();
         let out = f();
         self.wall[phase] += start.elapsed().as_secs_f64() * 1e3;
@@ -1254,7 +1279,8 @@ fn replay_steps<'b>(
 
 impl Timing<'_> {
     /// The frame output: the visibility (the first readback buffer, `width`×`height`), one
-    /// phase per name with `counters[i]` and the pipeline statistics of its passes, the
+    /// phase per phase of the run with its `counters` (none where `counters` do not name it) and
+    /// the pipeline statistics of its passes, the
     /// counters of all phases summed, the GPU time of all passes, and in `execution` the
     /// adapter, how the GPU time was obtained, the readback time and `note` (how the counters
     /// were obtained).
@@ -1263,12 +1289,25 @@ impl Timing<'_> {
     /// are left out, since they were derived from the skipped replay (alone or with host
     /// figures): `execution.gpu_counters` is `"off"` and `execution.gpu_counters_absent` names
     /// them. The pipeline statistics of the timed passes stay.
-    pub fn output(
-        self,
+    pub fn output<P: PhaseId>(
+        mut self,
         (width, height): (u32, u32),
-        counters: Vec<Counters>,
+        counters: Vec<(P, Counters)>,
         note: &str,
     ) -> FrameOutput {
+        let mut per_phase = vec![Counters::default(); self.names.len()];
+        for (p, c) in counters {
+            match self.names.iter().position(|n| n == p.name()) {
+                Some(i) if per_phase[i].0.is_empty() => per_phase[i] = c,
+                Some(i) => per_phase[i].merge(&c),
+                None => {
+                    self.names.push(p.name().to_string());
+                    self.wall.push(0.0);
+                    per_phase.push(c);
+                }
+            }
+        }
+        let counters = per_phase;
         let off = self.gpu.counters() == GpuCounters::Off;
         let absent: std::collections::BTreeSet<String> = match off {
             true => counters.iter().flat_map(|c| c.0.keys().cloned()).collect(),

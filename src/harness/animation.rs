@@ -322,7 +322,7 @@ pub fn frame_at(anim: &Animation, scenes: &Scenes, t: u32) -> crate::frame::Fram
 pub fn render(
     anim: &Animation,
     scenes: &Scenes,
-    algorithm: &str,
+    algorithm: &crate::algorithms::Configured,
     backend: crate::backend::Backend,
     ctx: &crate::algorithms::ExecContext,
     refs: &mut super::ReferenceCache,

@@ -19,7 +19,7 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressStyle};
 
-use crate::algorithms::{self, Backend, ExecContext, FrameOutput};
+use crate::algorithms::{self, Backend, Configured, ExecContext, FrameOutput};
 use crate::error::{Error, Result};
 use crate::frame::Frame;
 use crate::metrics;
@@ -170,30 +170,27 @@ fn within<T>(f: impl FnOnce() -> T) -> std::result::Result<T, crate::util::deadl
 /// measurement with the samples before it, and says so.
 pub fn run_one(
     frame: &Frame,
-    algorithm: &str,
+    algorithm: &Configured,
     backend: Backend,
     ctx: &ExecContext,
     reference: Option<&VisibilityBuffer>,
 ) -> (RunRecord, Option<FrameOutput>) {
     let load_before = measure::load_average();
     let (result, first_ms) = iteration(frame, algorithm, backend, ctx);
-    let mut record = RunRecord::new(algorithm, backend, &frame.scene, frame.params.clone());
-    if let Ok(info) = algorithms::find(algorithm) {
-        record.variant = (info.variant)(&ctx.options);
-    }
+    let info = algorithm.info;
+    let mut record = RunRecord::new(info.id, backend, &frame.scene, frame.params.clone());
+    record.variant = algorithm.variant();
     record.wall_ms = first_ms;
     // The light the run (and its reference) used, in full: after a conversion it is not the
     // scenario's.
     if let Ok(light) = serde_json::to_value(frame.scene.light) {
         record.execution.insert("light".into(), light);
     }
-    if let Ok(info) = algorithms::find(algorithm) {
-        if !info.limits.is_empty() {
-            record.execution.insert(
-                "method_limits".into(),
-                serde_json::json!(info.limits.iter().map(|l| l.describe()).collect::<Vec<_>>()),
-            );
-        }
+    if !info.limits.is_empty() {
+        record.execution.insert(
+            "method_limits".into(),
+            serde_json::json!(info.limits.iter().map(|l| l.describe()).collect::<Vec<_>>()),
+        );
     }
     match result {
         Ok(out) => {
@@ -221,7 +218,7 @@ pub fn run_one(
             );
             record.measured = Some(measured);
             check_gpu_time(&mut record);
-            if let Some(r) = reference.filter(|_| algorithm != crate::algorithms::reference::ID) {
+            if let Some(r) = reference.filter(|_| info.id != crate::algorithms::reference::ID) {
                 let e = metrics::compare_with_receivers(
                     &out.visibility,
                     r,
@@ -237,11 +234,9 @@ pub fn run_one(
                 );
                 e.ssim = metrics::perceptual::ssim(&out.visibility, r, &mask);
                 record.warnings.extend(e.warnings());
-                record.notes.extend(metrics::grazing_note(&e, algorithm));
+                record.notes.extend(metrics::grazing_note(&e, info.id));
                 record.error = Some(e);
-                if let Ok(info) = algorithms::find(algorithm) {
-                    record.notes.extend(limit_notes(frame, info, r));
-                }
+                record.notes.extend(limit_notes(frame, info, r));
             }
             (record, Some(out))
         }
@@ -270,36 +265,32 @@ pub fn flip_map(
 /// One iteration of a run: its output, and its host milliseconds without GPU setup.
 fn iteration(
     frame: &Frame,
-    algorithm: &str,
+    algorithm: &Configured,
     backend: Backend,
     ctx: &ExecContext,
 ) -> (Result<FrameOutput>, f64) {
     let start = Instant::now();
-    let result = catch_unwind(AssertUnwindSafe(|| {
-        algorithms::run(algorithm, backend, frame, ctx)
-    }))
-    .unwrap_or_else(|panic| {
-        if let Some(c) = crate::util::deadline::cancelled(panic.as_ref()) {
-            let estimate = algorithms::find(algorithm).ok().and_then(|info| {
+    let result = catch_unwind(AssertUnwindSafe(|| algorithm.run(backend, frame, ctx)))
+        .unwrap_or_else(|panic| {
+            if let Some(c) = crate::util::deadline::cancelled(panic.as_ref()) {
                 let extent = algorithms::work::SceneExtent::of(&frame.scene);
-                let own = (info.work_estimate)(&extent, &frame.params, ctx)?;
-                Some(algorithms::work::frame(&extent, &frame.params) + own)
-            });
-            // The budget covers the run's earlier phases (its frame, its reference) too.
-            let elapsed = ctx.deadline.elapsed().max(start.elapsed());
-            return Err(timed_out(c, elapsed, "the run", estimate));
-        }
-        Err(Error::Other(format!(
-            "internal error (panic): {}",
-            crate::error::panic_message(panic.as_ref())
-        )))
-    })
-    .and_then(|out| {
-        out.visibility
-            .check_range()
-            .map_err(|m| Error::Other(format!("invalid result: {m}")))?;
-        Ok(out)
-    });
+                let own = algorithm.work_estimate(&extent, &frame.params, ctx);
+                let estimate = Some(algorithms::work::frame(&extent, &frame.params) + own);
+                // The budget covers the run's earlier phases (its frame, its reference) too.
+                let elapsed = ctx.deadline.elapsed().max(start.elapsed());
+                return Err(timed_out(c, elapsed, "the run", estimate));
+            }
+            Err(Error::Other(format!(
+                "internal error (panic): {}",
+                crate::error::panic_message(panic.as_ref())
+            )))
+        })
+        .and_then(|out| {
+            out.visibility
+                .check_range()
+                .map_err(|m| Error::Other(format!("invalid result: {m}")))?;
+            Ok(out)
+        });
     let ms = start.elapsed().as_secs_f64() * 1e3;
     let setup = result.as_ref().ok().and_then(|o| o.gpu_setup_ms);
     (result, ms - setup.unwrap_or(0.0))
@@ -345,7 +336,7 @@ fn same_output(a: &FrameOutput, b: &FrameOutput) -> bool {
 /// timed ones within the budget; their samples and whether they gave the first's output.
 fn repeat(
     frame: &Frame,
-    algorithm: &str,
+    algorithm: &Configured,
     backend: Backend,
     ctx: &ExecContext,
     first: &FrameOutput,
@@ -588,7 +579,8 @@ pub enum Verbosity {
 /// One planned run.
 struct Planned {
     case: usize,
-    algorithm: String,
+    /// The algorithm with the scenario's options, read once for the sweep.
+    algorithm: Configured,
     backend: Backend,
 }
 
@@ -639,11 +631,20 @@ fn plan_runs(
     cases: &[crate::scenario::Case],
 ) -> Result<(Vec<Planned>, usize)> {
     let s = &loaded.scenario;
-    let algorithms: Vec<&String> = s
-        .algorithms
-        .iter()
-        .filter(|a| opts.only.as_ref().is_none_or(|o| o.contains(a)))
-        .collect();
+    let mut algorithms = Vec::new();
+    for a in &s.algorithms {
+        if opts.only.as_ref().is_none_or(|o| o.contains(a)) {
+            // Validated with the scenario; an error still names the scenario's file.
+            let in_file = |mut e: crate::error::InputError| {
+                e.file = Some(loaded.path.clone());
+                e
+            };
+            let info = algorithms::find(a)
+                .map_err(|e| in_file(crate::error::InputError::new("$.algorithms", e)))?;
+            let configured = info.configure(&s.options).map_err(in_file)?;
+            algorithms.push((a, configured));
+        }
+    }
     let mut backends: Vec<Backend> = s
         .backends
         .iter()
@@ -664,13 +665,13 @@ fn plan_runs(
     let mut plan = Vec::new();
     let mut skipped = Vec::new();
     for ci in 0..cases.len() {
-        for &a in &algorithms {
-            let info = algorithms::find(a).expect("validated");
+        for (a, configured) in &algorithms {
+            let info = configured.info;
             for &b in &backends {
                 if info.backends.contains(&b) {
                     plan.push(Planned {
                         case: ci,
-                        algorithm: a.clone(),
+                        algorithm: configured.clone(),
                         backend: b,
                     });
                 } else if ci == 0 && opts.backends.as_ref().is_some_and(|o| o.contains(&b)) {
@@ -728,13 +729,13 @@ fn without_repeats(
             };
             let (_, name, tris, light, center) = &scenes[at];
             let light = case.light_size.map_or(*light, |s| light.with_size(s));
-            let info = algorithms::find(&p.algorithm).expect("validated");
+            let info = p.algorithm.info;
             let used = light_as(light, info.light_for(light.kind()), *center);
             let params = case.params_with(*tris, used.size());
-            let variant = (info.variant)(&loaded.scenario.options);
+            let variant = p.algorithm.variant();
             seen.insert(case_id(
                 name,
-                (&p.algorithm, variant.as_deref()),
+                (info.id, variant.as_deref()),
                 p.backend.name(),
                 &params,
             ))
@@ -829,7 +830,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         let case = &cases[p.case];
         bar.set_message(format!(
             "{} on {} at case {}/{}: {}",
-            p.algorithm,
+            p.algorithm.id(),
             p.backend,
             p.case + 1,
             cases.len(),
@@ -842,7 +843,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             frames.clear();
         }
         let scene = &current.as_ref().expect("set above").1;
-        let info = algorithms::find(&p.algorithm).expect("validated");
+        let info = p.algorithm.info;
         let kind = info.light_for(scene.light.kind());
         let mut sc = scene.clone();
         let converted = light_for_run(scene, info);
@@ -855,9 +856,9 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
                 .err()
                 .map(|e| e.to_string())
         });
-        let variant = (info.variant)(&ctx.options);
+        let variant = p.algorithm.variant();
         if let Some(e) = refused {
-            let mut record = RunRecord::new(&p.algorithm, p.backend, &sc, params);
+            let mut record = RunRecord::new(info.id, p.backend, &sc, params);
             record.variant = variant;
             if writer.take_kept(&record.case_id()) {
                 progress.skipped();
@@ -872,7 +873,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         // The run finished in the sweep this one resumes.
         let id = case_id(
             &sc.name,
-            (&p.algorithm, variant.as_deref()),
+            (info.id, variant.as_deref()),
             p.backend.name(),
             &params,
         );
@@ -884,16 +885,16 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         let stopped =
             |c, phase: &str, sc: &Scene, params: crate::frame::RunParams, with_reference: bool| {
                 let extent = algorithms::work::SceneExtent::of(sc);
-                let estimate = (info.work_estimate)(&extent, &params, &ctx).map(|own| {
+                let reference = match with_reference {
+                    true => algorithms::reference::work_estimate(&extent, &params, &ctx, &()),
+                    false => 0.0,
+                };
+                let estimate = Some(
                     algorithms::work::frame(&extent, &params)
-                        + own
-                        + if with_reference {
-                            algorithms::work::reference(&extent, &params, &ctx, &())
-                        } else {
-                            0.0
-                        }
-                });
-                let mut record = RunRecord::new(&p.algorithm, p.backend, sc, params);
+                        + p.algorithm.work_estimate(&extent, &params, &ctx)
+                        + reference,
+                );
+                let mut record = RunRecord::new(info.id, p.backend, sc, params);
                 record.variant = variant.clone();
                 loaded.notes.annotate(&mut record);
                 record.wall_ms = deadline.elapsed().as_secs_f64() * 1e3;
@@ -940,7 +941,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
         let (mut record, out) = run_one(frame, &p.algorithm, p.backend, &ctx, reference.as_ref());
         let sequence = match (&s.animation, &out, &mut floor_refs) {
             (Some(anim), Some(_), Some(floor_refs))
-                if p.algorithm != crate::algorithms::reference::ID && reference.is_some() =>
+                if info.id != crate::algorithms::reference::ID && reference.is_some() =>
             {
                 // The occluder's height of each frame, from the path's start or the case's.
                 let objects = |t: u32| {
@@ -997,7 +998,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
 fn animate(
     anim: &animation::Animation,
     scenes: &animation::Scenes,
-    (algorithm, backend): (&str, Backend),
+    (algorithm, backend): (&Configured, Backend),
     ctx: &ExecContext,
     refs: (&mut ReferenceCache, &mut ReferenceCache),
     floor: &mut Option<f64>,
@@ -1056,7 +1057,7 @@ fn sweep_work(
     plan.iter()
         .map(|p| {
             let case = &cases[p.case];
-            let info = algorithms::find(&p.algorithm).expect("validated");
+            let info = p.algorithm.info;
             let light = case
                 .light_size
                 .map_or(base.light, |size| base.light.with_size(size));
@@ -1072,15 +1073,13 @@ fn sweep_work(
             // The reference of a case is computed once, by its first run.
             let first_of_case = cases_seen.insert(p.case);
             let quality = if loaded.scenario.reference.enabled && first_of_case {
-                algorithms::work::reference(&extent, &params, ctx, &())
+                algorithms::reference::work_estimate(&extent, &params, ctx, &())
             } else {
                 0.0
             };
-            // Options that do not parse were refused before the sweep (scenario validation):
-            // such a run fails at once and weighs nothing.
-            (info.work_estimate)(&extent, &params, ctx).map_or(0.0, |own| {
-                algorithms::work::frame(&extent, &params) + own + quality
-            })
+            algorithms::work::frame(&extent, &params)
+                + p.algorithm.work_estimate(&extent, &params, ctx)
+                + quality
         })
         .sum()
 }

@@ -412,7 +412,7 @@ fn algorithms_and_backends(s: &Scenario) -> Check {
     for k in s.options.keys() {
         algorithm(&format!("$.options.{k}"), k)?;
         let info = algorithms::find(k).expect("checked above");
-        (info.check_options)(&s.options)?;
+        info.check_options(&s.options)?;
     }
     if let Some(l) = s.light.as_ref().filter(|l| l.texture.is_some()) {
         light_texture("$.light.texture", &l.light, &s.algorithms, &s.options)?;

@@ -200,3 +200,19 @@ pub fn degenerate_scenes() -> Vec<(&'static str, Frame)> {
         ("empty scene", frame_of(vec![], light, camera())),
     ]
 }
+
+/// [`shadowbench::harness::run_one`] of algorithm `id` with `ctx.options` (configured once for
+/// the run).
+pub fn run_one(
+    frame: &Frame,
+    id: &str,
+    backend: Backend,
+    ctx: &ExecContext,
+    reference: Option<&shadowbench::visibility::VisibilityBuffer>,
+) -> (shadowbench::record::RunRecord, Option<FrameOutput>) {
+    let info = algorithms::find(id).unwrap_or_else(|e| panic!("{e}"));
+    let configured = info
+        .configure(&ctx.options)
+        .unwrap_or_else(|e| panic!("{id}: {e}"));
+    shadowbench::harness::run_one(frame, &configured, backend, ctx, reference)
+}

@@ -4,10 +4,11 @@
 
 use super::common;
 
+use super::common::run_one;
 use common::degenerate_scenes;
 use shadowbench::algorithms::{Backend, ExecContext, ALGORITHMS};
 use shadowbench::frame::{Frame, RunParams};
-use shadowbench::harness::{light_as, run_one};
+use shadowbench::harness::light_as;
 use shadowbench::scene::generators::{self, GeneratorParams};
 
 /// The frame with its light converted to one `algorithm` handles, as the harness does.

@@ -4,10 +4,11 @@
 //! Oracle for `soft_izb`: the analytic visible fraction of a disc light cut by a straight edge,
 //! the area of a circular segment, computed here from the geometry alone.
 
+use super::common::run_one;
 use glam::Vec3;
 use shadowbench::algorithms::{self, Backend, ExecContext};
 use shadowbench::frame::{Frame, RunParams};
-use shadowbench::harness::{light_for_run, run_one};
+use shadowbench::harness::light_for_run;
 use shadowbench::scene::generators::{self, primitives, GeneratorParams};
 use shadowbench::scene::{Camera, Light, LightKind, Object, Role, Scene};
 

@@ -3,10 +3,11 @@
 
 use std::collections::BTreeMap;
 
+use super::common::run_one;
 use glam::Vec3;
 use shadowbench::algorithms::{self, Backend, ExecContext, FrameOutput};
 use shadowbench::frame::{Frame, RunParams};
-use shadowbench::harness::{run_one, ReferenceCache};
+use shadowbench::harness::ReferenceCache;
 use shadowbench::metrics;
 use shadowbench::model::raster::{self, Coverage, DepthOnly, Geometry, Pipeline, Target};
 use shadowbench::model::{Machine, MachineConfig};

@@ -3,11 +3,12 @@
 //! `soft_shadow_volume` and `accum_hard`), right only for closed occluders, falls back to z-pass
 //! on them with a warning naming the algorithm, the option and the open edges.
 
+use super::common::run_one;
 use glam::Vec3;
 use shadowbench::algorithms::{Backend, ExecContext, ALGORITHMS};
 use shadowbench::frame::Frame;
 use shadowbench::frame::RunParams;
-use shadowbench::harness::{light_as, run_one};
+use shadowbench::harness::light_as;
 use shadowbench::scene::generators::primitives;
 use shadowbench::scene::{Camera, Light, Mesh, Object, Role, Scene};
 

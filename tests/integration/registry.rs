@@ -38,14 +38,14 @@ fn frame(name: &str, info: &AlgorithmInfo) -> Frame {
 }
 
 /// The default options and every option set of `info`, as execution contexts.
-fn option_sets(info: &AlgorithmInfo) -> Vec<(String, ExecContext)> {
+fn option_sets(info: &'static AlgorithmInfo) -> Vec<(String, ExecContext)> {
     let mut sets = vec![("{}".to_string(), ExecContext::default())];
     for json in info.option_sets {
         let mut ctx = ExecContext::default();
         let value: serde_json::Value = serde_json::from_str(json)
             .unwrap_or_else(|e| panic!("{}: option set {json}: {e}", info.id));
         ctx.options.insert(info.id.to_string(), value);
-        (info.check_options)(&ctx.options)
+        info.check_options(&ctx.options)
             .unwrap_or_else(|e| panic!("{}: option set {json}: {e}", info.id));
         sets.push((json.to_string(), ctx));
     }
@@ -216,35 +216,41 @@ fn every_algorithm_with_three_executions_has_its_parity_tests() {
     );
 }
 
-/// A work estimate is made of the options a run will use: where `options.<id>` do not parse,
-/// there is none (the run fails on them), never one of the defaults.
+/// A work estimate is made of the options a run will use ([`shadowbench::algorithms::Configured`]): options that do not
+/// parse configure no algorithm (the error names `$.options.<id>`), never one of the defaults;
+/// and an option the estimate depends on changes it (accum_hard's light samples, 16 → 256:
+/// ×16, `samples × pixels × 3`).
 #[test]
-fn no_algorithm_estimates_work_from_options_that_do_not_parse() {
+fn work_is_estimated_from_the_configured_options() {
     let mut refused = 0;
     for info in ALGORITHMS {
         let f = frame("sphere-on-plane", info);
         let extent = shadowbench::algorithms::work::SceneExtent::of(&f.scene);
-        let mut ctx = ExecContext::default();
-        assert!(
-            (info.work_estimate)(&extent, &f.params, &ctx).is_some(),
-            "{}: the defaults have an estimate",
-            info.id
-        );
+        let ctx = ExecContext::default();
+        let defaults = info.configure(&ctx.options).unwrap();
+        let w = defaults.work_estimate(&extent, &f.params, &ctx);
+        assert!(w.is_finite() && w > 0.0, "{}: {w}", info.id);
         let bad = serde_json::json!({ "no_such_option": 1 });
-        ctx.options.insert(info.id.to_string(), bad);
-        if (info.check_options)(&ctx.options).is_ok() {
-            continue;
+        let options = std::collections::BTreeMap::from([(info.id.to_string(), bad)]);
+        if let Err(e) = info.configure(&options) {
+            let text = e.to_string();
+            assert!(text.contains(&format!("$.options.{}", info.id)), "{text}");
+            refused += 1;
         }
-        assert_eq!(
-            (info.work_estimate)(&extent, &f.params, &ctx),
-            None,
-            "{}",
-            info.id
-        );
-        refused += 1;
     }
     assert!(
         refused > ALGORITHMS.len() / 2,
         "{refused} algorithms refuse an unknown option"
     );
+    let info = shadowbench::algorithms::find("accum_hard").unwrap();
+    let f = frame("sphere-on-plane", info);
+    let extent = shadowbench::algorithms::work::SceneExtent::of(&f.scene);
+    let ctx = ExecContext::default();
+    let with = |samples: u32| {
+        let o = serde_json::json!({ "samples": samples });
+        let options = std::collections::BTreeMap::from([("accum_hard".to_string(), o)]);
+        let c = info.configure(&options).unwrap();
+        c.work_estimate(&extent, &f.params, &ctx)
+    };
+    assert_eq!(with(256), 16.0 * with(16));
 }

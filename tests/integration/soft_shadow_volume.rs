@@ -253,12 +253,8 @@ fn bad_options_are_errors_that_name_the_field() {
             assert!(text.contains(message), "{options}: {text}");
         }
         let o = std::collections::BTreeMap::from([(id.to_string(), options.clone())]);
-        let check = algorithms::ALGORITHMS
-            .iter()
-            .find(|a| a.id == id)
-            .unwrap()
-            .check_options;
-        assert!(check(&o).is_err(), "{options}");
+        let info = algorithms::find(id).unwrap();
+        assert!(info.check_options(&o).is_err(), "{options}");
     }
 }
 

@@ -748,7 +748,7 @@ fn cpu_model_and_wgpu_records_carry_the_same_counters() {
         scene.light = light_as(scene.light, kind, scene.bounds().center());
         let f = Frame::new(scene, base.params.clone());
         let names = |backend: Backend| -> BTreeSet<String> {
-            let (r, _) = shadowbench::harness::run_one(&f, info.id, backend, &ctx, None);
+            let (r, _) = super::common::run_one(&f, info.id, backend, &ctx, None);
             assert!(
                 r.failure.is_none(),
                 "{} {backend}: {:?}",
@@ -837,6 +837,22 @@ fn rt_denoised_on_wgpu_traces_a_frame_in_chunks_as_the_cpu_model_does() {
     }
 }
 
+/// The phases of the runs the tests below build by hand.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum TestPhase {
+    A,
+    B,
+}
+
+impl shadowbench::record::PhaseId for TestPhase {
+    fn name(self) -> &'static str {
+        match self {
+            TestPhase::A => "a",
+            TestPhase::B => "b",
+        }
+    }
+}
+
 /// A run whose readback no pass can have written (nothing was submitted) is an error naming its
 /// phases, not a zero image; with one pass submitted, the same run reads back what it wrote.
 #[test]
@@ -847,10 +863,10 @@ fn a_run_without_a_pass_cannot_reach_its_readback() {
     }
     shadowbench::gpu::guarded_run(Default::default(), |gpu| {
         let out = gpu.storage_buffer("out", 4 * 64, wgpu::BufferUsages::COPY_SRC);
-        let empty = Timed::new(gpu, &["lookup"], Statistics::Off, &[&out]);
+        let empty = Timed::new(gpu, &[TestPhase::A], Statistics::Off, &[&out]);
         let err = empty.finish().err().expect("a run without a pass is an error");
         assert!(err.to_string().contains("submitted no GPU pass"), "{err}");
-        assert!(err.to_string().contains("lookup"), "{err}");
+        assert!(err.to_string().contains("[\"a\"]"), "{err}");
 
         let module = gpu
             .device
@@ -882,9 +898,9 @@ fn a_run_without_a_pass_cannot_reach_its_readback() {
                 resource: out.as_entire_binding(),
             }],
         });
-        let mut run = Timed::new(gpu, &["lookup"], Statistics::Compute, &[&out]);
+        let mut run = Timed::new(gpu, &[TestPhase::A], Statistics::Compute, &[&out]);
         let pipeline = Instrumented::timed(pipeline);
-        run.submit(0, &[Pass::compute("fill", &[Some(&group)], &pipeline, (1, 1))])?;
+        run.submit(TestPhase::A, &[Pass::compute("fill", &[Some(&group)], &pipeline, (1, 1))])?;
         let timing = run.finish()?;
         let words: Vec<u32> = bytemuck::pod_collect_to_vec(&timing.readback[0]);
         assert_eq!(words, (7..71).collect::<Vec<u32>>());
@@ -935,10 +951,15 @@ fn a_derived_replay_runs_each_pass_as_its_pipelines_state() {
             let extra = Instrumented::counting(entry("extra"));
             let spoil = Instrumented::timed(entry("spoil"));
             let pass = |label, p| Pass::compute(label, &[Some(&group)], p, (1, 1));
-            let mut run = Timed::new(gpu, &["a", "b"], Statistics::Off, &[&out, &counts])
-                .counting_into(&counts, readout);
-            run.submit(0, &[pass("fill", &fill), pass("spoil", &spoil)])?;
-            run.submit(1, &[pass("extra", &extra)])?;
+            let mut run = Timed::new(
+                gpu,
+                &[TestPhase::A, TestPhase::B],
+                Statistics::Off,
+                &[&out, &counts],
+            )
+            .counting_into(&counts, readout);
+            run.submit(TestPhase::A, &[pass("fill", &fill), pass("spoil", &spoil)])?;
+            run.submit(TestPhase::B, &[pass("extra", &extra)])?;
             let timing = run.finish()?;
             let words: Vec<u32> = bytemuck::pod_collect_to_vec(&timing.readback[0]);
             assert_eq!(words, (7..71).collect::<Vec<u32>>());
@@ -949,7 +970,8 @@ fn a_derived_replay_runs_each_pass_as_its_pipelines_state() {
                 .map(|b| bytemuck::pod_collect_to_vec(b))
                 .collect();
             assert_eq!(read, want, "{readout:?}");
-            let out = timing.output((8, 8), vec![Default::default(); 2], "test");
+            let none: Vec<(TestPhase, _)> = vec![];
+            let out = timing.output((8, 8), none, "test");
             let plan = &out.execution["passes"];
             let plan: Vec<&str> = plan
                 .as_array()

@@ -2,17 +2,19 @@
 //! shadow-volume pass into the stencil (phase `hard`) and the accumulation of its lit pixels
 //! (phase `accumulate`), both as tile tasks of the machine.
 
+use super::Phase;
 use super::{AccumHardOptions, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{tiles, Block, EyeBuffer, EyeRays, ScreenRect};
 use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, HardPass,
 };
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::Target;
 use crate::model::{Probe, TaskKernel};
+use crate::record::PhaseId;
 use crate::visibility::VisibilityBuffer;
 
 /// Vector instructions per block of the accumulation: compare the stencil with zero, select
@@ -84,7 +86,7 @@ pub fn render(
     let accumulation = EyeBuffer::new(&mut m, &rays, "accumulation", ACCUMULATION_BYTES);
     let weights: Vec<u64> = sums.iter().map(|s| s.len() as u64).collect();
     for s in 0..samples.count() {
-        m.phase("hard");
+        m.phase(Phase::Hard.name());
         let (sample, quads) = samples.quads(s);
         let counting = match opts.counting {
             Counting::ZPass => HardCounting::ZPass {
@@ -115,7 +117,7 @@ pub fn render(
         mem_read(&mut m, "stencil", pass.passed * u64::from(STENCIL_BYTES));
         mem_write(&mut m, "stencil", pass.passed * u64::from(STENCIL_BYTES));
 
-        m.phase("accumulate");
+        m.phase(Phase::Accumulate.name());
         let step = Accumulate {
             rays: &rays,
             tiles,

@@ -11,18 +11,29 @@
 pub mod cpu;
 pub mod wgpu;
 
+use crate::record::phases;
 use serde::{Deserialize, Serialize};
 
 use super::shadow_volume::ShadowQuad;
 pub use super::shadow_volume::{Counting, GpuPipeline};
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
     WorkEstimate,
 };
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::scene::{Light, LightKind, Mesh};
+
+phases! {
+    /// The phases of an `accum_hard` run: per light sample its hard shadow-volume pass, then
+    /// the sample added to the accumulation.
+    pub enum Phase {
+        Hard => "hard",
+        Accumulate => "accumulate",
+    }
+}
 
 pub const ID: &str = "accum_hard";
 
@@ -141,6 +152,17 @@ pub fn memory_estimate(p: &crate::frame::RunParams) -> u64 {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct AccumHard;
 
+/// Accumulated hard shadows: per light sample, a shadow-volume pass over the image (about two
+/// volume faces per pixel) and the accumulation.
+pub fn work_estimate(
+    _: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    o: &AccumHardOptions,
+) -> f64 {
+    f64::from(o.samples) * work::pixels(p) * 3.0
+}
+
 impl Algorithm for AccumHard {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "001 §1.3, Paper III §5";
@@ -152,7 +174,7 @@ impl Algorithm for AccumHard {
     const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedNonOccludersLit];
     type Options = AccumHardOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::accum_hard;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] = &[
         r#"{"samples": 16, "counting": "z_fail"}"#,
         r#"{"gpu_pipeline": "gather"}"#,

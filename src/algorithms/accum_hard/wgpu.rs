@@ -24,9 +24,11 @@
 //! GPU: silhouette detection, quad and cap construction (and the gather's binning): host, as on
 //! the cpu executions.
 
+use super::Phase;
 use std::time::Instant;
 
 use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
+use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{hard_triangles, DepthTarget, HardRaster};
 use crate::algorithms::shadow_volume::wgpu::{
@@ -34,7 +36,6 @@ use crate::algorithms::shadow_volume::wgpu::{
     RECORDS_WGSL, WORD,
 };
 use crate::algorithms::shadow_volume::Counting;
-use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -85,7 +86,11 @@ pub fn render(
     ];
     let writes = [("accumulation", pixel_samples * accumulation)];
     acc.add_traffic("mem_est", &reads, &writes);
-    let mut out = timing.output((rays.width, rays.height), vec![hard, acc], note);
+    let mut out = timing.output(
+        (rays.width, rays.height),
+        vec![(Phase::Hard, hard), (Phase::Accumulate, acc)],
+        note,
+    );
     let entries = serde_json::json!({
         "samples": n,
         "counting": counting,
@@ -136,9 +141,6 @@ const SOURCES: [&str; 6] = [
 /// own `hard` counters, how its counters were obtained.
 type Pipeline<'g> = (Timing<'g>, Measured, Counters, &'static str);
 
-/// The phases of both pipelines.
-const PHASES: [&str; 2] = ["hard", "accumulate"];
-
 /// What a pipeline's hard passes gave over all samples: silhouette edges, z-fail caps, fill and
 /// passed fragments.
 #[derive(Default)]
@@ -171,10 +173,10 @@ impl Sampled {
         let passes = HardRaster::new(gpu, rays, camera, counting, n, target);
         let readback = [&passes.visibility];
         // The instrumented replay: the depth pre-pass and every sample's count pass.
-        let mut run = Timed::new(gpu, &PHASES, Statistics::All, &readback)
+        let mut run = Timed::new(gpu, Phase::ALL, Statistics::All, &readback)
             .counting_into(&passes.stats, Readout::End);
-        run.add_setup(0, self.start);
-        let (vertices, ranges, m) = run.host(0, || {
+        run.add_setup(Phase::Hard, self.start);
+        let (vertices, ranges, m) = run.host(Phase::Hard, || {
             let (mut vertices, mut ranges) = (Vec::new(), Vec::with_capacity(n as usize));
             let mut m = Measured::default();
             for s in 0..n {
@@ -190,14 +192,17 @@ impl Sampled {
             }
             (passes.vertices(&vertices), ranges, m)
         });
-        run.submit(0, &[passes.depth_pass()])?;
+        run.submit(Phase::Hard, &[passes.depth_pass()])?;
         for (s, (range, eye)) in ranges.iter().enumerate() {
-            run.submit(0, &passes.count_passes(&vertices, range.clone(), *eye))?;
+            run.submit(
+                Phase::Hard,
+                &passes.count_passes(&vertices, range.clone(), *eye),
+            )?;
             let mut acc = vec![passes.accumulate_pass(s == 0)];
             if s + 1 == ranges.len() {
                 acc.push(passes.resolve_pass());
             }
-            run.submit(1, &acc)?;
+            run.submit(Phase::Accumulate, &acc)?;
         }
         let timing = run.finish()?;
         let slots = Slots::of(&timing.counts[0]);
@@ -230,12 +235,12 @@ impl Sampled {
         let program = Program::new(gpu, "accum_hard/wgpu.wgsl", &SOURCES, &groups);
         let accumulate = Instrumented::timed(program.compute(gpu, "accumulate", Some(false)));
         // The instrumented replay: every sample's hard pass.
-        let mut run = Timed::new(gpu, &PHASES, Statistics::Compute, &[&visibility])
+        let mut run = Timed::new(gpu, Phase::ALL, Statistics::Compute, &[&visibility])
             .counting_into(&hard.stats, Readout::End);
-        run.add_setup(0, self.start);
+        run.add_setup(Phase::Hard, self.start);
         let (mut uploads, mut m) = (Vec::with_capacity(n as usize), Measured::default());
         for s in 0..n {
-            let up = run.host(0, || {
+            let up = run.host(Phase::Hard, || {
                 let (sample, quads) = samples.quads(s);
                 m.edges += quads.len() as u64;
                 let eye_count = counting.eye_start(&samples.occluders, sample, rays.eye);
@@ -253,10 +258,10 @@ impl Sampled {
             uploads.push(up);
         }
         for (up, group) in &uploads {
-            run.submit(0, &[hard.pass(up)])?;
+            run.submit(Phase::Hard, &[hard.pass(up)])?;
             let groups = [Some(&up.group), Some(group)];
             let pass = Pass::compute("accumulate", &groups, &accumulate, hard.groups);
-            run.submit(1, &[pass])?;
+            run.submit(Phase::Accumulate, &[pass])?;
         }
         let timing = run.finish()?;
         let slots = Slots::of(&timing.counts[0]);

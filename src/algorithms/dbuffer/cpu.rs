@@ -18,10 +18,13 @@
 //! `dbuffer.scene_fill`); `overdraw` the volume fragments that did not end up in the D-buffer
 //! (behind a nearer volume surface, or in front of the scene for the umbra volume).
 
+use super::Phase;
+use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
 use super::volumes::{build_volumes, VolumeMesh, Volumes};
 use super::{edge_distance, front_fraction, t_penumbra, t_umbra, visibility, DbufferOptions, Disc};
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::shadow_map::cpu::{
     casters, eye_lookup, raster_shadow_map, texel_indices, Lookup, Receivers, ShadowMap,
@@ -29,7 +32,6 @@ use crate::algorithms::shadow_map::cpu::{
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
@@ -154,7 +156,7 @@ pub fn dbuffer(
     occluders: &Mesh,
     v: &Volumes,
 ) -> DBuffer {
-    m.phase("dbuffer");
+    m.phase(Phase::Dbuffer.name());
     let mesh = casters(m, &face.view, occluders);
     let scene = raster_shadow_map(m, frame, face, mesh);
     // The scene's draw is the |cx_o| channel; fill and overdraw count the volumes.

@@ -46,16 +46,30 @@ pub mod cpu;
 mod volumes;
 pub mod wgpu;
 
+use crate::record::phases;
 use glam::Vec3;
 
 use super::shadow_map::{map_bytes, Bias};
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WorkEstimate,
 };
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::RunParams;
 use crate::scene::Light;
 use crate::scene::LightKind;
+
+phases! {
+    /// The phases of a `dbuffer` run (003): the silhouette, the umbra and penumbra volumes built
+    /// on it (§3), the D-buffer they are rasterized into, and the eye lookup (§4). On wgpu the
+    /// first two run on the host within `dbuffer`.
+    pub enum Phase {
+        Silhouettes => "silhouettes",
+        Volumes => "volumes",
+        Dbuffer => "dbuffer",
+        EyeLookup => "eye_lookup",
+    }
+}
 
 pub const ID: &str = "dbuffer";
 
@@ -423,6 +437,16 @@ pub fn visibility(t: f32, falloff: Falloff) -> f32 {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct Dbuffer;
 
+/// D-buffer: umbra and penumbra volumes over the image, then one evaluation per pixel.
+pub fn work_estimate(
+    scene: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &DbufferOptions,
+) -> f64 {
+    2.0 * work::pixels(p) + 2.0 * work::outline(scene, p.image[0].max(p.image[1]))
+}
+
 impl Algorithm for Dbuffer {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "003 §2-§4 (umbra and penumbra volumes, D-buffer)";
@@ -433,7 +457,7 @@ impl Algorithm for Dbuffer {
     const LIMITS: &'static [MethodLimit] = &[MethodLimit::OneMap];
     type Options = DbufferOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::dbuffer;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] =
         &[r#"{"falloff": "sqrt", "closing_segments": 1, "volume_build": "single_core"}"#];
     const CPU: CpuEntry<DbufferOptions> = cpu::render;

@@ -6,6 +6,8 @@
 //! or with `volume_build: single_core` on one ([`build_volumes`], [`super::VolumeBuild`]). The
 //! wgpu execution runs them on the machine as the CPU executions do and uploads the meshes.
 
+use super::Phase;
+use crate::record::PhaseId;
 use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
@@ -188,7 +190,7 @@ impl TaskKernel for EdgeTest<'_> {
 
 /// Phase `silhouettes`.
 pub fn silhouettes(m: &mut Machine, adj: &EdgeAdjacency, disc: Disc) -> Silhouettes {
-    m.phase("silhouettes");
+    m.phase(Phase::Silhouettes.name());
     let nf = adj.triangles.len();
     let faces = FaceTest {
         adj,
@@ -551,7 +553,7 @@ pub fn volumes(
     view: &LightView,
     o: &DbufferOptions,
 ) -> Volumes {
-    m.phase("volumes");
+    m.phase(Phase::Volumes.name());
     let length = extrusion_length(frame, &disc);
     let n = s.edges.len();
     let weights = task_weights(n, PRIM_CHUNK);

@@ -19,11 +19,12 @@
 //! D-buffer texels they left covered (`fill − covered = overdraw`), as the shadow-map family.
 
 use super::volumes::{build_volumes, VolumeMesh};
+use super::Phase;
 use super::{DbufferOptions, Disc, Falloff, ID};
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::machine;
 use crate::algorithms::shadow_map::wgpu::LIGHT_VIEW_WGSL;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -268,16 +269,23 @@ impl<'g> Passes<'g> {
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
         let image = (self.width, self.height);
-        let names = ["dbuffer", "eye_lookup"];
         // The instrumented replay: the D-buffer's passes counting with atomics, then the
         // covered texels.
-        let mut run = Timed::new(self.gpu, &names, Statistics::All, &[&self.visibility])
-            .counting_into(&self.shared.counts, Readout::End);
+        let mut run = Timed::new(
+            self.gpu,
+            &[Phase::Dbuffer, Phase::EyeLookup],
+            Statistics::All,
+            &[&self.visibility],
+        )
+        .counting_into(&self.shared.counts, Readout::End);
         let mut passes = self.dbuffer_passes();
         let res = (self.resolution, self.resolution);
         passes.push(self.compute("count_covered", &self.count_covered, res));
-        run.submit(0, &passes)?;
-        run.submit(1, &[self.compute("eye_lookup", &self.lookup, image)])?;
+        run.submit(Phase::Dbuffer, &passes)?;
+        run.submit(
+            Phase::EyeLookup,
+            &[self.compute("eye_lookup", &self.lookup, image)],
+        )?;
         let timing = run.finish()?;
         let c: Counts = first(&timing.counts[0]);
 
@@ -289,7 +297,7 @@ impl<'g> Passes<'g> {
         dbuffer.set("dbuffer.bytes", super::dbuffer_bytes(&frame.params) as f64);
         let note = "fill/overdraw from an instrumented replay (WGSL atomics); phases silhouettes \
                     and volumes ran on the host";
-        Ok(timing.output(image, vec![dbuffer, Counters::default()], note))
+        Ok(timing.output(image, vec![(Phase::Dbuffer, dbuffer)], note))
     }
 }
 

@@ -4,11 +4,11 @@
 //! [`shadow_map::cpu`]: crate::algorithms::shadow_map::cpu
 
 use super::HardShadowOptions;
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::shadow_map::cpu::{
     render_views, umbra_test, Lookup, Receivers, ShadowMap, COMPARE_OPS,
 };
 use crate::algorithms::shadow_map::lit;
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Lanes, Mask, Probe};

@@ -10,10 +10,12 @@ pub mod wgpu;
 
 use serde::{Deserialize, Serialize};
 
-use crate::algorithms::shadow_map::{self, Bias};
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
+    WorkEstimate,
 };
+use crate::algorithms::shadow_map::{self, Bias};
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::RunParams;
 
@@ -36,6 +38,16 @@ impl AlgorithmOptions for HardShadowOptions {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct HardShadowMap;
 
+/// A shadow map: the map's texels once, and one lookup per pixel.
+pub fn work_estimate(
+    _: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &HardShadowOptions,
+) -> f64 {
+    work::texels(p) + work::pixels(p)
+}
+
 impl Algorithm for HardShadowMap {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "baseline (Williams 1978)";
@@ -43,7 +55,7 @@ impl Algorithm for HardShadowMap {
     const LIMITS: &'static [MethodLimit] = &[MethodLimit::NoPenumbra];
     type Options = HardShadowOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = shadow_map::memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::hard_shadow_map;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] = &[r#"{"bias": {"constant": 0.5, "slope": 3.0}}"#];
     /// Fragment counts differ where the light raster (measured: 68 of 4,626 on torus-on-plane,
     /// map 128²).

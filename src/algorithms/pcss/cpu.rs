@@ -4,12 +4,12 @@
 use glam::Vec2;
 
 use super::PcssOptions;
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::shadow_map::cpu::{render_views, Lookup, Receivers, ShadowMap, COMPARE_OPS};
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{
     pcss_filter_radius_uv, pcss_search_radius_uv, vogel_disk, ReceiverPlane,
 };
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Lanes, Mask, Probe, LANES};

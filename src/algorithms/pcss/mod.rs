@@ -12,10 +12,11 @@ pub mod wgpu;
 use crate::error::InputError;
 use serde::{Deserialize, Serialize};
 
-use crate::algorithms::shadow_map::{self, Bias};
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, WgpuEntry, WgpuParity, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, WgpuEntry, WgpuParity, WorkEstimate,
 };
+use crate::algorithms::shadow_map::{self, Bias};
+use crate::algorithms::work;
 use crate::frame::RunParams;
 
 pub const ID: &str = "pcss";
@@ -53,13 +54,23 @@ impl AlgorithmOptions for PcssOptions {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct Pcss;
 
+/// PCSS: the shadow map, then per pixel the blocker-search and filter taps.
+pub fn work_estimate(
+    _: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    o: &PcssOptions,
+) -> f64 {
+    work::texels(p) + work::pixels(p) * f64::from(o.blocker_samples + o.pcf_samples)
+}
+
 impl Algorithm for Pcss {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "Fernando 2005, cited in 004 Table 2";
     const SUMMARY: &'static str = "blocker search + variable-width percentage-closer filter";
     type Options = PcssOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = shadow_map::memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::pcss;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] = &[r#"{"blocker_samples": 4, "pcf_samples": 8}"#];
     /// Fragment counts differ where the light raster as in hard_shadow_map.
     const WGPU_PARITY: WgpuParity = WgpuParity::LIGHT_RASTER;

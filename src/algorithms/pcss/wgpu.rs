@@ -2,8 +2,8 @@
 //! `wgpu.wgsl` in the eye lookup.
 
 use super::PcssOptions;
+use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::algorithms::shadow_map::wgpu::{self as shadow_map_wgpu, Lookup};
-use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::Run;

@@ -9,12 +9,15 @@
 //!    of §3 ([`PenumbraFragments`]);
 //! 4. `eye_lookup`: the umbra test in the shadow map, else the penumbra map's intensity.
 
+use super::Phase;
+use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
 use super::{
     cone_size, intensity, shadow_geometry, sheet_size, PenumbraGeometry, PenumbraMapOptions,
     Silhouettes,
 };
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{machine, output, scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::cpu::{
     casters, eye_lookup, raster_shadow_map, texel_indices, umbra_test, Lookup, Receivers,
@@ -22,7 +25,6 @@ use crate::algorithms::shadow_map::cpu::{
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
@@ -139,7 +141,7 @@ fn silhouettes(
     light_radius: f32,
     o: &PenumbraMapOptions,
 ) -> Silhouettes {
-    m.phase("silhouettes");
+    m.phase(Phase::Silhouettes.name());
     let n = adj.edges.len();
     let test = SilhouetteTest {
         adj,
@@ -305,7 +307,7 @@ fn penumbra_map(
     light_radius: f32,
     o: &PenumbraMapOptions,
 ) -> Surface {
-    m.phase("penumbra_map");
+    m.phase(Phase::PenumbraMap.name());
     let view = &shadow.view;
     let layout = layout(s, o.cone_segments);
     let mut positions = m.memory.buffer(
@@ -396,7 +398,7 @@ pub fn render(
     let mut m = machine(backend, frame, ctx);
     let views = LightViews::fit(frame, ViewFit::Single);
     let face = &views.views[0];
-    m.phase("shadow_map");
+    m.phase(Phase::ShadowMap.name());
     let mesh = casters(&mut m, &face.view, &geometry.shadow_map);
     let shadow = raster_shadow_map(&mut m, frame, face, mesh);
     let light = frame.scene.light.center();

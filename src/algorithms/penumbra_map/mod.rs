@@ -20,20 +20,34 @@
 pub mod cpu;
 pub mod wgpu;
 
+use crate::record::phases;
 use std::borrow::Cow;
 
 use glam::{Vec2, Vec3};
 
 use super::shadow_map::{self, map_bytes, Bias, LightView};
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
+    WorkEstimate,
 };
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::simplify::simplify;
 use crate::scene::LightKind;
 use crate::scene::Mesh;
+
+phases! {
+    /// The phases of a `penumbra_map` run (000 §3): the shadow map, the silhouette seen from the
+    /// light, the penumbra map of cones and sheets drawn along it, and the eye lookup.
+    pub enum Phase {
+        ShadowMap => "shadow_map",
+        Silhouettes => "silhouettes",
+        PenumbraMap => "penumbra_map",
+        EyeLookup => "eye_lookup",
+    }
+}
 
 pub const ID: &str = "penumbra_map";
 
@@ -456,6 +470,16 @@ impl PenumbraGeometry {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct PenumbraMap;
 
+/// Penumbra map: the shadow map, then cones and sheets along the silhouette into the map.
+pub fn work_estimate(
+    scene: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &PenumbraMapOptions,
+) -> f64 {
+    2.0 * work::texels(p) + work::outline(scene, p.map_resolution) + work::pixels(p)
+}
+
 impl Algorithm for PenumbraMap {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "000 §3-§4 (Wyman and Hansen 2003)";
@@ -469,7 +493,7 @@ impl Algorithm for PenumbraMap {
     ];
     type Options = PenumbraMapOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::penumbra_map;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] = &[
         r#"{"cone_segments": 5, "max_sheet_strips": 1}"#,
         r#"{"shadow_mesh_triangles": 300}"#,

@@ -16,15 +16,16 @@
 //! `penumbra_map` phase's wall time. The edge adjacency of the occluders is per-model
 //! preprocessing, built before the first phase, as is the optional simplified mesh.
 
+use super::Phase;
 use super::{
     shadow_geometry, silhouettes, PenumbraGeometry, PenumbraMapOptions, ShadowGeometry,
     Silhouettes, ID,
 };
+use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::algorithms::shadow_map::wgpu::{
     self as shadow_map_wgpu, Counts, Lookup, Passes, LIGHT_RASTER_WGSL, NOTE, PRELUDE,
 };
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
-use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -155,22 +156,21 @@ impl<'g> PenumbraPasses<'g> {
 
         // The timed submission, one phase at a time (GPU passes 0, 1, 2: shadow map, penumbra
         // map, eye lookup).
-        let names = ["shadow_map", "silhouettes", "penumbra_map", "eye_lookup"];
         // The instrumented replay: the counters are cleared before each phase's passes and
         // copied after (`count_covered` with the lookup's pipeline layout, group 2 included).
-        let mut run = Timed::new(p.gpu, &names, Statistics::All, &[&p.eye.visibility])
+        let mut run = Timed::new(p.gpu, Phase::ALL, Statistics::All, &[&p.eye.visibility])
             .counting_into(&p.shared.counts, Readout::EachPhase);
-        run.submit(0, &[p.raster_pass(), p.covered_pass(extra)])?;
-        let s = run.host(1, || {
+        run.submit(Phase::ShadowMap, &[p.raster_pass(), p.covered_pass(extra)])?;
+        let s = run.host(Phase::Silhouettes, || {
             silhouettes(&adj, &self.view, light, light_radius, o.max_sheet_strips)
         });
         // The geometry's build and upload belong to the penumbra_map phase.
-        let cones = run.host(2, || {
+        let cones = run.host(Phase::PenumbraMap, || {
             let g = PenumbraGeometry::build(&s, &self.view, light_radius, o.cone_segments);
             self.upload(&g)
         });
-        run.submit(2, &[self.penumbra_pass(&cones)])?;
-        run.submit(3, &[p.lookup_pass(extra)])?;
+        run.submit(Phase::PenumbraMap, &[self.penumbra_pass(&cones)])?;
+        run.submit(Phase::EyeLookup, &[p.lookup_pass(extra)])?;
         let timing = run.finish()?;
         let counts: Vec<Counts> = timing.counts.iter().map(|b| first(b)).collect();
         let mut eye = p.lookup_counters(frame, &counts[2]);
@@ -179,11 +179,17 @@ impl<'g> PenumbraPasses<'g> {
         let read = [("penumbra_map", taps * DEPTH_TEXEL_BYTES)];
         eye.add_traffic("mem_est", &read, &[]);
         let counters = vec![
-            p.raster_counters(&counts[0]),
+            (Phase::ShadowMap, p.raster_counters(&counts[0])),
             // `silhouettes`: the counts the cpu executions record in the same phase.
-            Counters(s.counts().map(|(k, v)| (k.to_string(), v)).into()),
-            self.penumbra_counters(&s, o, &cones, &counts[1]),
-            eye,
+            (
+                Phase::Silhouettes,
+                Counters(s.counts().map(|(k, v)| (k.to_string(), v)).into()),
+            ),
+            (
+                Phase::PenumbraMap,
+                self.penumbra_counters(&s, o, &cones, &counts[1]),
+            ),
+            (Phase::EyeLookup, eye),
         ];
         Ok(timing.output((p.width, p.height), counters, NOTE))
     }

@@ -17,8 +17,11 @@ use std::time::Instant;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::FrameOutput;
-use crate::algorithms::{no_options, work, Algorithm, Backend, CpuEntry, WorkEstimate};
+use crate::algorithms::algorithm::FrameOutput;
+use crate::algorithms::algorithm::{
+    no_options, Algorithm, Backend, CpuEntry, ExecContext, WorkEstimate,
+};
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::Frame;
 use crate::frame::RunParams;
@@ -491,6 +494,11 @@ pub fn render_with(
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct Reference;
 
+/// The ground truth: one shadow ray per pixel and light sample.
+pub fn work_estimate(_: &work::SceneExtent, p: &RunParams, ctx: &ExecContext, _: &()) -> f64 {
+    work::pixels(p) * f64::from(ctx.reference_samples)
+}
+
 impl Algorithm for Reference {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "ground truth";
@@ -499,7 +507,7 @@ impl Algorithm for Reference {
     const BACKENDS: &'static [Backend] = &[Backend::CpuNative];
     type Options = ();
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = |_| 0;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::reference;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     /// The uninstrumented ray caster (the reference has only `cpu-native`).
     const CPU: CpuEntry<()> = |_, frame, ctx, _| {
         Ok(render_until(

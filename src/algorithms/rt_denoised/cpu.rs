@@ -14,6 +14,8 @@
 //! Deterministic counts (rays, node visits, triangle tests, taps) are counted per task in both
 //! executions and summed in task order; the image does not depend on the host's thread count.
 
+use super::Phase;
+use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
 use super::bvh::{leaf_range, CasterBvh, NodePair, Tri, LEAF, STACK};
@@ -21,8 +23,8 @@ use super::{
     geometric_weight, light_point, light_radius, penumbra_radius_px, search_offsets, seed32,
     square_sample, PixelInputs, RtDenoisedOptions, B3, MIN_REACH,
 };
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{eye_tiles, machine, output};
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{Target, BLOCK};
@@ -757,7 +759,7 @@ pub fn render(
     let ping = m.memory.reserve("atrous_ping", (n * 4) as u64);
     let pong = m.memory.reserve("atrous_pong", (n * 4) as u64);
 
-    m.phase("trace");
+    m.phase(Phase::Trace.name());
     let trace = Trace {
         inputs: &inputs_buf,
         bvh: &bvh,
@@ -781,7 +783,7 @@ pub fn render(
 
     let mut visibility: Vec<f32> = traced.iter().map(|t| t[0]).collect();
     if o.denoise {
-        m.phase("denoise");
+        m.phase(Phase::Denoise.name());
         let penumbra = Penumbra {
             inputs: &inputs_buf,
             traced: Buffer::at(traced_at, traced),

@@ -48,16 +48,27 @@ pub mod bvh;
 pub mod cpu;
 pub mod wgpu;
 
+use crate::record::phases;
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, ExecContext, WgpuEntry, WgpuParity, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, WgpuEntry, WgpuParity, WorkEstimate,
 };
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::light::concentric_disc;
 use crate::scene::Light;
+
+phases! {
+    /// The phases of an `rt_denoised` run: the traced shadow rays, and the denoiser over their
+    /// visibility (absent from a raw run).
+    pub enum Phase {
+        Trace => "trace",
+        Denoise => "denoise",
+    }
+}
 
 pub const ID: &str = "rt_denoised";
 

@@ -14,6 +14,7 @@
 //! and horizon-culled rays, the rays of pixels whose rays agreed, search and filter taps, the
 //! filtered pixels.
 
+use super::Phase;
 use std::time::Instant;
 
 use serde_json::json;
@@ -21,7 +22,7 @@ use serde_json::json;
 use super::bvh::{CasterBvh, NodePair, Tri};
 use super::seed32;
 use super::{buffer_bytes, light_radius, search_far, PixelInputs, RtDenoisedOptions, ID};
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -264,20 +265,20 @@ pub fn render(
         v
     };
 
-    let names: &[&str] = if o.denoise {
-        &["trace", "denoise"]
+    let phases: &[Phase] = if o.denoise {
+        Phase::ALL
     } else {
-        &["trace"]
+        &[Phase::Trace]
     };
     // The instrumented replay: the same passes, counting, a chunk a submission.
     let mut run =
-        Timed::new(gpu, names, Statistics::Compute, &[result]).counting_into(&stats, Readout::End);
-    run.add_setup(0, start);
+        Timed::new(gpu, phases, Statistics::Compute, &[result]).counting_into(&stats, Readout::End);
+    run.add_setup(Phase::Trace, start);
     for chunk in 0..chunks.len() {
-        run.submit(0, &[trace_pass(chunk)])?;
+        run.submit(Phase::Trace, &[trace_pass(chunk)])?;
     }
     if o.denoise {
-        run.submit(1, &denoise_passes())?;
+        run.submit(Phase::Denoise, &denoise_passes())?;
     }
     let timing = run.finish()?;
     let slot = Slots::of(&timing.counts[0]);
@@ -337,7 +338,7 @@ fn phase_counters(
     o: &RtDenoisedOptions,
     (node_bytes, tri_bytes): (u64, u64),
     buffers: u64,
-) -> Vec<Counters> {
+) -> Vec<(Phase, Counters)> {
     let get = |name: &str| slot.get(STATS.iter().position(|s| *s == name).expect("a slot"));
     let mut trace = Counters::default();
     for name in &STATS[..6] {
@@ -346,14 +347,14 @@ fn phase_counters(
     trace.set("fill", get("rt.rays"));
     trace.set("rt.bvh_node_bytes", node_bytes as f64);
     trace.set("rt.bvh_triangle_bytes", tri_bytes as f64);
-    let mut phases = vec![trace];
+    let mut phases = vec![(Phase::Trace, trace)];
     if o.denoise {
         let mut denoise = Counters::default();
         for name in &STATS[6..] {
             denoise.set(name, get(name));
         }
         denoise.set("denoise.buffer_bytes", buffers as f64);
-        phases.push(denoise);
+        phases.push((Phase::Denoise, denoise));
     }
     phases
 }

@@ -3,6 +3,8 @@
 //! generic over a [`Lookup`] (`hard_shadow_map`'s hard test, `pcss`, `penumbra_map`,
 //! `dbuffer`), which reuse the light pass and the receiver setup unchanged.
 
+use super::Phase;
+use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
 use super::texel;
@@ -10,8 +12,8 @@ use super::{
     assemble_casters, Bias, CasterBuffers, CastersPart, FaceView, LightView, LightViews, ViewFit,
     FAN_TRIANGLES_MAX, FAN_VERTICES_MAX,
 };
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::frame::Frame;
 use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
 use crate::model::{
@@ -36,7 +38,7 @@ pub fn light_raster(
     face: &FaceView,
     occluders: &Mesh,
 ) -> ShadowMap {
-    m.phase(&face.phase("light_raster"));
+    m.phase(&face.phase(Phase::LightRaster.name()));
     let mesh = casters(m, &face.view, occluders);
     raster_shadow_map(m, frame, face, mesh)
 }
@@ -337,7 +339,7 @@ pub fn eye_lookup<L: Lookup>(
     bias: Bias,
     lookup: &L,
 ) -> VisibilityBuffer {
-    m.phase(&map.face.phase("eye_lookup"));
+    m.phase(&map.face.phase(Phase::EyeLookup.name()));
     let g = &frame.gbuffer;
     let pass = EyePass {
         frame,

@@ -13,11 +13,22 @@
 pub mod cpu;
 pub mod wgpu;
 
+use crate::record::phases;
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
 use crate::model::{lane_groups, BufferId, Lanes, NoProbe, Probe};
 use crate::scene::camera::{look_at, perspective};
 use crate::scene::{Light, Mesh};
+
+phases! {
+    /// The phases of a shadow-map family run (`hard_shadow_map`, `pcss`): the light raster into
+    /// the map, and the eye lookup against it; per cube face `light_raster[+x]`, ...
+    /// ([`LightView::phase`]).
+    pub enum Phase {
+        LightRaster => "light_raster",
+        EyeLookup => "eye_lookup",
+    }
+}
 
 /// The texel of the map that holds `uv` (nearest), or `None` outside the map, where nothing
 /// was rasterized and the receiver counts as lit.
@@ -800,6 +811,7 @@ pub fn map_bytes(p: &crate::frame::RunParams) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::record::PhaseId;
 
     #[test]
     fn projection_round_trips_depth_and_frames_its_frustum() {
@@ -994,7 +1006,7 @@ mod tests {
             (Backend::CpuModel, 3),
         ] {
             let mut m = Machine::new(backend, MachineConfig::larrabee(cores));
-            m.phase("light_raster");
+            m.phase(Phase::LightRaster.name());
             let got = cpu::casters(&mut m, &v, &mesh);
             assert_eq!(got.triangles, want.triangles, "{backend:?}");
             assert_eq!(got.positions, want.positions, "{backend:?}");

@@ -14,8 +14,9 @@
 //! every rasterized fragment; those that did not end up in the map) and the lookup's taps.
 //! Memory traffic is estimated from formats and those counts (`mem_est.<buffer>.*`).
 
+use super::Phase;
 use super::{vogel_disk, Bias, FaceView, LightViews, ViewFit};
-use crate::algorithms::FrameOutput;
+use crate::algorithms::algorithm::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -306,14 +307,20 @@ impl<'g> Passes<'g> {
     }
 
     fn run(&self, frame: &Frame) -> Result<FrameOutput> {
-        let (names, readback) = (["light_raster", "eye_lookup"], [&self.eye.visibility]);
-        let mut run = Timed::new(self.gpu, &names, Statistics::All, &readback)
+        let readback = [&self.eye.visibility];
+        let mut run = Timed::new(self.gpu, Phase::ALL, Statistics::All, &readback)
             .counting_into(&self.shared.counts, Readout::End);
-        run.submit(0, &[self.raster_pass(), self.covered_pass(None)])?;
-        run.submit(1, &[self.lookup_pass(None)])?;
+        run.submit(
+            Phase::LightRaster,
+            &[self.raster_pass(), self.covered_pass(None)],
+        )?;
+        run.submit(Phase::EyeLookup, &[self.lookup_pass(None)])?;
         let timing = run.finish()?;
         let c: Counts = first(&timing.counts[0]);
-        let counters = vec![self.raster_counters(&c), self.lookup_counters(frame, &c)];
+        let counters = vec![
+            (Phase::LightRaster, self.raster_counters(&c)),
+            (Phase::EyeLookup, self.lookup_counters(frame, &c)),
+        ];
         Ok(timing.output((self.width, self.height), counters, NOTE))
     }
 

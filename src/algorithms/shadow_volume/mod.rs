@@ -650,8 +650,8 @@ pub fn mem_write(m: &mut Machine, buffer: &str, bytes: u64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::algorithms::algorithm::{Backend, ExecContext};
     use crate::algorithms::exec::machine;
-    use crate::algorithms::{Backend, ExecContext};
     use crate::frame::{Frame, RunParams};
     use crate::scene::adjacency::EdgeAdjacency;
     use crate::scene::generators::{self, GeneratorParams};

@@ -9,6 +9,8 @@
 //! walks its triangles and quads in input order, so the image and the counters do not depend
 //! on the host's thread count.
 
+use super::Phase;
+use crate::record::PhaseId;
 use glam::Vec2;
 
 use super::{
@@ -16,9 +18,9 @@ use super::{
     occluders_of, quad_half_width, wedge_entry_inv_z, Grid, LightPoint, LightTriangle, Occluders,
     PenumbraQuad, ProjectedEdge, SoftIzbOptions,
 };
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Buffer, BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
@@ -353,7 +355,7 @@ fn construct(
     view: &LightView,
     opts: &SoftIzbOptions,
 ) -> (Izb, u64) {
-    m.phase("construct");
+    m.phase(Phase::Construct.name());
     let g = &frame.gbuffer;
     let triangle = m.memory.borrowed("gbuffer.triangle", &g.triangle);
     let project = Project {
@@ -529,7 +531,7 @@ fn occluders(
     opts: &SoftIzbOptions,
     adjacency: &[Option<EdgeAdjacency>],
 ) -> (Occluders, Region, Region) {
-    m.phase("geometry");
+    m.phase(Phase::Geometry.name());
     let objects = &frame.scene.objects;
     let weights: Vec<u64> = objects
         .iter()
@@ -770,7 +772,7 @@ impl TaskKernel for Umbra<'_> {
 
 /// Step (b) of Figure 2 (phase `hard`): hard irregular shadow mapping from the light centre.
 fn umbra(m: &mut Machine, izb: &Izb, occ: &Occluders, triangles: Region) -> Vec<Vec<u32>> {
-    m.phase("hard");
+    m.phase(Phase::Hard.name());
     let grid = &izb.grid;
     let bin = |i: usize| {
         let (lo, hi) = occ.triangles[i].1.bounds();
@@ -960,7 +962,7 @@ fn penumbra(
     opts: &SoftIzbOptions,
     depth_complexity: &[Vec<u32>],
 ) -> Vec<f32> {
-    m.phase("soft");
+    m.phase(Phase::Soft.name());
     let grid = &izb.grid;
     let bin = |i: usize| {
         let edge = occ.edges[i];

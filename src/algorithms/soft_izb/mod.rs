@@ -15,19 +15,34 @@
 pub mod cpu;
 pub mod wgpu;
 
+use crate::record::phases;
 use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 use serde::{Deserialize, Serialize};
 
 use super::shadow_map::LightView;
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
+    WorkEstimate,
 };
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::Frame;
 use crate::frame::RunParams;
 use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
 use crate::scene::coverage;
 use crate::scene::LightKind;
+
+phases! {
+    /// The phases of a `soft_izb` run (004 §2): the light-space geometry (host), the irregular
+    /// grid built of the eye samples, the hard (umbra) pass over it, and the soft pass of the
+    /// penumbra quads with the resolve.
+    pub enum Phase {
+        Geometry => "geometry",
+        Construct => "construct",
+        Hard => "hard",
+        Soft => "soft",
+    }
+}
 
 pub const ID: &str = "soft_izb";
 
@@ -579,6 +594,17 @@ impl Grid {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct SoftIzb;
 
+/// Soft irregular shadow mapping: the eye samples into the light-space grid, the umbra by
+/// irregular rasterization, and the penumbra quads along the silhouette in the grid.
+pub fn work_estimate(
+    scene: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &SoftIzbOptions,
+) -> f64 {
+    3.0 * work::pixels(p) + work::outline(scene, p.map_resolution)
+}
+
 impl Algorithm for SoftIzb {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "paper 004 (soft irregular shadow mapping), §2";
@@ -594,7 +620,7 @@ impl Algorithm for SoftIzb {
         &[MethodLimit::OneMap, MethodLimit::AvertedNonOccludersLit];
     type Options = SoftIzbOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = cpu::memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_izb;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] = &[
         r#"{"per_bin_width": false, "wedge_column_cull": false}"#,
         r#"{"silhouettes": "all_edges", "depth_slices": 2}"#,

@@ -40,6 +40,8 @@
 //! of by dropping the quad from a bin's list; the counts of bin entries and culls are the
 //! same) and silhouette detection on the GPU (the paper's geometry shaders).
 
+use super::Phase;
+use crate::record::PhaseId;
 use std::time::Instant;
 
 use serde_json::json;
@@ -48,8 +50,8 @@ use super::{
     check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, ID,
     NEAR_CLIP, OCCLUSION_SCALE,
 };
+use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::algorithms::shadow_map::{LightViews, ViewFit};
-use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -81,9 +83,6 @@ const EDGE_BYTES: u64 = 24;
 const GBUFFER_BYTES: u64 = 16;
 const POINT_BYTES: u64 = 16;
 const WORD: u64 = 4;
-
-/// The phases in order: `geometry` on the host, then one GPU pass each.
-const PHASES: [&str; 4] = ["geometry", "construct", "hard", "soft"];
 
 /// The statistics slots of the instrumented pipelines (`STAT_*` in the WGSL), in slot order.
 #[derive(Clone, Copy)]
@@ -331,12 +330,13 @@ impl<'g> Passes<'g> {
         }
     }
 
-    /// Phase `i` (1 construct, 2 hard, 3 soft) as one compute pass.
-    fn pass(&self, i: usize) -> Pass<'_> {
+    /// Phase `phase` (construct, hard or soft; geometry is the host's) as one compute pass.
+    fn pass(&self, phase: Phase) -> Pass<'_> {
         let (gpu, p) = (self.gpu, &self.params);
         let items = |n: u32| workgroups(gpu, n.div_ceil(ITEM_WORKGROUP));
-        let dispatches = match i {
-            1 => {
+        let dispatches = match phase {
+            Phase::Geometry => vec![],
+            Phase::Construct => {
                 // One invocation per CELLS_PER_ITEM cells, and at least one per depth record.
                 let clear = p.cells.div_ceil(CELLS_PER_ITEM);
                 let clear = clear.max(self.grid.bins() as u32 + 2);
@@ -352,14 +352,14 @@ impl<'g> Passes<'g> {
                     (&c[6], items(p.pixels)),
                 ]
             }
-            2 => vec![(&self.umbra, workgroups(gpu, p.triangles))],
-            _ => vec![
+            Phase::Hard => vec![(&self.umbra, workgroups(gpu, p.triangles))],
+            Phase::Soft => vec![
                 (&self.penumbra, workgroups(gpu, p.edges)),
                 (&self.resolve, items(p.pixels)),
             ],
         };
         Pass {
-            label: PHASES[i],
+            label: phase.name(),
             groups: vec![Some(&self.group)],
             work: Work::Dispatch(dispatches),
         }
@@ -371,11 +371,11 @@ impl<'g> Passes<'g> {
         let readback = [&self.visibility, &self.cell_start];
         // The instrumented replay: `hard` and `soft` read what the timed `construct` left
         // (nothing after it writes it) and add into accumulators nothing reads after `resolve`.
-        let mut run = Timed::new(self.gpu, &PHASES, Statistics::Compute, &readback)
+        let mut run = Timed::new(self.gpu, Phase::ALL, Statistics::Compute, &readback)
             .counting_into(&self.stats, Readout::End);
-        run.add_wall(0, geometry_ms);
-        for i in 1..PHASES.len() {
-            run.submit(i, &[self.pass(i)])?;
+        run.add_wall(Phase::Geometry, geometry_ms);
+        for phase in [Phase::Construct, Phase::Hard, Phase::Soft] {
+            run.submit(phase, &[self.pass(phase)])?;
         }
         let mut timing = run.finish()?;
         // The samples stored: the prefix sum's total, after the last cell.
@@ -386,10 +386,10 @@ impl<'g> Passes<'g> {
 
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
         let counters = vec![
-            geometry,
-            self.construct_counters(hits, samples),
-            self.hard_counters(&stat),
-            self.soft_counters(&stat, samples),
+            (Phase::Geometry, geometry),
+            (Phase::Construct, self.construct_counters(hits, samples)),
+            (Phase::Hard, self.hard_counters(&stat)),
+            (Phase::Soft, self.soft_counters(&stat, samples)),
         ];
         let outside = hits - samples;
         if outside > 0.0 {

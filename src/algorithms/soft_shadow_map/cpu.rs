@@ -3,14 +3,16 @@
 //! extents drawn as quads with an additive fragment kernel into the soft shadow map (phase
 //! `splat`), and the SSM projected onto the eye samples (phase `project`).
 
+use super::Phase;
+use crate::record::PhaseId;
 use glam::{Mat4, Vec2, Vec3};
 
 use super::{
     bias_at, classify, extent_quad, micro_patch, occlusion, record_receivers_outside, visibility,
     LightFrame, MicroPatch, Sample, SoftShadowMapOptions, Split,
 };
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
@@ -93,7 +95,7 @@ fn depth_map(
 /// back faces: front faces culled, nearest kept, as a depth-less pass with `glCullFace(GL_FRONT)`
 /// renders them), the receiver map, and the transfer of the occluder maps to the host (§4.1).
 fn maps(m: &mut Machine, frame: &Frame, split: &Split, o: &SoftShadowMapOptions) -> Maps {
-    m.phase("maps");
+    m.phase(Phase::Maps.name());
     let (occ, ssm) = LightFrame::new(
         &frame.scene.light,
         frame.scene.bounds(),
@@ -343,7 +345,7 @@ fn soft_shadow_map(
     maps: &Maps,
     o: &SoftShadowMapOptions,
 ) -> Surface {
-    m.phase("splat");
+    m.phase(Phase::Splat.name());
     let mut ssm = splat(m, frame, maps, &maps.occluders[0], "soft_shadow_map", o);
     if let Some(back) = maps.occluders.get(1) {
         let ssm_back = splat(m, frame, maps, back, "soft_shadow_map_back", o);
@@ -468,7 +470,7 @@ fn project(
     ssm: &Surface,
     split: &Split,
 ) -> VisibilityBuffer {
-    m.phase("project");
+    m.phase(Phase::Project.name());
     let g = &frame.gbuffer;
     let pass = Project {
         lf,

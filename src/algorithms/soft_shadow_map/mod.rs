@@ -36,16 +36,30 @@
 pub mod cpu;
 pub mod wgpu;
 
+use crate::record::phases;
 use glam::{Mat4, Vec2, Vec3};
 
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
+    WorkEstimate,
 };
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, FrameOutput, RunParams};
 use crate::model::raster::{Blend, HalfRounding};
 use crate::scene::LightKind;
 use crate::scene::{Bounds, FlatMesh, Light};
+
+phases! {
+    /// The phases of a `soft_shadow_map` run (002 §3): the occluder and receiver depth maps,
+    /// the micro-patches splatted into the receivers' visibility map, and its projection onto
+    /// the eye samples.
+    pub enum Phase {
+        Maps => "maps",
+        Splat => "splat",
+        Project => "project",
+    }
+}
 
 pub const ID: &str = "soft_shadow_map";
 
@@ -525,6 +539,20 @@ pub fn visibility(occluded: f32) -> f32 {
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct SoftShadowMap;
 
+/// Penumbra-extent rectangles of every micro-patch (002 §3.3): up to one micro-patch per
+/// occluder-map texel, about a quarter of the map covered by occluders, each extent the patch
+/// plus the penumbra wide; the second pass of two-pass maps doubles it.
+pub fn work_estimate(
+    scene: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    o: &SoftShadowMapOptions,
+) -> f64 {
+    let passes = o.passes;
+    let extent = 1.0 + work::penumbra_texels(scene, p.map_resolution);
+    f64::from(passes) * work::texels(p) * (2.0 + 0.25 * extent * extent)
+}
+
 impl Algorithm for SoftShadowMap {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "002 §3-§4 (Atty et al. 2006)";
@@ -536,7 +564,7 @@ impl Algorithm for SoftShadowMap {
     const LIMITS: &'static [MethodLimit] = &[MethodLimit::NoOccluderShadowing, MethodLimit::OneMap];
     type Options = SoftShadowMapOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_shadow_map;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] = &[
         r#"{"passes": 2, "occluder_map_transfer": false}"#,
         r#"{"precision": "fp16"}"#,

@@ -17,6 +17,7 @@
 //! The instrumented replay of `splat` counts fragments (`fill`) and those that hide nothing
 //! (`overdraw`), through a pipeline that writes no colour (no blending to pay for twice).
 
+use super::Phase;
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
@@ -24,7 +25,7 @@ use bytemuck::{Pod, Zeroable};
 use super::{
     extent_quad, half_rounding, micro_patch, LightFrame, Precision, SoftShadowMapOptions, Split, ID,
 };
-use crate::algorithms::{ExecContext, FrameOutput};
+use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::meshes::positions;
@@ -365,18 +366,18 @@ impl<'g> Ssm<'g> {
     fn run(&self) -> Result<FrameOutput> {
         let host = self.o.occluder_map_transfer;
         let passes = self.o.passes as usize;
-        let (names, readback) = (["maps", "splat", "project"], [&self.visibility]);
+        let readback = [&self.visibility];
         // The instrumented replay: `splat`, and the micro-patches the device built.
-        let mut run = Timed::new(self.gpu, &names, Statistics::Off, &readback)
+        let mut run = Timed::new(self.gpu, Phase::ALL, Statistics::Off, &readback)
             .counting_into(&self.shared.counts, Readout::End);
         // Passes in timer order: maps (occluders, back faces, receivers), splat, project.
         let mut maps: Vec<Pass> = (0..passes)
             .map(|k| self.depth_pass(&self.occluders, &self.occ_views[k], k == 1))
             .collect();
         maps.push(self.depth_pass(&self.receivers, &self.receiver_view, false));
-        run.submit(0, &maps)?;
+        run.submit(Phase::Maps, &maps)?;
         let transfer = match host {
-            true => run.host(0, || self.transfer())?,
+            true => run.host(Phase::Maps, || self.transfer())?,
             false => Transfer::default(),
         };
         let instances = &transfer.instances;
@@ -388,11 +389,11 @@ impl<'g> Ssm<'g> {
                 Pass::compute("count_patches", &groups, &self.p.count_patches, res)
             }));
         }
-        run.submit(1, &splat)?;
+        run.submit(Phase::Splat, &splat)?;
         let groups = [Some(&self.shared.group), None, Some(&self.project_group)];
         let workgroups = tiles(self.size, WORKGROUP);
         let project = Pass::compute("project", &groups, &self.p.project, workgroups);
-        run.submit(2, &[project])?;
+        run.submit(Phase::Project, &[project])?;
         let timing = run.finish()?;
 
         let c: Counts = first(&timing.counts[0]);
@@ -411,7 +412,11 @@ impl<'g> Ssm<'g> {
         let texels = passes as u64 * u64::from(self.res) * u64::from(self.res);
         splat_c.set("ssm.occluder_texels", texels as f64);
         let note = "fill/overdraw from an instrumented replay of splat (WGSL atomics)";
-        let mut out = timing.output(self.size, vec![maps_c, splat_c, Counters::default()], note);
+        let mut out = timing.output(
+            self.size,
+            vec![(Phase::Maps, maps_c), (Phase::Splat, splat_c)],
+            note,
+        );
         let entries = serde_json::json!({
             "transfer_ms": transfer.ms,
             "ssm_format": format!("{:?}", self.ssm_format),

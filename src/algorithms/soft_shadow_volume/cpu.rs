@@ -4,6 +4,8 @@
 //! approximation or light splitting are on. Both passes are tile tasks of the machine, in 16-lane
 //! blocks, written once for both executions.
 
+use super::Phase;
+use crate::record::PhaseId;
 use std::sync::Arc;
 
 use glam::Vec3;
@@ -13,6 +15,7 @@ use super::{
     exact_coverage, overlap_coverage, split12, split_light, CoverageMethod, CoverageTexture,
     Emitter, EmitterShape, SoftShadowVolumeOptions, SubLightLoops, VBufferPrecision, Wedge,
 };
+use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::eye_raster::{
     raster_pass, Block, EyeBuffer, EyeRays, ScreenRect, TilePass, DEPTH_BYTES,
@@ -20,7 +23,6 @@ use crate::algorithms::eye_raster::{
 use crate::algorithms::shadow_volume::{
     mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
 };
-use crate::algorithms::{Backend, ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
@@ -174,8 +176,8 @@ pub fn render(
     let light = frame.scene.light;
     let sub_lights = split_light(&light, opts.light_split)?;
     let mut m = machine(backend, frame, ctx);
-    for phase in ["hard", "wedges", "soft"] {
-        m.phase(phase);
+    for phase in Phase::ALL {
+        m.phase(phase.name());
     }
     let setup = Setup::new(&mut m, frame, opts, ctx.deadline);
     let adjacency = EdgeAdjacency::build(&frame.scene.occluders());
@@ -192,7 +194,7 @@ pub fn render(
             eye,
             warning,
         } = SubLightLoops::new(&adjacency, &occluders, centre, setup.rays.eye, opts);
-        m.phase("hard");
+        m.phase(Phase::Hard.name());
         m.count("silhouette_edges", silhouette_edges as f64);
         warnings.extend(warning);
         let mut covered = vec![0.0f32; n];
@@ -371,7 +373,7 @@ fn render_loop(
     let rays = &s.rays;
 
     // Pass 1: hard shadow quads (III §3.2.1).
-    m.phase("hard");
+    m.phase(Phase::Hard.name());
     let quads: Vec<ShadowQuad> = edges.iter().map(|e| ShadowQuad::new(e, centre)).collect();
     let hard = render_hard(m, "quads", rays, &quads, counting, s.tile, &s.hard);
     if let HardCounting::ZFail { .. } = counting {
@@ -388,7 +390,7 @@ fn render_loop(
     mem_write(m, buffer, hard.passed * u64::from(bytes));
 
     // Wedge construction (III §3.1, IV §4.1).
-    m.phase("wedges");
+    m.phase(Phase::Wedges.name());
     let build = BuildWedges {
         edges,
         light,
@@ -405,7 +407,7 @@ fn render_loop(
     m.count("wedges_degenerate", degenerate as f64);
 
     // Pass 2: penumbra wedges (III §3.2.2), by wedge halves when culling (IV §4.4).
-    m.phase("soft");
+    m.phase(Phase::Soft.name());
     let (accum, tally) = soft_pass(m, s, light, &quads, &wedges);
     m.count("fill", tally.fill as f64);
     m.count("overdraw", (tally.fill - tally.contributing) as f64);

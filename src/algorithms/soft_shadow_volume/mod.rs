@@ -28,6 +28,7 @@ pub mod raster;
 mod wedges;
 pub mod wgpu;
 
+use crate::record::phases;
 use std::collections::HashMap;
 
 use glam::{Vec2, Vec3};
@@ -35,9 +36,11 @@ use serde::{Deserialize, Serialize};
 
 use super::eye_raster::ConvexVolume;
 pub use super::shadow_volume::{Counting, GpuPipeline};
-use crate::algorithms::{
-    work, Algorithm, AlgorithmOptions, CpuEntry, MethodLimit, WgpuEntry, WgpuParity, WorkEstimate,
+use crate::algorithms::algorithm::{
+    Algorithm, AlgorithmOptions, CpuEntry, ExecContext, MethodLimit, WgpuEntry, WgpuParity,
+    WorkEstimate,
 };
+use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
@@ -45,6 +48,17 @@ pub(crate) use crate::scene::polygon::clip_half_plane;
 use crate::scene::LightKind;
 use crate::scene::{Light, LightTexture};
 use crate::util::deadline::Deadline;
+
+phases! {
+    /// The phases of a `soft_shadow_volume` run, each resumed per sub-light and silhouette loop:
+    /// the hard shadow quads (Paper II §3), the wedges built on the silhouette (§4), and the
+    /// soft pass over the pixels the wedges cover (§5).
+    pub enum Phase {
+        Hard => "hard",
+        Wedges => "wedges",
+        Soft => "soft",
+    }
+}
 
 /// The shape of the emitter in light coordinates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -797,6 +811,17 @@ pub fn check_light_texture(o: &SoftShadowVolumeOptions) -> Result<(), InputError
 /// The registry's entry points ([`crate::algorithms::Algorithm`]).
 pub struct SoftShadowVolume;
 
+/// Soft shadow volumes: hard shadow quads and penumbra wedges over the image, per pixel they
+/// cover.
+pub fn work_estimate(
+    scene: &work::SceneExtent,
+    p: &RunParams,
+    _: &ExecContext,
+    _: &SoftShadowVolumeOptions,
+) -> f64 {
+    2.0 * work::pixels(p) + work::outline(scene, p.image[0].max(p.image[1]))
+}
+
 impl Algorithm for SoftShadowVolume {
     const ID: &'static str = ID;
     const SOURCE: &'static str = "001 Papers III and IV";
@@ -806,7 +831,7 @@ impl Algorithm for SoftShadowVolume {
     const LIMITS: &'static [MethodLimit] = &[MethodLimit::AvertedNonOccludersLit];
     type Options = SoftShadowVolumeOptions;
     const MEMORY_ESTIMATE: fn(&RunParams) -> u64 = memory_estimate;
-    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work::soft_shadow_volume;
+    const WORK_ESTIMATE: WorkEstimate<Self::Options> = work_estimate;
     const OPTION_SETS: &'static [&'static str] = &[
         r#"{"coverage": "texture", "vbuffer": "split12"}"#,
         r#"{"wedge_culling": false, "tighter_wedges": false}"#,

@@ -72,13 +72,13 @@ use super::wgpu::{
     STENCIL_BYTES, VBUFFER_BYTES, WGSL as SOFT_WGSL,
 };
 use super::{clip_half_plane, SoftShadowVolumeOptions, VBufferPrecision};
+use crate::algorithms::algorithm::FrameOutput;
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::raster::{
     eye_projection, hard_triangles, DepthTarget, HardRaster,
 };
 use crate::algorithms::shadow_volume::wgpu::{hard_fill, quad_records, RECORDS_WGSL, TILE};
 use crate::algorithms::shadow_volume::ShadowQuad;
-use crate::algorithms::FrameOutput;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{

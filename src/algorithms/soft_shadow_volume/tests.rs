@@ -288,24 +288,29 @@ fn coverage_texture_agrees_with_exact_clipping() {
 fn options_name_the_bad_field_and_value() {
     let mut o = std::collections::BTreeMap::new();
     o.insert(ID.to_string(), serde_json::json!({ "light_split": 5 }));
-    let e =
-        (crate::algorithms::AlgorithmInfo::of::<SoftShadowVolume>().check_options)(&o).unwrap_err();
+    let e = crate::algorithms::find(ID)
+        .unwrap()
+        .check_options(&o)
+        .unwrap_err();
     assert_eq!(
         e.field.as_deref(),
         Some("$.options.soft_shadow_volume.light_split")
     );
     assert!(e.message.contains('5'));
     o.insert(ID.to_string(), serde_json::json!({ "coverage": "magic" }));
-    let e =
-        (crate::algorithms::AlgorithmInfo::of::<SoftShadowVolume>().check_options)(&o).unwrap_err();
+    let e = crate::algorithms::find(ID)
+        .unwrap()
+        .check_options(&o)
+        .unwrap_err();
     assert_eq!(
         e.field.as_deref(),
         Some("$.options.soft_shadow_volume.coverage")
     );
     o.insert(ID.to_string(), serde_json::json!({ "culling": true }));
-    assert!(
-        (crate::algorithms::AlgorithmInfo::of::<SoftShadowVolume>().check_options)(&o).is_err()
-    );
+    assert!(crate::algorithms::find(ID)
+        .unwrap()
+        .check_options(&o)
+        .is_err());
 }
 
 /// The raster pipeline's front faces of a convex volume against the cube's analytic answer:

@@ -40,6 +40,7 @@
 //! the soft pass accumulates one f32 per channel (III §4.1), writing the light received per
 //! channel and its luminance fraction as the visibility.
 
+use super::Phase;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -50,13 +51,13 @@ use super::{
     split_light, CoverageMethod, CoverageTexture, EmitterShape, GpuPipeline,
     SoftShadowVolumeOptions, SubLightLoops, VBufferPrecision, Wedge, ID,
 };
+use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::algorithms::eye_raster::{EyeRays, ScreenRect, DEPTH_BYTES};
 use crate::algorithms::shadow_volume::wgpu::{
     bins, check_limits, hard_fill, rect, tile_cones, tile_misses, upload_rays, HardPass, HardStat,
     HardUpload, FACE_BYTES, QUAD_BYTES, RAY_BYTES, RECORDS_WGSL, TILE, WORD,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
-use crate::algorithms::{ExecContext, FrameOutput};
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -451,13 +452,12 @@ pub(super) fn run_loops<P: Pipeline>(
     setup_ms: f64,
 ) -> Result<FrameOutput> {
     let readback = &[&res.visibility, &res.rgb][..1 + usize::from(res.channels == 3)];
-    let names = ["hard", "wedges", "soft"];
-    let mut run = Timed::new(gpu, &names, P::STATISTICS, readback);
-    run.add_wall(0, setup_ms);
+    let mut run = Timed::new(gpu, Phase::ALL, P::STATISTICS, readback);
+    run.add_wall(Phase::Hard, setup_ms);
     let mut loops = Vec::with_capacity(runs.len());
     for (k, lr) in runs.iter().enumerate() {
         let centre = lr.light.center();
-        let (quads, hard) = run.host(0, || {
+        let (quads, hard) = run.host(Phase::Hard, || {
             let quads: Vec<_> = lr
                 .edges
                 .iter()
@@ -466,31 +466,35 @@ pub(super) fn run_loops<P: Pipeline>(
             let hard = p.hard(rays, lr, &quads);
             (quads, hard)
         });
-        run.submit_timed(0, &p.hard_passes(&hard, k == 0))?;
-        let (w, soft) = run.host(1, || {
+        run.submit_timed(Phase::Hard, &p.hard_passes(&hard, k == 0))?;
+        let (w, soft) = run.host(Phase::Wedges, || {
             let w = WedgeRecords::new(rays, lr, &quads, opts);
             let soft = p.soft(rays, lr, &quads, &w, &hard);
             (w, soft)
         });
-        run.submit_timed(2, &p.soft_passes(&soft))?;
+        run.submit_timed(Phase::Soft, &p.soft_passes(&soft))?;
         loops.push((quads.len(), w, hard, soft));
     }
     let timing = run.finish()?;
     let size = (rays.width, rays.height);
     let rgb = timing.rgb(1, size);
-    let mut per_phase = vec![Counters::default(); 3];
+    let [mut hard_c, mut wedges_c, mut soft_c] = [(); 3].map(|_| Counters::default());
     for (lr, (quads, w, hard, soft)) in runs.iter().zip(&loops) {
-        let r = p.replay(hard, soft, &mut per_phase[0])?;
-        let k = &mut per_phase[0];
+        let r = p.replay(hard, soft, &mut hard_c)?;
         if let Some(n) = lr.silhouette_edges {
-            k.add("silhouette_edges", n as f64);
+            hard_c.add("silhouette_edges", n as f64);
         }
-        k.add("shadow_quads", *quads as f64);
-        per_phase[1].add("wedges", w.wedges as f64);
-        per_phase[1].add("wedges_degenerate", w.degenerate as f64);
+        hard_c.add("shadow_quads", *quads as f64);
+        wedges_c.add("wedges", w.wedges as f64);
+        wedges_c.add("wedges_degenerate", w.degenerate as f64);
         let pixels = rays.len() as u64;
-        soft_counters(&mut per_phase[2], (opts, res.channels, pixels), w, &r);
+        soft_counters(&mut soft_c, (opts, res.channels, pixels), w, &r);
     }
+    let per_phase = vec![
+        (Phase::Hard, hard_c),
+        (Phase::Wedges, wedges_c),
+        (Phase::Soft, soft_c),
+    ];
     let mut out = timing.output(size, per_phase, P::NOTE);
     out.rgb = rgb;
     Ok(out)
