@@ -204,8 +204,15 @@ pub fn resumable(
         )
     };
     let text = std::fs::read(&path).map_err(|e| refuse(format!("cannot be read: {e}")))?;
-    let file: ResultsFile = serde_json::from_slice(&text)
-        .map_err(|e| refuse(format!("holds results that cannot be read ({e})")))?;
+    // Where a value is wrong, its JSON path.
+    let file: ResultsFile = crate::util::json::parse(&String::from_utf8_lossy(&text), &path)
+        .map_err(|e| {
+            let at = e.field.map(|f| format!("{f}: ")).unwrap_or_default();
+            refuse(format!(
+                "holds results that cannot be read ({at}{})",
+                e.message
+            ))
+        })?;
     let mismatch = match &file.origin {
         None => Some(format!(
             "holds results of scenario '{}' that do not say what they were made of",

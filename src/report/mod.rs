@@ -35,9 +35,22 @@ pub fn read_results(path: &Path) -> Result<ResultsFile, InputError> {
 /// `report`), every run must name a known execution and none may appear twice
 /// ([`ResultsFile::check_runs`]). Counters of older versions are read under their current
 /// names ([`ResultsFile::upgraded`]).
+///
+/// A file that does not read is an error naming it and, where one value is wrong, that
+/// value's JSON path (`$.runs: invalid type: …`), ending with the line
+/// and column ([`crate::util::json::parse`]); malformed JSON or another document is "not a
+/// shadowbench results file".
 pub fn parse_results(text: &str, path: &Path) -> Result<ResultsFile, InputError> {
-    let file: ResultsFile = serde_json::from_str(text)
-        .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))?;
+    let file: ResultsFile = crate::util::json::parse(text, path).map_err(|e| {
+        if e.field.as_deref().is_some_and(|f| f != "$") {
+            return e;
+        }
+        InputError {
+            message: format!("not a shadowbench results file: {}", e.message),
+            field: None,
+            ..e
+        }
+    })?;
     crate::util::paths::check_name("$.scenario", &file.scenario).map_err(|e| e.in_file(path))?;
     file.check_runs().map_err(|e| e.in_file(path))?;
     Ok(file.upgraded())
@@ -514,10 +527,21 @@ mod tests {
         let e = read_results(&missing).unwrap_err().to_string();
         assert!(e.contains("nope.json") && e.contains("cannot read"), "{e}");
         let bad = dir.path().join("bad.json");
+        for text in ["{\"runs\": [", "3", "{\"scenario\": \"s\"}"] {
+            std::fs::write(&bad, text).unwrap();
+            let e = read_results(&bad).unwrap_err().to_string();
+            assert!(
+                e.starts_with(&format!("{}: not a shadowbench results", bad.display()))
+                    && e.contains(" at line 1 column "),
+                "{text}: {e}"
+            );
+        }
+        // A value of the wrong type or an unknown execution: the field, the value and where.
         std::fs::write(&bad, "{\"runs\": 3}").unwrap();
         let e = read_results(&bad).unwrap_err().to_string();
         assert!(
-            e.contains("bad.json") && e.contains("not a shadowbench results"),
+            e.contains("bad.json: $.runs: invalid type: integer `3`")
+                && e.ends_with("at line 1 column 10"),
             "{e}"
         );
     }
