@@ -1362,8 +1362,8 @@ pub fn derive(c: &mut Counters) {
 /// memory traffic was `mem_read_bytes`, `mem_write_bytes` and `mem.<buffer>.*` for every kind
 /// (modelled on cpu-model, estimated on cpu-native and wgpu), and the irregular z-buffer's
 /// sizes were `mem.izb_grid.bytes` and `mem.izb_samples.bytes`.
-pub fn current_name<'a>(backend: &str, name: &'a str) -> Cow<'a, str> {
-    let kind = if backend == Backend::CpuModel.name() {
+pub fn current_name(backend: Backend, name: &str) -> Cow<'_, str> {
+    let kind = if backend == Backend::CpuModel {
         "mem_model"
     } else {
         "mem_est"
@@ -1381,7 +1381,7 @@ pub fn current_name<'a>(backend: &str, name: &'a str) -> Cow<'a, str> {
 }
 
 /// Renames the counters of an older record to their current names ([`current_name`]).
-pub fn upgrade(backend: &str, c: &mut Counters) {
+pub fn upgrade(backend: Backend, c: &mut Counters) {
     if c.0.keys().any(|k| current_name(backend, k) != k.as_str()) {
         c.0 = std::mem::take(&mut c.0)
             .into_iter()
@@ -1542,26 +1542,29 @@ mod tests {
     #[test]
     fn old_memory_names_map_to_their_kind() {
         assert_eq!(
-            current_name("cpu-model", "mem_read_bytes"),
+            current_name(Backend::CpuModel, "mem_read_bytes"),
             "mem_model.read_bytes"
         );
         assert_eq!(
-            current_name("cpu-model", "mem.depth.reads"),
+            current_name(Backend::CpuModel, "mem.depth.reads"),
             "mem_model.depth.reads"
         );
         assert_eq!(
-            current_name("cpu-native", "mem_write_bytes"),
+            current_name(Backend::CpuNative, "mem_write_bytes"),
             "mem_est.write_bytes"
         );
-        assert_eq!(current_name("wgpu", "mem_read_bytes"), "mem_est.read_bytes");
         assert_eq!(
-            current_name("cpu-model", "mem.izb_grid.bytes"),
+            current_name(Backend::Wgpu, "mem_read_bytes"),
+            "mem_est.read_bytes"
+        );
+        assert_eq!(
+            current_name(Backend::CpuModel, "mem.izb_grid.bytes"),
             "izb_grid_bytes"
         );
         assert_eq!(
-            current_name("wgpu", "mem_est.depth.read_bytes"),
+            current_name(Backend::Wgpu, "mem_est.depth.read_bytes"),
             "mem_est.depth.read_bytes"
         );
-        assert_eq!(current_name("cpu-model", "fill"), "fill");
+        assert_eq!(current_name(Backend::CpuModel, "fill"), "fill");
     }
 }

@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 use serde_with::skip_serializing_none;
 
+use crate::backend::Backend;
 use crate::frame::RunParams;
 use crate::metrics::ErrorMetrics;
 
@@ -124,7 +125,9 @@ pub struct RunRecord {
     /// give the algorithm. Absent for the others.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub variant: Option<String>,
-    pub backend: String,
+    /// The execution, written as its name (`cpu-native`, `cpu-model`, `wgpu`); a file naming
+    /// any other does not read.
+    pub backend: Backend,
     pub scene: String,
     /// The light kind used (`sphere`, `disc`, `rect`).
     pub light: String,
@@ -199,14 +202,14 @@ impl RunRecord {
     /// A record for `algorithm` on `backend` in `scene`, before it ran.
     pub fn new(
         algorithm: &str,
-        backend: crate::backend::Backend,
+        backend: Backend,
         scene: &crate::scene::Scene,
         params: RunParams,
     ) -> RunRecord {
         RunRecord {
             algorithm: algorithm.to_string(),
             variant: None,
-            backend: backend.name().to_string(),
+            backend,
             scene: scene.name.clone(),
             light: scene.light.kind().to_string(),
             params,
@@ -244,7 +247,7 @@ impl RunRecord {
         case_id(
             &self.scene,
             (&self.algorithm, self.variant.as_deref()),
-            &self.backend,
+            self.backend,
             &self.params,
         )
     }
@@ -283,13 +286,13 @@ pub fn fmt_light_size(v: f32) -> String {
 
 /// The identifier of a run: scene, algorithm (with its variant, `RunRecord::variant`),
 /// backend and every parameter. It names the run's image folder (`images/<case_id>/`), so it
-/// is always one safe file name component: the scene, algorithm, variant and backend (user
-/// text in a results file) go through [`crate::util::paths::slug`], and the whole identifier
+/// is always one safe file name component: the scene, algorithm and variant (user text in a
+/// results file) and the backend's name go through [`crate::util::paths::slug`], and the whole identifier
 /// is cut to 200 bytes (with a hash of the rest) when it grows longer.
 pub fn case_id(
     scene: &str,
     (algorithm, variant): (&str, Option<&str>),
-    backend: &str,
+    backend: Backend,
     p: &RunParams,
 ) -> String {
     use crate::util::paths::{slug, slug_max};
@@ -302,7 +305,7 @@ pub fn case_id(
             "{}_{}_{}_t{}_l{}_m{}_b{}_{}x{}",
             slug(scene),
             slug(&algorithm),
-            slug(backend),
+            slug(backend.name()),
             p.triangles,
             fmt_light_size(p.light_size),
             p.map_resolution,
@@ -326,7 +329,6 @@ pub fn case_id(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backend::Backend;
     use crate::scene::generators::{self, GeneratorParams};
 
     #[test]

@@ -736,7 +736,7 @@ fn without_repeats(
             seen.insert(case_id(
                 name,
                 (info.id, variant.as_deref()),
-                p.backend.name(),
+                p.backend,
                 &params,
             ))
         })
@@ -871,12 +871,7 @@ pub fn run_scenario(loaded: &Loaded, opts: &RunOptions) -> Result<output::Result
             continue;
         }
         // The run finished in the sweep this one resumes.
-        let id = case_id(
-            &sc.name,
-            (info.id, variant.as_deref()),
-            p.backend.name(),
-            &params,
-        );
+        let id = case_id(&sc.name, (info.id, variant.as_deref()), p.backend, &params);
         if writer.take_kept(&id) {
             progress.skipped();
             continue;
@@ -1228,23 +1223,19 @@ fn short(v: f64) -> String {
 /// failures, and the range (min–max over the runs) of wall, modelled and GPU time and of
 /// `mae_shadow`.
 pub fn grouped_summary(records: &[RunRecord]) -> String {
-    let mut groups: Vec<(&str, &str)> = records
+    let mut groups: Vec<(&str, Backend)> = records
         .iter()
-        .map(|r| (r.algorithm.as_str(), r.backend.as_str()))
+        .map(|r| (r.algorithm.as_str(), r.backend))
         .collect();
-    // Registered order of algorithms and executions, unknown names last.
-    groups.sort_by_key(|(a, b)| {
+    // Registered order of algorithms (unknown names last), then of executions.
+    groups.sort_by_key(|&(a, b)| {
         (
             algorithms::ALGORITHMS
                 .iter()
-                .position(|x| x.id == *a)
+                .position(|x| x.id == a)
                 .unwrap_or(usize::MAX),
-            Backend::ALL
-                .iter()
-                .position(|x| x.name() == *b)
-                .unwrap_or(usize::MAX),
-            *a,
-            *b,
+            b,
+            a,
         )
     });
     groups.dedup();
@@ -1421,7 +1412,7 @@ mod tests {
         for t in [500, 2000, 8000] {
             for a in algorithms::ALGORITHMS {
                 for b in Backend::ALL {
-                    let mut r = record(a.id, b.name(), t, 32);
+                    let mut r = record(a.id, b, t, 32);
                     // Wide figures: the columns must still fit.
                     r.wall_ms = 1000.0 * t as f64;
                     r.model_ms = Some(0.000123 * t as f64);
@@ -1503,7 +1494,7 @@ mod tests {
 
     #[test]
     fn a_progress_line_names_the_run_its_case_and_the_time_left() {
-        let mut r = record("pcss", "cpu-model", 2000, 32);
+        let mut r = record("pcss", Backend::CpuModel, 2000, 32);
         r.params.light_size = 0.6;
         let l = progress_line(10, 40, Duration::from_secs(75), &r);
         // 75 s for 10 runs: 30 runs left take 225 s.

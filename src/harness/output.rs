@@ -53,19 +53,13 @@ pub struct ResultsFile {
 }
 
 impl ResultsFile {
-    /// Refuses a file in which a run names an execution that does not exist (chart file names
-    /// and charts are built from it), or in which one run (one [`RunRecord::case_id`]) appears
-    /// more than once, naming the second one: which of the two counts is undecidable, so
-    /// neither `report` nor `compare` nor `merge` picks one.
+    /// Refuses a file in which one run (one [`RunRecord::case_id`]) appears more than once,
+    /// naming the second one: which of the two counts is undecidable, so neither `report` nor
+    /// `compare` nor `merge` picks one. (A run naming an execution that does not exist does not
+    /// read: [`crate::backend::Backend`].)
     pub fn check_runs(&self) -> std::result::Result<(), crate::error::InputError> {
         let mut seen = std::collections::HashSet::new();
         for (i, r) in self.runs.iter().enumerate() {
-            if let Err(e) = crate::backend::Backend::parse(&r.backend) {
-                return Err(crate::error::InputError::new(
-                    format!("$.runs[{i}].backend"),
-                    e,
-                ));
-            }
             if !seen.insert(r.case_id()) {
                 return Err(crate::error::InputError::new(
                     format!("$.runs[{i}]"),
@@ -86,10 +80,10 @@ impl ResultsFile {
                 .partition::<Vec<String>, _>(|w| crate::record::is_note(w));
             r.notes.extend(notes);
             r.warnings = warnings;
-            crate::counters::upgrade(&r.backend, &mut r.counters);
+            crate::counters::upgrade(r.backend, &mut r.counters);
             crate::counters::derive(&mut r.counters);
             for p in &mut r.phases {
-                crate::counters::upgrade(&r.backend, &mut p.counters);
+                crate::counters::upgrade(r.backend, &mut p.counters);
                 crate::counters::derive(&mut p.counters);
             }
         }
@@ -204,8 +198,15 @@ pub fn resumable(
         )
     };
     let text = std::fs::read(&path).map_err(|e| refuse(format!("cannot be read: {e}")))?;
-    let file: ResultsFile = serde_json::from_slice(&text)
-        .map_err(|e| refuse(format!("holds results that cannot be read ({e})")))?;
+    // A run naming an unknown execution does not read: its path and value are in the message.
+    let file: ResultsFile = crate::util::json::parse(&String::from_utf8_lossy(&text), &path)
+        .map_err(|e| {
+            let at = e.field.map(|f| format!("{f}: ")).unwrap_or_default();
+            refuse(format!(
+                "holds results that cannot be read ({at}{})",
+                e.message
+            ))
+        })?;
     let mismatch = match &file.origin {
         None => Some(format!(
             "holds results of scenario '{}' that do not say what they were made of",
@@ -277,7 +278,7 @@ pub fn phases_csv(records: &[RunRecord]) -> String {
                         field(&r.case_id()),
                         field(&r.algorithm),
                         field(r.variant.as_deref().unwrap_or_default()),
-                        field(&r.backend),
+                        field(r.backend.name()),
                         field(&r.scene),
                         field(&p.name)
                     ));
@@ -339,7 +340,7 @@ pub fn csv(records: &[RunRecord]) -> String {
             field(&r.case_id()),
             r.algorithm.clone(),
             field(r.variant.as_deref().unwrap_or_default()),
-            r.backend.clone(),
+            r.backend.name().to_string(),
             r.scene.clone(),
             r.light.clone(),
             p.triangles.to_string(),
@@ -403,6 +404,7 @@ pub fn csv(records: &[RunRecord]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::backend::Backend;
     use crate::report::testdata::record;
 
     /// Splits CSV text into rows of fields (RFC 4180 quoting), as a CSV reader would.
@@ -432,11 +434,11 @@ mod tests {
 
     #[test]
     fn results_csv_has_the_case_id_image_folder_and_warnings_in_every_row() {
-        let mut ok = record("pcss", "cpu-model", 100, 32);
+        let mut ok = record("pcss", Backend::CpuModel, 100, 32);
         ok.params.light_size = 0.6;
         ok.variant = Some("raw".into());
         ok.warnings = vec!["light converted, from disc".into(), "two".into()];
-        let mut bad = record("dbuffer", "wgpu", 100, 32);
+        let mut bad = record("dbuffer", Backend::Wgpu, 100, 32);
         bad.failure = Some("no \"adapter\", sorry".into());
         let rows = parse(&csv(&[ok.clone(), bad.clone()]));
         assert_eq!(rows.len(), 3);
@@ -459,7 +461,7 @@ mod tests {
 
     #[test]
     fn phases_csv_is_long_one_row_per_run_phase_and_time() {
-        let r = record("pcss", "cpu-model", 100, 32);
+        let r = record("pcss", Backend::CpuModel, 100, 32);
         let rows = parse(&phases_csv(std::slice::from_ref(&r)));
         assert_eq!(
             rows[0],
@@ -500,7 +502,7 @@ mod tests {
     #[test]
     fn measured_times_carry_their_interval_and_samples_into_both_tables() {
         use crate::harness::measure::{Measure, Measured, PhaseSpread, Spread};
-        let mut r = record("pcss", "wgpu", 100, 32);
+        let mut r = record("pcss", Backend::Wgpu, 100, 32);
         let wall = Spread::of(vec![3.0, 1.0, 2.0, 5.0, 4.0, 6.0, 7.0]).unwrap();
         r.cold_wall_ms = Some(30.0);
         r.measured = Some(Measured {

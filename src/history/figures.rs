@@ -218,11 +218,12 @@ fn measured(obj: &Map<String, Value>) -> Option<Point> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::backend::Backend;
     use crate::report::testdata::record;
 
     #[test]
     fn every_number_outside_identity_and_conditions_is_a_figure() {
-        let r = record("pcss", "cpu-model", 500, 32);
+        let r = record("pcss", Backend::CpuModel, 500, 32);
         let f = of_record(&r);
         let names: Vec<&str> = f.iter().map(|(n, _)| n.as_str()).collect();
         // Identity and conditions are not figures.

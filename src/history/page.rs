@@ -23,6 +23,7 @@ use super::detect::Verdict;
 use super::formats::short;
 use super::store::History;
 use super::HEADLINE;
+use crate::backend::Backend;
 use crate::error::{Error, Result};
 use crate::report::fmt_num;
 use crate::report::style::{self, Dash, Marker};
@@ -287,7 +288,7 @@ fn worse(d: super::Direction, a: f64, b: f64) -> bool {
 
 fn step_chart<'a>(x: &'a SeriesChange, labels: &'a [String]) -> Chart<'a> {
     let s = &x.series;
-    let (m, d) = style::execution_style(&s.execution);
+    let (m, d) = style::execution_style(s.execution);
     let points = s
         .points
         .iter()
@@ -342,7 +343,7 @@ fn step_chart<'a>(x: &'a SeriesChange, labels: &'a [String]) -> Chart<'a> {
 /// The panels of the trends: per algorithm × execution × machine,
 /// each headline figure's geometric mean over the runs of value / first value, in percent.
 fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>)> {
-    type Key = ((usize, String), (usize, String), String);
+    type Key = ((usize, String), Backend, String);
     let mut groups: BTreeMap<Key, BTreeMap<&str, Vec<&super::store::Series>>> = BTreeMap::new();
     for s in &h.series {
         let Some(f) = HEADLINE.iter().find(|f| **f == s.figure) else {
@@ -351,24 +352,20 @@ fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>
         let base = s.algorithm.split(' ').next().unwrap_or(&s.algorithm);
         let machine = s.machine.clone();
         groups
-            .entry((
-                style::algorithm_rank(base),
-                style::execution_rank(&s.execution),
-                machine,
-            ))
+            .entry((style::algorithm_rank(base), s.execution, machine))
             .or_default()
             .entry(f)
             .or_default()
             .push(s);
     }
     // A panel per machine; named by its machine where an algorithm × execution has several.
-    let mut panels_of: BTreeMap<(String, String), usize> = BTreeMap::new();
+    let mut panels_of: BTreeMap<(String, Backend), usize> = BTreeMap::new();
     for (a, e, _) in groups.keys() {
-        *panels_of.entry((a.1.clone(), e.1.clone())).or_default() += 1;
+        *panels_of.entry((a.1.clone(), *e)).or_default() += 1;
     }
     let mut out = Vec::new();
-    for (((_, alg_key), (_, exec), machine), figures) in groups {
-        let named = panels_of[&(alg_key, exec.clone())] > 1;
+    for (((_, alg_key), exec, machine), figures) in groups {
+        let named = panels_of[&(alg_key, exec)] > 1;
         let algorithm = figures
             .values()
             .flat_map(|v| v.iter())
@@ -381,7 +378,7 @@ fn trend_charts<'a>(h: &History, labels: &'a [String]) -> Vec<(String, Chart<'a>
             .unwrap_or(&algorithm)
             .to_string();
         let color = style::algorithm_color(&base);
-        let (m, d) = style::execution_style(&exec);
+        let (m, d) = style::execution_style(exec);
         let mut lines = Vec::new();
         for (k, f) in HEADLINE.iter().enumerate() {
             let Some(series) = figures.get(f) else {

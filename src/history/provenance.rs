@@ -171,7 +171,7 @@ pub fn machine(r: &RunRecord, host: &BTreeMap<String, Value>) -> (String, String
         "host".into(),
         Value::Object(host.clone().into_iter().collect()),
     );
-    m.insert("execution".into(), Value::from(r.backend.clone()));
+    m.insert("execution".into(), Value::from(r.backend.name()));
     for k in MACHINE_KEYS {
         if let Some(v) = r.execution.get(k) {
             m.insert(k.to_string(), v.clone());
@@ -186,12 +186,13 @@ pub fn machine(r: &RunRecord, host: &BTreeMap<String, Value>) -> (String, String
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::backend::Backend;
     use crate::report::testdata::record;
 
     #[test]
     fn fingerprints_separate_adapters_and_modelled_machines_and_hosts() {
         let host = this_host();
-        let a = record("pcss", "wgpu", 500, 32);
+        let a = record("pcss", Backend::Wgpu, 500, 32);
         let mut b = a.clone();
         b.execution.insert("adapter".into(), "llvmpipe".into());
         let mut c = a.clone();
@@ -200,7 +201,7 @@ mod tests {
         assert_ne!(machine(&b, &host).0, machine(&c, &host).0);
         let other: BTreeMap<String, Value> = [("name".to_string(), Value::from("runner-2"))].into();
         assert_ne!(machine(&b, &host).0, machine(&b, &other).0);
-        let mut m = record("pcss", "cpu-model", 500, 32);
+        let mut m = record("pcss", Backend::CpuModel, 500, 32);
         m.execution.insert("machine".into(), "larrabee-24".into());
         let mut m48 = m.clone();
         m48.execution.insert("machine".into(), "larrabee-48".into());

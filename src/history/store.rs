@@ -42,6 +42,7 @@ use serde_json::Value;
 
 use super::figures::{self, Point};
 use super::provenance::{self, Commit};
+use crate::backend::Backend;
 use crate::error::{Error, InputError, Result};
 use crate::record::RunRecord;
 
@@ -122,7 +123,7 @@ pub struct Series {
     pub scenario: String,
     pub case_id: String,
     pub algorithm: String,
-    pub execution: String,
+    pub execution: Backend,
     pub figure: String,
     /// The machine's fingerprint.
     pub machine: String,
@@ -463,7 +464,12 @@ impl Store {
                 for (figure, p) in figures::of_record(r) {
                     put_series
                         .execute(params![
-                            scenario, case, algorithm, r.backend, figure, machine_id
+                            scenario,
+                            case,
+                            algorithm,
+                            r.backend.name(),
+                            figure,
+                            machine_id
                         ])
                         .map_err(&err)?;
                     let series_id: i64 = get_series
@@ -555,7 +561,12 @@ impl Store {
                     scenario: r.get(1).map_err(err)?,
                     case_id: r.get(2).map_err(err)?,
                     algorithm: r.get(3).map_err(err)?,
-                    execution: r.get(4).map_err(err)?,
+                    execution: {
+                        let name: String = r.get(4).map_err(err)?;
+                        Backend::parse(&name).map_err(|m| {
+                            InputError::file(&self.path, format!("series {id}: execution: {m}"))
+                        })?
+                    },
                     figure: r.get(5).map_err(err)?,
                     machine: r.get(6).map_err(err)?,
                     points: vec![],
@@ -659,8 +670,8 @@ mod tests {
         let db = dir.path().join("h.sqlite");
         let mut s = Store::open(&db, true).unwrap();
         let runs = vec![
-            record("pcss", "cpu-model", 500, 32),
-            record("pcss", "cpu-native", 500, 32),
+            record("pcss", Backend::CpuModel, 500, 32),
+            record("pcss", Backend::CpuNative, 500, 32),
         ];
         let host = provenance::this_host();
         let src = Path::new("results.json");
@@ -768,7 +779,7 @@ mod tests {
         let damaged = dir.path().join("damaged.sqlite");
         {
             let mut s = Store::open(&damaged, true).unwrap();
-            let runs = vec![record("pcss", "cpu-model", 500, 32)];
+            let runs = vec![record("pcss", Backend::CpuModel, 500, 32)];
             s.record(
                 &commit("cccc", "2026-01-01T00:00:00Z"),
                 "ci",

@@ -126,7 +126,7 @@ impl Axis {
             // depend on it, so those runs are not plotted against it.
             Axis::Cores => p
                 .cores
-                .filter(|_| r.backend == Backend::CpuModel.name())
+                .filter(|_| r.backend == Backend::CpuModel)
                 .map(f64::from),
         }
     }
@@ -260,7 +260,7 @@ pub struct Series {
     /// `algorithm / backend`.
     pub name: String,
     pub algorithm: String,
-    pub backend: String,
+    pub backend: Backend,
     /// Sorted by x.
     pub points: Vec<(f64, f64)>,
     /// Error bars `(x, low, high)`: the 95% interval of a measured median
@@ -465,7 +465,7 @@ fn flicker_charts(ok: &[&RunRecord]) -> Vec<Spec> {
                 .map(|r| Series {
                     name: series_name(r),
                     algorithm: r.algorithm.clone(),
-                    backend: r.backend.clone(),
+                    backend: r.backend,
                     points: r.animation.as_ref().map_or(vec![], |a| {
                         a.flicker_per_frame
                             .iter()
@@ -511,12 +511,12 @@ fn flicker_charts(ok: &[&RunRecord]) -> Vec<Spec> {
         .collect()
 }
 
-/// Splits `series` into panels: one per execution (in [`style::execution_rank`] order), each
+/// Splits `series` into panels: one per execution (in [`Backend`]'s order), each
 /// split again into balanced parts when it holds more than [`MAX_SERIES`] algorithms. `chart`
 /// gives a panel's axes for its execution; its series are filled in.
-pub fn per_execution(series: Vec<Series>, chart: impl Fn(&str) -> XyChart) -> Vec<Panel> {
-    let mut backends: Vec<String> = series.iter().map(|s| s.backend.clone()).collect();
-    backends.sort_by_key(|b| style::execution_rank(b));
+pub fn per_execution(series: Vec<Series>, chart: impl Fn(Backend) -> XyChart) -> Vec<Panel> {
+    let mut backends: Vec<Backend> = series.iter().map(|s| s.backend).collect();
+    backends.sort();
     backends.dedup();
     let mut panels = Vec::new();
     for b in backends {
@@ -528,9 +528,9 @@ pub fn per_execution(series: Vec<Series>, chart: impl Fn(&str) -> XyChart) -> Ve
             let title = if parts > 1 {
                 format!("{b} ({} of {parts})", i + 1)
             } else {
-                b.clone()
+                b.name().to_string()
             };
-            let mut c = chart(&b);
+            let mut c = chart(b);
             c.series = chunk.to_vec();
             panels.push(Panel {
                 title,
@@ -552,12 +552,7 @@ fn phase_charts(ok: &[&RunRecord]) -> Vec<Spec> {
         .copied()
         .filter(|r| super::summary::case_key(r) == base)
         .collect();
-    at.sort_by_key(|r| {
-        (
-            style::algorithm_rank(&r.algorithm),
-            style::execution_rank(&r.backend),
-        )
-    });
+    at.sort_by_key(|r| (style::algorithm_rank(&r.algorithm), r.backend));
     let mut specs = Vec::new();
     for (id, name) in TIMES {
         let mut panels: Vec<Panel> = Vec::new();
@@ -572,7 +567,7 @@ fn phase_charts(ok: &[&RunRecord]) -> Vec<Spec> {
                 continue;
             };
             let bar = Bar {
-                name: r.backend.clone(),
+                name: r.backend.name().to_string(),
                 parts,
             };
             match panels.iter_mut().find(|p| p.title == r.algorithm) {
@@ -861,7 +856,7 @@ pub fn collect_series(
                     Some(v) => format!("{} ({v})", r.algorithm),
                     None => r.algorithm.clone(),
                 },
-                backend: r.backend.clone(),
+                backend: r.backend,
                 points: vec![p],
                 intervals: vec![],
             }),
@@ -1067,7 +1062,7 @@ impl Spec {
     /// (its marker and line), and the Pareto front where a panel has one.
     pub fn legend(&self) -> Vec<LegendEntry> {
         let mut algorithms: Vec<String> = Vec::new();
-        let mut backends: Vec<String> = Vec::new();
+        let mut backends: Vec<Backend> = Vec::new();
         let mut lines = false;
         let mut front = false;
         for p in &self.panels {
@@ -1079,13 +1074,13 @@ impl Spec {
                         algorithms.push(s.algorithm.clone());
                     }
                     if !backends.contains(&s.backend) {
-                        backends.push(s.backend.clone());
+                        backends.push(s.backend);
                     }
                 }
             }
         }
         algorithms.sort_by_key(|a| style::algorithm_rank(a));
-        backends.sort_by_key(|b| style::execution_rank(b));
+        backends.sort();
         let mut entries: Vec<LegendEntry> = algorithms
             .into_iter()
             .map(|a| LegendEntry {
@@ -1097,9 +1092,9 @@ impl Spec {
             })
             .collect();
         entries.extend(backends.into_iter().map(|b| {
-            let (m, d) = style::execution_style(&b);
+            let (m, d) = style::execution_style(b);
             LegendEntry {
-                label: b,
+                label: b.name().to_string(),
                 color: style::INK,
                 marker: Some(m),
                 dash: lines.then_some(d),
@@ -1413,7 +1408,7 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
     let size = if c.lines { 5 } else { 7 };
     for s in &c.series {
         let col = style::algorithm_color(&s.algorithm);
-        let (_, dash) = style::execution_style(&s.backend);
+        let (_, dash) = style::execution_style(s.backend);
         let pts: Vec<(f64, f64)> = s.points.iter().map(|&(x, y)| (tx(x), ty(y))).collect();
         if c.lines && pts.len() > 1 {
             draw_line(&mut chart, &pts, col.stroke_width(2), dash)?;
@@ -1454,7 +1449,7 @@ fn draw_xy<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, c: &XyChart) -> Dr
     }
     for ((si, (x, y)), d) in marks.iter().zip(&dx) {
         let s = &c.series[*si];
-        let (marker, _) = style::execution_style(&s.backend);
+        let (marker, _) = style::execution_style(s.backend);
         let col = style::algorithm_color(&s.algorithm);
         draw_marker(area, (x + d, *y), marker, col, size)?;
     }
@@ -1692,7 +1687,7 @@ mod tests {
         let mut runs = Vec::new();
         for t in [500, 2000, 8000] {
             for l in [0.3f32, 0.6] {
-                for b in ["cpu-native", "cpu-model"] {
+                for b in [Backend::CpuNative, Backend::CpuModel] {
                     let mut r = record("pcss", b, t, 32);
                     r.params.light_size = l;
                     runs.push(r);
@@ -1734,7 +1729,7 @@ mod tests {
         let runs: Vec<RunRecord> = [500, 2000, 8000]
             .iter()
             .map(|&t| {
-                let mut r = record("pcss", "cpu-model", t, 32);
+                let mut r = record("pcss", Backend::CpuModel, t, 32);
                 r.scene = format!("lod-{t}");
                 r
             })
@@ -1758,9 +1753,9 @@ mod tests {
     #[test]
     fn only_cpu_model_runs_are_placed_on_the_cores_axis() {
         for (backend, want) in [
-            ("cpu-model", Some(16.0)),
-            ("cpu-native", None),
-            ("wgpu", None),
+            (Backend::CpuModel, Some(16.0)),
+            (Backend::CpuNative, None),
+            (Backend::Wgpu, None),
         ] {
             let mut r = record("soft_izb", backend, 100, 32);
             r.params.cores = Some(16);
@@ -1783,7 +1778,7 @@ mod tests {
             assert!(!plottable(v), "{v}");
         }
         let mut runs: Vec<RunRecord> = (1..=3)
-            .map(|t| record("pcss", "cpu-model", t * 100, 32))
+            .map(|t| record("pcss", Backend::CpuModel, t * 100, 32))
             .collect();
         runs[1].model_ms = Some(1.7e308);
         runs[2].wall_ms = 1e307;
@@ -1828,10 +1823,10 @@ mod tests {
         let mut runs = Vec::new();
         for alg in ["pcss", "hard_shadow_map"] {
             for t in [100, 1000, 10000] {
-                runs.push(record(alg, "cpu-model", t, 32));
+                runs.push(record(alg, Backend::CpuModel, t, 32));
             }
             for tile in [16, 64] {
-                runs.push(record(alg, "cpu-model", 100, tile));
+                runs.push(record(alg, Backend::CpuModel, 100, tile));
             }
         }
         let specs = plan(&runs);
@@ -1911,9 +1906,9 @@ mod tests {
         let mut runs = Vec::new();
         for t in [500, 2000, 8000] {
             for a in &algs {
-                for b in ["cpu-native", "cpu-model", "wgpu"] {
+                for b in Backend::ALL {
                     let mut r = record(a, b, t, 32);
-                    r.gpu_ms = (b == "wgpu").then_some(2.0);
+                    r.gpu_ms = (b == Backend::Wgpu).then_some(2.0);
                     runs.push(r);
                 }
             }
@@ -1935,7 +1930,7 @@ mod tests {
                     p.title
                 );
                 if let Kind::Xy(c) = &p.kind {
-                    let mut b: Vec<&str> = c.series.iter().map(|s| s.backend.as_str()).collect();
+                    let mut b: Vec<Backend> = c.series.iter().map(|s| s.backend).collect();
                     b.dedup();
                     assert_eq!(b.len(), 1, "{}: {b:?}", s.file);
                 }
@@ -2050,7 +2045,12 @@ mod tests {
                         s.file,
                         se.algorithm
                     );
-                    assert!(legend.contains(&se.backend), "{}: {}", s.file, se.backend);
+                    assert!(
+                        legend.iter().any(|l| l == se.backend.name()),
+                        "{}: {}",
+                        s.file,
+                        se.backend
+                    );
                 }
                 if xy(p).front.is_some() {
                     assert!(legend.contains(&"Pareto front".to_string()));
@@ -2061,16 +2061,16 @@ mod tests {
 
     #[test]
     fn phases_at_the_base_point_get_a_panel_per_algorithm_and_a_bar_per_execution() {
-        let mut native = record("pcss", "cpu-native", 100, 32);
+        let mut native = record("pcss", Backend::CpuNative, 100, 32);
         for p in &mut native.phases {
             p.model_ms = None;
         }
         let runs = vec![
-            record("pcss", "cpu-model", 100, 32),
+            record("pcss", Backend::CpuModel, 100, 32),
             native,
-            record("pcss", "cpu-model", 200, 32),
-            record("hard_shadow_map", "cpu-model", 100, 32),
-            record("hard_shadow_map", "cpu-model", 100, 64),
+            record("pcss", Backend::CpuModel, 200, 32),
+            record("hard_shadow_map", Backend::CpuModel, 100, 32),
+            record("hard_shadow_map", Backend::CpuModel, 100, 64),
         ];
         let specs = plan(&runs);
         let model = specs.iter().find(|s| s.file == "phases_model_ms").unwrap();
@@ -2103,7 +2103,7 @@ mod tests {
         let mut runs = Vec::new();
         for image in [[600, 600], [300, 300]] {
             for t in [5760, 224] {
-                let mut r = record("dbuffer", "cpu-model", t, 32);
+                let mut r = record("dbuffer", Backend::CpuModel, t, 32);
                 r.params.image = image;
                 r.phases[0].model_ms = Some(f64::from(t) / 1000.0);
                 r.phases[1].model_ms = Some(f64::from(image[0]) / 100.0);
@@ -2111,8 +2111,8 @@ mod tests {
             }
         }
         // A series along one axis only gets none.
-        runs.push(record("pcss", "cpu-model", 100, 32));
-        runs.push(record("pcss", "cpu-model", 1000, 32));
+        runs.push(record("pcss", Backend::CpuModel, 100, 32));
+        runs.push(record("pcss", Backend::CpuModel, 1000, 32));
         let specs = plan(&runs);
         let grids: Vec<&Spec> = specs
             .iter()
@@ -2153,13 +2153,13 @@ mod tests {
         let mut runs: Vec<RunRecord> = [10, 20, 40]
             .into_iter()
             .map(|t| {
-                let mut r = record("reference", "cpu-native", t, 32);
+                let mut r = record("reference", Backend::CpuNative, t, 32);
                 r.counters = Default::default();
                 r.model_ms = None;
                 r
             })
             .collect();
-        let mut failed = record("pcss", "wgpu", 10, 32);
+        let mut failed = record("pcss", Backend::Wgpu, 10, 32);
         failed.failure = Some("no adapter".into());
         runs.push(failed);
         let names = files(&plan(&runs));
@@ -2272,8 +2272,8 @@ mod tests {
             .into_iter()
             .flat_map(|t| {
                 [
-                    record("pcss", "cpu-model", t, 32),
-                    record("dbuffer", "wgpu", t, 32),
+                    record("pcss", Backend::CpuModel, t, 32),
+                    record("dbuffer", Backend::Wgpu, t, 32),
                 ]
             })
             .collect();

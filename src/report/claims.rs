@@ -212,6 +212,7 @@ pub fn verdict(o: &Outcome) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::backend::Backend;
     use crate::report::testdata::record;
 
     fn claim(json: serde_json::Value) -> Claim {
@@ -220,13 +221,13 @@ mod tests {
 
     #[test]
     fn measures_select_aggregate_and_divide() {
-        let mut a = record("soft_izb", "cpu-model", 1000, 16);
+        let mut a = record("soft_izb", Backend::CpuModel, 1000, 16);
         a.model_ms = Some(20.0);
         a.counters.set("fill", 300.0);
-        let mut b = record("pcss", "cpu-model", 1000, 16);
+        let mut b = record("pcss", Backend::CpuModel, 1000, 16);
         b.model_ms = Some(40.0);
         b.counters.set("fill", 100.0);
-        let mut c = record("soft_izb", "cpu-model", 1000, 16);
+        let mut c = record("soft_izb", Backend::CpuModel, 1000, 16);
         c.model_ms = Some(10.0);
         let runs = [a, b];
         let others = [c];
@@ -289,7 +290,7 @@ mod tests {
 
     #[test]
     fn a_sum_of_counters_needs_every_one() {
-        let mut a = record("accum_hard", "wgpu", 1000, 16);
+        let mut a = record("accum_hard", Backend::Wgpu, 1000, 16);
         a.counters.set("mem_est.depth.read_bytes", 30.0);
         a.counters.set("mem_est.stencil.read_bytes", 70.0);
         let runs = [a];

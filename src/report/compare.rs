@@ -112,13 +112,13 @@ impl Options {
 /// the glossary does not hold are kept, so the comparison can list them as not judged.
 pub fn deterministic_figures(r: &RunRecord) -> BTreeMap<String, f64> {
     let mut f = BTreeMap::new();
-    let model = match Backend::parse(&r.backend) {
-        Ok(Backend::CpuModel) => true,
-        Ok(Backend::CpuNative) => false,
-        _ => return f,
+    let model = match r.backend {
+        Backend::CpuModel => true,
+        Backend::CpuNative => false,
+        Backend::Wgpu => return f,
     };
     // Older results name memory traffic differently: compared under the current names.
-    let current = |k: &str| crate::counters::current_name(&r.backend, k).into_owned();
+    let current = |k: &str| crate::counters::current_name(r.backend, k).into_owned();
     for (k, v) in &r.counters.0 {
         f.insert(format!("counters.{}", current(k)), *v);
     }
@@ -549,10 +549,10 @@ mod tests {
 
     fn baseline() -> ResultsFile {
         file(vec![
-            record("pcss", "cpu-model", 100, 32),
-            record("pcss", "cpu-model", 1000, 32),
-            record("reference", "cpu-native", 100, 32),
-            record("pcss", "wgpu", 100, 32),
+            record("pcss", Backend::CpuModel, 100, 32),
+            record("pcss", Backend::CpuModel, 1000, 32),
+            record("reference", Backend::CpuNative, 100, 32),
+            record("pcss", Backend::Wgpu, 100, 32),
         ])
     }
 
@@ -851,7 +851,7 @@ mod tests {
             file(
                 (0..8)
                     .map(|i| {
-                        let r = record("pcss", "wgpu", 100 * (i + 1), 32);
+                        let r = record("pcss", Backend::Wgpu, 100 * (i + 1), 32);
                         let f = if i == 3 { slow } else { 1.0 };
                         measured(
                             r,
@@ -926,7 +926,7 @@ mod tests {
             let take = |centre: f64, normal: &mut dyn FnMut() -> f64| -> Vec<f64> {
                 (0..10).map(|_| centre * (1.0 + 0.01 * normal())).collect()
             };
-            let r = record("pcss", "cpu-native", 100 * (i as u32 + 1), 32);
+            let r = record("pcss", Backend::CpuNative, 100 * (i as u32 + 1), 32);
             old.push(measured(r.clone(), take(ms, &mut normal), None));
             new.push(measured(
                 r,

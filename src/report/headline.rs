@@ -188,6 +188,7 @@ pub fn headline(baseline: &ResultsFile, current: &ResultsFile) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::backend::Backend;
     use crate::report::testdata::record;
 
     fn file(runs: Vec<RunRecord>, samples: u32) -> ResultsFile {
@@ -205,10 +206,10 @@ mod tests {
 
     #[test]
     fn one_option_changed_is_one_setting_line_and_one_line_per_run() {
-        let a = record("pcss", "cpu-model", 100, 32);
+        let a = record("pcss", Backend::CpuModel, 100, 32);
         let mut b = a.clone();
         b.model_ms = a.model_ms.map(|m| m * 1.5);
-        let c = record("pcss", "cpu-native", 100, 32);
+        let c = record("pcss", Backend::CpuNative, 100, 32);
         let h = headline(&file(vec![a.clone(), c.clone()], 32), &file(vec![b, c], 36));
         let lines: Vec<&str> = h.lines().collect();
         assert_eq!(
@@ -226,7 +227,7 @@ mod tests {
 
     #[test]
     fn a_parameter_changed_in_every_run_still_pairs_the_runs() {
-        let a = record("pcss", "cpu-model", 100, 32);
+        let a = record("pcss", Backend::CpuModel, 100, 32);
         let mut b = a.clone();
         b.params.map_resolution = 320;
         let (fa, fb) = (file(vec![a], 32), file(vec![b], 32));

@@ -12,6 +12,7 @@ use super::charts::{self, Written};
 use super::claims::{self, ScenarioRuns};
 use super::summary::{self, Summary};
 use super::{fmt_num, style};
+use crate::backend::Backend;
 use crate::harness::output::ResultsFile;
 use crate::record::RunRecord;
 
@@ -86,8 +87,8 @@ pub fn page(
             let _ = write!(
                 h,
                 "<li><a href=\"#summary-{id}\">{}</a></li>",
-                text(&e.backend),
-                id = attr(&e.backend)
+                text(e.backend.name()),
+                id = attr(e.backend.name())
             );
         }
         h.push_str("</ul></li>");
@@ -195,7 +196,7 @@ fn animation_section(out: &Path, runs: &[RunRecord]) -> String {
                  <td>{}</td><td class=\"anim\">{}</td></tr>",
                 style::hex(style::algorithm_color(&r.algorithm)),
                 text(&r.algorithm_label()),
-                text(&r.backend),
+                text(r.backend.name()),
                 a.frames,
                 opt(a.flicker),
                 opt(a.flicker_floor),
@@ -269,8 +270,8 @@ fn summary_section(s: &Summary, charts: &[&Written]) -> String {
             h,
             "<h3 id=\"summary-{}\">{}</h3>\n<table class=\"summary\"><tr><th>algorithm</th>\
              <th>mae_shadow</th>",
-            attr(&e.backend),
-            text(&e.backend)
+            attr(e.backend.name()),
+            text(e.backend.name())
         );
         if s.has_restricted {
             let _ = write!(h, "<th>{}</th>", summary::RESTRICTED);
@@ -547,7 +548,7 @@ fn runs_table(runs: &[RunRecord]) -> String {
         };
         let measured = r.measured.as_ref();
         let _ = write!(h, "<tr{class}>");
-        for t in [&r.algorithm, &r.backend, &r.scene, &r.light] {
+        for t in [r.algorithm.as_str(), r.backend.name(), &r.scene, &r.light] {
             let _ = write!(h, "<td class=\"t\">{}</td>", text(t));
         }
         for v in [
@@ -629,12 +630,7 @@ fn gallery(out: &Path, runs: &[RunRecord]) -> String {
             .iter()
             .filter(|r| summary::case_key(r) == *key)
             .collect();
-        at.sort_by_key(|r| {
-            (
-                style::algorithm_rank(&r.algorithm),
-                style::execution_rank(&r.backend),
-            )
-        });
+        at.sort_by_key(|r| (style::algorithm_rank(&r.algorithm), r.backend));
         let is_base = base.as_ref() == Some(key);
         let _ = writeln!(
             h,
@@ -714,8 +710,8 @@ fn reference_grid(out: &Path, at: &[&RunRecord]) -> String {
 /// algorithm (cpu-native and cpu-model run the same kernels) share one set of columns, headed
 /// by both names. The thumbnails shrink to fit the page's width (`--cols`: the image columns).
 fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
-    let mut backends: Vec<&str> = at.iter().map(|r| r.backend.as_str()).collect();
-    backends.sort_by_key(|b| style::execution_rank(b));
+    let mut backends: Vec<Backend> = at.iter().map(|r| r.backend).collect();
+    backends.sort();
     backends.dedup();
     let mut algs: Vec<&str> = at.iter().map(|r| r.algorithm.as_str()).collect();
     algs.dedup();
@@ -737,13 +733,13 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
     }) {
         files.push(("visibility_rgb.png", "light received (rgb)"));
     }
-    let run = |alg: &str, b: &str| {
+    let run = |alg: &str, b: Backend| {
         at.iter()
             .find(|r| r.algorithm == alg && r.backend == b)
             .copied()
     };
     // The bytes of every image of `b`'s runs, in row order; `None` where one is missing.
-    let images = |b: &str| -> Option<Vec<Vec<u8>>> {
+    let images = |b: Backend| -> Option<Vec<Vec<u8>>> {
         let mut all = Vec::new();
         for alg in &algs {
             let r = run(alg, b).filter(|r| r.failure.is_none())?;
@@ -754,9 +750,9 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
         Some(all)
     };
     // Executions that share columns, with the image bytes they share.
-    type Group<'a> = (Vec<&'a str>, Option<Vec<Vec<u8>>>);
+    type Group = (Vec<Backend>, Option<Vec<Vec<u8>>>);
     let mut groups: Vec<Group> = Vec::new();
-    for b in &backends {
+    for &b in &backends {
         let mine = images(b);
         match groups
             .iter_mut()
@@ -772,10 +768,16 @@ fn case_grid(out: &Path, at: &[&RunRecord]) -> String {
     );
     for (names, _) in &groups {
         let head = match names.as_slice() {
-            [one] => text(one).into_owned(),
+            [one] => text(one.name()).into_owned(),
             many => format!(
                 "{} <span class=\"none\">(identical images)</span>",
-                text(&many.join(" = "))
+                text(
+                    &many
+                        .iter()
+                        .map(|b| b.name())
+                        .collect::<Vec<_>>()
+                        .join(" = ")
+                )
             ),
         };
         let _ = write!(h, "<th colspan=\"{}\">{head}</th>", files.len());
@@ -855,7 +857,7 @@ mod tests {
     #[test]
     fn the_gallery_shows_the_light_received_only_where_a_run_wrote_it() {
         let dir = tempfile::tempdir().unwrap();
-        let r = record("soft_shadow_volume", "cpu-model", 100, 32);
+        let r = record("soft_shadow_volume", Backend::CpuModel, 100, 32);
         let results = ResultsFile {
             origin: None,
             scenario: "textured".into(),
@@ -878,7 +880,7 @@ mod tests {
     #[test]
     fn executions_with_identical_images_share_columns_and_others_keep_their_own() {
         let dir = tempfile::tempdir().unwrap();
-        let runs: Vec<RunRecord> = ["cpu-native", "cpu-model", "wgpu"]
+        let runs: Vec<RunRecord> = Backend::ALL
             .into_iter()
             .map(|b| record("pcss", b, 100, 32))
             .collect();
@@ -886,7 +888,11 @@ mod tests {
             let img = dir.path().join("images").join(r.case_id());
             std::fs::create_dir_all(&img).unwrap();
             // The CPU executions wrote the same bytes; wgpu's differ.
-            let bytes: &[u8] = if r.backend == "wgpu" { b"gpu" } else { b"cpu" };
+            let bytes: &[u8] = if r.backend == Backend::Wgpu {
+                b"gpu"
+            } else {
+                b"cpu"
+            };
             for f in ["shaded.png", "visibility.png", "error.png"] {
                 std::fs::write(img.join(f), bytes).unwrap();
             }
@@ -912,8 +918,8 @@ mod tests {
     #[test]
     fn page_lists_every_run_and_links_only_existing_images() {
         let dir = tempfile::tempdir().unwrap();
-        let ok = record("pcss", "cpu-model", 100, 32);
-        let mut bad = record("pcss", "wgpu", 100, 32);
+        let ok = record("pcss", Backend::CpuModel, 100, 32);
+        let mut bad = record("pcss", Backend::Wgpu, 100, 32);
         bad.failure = Some("no <adapter> found".into());
         let img = dir.path().join("images").join(ok.case_id());
         std::fs::create_dir_all(&img).unwrap();

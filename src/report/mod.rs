@@ -32,12 +32,25 @@ pub fn read_results(path: &Path) -> Result<ResultsFile, InputError> {
 /// Parses and checks the text of a results file; `path` names it in errors. `report`,
 /// `compare` and `merge` all read through here, so they accept and refuse the same files: the
 /// `scenario` must be a plain name ([`crate::util::paths::check_name`]: it names a folder of
-/// `report`), every run must name a known execution and none may appear twice
-/// ([`ResultsFile::check_runs`]). Counters of older versions are read under their current
-/// names ([`ResultsFile::upgraded`]).
+/// `report`), every run must name a known execution (or the file does not read:
+/// [`crate::backend::Backend`]) and none may appear twice ([`ResultsFile::check_runs`]).
+/// Counters of older versions are read under their current names ([`ResultsFile::upgraded`]).
+///
+/// A file that does not read is an error naming it and, where one value is wrong, that
+/// value's JSON path (`$.runs[0].backend: unknown backend 'bogus'; …`), ending with the line
+/// and column ([`crate::util::json::parse`]); malformed JSON or another document is "not a
+/// shadowbench results file".
 pub fn parse_results(text: &str, path: &Path) -> Result<ResultsFile, InputError> {
-    let file: ResultsFile = serde_json::from_str(text)
-        .map_err(|e| InputError::file(path, format!("not a shadowbench results file: {e}")))?;
+    let file: ResultsFile = crate::util::json::parse(text, path).map_err(|e| {
+        if e.field.as_deref().is_some_and(|f| f != "$") {
+            return e;
+        }
+        InputError {
+            message: format!("not a shadowbench results file: {}", e.message),
+            field: None,
+            ..e
+        }
+    })?;
     crate::util::paths::check_name("$.scenario", &file.scenario).map_err(|e| e.in_file(path))?;
     file.check_runs().map_err(|e| e.in_file(path))?;
     Ok(file.upgraded())
@@ -330,12 +343,13 @@ pub fn fmt_num(v: f64) -> String {
 
 #[cfg(test)]
 pub(crate) mod testdata {
+    use crate::backend::Backend;
     use crate::frame::RunParams;
     use crate::metrics::ErrorMetrics;
     use crate::record::{Counters, Phase, RunRecord};
 
     /// A successful run with the given sweep point and figures.
-    pub fn record(algorithm: &str, backend: &str, triangles: u32, tile: u32) -> RunRecord {
+    pub fn record(algorithm: &str, backend: Backend, triangles: u32, tile: u32) -> RunRecord {
         let mut counters = Counters::default();
         counters.set("fill", 1000.0 + triangles as f64);
         counters.set("overdraw", 250.0);
@@ -345,7 +359,7 @@ pub(crate) mod testdata {
         RunRecord {
             algorithm: algorithm.into(),
             variant: None,
-            backend: backend.into(),
+            backend,
             scene: "sphere-on-plane".into(),
             light: "sphere".into(),
             params: RunParams {
@@ -406,6 +420,7 @@ pub(crate) mod testdata {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::backend::Backend;
 
     #[test]
     fn numbers_keep_four_significant_digits() {
@@ -421,7 +436,7 @@ mod tests {
     fn notes_are_listed_once_per_algorithm_and_kind_and_old_warnings_become_notes() {
         let mut runs = Vec::new();
         for (t, pixels) in [(100, 12), (200, 40), (400, 0)] {
-            let mut r = testdata::record("soft_shadow_map", "cpu-model", t, 32);
+            let mut r = testdata::record("soft_shadow_map", Backend::CpuModel, t, 32);
             if pixels > 0 {
                 r.warnings.push(format!(
                     "method limit (no self-shadowing): {pixels} pixels the reference shadows"
@@ -432,7 +447,7 @@ mod tests {
             r.warnings.push("reader skipped 3 faces".into());
             runs.push(r);
         }
-        runs.push(testdata::record("pcss", "cpu-model", 100, 32));
+        runs.push(testdata::record("pcss", Backend::CpuModel, 100, 32));
         let f = file(runs).upgraded();
         assert!(f.runs[..3]
             .iter()
@@ -451,9 +466,9 @@ mod tests {
 
     #[test]
     fn combine_joins_scenarios_and_refuses_a_run_in_two_files() {
-        let mut a = file(vec![testdata::record("pcss", "cpu-model", 100, 32)]);
+        let mut a = file(vec![testdata::record("pcss", Backend::CpuModel, 100, 32)]);
         a.scenario = "lod0".into();
-        let mut b = file(vec![testdata::record("pcss", "cpu-model", 400, 32)]);
+        let mut b = file(vec![testdata::record("pcss", Backend::CpuModel, 400, 32)]);
         b.scenario = "lod1".into();
         let c = combine(&[("a".into(), a.clone()), ("b".into(), b)]).unwrap();
         assert_eq!((c.scenario.as_str(), c.runs.len()), ("lod0 + lod1", 2));
@@ -473,8 +488,8 @@ mod tests {
 
     #[test]
     fn merge_joins_disjoint_files_and_accepts_identical_duplicates() {
-        let a = testdata::record("pcss", "cpu-model", 100, 32);
-        let b = testdata::record("pcss", "cpu-model", 200, 32);
+        let a = testdata::record("pcss", Backend::CpuModel, 100, 32);
+        let b = testdata::record("pcss", Backend::CpuModel, 200, 32);
         let merged = merge(&[
             ("a.json".into(), file(vec![a.clone()])),
             ("b.json".into(), file(vec![b.clone(), a.clone()])),
@@ -485,7 +500,7 @@ mod tests {
 
     #[test]
     fn merge_rejects_conflicting_duplicates_naming_both_files() {
-        let a = testdata::record("pcss", "cpu-model", 100, 32);
+        let a = testdata::record("pcss", Backend::CpuModel, 100, 32);
         let mut a2 = a.clone();
         a2.wall_ms += 1.0;
         let e = merge(&[
@@ -514,10 +529,40 @@ mod tests {
         let e = read_results(&missing).unwrap_err().to_string();
         assert!(e.contains("nope.json") && e.contains("cannot read"), "{e}");
         let bad = dir.path().join("bad.json");
+        for text in ["{\"runs\": [", "3", "{\"scenario\": \"s\"}"] {
+            std::fs::write(&bad, text).unwrap();
+            let e = read_results(&bad).unwrap_err().to_string();
+            assert!(
+                e.starts_with(&format!("{}: not a shadowbench results", bad.display()))
+                    && e.contains(" at line 1 column "),
+                "{text}: {e}"
+            );
+        }
+        // A value of the wrong type or an unknown execution: the field, the value and where.
         std::fs::write(&bad, "{\"runs\": 3}").unwrap();
         let e = read_results(&bad).unwrap_err().to_string();
         assert!(
-            e.contains("bad.json") && e.contains("not a shadowbench results"),
+            e.contains("bad.json: $.runs: invalid type: integer `3`")
+                && e.ends_with("at line 1 column 10"),
+            "{e}"
+        );
+        let mut run = serde_json::to_value(testdata::record("pcss", Backend::Wgpu, 1, 2)).unwrap();
+        run["backend"] = "bogus".into();
+        let file = serde_json::json!({"scenario": "s", "runs": [run]});
+        std::fs::write(&bad, serde_json::to_string_pretty(&file).unwrap()).unwrap();
+        let e = read_results(&bad).unwrap_err().to_string();
+        let line = serde_json::to_string_pretty(&file)
+            .unwrap()
+            .lines()
+            .position(|l| l.contains("\"bogus\""))
+            .unwrap()
+            + 1;
+        assert!(
+            e.starts_with(&format!(
+                "{}: $.runs[0].backend: unknown backend 'bogus'; expected one of: cpu-native, \
+                 cpu-model, wgpu at line {line} column ",
+                bad.display()
+            )),
             "{e}"
         );
     }

@@ -10,6 +10,7 @@
 use plotters::style::RGBColor;
 
 use crate::algorithms::ALGORITHMS;
+use crate::backend::Backend;
 
 /// Tableau 10 without its yellow and grey, in the palette's order.
 const PALETTE: [RGBColor; 8] = [
@@ -132,24 +133,14 @@ pub enum Dash {
 }
 
 /// The marker and line style of an execution: cpu-native ● solid, cpu-model ■ dashed,
-/// wgpu ▲ dotted, anything else ◆ solid.
-pub fn execution_style(backend: &str) -> (Marker, Dash) {
-    match crate::backend::Backend::parse(backend) {
-        Ok(crate::backend::Backend::CpuNative) => (Marker::Circle, Dash::Solid),
-        Ok(crate::backend::Backend::CpuModel) => (Marker::Square, Dash::Dashed),
-        Ok(crate::backend::Backend::Wgpu) => (Marker::Triangle, Dash::Dotted),
-        Err(_) => (Marker::Diamond, Dash::Solid),
+/// wgpu ▲ dotted. (Executions are listed in panels and tables in `Backend`'s order, that of
+/// [`Backend::ALL`].)
+pub fn execution_style(backend: Backend) -> (Marker, Dash) {
+    match backend {
+        Backend::CpuNative => (Marker::Circle, Dash::Solid),
+        Backend::CpuModel => (Marker::Square, Dash::Dashed),
+        Backend::Wgpu => (Marker::Triangle, Dash::Dotted),
     }
-}
-
-/// Order of executions in panels and tables: as [`crate::algorithms::Backend::ALL`], then
-/// unknown names alphabetically.
-pub fn execution_rank(backend: &str) -> (usize, String) {
-    let known = crate::algorithms::Backend::ALL
-        .iter()
-        .position(|b| b.name() == backend)
-        .unwrap_or(usize::MAX);
-    (known, backend.to_string())
 }
 
 /// Order of algorithms in legends and tables: the reference first, then as registered.
@@ -194,10 +185,7 @@ mod tests {
 
     #[test]
     fn executions_differ_in_marker_and_line() {
-        let styles: Vec<_> = ["cpu-native", "cpu-model", "wgpu"]
-            .iter()
-            .map(|b| execution_style(b))
-            .collect();
+        let styles: Vec<_> = Backend::ALL.map(execution_style).to_vec();
         for (i, a) in styles.iter().enumerate() {
             for b in &styles[i + 1..] {
                 assert!(a.0 != b.0 && a.1 != b.1, "{a:?} vs {b:?}");

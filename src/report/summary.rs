@@ -16,6 +16,7 @@ use std::fmt::Write as _;
 
 use super::charts::{self, Metric, Series, Spec, XyChart};
 use super::{fmt_num, style};
+use crate::backend::Backend;
 use crate::record::RunRecord;
 
 /// A cost of a run: one of the charted figures ([`charts::METRICS`]), with the short name the
@@ -156,7 +157,7 @@ pub struct Row {
     pub variant: Option<String>,
     /// The algorithm as the tables and legends name it ([`RunRecord::algorithm_label`]).
     pub label: String,
-    pub backend: String,
+    pub backend: Backend,
     pub mae_shadow: Option<f64>,
     pub restricted: Option<f64>,
     /// Per [`QUALITY`] entry.
@@ -200,7 +201,7 @@ pub struct Ranked {
 /// The summary of one execution.
 #[derive(Clone, Debug)]
 pub struct Execution {
-    pub backend: String,
+    pub backend: Backend,
     /// Sorted by `mae_shadow` (best first; runs without quality last), then cost.
     pub rows: Vec<Row>,
 }
@@ -255,8 +256,8 @@ impl Summary {
             .filter(|r| r.failure.is_none() && r.algorithm != crate::algorithms::reference::ID)
             .filter(|r| case_key(r) == key)
             .collect();
-        let mut backends: Vec<String> = at.iter().map(|r| r.backend.clone()).collect();
-        backends.sort_by_key(|b| style::execution_rank(b));
+        let mut backends: Vec<Backend> = at.iter().map(|r| r.backend).collect();
+        backends.sort();
         backends.dedup();
         let executions: Vec<Execution> = backends
             .into_iter()
@@ -270,7 +271,7 @@ impl Summary {
                         algorithm: r.algorithm.clone(),
                         variant: r.variant.clone(),
                         label: r.algorithm_label(),
-                        backend: b.clone(),
+                        backend: b,
                         mae_shadow: r.error.as_ref().and_then(|e| e.mae_shadow),
                         restricted: restricted_error(r),
                         quality: quality(r),
@@ -352,7 +353,7 @@ impl Summary {
                                 Some(v) => format!("{} ({v})", r.algorithm),
                                 None => r.algorithm.clone(),
                             },
-                            backend: r.backend.clone(),
+                            backend: r.backend,
                             points: vec![(r.costs[c]?, r.mae_shadow?)],
                             intervals: vec![],
                         })
@@ -372,7 +373,7 @@ impl Summary {
                     front: Some(front.clone()),
                     linear_x: false,
                 }) {
-                    let part = p.title.strip_prefix(e.backend.as_str()).unwrap_or("");
+                    let part = p.title.strip_prefix(e.backend.name()).unwrap_or("");
                     p.title = format!("{} cost{part}", COSTS[c].name);
                     panels.push(p);
                 }
@@ -503,7 +504,7 @@ impl Summary {
             }
             for (j, r) in e.rows.iter().enumerate() {
                 let exec = if j == 0 {
-                    tex(&e.backend)
+                    tex(e.backend.name())
                 } else {
                     String::new()
                 };
@@ -584,16 +585,16 @@ mod tests {
                 // Worse and costlier than pcss: dominated.
                 ("penumbra_map", 0.05, 7.0),
             ] {
-                for b in ["cpu-native", "cpu-model"] {
+                for b in [Backend::CpuNative, Backend::CpuModel] {
                     let mut r = record(a, b, t, 32);
                     r.params.light_size = l;
                     r.error.as_mut().unwrap().mae_shadow = Some(mae * (1.0 + l as f64));
                     r.wall_ms = wall * t as f64 / 2000.0;
-                    r.model_ms = (b == "cpu-model").then_some(wall * 2.0);
+                    r.model_ms = (b == Backend::CpuModel).then_some(wall * 2.0);
                     runs.push(r);
                 }
             }
-            let mut r = record("reference", "cpu-native", t, 32);
+            let mut r = record("reference", Backend::CpuNative, t, 32);
             r.params.light_size = l;
             r.error = None;
             runs.push(r);
@@ -607,7 +608,7 @@ mod tests {
         let mut runs = sweep();
         // At the base point: pcss 5 ms, hard_shadow_map 1, soft_izb 9, penumbra_map 7; samples
         // of pcss and penumbra_map spread so their intervals overlap, the others tight.
-        for r in runs.iter_mut().filter(|r| r.backend == "cpu-native") {
+        for r in runs.iter_mut().filter(|r| r.backend == Backend::CpuNative) {
             let spread = match r.algorithm.as_str() {
                 "pcss" => 0.5,
                 "penumbra_map" => 0.2,
@@ -667,14 +668,18 @@ mod tests {
     #[test]
     fn a_wgpu_run_is_named_with_its_gpu_pipeline_in_the_table_and_the_chart() {
         let mut runs = sweep();
-        let mut gpu = record("soft_shadow_volume", "wgpu", 2000, 32);
+        let mut gpu = record("soft_shadow_volume", Backend::Wgpu, 2000, 32);
         gpu.params.light_size = 0.5;
         gpu.execution
             .insert("gpu_pipeline".into(), serde_json::json!("gather"));
         runs.push(gpu);
         let refs: Vec<&RunRecord> = runs.iter().collect();
         let s = Summary::of(&refs).unwrap();
-        let wgpu = s.executions.iter().find(|e| e.backend == "wgpu").unwrap();
+        let wgpu = s
+            .executions
+            .iter()
+            .find(|e| e.backend == Backend::Wgpu)
+            .unwrap();
         assert_eq!(wgpu.rows[0].label, "soft_shadow_volume (gather)");
         // Runs without a pipeline keep the bare id.
         assert!(s.executions[0].rows.iter().all(|r| r.label == r.algorithm));
@@ -695,8 +700,8 @@ mod tests {
         let runs = sweep();
         let refs: Vec<&RunRecord> = runs.iter().collect();
         let s = Summary::of(&refs).unwrap();
-        let execs: Vec<&str> = s.executions.iter().map(|e| e.backend.as_str()).collect();
-        assert_eq!(execs, ["cpu-native", "cpu-model"]);
+        let execs: Vec<Backend> = s.executions.iter().map(|e| e.backend).collect();
+        assert_eq!(execs, [Backend::CpuNative, Backend::CpuModel]);
         let native = &s.executions[0];
         let algs: Vec<&str> = native.rows.iter().map(|r| r.algorithm.as_str()).collect();
         // The reference has no quality of its own and is not a row.

@@ -202,7 +202,7 @@ fn an_animated_sweep_renders_each_frame_as_alone_and_measures_flicker() {
         assert_eq!(a.flicker_per_frame.len(), frames as usize - 1);
         let floor = a.flicker_floor.expect("a floor");
         assert!(floor > 0.0, "references of two seeds differ in their noise");
-        flicker.insert((r.algorithm.clone(), r.backend.clone()), a.flicker.unwrap());
+        flicker.insert((r.algorithm.clone(), r.backend), a.flicker.unwrap());
         // Each frame as rendered alone: the run's light (converted as the run takes it), its
         // centre moved linearly from the scenario's to the target.
         let info = shadowbench::algorithms::find(&r.algorithm).unwrap();
@@ -211,7 +211,7 @@ fn an_animated_sweep_renders_each_frame_as_alone_and_measures_flicker() {
         let params = case.run_params(&sc);
         let (from, to) = (sc.light.center(), glam::Vec3::new(-1.0, 8.0, 0.5));
         let dir = out.path().join("images").join(r.case_id());
-        let backend = Backend::parse(&r.backend).unwrap();
+        let backend = r.backend;
         for t in 0..frames {
             let mut alone = sc.clone();
             alone.light = sc
@@ -247,9 +247,10 @@ fn an_animated_sweep_renders_each_frame_as_alone_and_measures_flicker() {
         assert_eq!(apng.apng().unwrap().into_frames().count(), frames as usize);
     }
     for b in &backends {
+        let b = Backend::parse(b).unwrap();
         let (h, s) = (
-            flicker[&("hard_shadow_map".to_string(), b.to_string())],
-            flicker[&("soft_shadow_volume".to_string(), b.to_string())],
+            flicker[&("hard_shadow_map".to_string(), b)],
+            flicker[&("soft_shadow_volume".to_string(), b)],
         );
         assert!(
             h > s,
