@@ -148,10 +148,137 @@ use Direction::{Higher, Lower};
 use Kind::{Deterministic, Estimated, Measured, Modelled};
 use Recorded::{All, Cpu, CpuAndBinningWgpu, Model, ModelAndWgpu, NativeAndWgpu, Wgpu};
 
+/// Every counter's name as a constant, one per entry of [`COUNTERS`] (whose entry gives its
+/// unit, executions and meaning): what executions record under (`k.add(names::FILL, f)`), so a
+/// misspelt counter does not compile.
+pub mod names {
+    pub const ACTIVE_LANES: &str = "active_lanes";
+    pub const ATOMICS: &str = "atomics";
+    pub const BIN_BYTES: &str = "bin_bytes";
+    pub const BIN_CULLED_QUADS: &str = "bin_culled_quads";
+    pub const BIN_ENTRIES: &str = "bin_entries";
+    pub const CACHE_L1_HITS: &str = "cache.l1_hits";
+    pub const CACHE_L1_MISSES: &str = "cache.l1_misses";
+    pub const CACHE_L2_HITS: &str = "cache.l2_hits";
+    pub const CACHE_L2_MISSES: &str = "cache.l2_misses";
+    pub const CACHE_L3_HITS: &str = "cache.l3_hits";
+    pub const CACHE_L3_MISSES: &str = "cache.l3_misses";
+    pub const CASTERS_TRIANGLES: &str = "casters.triangles";
+    pub const COVERAGE_TEXTURE_READS: &str = "coverage_texture_reads";
+    pub const CULLED_FRAGMENTS: &str = "culled_fragments";
+    pub const DBUFFER_BYTES: &str = "dbuffer.bytes";
+    pub const DBUFFER_SCENE_FILL: &str = "dbuffer.scene_fill";
+    pub const DENOISE_BUFFER_BYTES: &str = "denoise.buffer_bytes";
+    pub const DENOISE_FILTER_TAPS: &str = "denoise.filter_taps";
+    pub const DENOISE_FILTERED_PIXELS: &str = "denoise.filtered_pixels";
+    pub const DENOISE_SEARCH_TAPS: &str = "denoise.search_taps";
+    pub const DEPTH_FAIL: &str = "depth_fail";
+    pub const DEPTH_PASS: &str = "depth_pass";
+    pub const DRAM_READ_BYTES: &str = "dram_read_bytes";
+    pub const DRAM_WRITE_BYTES: &str = "dram_write_bytes";
+    pub const FILL: &str = "fill";
+    pub const FRAGMENTS_INSIDE_WEDGES: &str = "fragments_inside_wedges";
+    pub const FRAGMENTS_REJECTED_EARLY: &str = "fragments_rejected_early";
+    pub const GATHER_LINES: &str = "gather_lines";
+    pub const GATHERS: &str = "gathers";
+    pub const HARD_COLUMNS: &str = "hard_columns";
+    pub const HARD_HITS: &str = "hard_hits";
+    pub const HARD_TESTS: &str = "hard_tests";
+    pub const IZB_GRID_BYTES: &str = "izb_grid_bytes";
+    pub const IZB_SAMPLES_BYTES: &str = "izb_samples_bytes";
+    pub const LIGHT_VIEW_CASTERS_NEAR_CLIPPED: &str = "light_view.casters_near_clipped";
+    pub const LIGHT_VIEW_FACES: &str = "light_view.faces";
+    pub const LIGHT_VIEW_RECEIVERS_OUTSIDE: &str = "light_view.receivers_outside";
+    pub const LOADS: &str = "loads";
+    pub const MEM_EST__BUFFER__READ_BYTES: &str = "mem_est.<buffer>.read_bytes";
+    pub const MEM_EST__BUFFER__WRITE_BYTES: &str = "mem_est.<buffer>.write_bytes";
+    pub const MEM_EST_READ_BYTES: &str = "mem_est.read_bytes";
+    pub const MEM_EST_WRITE_BYTES: &str = "mem_est.write_bytes";
+    pub const MEM_MODEL__BUFFER__READ_BYTES: &str = "mem_model.<buffer>.read_bytes";
+    pub const MEM_MODEL__BUFFER__READS: &str = "mem_model.<buffer>.reads";
+    pub const MEM_MODEL__BUFFER__WRITE_BYTES: &str = "mem_model.<buffer>.write_bytes";
+    pub const MEM_MODEL__BUFFER__WRITES: &str = "mem_model.<buffer>.writes";
+    pub const MEM_MODEL_READ_BYTES: &str = "mem_model.read_bytes";
+    pub const MEM_MODEL_WRITE_BYTES: &str = "mem_model.write_bytes";
+    pub const OCCLUDER_TRIANGLES: &str = "occluder_triangles";
+    pub const OCCLUDERS_BOUNDARY_EDGES: &str = "occluders.boundary_edges";
+    pub const OCCLUDERS_NON_MANIFOLD_EDGES: &str = "occluders.non_manifold_edges";
+    pub const OVERDRAW: &str = "overdraw";
+    pub const OVERDRAW_RATIO: &str = "overdraw_ratio";
+    pub const PENUMBRA_CONE_TRIANGLES: &str = "penumbra.cone_triangles";
+    pub const PENUMBRA_SHEET_TRIANGLES: &str = "penumbra.sheet_triangles";
+    pub const PENUMBRA_MAP_TAPS: &str = "penumbra_map.taps";
+    pub const PENUMBRA_QUADS: &str = "penumbra_quads";
+    pub const PIPELINE_CLIPPER_INVOCATIONS: &str = "pipeline.clipper_invocations";
+    pub const PIPELINE_CLIPPER_PRIMITIVES_OUT: &str = "pipeline.clipper_primitives_out";
+    pub const PIPELINE_COMPUTE_SHADER_INVOCATIONS: &str = "pipeline.compute_shader_invocations";
+    pub const PIPELINE_FRAGMENT_SHADER_INVOCATIONS: &str = "pipeline.fragment_shader_invocations";
+    pub const PIPELINE_VERTEX_SHADER_INVOCATIONS: &str = "pipeline.vertex_shader_invocations";
+    pub const QUAD_FRAGMENTS: &str = "quad_fragments";
+    pub const QUAD_TESTS: &str = "quad_tests";
+    pub const RASTER_BLOCKS_REJECTED: &str = "raster.blocks_rejected";
+    pub const RASTER_CLIPPED: &str = "raster.clipped";
+    pub const RASTER_CULLED: &str = "raster.culled";
+    pub const RASTER_DISCARDED: &str = "raster.discarded";
+    pub const RASTER_TILES_REJECTED: &str = "raster.tiles_rejected";
+    pub const RASTER_TRIANGLES: &str = "raster.triangles";
+    pub const RASTER_TRIS_PER_TILE__RANGE_: &str = "raster.tris_per_tile.<range>";
+    pub const RASTER_WRITTEN: &str = "raster.written";
+    pub const RT_BVH_NODE_BYTES: &str = "rt.bvh_node_bytes";
+    pub const RT_BVH_TRIANGLE_BYTES: &str = "rt.bvh_triangle_bytes";
+    pub const RT_HORIZON_CULLED: &str = "rt.horizon_culled";
+    pub const RT_NODE_VISITS: &str = "rt.node_visits";
+    pub const RT_OCCLUDED_RAYS: &str = "rt.occluded_rays";
+    pub const RT_RAYS: &str = "rt.rays";
+    pub const RT_TRIANGLE_TESTS: &str = "rt.triangle_tests";
+    pub const SAMPLES: &str = "samples";
+    pub const SCALAR_OPS: &str = "scalar_ops";
+    pub const SCATTER_LINES: &str = "scatter_lines";
+    pub const SCATTERS: &str = "scatters";
+    pub const SHADER_INVOCATIONS: &str = "shader_invocations";
+    pub const SHADOW_MAP_COVERED_TEXELS: &str = "shadow_map.covered_texels";
+    pub const SHADOW_MAP_TAPS: &str = "shadow_map.taps";
+    pub const SHADOW_MAP_TAPS_WASTED: &str = "shadow_map.taps_wasted";
+    pub const SHADOW_QUADS: &str = "shadow_quads";
+    pub const SHADOW_RAYS: &str = "shadow_rays";
+    pub const SILHOUETTE_EDGES_OF_LIGHT: &str = "silhouette.edges";
+    pub const SILHOUETTE_FACES_ALL_FRONT: &str = "silhouette.faces_all_front";
+    pub const SILHOUETTE_FACES_NONE_FRONT: &str = "silhouette.faces_none_front";
+    pub const SILHOUETTE_MAX_EDGES_PER_VERTEX: &str = "silhouette.max_edges_per_vertex";
+    pub const SILHOUETTE_PENUMBRA_EDGES: &str = "silhouette.penumbra_edges";
+    pub const SILHOUETTE_SILHOUETTE_FACES: &str = "silhouette.silhouette_faces";
+    pub const SILHOUETTE_UMBRA_EDGES: &str = "silhouette.umbra_edges";
+    pub const SILHOUETTE_VERTICES: &str = "silhouette.vertices";
+    pub const SILHOUETTE_VERTICES_OVER_TWO_EDGES: &str = "silhouette.vertices_over_two_edges";
+    pub const SILHOUETTE_EDGES: &str = "silhouette_edges";
+    pub const SIMD_UTILIZATION: &str = "simd_utilization";
+    pub const SSM_MICRO_PATCHES: &str = "ssm.micro_patches";
+    pub const SSM_OCCLUDER_TEXELS: &str = "ssm.occluder_texels";
+    pub const STEP__STEP__BANDWIDTH_BOUND: &str = "step.<step>.bandwidth_bound";
+    pub const STEP__STEP__LOAD_IMBALANCE: &str = "step.<step>.load_imbalance";
+    pub const STEP__STEP__MODEL_MS: &str = "step.<step>.model_ms";
+    pub const STORES: &str = "stores";
+    pub const TRANSFER_BYTES: &str = "transfer.bytes";
+    pub const VECTOR_OPS: &str = "vector_ops";
+    pub const VOLUME_CAPS: &str = "volume_caps";
+    pub const VOLUMES_CLOSING_TRIANGLES: &str = "volumes.closing_triangles";
+    pub const VOLUMES_DEGENERATE_EDGES: &str = "volumes.degenerate_edges";
+    pub const VOLUMES_PENUMBRA_QUADS: &str = "volumes.penumbra_quads";
+    pub const VOLUMES_SILHOUETTE_FACES: &str = "volumes.silhouette_faces";
+    pub const VOLUMES_UMBRA_QUADS: &str = "volumes.umbra_quads";
+    pub const VOLUMES_UMBRA_TRIANGLES: &str = "volumes.umbra_triangles";
+    pub const VOLUMES_UMBRA_TRIM_PLANES: &str = "volumes.umbra_trim_planes";
+    pub const WEDGE_CULLED_FRAGMENTS: &str = "wedge_culled_fragments";
+    pub const WEDGE_PRIMITIVES: &str = "wedge_primitives";
+    pub const WEDGE_TESTS: &str = "wedge_tests";
+    pub const WEDGES: &str = "wedges";
+    pub const WEDGES_DEGENERATE: &str = "wedges_degenerate";
+}
+
 /// Every counter, alphabetically by name.
 pub const COUNTERS: &[Counter] = &[
     c(
-        "active_lanes",
+        names::ACTIVE_LANES,
         "lanes",
         Model,
         Modelled,
@@ -159,7 +286,7 @@ pub const COUNTERS: &[Counter] = &[
         "active SIMD lanes summed over vector instructions",
     ),
     c(
-        "atomics",
+        names::ATOMICS,
         "operations",
         ModelAndWgpu,
         Deterministic,
@@ -167,7 +294,7 @@ pub const COUNTERS: &[Counter] = &[
         "atomic read-modify-writes (on wgpu: soft_izb's WGSL atomics)",
     ),
     c(
-        "bin_bytes",
+        names::BIN_BYTES,
         "bytes",
         Cpu,
         Deterministic,
@@ -175,7 +302,7 @@ pub const COUNTERS: &[Counter] = &[
         "bytes of the binned rasterizer's bins (tile lists)",
     ),
     c(
-        "bin_culled_quads",
+        names::BIN_CULLED_QUADS,
         "quads",
         All,
         Deterministic,
@@ -183,7 +310,7 @@ pub const COUNTERS: &[Counter] = &[
         "penumbra quads culled per light-space bin (004 §2.5)",
     ),
     c(
-        "bin_entries",
+        names::BIN_ENTRIES,
         "entries",
         CpuAndBinningWgpu,
         Deterministic,
@@ -191,7 +318,7 @@ pub const COUNTERS: &[Counter] = &[
         "primitive references written into screen, tile or grid bins",
     ),
     c(
-        "cache.l1_hits",
+        names::CACHE_L1_HITS,
         "accesses",
         Model,
         Modelled,
@@ -199,7 +326,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled L1 data-cache hits",
     ),
     c(
-        "cache.l1_misses",
+        names::CACHE_L1_MISSES,
         "accesses",
         Model,
         Modelled,
@@ -207,7 +334,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled L1 data-cache misses",
     ),
     c(
-        "cache.l2_hits",
+        names::CACHE_L2_HITS,
         "accesses",
         Model,
         Modelled,
@@ -215,15 +342,31 @@ pub const COUNTERS: &[Counter] = &[
         "modelled L2 hits (after an L1 miss)",
     ),
     c(
-        "cache.l2_misses",
+        names::CACHE_L2_MISSES,
         "accesses",
         Model,
         Modelled,
         Lower,
-        "modelled L2 misses (served from DRAM)",
+        "modelled L2 misses (served from DRAM, or from the L3 where the machine has one)",
     ),
     c(
-        "casters.triangles",
+        names::CACHE_L3_HITS,
+        "accesses",
+        Model,
+        Modelled,
+        Higher,
+        "modelled hits in the shared L3 (after an L2 miss; machines with an L3 only)",
+    ),
+    c(
+        names::CACHE_L3_MISSES,
+        "accesses",
+        Model,
+        Modelled,
+        Lower,
+        "modelled L3 misses (served from DRAM; machines with an L3 only)",
+    ),
+    c(
+        names::CASTERS_TRIANGLES,
         "triangles",
         Cpu,
         Deterministic,
@@ -231,7 +374,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles on a light pass's draw list (step casters; near-clipped ones as fans)",
     ),
     c(
-        "coverage_texture_reads",
+        names::COVERAGE_TEXTURE_READS,
         "texel reads",
         Wgpu,
         Deterministic,
@@ -239,7 +382,7 @@ pub const COUNTERS: &[Counter] = &[
         "4D coverage-texture reads of the per-pixel wedge walk (III §3.3)",
     ),
     c(
-        "culled_fragments",
+        names::CULLED_FRAGMENTS,
         "fragments",
         All,
         Deterministic,
@@ -247,7 +390,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments discarded by a cull test before shading",
     ),
     c(
-        "dbuffer.bytes",
+        names::DBUFFER_BYTES,
         "bytes",
         All,
         Deterministic,
@@ -255,7 +398,7 @@ pub const COUNTERS: &[Counter] = &[
         "size of the D-buffer (003 §4)",
     ),
     c(
-        "dbuffer.scene_fill",
+        names::DBUFFER_SCENE_FILL,
         "fragments",
         All,
         Deterministic,
@@ -263,7 +406,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments of the D-buffer's scene-depth pass",
     ),
     c(
-        "denoise.buffer_bytes",
+        names::DENOISE_BUFFER_BYTES,
         "bytes",
         All,
         Deterministic,
@@ -272,7 +415,7 @@ pub const COUNTERS: &[Counter] = &[
          filter buffers)",
     ),
     c(
-        "denoise.filter_taps",
+        names::DENOISE_FILTER_TAPS,
         "taps",
         All,
         Deterministic,
@@ -280,7 +423,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: neighbour reads of the à-trous passes (within the penumbra radius)",
     ),
     c(
-        "denoise.filtered_pixels",
+        names::DENOISE_FILTERED_PIXELS,
         "pixels",
         All,
         Deterministic,
@@ -289,7 +432,7 @@ pub const COUNTERS: &[Counter] = &[
          shadowed around)",
     ),
     c(
-        "denoise.search_taps",
+        names::DENOISE_SEARCH_TAPS,
         "taps",
         All,
         Deterministic,
@@ -297,7 +440,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: neighbour reads of the penumbra search (hit distances, visibility)",
     ),
     c(
-        "depth_fail",
+        names::DEPTH_FAIL,
         "fragments",
         Cpu,
         Deterministic,
@@ -305,7 +448,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments of the binned rasterizer that failed the depth test",
     ),
     c(
-        "depth_pass",
+        names::DEPTH_PASS,
         "fragments",
         Cpu,
         Deterministic,
@@ -313,7 +456,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments of the binned rasterizer that passed the depth test",
     ),
     c(
-        "dram_read_bytes",
+        names::DRAM_READ_BYTES,
         "bytes",
         Model,
         Modelled,
@@ -321,7 +464,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled DRAM reads (L2 misses × line size)",
     ),
     c(
-        "dram_write_bytes",
+        names::DRAM_WRITE_BYTES,
         "bytes",
         Model,
         Modelled,
@@ -329,7 +472,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled DRAM writes (dirty lines written back)",
     ),
     c(
-        "fill",
+        names::FILL,
         "fragments",
         All,
         Deterministic,
@@ -338,7 +481,7 @@ pub const COUNTERS: &[Counter] = &[
          shadow rays, its unit of work)",
     ),
     c(
-        "fragments_inside_wedges",
+        names::FRAGMENTS_INSIDE_WEDGES,
         "fragments",
         All,
         Deterministic,
@@ -346,7 +489,7 @@ pub const COUNTERS: &[Counter] = &[
         "wedge fragments inside their wedge (001 III §3.2.2)",
     ),
     c(
-        "fragments_rejected_early",
+        names::FRAGMENTS_REJECTED_EARLY,
         "fragments",
         Cpu,
         Deterministic,
@@ -354,7 +497,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments the binned rasterizer rejected by hierarchical depth",
     ),
     c(
-        "gather_lines",
+        names::GATHER_LINES,
         "cache lines",
         Model,
         Modelled,
@@ -362,7 +505,7 @@ pub const COUNTERS: &[Counter] = &[
         "distinct cache lines touched by gathers",
     ),
     c(
-        "gathers",
+        names::GATHERS,
         "instructions",
         Model,
         Modelled,
@@ -370,7 +513,7 @@ pub const COUNTERS: &[Counter] = &[
         "vector gather instructions",
     ),
     c(
-        "hard_columns",
+        names::HARD_COLUMNS,
         "columns",
         All,
         Deterministic,
@@ -378,7 +521,7 @@ pub const COUNTERS: &[Counter] = &[
         "light-space grid columns the umbra pass visits (004 §2.3)",
     ),
     c(
-        "hard_hits",
+        names::HARD_HITS,
         "samples",
         All,
         Deterministic,
@@ -386,7 +529,7 @@ pub const COUNTERS: &[Counter] = &[
         "eye samples found inside an occluding triangle (004 §2.3)",
     ),
     c(
-        "hard_tests",
+        names::HARD_TESTS,
         "tests",
         All,
         Deterministic,
@@ -394,7 +537,7 @@ pub const COUNTERS: &[Counter] = &[
         "sample-in-triangle tests of the umbra pass (004 §2.3)",
     ),
     c(
-        "izb_grid_bytes",
+        names::IZB_GRID_BYTES,
         "bytes",
         All,
         Deterministic,
@@ -402,7 +545,7 @@ pub const COUNTERS: &[Counter] = &[
         "size of the irregular z-buffer's grid (004 §2.2)",
     ),
     c(
-        "izb_samples_bytes",
+        names::IZB_SAMPLES_BYTES,
         "bytes",
         All,
         Deterministic,
@@ -410,7 +553,7 @@ pub const COUNTERS: &[Counter] = &[
         "size of the irregular z-buffer's eye samples (004 §2.2)",
     ),
     c(
-        "light_view.casters_near_clipped",
+        names::LIGHT_VIEW_CASTERS_NEAR_CLIPPED,
         "triangles",
         All,
         Deterministic,
@@ -418,7 +561,7 @@ pub const COUNTERS: &[Counter] = &[
         "occluder triangles cut by the light view's near plane (the part nearer the light is lost)",
     ),
     c(
-        "light_view.faces",
+        names::LIGHT_VIEW_FACES,
         "views",
         All,
         Deterministic,
@@ -426,7 +569,7 @@ pub const COUNTERS: &[Counter] = &[
         "light views rendered: 1, or the faces of a cube map when receivers span more than 60°",
     ),
     c(
-        "light_view.receivers_outside",
+        names::LIGHT_VIEW_RECEIVERS_OUTSIDE,
         "pixels",
         All,
         Deterministic,
@@ -434,7 +577,7 @@ pub const COUNTERS: &[Counter] = &[
         "visible receiver pixels facing the light centre outside every light view, taken as lit",
     ),
     c(
-        "loads",
+        names::LOADS,
         "instructions",
         Model,
         Modelled,
@@ -442,7 +585,7 @@ pub const COUNTERS: &[Counter] = &[
         "contiguous vector or scalar loads",
     ),
     c(
-        "mem_est.<buffer>.read_bytes",
+        names::MEM_EST__BUFFER__READ_BYTES,
         "bytes",
         NativeAndWgpu,
         Estimated,
@@ -450,7 +593,7 @@ pub const COUNTERS: &[Counter] = &[
         "estimated bytes read from a buffer, from record sizes and counts",
     ),
     c(
-        "mem_est.<buffer>.write_bytes",
+        names::MEM_EST__BUFFER__WRITE_BYTES,
         "bytes",
         NativeAndWgpu,
         Estimated,
@@ -458,7 +601,7 @@ pub const COUNTERS: &[Counter] = &[
         "estimated bytes written to a buffer, from record sizes and counts",
     ),
     c(
-        "mem_est.read_bytes",
+        names::MEM_EST_READ_BYTES,
         "bytes",
         NativeAndWgpu,
         Estimated,
@@ -466,7 +609,7 @@ pub const COUNTERS: &[Counter] = &[
         "estimated bytes read, all buffers",
     ),
     c(
-        "mem_est.write_bytes",
+        names::MEM_EST_WRITE_BYTES,
         "bytes",
         NativeAndWgpu,
         Estimated,
@@ -474,7 +617,7 @@ pub const COUNTERS: &[Counter] = &[
         "estimated bytes written, all buffers",
     ),
     c(
-        "mem_model.<buffer>.read_bytes",
+        names::MEM_MODEL__BUFFER__READ_BYTES,
         "bytes",
         Model,
         Modelled,
@@ -482,7 +625,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled bytes read from a named buffer",
     ),
     c(
-        "mem_model.<buffer>.reads",
+        names::MEM_MODEL__BUFFER__READS,
         "accesses",
         Model,
         Modelled,
@@ -490,7 +633,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled read accesses of a named buffer",
     ),
     c(
-        "mem_model.<buffer>.write_bytes",
+        names::MEM_MODEL__BUFFER__WRITE_BYTES,
         "bytes",
         Model,
         Modelled,
@@ -498,7 +641,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled bytes written to a named buffer",
     ),
     c(
-        "mem_model.<buffer>.writes",
+        names::MEM_MODEL__BUFFER__WRITES,
         "accesses",
         Model,
         Modelled,
@@ -506,7 +649,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled write accesses of a named buffer",
     ),
     c(
-        "mem_model.read_bytes",
+        names::MEM_MODEL_READ_BYTES,
         "bytes",
         Model,
         Modelled,
@@ -514,7 +657,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled bytes read, all buffers",
     ),
     c(
-        "mem_model.write_bytes",
+        names::MEM_MODEL_WRITE_BYTES,
         "bytes",
         Model,
         Modelled,
@@ -522,7 +665,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled bytes written, all buffers",
     ),
     c(
-        "occluder_triangles",
+        names::OCCLUDER_TRIANGLES,
         "triangles",
         All,
         Deterministic,
@@ -530,7 +673,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles of the occluders after facing and clipping",
     ),
     c(
-        "occluders.boundary_edges",
+        names::OCCLUDERS_BOUNDARY_EDGES,
         "edges",
         All,
         Deterministic,
@@ -538,7 +681,7 @@ pub const COUNTERS: &[Counter] = &[
         "occluder edges used by one triangle only (open meshes: shadow volumes may leak)",
     ),
     c(
-        "occluders.non_manifold_edges",
+        names::OCCLUDERS_NON_MANIFOLD_EDGES,
         "edges",
         All,
         Deterministic,
@@ -546,7 +689,7 @@ pub const COUNTERS: &[Counter] = &[
         "occluder edges shared by more than two triangles",
     ),
     c(
-        "overdraw",
+        names::OVERDRAW,
         "fragments",
         All,
         Deterministic,
@@ -555,7 +698,7 @@ pub const COUNTERS: &[Counter] = &[
          rt_denoised: the rays of a pixel whose rays all agree, beyond its first)",
     ),
     c(
-        "overdraw_ratio",
+        names::OVERDRAW_RATIO,
         "ratio",
         All,
         Deterministic,
@@ -563,7 +706,7 @@ pub const COUNTERS: &[Counter] = &[
         "derived: overdraw / fill",
     ),
     c(
-        "penumbra.cone_triangles",
+        names::PENUMBRA_CONE_TRIANGLES,
         "triangles",
         All,
         Deterministic,
@@ -571,7 +714,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles of the penumbra map's cones (000 §3)",
     ),
     c(
-        "penumbra.sheet_triangles",
+        names::PENUMBRA_SHEET_TRIANGLES,
         "triangles",
         All,
         Deterministic,
@@ -579,7 +722,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles of the penumbra map's sheets (000 §3)",
     ),
     c(
-        "penumbra_map.taps",
+        names::PENUMBRA_MAP_TAPS,
         "texel reads",
         Wgpu,
         Deterministic,
@@ -587,7 +730,7 @@ pub const COUNTERS: &[Counter] = &[
         "penumbra-map reads of the GPU eye lookup",
     ),
     c(
-        "penumbra_quads",
+        names::PENUMBRA_QUADS,
         "quads",
         All,
         Deterministic,
@@ -595,7 +738,7 @@ pub const COUNTERS: &[Counter] = &[
         "penumbra quads of silhouette edges (004 §2.4)",
     ),
     c(
-        "pipeline.clipper_invocations",
+        names::PIPELINE_CLIPPER_INVOCATIONS,
         "primitives",
         Wgpu,
         Deterministic,
@@ -603,7 +746,7 @@ pub const COUNTERS: &[Counter] = &[
         "driver statistic: primitives entering the clipper",
     ),
     c(
-        "pipeline.clipper_primitives_out",
+        names::PIPELINE_CLIPPER_PRIMITIVES_OUT,
         "primitives",
         Wgpu,
         Deterministic,
@@ -611,7 +754,7 @@ pub const COUNTERS: &[Counter] = &[
         "driver statistic: primitives leaving the clipper",
     ),
     c(
-        "pipeline.compute_shader_invocations",
+        names::PIPELINE_COMPUTE_SHADER_INVOCATIONS,
         "invocations",
         Wgpu,
         Deterministic,
@@ -619,7 +762,7 @@ pub const COUNTERS: &[Counter] = &[
         "driver statistic: compute invocations",
     ),
     c(
-        "pipeline.fragment_shader_invocations",
+        names::PIPELINE_FRAGMENT_SHADER_INVOCATIONS,
         "invocations",
         Wgpu,
         Deterministic,
@@ -627,7 +770,7 @@ pub const COUNTERS: &[Counter] = &[
         "driver statistic: fragment invocations (driver-defined)",
     ),
     c(
-        "pipeline.vertex_shader_invocations",
+        names::PIPELINE_VERTEX_SHADER_INVOCATIONS,
         "invocations",
         Wgpu,
         Deterministic,
@@ -635,7 +778,7 @@ pub const COUNTERS: &[Counter] = &[
         "driver statistic: vertex invocations",
     ),
     c(
-        "quad_fragments",
+        names::QUAD_FRAGMENTS,
         "fragments",
         All,
         Deterministic,
@@ -643,7 +786,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments of penumbra quads (004 §2.4)",
     ),
     c(
-        "quad_tests",
+        names::QUAD_TESTS,
         "tests",
         Wgpu,
         Deterministic,
@@ -651,7 +794,7 @@ pub const COUNTERS: &[Counter] = &[
         "shadow-quad tests of the per-pixel walk over binned quads",
     ),
     c(
-        "raster.blocks_rejected",
+        names::RASTER_BLOCKS_REJECTED,
         "blocks",
         Cpu,
         Deterministic,
@@ -659,7 +802,7 @@ pub const COUNTERS: &[Counter] = &[
         "4×4 blocks the binned rasterizer rejected",
     ),
     c(
-        "raster.clipped",
+        names::RASTER_CLIPPED,
         "triangles",
         Cpu,
         Deterministic,
@@ -667,7 +810,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles the binned rasterizer clipped at the near plane",
     ),
     c(
-        "raster.culled",
+        names::RASTER_CULLED,
         "triangles",
         Cpu,
         Deterministic,
@@ -675,7 +818,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles culled (back-facing, degenerate or off-screen)",
     ),
     c(
-        "raster.discarded",
+        names::RASTER_DISCARDED,
         "fragments",
         Cpu,
         Deterministic,
@@ -683,7 +826,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments discarded by the fragment kernel",
     ),
     c(
-        "raster.tiles_rejected",
+        names::RASTER_TILES_REJECTED,
         "tiles",
         Cpu,
         Deterministic,
@@ -691,7 +834,7 @@ pub const COUNTERS: &[Counter] = &[
         "tiles the binned rasterizer rejected",
     ),
     c(
-        "raster.triangles",
+        names::RASTER_TRIANGLES,
         "triangles",
         Cpu,
         Deterministic,
@@ -699,7 +842,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles set up by the binned rasterizer",
     ),
     c(
-        "raster.tris_per_tile.<range>",
+        names::RASTER_TRIS_PER_TILE__RANGE_,
         "tiles",
         Cpu,
         Deterministic,
@@ -707,7 +850,7 @@ pub const COUNTERS: &[Counter] = &[
         "histogram: tiles with that many triangles",
     ),
     c(
-        "raster.written",
+        names::RASTER_WRITTEN,
         "fragments",
         Cpu,
         Deterministic,
@@ -715,7 +858,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragments written by the binned rasterizer",
     ),
     c(
-        "rt.bvh_node_bytes",
+        names::RT_BVH_NODE_BYTES,
         "bytes",
         All,
         Deterministic,
@@ -723,7 +866,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: size of the caster BVH's node records (64 bytes: both children's boxes)",
     ),
     c(
-        "rt.bvh_triangle_bytes",
+        names::RT_BVH_TRIANGLE_BYTES,
         "bytes",
         All,
         Deterministic,
@@ -731,7 +874,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: size of the caster BVH's triangles (48 bytes each)",
     ),
     c(
-        "rt.horizon_culled",
+        names::RT_HORIZON_CULLED,
         "samples",
         All,
         Deterministic,
@@ -739,7 +882,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: light samples behind a receiver-only surface's plane, dark without a ray",
     ),
     c(
-        "rt.node_visits",
+        names::RT_NODE_VISITS,
         "nodes",
         All,
         Deterministic,
@@ -747,7 +890,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: interior BVH nodes fetched by the shadow rays (one 64-byte record each)",
     ),
     c(
-        "rt.occluded_rays",
+        names::RT_OCCLUDED_RAYS,
         "rays",
         All,
         Deterministic,
@@ -755,7 +898,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: shadow rays a caster blocks",
     ),
     c(
-        "rt.rays",
+        names::RT_RAYS,
         "rays",
         All,
         Deterministic,
@@ -763,7 +906,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: shadow rays cast (any-hit BVH traversals)",
     ),
     c(
-        "rt.triangle_tests",
+        names::RT_TRIANGLE_TESTS,
         "tests",
         All,
         Deterministic,
@@ -771,7 +914,7 @@ pub const COUNTERS: &[Counter] = &[
         "rt_denoised: ray-triangle tests of the shadow rays",
     ),
     c(
-        "samples",
+        names::SAMPLES,
         "samples",
         All,
         Deterministic,
@@ -779,7 +922,7 @@ pub const COUNTERS: &[Counter] = &[
         "eye samples inserted into the irregular z-buffer (004 §2.2)",
     ),
     c(
-        "scalar_ops",
+        names::SCALAR_OPS,
         "instructions",
         Model,
         Modelled,
@@ -787,7 +930,7 @@ pub const COUNTERS: &[Counter] = &[
         "scalar instructions",
     ),
     c(
-        "scatter_lines",
+        names::SCATTER_LINES,
         "cache lines",
         Model,
         Modelled,
@@ -795,7 +938,7 @@ pub const COUNTERS: &[Counter] = &[
         "distinct cache lines touched by scatters",
     ),
     c(
-        "scatters",
+        names::SCATTERS,
         "instructions",
         Model,
         Modelled,
@@ -803,7 +946,7 @@ pub const COUNTERS: &[Counter] = &[
         "vector scatter instructions",
     ),
     c(
-        "shader_invocations",
+        names::SHADER_INVOCATIONS,
         "invocations",
         All,
         Deterministic,
@@ -811,7 +954,7 @@ pub const COUNTERS: &[Counter] = &[
         "fragment-program runs in the cpu-model's terms",
     ),
     c(
-        "shadow_map.covered_texels",
+        names::SHADOW_MAP_COVERED_TEXELS,
         "texels",
         Wgpu,
         Deterministic,
@@ -819,7 +962,7 @@ pub const COUNTERS: &[Counter] = &[
         "shadow-map texels covered by an occluder (GPU replay)",
     ),
     c(
-        "shadow_map.taps",
+        names::SHADOW_MAP_TAPS,
         "texel reads",
         Wgpu,
         Deterministic,
@@ -827,7 +970,7 @@ pub const COUNTERS: &[Counter] = &[
         "shadow-map reads of the GPU eye lookup",
     ),
     c(
-        "shadow_map.taps_wasted",
+        names::SHADOW_MAP_TAPS_WASTED,
         "texel reads",
         Wgpu,
         Deterministic,
@@ -835,7 +978,7 @@ pub const COUNTERS: &[Counter] = &[
         "shadow-map reads of pixels that see no surface",
     ),
     c(
-        "shadow_quads",
+        names::SHADOW_QUADS,
         "quads",
         Wgpu,
         Deterministic,
@@ -843,7 +986,7 @@ pub const COUNTERS: &[Counter] = &[
         "hard shadow quads uploaded per light sample",
     ),
     c(
-        "shadow_rays",
+        names::SHADOW_RAYS,
         "rays",
         Cpu,
         Deterministic,
@@ -851,7 +994,7 @@ pub const COUNTERS: &[Counter] = &[
         "shadow rays the reference casts (pixels that see a surface × light samples)",
     ),
     c(
-        "silhouette.edges",
+        names::SILHOUETTE_EDGES_OF_LIGHT,
         "edges",
         All,
         Deterministic,
@@ -859,7 +1002,7 @@ pub const COUNTERS: &[Counter] = &[
         "silhouette edges from the light",
     ),
     c(
-        "silhouette.faces_all_front",
+        names::SILHOUETTE_FACES_ALL_FRONT,
         "faces",
         All,
         Deterministic,
@@ -867,7 +1010,7 @@ pub const COUNTERS: &[Counter] = &[
         "faces front-facing from every light point (003)",
     ),
     c(
-        "silhouette.faces_none_front",
+        names::SILHOUETTE_FACES_NONE_FRONT,
         "faces",
         All,
         Deterministic,
@@ -875,7 +1018,7 @@ pub const COUNTERS: &[Counter] = &[
         "faces front-facing from no light point (003)",
     ),
     c(
-        "silhouette.max_edges_per_vertex",
+        names::SILHOUETTE_MAX_EDGES_PER_VERTEX,
         "edges",
         All,
         Deterministic,
@@ -883,7 +1026,7 @@ pub const COUNTERS: &[Counter] = &[
         "most silhouette edges meeting at one vertex",
     ),
     c(
-        "silhouette.penumbra_edges",
+        names::SILHOUETTE_PENUMBRA_EDGES,
         "edges",
         All,
         Deterministic,
@@ -891,7 +1034,7 @@ pub const COUNTERS: &[Counter] = &[
         "area-silhouette edges bounding the penumbra (003)",
     ),
     c(
-        "silhouette.silhouette_faces",
+        names::SILHOUETTE_SILHOUETTE_FACES,
         "faces",
         All,
         Deterministic,
@@ -899,7 +1042,7 @@ pub const COUNTERS: &[Counter] = &[
         "faces between the two area silhouettes (003)",
     ),
     c(
-        "silhouette.umbra_edges",
+        names::SILHOUETTE_UMBRA_EDGES,
         "edges",
         All,
         Deterministic,
@@ -907,7 +1050,7 @@ pub const COUNTERS: &[Counter] = &[
         "area-silhouette edges bounding the umbra (003)",
     ),
     c(
-        "silhouette.vertices",
+        names::SILHOUETTE_VERTICES,
         "vertices",
         All,
         Deterministic,
@@ -915,7 +1058,7 @@ pub const COUNTERS: &[Counter] = &[
         "silhouette vertices",
     ),
     c(
-        "silhouette.vertices_over_two_edges",
+        names::SILHOUETTE_VERTICES_OVER_TWO_EDGES,
         "vertices",
         All,
         Deterministic,
@@ -923,7 +1066,7 @@ pub const COUNTERS: &[Counter] = &[
         "silhouette vertices where more than two edges meet",
     ),
     c(
-        "silhouette_edges",
+        names::SILHOUETTE_EDGES,
         "edges",
         All,
         Deterministic,
@@ -931,7 +1074,7 @@ pub const COUNTERS: &[Counter] = &[
         "silhouette edges from the light centre",
     ),
     c(
-        "simd_utilization",
+        names::SIMD_UTILIZATION,
         "ratio",
         Model,
         Modelled,
@@ -939,7 +1082,7 @@ pub const COUNTERS: &[Counter] = &[
         "derived: active_lanes / (vector_ops × 16)",
     ),
     c(
-        "ssm.micro_patches",
+        names::SSM_MICRO_PATCHES,
         "patches",
         All,
         Deterministic,
@@ -947,7 +1090,7 @@ pub const COUNTERS: &[Counter] = &[
         "micro-patches of the occluder map (002 §3)",
     ),
     c(
-        "ssm.occluder_texels",
+        names::SSM_OCCLUDER_TEXELS,
         "texels",
         All,
         Deterministic,
@@ -955,7 +1098,7 @@ pub const COUNTERS: &[Counter] = &[
         "occluder-map texels that hold an occluder (002 §3)",
     ),
     c(
-        "step.<step>.bandwidth_bound",
+        names::STEP__STEP__BANDWIDTH_BOUND,
         "0 or 1",
         Model,
         Modelled,
@@ -963,7 +1106,7 @@ pub const COUNTERS: &[Counter] = &[
         "1 when DRAM bandwidth bounds the step's modelled time",
     ),
     c(
-        "step.<step>.load_imbalance",
+        names::STEP__STEP__LOAD_IMBALANCE,
         "ratio",
         Model,
         Modelled,
@@ -971,7 +1114,7 @@ pub const COUNTERS: &[Counter] = &[
         "slowest modelled core over the mean",
     ),
     c(
-        "step.<step>.model_ms",
+        names::STEP__STEP__MODEL_MS,
         "ms",
         Model,
         Modelled,
@@ -979,7 +1122,7 @@ pub const COUNTERS: &[Counter] = &[
         "modelled time of one step of a phase",
     ),
     c(
-        "stores",
+        names::STORES,
         "instructions",
         Model,
         Modelled,
@@ -987,7 +1130,7 @@ pub const COUNTERS: &[Counter] = &[
         "contiguous vector or scalar stores",
     ),
     c(
-        "transfer.bytes",
+        names::TRANSFER_BYTES,
         "bytes",
         All,
         Deterministic,
@@ -995,7 +1138,7 @@ pub const COUNTERS: &[Counter] = &[
         "bytes copied between device and host (002 occluder-map transfer)",
     ),
     c(
-        "vector_ops",
+        names::VECTOR_OPS,
         "instructions",
         Model,
         Modelled,
@@ -1003,7 +1146,7 @@ pub const COUNTERS: &[Counter] = &[
         "16-wide vector instructions",
     ),
     c(
-        "volume_caps",
+        names::VOLUME_CAPS,
         "faces",
         All,
         Deterministic,
@@ -1011,7 +1154,7 @@ pub const COUNTERS: &[Counter] = &[
         "light and dark caps of z-fail volumes (001 III)",
     ),
     c(
-        "volumes.closing_triangles",
+        names::VOLUMES_CLOSING_TRIANGLES,
         "triangles",
         All,
         Deterministic,
@@ -1019,7 +1162,7 @@ pub const COUNTERS: &[Counter] = &[
         "closing triangles of the umbra volumes (003)",
     ),
     c(
-        "volumes.degenerate_edges",
+        names::VOLUMES_DEGENERATE_EDGES,
         "edges",
         All,
         Deterministic,
@@ -1027,7 +1170,7 @@ pub const COUNTERS: &[Counter] = &[
         "silhouette edges giving no volume face (003)",
     ),
     c(
-        "volumes.penumbra_quads",
+        names::VOLUMES_PENUMBRA_QUADS,
         "quads",
         All,
         Deterministic,
@@ -1035,7 +1178,7 @@ pub const COUNTERS: &[Counter] = &[
         "quads of the penumbra volumes (003)",
     ),
     c(
-        "volumes.silhouette_faces",
+        names::VOLUMES_SILHOUETTE_FACES,
         "faces",
         All,
         Deterministic,
@@ -1043,7 +1186,7 @@ pub const COUNTERS: &[Counter] = &[
         "silhouette faces of the volumes (003)",
     ),
     c(
-        "volumes.umbra_quads",
+        names::VOLUMES_UMBRA_QUADS,
         "quads",
         All,
         Deterministic,
@@ -1051,7 +1194,7 @@ pub const COUNTERS: &[Counter] = &[
         "quads of the umbra volumes (003)",
     ),
     c(
-        "volumes.umbra_triangles",
+        names::VOLUMES_UMBRA_TRIANGLES,
         "triangles",
         All,
         Deterministic,
@@ -1059,7 +1202,7 @@ pub const COUNTERS: &[Counter] = &[
         "triangles of the umbra volumes (003)",
     ),
     c(
-        "volumes.umbra_trim_planes",
+        names::VOLUMES_UMBRA_TRIM_PLANES,
         "planes",
         All,
         Deterministic,
@@ -1067,7 +1210,7 @@ pub const COUNTERS: &[Counter] = &[
         "trim planes at convex corners of the umbra (003)",
     ),
     c(
-        "wedge_culled_fragments",
+        names::WEDGE_CULLED_FRAGMENTS,
         "fragments",
         All,
         Deterministic,
@@ -1075,7 +1218,7 @@ pub const COUNTERS: &[Counter] = &[
         "wedge fragments culled by wedge-half culling (001 IV §4.4)",
     ),
     c(
-        "wedge_primitives",
+        names::WEDGE_PRIMITIVES,
         "primitives",
         Wgpu,
         Deterministic,
@@ -1083,7 +1226,7 @@ pub const COUNTERS: &[Counter] = &[
         "wedge primitives of the per-pixel wedge walk",
     ),
     c(
-        "wedge_tests",
+        names::WEDGE_TESTS,
         "tests",
         Wgpu,
         Deterministic,
@@ -1091,7 +1234,7 @@ pub const COUNTERS: &[Counter] = &[
         "wedge tests of the per-pixel wedge walk",
     ),
     c(
-        "wedges",
+        names::WEDGES,
         "wedges",
         All,
         Deterministic,
@@ -1099,7 +1242,7 @@ pub const COUNTERS: &[Counter] = &[
         "penumbra wedges built (001 III §3.1)",
     ),
     c(
-        "wedges_degenerate",
+        names::WEDGES_DEGENERATE,
         "wedges",
         All,
         Deterministic,

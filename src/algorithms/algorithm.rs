@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use super::{find, reference, work};
 pub use crate::backend::Backend;
+use crate::counters::names;
 use crate::error::{Error, InputError, Result};
 pub use crate::frame::FrameOutput;
 use crate::frame::{Frame, RunParams};
@@ -376,9 +377,11 @@ impl Configured {
         let (mut out, fallback) = (info.run)(self.options.as_ref(), backend, frame, ctx)?;
         let edges = frame.occluder_edges;
         out.counters
-            .set("occluders.boundary_edges", edges.boundary as f64);
-        out.counters
-            .set("occluders.non_manifold_edges", edges.non_manifold as f64);
+            .set(names::OCCLUDERS_BOUNDARY_EDGES, edges.boundary as f64);
+        out.counters.set(
+            names::OCCLUDERS_NON_MANIFOLD_EDGES,
+            edges.non_manifold as f64,
+        );
         out.warnings.extend(edges.warning());
         out.warnings.extend(frame.precision_warning.clone());
         out.warnings.extend(fallback);

@@ -30,6 +30,7 @@ use rayon::prelude::*;
 pub use buffer::{Buffer, Memory};
 pub use config::MachineConfig;
 
+use crate::counters::names;
 use crate::util::cpu_time;
 use crate::util::deadline::Deadline;
 pub use simd::{
@@ -383,7 +384,7 @@ impl Machine {
     pub fn transfer(&mut self, name: &str, bytes: u64, gb_per_s: f64) {
         let model = self.is_model();
         let phase = self.current();
-        phase.counters.add("transfer.bytes", bytes as f64);
+        phase.counters.add(names::TRANSFER_BYTES, bytes as f64);
         if model {
             let ms = bytes as f64 / (gb_per_s * 1e9) * 1e3;
             phase.model_ms += ms;
@@ -536,20 +537,23 @@ impl Machine {
             ("scatters", total.scatters),
             ("scatter_lines", total.scatter_lines),
             ("atomics", total.atomics),
-            ("cache.l1_hits", total.cache.l1_hits),
-            ("cache.l1_misses", total.cache.l1_misses),
-            ("cache.l2_hits", total.cache.l2_hits),
-            ("cache.l2_misses", total.cache.l2_misses),
+            (names::CACHE_L1_HITS, total.cache.l1_hits),
+            (names::CACHE_L1_MISSES, total.cache.l1_misses),
+            (names::CACHE_L2_HITS, total.cache.l2_hits),
+            (names::CACHE_L2_MISSES, total.cache.l2_misses),
         ] {
             c.add(k, v as f64);
         }
         if self.config.l3.is_some() {
-            c.add("cache.l3_hits", total.cache.l3_hits as f64);
-            c.add("cache.l3_misses", total.cache.l3_misses as f64);
+            c.add(names::CACHE_L3_HITS, total.cache.l3_hits as f64);
+            c.add(names::CACHE_L3_MISSES, total.cache.l3_misses as f64);
         }
-        c.add("dram_read_bytes", total.cache.dram_read_lines as f64 * line);
         c.add(
-            "dram_write_bytes",
+            names::DRAM_READ_BYTES,
+            total.cache.dram_read_lines as f64 * line,
+        );
+        c.add(
+            names::DRAM_WRITE_BYTES,
             total.cache.dram_write_lines as f64 * line,
         );
         for (i, b) in buffers.iter().enumerate() {
@@ -561,8 +565,8 @@ impl Machine {
             c.add(&format!("mem_model.{n}.writes"), b.writes as f64);
             c.add(&format!("mem_model.{n}.read_bytes"), b.read_bytes as f64);
             c.add(&format!("mem_model.{n}.write_bytes"), b.write_bytes as f64);
-            c.add("mem_model.read_bytes", b.read_bytes as f64);
-            c.add("mem_model.write_bytes", b.write_bytes as f64);
+            c.add(names::MEM_MODEL_READ_BYTES, b.read_bytes as f64);
+            c.add(names::MEM_MODEL_WRITE_BYTES, b.write_bytes as f64);
         }
         c.set(&format!("step.{name}.model_ms"), time.ms(&self.config));
         c.set(
@@ -599,7 +603,7 @@ impl Machine {
             let after: u64 = cores.iter().map(|c| c.stats.dram_write_lines).sum();
             if let Some(p) = self.phases.last_mut() {
                 p.counters
-                    .add("dram_write_bytes", (after - before) as f64 * line);
+                    .add(names::DRAM_WRITE_BYTES, (after - before) as f64 * line);
             }
         }
         let model = self.is_model();
@@ -712,9 +716,9 @@ mod tests {
             assert_eq!(out, (0..50).map(|t| t * t).collect::<Vec<_>>());
             let f = m.finish();
             if backend == Backend::CpuModel {
-                assert_eq!(f.counters.get("vector_ops"), Some(50.0));
+                assert_eq!(f.counters.get(names::VECTOR_OPS), Some(50.0));
                 let lanes: usize = (0..50).map(|t| (t % 17).min(16)).sum();
-                assert_eq!(f.counters.get("active_lanes"), Some(lanes as f64));
+                assert_eq!(f.counters.get(names::ACTIVE_LANES), Some(lanes as f64));
                 assert!(f.model_ms.unwrap() > 0.0);
             } else {
                 assert!(f.model_ms.is_none());
@@ -767,8 +771,8 @@ mod tests {
             m.finish()
         };
         let (par, one) = (run(false), run(true));
-        assert_eq!(par.counters.get("vector_ops"), Some(8000.0));
-        assert_eq!(one.counters.get("vector_ops"), Some(8000.0));
+        assert_eq!(par.counters.get(names::VECTOR_OPS), Some(8000.0));
+        assert_eq!(one.counters.get(names::VECTOR_OPS), Some(8000.0));
         // 8 equal tasks: 2 per core on 4 cores, 8 on one.
         let config = MachineConfig::larrabee(4);
         let barrier = config.barrier_cycles / (config.clock_ghz * 1e6);

@@ -24,6 +24,7 @@ use rayon::prelude::*;
 use super::buffer::{Buffer, Memory};
 use super::simd::{Lanes, Mask, Probe, LANES};
 use super::{Machine, TaskKernel};
+use crate::counters::names;
 use crate::scene::coverage;
 
 /// Side of a block in pixels: a 4×4 block is one 16-lane vector.
@@ -1118,11 +1119,11 @@ pub fn draw<K: FragmentKernel>(
         clipped += b.clipped;
     }
     let bin_entries: usize = bins.iter().map(Vec::len).sum();
-    m.count("raster.triangles", n_tris as f64);
-    m.count("raster.culled", culled as f64);
-    m.count("raster.clipped", clipped as f64);
-    m.count("bin_entries", bin_entries as f64);
-    m.count("bin_bytes", (bin_entries * 4) as f64);
+    m.count(names::RASTER_TRIANGLES, n_tris as f64);
+    m.count(names::RASTER_CULLED, culled as f64);
+    m.count(names::RASTER_CLIPPED, clipped as f64);
+    m.count(names::BIN_ENTRIES, bin_entries as f64);
+    m.count(names::BIN_BYTES, (bin_entries * 4) as f64);
 
     let depth = pipeline.depth_clear.map(|clear| {
         Surface::new(

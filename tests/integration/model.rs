@@ -194,6 +194,10 @@ fn a_shared_l3_is_deterministic_and_serves_l2_misses() {
         c("cache.l3_hits") + c("cache.l3_misses"),
         c("cache.l2_misses")
     );
+    // Every counter of a run on a machine with an L3 is in the glossary.
+    for name in a.counters.0.keys() {
+        assert!(shadowbench::counters::find(name).is_some(), "{name}");
+    }
     // DRAM reads are the L3's misses, not the L2's.
     assert_eq!(c("dram_read_bytes"), c("cache.l3_misses") * 64.0);
     // The same frame on the Larrabee machine has no L3 counters at all.

@@ -10,6 +10,7 @@ use crate::algorithms::eye_raster::{tiles, Block, EyeBuffer, EyeRays, ScreenRect
 use crate::algorithms::shadow_volume::{
     eye_count, mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, HardPass,
 };
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::Target;
@@ -106,12 +107,12 @@ pub fn render(
             frame.params.tile_size,
             &hard,
         );
-        m.count("silhouette_edges", quads.len() as f64);
+        m.count(names::SILHOUETTE_EDGES, quads.len() as f64);
         if opts.counting == Counting::ZFail {
-            m.count("volume_caps", pass.caps as f64);
+            m.count(names::VOLUME_CAPS, pass.caps as f64);
         }
-        m.count("fill", pass.fill as f64);
-        m.count("overdraw", (pass.fill - pass.passed) as f64);
+        m.count(names::FILL, pass.fill as f64);
+        m.count(names::OVERDRAW, (pass.fill - pass.passed) as f64);
         mem_write(&mut m, "stencil", n * u64::from(STENCIL_BYTES));
         mem_read(&mut m, "depth", pass.fill * 4);
         mem_read(&mut m, "stencil", pass.passed * u64::from(STENCIL_BYTES));

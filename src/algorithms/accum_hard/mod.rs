@@ -11,7 +11,6 @@
 pub mod cpu;
 pub mod wgpu;
 
-use crate::record::phases;
 use serde::{Deserialize, Serialize};
 
 use super::shadow_volume::ShadowQuad;
@@ -23,6 +22,7 @@ use crate::algorithms::algorithm::{
 use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
+use crate::record::phases;
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::scene::{Light, LightKind, Mesh};
 

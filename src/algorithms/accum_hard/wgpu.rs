@@ -24,9 +24,9 @@
 //! GPU: silhouette detection, quad and cap construction (and the gather's binning): host, as on
 //! the cpu executions.
 
-use super::Phase;
 use std::time::Instant;
 
+use super::Phase;
 use super::{AccumHardOptions, GpuPipeline, Samples, ACCUMULATION_BYTES, STENCIL_BYTES};
 use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::algorithms::eye_raster::{EyeRays, DEPTH_BYTES};
@@ -36,6 +36,7 @@ use crate::algorithms::shadow_volume::wgpu::{
     RECORDS_WGSL, WORD,
 };
 use crate::algorithms::shadow_volume::Counting;
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -71,7 +72,7 @@ pub fn render(
     let (n, counting, rays) = (run.samples.count(), opts.counting, &run.rays);
     let pixel_samples = f64::from(n) * rays.len() as f64;
     let (stencil, accumulation) = (f64::from(STENCIL_BYTES), f64::from(ACCUMULATION_BYTES));
-    hard.add("silhouette_edges", m.edges as f64);
+    hard.add(names::SILHOUETTE_EDGES, m.edges as f64);
     hard_fill(&mut hard, counting, m.fill, m.passed, m.caps);
     let reads = [
         ("depth", m.fill * DEPTH_BYTES as f64),
@@ -273,8 +274,8 @@ impl Sampled {
             ..m
         };
         let mut hard = Counters::default();
-        hard.add("shadow_quads", m.edges as f64);
-        hard.add("quad_tests", stat(HardStat::Tests));
+        hard.add(names::SHADOW_QUADS, m.edges as f64);
+        hard.add(names::QUAD_TESTS, stat(HardStat::Tests));
         let note =
             "fill and overdraw from an instrumented replay of every sample's hard pass (WGSL \
                 atomics); mem.* in the cpu-model's terms of an 8-bit stencil and a 16-bit \

@@ -18,11 +18,10 @@
 //! `dbuffer.scene_fill`); `overdraw` the volume fragments that did not end up in the D-buffer
 //! (behind a nearer volume surface, or in front of the scene for the umbra volume).
 
-use super::Phase;
-use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
 use super::volumes::{build_volumes, VolumeMesh, Volumes};
+use super::Phase;
 use super::{edge_distance, front_fraction, t_penumbra, t_umbra, visibility, DbufferOptions, Disc};
 use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{machine, output};
@@ -32,12 +31,14 @@ use crate::algorithms::shadow_map::cpu::{
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
 use crate::model::raster::{Surface, Target, TileRect};
 use crate::model::LANES;
 use crate::model::{Buffer, Lanes, Machine, Mask, Probe};
+use crate::record::PhaseId;
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::scene::Mesh;
 
@@ -160,19 +161,22 @@ pub fn dbuffer(
     let mesh = casters(m, &face.view, occluders);
     let scene = raster_shadow_map(m, frame, face, mesh);
     // The scene's draw is the |cx_o| channel; fill and overdraw count the volumes.
-    let (scene_fill, scene_over) = (m.counter("fill"), m.counter("overdraw"));
-    m.count("fill", -scene_fill);
-    m.count("overdraw", -scene_over);
-    m.count("dbuffer.scene_fill", scene_fill);
+    let (scene_fill, scene_over) = (m.counter(names::FILL), m.counter(names::OVERDRAW));
+    m.count(names::FILL, -scene_fill);
+    m.count(names::OVERDRAW, -scene_over);
+    m.count(names::DBUFFER_SCENE_FILL, scene_fill);
     let view = scene.view;
     let (umbra_depth, umbra_edge) =
         draw_volume(m, frame, "dbuffer_uv", &v.umbra, &view, Some(&scene));
     let (penumbra_depth, penumbra_edge) =
         draw_volume(m, frame, "dbuffer_pv", &v.penumbra, &view, None);
     let kept = |s: &Surface| s.buf.data.iter().filter(|&&d| d < 1.0).count() as f64;
-    let overdraw = m.counter("fill") - kept(&umbra_depth) - kept(&penumbra_depth);
-    m.count("overdraw", overdraw);
-    m.count("dbuffer.bytes", super::dbuffer_bytes(&frame.params) as f64);
+    let overdraw = m.counter(names::FILL) - kept(&umbra_depth) - kept(&penumbra_depth);
+    m.count(names::OVERDRAW, overdraw);
+    m.count(
+        names::DBUFFER_BYTES,
+        super::dbuffer_bytes(&frame.params) as f64,
+    );
     DBuffer {
         scene,
         umbra_depth,

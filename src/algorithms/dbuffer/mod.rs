@@ -46,7 +46,6 @@ pub mod cpu;
 mod volumes;
 pub mod wgpu;
 
-use crate::record::phases;
 use glam::Vec3;
 
 use super::shadow_map::{map_bytes, Bias};
@@ -56,6 +55,7 @@ use crate::algorithms::algorithm::{
 use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::RunParams;
+use crate::record::phases;
 use crate::scene::Light;
 use crate::scene::LightKind;
 

@@ -6,21 +6,22 @@
 //! or with `volume_build: single_core` on one ([`build_volumes`], [`super::VolumeBuild`]). The
 //! wgpu execution runs them on the machine as the CPU executions do and uploads the meshes.
 
-use super::Phase;
-use crate::record::PhaseId;
 use std::collections::BTreeMap;
 
 use glam::{Vec2, Vec3};
 
+use super::Phase;
 use super::{
     centre_behind, classify, extrude, extrusion_points, rim_arc, DbufferOptions, Disc, Facing,
     VolumeBuild,
 };
 use crate::algorithms::exec::{scan_edges, EDGE_CHUNK};
 use crate::algorithms::shadow_map::LightView;
+use crate::counters::names;
 use crate::frame::Frame;
 use crate::model::TaskKernel;
 use crate::model::{lane_groups, task_items, task_weights, Buffer, Lanes, Machine, Probe};
+use crate::record::PhaseId;
 use crate::scene::adjacency::EdgeAdjacency;
 
 /// Faces per task of the facing test.
@@ -224,16 +225,16 @@ pub fn silhouettes(m: &mut Machine, adj: &EdgeAdjacency, disc: Disc) -> Silhouet
         .flatten()
         .collect();
     let count = |f: Facing| classes.iter().filter(|&&c| c == f).count() as f64;
-    m.count("silhouette.faces_all_front", count(Facing::All));
-    m.count("silhouette.faces_none_front", count(Facing::None));
+    m.count(names::SILHOUETTE_FACES_ALL_FRONT, count(Facing::All));
+    m.count(names::SILHOUETTE_FACES_NONE_FRONT, count(Facing::None));
     let silhouette_faces = classes.iter().filter(|&&c| c == Facing::Silhouette).count();
-    m.count("silhouette.silhouette_faces", silhouette_faces as f64);
+    m.count(names::SILHOUETTE_SILHOUETTE_FACES, silhouette_faces as f64);
     m.count(
-        "silhouette.umbra_edges",
+        names::SILHOUETTE_UMBRA_EDGES,
         edges.iter().filter(|e| e.umbra).count() as f64,
     );
     m.count(
-        "silhouette.penumbra_edges",
+        names::SILHOUETTE_PENUMBRA_EDGES,
         edges.iter().filter(|e| e.penumbra).count() as f64,
     );
     Silhouettes { edges, umbra_faces }
@@ -618,22 +619,28 @@ pub fn volumes(
         .pop()
         .expect("one task");
     m.count(
-        "volumes.umbra_quads",
+        names::VOLUMES_UMBRA_QUADS,
         s.edges
             .iter()
             .zip(&points)
             .filter(|(e, p)| e.umbra && p.is_some())
             .count() as f64,
     );
-    m.count("volumes.umbra_triangles", umbra.triangles.len() as f64);
-    m.count("volumes.umbra_trim_planes", f64::from(trims));
+    m.count(names::VOLUMES_UMBRA_TRIANGLES, umbra.triangles.len() as f64);
+    m.count(names::VOLUMES_UMBRA_TRIM_PLANES, f64::from(trims));
     m.count(
-        "volumes.penumbra_quads",
+        names::VOLUMES_PENUMBRA_QUADS,
         (penumbra.triangles.len() / 2) as f64,
     );
-    m.count("volumes.closing_triangles", fans.triangles.len() as f64);
-    m.count("volumes.silhouette_faces", faces.triangles.len() as f64);
-    m.count("volumes.degenerate_edges", f64::from(degenerate));
+    m.count(
+        names::VOLUMES_CLOSING_TRIANGLES,
+        fans.triangles.len() as f64,
+    );
+    m.count(
+        names::VOLUMES_SILHOUETTE_FACES,
+        faces.triangles.len() as f64,
+    );
+    m.count(names::VOLUMES_DEGENERATE_EDGES, f64::from(degenerate));
     umbra.append(faces);
     penumbra.append(fans);
     Volumes { umbra, penumbra }

@@ -25,6 +25,7 @@ use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::machine;
 use crate::algorithms::shadow_map::wgpu::LIGHT_VIEW_WGSL;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -293,8 +294,11 @@ impl<'g> Passes<'g> {
         let fill = f64::from(c.umbra_fragments) + f64::from(c.penumbra_fragments);
         let covered = f64::from(c.umbra_covered) + f64::from(c.penumbra_covered);
         dbuffer.add_fill(fill, fill - covered);
-        dbuffer.set("dbuffer.scene_fill", f64::from(c.scene_fragments));
-        dbuffer.set("dbuffer.bytes", super::dbuffer_bytes(&frame.params) as f64);
+        dbuffer.set(names::DBUFFER_SCENE_FILL, f64::from(c.scene_fragments));
+        dbuffer.set(
+            names::DBUFFER_BYTES,
+            super::dbuffer_bytes(&frame.params) as f64,
+        );
         let note = "fill/overdraw from an instrumented replay (WGSL atomics); phases silhouettes \
                     and volumes ran on the host";
         Ok(timing.output(image, vec![(Phase::Dbuffer, dbuffer)], note))

@@ -9,10 +9,9 @@
 //!    of §3 ([`PenumbraFragments`]);
 //! 4. `eye_lookup`: the umbra test in the shadow map, else the penumbra map's intensity.
 
-use super::Phase;
-use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
+use super::Phase;
 use super::{
     cone_size, intensity, shadow_geometry, sheet_size, PenumbraGeometry, PenumbraMapOptions,
     Silhouettes,
@@ -25,12 +24,14 @@ use crate::algorithms::shadow_map::cpu::{
 };
 use crate::algorithms::shadow_map::lit;
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{self, Blend, FragmentKernel, Fragments, Geometry, Pipeline, Shade};
 use crate::model::raster::{Surface, Target, TileRect};
 use crate::model::{task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe};
 use crate::model::{TaskKernel, LANES};
+use crate::record::PhaseId;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 
 /// Cones and sheets per task of the geometry step.
@@ -345,9 +346,9 @@ fn penumbra_map(
     attributes.data = pa;
     triangles.data = pt;
     let cone_tris = s.vertices.len() as u32 * o.cone_segments;
-    m.count("penumbra.cone_triangles", f64::from(cone_tris));
+    m.count(names::PENUMBRA_CONE_TRIANGLES, f64::from(cone_tris));
     m.count(
-        "penumbra.sheet_triangles",
+        names::PENUMBRA_SHEET_TRIANGLES,
         f64::from(layout.triangles - cone_tris),
     );
 
@@ -366,7 +367,7 @@ fn penumbra_map(
         attributes: &attributes,
     };
     let out = raster::draw(m, "penumbra_map", target, pipeline, &geometry, &kernel);
-    m.count("overdraw", out.tiles.iter().sum::<u64>() as f64);
+    m.count(names::OVERDRAW, out.tiles.iter().sum::<u64>() as f64);
     out.color.expect("the pipeline has a colour target")
 }
 

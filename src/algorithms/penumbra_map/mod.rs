@@ -20,7 +20,6 @@
 pub mod cpu;
 pub mod wgpu;
 
-use crate::record::phases;
 use std::borrow::Cow;
 
 use glam::{Vec2, Vec3};
@@ -33,6 +32,7 @@ use crate::algorithms::algorithm::{
 use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
+use crate::record::phases;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::simplify::simplify;
 use crate::scene::LightKind;

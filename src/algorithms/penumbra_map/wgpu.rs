@@ -26,6 +26,7 @@ use crate::algorithms::shadow_map::wgpu::{
     self as shadow_map_wgpu, Counts, Lookup, Passes, LIGHT_RASTER_WGSL, NOTE, PRELUDE,
 };
 use crate::algorithms::shadow_map::{FaceView, LightView, LightViews, ViewFit};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -175,7 +176,7 @@ impl<'g> PenumbraPasses<'g> {
         let counts: Vec<Counts> = timing.counts.iter().map(|b| first(b)).collect();
         let mut eye = p.lookup_counters(frame, &counts[2]);
         let taps = f64::from(counts[2].extra_taps);
-        eye.set("penumbra_map.taps", taps);
+        eye.set(names::PENUMBRA_MAP_TAPS, taps);
         let read = [("penumbra_map", taps * DEPTH_TEXEL_BYTES)];
         eye.add_traffic("mem_est", &read, &[]);
         let counters = vec![
@@ -211,9 +212,9 @@ impl<'g> PenumbraPasses<'g> {
         let mut k = Counters::default();
         k.add_fill(fragments, discarded);
         let cone_triangles = s.vertices.len() as f64 * f64::from(o.cone_segments);
-        k.set("penumbra.cone_triangles", cone_triangles);
+        k.set(names::PENUMBRA_CONE_TRIANGLES, cone_triangles);
         let sheet_triangles = f64::from(cones.index_count / 3) - cone_triangles;
-        k.set("penumbra.sheet_triangles", sheet_triangles);
+        k.set(names::PENUMBRA_SHEET_TRIANGLES, sheet_triangles);
         let shadow = [("shadow_map", fragments * DEPTH_TEXEL_BYTES)];
         let map = ("penumbra_map", self.passes.resolution, kept);
         cones.depth_traffic(&mut k, ("penumbra", VERTEX_BYTES), map, &shadow);

@@ -22,6 +22,7 @@ use crate::algorithms::algorithm::{
     no_options, Algorithm, Backend, CpuEntry, ExecContext, WorkEstimate,
 };
 use crate::algorithms::work;
+use crate::counters::names;
 use crate::error::InputError;
 use crate::frame::Frame;
 use crate::frame::RunParams;
@@ -468,7 +469,7 @@ pub fn render_with(
     let hits = g.triangle.iter().filter(|&&t| t != u32::MAX).count() as f64;
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let mut counters = Counters::default();
-    counters.set("shadow_rays", hits * (k * k) as f64);
+    counters.set(names::SHADOW_RAYS, hits * (k * k) as f64);
     FrameOutput {
         visibility: VisibilityBuffer {
             width: g.width,

@@ -14,21 +14,22 @@
 //! Deterministic counts (rays, node visits, triangle tests, taps) are counted per task in both
 //! executions and summed in task order; the image does not depend on the host's thread count.
 
-use super::Phase;
-use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
 use super::bvh::{leaf_range, CasterBvh, NodePair, Tri, LEAF, STACK};
+use super::Phase;
 use super::{
     geometric_weight, light_point, light_radius, penumbra_radius_px, search_offsets, seed32,
     square_sample, PixelInputs, RtDenoisedOptions, B3, MIN_REACH,
 };
 use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{eye_tiles, machine, output};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{Target, BLOCK};
 use crate::model::{Buffer, Lanes, Machine, Mask, Memory, NoProbe, Probe, TaskKernel, LANES};
+use crate::record::PhaseId;
 use crate::scene::{coverage, Light};
 use crate::visibility::VisibilityBuffer;
 
@@ -771,15 +772,15 @@ pub fn render(
     };
     let trace_weights: Vec<u64> = hit_pixels.iter().map(|w| w * u64::from(o.spp)).collect();
     let (traced, tc) = run_tiles(&mut m, frame, "trace", &trace, &trace_weights, [1.0, 0.0]);
-    m.count("rt.rays", tc.rays as f64);
-    m.count("rt.node_visits", tc.node_visits as f64);
-    m.count("rt.triangle_tests", tc.triangle_tests as f64);
-    m.count("rt.occluded_rays", tc.occluded as f64);
-    m.count("rt.horizon_culled", tc.horizon_culled as f64);
-    m.count("rt.bvh_node_bytes", node_bytes as f64);
-    m.count("rt.bvh_triangle_bytes", tri_bytes as f64);
-    m.count("fill", tc.rays as f64);
-    m.count("overdraw", tc.agreeing as f64);
+    m.count(names::RT_RAYS, tc.rays as f64);
+    m.count(names::RT_NODE_VISITS, tc.node_visits as f64);
+    m.count(names::RT_TRIANGLE_TESTS, tc.triangle_tests as f64);
+    m.count(names::RT_OCCLUDED_RAYS, tc.occluded as f64);
+    m.count(names::RT_HORIZON_CULLED, tc.horizon_culled as f64);
+    m.count(names::RT_BVH_NODE_BYTES, node_bytes as f64);
+    m.count(names::RT_BVH_TRIANGLE_BYTES, tri_bytes as f64);
+    m.count(names::FILL, tc.rays as f64);
+    m.count(names::OVERDRAW, tc.agreeing as f64);
 
     let mut visibility: Vec<f32> = traced.iter().map(|t| t[0]).collect();
     if o.denoise {
@@ -813,11 +814,11 @@ pub fn render(
             visibility = filtered;
             filter_taps += ac.filter_taps;
         }
-        m.count("denoise.search_taps", pc.search_taps as f64);
-        m.count("denoise.filter_taps", filter_taps as f64);
-        m.count("denoise.filtered_pixels", pc.filtered_pixels as f64);
+        m.count(names::DENOISE_SEARCH_TAPS, pc.search_taps as f64);
+        m.count(names::DENOISE_FILTER_TAPS, filter_taps as f64);
+        m.count(names::DENOISE_FILTERED_PIXELS, pc.filtered_pixels as f64);
         m.count(
-            "denoise.buffer_bytes",
+            names::DENOISE_BUFFER_BYTES,
             super::buffer_bytes(&frame.params) as f64,
         );
     }

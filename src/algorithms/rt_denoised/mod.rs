@@ -48,7 +48,6 @@ pub mod bvh;
 pub mod cpu;
 pub mod wgpu;
 
-use crate::record::phases;
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
@@ -58,6 +57,7 @@ use crate::algorithms::algorithm::{
 use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
+use crate::record::phases;
 use crate::scene::light::concentric_disc;
 use crate::scene::Light;
 

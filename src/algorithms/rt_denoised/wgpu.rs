@@ -14,15 +14,16 @@
 //! and horizon-culled rays, the rays of pixels whose rays agreed, search and filter taps, the
 //! filtered pixels.
 
-use super::Phase;
 use std::time::Instant;
 
 use serde_json::json;
 
 use super::bvh::{CasterBvh, NodePair, Tri};
 use super::seed32;
+use super::Phase;
 use super::{buffer_bytes, light_radius, search_far, PixelInputs, RtDenoisedOptions, ID};
 use crate::algorithms::algorithm::{ExecContext, FrameOutput};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -344,16 +345,16 @@ fn phase_counters(
     for name in &STATS[..6] {
         trace.set(name, get(name));
     }
-    trace.set("fill", get("rt.rays"));
-    trace.set("rt.bvh_node_bytes", node_bytes as f64);
-    trace.set("rt.bvh_triangle_bytes", tri_bytes as f64);
+    trace.set(names::FILL, get(names::RT_RAYS));
+    trace.set(names::RT_BVH_NODE_BYTES, node_bytes as f64);
+    trace.set(names::RT_BVH_TRIANGLE_BYTES, tri_bytes as f64);
     let mut phases = vec![(Phase::Trace, trace)];
     if o.denoise {
         let mut denoise = Counters::default();
         for name in &STATS[6..] {
             denoise.set(name, get(name));
         }
-        denoise.set("denoise.buffer_bytes", buffers as f64);
+        denoise.set(names::DENOISE_BUFFER_BYTES, buffers as f64);
         phases.push((Phase::Denoise, denoise));
     }
     phases

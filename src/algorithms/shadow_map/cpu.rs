@@ -3,22 +3,23 @@
 //! generic over a [`Lookup`] (`hard_shadow_map`'s hard test, `pcss`, `penumbra_map`,
 //! `dbuffer`), which reuse the light pass and the receiver setup unchanged.
 
-use super::Phase;
-use crate::record::PhaseId;
 use glam::{Vec2, Vec3};
 
 use super::texel;
+use super::Phase;
 use super::{
     assemble_casters, Bias, CasterBuffers, CastersPart, FaceView, LightView, LightViews, ViewFit,
     FAN_TRIANGLES_MAX, FAN_VERTICES_MAX,
 };
 use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
+use crate::counters::names;
 use crate::frame::Frame;
 use crate::model::raster::{self, DepthOnly, Geometry, Pipeline, Surface, Target, BLOCK};
 use crate::model::{
     task_items, task_weights, Buffer, Lanes, Machine, Mask, Probe, TaskKernel, LANES,
 };
+use crate::record::PhaseId;
 use crate::scene::Mesh;
 use crate::visibility::VisibilityBuffer;
 
@@ -91,7 +92,7 @@ pub fn casters(m: &mut Machine, view: &LightView, mesh: &Mesh) -> Mesh {
     };
     let parts = m.run_step("casters", &step, &task_weights(n, CASTER_CHUNK));
     let out = assemble_casters(mesh, parts);
-    m.count("casters.triangles", out.triangles.len() as f64);
+    m.count(names::CASTERS_TRIANGLES, out.triangles.len() as f64);
     out
 }
 
@@ -121,8 +122,8 @@ pub fn raster_shadow_map(m: &mut Machine, frame: &Frame, face: &FaceView, mesh: 
     // Overdraw: fragments that did not end up in the map (failed the depth test or were
     // overwritten by a nearer one).
     let kept = map.buf.data.iter().filter(|&&d| d < 1.0).count() as f64;
-    let overdraw = m.counter("fill") - kept;
-    m.count("overdraw", overdraw);
+    let overdraw = m.counter(names::FILL) - kept;
+    m.count(names::OVERDRAW, overdraw);
     ShadowMap {
         view,
         face: *face,

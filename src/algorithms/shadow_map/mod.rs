@@ -13,10 +13,11 @@
 pub mod cpu;
 pub mod wgpu;
 
-use crate::record::phases;
 use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
 
+use crate::counters::names;
 use crate::model::{lane_groups, BufferId, Lanes, NoProbe, Probe};
+use crate::record::phases;
 use crate::scene::camera::{look_at, perspective};
 use crate::scene::{Light, Mesh};
 
@@ -659,13 +660,13 @@ impl LightViews {
     /// shadowing the run did not compute.
     pub fn record(&self, out: &mut crate::algorithms::FrameOutput) {
         let c = &mut out.counters;
-        c.set("light_view.faces", self.views.len() as f64);
+        c.set(names::LIGHT_VIEW_FACES, self.views.len() as f64);
         c.set(
-            "light_view.receivers_outside",
+            names::LIGHT_VIEW_RECEIVERS_OUTSIDE,
             self.receivers_outside as f64,
         );
         c.set(
-            "light_view.casters_near_clipped",
+            names::LIGHT_VIEW_CASTERS_NEAR_CLIPPED,
             self.casters_near_clipped as f64,
         );
         if self.receivers_outside > 0 {
@@ -1012,7 +1013,7 @@ mod tests {
             assert_eq!(got.positions, want.positions, "{backend:?}");
             let f = m.finish();
             assert_eq!(
-                f.counters.get("casters.triangles"),
+                f.counters.get(names::CASTERS_TRIANGLES),
                 Some(want.triangles.len() as f64)
             );
             if backend == Backend::CpuModel {
@@ -1021,9 +1022,9 @@ mod tests {
                     .step_by(1024)
                     .map(|t| (tris.len() - t).min(1024).div_ceil(16))
                     .sum();
-                let ops = f.counters.get("vector_ops").unwrap();
+                let ops = f.counters.get(names::VECTOR_OPS).unwrap();
                 assert_eq!(ops, (groups as u32 * CASTER_CLASSIFY_OPS) as f64);
-                assert!(f.counters.get("scalar_ops").unwrap() > 0.0);
+                assert!(f.counters.get(names::SCALAR_OPS).unwrap() > 0.0);
                 vector_ops.push(ops);
             }
         }

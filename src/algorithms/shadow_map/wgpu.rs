@@ -17,6 +17,7 @@
 use super::Phase;
 use super::{vogel_disk, Bias, FaceView, LightViews, ViewFit};
 use crate::algorithms::algorithm::FrameOutput;
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -330,7 +331,7 @@ impl<'g> Passes<'g> {
         let fragments = f64::from(c.fragments);
         let mut k = Counters::default();
         k.add_fill(fragments, fragments - f64::from(c.covered));
-        k.set("shadow_map.covered_texels", f64::from(c.covered));
+        k.set(names::SHADOW_MAP_COVERED_TEXELS, f64::from(c.covered));
         let map = ("shadow_map", self.resolution, fragments);
         (self.occluders).depth_traffic(&mut k, ("occluder", VERTEX_BYTES), map, &[]);
         k
@@ -343,8 +344,8 @@ impl<'g> Passes<'g> {
         let hits = frame.gbuffer.mask().iter().filter(|&&h| h).count() as f64;
         let taps = f64::from(c.taps);
         let mut k = Counters::default();
-        k.set("shadow_map.taps", taps);
-        k.set("shadow_map.taps_wasted", f64::from(c.wasted_taps));
+        k.set(names::SHADOW_MAP_TAPS, taps);
+        k.set(names::SHADOW_MAP_TAPS_WASTED, f64::from(c.wasted_taps));
         // Every pixel reads its position (and hit flag); hit pixels also read their normal.
         let gbuffer = (pixels + hits) * GBUFFER_ENTRY_BYTES;
         let map_read = taps * DEPTH_TEXEL_BYTES;

@@ -34,6 +34,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use super::eye_raster::{raster_pass, Block, EyeBuffer, EyeRays, ScreenRect, TilePass};
+use crate::counters::names;
 use crate::model::{Machine, Mask, Probe, LANES};
 use crate::scene::adjacency::SilhouetteEdge;
 use crate::scene::{coverage, Bounds, Mesh};
@@ -634,7 +635,7 @@ fn collect(
 pub fn mem_read(m: &mut Machine, buffer: &str, bytes: u64) {
     if !m.is_model() {
         m.count(&format!("mem_est.{buffer}.read_bytes"), bytes as f64);
-        m.count("mem_est.read_bytes", bytes as f64);
+        m.count(names::MEM_EST_READ_BYTES, bytes as f64);
     }
 }
 
@@ -643,7 +644,7 @@ pub fn mem_read(m: &mut Machine, buffer: &str, bytes: u64) {
 pub fn mem_write(m: &mut Machine, buffer: &str, bytes: u64) {
     if !m.is_model() {
         m.count(&format!("mem_est.{buffer}.write_bytes"), bytes as f64);
-        m.count("mem_est.write_bytes", bytes as f64);
+        m.count(names::MEM_EST_WRITE_BYTES, bytes as f64);
     }
 }
 

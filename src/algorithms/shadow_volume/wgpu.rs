@@ -18,6 +18,7 @@ use glam::{Vec3, Vec4};
 
 use super::{face_footprints, quad_footprints, zfail_faces, Counting, ShadowQuad, VolumeFace};
 use crate::algorithms::eye_raster::{ConvexVolume, EyeRays, ScreenRect};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{gpu_struct, tiles, Bind, Compute, Layout, Pass, Program};
@@ -117,7 +118,7 @@ pub(crate) fn upload_rays(gpu: &Run, rays: &EyeRays) -> wgpu::Buffer {
 pub(crate) fn hard_fill(k: &mut Counters, counting: Counting, fill: f64, passed: f64, caps: u64) {
     k.add_fill(fill, fill - passed);
     if counting == Counting::ZFail {
-        k.add("volume_caps", caps as f64);
+        k.add(names::VOLUME_CAPS, caps as f64);
     }
 }
 

@@ -9,10 +9,9 @@
 //! walks its triangles and quads in input order, so the image and the counters do not depend
 //! on the host's thread count.
 
-use super::Phase;
-use crate::record::PhaseId;
 use glam::Vec2;
 
+use super::Phase;
 use super::{
     clip_coords, combined_visibility, in_front, light_point, light_radius_uv, object_adjacency,
     occluders_of, quad_half_width, wedge_entry_inv_z, Grid, LightPoint, LightTriangle, Occluders,
@@ -21,9 +20,11 @@ use super::{
 use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{machine, output};
 use crate::algorithms::shadow_map::{LightView, LightViews, ViewFit};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{Buffer, BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::record::PhaseId;
 use crate::scene::adjacency::EdgeAdjacency;
 use crate::visibility::VisibilityBuffer;
 
@@ -459,9 +460,12 @@ fn construct(
             samples[slot as usize] = s;
         }
     }
-    m.count("samples", n as f64);
-    m.count("izb_grid_bytes", 4.0 * (cells + 1) as f64);
-    m.count("izb_samples_bytes", (size_of::<Sample>() as u64 * n) as f64);
+    m.count(names::SAMPLES, n as f64);
+    m.count(names::IZB_GRID_BYTES, 4.0 * (cells + 1) as f64);
+    m.count(
+        names::IZB_SAMPLES_BYTES,
+        (size_of::<Sample>() as u64 * n) as f64,
+    );
     (
         Izb {
             grid,
@@ -566,8 +570,8 @@ fn occluders(
     };
     let weights: Vec<u64> = spans.iter().map(|s| (s[1] + s[3]) as u64).collect();
     m.run_step("store", &store, &weights);
-    m.count("occluder_triangles", occ.triangles.len() as f64);
-    m.count("silhouette_edges", occ.edges.len() as f64);
+    m.count(names::OCCLUDER_TRIANGLES, occ.triangles.len() as f64);
+    m.count(names::SILHOUETTE_EDGES, occ.edges.len() as f64);
     (occ, store.triangles, store.edges)
 }
 
@@ -686,7 +690,7 @@ fn bin_primitives<F: Fn(usize) -> Binned + Sync>(
         }
     }
     let n: usize = lists.iter().map(Vec::len).sum();
-    m.count("bin_entries", n as f64);
+    m.count(names::BIN_ENTRIES, n as f64);
     (lists, entries, culled)
 }
 
@@ -801,9 +805,9 @@ fn umbra(m: &mut Machine, izb: &Izb, occ: &Occluders, triangles: Region) -> Vec<
         hits += c[2];
         out.push(dc);
     }
-    m.count("hard_columns", columns as f64);
-    m.count("hard_tests", tests as f64);
-    m.count("hard_hits", hits as f64);
+    m.count(names::HARD_COLUMNS, columns as f64);
+    m.count(names::HARD_TESTS, tests as f64);
+    m.count(names::HARD_HITS, hits as f64);
     out
 }
 
@@ -1005,8 +1009,8 @@ fn penumbra(
     let width_ops = if opts.per_bin_width { BIN_WIDTH_OPS } else { 0 };
     let (lists, entries, culled) =
         bin_primitives(m, grid, edges, occ.edges.len(), 8, width_ops, &bin);
-    m.count("penumbra_quads", quads as f64);
-    m.count("bin_culled_quads", culled as f64);
+    m.count(names::PENUMBRA_QUADS, quads as f64);
+    m.count(names::BIN_CULLED_QUADS, culled as f64);
 
     let n = izb.samples.data.len();
     let kernel = Penumbra {
@@ -1029,13 +1033,13 @@ fn penumbra(
         total.contributing += w.contributing;
         penumbral.push(occlusion);
     }
-    m.count("quad_fragments", total.fragments as f64);
+    m.count(names::QUAD_FRAGMENTS, total.fragments as f64);
     m.count(
-        "wedge_culled_fragments",
+        names::WEDGE_CULLED_FRAGMENTS,
         total.wedge_culled_fragments as f64,
     );
-    m.count("fill", total.fill as f64);
-    m.count("overdraw", (total.fill - total.contributing) as f64);
+    m.count(names::FILL, total.fill as f64);
+    m.count(names::OVERDRAW, (total.fill - total.contributing) as f64);
 
     let g = &frame.gbuffer;
     let resolve = Resolve {

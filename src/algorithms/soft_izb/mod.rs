@@ -15,7 +15,6 @@
 pub mod cpu;
 pub mod wgpu;
 
-use crate::record::phases;
 use glam::{Vec2, Vec3, Vec4, Vec4Swizzles};
 use serde::{Deserialize, Serialize};
 
@@ -28,6 +27,7 @@ use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::Frame;
 use crate::frame::RunParams;
+use crate::record::phases;
 use crate::scene::adjacency::{EdgeAdjacency, EdgeKind};
 use crate::scene::coverage;
 use crate::scene::LightKind;

@@ -40,18 +40,18 @@
 //! of by dropping the quad from a bin's list; the counts of bin entries and culls are the
 //! same) and silhouette detection on the GPU (the paper's geometry shaders).
 
-use super::Phase;
-use crate::record::PhaseId;
 use std::time::Instant;
 
 use serde_json::json;
 
+use super::Phase;
 use super::{
     check_grid_size, light_radius_uv, object_occluders, Grid, Occluders, SoftIzbOptions, ID,
     NEAR_CLIP, OCCLUSION_SCALE,
 };
 use crate::algorithms::algorithm::{ExecContext, FrameOutput};
 use crate::algorithms::shadow_map::{LightViews, ViewFit};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -61,6 +61,7 @@ use crate::gpu::pass::{
 use crate::gpu::readback::words;
 use crate::gpu::{record_execution, Needs, Run};
 use crate::record::Counters;
+use crate::record::PhaseId;
 
 const WGSL: &str = include_str!("wgpu.wgsl");
 
@@ -184,8 +185,8 @@ pub fn render(
     };
     check_limits(gpu, &params, &grid)?;
     let mut geometry = Counters::default();
-    geometry.set("occluder_triangles", occ.triangles.len() as f64);
-    geometry.set("silhouette_edges", occ.edges.len() as f64);
+    geometry.set(names::OCCLUDER_TRIANGLES, occ.triangles.len() as f64);
+    geometry.set(names::SILHOUETTE_EDGES, occ.edges.len() as f64);
     let passes = Passes::new(gpu, frame, &occ, &grid, params);
     let mut out = passes.run(frame, geometry_ms, geometry)?;
     let entries = json!({
@@ -412,10 +413,10 @@ impl<'g> Passes<'g> {
         let cells = f64::from(self.params.cells);
         let w = WORD as f64;
         let mut k = Counters::default();
-        k.set("samples", n);
-        k.set("izb_grid_bytes", w * (cells + 1.0));
-        k.set("izb_samples_bytes", SAMPLE_BYTES as f64 * n);
-        k.set("atomics", 5.0 * n);
+        k.set(names::SAMPLES, n);
+        k.set(names::IZB_GRID_BYTES, w * (cells + 1.0));
+        k.set(names::IZB_SAMPLES_BYTES, SAMPLE_BYTES as f64 * n);
+        k.set(names::ATOMICS, 5.0 * n);
         // project: gbuffer read (offsets of hit pixels), points written; count and insert read
         // the points, count writes the cell; the scan reads the counts twice and writes starts
         // and cursors; insert scatters the records and clears their accumulators.
@@ -445,11 +446,11 @@ impl<'g> Passes<'g> {
         let [columns, tests, hits] = [Stat::HardColumns, Stat::HardTests, Stat::HardHits].map(stat);
         let w = WORD as f64;
         let mut k = Counters::default();
-        k.set("hard_columns", columns);
-        k.set("hard_tests", tests);
-        k.set("hard_hits", hits);
-        k.set("bin_entries", stat(Stat::HardBinEntries));
-        k.set("atomics", hits);
+        k.set(names::HARD_COLUMNS, columns);
+        k.set(names::HARD_TESTS, tests);
+        k.set(names::HARD_HITS, hits);
+        k.set(names::BIN_ENTRIES, stat(Stat::HardBinEntries));
+        k.set(names::ATOMICS, hits);
         let triangles = TRIANGLE_BYTES as f64 * f64::from(self.params.triangles);
         let grid = 2.0 * w * columns;
         let samples = SAMPLE_BYTES as f64 * tests;
@@ -471,13 +472,13 @@ impl<'g> Passes<'g> {
             [Stat::Fragments, Stat::Fill, Stat::Contributing].map(stat);
         let w = WORD as f64;
         let mut k = Counters::default();
-        k.set("penumbra_quads", stat(Stat::Quads));
-        k.set("bin_entries", stat(Stat::SoftBinEntries));
-        k.set("bin_culled_quads", stat(Stat::BinCulled));
-        k.set("quad_fragments", fragments);
-        k.set("wedge_culled_fragments", stat(Stat::WedgeCulled));
+        k.set(names::PENUMBRA_QUADS, stat(Stat::Quads));
+        k.set(names::BIN_ENTRIES, stat(Stat::SoftBinEntries));
+        k.set(names::BIN_CULLED_QUADS, stat(Stat::BinCulled));
+        k.set(names::QUAD_FRAGMENTS, fragments);
+        k.set(names::WEDGE_CULLED_FRAGMENTS, stat(Stat::WedgeCulled));
         k.add_fill(fill, fill - contributing);
-        k.set("atomics", contributing);
+        k.set(names::ATOMICS, contributing);
         let edges = EDGE_BYTES as f64 * f64::from(self.params.edges);
         let grid = 2.0 * w * fragments;
         let samples = SAMPLE_BYTES as f64 * (fill + n);

@@ -3,16 +3,16 @@
 //! extents drawn as quads with an additive fragment kernel into the soft shadow map (phase
 //! `splat`), and the SSM projected onto the eye samples (phase `project`).
 
-use super::Phase;
-use crate::record::PhaseId;
 use glam::{Mat4, Vec2, Vec3};
 
+use super::Phase;
 use super::{
     bias_at, classify, extent_quad, micro_patch, occlusion, record_receivers_outside, visibility,
     LightFrame, MicroPatch, Sample, SoftShadowMapOptions, Split,
 };
 use crate::algorithms::algorithm::{Backend, ExecContext, FrameOutput};
 use crate::algorithms::exec::{eye_lookup_step, eye_tiles, machine, output, EyeBlock, EyeKernel};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::raster::{
@@ -20,6 +20,7 @@ use crate::model::raster::{
     BLOCK,
 };
 use crate::model::{Buffer, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::record::PhaseId;
 use crate::visibility::VisibilityBuffer;
 
 /// Vector instructions per 16 occluder texels to build micro-patches and extents: emptiness
@@ -78,7 +79,7 @@ fn depth_map(
         triangles: &triangles,
         view_proj: lf.view_proj,
     };
-    let fill_before = m.counter("fill");
+    let fill_before = m.counter(names::FILL);
     let pipeline = Pipeline {
         cull,
         ..Pipeline::DEPTH_ONLY
@@ -86,8 +87,8 @@ fn depth_map(
     let out = raster::draw(m, name, target, pipeline, &geometry, &raster::DepthOnly);
     let map = out.depth.expect("a depth-only pipeline has depth");
     let kept = map.buf.data.iter().filter(|&&d| d < 1.0).count() as f64;
-    let overdraw = m.counter("fill") - fill_before - kept;
-    m.count("overdraw", overdraw);
+    let overdraw = m.counter(names::FILL) - fill_before - kept;
+    m.count(names::OVERDRAW, overdraw);
     map
 }
 
@@ -287,8 +288,8 @@ fn splat(
         vv.extend(part.vertices);
     }
     let count = pv.len() as u32;
-    m.count("ssm.micro_patches", f64::from(count));
-    m.count("ssm.occluder_texels", n as f64);
+    m.count(names::SSM_MICRO_PATCHES, f64::from(count));
+    m.count(names::SSM_OCCLUDER_TEXELS, n as f64);
     patches.data = pv;
     vertices.data = vv;
     let triangles = m.memory.buffer(
@@ -312,7 +313,7 @@ fn splat(
         bias_texels: o.bias_texels,
     };
     let out = raster::draw(m, name, target, pipeline, &geometry, &kernel);
-    m.count("overdraw", out.tiles.iter().sum::<u64>() as f64);
+    m.count(names::OVERDRAW, out.tiles.iter().sum::<u64>() as f64);
     out.color.expect("the pipeline has a colour target")
 }
 

@@ -36,7 +36,6 @@
 pub mod cpu;
 pub mod wgpu;
 
-use crate::record::phases;
 use glam::{Mat4, Vec2, Vec3};
 
 use crate::algorithms::algorithm::{
@@ -44,9 +43,11 @@ use crate::algorithms::algorithm::{
     WorkEstimate,
 };
 use crate::algorithms::work;
+use crate::counters::names;
 use crate::error::InputError;
 use crate::frame::{Frame, FrameOutput, RunParams};
 use crate::model::raster::{Blend, HalfRounding};
+use crate::record::phases;
 use crate::scene::LightKind;
 use crate::scene::{Bounds, FlatMesh, Light};
 
@@ -646,7 +647,7 @@ pub fn record_receivers_outside(frame: &Frame, split: &Split, out: &mut FrameOut
         .filter(|&i| classify(&lf, g.position[i], g.normal[i], true) == Sample::Lit)
         .count();
     out.counters
-        .set("light_view.receivers_outside", outside as f64);
+        .set(names::LIGHT_VIEW_RECEIVERS_OUTSIDE, outside as f64);
     if outside > 0 {
         out.warnings.push(format!(
             "{outside} visible receiver pixels lie outside the soft shadow map's reach (behind \

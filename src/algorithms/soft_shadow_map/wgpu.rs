@@ -17,15 +17,16 @@
 //! The instrumented replay of `splat` counts fragments (`fill`) and those that hide nothing
 //! (`overdraw`), through a pipeline that writes no colour (no blending to pay for twice).
 
-use super::Phase;
 use std::time::Instant;
 
 use bytemuck::{Pod, Zeroable};
 
+use super::Phase;
 use super::{
     extent_quad, half_rounding, micro_patch, LightFrame, Precision, SoftShadowMapOptions, Split, ID,
 };
 use crate::algorithms::algorithm::{ExecContext, FrameOutput};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::meshes::positions;
@@ -400,7 +401,7 @@ impl<'g> Ssm<'g> {
 
         let mut maps_c = Counters::default();
         if host {
-            maps_c.set("transfer.bytes", transfer.bytes as f64);
+            maps_c.set(names::TRANSFER_BYTES, transfer.bytes as f64);
         }
         let mut splat_c = Counters::default();
         splat_c.add_fill(f64::from(c.kept) + f64::from(c.zero), f64::from(c.zero));
@@ -408,9 +409,9 @@ impl<'g> Ssm<'g> {
             true => (transfer.patches as f64, "host (occluder map transferred)"),
             false => (f64::from(c.patches), "device (vertex shader)"),
         };
-        splat_c.set("ssm.micro_patches", patches);
+        splat_c.set(names::SSM_MICRO_PATCHES, patches);
         let texels = passes as u64 * u64::from(self.res) * u64::from(self.res);
-        splat_c.set("ssm.occluder_texels", texels as f64);
+        splat_c.set(names::SSM_OCCLUDER_TEXELS, texels as f64);
         let note = "fill/overdraw from an instrumented replay of splat (WGSL atomics)";
         let mut out = timing.output(
             self.size,

@@ -4,13 +4,12 @@
 //! approximation or light splitting are on. Both passes are tile tasks of the machine, in 16-lane
 //! blocks, written once for both executions.
 
-use super::Phase;
-use crate::record::PhaseId;
 use std::sync::Arc;
 
 use glam::Vec3;
 
 use super::wedges::{build_wedge, coverage_texture, wedge_primitives, wedge_reach, WedgePrimitive};
+use super::Phase;
 use super::{
     exact_coverage, overlap_coverage, split12, split_light, CoverageMethod, CoverageTexture,
     Emitter, EmitterShape, SoftShadowVolumeOptions, SubLightLoops, VBufferPrecision, Wedge,
@@ -23,9 +22,11 @@ use crate::algorithms::eye_raster::{
 use crate::algorithms::shadow_volume::{
     mem_read, mem_write, render_hard, CountTarget, Counting, HardCounting, ShadowQuad,
 };
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::model::{BufferId, Lanes, Machine, Mask, Probe, TaskKernel, LANES};
+use crate::record::PhaseId;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 use crate::scene::{Light, LightTexture};
 use crate::visibility::{RgbBuffer, VisibilityBuffer};
@@ -195,7 +196,7 @@ pub fn render(
             warning,
         } = SubLightLoops::new(&adjacency, &occluders, centre, setup.rays.eye, opts);
         m.phase(Phase::Hard.name());
-        m.count("silhouette_edges", silhouette_edges as f64);
+        m.count(names::SILHOUETTE_EDGES, silhouette_edges as f64);
         warnings.extend(warning);
         let mut covered = vec![0.0f32; n];
         for (k, edges) in loops.iter().enumerate() {
@@ -377,10 +378,10 @@ fn render_loop(
     let quads: Vec<ShadowQuad> = edges.iter().map(|e| ShadowQuad::new(e, centre)).collect();
     let hard = render_hard(m, "quads", rays, &quads, counting, s.tile, &s.hard);
     if let HardCounting::ZFail { .. } = counting {
-        m.count("volume_caps", hard.caps as f64);
+        m.count(names::VOLUME_CAPS, hard.caps as f64);
     }
-    m.count("fill", hard.fill as f64);
-    m.count("overdraw", (hard.fill - hard.passed) as f64);
+    m.count(names::FILL, hard.fill as f64);
+    m.count(names::OVERDRAW, (hard.fill - hard.passed) as f64);
     mem_read(m, "depth", hard.fill * DEPTH_BYTES);
     let (buffer, bytes) = match s.opts.vbuffer {
         VBufferPrecision::F32 => ("vbuffer", VBUFFER_F32_BYTES),
@@ -403,17 +404,17 @@ fn render_loop(
         .collect();
     let wedges: Vec<Option<Wedge>> = m.run_step("build", &build, &weights).concat();
     let degenerate = wedges.iter().filter(|w| w.is_none()).count();
-    m.count("wedges", (wedges.len() - degenerate) as f64);
-    m.count("wedges_degenerate", degenerate as f64);
+    m.count(names::WEDGES, (wedges.len() - degenerate) as f64);
+    m.count(names::WEDGES_DEGENERATE, degenerate as f64);
 
     // Pass 2: penumbra wedges (III §3.2.2), by wedge halves when culling (IV §4.4).
     m.phase(Phase::Soft.name());
     let (accum, tally) = soft_pass(m, s, light, &quads, &wedges);
-    m.count("fill", tally.fill as f64);
-    m.count("overdraw", (tally.fill - tally.contributing) as f64);
-    m.count("shader_invocations", tally.shaded as f64);
-    m.count("culled_fragments", tally.culled as f64);
-    m.count("fragments_inside_wedges", tally.inside as f64);
+    m.count(names::FILL, tally.fill as f64);
+    m.count(names::OVERDRAW, (tally.fill - tally.contributing) as f64);
+    m.count(names::SHADER_INVOCATIONS, tally.shaded as f64);
+    m.count(names::CULLED_FRAGMENTS, tally.culled as f64);
+    m.count(names::FRAGMENTS_INSIDE_WEDGES, tally.inside as f64);
     mem_read(m, "depth", tally.depth_reads * DEPTH_BYTES);
     mem_read(m, "stencil", tally.stencil_reads * u64::from(STENCIL_BYTES));
     mem_write(

@@ -28,7 +28,6 @@ pub mod raster;
 mod wedges;
 pub mod wgpu;
 
-use crate::record::phases;
 use std::collections::HashMap;
 
 use glam::{Vec2, Vec3};
@@ -43,6 +42,7 @@ use crate::algorithms::algorithm::{
 use crate::algorithms::work;
 use crate::error::InputError;
 use crate::frame::{Frame, RunParams};
+use crate::record::phases;
 use crate::scene::adjacency::{EdgeAdjacency, SilhouetteEdge};
 pub(crate) use crate::scene::polygon::clip_half_plane;
 use crate::scene::LightKind;

@@ -40,13 +40,13 @@
 //! the soft pass accumulates one f32 per channel (III §4.1), writing the light received per
 //! channel and its luminance fraction as the visibility.
 
-use super::Phase;
 use std::time::Instant;
 
 use glam::Vec3;
 use serde_json::json;
 
 use super::wedges::{build_wedge, coverage_texture, wedge_primitives, wedge_reach, WedgePrimitive};
+use super::Phase;
 use super::{
     split_light, CoverageMethod, CoverageTexture, EmitterShape, GpuPipeline,
     SoftShadowVolumeOptions, SubLightLoops, VBufferPrecision, Wedge, ID,
@@ -58,6 +58,7 @@ use crate::algorithms::shadow_volume::wgpu::{
     HardUpload, FACE_BYTES, QUAD_BYTES, RAY_BYTES, RECORDS_WGSL, TILE, WORD,
 };
 use crate::algorithms::shadow_volume::{Counting, ShadowQuad};
+use crate::counters::names;
 use crate::error::Result;
 use crate::frame::Frame;
 use crate::gpu::pass::{
@@ -482,11 +483,11 @@ pub(super) fn run_loops<P: Pipeline>(
     for (lr, (quads, w, hard, soft)) in runs.iter().zip(&loops) {
         let r = p.replay(hard, soft, &mut hard_c)?;
         if let Some(n) = lr.silhouette_edges {
-            hard_c.add("silhouette_edges", n as f64);
+            hard_c.add(names::SILHOUETTE_EDGES, n as f64);
         }
-        hard_c.add("shadow_quads", *quads as f64);
-        wedges_c.add("wedges", w.wedges as f64);
-        wedges_c.add("wedges_degenerate", w.degenerate as f64);
+        hard_c.add(names::SHADOW_QUADS, *quads as f64);
+        wedges_c.add(names::WEDGES, w.wedges as f64);
+        wedges_c.add(names::WEDGES_DEGENERATE, w.degenerate as f64);
         let pixels = rays.len() as u64;
         soft_counters(&mut soft_c, (opts, res.channels, pixels), w, &r);
     }
@@ -628,7 +629,7 @@ impl Pipeline for Gather<'_> {
             .map(|b| Slots::of(&b));
         let hard = |s: HardStat| hard.get(s as usize);
         let [fill, passed, tests] = [HardStat::Fill, HardStat::Passed, HardStat::Tests].map(hard);
-        k.add("quad_tests", tests);
+        k.add(names::QUAD_TESTS, tests);
         let record = match self.hard.counting {
             Counting::ZFail => FACE_BYTES,
             Counting::ZPass => QUAD_BYTES,
@@ -671,17 +672,17 @@ fn soft_counters(
         (fill, front, 0.0, 0.0, 0.0)
     };
     k.add_fill(raster_fill, raster_fill - contributing);
-    k.add("shader_invocations", shaded);
-    k.add("culled_fragments", culled);
-    k.add("fragments_inside_wedges", covered);
-    k.add("wedge_tests", tests);
-    k.add("wedge_primitives", w.prims.len() as f64);
+    k.add(names::SHADER_INVOCATIONS, shaded);
+    k.add(names::CULLED_FRAGMENTS, culled);
+    k.add(names::FRAGMENTS_INSIDE_WEDGES, covered);
+    k.add(names::WEDGE_TESTS, tests);
+    k.add(names::WEDGE_PRIMITIVES, w.prims.len() as f64);
     let texture_reads = if opts.coverage == CoverageMethod::Texture {
         CoverageTexture::READS as f64 * covered
     } else {
         0.0
     };
-    k.add("coverage_texture_reads", texture_reads);
+    k.add(names::COVERAGE_TEXTURE_READS, texture_reads);
     // Bytes: one per channel of each texel read.
     let texture_reads = texture_reads * f64::from(channels);
     // Planes per primitive (none without primitives).
