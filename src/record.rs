@@ -59,7 +59,7 @@ impl Counters {
 }
 
 /// A phase of an algorithm's runs as every execution of it names it (a record's
-/// `phases[].name`): one enum per algorithm or family, declared with [`phases!`], so that a CPU
+/// `phases[].name`): one enum per algorithm or family, declared with `phases!`, so that a CPU
 /// step (`Machine::phase`) and a GPU submission (`gpu::pass::Timed`) name the same phase by the
 /// same value and a phase name cannot be misspelt.
 pub trait PhaseId: Copy + PartialEq + std::fmt::Debug {

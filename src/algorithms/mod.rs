@@ -1,6 +1,6 @@
 //! The algorithms, one folder each: its math once in `mod.rs`, then one file per execution.
 //!
-//! Every algorithm takes the same [`Frame`] and returns a [`FrameOutput`] (visibility buffer,
+//! Every algorithm takes the same [`Frame`](crate::frame::Frame) and returns a [`FrameOutput`] (visibility buffer,
 //! counters, phases, times); the harness adds quality against the reference and writes results.
 //! This module holds the list ([`ALGORITHMS`]) and its lookup; what an algorithm is sits in
 //! [`algorithm`].
