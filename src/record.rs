@@ -287,8 +287,8 @@ pub fn fmt_light_size(v: f32) -> String {
 /// The identifier of a run: scene, algorithm (with its variant, `RunRecord::variant`),
 /// backend and every parameter. It names the run's image folder (`images/<case_id>/`), so it
 /// is always one safe file name component: the scene, algorithm and variant (user text in a
-/// results file) and the backend's name go through [`crate::util::paths::slug`], and the whole identifier
-/// is cut to 200 bytes (with a hash of the rest) when it grows longer.
+/// results file) and the backend's name go through [`crate::util::paths::slug`], and the whole
+/// identifier is cut to 200 bytes (with a hash of the rest) when it grows longer.
 pub fn case_id(
     scene: &str,
     (algorithm, variant): (&str, Option<&str>),

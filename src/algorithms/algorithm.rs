@@ -153,9 +153,9 @@ impl WgpuParity {
 
 /// One algorithm as the registry runs it: its description, its typed options (parsed and
 /// validated once per sweep, by [`Algorithm::options`] in [`AlgorithmInfo::configure`]), and one
-/// entry per execution. An
-/// algorithm implements this in its folder's `mod.rs`; [`ALGORITHMS`](super::ALGORITHMS) lists it with
-/// [`AlgorithmInfo::of`], the only place an algorithm is added.
+/// entry per execution. An algorithm implements this in its folder's `mod.rs`;
+/// [`ALGORITHMS`](super::ALGORITHMS) lists it with [`AlgorithmInfo::of`], the only place an
+/// algorithm is added.
 pub trait Algorithm {
     /// Its name in scenarios, records and charts (`options.<ID>` holds its options).
     const ID: &'static str;

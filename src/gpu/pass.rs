@@ -1044,6 +1044,17 @@ pub struct Timed<'g, 'b> {
     plan: Vec<String>,
 }
 
+/// The index of `phase` in a run's phase `names` (with their `wall` times): a phase not among
+/// them is added after them, with no time yet.
+fn phase_index(names: &mut Vec<String>, wall: &mut Vec<f64>, phase: impl PhaseId) -> usize {
+    let name = phase.name();
+    names.iter().position(|n| n == name).unwrap_or_else(|| {
+        names.push(name.to_string());
+        wall.push(0.0);
+        names.len() - 1
+    })
+}
+
 /// When an instrumented replay derived from a run ([`Timed::counting_into`]) reads its counts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Readout {
@@ -1091,18 +1102,9 @@ impl<'g, 'b> Timed<'g, 'b> {
         self
     }
 
-    /// The index of `phase` among the run's phases (added after them when not given to
-    /// [`Self::new`]).
+    /// The index of `phase` among the run's phases ([`phase_index`]).
     fn at(&mut self, phase: impl PhaseId) -> usize {
-        let name = phase.name();
-        match self.names.iter().position(|n| n == name) {
-            Some(i) => i,
-            None => {
-                self.names.push(name.to_string());
-                self.wall.push(0.0);
-                self.names.len() - 1
-            }
-        }
+        phase_index(&mut self.names, &mut self.wall, phase)
     }
 
     /// Submits `passes` of phase `phase` and waits for them; their wall time goes to the phase.
@@ -1280,8 +1282,7 @@ fn replay_steps<'b>(
 impl Timing<'_> {
     /// The frame output: the visibility (the first readback buffer, `width`×`height`), one
     /// phase per phase of the run with its `counters` (none where `counters` do not name it) and
-    /// the pipeline statistics of its passes, the
-    /// counters of all phases summed, the GPU time of all passes, and in `execution` the
+    /// the pipeline statistics of its passes, the counters of all phases summed, the GPU time of all passes, and in `execution` the
     /// adapter, how the GPU time was obtained, the readback time and `note` (how the counters
     /// were obtained).
     ///
@@ -1295,19 +1296,13 @@ impl Timing<'_> {
         counters: Vec<(P, Counters)>,
         note: &str,
     ) -> FrameOutput {
-        let mut per_phase = vec![Counters::default(); self.names.len()];
-        for (p, c) in counters {
-            match self.names.iter().position(|n| n == p.name()) {
-                Some(i) if per_phase[i].0.is_empty() => per_phase[i] = c,
-                Some(i) => per_phase[i].merge(&c),
-                None => {
-                    self.names.push(p.name().to_string());
-                    self.wall.push(0.0);
-                    per_phase.push(c);
-                }
-            }
+        let at: Vec<(usize, Counters)> = (counters.into_iter())
+            .map(|(p, c)| (phase_index(&mut self.names, &mut self.wall, p), c))
+            .collect();
+        let mut counters = vec![Counters::default(); self.names.len()];
+        for (i, c) in at {
+            counters[i].merge(&c);
         }
-        let counters = per_phase;
         let off = self.gpu.counters() == GpuCounters::Off;
         let absent: std::collections::BTreeSet<String> = match off {
             true => counters.iter().flat_map(|c| c.0.keys().cloned()).collect(),

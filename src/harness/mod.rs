@@ -631,18 +631,17 @@ fn plan_runs(
     cases: &[crate::scenario::Case],
 ) -> Result<(Vec<Planned>, usize)> {
     let s = &loaded.scenario;
+    // Validated with the scenario; an error still names the scenario's file.
+    let in_file = |mut e: crate::error::InputError| {
+        e.file = Some(loaded.path.clone());
+        e
+    };
     let mut algorithms = Vec::new();
     for a in &s.algorithms {
         if opts.only.as_ref().is_none_or(|o| o.contains(a)) {
-            // Validated with the scenario; an error still names the scenario's file.
-            let in_file = |mut e: crate::error::InputError| {
-                e.file = Some(loaded.path.clone());
-                e
-            };
             let info = algorithms::find(a)
                 .map_err(|e| in_file(crate::error::InputError::new("$.algorithms", e)))?;
-            let configured = info.configure(&s.options).map_err(in_file)?;
-            algorithms.push((a, configured));
+            algorithms.push(info.configure(&s.options).map_err(in_file)?);
         }
     }
     let mut backends: Vec<Backend> = s
@@ -665,7 +664,7 @@ fn plan_runs(
     let mut plan = Vec::new();
     let mut skipped = Vec::new();
     for ci in 0..cases.len() {
-        for (a, configured) in &algorithms {
+        for configured in &algorithms {
             let info = configured.info;
             for &b in &backends {
                 if info.backends.contains(&b) {
@@ -677,7 +676,7 @@ fn plan_runs(
                 } else if ci == 0 && opts.backends.as_ref().is_some_and(|o| o.contains(&b)) {
                     // Only where --backend asked for it: a scenario's list of executions
                     // covers every algorithm, and which each has is in `list`.
-                    skipped.push(format!("{a} on {b}"));
+                    skipped.push(format!("{} on {b}", info.id));
                 }
             }
         }

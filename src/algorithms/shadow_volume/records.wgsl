@@ -1,7 +1,7 @@
 // The records and geometry every shadow-volume pass on wgpu reads (shadow_volume/wgpu.rs), no
 // bindings: the eye rays, the shadow quads and the tests on them. Joined before the family's hard
-// pass (wgpu.wgsl), soft_shadow_volume's soft pass and the raster hard pass (raster.wgsl). Every
-// function names the Rust it mirrors.
+// pass (wgpu.wgsl, and so accum_hard's gather), soft_shadow_volume's soft pass and its wedge
+// raster (soft_shadow_volume/raster.wgsl). Every function names the Rust it mirrors.
 
 // Side of the screen tiles primitives are binned to (`TILE` in wgpu.rs).
 const TILE: u32 = 8u;
